@@ -1,0 +1,3 @@
+fn main() {
+    eprintln!("vtex {}", env!("CARGO_PKG_VERSION"));
+}

@@ -1,0 +1,250 @@
+//! The encoding bundle: one file per texture, a JSON manifest plus named binary sections.
+//!
+//! Layout (all integers little-endian):
+//!
+//! ```text
+//! "VTEXBNDL"  magic, 8 bytes
+//! u32         container version (1)
+//! u32         manifest length, then the manifest: UTF-8 JSON {format, model, name, params}
+//! u32         section count, then per section:
+//!             u8 name length, name ([a-z0-9._-]), u64 data length, data
+//! ```
+//!
+//! Nothing may follow the last section. The bundle's id is the BLAKE3 hash of its bytes,
+//! so a texture's URLs never change meaning. Parsing checks every length against the bytes
+//! actually present before reading, so a truncated or lying bundle is an error, not a panic.
+
+use crate::{Error, Result};
+use serde::{Deserialize, Serialize};
+
+pub const MAGIC: &[u8; 8] = b"VTEXBNDL";
+pub const CONTAINER_VERSION: u32 = 1;
+/// The manifest's `format` field for this version.
+pub const FORMAT: &str = "vtex-bundle/1";
+pub const MAX_MANIFEST_BYTES: usize = 1 << 20;
+pub const MAX_SECTIONS: usize = 64;
+/// Upper bound of a whole bundle. Encodings are kilobytes to a few megabytes.
+pub const MAX_BUNDLE_BYTES: usize = 64 << 20;
+
+/// The JSON part of a bundle.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Manifest {
+    pub format: String,
+    /// Model id (DESIGN §2).
+    pub model: String,
+    /// Human-readable name shown by viewers.
+    pub name: String,
+    /// Model parameters; each model defines and validates its own.
+    pub params: serde_json::Value,
+}
+
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct Section {
+    pub name: String,
+    pub data: Vec<u8>,
+}
+
+/// A parsed (or about to be written) encoding.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Bundle {
+    pub manifest: Manifest,
+    pub sections: Vec<Section>,
+}
+
+impl Bundle {
+    pub fn new(model: &str, name: &str, params: serde_json::Value) -> Self {
+        Self {
+            manifest: Manifest { format: FORMAT.into(), model: model.into(), name: name.into(), params },
+            sections: Vec::new(),
+        }
+    }
+
+    pub fn with_section(mut self, name: &str, data: Vec<u8>) -> Self {
+        self.sections.push(Section { name: name.into(), data });
+        self
+    }
+
+    /// The section called `name`, or an error naming it.
+    pub fn section(&self, name: &str) -> Result<&[u8]> {
+        self.sections
+            .iter()
+            .find(|s| s.name == name)
+            .map(|s| s.data.as_slice())
+            .ok_or_else(|| Error::bundle(format!("missing section `{name}`")))
+    }
+
+    /// The model parameters decoded into the model's own type.
+    pub fn params<T: serde::de::DeserializeOwned>(&self) -> Result<T> {
+        serde_json::from_value(self.manifest.params.clone()).map_err(|e| Error::bundle(format!("params: {e}")))
+    }
+
+    pub fn to_bytes(&self) -> Vec<u8> {
+        let manifest = serde_json::to_vec(&self.manifest).expect("a manifest always serializes");
+        let mut out =
+            Vec::with_capacity(32 + manifest.len() + self.sections.iter().map(|s| s.data.len() + 16).sum::<usize>());
+        out.extend_from_slice(MAGIC);
+        out.extend_from_slice(&CONTAINER_VERSION.to_le_bytes());
+        out.extend_from_slice(&(manifest.len() as u32).to_le_bytes());
+        out.extend_from_slice(&manifest);
+        out.extend_from_slice(&(self.sections.len() as u32).to_le_bytes());
+        for s in &self.sections {
+            out.push(s.name.len() as u8);
+            out.extend_from_slice(s.name.as_bytes());
+            out.extend_from_slice(&(s.data.len() as u64).to_le_bytes());
+            out.extend_from_slice(&s.data);
+        }
+        out
+    }
+
+    /// Parses and checks the container. Model-level validation happens in
+    /// [`crate::models::load`].
+    pub fn from_bytes(bytes: &[u8]) -> Result<Self> {
+        if bytes.len() > MAX_BUNDLE_BYTES {
+            return Err(Error::bundle(format!("{} bytes; at most {MAX_BUNDLE_BYTES}", bytes.len())));
+        }
+        let mut r = Reader { bytes, pos: 0 };
+        if r.take(8, "magic")? != MAGIC {
+            return Err(Error::bundle("not a vtex bundle (bad magic)"));
+        }
+        let version = r.u32("container version")?;
+        if version != CONTAINER_VERSION {
+            return Err(Error::bundle(format!("container version {version}; this build reads {CONTAINER_VERSION}")));
+        }
+        let manifest_len = r.u32("manifest length")? as usize;
+        if manifest_len > MAX_MANIFEST_BYTES {
+            return Err(Error::bundle(format!("manifest of {manifest_len} bytes; at most {MAX_MANIFEST_BYTES}")));
+        }
+        let manifest: Manifest = serde_json::from_slice(r.take(manifest_len, "manifest")?)
+            .map_err(|e| Error::bundle(format!("manifest: {e}")))?;
+        if manifest.format != FORMAT {
+            return Err(Error::bundle(format!("manifest format `{}`; expected `{FORMAT}`", manifest.format)));
+        }
+        if manifest.name.chars().count() > 200 {
+            return Err(Error::bundle("name longer than 200 characters"));
+        }
+        let count = r.u32("section count")? as usize;
+        if count > MAX_SECTIONS {
+            return Err(Error::bundle(format!("{count} sections; at most {MAX_SECTIONS}")));
+        }
+        let mut sections: Vec<Section> = Vec::with_capacity(count);
+        for i in 0..count {
+            let name_len = r.take(1, "section name length")?[0] as usize;
+            let name = std::str::from_utf8(r.take(name_len, "section name")?)
+                .ok()
+                .filter(|n| valid_section_name(n))
+                .ok_or_else(|| Error::bundle(format!("section {i} has an invalid name")))?
+                .to_string();
+            if sections.iter().any(|s| s.name == name) {
+                return Err(Error::bundle(format!("section `{name}` appears twice")));
+            }
+            let len = r.u64("section length")?;
+            let data = r.take(usize::try_from(len).unwrap_or(usize::MAX), &format!("section `{name}`"))?.to_vec();
+            sections.push(Section { name, data });
+        }
+        if r.pos != bytes.len() {
+            return Err(Error::bundle(format!("{} unexpected bytes after the last section", bytes.len() - r.pos)));
+        }
+        Ok(Self { manifest, sections })
+    }
+}
+
+/// The content id of bundle bytes: lowercase hex BLAKE3, 64 characters.
+pub fn id_of(bytes: &[u8]) -> String {
+    blake3::hash(bytes).to_hex().to_string()
+}
+
+/// True for strings that look like an id from [`id_of`]; anything else never reaches a path.
+pub fn is_valid_id(id: &str) -> bool {
+    id.len() == 64 && id.bytes().all(|b| b.is_ascii_digit() || (b'a'..=b'f').contains(&b))
+}
+
+fn valid_section_name(n: &str) -> bool {
+    !n.is_empty() && n.bytes().all(|b| b.is_ascii_lowercase() || b.is_ascii_digit() || b"._-".contains(&b))
+}
+
+struct Reader<'a> {
+    bytes: &'a [u8],
+    pos: usize,
+}
+
+impl<'a> Reader<'a> {
+    fn take(&mut self, n: usize, what: &str) -> Result<&'a [u8]> {
+        let left = self.bytes.len() - self.pos;
+        if n > left {
+            return Err(Error::bundle(format!("truncated: {what} needs {n} bytes, {left} left")));
+        }
+        let s = &self.bytes[self.pos..self.pos + n];
+        self.pos += n;
+        Ok(s)
+    }
+
+    fn u32(&mut self, what: &str) -> Result<u32> {
+        Ok(u32::from_le_bytes(self.take(4, what)?.try_into().unwrap()))
+    }
+
+    fn u64(&mut self, what: &str) -> Result<u64> {
+        Ok(u64::from_le_bytes(self.take(8, what)?.try_into().unwrap()))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn sample() -> Bundle {
+        Bundle::new("test", "a test", serde_json::json!({"k": 1}))
+            .with_section("sample.png", vec![1, 2, 3])
+            .with_section("blocks", vec![9; 40])
+    }
+
+    #[test]
+    fn round_trip_and_id() {
+        let b = sample();
+        let bytes = b.to_bytes();
+        assert_eq!(Bundle::from_bytes(&bytes).unwrap(), b);
+        let id = id_of(&bytes);
+        assert!(is_valid_id(&id));
+        assert_eq!(id, id_of(&b.to_bytes()), "serialization is deterministic");
+    }
+
+    #[test]
+    fn every_truncation_is_an_error() {
+        let bytes = sample().to_bytes();
+        for cut in 0..bytes.len() {
+            assert!(Bundle::from_bytes(&bytes[..cut]).is_err(), "truncated at {cut} parsed");
+        }
+    }
+
+    #[test]
+    fn trailing_garbage_and_lies_are_errors() {
+        let mut bytes = sample().to_bytes();
+        bytes.push(0);
+        assert!(Bundle::from_bytes(&bytes).unwrap_err().to_string().contains("unexpected bytes"));
+
+        let mut lying = sample().to_bytes();
+        let n = lying.len();
+        // The last section's length field sits 8 + 40 bytes from the end: claim 2^63 bytes.
+        lying[n - 48..n - 40].copy_from_slice(&(1u64 << 63).to_le_bytes());
+        assert!(Bundle::from_bytes(&lying).unwrap_err().to_string().contains("truncated"));
+    }
+
+    #[test]
+    fn bad_names_and_formats() {
+        let b = Bundle::new("m", "n", serde_json::json!({})).with_section("../x", vec![]);
+        assert!(Bundle::from_bytes(&b.to_bytes()).unwrap_err().to_string().contains("invalid name"));
+        let mut b = sample();
+        b.manifest.format = "other/9".into();
+        assert!(Bundle::from_bytes(&b.to_bytes()).unwrap_err().to_string().contains("format"));
+        let twice = sample().with_section("blocks", vec![]);
+        assert!(Bundle::from_bytes(&twice.to_bytes()).unwrap_err().to_string().contains("twice"));
+        assert!(Bundle::from_bytes(b"PNG....").is_err());
+    }
+
+    #[test]
+    fn ids_are_checked() {
+        assert!(!is_valid_id("../../etc/passwd"));
+        assert!(!is_valid_id(&"A".repeat(64)));
+        assert!(is_valid_id(&"0a".repeat(32)));
+    }
+}

@@ -1,0 +1,33 @@
+//! One error type for everything a caller can get wrong: each variant names the problem.
+
+/// What was wrong with an encoding, an image, a parameter or a request.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+pub enum Error {
+    #[error("invalid bundle: {0}")]
+    Bundle(String),
+    #[error("invalid image `{name}`: {reason}")]
+    Image { name: String, reason: String },
+    #[error("invalid parameter `{name}`: {reason}")]
+    Param { name: String, reason: String },
+    #[error("invalid region: {0}")]
+    Region(String),
+    #[error("unknown model `{0}`")]
+    UnknownModel(String),
+}
+
+pub type Result<T, E = Error> = std::result::Result<T, E>;
+
+impl Error {
+    /// An invalid parameter, named as it appears in the encoding's JSON.
+    pub fn param(name: impl Into<String>, reason: impl Into<String>) -> Self {
+        Error::Param { name: name.into(), reason: reason.into() }
+    }
+
+    pub fn image(name: impl Into<String>, reason: impl Into<String>) -> Self {
+        Error::Image { name: name.into(), reason: reason.into() }
+    }
+
+    pub fn bundle(reason: impl Into<String>) -> Self {
+        Error::Bundle(reason.into())
+    }
+}

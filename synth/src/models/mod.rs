@@ -1,0 +1,52 @@
+//! The texture models, and the registry that creates and loads any of them by model id.
+//!
+//! Each model module offers the same three functions, wired in below:
+//! `create(name, params, inputs) -> Bundle` makes an encoding from parameters and input
+//! images, `load(&Bundle) -> Model` validates an encoding completely before use, and
+//! `demos() -> Vec<Bundle>` makes its demo encodings from project-made inputs.
+
+use crate::{bundle::Bundle, Error, Result, Texture};
+use std::collections::BTreeMap;
+use std::sync::Arc;
+
+/// Input images by name (PNG bytes), e.g. `sample` for the chaos mosaic.
+pub type Inputs = BTreeMap<String, Vec<u8>>;
+
+/// The model ids this build knows.
+pub const MODELS: &[&str] = &[];
+
+/// Makes a new encoding of `model` from its JSON parameters and input images.
+pub fn create(model: &str, name: &str, _params: &serde_json::Value, _inputs: &Inputs) -> Result<Bundle> {
+    check_name(name)?;
+    match model {
+        other => Err(Error::UnknownModel(other.into())),
+    }
+}
+
+/// Validates an encoding completely and returns the texture it describes.
+pub fn load(bundle: &Bundle) -> Result<Arc<dyn Texture>> {
+    match bundle.manifest.model.as_str() {
+        other => Err(Error::UnknownModel(other.into())),
+    }
+}
+
+/// Every model's demo encodings.
+pub fn demos() -> Vec<Bundle> {
+    let mut all: Vec<Bundle> = Vec::new();
+    all.sort_by(|a, b| a.manifest.name.cmp(&b.manifest.name));
+    all
+}
+
+fn check_name(name: &str) -> Result<()> {
+    let n = name.chars().count();
+    if n == 0 || n > 200 || name.chars().any(char::is_control) {
+        return Err(Error::param("name", "1 to 200 printable characters"));
+    }
+    Ok(())
+}
+
+/// The input image called `name`, decoded, or an error naming it.
+pub fn input_image(inputs: &Inputs, name: &str) -> Result<crate::Rgba8Image> {
+    let bytes = inputs.get(name).ok_or_else(|| Error::image(name, "missing; this model needs it"))?;
+    crate::pixels::decode_png(name, bytes)
+}

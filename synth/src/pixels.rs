@@ -1,0 +1,160 @@
+//! RGBA8 pixel buffers, and PNG decoding that refuses hostile input before allocating.
+
+use crate::{Error, Result};
+
+/// Largest side of a decoded sample or map image. Samples are small by design.
+pub const MAX_IMAGE_SIDE: u32 = 4096;
+/// Largest decoder allocation for one image: a 4096² RGBA8 image plus headroom.
+pub const MAX_IMAGE_ALLOC: u64 = 96 << 20;
+
+/// A row-major RGBA8 image: 4 bytes a pixel, no padding.
+#[derive(Clone, PartialEq, Eq)]
+pub struct Rgba8Image {
+    pub width: u32,
+    pub height: u32,
+    pub data: Vec<u8>,
+}
+
+impl std::fmt::Debug for Rgba8Image {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(f, "Rgba8Image({}×{})", self.width, self.height)
+    }
+}
+
+impl Rgba8Image {
+    /// A transparent black image.
+    pub fn new(width: u32, height: u32) -> Self {
+        Self { width, height, data: vec![0; width as usize * height as usize * 4] }
+    }
+
+    /// Wraps raw RGBA8 bytes; `data` must hold exactly `width × height × 4` bytes.
+    pub fn from_raw(width: u32, height: u32, data: Vec<u8>) -> Result<Self> {
+        if data.len() != width as usize * height as usize * 4 {
+            return Err(Error::image("raw", format!("{} bytes for {width}×{height} RGBA8", data.len())));
+        }
+        Ok(Self { width, height, data })
+    }
+
+    #[inline]
+    pub fn pixel(&self, x: u32, y: u32) -> [u8; 4] {
+        let i = (y as usize * self.width as usize + x as usize) * 4;
+        [self.data[i], self.data[i + 1], self.data[i + 2], self.data[i + 3]]
+    }
+
+    #[inline]
+    pub fn set_pixel(&mut self, x: u32, y: u32, p: [u8; 4]) {
+        let i = (y as usize * self.width as usize + x as usize) * 4;
+        self.data[i..i + 4].copy_from_slice(&p);
+    }
+
+    /// The `w × h` rectangle at (x, y), which must lie inside the image.
+    pub fn crop(&self, x: u32, y: u32, w: u32, h: u32) -> Rgba8Image {
+        assert!(x + w <= self.width && y + h <= self.height, "crop outside the image");
+        let mut out = Rgba8Image::new(w, h);
+        let row = w as usize * 4;
+        for r in 0..h as usize {
+            let src = ((y as usize + r) * self.width as usize + x as usize) * 4;
+            out.data[r * row..(r + 1) * row].copy_from_slice(&self.data[src..src + row]);
+        }
+        out
+    }
+
+    /// Copies `src` into this image with its top-left corner at (x, y); it must fit.
+    pub fn blit(&mut self, src: &Rgba8Image, x: u32, y: u32) {
+        assert!(x + src.width <= self.width && y + src.height <= self.height, "blit outside the image");
+        let row = src.width as usize * 4;
+        for r in 0..src.height as usize {
+            let dst = ((y as usize + r) * self.width as usize + x as usize) * 4;
+            self.data[dst..dst + row].copy_from_slice(&src.data[r * row..(r + 1) * row]);
+        }
+    }
+
+    /// True when every pixel is fully opaque.
+    pub fn is_opaque(&self) -> bool {
+        self.data.chunks_exact(4).all(|p| p[3] == 255)
+    }
+
+    /// The PNG encoding of this image (lossless; used for samples inside bundles).
+    pub fn to_png(&self) -> Vec<u8> {
+        let mut out = Vec::new();
+        let encoder = image::codecs::png::PngEncoder::new(&mut out);
+        image::ImageEncoder::write_image(encoder, &self.data, self.width, self.height, image::ExtendedColorType::Rgba8)
+            .expect("encoding a well-formed RGBA8 buffer to memory cannot fail");
+        out
+    }
+}
+
+/// Decodes an untrusted PNG into RGBA8. The declared size is checked against
+/// [`MAX_IMAGE_SIDE`] before any pixel memory is allocated, so a decompression bomb or a
+/// header that lies about its size is refused, not obeyed. `name` is used in errors.
+pub fn decode_png(name: &str, bytes: &[u8]) -> Result<Rgba8Image> {
+    use image::ImageDecoder;
+    let fail = |reason: String| Error::image(name, reason);
+    if !bytes.starts_with(b"\x89PNG\r\n\x1a\n") {
+        return Err(fail("not a PNG file (bad signature)".into()));
+    }
+    let mut decoder =
+        image::codecs::png::PngDecoder::new(std::io::Cursor::new(bytes)).map_err(|e| fail(e.to_string()))?;
+    let (w, h) = decoder.dimensions();
+    if w == 0 || h == 0 || w > MAX_IMAGE_SIDE || h > MAX_IMAGE_SIDE {
+        return Err(fail(format!("{w}×{h} pixels; each side must be 1..={MAX_IMAGE_SIDE}")));
+    }
+    let mut limits = image::Limits::default();
+    limits.max_image_width = Some(MAX_IMAGE_SIDE);
+    limits.max_image_height = Some(MAX_IMAGE_SIDE);
+    limits.max_alloc = Some(MAX_IMAGE_ALLOC);
+    decoder.set_limits(limits).map_err(|e| fail(e.to_string()))?;
+    let img = image::DynamicImage::from_decoder(decoder).map_err(|e| fail(e.to_string()))?;
+    let rgba = img.into_rgba8();
+    Ok(Rgba8Image { width: w, height: h, data: rgba.into_raw() })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn checker(w: u32, h: u32) -> Rgba8Image {
+        let mut img = Rgba8Image::new(w, h);
+        for y in 0..h {
+            for x in 0..w {
+                let v = if (x + y) % 2 == 0 { 255 } else { 0 };
+                img.set_pixel(x, y, [v, x as u8, y as u8, 255]);
+            }
+        }
+        img
+    }
+
+    #[test]
+    fn png_round_trip() {
+        let img = checker(17, 9);
+        assert_eq!(decode_png("s", &img.to_png()).unwrap(), img);
+    }
+
+    #[test]
+    fn refuses_non_png_and_truncated() {
+        assert!(matches!(decode_png("s", b"GIF89a"), Err(Error::Image { .. })));
+        let png = checker(32, 32).to_png();
+        for cut in [8, 20, 40, png.len() - 5] {
+            assert!(decode_png("s", &png[..cut]).is_err(), "cut at {cut}");
+        }
+    }
+
+    #[test]
+    fn refuses_lying_dimensions_before_allocating() {
+        // Rewrite the IHDR width to 100000: the decoder must refuse from the header alone.
+        let mut png = checker(8, 8).to_png();
+        png[16..20].copy_from_slice(&100_000u32.to_be_bytes());
+        let err = decode_png("sample", &png).unwrap_err().to_string();
+        assert!(err.contains("sample"), "{err}");
+    }
+
+    #[test]
+    fn crop_and_blit_are_inverse() {
+        let img = checker(10, 8);
+        let part = img.crop(3, 2, 4, 5);
+        let mut back = Rgba8Image::new(10, 8);
+        back.blit(&part, 3, 2);
+        assert_eq!(back.crop(3, 2, 4, 5), part);
+        assert_eq!(part.pixel(0, 0), img.pixel(3, 2));
+    }
+}

@@ -1,0 +1,156 @@
+//! The interface every texture model implements, and the checks made before calling it.
+
+use crate::{pixels::Rgba8Image, Error, Result};
+
+/// Largest region one call may render: 64 Mpx (256 MiB of RGBA8). Servers set lower bounds.
+pub const MAX_REGION_PIXELS: u64 = 1 << 26;
+
+/// A rectangle of one mip level at one animation frame. Level 0 is full resolution; level L
+/// has size ceil(W / 2^L) × ceil(H / 2^L). Coordinates may lie outside the level: a
+/// [`Domain::Torus`] texture wraps, a [`Domain::Plane`] texture is defined everywhere.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub struct Region {
+    pub level: u32,
+    pub x: i64,
+    pub y: i64,
+    pub width: u32,
+    pub height: u32,
+    /// Animation frame; ignored by textures that do not move.
+    pub frame: u32,
+}
+
+impl Region {
+    pub fn new(level: u32, x: i64, y: i64, width: u32, height: u32) -> Self {
+        Self { level, x, y, width, height, frame: 0 }
+    }
+
+    pub fn at_frame(self, frame: u32) -> Self {
+        Self { frame, ..self }
+    }
+
+    pub fn pixel_count(&self) -> u64 {
+        self.width as u64 * self.height as u64
+    }
+
+    /// Bytes of the RGBA8 output buffer.
+    pub fn byte_len(&self) -> usize {
+        self.pixel_count() as usize * 4
+    }
+}
+
+/// Where a texture is defined.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Domain {
+    /// Periodic with the texture's size: it tiles without a seam.
+    Torus,
+    /// Defined on the whole integer plane; the size is only the extent that is served.
+    Plane,
+}
+
+/// How an animated texture moves: `frame` in [`Region`] counts ticks at `fps`.
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct Animation {
+    pub fps: f32,
+    /// Frames after which the animation repeats exactly; 0 when it never does.
+    pub period_frames: u32,
+}
+
+/// A virtual texture: a pure function from a region to RGBA8 pixels.
+///
+/// Implementations must make every output pixel depend only on (encoding, level, x, y,
+/// frame) — never on the region's other pixels, its size, the call order or any cache —
+/// so that a tile always equals the matching crop of any larger region.
+pub trait Texture: Send + Sync {
+    /// The model id, as in DESIGN §2 (`chaos-mosaic`, `lcm`, …).
+    fn model(&self) -> &'static str;
+    /// Level-0 width in pixels.
+    fn width(&self) -> u64;
+    /// Level-0 height in pixels.
+    fn height(&self) -> u64;
+    fn domain(&self) -> Domain;
+    fn animation(&self) -> Option<Animation> {
+        None
+    }
+    /// Writes `region` as row-major RGBA8 into `out` (exactly `region.byte_len()` bytes).
+    /// Called only with regions that passed [`check_region`].
+    fn render(&self, region: &Region, out: &mut [u8]);
+}
+
+/// Size of `level` for a texture of `width × height` at level 0.
+pub fn level_size(width: u64, height: u64, level: u32) -> (u64, u64) {
+    let d = |v: u64| if level >= 64 { 1 } else { v.div_ceil(1u64 << level).max(1) };
+    (d(width), d(height))
+}
+
+/// Number of levels down to 1 × 1 inclusive.
+pub fn level_count(width: u64, height: u64) -> u32 {
+    let side = width.max(height).max(1);
+    // ceil(log2(side)) + 1
+    (64 - (side - 1).leading_zeros()) + 1
+}
+
+/// Checks a region against a texture before rendering: a level that exists, a non-empty
+/// area within [`MAX_REGION_PIXELS`], coordinates whose far corner does not overflow.
+pub fn check_region(tex: &dyn Texture, region: &Region) -> Result<()> {
+    let levels = level_count(tex.width(), tex.height());
+    if region.level >= levels {
+        return Err(Error::Region(format!("level {} does not exist; levels are 0..{}", region.level, levels)));
+    }
+    if region.width == 0 || region.height == 0 {
+        return Err(Error::Region(format!("empty region {}×{}", region.width, region.height)));
+    }
+    if region.pixel_count() > MAX_REGION_PIXELS {
+        return Err(Error::Region(format!(
+            "{}×{} is {} pixels; at most {MAX_REGION_PIXELS} per call",
+            region.width,
+            region.height,
+            region.pixel_count()
+        )));
+    }
+    let far = |v: i64, d: u32| v.checked_add(d as i64).is_none();
+    if far(region.x, region.width) || far(region.y, region.height) {
+        return Err(Error::Region("coordinates overflow".into()));
+    }
+    Ok(())
+}
+
+/// Checks and renders a region into a new image.
+pub fn render_image(tex: &dyn Texture, region: &Region) -> Result<Rgba8Image> {
+    check_region(tex, region)?;
+    let mut img = Rgba8Image::new(region.width, region.height);
+    tex.render(region, &mut img.data);
+    Ok(img)
+}
+
+/// Reduces a coordinate onto a torus of period `period`.
+#[inline]
+pub fn wrap(v: i64, period: u64) -> u64 {
+    v.rem_euclid(period as i64) as u64
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn level_sizes_round_up() {
+        assert_eq!(level_size(100_000, 100_000, 0), (100_000, 100_000));
+        assert_eq!(level_size(100_000, 100_000, 5), (3125, 3125));
+        assert_eq!(level_size(100_000, 100_000, 6), (1563, 1563));
+        assert_eq!(level_size(100_000, 3, 10), (98, 1));
+        assert_eq!(level_count(1, 1), 1);
+        assert_eq!(level_count(2, 1), 2);
+        assert_eq!(level_count(256, 256), 9);
+        assert_eq!(level_count(257, 3), 10);
+        assert_eq!(level_size(100_000, 100_000, level_count(100_000, 100_000) - 1), (1, 1));
+        assert_eq!(level_size(100_000, 100_000, level_count(100_000, 100_000) - 2).0, 2);
+    }
+
+    #[test]
+    fn wrap_handles_negatives() {
+        assert_eq!(wrap(-1, 10), 9);
+        assert_eq!(wrap(25, 10), 5);
+        assert_eq!(wrap(i64::MIN, 7), i64::MIN.rem_euclid(7) as u64);
+    }
+}
