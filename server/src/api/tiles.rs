@@ -152,7 +152,9 @@ pub async fn region(
             }
         }
     }
-    let need = |v: Option<_>, name: &str| v.ok_or_else(|| ApiError::bad_request(format!("missing query parameter `{name}`")));
+    fn need<T>(v: Option<T>, name: &str) -> Result<T, ApiError> {
+        v.ok_or_else(|| ApiError::bad_request(format!("missing query parameter `{name}`")))
+    }
     let (level, x, y, w, h) = (need(level, "level")?, need(x, "x")?, need(y, "y")?, need(w, "w")?, need(h, "h")?);
     let format = format.unwrap_or(Format::Png);
     let frame = frame_for(&entry, frame.as_deref())?;
