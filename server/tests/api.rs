@@ -116,7 +116,9 @@ async fn tiles_in_every_format_with_headers() {
     assert_eq!(region.status(), 200);
     let full = region.bytes().await.unwrap().to_vec();
     assert_eq!(full.len(), 1200 * 1200 * 4);
-    for (fmt, ctype) in [("png", "image/png"), ("webp", "image/webp"), ("jpg", "image/jpeg"), ("rgba", "application/octet-stream")] {
+    for (fmt, ctype) in
+        [("png", "image/png"), ("webp", "image/webp"), ("jpg", "image/jpeg"), ("rgba", "application/octet-stream")]
+    {
         let (status, h, body) = get_bytes(&c, &s.tile_url(&id, 0, 4, 2, fmt)).await;
         assert_eq!(status, 200, "{fmt}");
         assert_eq!(h["content-type"], ctype);
@@ -203,8 +205,10 @@ async fn region_endpoint_and_its_bound() {
     let img = image::load_from_memory(&r.bytes().await.unwrap()).unwrap();
     assert_eq!((img.width(), img.height()), (300, 200));
     // Torus: x = -100 is x = 5020.
-    let a = c.get(format!("{base}?level=0&x=-100&y=0&w=100&h=10&format=rgba")).send().await.unwrap().bytes().await.unwrap();
-    let b = c.get(format!("{base}?level=0&x=5020&y=0&w=100&h=10&format=rgba")).send().await.unwrap().bytes().await.unwrap();
+    let a =
+        c.get(format!("{base}?level=0&x=-100&y=0&w=100&h=10&format=rgba")).send().await.unwrap().bytes().await.unwrap();
+    let b =
+        c.get(format!("{base}?level=0&x=5020&y=0&w=100&h=10&format=rgba")).send().await.unwrap().bytes().await.unwrap();
     assert_eq!(a, b);
     // 4096 × 4096 is allowed.
     let r = c.get(format!("{base}?level=0&x=0&y=0&w=4096&h=4096&format=rgba")).send().await.unwrap();
@@ -327,7 +331,8 @@ async fn demos_are_written_into_an_empty_data_dir() {
     let list: Value = c.get(s.url("/api/v1/textures")).send().await.unwrap().json().await.unwrap();
     let all = list["textures"].as_array().unwrap();
     assert_eq!(all.len(), vtex_synth::models::demos().len());
-    let big = all.iter().find(|t| t["width"] == 100_000 && t["model"] == "chaos-mosaic").expect("a 100k chaos mosaic demo");
+    let big =
+        all.iter().find(|t| t["width"] == 100_000 && t["model"] == "chaos-mosaic").expect("a 100k chaos mosaic demo");
     assert_eq!(big["height"], 100_000);
     assert_eq!(big["levels"], 10);
     assert!(big["encoding_bytes"].as_u64().unwrap() < 1 << 20);

@@ -115,7 +115,8 @@ async fn concurrent_misses_on_one_tile_synthesize_once() {
     let m = metrics(&c, &s).await;
     assert_eq!(metric(&m, "vtex_syntheses_total", &[]), 1.0, "64 concurrent requests, one synthesis");
     assert_eq!(
-        metric(&m, "vtex_tile_cache_hits_total", &[("level", "0")]) + metric(&m, "vtex_tile_cache_misses_total", &[("level", "0")]),
+        metric(&m, "vtex_tile_cache_hits_total", &[("level", "0")])
+            + metric(&m, "vtex_tile_cache_misses_total", &[("level", "0")]),
         64.0
     );
     assert_eq!(metric(&m, "vtex_syntheses_in_flight", &[]), 0.0);

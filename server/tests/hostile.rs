@@ -195,7 +195,11 @@ async fn path_traversal_and_malformed_ids() {
         &format!("{id}0"),
         &format!("{}.vtex", &id),
     ] {
-        for path in [format!("/api/v1/textures/{bad}"), format!("/api/v1/textures/{bad}/tiles/0/0/0.png"), format!("/api/v1/textures/{bad}/encoding")] {
+        for path in [
+            format!("/api/v1/textures/{bad}"),
+            format!("/api/v1/textures/{bad}/tiles/0/0/0.png"),
+            format!("/api/v1/textures/{bad}/encoding"),
+        ] {
             let msg = expect_error(&c, &s.url(&path), 400).await;
             assert!(msg.contains("invalid texture id"), "{path}: {msg}");
         }
@@ -234,7 +238,12 @@ async fn oversized_uploads_get_413() {
     let chunk = vec![b'a'; 64 * 1024];
     for _ in 0..20 {
         let head = format!("{:x}\r\n", chunk.len());
-        if stream.write_all(head.as_bytes()).and_then(|_| stream.write_all(&chunk)).and_then(|_| stream.write_all(b"\r\n")).is_err() {
+        if stream
+            .write_all(head.as_bytes())
+            .and_then(|_| stream.write_all(&chunk))
+            .and_then(|_| stream.write_all(b"\r\n"))
+            .is_err()
+        {
             break;
         }
     }
@@ -254,7 +263,8 @@ async fn oversized_uploads_get_413() {
 async fn wrong_content_type_is_415() {
     let dir = tempdir();
     let (s, _, files) = with_one_texture(dir.path(), &[]).await;
-    let r = client().post(s.url("/api/v1/textures")).header("content-type", "text/plain").body("hi").send().await.unwrap();
+    let r =
+        client().post(s.url("/api/v1/textures")).header("content-type", "text/plain").body("hi").send().await.unwrap();
     assert_eq!(r.status(), 415);
     let v: Value = r.json().await.unwrap();
     assert!(v["error"].as_str().unwrap().contains("multipart/form-data"));
