@@ -147,7 +147,7 @@ fn zero_iterations_reproduce_the_plain_tiling_exactly() {
     let img = render(&tex, 0, -50, 20, 500, 300);
     for y in 0..300 {
         for x in 0..500 {
-            let (sx, sy) = ((x as i64 - 50).rem_euclid(64) as u32, ((y + 20) % 64) as u32);
+            let (sx, sy) = ((x as i64 - 50).rem_euclid(64) as u32, (y + 20) % 64);
             assert_eq!(img.pixel(x, y), sample.pixel(sx, sy), "({x},{y})");
         }
     }
