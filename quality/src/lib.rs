@@ -19,10 +19,10 @@
 //! they judge what is served.
 
 pub mod contrast;
-// pub mod gimp_pattern;
+pub mod gimp_pattern;
 pub mod histogram;
 pub mod luma;
-// pub mod patch_sw;
+pub mod patch_sw;
 pub mod repetition;
 // pub mod report;
 // pub mod sample;

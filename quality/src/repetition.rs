@@ -39,9 +39,7 @@ pub fn repetition(img: &Rgba8Image, exclude_w: u32, exclude_h: u32) -> Result<Re
     if exclude_w as usize > max_dx && exclude_h as usize > max_dy {
         return Err(Error::param(
             "exclude",
-            format!(
-                "{exclude_w}×{exclude_h} excludes every lag of a {w}×{h} image; lags go up to half the image"
-            ),
+            format!("{exclude_w}×{exclude_h} excludes every lag of a {w}×{h} image; lags go up to half the image"),
         ));
     }
     let plane = luma(img);
