@@ -24,8 +24,8 @@ pub mod histogram;
 pub mod luma;
 pub mod patch_sw;
 pub mod repetition;
-// pub mod report;
-// pub mod sample;
+pub mod report;
+pub mod sample;
 pub mod seam;
 
 pub use vtex_synth::{Error, Result, Rgba8Image};

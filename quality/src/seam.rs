@@ -66,6 +66,14 @@ impl Mask {
         Self { width, height, bits: vec![false; width as usize * height as usize] }
     }
 
+    /// Wraps row-major flags, e.g. a model's own seam mask; `bits` must hold `width × height`.
+    pub fn from_bits(width: u32, height: u32, bits: Vec<bool>) -> Result<Self> {
+        if bits.len() != width as usize * height as usize {
+            return Err(Error::param("mask", format!("{} flags for {width}×{height} pixels", bits.len())));
+        }
+        Ok(Self { width, height, bits })
+    }
+
     #[inline]
     pub fn get(&self, x: u32, y: u32) -> bool {
         self.bits[y as usize * self.width as usize + x as usize]
@@ -159,6 +167,14 @@ mod tests {
         assert!(seam_ratio(&step, |_, _| true).is_err());
         assert!(seam_ratio(&step, |_, _| false).is_err());
         assert!(seam_ratio(&grey(2, 9, |_, _| 0.0), |_, _| false).is_err());
+    }
+
+    #[test]
+    fn from_bits_checks_the_size() {
+        assert!(Mask::from_bits(3, 2, vec![false; 5]).is_err());
+        let m = Mask::from_bits(3, 2, vec![false, true, false, false, false, true]).unwrap();
+        assert!(m.get(1, 0) && m.get(2, 1) && !m.get(0, 0));
+        assert_eq!(m.count(), 2);
     }
 
     #[test]
