@@ -17,73 +17,120 @@ pub struct Repetition {
 /// Long-range repetition of `img`: the maximum normalised autocorrelation of its luminance
 /// ([`crate::luma::luma`]) over the lags (dx, dy) with |dx| ≥ `exclude_w` or |dy| ≥ `exclude_h`
 /// (pass the sample's size: shorter lags are the texture's own structure, not repetition),
-/// and |dx| ≤ ⌊W/2⌋, |dy| ≤ ⌊H/2⌋.
-///
-/// Exact definition, with f = L − mean(L) over the whole W × H image and σ² = mean(f²):
-///
-/// r(dx, dy) = [ Σ f(x, y) · f(x + dx, y + dy) / n(dx, dy) ] / σ²,
-///
-/// summed over the n(dx, dy) = (W − |dx|)(H − |dy|) positions where both pixels lie inside the
-/// image — zero-padded, not circular, so the image need not be periodic, and divided by the
-/// overlap count so that long lags are not biased towards 0. Lags stop at half the image so
-/// that every estimate averages at least a quarter of it. Computed with a 2-D FFT (rustfft) of
-/// the plane zero-padded to (W + ⌊W/2⌋) × (H + ⌊H/2⌋), which holds every such lag without
-/// circular aliasing. The image is used as given: a window of a larger texture works.
+/// and |dx| ≤ ⌊W/2⌋, |dy| ≤ ⌊H/2⌋; r is defined in [`Autocorrelation`].
 ///
 /// A plain tiling of a sample whose size divides the image has r = 1 at the sample period;
 /// white noise stays near 0. Errors: no lag outside the exclusion fits in half the image, or
 /// the luminance is constant (σ = 0, correlation undefined).
 pub fn repetition(img: &Rgba8Image, exclude_w: u32, exclude_h: u32) -> Result<Repetition> {
-    let (w, h) = (img.width as usize, img.height as usize);
-    let (max_dx, max_dy) = (w / 2, h / 2);
-    if exclude_w as usize > max_dx && exclude_h as usize > max_dy {
-        return Err(Error::param(
-            "exclude",
-            format!("{exclude_w}×{exclude_h} excludes every lag of a {w}×{h} image; lags go up to half the image"),
-        ));
-    }
-    let plane = luma(img);
-    let (mean, sd) = mean_sd(&plane.data);
-    if sd == 0.0 {
-        return Err(Error::image("output", "constant luminance: autocorrelation is undefined"));
-    }
-    let (pw, ph) = (w + max_dx, h + max_dy);
-    let mut buf = vec![Complex64::new(0.0, 0.0); pw * ph];
-    for y in 0..h {
-        for x in 0..w {
-            buf[y * pw + x].re = plane.at(x, y) - mean;
+    Autocorrelation::new(img)?.max_outside(exclude_w, exclude_h)
+}
+
+/// The normalised autocorrelation of an image's luminance at every lag up to half its size.
+///
+/// Exact definition, with L the luma plane, f = L − mean(L) over the whole W × H image and
+/// σ² = mean(f²):
+///
+/// r(dx, dy) = [ Σ f(x, y) · f(x + dx, y + dy) / n(dx, dy) ] / σ²,
+///
+/// summed over the n(dx, dy) = (W − |dx|)(H − |dy|) positions where both pixels lie inside the
+/// image — zero-padded, not circular, so the image need not be periodic, and divided by the
+/// overlap count so that long lags are not biased towards 0. Lags stop at |dx| ≤ ⌊W/2⌋,
+/// |dy| ≤ ⌊H/2⌋ so that every estimate averages at least a quarter of the image. Computed with
+/// a 2-D FFT (rustfft) of the plane zero-padded to (W + ⌊W/2⌋) × (H + ⌊H/2⌋), which holds every
+/// such lag without circular aliasing. The image is used as given: a window of a larger
+/// texture works. r(0, 0) = 1 and r(d) = r(−d).
+pub struct Autocorrelation {
+    w: usize,
+    h: usize,
+    pw: usize,
+    ph: usize,
+    /// r at lag (dx, dy), stored at ((dy mod ph) · pw + (dx mod pw)).
+    r: Vec<f64>,
+}
+
+impl Autocorrelation {
+    /// Errors: constant luminance (σ = 0), including an image without pixels.
+    pub fn new(img: &Rgba8Image) -> Result<Self> {
+        let (w, h) = (img.width as usize, img.height as usize);
+        let plane = luma(img);
+        let (mean, sd) = mean_sd(&plane.data);
+        if sd == 0.0 {
+            return Err(Error::image("output", "constant luminance: autocorrelation is undefined"));
         }
-    }
-    let mut planner = FftPlanner::<f64>::new();
-    // Forward: rows, then columns (by transposing); the power spectrum is left transposed, which
-    // is harmless since the inverse undoes the two passes in the opposite order.
-    planner.plan_fft_forward(pw).process(&mut buf);
-    let mut t = transpose(&buf, pw, ph);
-    planner.plan_fft_forward(ph).process(&mut t);
-    for v in t.iter_mut() {
-        *v = Complex64::new(v.norm_sqr(), 0.0);
-    }
-    planner.plan_fft_inverse(ph).process(&mut t);
-    let mut corr = transpose(&t, ph, pw);
-    planner.plan_fft_inverse(pw).process(&mut corr);
-    // rustfft does not normalise: forward then inverse multiplies by pw · ph.
-    let scale = 1.0 / (pw as f64 * ph as f64 * sd * sd);
-    let mut best = Repetition { value: f64::NEG_INFINITY, dx: 0, dy: 0 };
-    // r(d) = r(−d), so half the lag plane (dy ≥ 0) holds every value.
-    for dy in 0..=max_dy as i64 {
-        for dx in -(max_dx as i64)..=max_dx as i64 {
-            if dx.unsigned_abs() < exclude_w as u64 && dy.unsigned_abs() < exclude_h as u64 {
-                continue;
-            }
-            let (ix, iy) = (dx.rem_euclid(pw as i64) as usize, dy as usize);
-            let overlap = (w - dx.unsigned_abs() as usize) as f64 * (h - dy as usize) as f64;
-            let r = corr[iy * pw + ix].re * scale / overlap;
-            if r > best.value {
-                best = Repetition { value: r, dx, dy };
+        let (pw, ph) = (w + w / 2, h + h / 2);
+        let mut buf = vec![Complex64::new(0.0, 0.0); pw * ph];
+        for y in 0..h {
+            for x in 0..w {
+                buf[y * pw + x].re = plane.at(x, y) - mean;
             }
         }
+        let mut planner = FftPlanner::<f64>::new();
+        // Forward: rows, then columns (by transposing); the power spectrum is left transposed,
+        // which is harmless since the inverse undoes the two passes in the opposite order.
+        planner.plan_fft_forward(pw).process(&mut buf);
+        let mut t = transpose(&buf, pw, ph);
+        planner.plan_fft_forward(ph).process(&mut t);
+        for v in t.iter_mut() {
+            *v = Complex64::new(v.norm_sqr(), 0.0);
+        }
+        planner.plan_fft_inverse(ph).process(&mut t);
+        let mut corr = transpose(&t, ph, pw);
+        drop(t);
+        planner.plan_fft_inverse(pw).process(&mut corr);
+        // rustfft does not normalise: forward then inverse multiplies by pw · ph.
+        let scale = 1.0 / (pw as f64 * ph as f64 * sd * sd);
+        let r = corr.iter().map(|c| c.re * scale).collect();
+        let mut out = Self { w, h, pw, ph, r };
+        // Divide each lag in range by its overlap count.
+        for dy in -((h / 2) as i64)..=(h / 2) as i64 {
+            for dx in -((w / 2) as i64)..=(w / 2) as i64 {
+                let overlap = (w - dx.unsigned_abs() as usize) as f64 * (h - dy.unsigned_abs() as usize) as f64;
+                let i = out.index(dx, dy);
+                out.r[i] /= overlap;
+            }
+        }
+        Ok(out)
     }
-    Ok(best)
+
+    fn index(&self, dx: i64, dy: i64) -> usize {
+        dy.rem_euclid(self.ph as i64) as usize * self.pw + dx.rem_euclid(self.pw as i64) as usize
+    }
+
+    /// r(dx, dy), or `None` beyond half the image.
+    pub fn at(&self, dx: i64, dy: i64) -> Option<f64> {
+        let inside = dx.unsigned_abs() as usize <= self.w / 2 && dy.unsigned_abs() as usize <= self.h / 2;
+        inside.then(|| self.r[self.index(dx, dy)])
+    }
+
+    /// The largest r over the lags with |dx| ≥ `exclude_w` or |dy| ≥ `exclude_h`; see
+    /// [`repetition`]. Ties go to the first in scan order (dy ascending from 0, then dx from
+    /// −⌊W/2⌋); only dy ≥ 0 is scanned since r(d) = r(−d).
+    pub fn max_outside(&self, exclude_w: u32, exclude_h: u32) -> Result<Repetition> {
+        let (max_dx, max_dy) = (self.w / 2, self.h / 2);
+        if exclude_w as usize > max_dx && exclude_h as usize > max_dy {
+            return Err(Error::param(
+                "exclude",
+                format!(
+                    "{exclude_w}×{exclude_h} excludes every lag of a {}×{} image; lags go up to half the image",
+                    self.w, self.h
+                ),
+            ));
+        }
+        let mut best = Repetition { value: f64::NEG_INFINITY, dx: 0, dy: 0 };
+        for dy in 0..=max_dy as i64 {
+            for dx in -(max_dx as i64)..=max_dx as i64 {
+                if dx.unsigned_abs() < exclude_w as u64 && dy.unsigned_abs() < exclude_h as u64 {
+                    continue;
+                }
+                let r = self.r[self.index(dx, dy)];
+                if r > best.value {
+                    best = Repetition { value: r, dx, dy };
+                }
+            }
+        }
+        Ok(best)
+    }
 }
 
 /// `src` is `rows` rows of `cols`; the result is `cols` rows of `rows`.
@@ -168,6 +215,19 @@ mod tests {
         }
         assert!((r.value - best.0).abs() < 1e-9, "{r:?} vs {best:?}");
         assert_eq!((r.dx, r.dy), (best.1, best.2));
+    }
+
+    #[test]
+    fn lags_are_symmetric_and_bounded() {
+        let img = noise(30, 20, 6);
+        let a = Autocorrelation::new(&img).unwrap();
+        assert!((a.at(0, 0).unwrap() - 1.0).abs() < 1e-12);
+        for (dx, dy) in [(3, 2), (-15, 10), (7, -4), (15, -10)] {
+            let (p, q) = (a.at(dx, dy).unwrap(), a.at(-dx, -dy).unwrap());
+            assert!((p - q).abs() < 1e-12 && (p - direct(&img, dx, dy)).abs() < 1e-9, "({dx}, {dy})");
+        }
+        assert_eq!(a.at(16, 0), None);
+        assert_eq!(a.at(0, -11), None);
     }
 
     #[test]

@@ -4,7 +4,7 @@ use crate::{
     contrast::contrast_ratio,
     histogram::histogram_w1,
     patch_sw::{patch_sliced_wasserstein, PatchSw, SwParams},
-    repetition::{repetition, Repetition},
+    repetition::{Autocorrelation, Repetition},
     seam::{seam_ratio, Mask},
 };
 use vtex_synth::{Error, Result, Rgba8Image};
@@ -21,6 +21,9 @@ pub const TARGET_CONTRAST: (f64, f64) = (0.9, 1.1);
 pub struct Metrics {
     /// Long-range repetition with the sample's size as the exclusion.
     pub repetition: Repetition,
+    /// r at one sample period across and down, (w, 0) and (0, h), when within half the
+    /// output: how much of the plain tiling's exact repeat is left.
+    pub period_r: [Option<f64>; 2],
     pub seam_ratio: f64,
     pub contrast: f64,
     /// R, G, B.
@@ -51,8 +54,10 @@ pub fn measure(output: &Rgba8Image, sample: &Rgba8Image, seams: &Mask, sw: &SwPa
             format!("mask {}×{} for output {}×{}", seams.width, seams.height, output.width, output.height),
         ));
     }
+    let auto = Autocorrelation::new(output)?;
     Ok(Metrics {
-        repetition: repetition(output, sample.width, sample.height)?,
+        repetition: auto.max_outside(sample.width, sample.height)?,
+        period_r: [auto.at(sample.width as i64, 0), auto.at(0, sample.height as i64)],
         seam_ratio: seam_ratio(output, |x, y| seams.get(x, y))?,
         contrast: contrast_ratio(output, sample)?,
         histogram_w1: histogram_w1(output, sample)?,
@@ -81,6 +86,11 @@ pub fn comparison_table(columns: &[(&str, &Metrics)]) -> String {
         &|m| format!("{:.3} ({}, {})", m.repetition.value, m.repetition.dx, m.repetition.dy),
         &format!("< {TARGET_REPETITION}"),
     );
+    row(
+        "r at one period (w, 0) / (0, h)",
+        &|m| m.period_r.map(|r| r.map_or("—".into(), |v| format!("{v:.3}"))).join(" / "),
+        "",
+    );
     row("seam ratio", &|m| format!("{:.3}", m.seam_ratio), &format!("≤ {TARGET_SEAM}"));
     row("contrast ratio", &|m| format!("{:.3}", m.contrast), &format!("{}–{}", TARGET_CONTRAST.0, TARGET_CONTRAST.1));
     row(
@@ -108,6 +118,7 @@ mod tests {
         let out = tiled(&sample, 128, 128);
         let m = measure(&out, &sample, &Mask::grid(128, 128, 32, 32, 0, 0), &SwParams::default()).unwrap();
         assert!((m.repetition.value - 1.0).abs() < 1e-9);
+        assert!(m.period_r.iter().all(|r| (r.unwrap() - 1.0).abs() < 1e-9), "{m:?}");
         assert!((m.contrast - 1.0).abs() < 1e-12);
         assert_eq!(m.histogram_w1, [0.0; 3]);
         // Noise has no seams to hide: joins look like everything else.
@@ -115,7 +126,7 @@ mod tests {
         assert!(!m.meets_targets());
         let table = comparison_table(&[("plain tiling", &m), ("again", &m)]);
         assert!(table.contains("| repetition (lag) | 1.000 ("), "{table}");
-        assert_eq!(table.lines().count(), 2 + 6);
+        assert_eq!(table.lines().count(), 2 + 7);
         assert!(table.lines().all(|l| l.matches('|').count() == 5), "{table}");
     }
 

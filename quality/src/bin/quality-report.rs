@@ -221,13 +221,13 @@ fn judge(sample: Sample, o: &Options) -> std::result::Result<Judged, String> {
 
 fn summary(all: &[Judged]) -> String {
     let mut s = String::from(
-        "| sample | kind | source → sample | seamless | sample self-rep. | tiling uncovered | repetition tiling → chaos | seam ratio tiling → chaos | contrast chaos | hist W1 chaos | patch SW tiling → chaos | targets |\n\
-         |---|---|---|---|---:|---:|---:|---:|---:|---:|---:|---|\n",
+        "| sample | kind | source → sample | seamless | sample self-rep. | tiling uncovered | repetition tiling → chaos | chaos r at 1 period | seam ratio tiling → chaos | contrast chaos | hist W1 chaos | patch SW tiling → chaos | targets |\n\
+         |---|---|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---|\n",
     );
     for j in all {
         let (t, c) = (&j.tiling, &j.chaos);
         s += &format!(
-            "| {} | {} | {}×{} → {}×{} | {} | {} | {:.0}% | {:.3} → **{:.3}** | {:.2} → **{:.2}** | **{:.3}** | {:.2} | {:.2} → {:.2} | {} |\n",
+            "| {} | {} | {}×{} → {}×{} | {} | {} | {:.0}% | {:.3} → **{:.3}** | {} | {:.2} → **{:.2}** | **{:.3}** | {:.2} | {:.2} → {:.2} | {} |\n",
             j.sample.name,
             j.sample.kind,
             j.sample.source_size.0,
@@ -239,6 +239,7 @@ fn summary(all: &[Judged]) -> String {
             100.0 * j.uncovered,
             t.repetition.value,
             c.repetition.value,
+            c.period_r.map(|r| r.map_or("—".into(), |v| format!("{v:.2}"))).join(" / "),
             t.seam_ratio,
             c.seam_ratio,
             c.contrast,
