@@ -9,6 +9,10 @@
 use super::ChaosMosaic;
 use crate::texture::wrap;
 
+/// Per composite row, the column boundaries to test; and (row boundary, first column, end
+/// column) pieces to test between rows.
+type SeamCandidates = (Vec<Vec<usize>>, Vec<(usize, usize, usize)>);
+
 /// A block at unwrapped texture coordinates (the torus unrolled around a region).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord)]
 pub(super) struct Placed {
@@ -122,7 +126,7 @@ impl ChaosMosaic {
     /// block's edge, or on a tile edge when the sample is not seamless. Returns, per
     /// composite row, the column boundaries to test, and the (row boundary, column range)
     /// pieces to test between rows. A boundary `b` lies between pixels `b − 1` and `b`.
-    fn seam_candidates(&self, c: &Composite) -> (Vec<Vec<usize>>, Vec<(usize, usize, usize)>) {
+    fn seam_candidates(&self, c: &Composite) -> SeamCandidates {
         let (sw, sh) = (self.sample.width as i64, self.sample.height as i64);
         let mut cols: Vec<Vec<usize>> = vec![Vec::new(); c.h];
         let mut rows = Vec::new();
