@@ -112,10 +112,12 @@ fn the_texture_is_a_torus_without_seam() {
 
 #[test]
 fn every_block_obeys_the_area_constraint_and_lies_in_the_sample() {
-    for (n, cl, cu) in [(64u32, 0.5, 0.75), (100, 0.3, 0.4), (37, 0.5, 0.75)] {
+    for (n, cl, cu, per_tile) in [(64u32, 0.5, 0.75, 1), (100, 0.3, 0.4, 1), (37, 0.5, 0.75, 1), (64, 0.5, 0.75, 3)] {
         let sample = samples::lichen(n, 1);
-        let tex = mosaic(&sample, json!({"tiles_x": 30, "tiles_y": 30, "seed": n, "c_lambda": cl, "c_mu": cu}));
-        assert_eq!(tex.blocks().len(), 900, "one block per tile");
+        let params =
+            json!({"tiles_x": 30, "tiles_y": 30, "seed": n, "c_lambda": cl, "c_mu": cu, "blocks_per_tile": per_tile});
+        let tex = mosaic(&sample, params);
+        assert_eq!(tex.blocks().len(), 900 * per_tile, "{per_tile} blocks per tile");
         for b in tex.blocks() {
             let ratio = b.w as f64 * b.h as f64 / (n * n) as f64;
             assert!((cl..=cu).contains(&ratio), "{b:?}: wh/n² = {ratio}");
@@ -275,6 +277,8 @@ fn bad_parameters_are_refused_with_a_reason() {
         (json!({"tiles_x": 4, "tiles_y": 4, "c_lambda": 0.9, "c_mu": 0.5}), "c_lambda"),
         (json!({"tiles_x": 4, "tiles_y": 4, "c_mu": 1.5}), "c_mu"),
         (json!({"tiles_x": 4, "tiles_y": 4, "filter_width": 99}), "filter_width"),
+        (json!({"tiles_x": 4, "tiles_y": 4, "blocks_per_tile": 0}), "blocks_per_tile"),
+        (json!({"tiles_x": 4, "tiles_y": 4, "blocks_per_tile": 9}), "blocks_per_tile"),
         (json!({"tiles_x": 4}), "tiles_y"),
         (json!({"tiles_x": -3, "tiles_y": 4}), "params"),
         (json!({"tiles_x": 4, "tiles_y": 4, "colour": "red"}), "colour"),

@@ -8,6 +8,7 @@
 //!   --seed N         block sequence seed (1)
 //!   --c-lambda X     smallest block area / sample area (0.5, the paper's)
 //!   --c-mu X         largest block area / sample area (0.75, the paper's)
+//!   --blocks-per-tile N  random blocks cut from each tile (1, the paper's)
 //! ```
 //! Samples are GIMP patterns (`.pat`, used at their own size) or PNG photos (prepared as in
 //! `vtex_quality::sample`). For each sample it writes `<name>-sample.png`,
@@ -39,6 +40,7 @@ struct Options {
     seed: u64,
     c_lambda: f64,
     c_mu: f64,
+    blocks_per_tile: u32,
 }
 
 fn parse_args() -> std::result::Result<Options, String> {
@@ -51,6 +53,7 @@ fn parse_args() -> std::result::Result<Options, String> {
         seed: 1,
         c_lambda: 0.5,
         c_mu: 0.75,
+        blocks_per_tile: 1,
     };
     let mut out = None;
     let mut args = std::env::args().skip(1);
@@ -66,6 +69,9 @@ fn parse_args() -> std::result::Result<Options, String> {
             "--seed" => o.seed = number("--seed", value("--seed")?)?,
             "--c-lambda" => o.c_lambda = fraction("--c-lambda", value("--c-lambda")?)?,
             "--c-mu" => o.c_mu = fraction("--c-mu", value("--c-mu")?)?,
+            "--blocks-per-tile" => {
+                o.blocks_per_tile = number("--blocks-per-tile", value("--blocks-per-tile")?)?.clamp(1, 8) as u32
+            }
             "-h" | "--help" => return Err(String::new()),
             f if f.starts_with("--") => return Err(format!("unknown option {f}")),
             f => o.files.push(PathBuf::from(f)),
@@ -127,6 +133,7 @@ fn chaos(sample: &Sample, o: &Options, extra: serde_json::Value, grid_seams: boo
         "seed": o.seed,
         "c_lambda": o.c_lambda,
         "c_mu": o.c_mu,
+        "blocks_per_tile": o.blocks_per_tile,
     });
     params.as_object_mut().unwrap().extend(extra.as_object().unwrap().clone());
     let inputs = Inputs::from([("sample".to_string(), sample.image.to_png())]);
@@ -292,7 +299,7 @@ fn run(o: &Options) -> std::result::Result<(), String> {
     let mut md = format!(
         "# Quality report: plain tiling vs chaos mosaic\n\n\
          Output: the {s}×{s} window at the origin of each texture (tiles to cover it; level 0). \
-         Chaos mosaic: {i} cat map iterations, seed {seed}, c_λ = {cl}, c_μ = {cm}, one block a tile, \
+         Chaos mosaic: {i} cat map iterations, seed {seed}, c_λ = {cl}, c_μ = {cm}, {bpt} block(s) a tile, \
          3-pixel cross-edge filter. Plain tiling: 0 iterations, no filter. Patterns are used at their own size; photos are \
          halved while their shorter side is ≥ {p4} px, then centre-cropped to {p}×{p}. Patch SW: 5×5 \
          patches, 3 scales, 32 directions. Targets met by the chaos mosaic on {met} of {n} samples.\n\n\
@@ -305,6 +312,7 @@ fn run(o: &Options) -> std::result::Result<(), String> {
         },
         s = o.size,
         i = o.iterations,
+        bpt = o.blocks_per_tile,
         seed = o.seed,
         cl = o.c_lambda,
         cm = o.c_mu,
