@@ -48,8 +48,16 @@ pub struct Value {
 }
 
 impl Value {
-    fn load(what: &str, v: &ValueParams, bundle: &Bundle, rng: &LayerRng, grid: (u64, u64), role: Role) -> Result<Self> {
-        let map = v.map.as_ref().map(|m| Map::load(what, m, bundle, grid, u16::MAX as u32, Some(u16::MAX))).transpose()?;
+    fn load(
+        what: &str,
+        v: &ValueParams,
+        bundle: &Bundle,
+        rng: &LayerRng,
+        grid: (u64, u64),
+        role: Role,
+    ) -> Result<Self> {
+        let map =
+            v.map.as_ref().map(|m| Map::load(what, m, bundle, grid, u16::MAX as u32, Some(u16::MAX))).transpose()?;
         if v.random > 0 {
             rng.table(role).check_range(&format!("{what}.random"), v.random)?;
         }
@@ -92,7 +100,10 @@ impl AnimationBlock {
             return Err(Error::param("animation.sequence", "1 to 4096 patterns"));
         }
         if let Some(q) = p.sequence.iter().find(|&&q| q >= patterns) {
-            return Err(Error::param("animation.sequence", format!("pattern {q} is missing: the reference holds 0..{patterns}")));
+            return Err(Error::param(
+                "animation.sequence",
+                format!("pattern {q} is missing: the reference holds 0..{patterns}"),
+            ));
         }
         let check_a = |what: &str, a: f64| {
             if !(0.0..=1e6).contains(&a) {

@@ -76,11 +76,12 @@ impl Family {
         let features: Vec<(f32, f32, f32, [f32; 3])> = (0..3 + variant % 4)
             .map(|k| {
                 let h = |i: u64| hash::unit_f32(hash::hash4(seed, 500 + variant, k as i64, i as i64));
-                let (cx, cy) = (sf * (0.25 + 0.5 * h(0)), sf * (0.25 + 0.5 * h(1)));
+                let (cx, cy) = (sf * (0.18 + 0.64 * h(0)), sf * (0.18 + 0.64 * h(1)));
                 let r = sf * (0.05 + 0.08 * h(2));
                 let colour = match self {
                     Family::Ground => mix([0.35, 0.33, 0.32], [0.70, 0.62, 0.55], h(3)),
-                    Family::Grass => [[0.95, 0.9, 0.2], [0.95, 0.95, 0.95], [0.85, 0.3, 0.6], [0.3, 0.5, 0.95]][(h(4) * 4.0) as usize % 4],
+                    Family::Grass => [[0.95, 0.9, 0.2], [0.95, 0.95, 0.95], [0.85, 0.3, 0.6], [0.3, 0.5, 0.95]]
+                        [(h(4) * 4.0) as usize % 4],
                 };
                 (cx, cy, r, colour)
             })
@@ -89,7 +90,7 @@ impl Family {
             for x in 0..s {
                 let (fx, fy) = (x as f32 + 0.5, y as f32 + 0.5);
                 let mut c = self.base(seed, fx, fy, s);
-                let inside = interior(x as f32, y as f32, sf, sf / 8.0);
+                let inside = interior(x as f32, y as f32, sf, sf / 16.0);
                 let var = fbm(seed + 100 + variant, fx, fy, s);
                 c = mix(c, mix(c, [c[0] * 0.8, c[1] * 0.85, c[2] * 0.8], var), inside);
                 for &(cx, cy, r, colour) in &features {
@@ -116,7 +117,8 @@ impl Family {
             for x in 0..s {
                 let (fx, fy) = (x as f32 + 0.5, y as f32 + 0.5);
                 let (u, v) = (fx / sf, fy / sf);
-                let field = bit(0) * (1.0 - u) * (1.0 - v) + bit(1) * u * (1.0 - v) + bit(2) * (1.0 - u) * v + bit(3) * u * v;
+                let field =
+                    bit(0) * (1.0 - u) * (1.0 - v) + bit(1) * u * (1.0 - v) + bit(2) * (1.0 - u) * v + bit(3) * u * v;
                 let wobble = (fbm(seed + 300, fx, fy, s) - 0.5) * 0.45;
                 let alpha = ((field + wobble - 0.5) * sf / 3.0 + 0.5).clamp(0.0, 1.0);
                 img.set_pixel(x, y, rgba(self.base(seed, fx, fy, s), alpha));
@@ -129,7 +131,14 @@ impl Family {
 /// A leaf on a transparent background, pointing up, 4 × 4 supersampled edges.
 pub fn leaf(seed: u64, variant: u64, s: u32) -> Rgba8Image {
     let h = |i: i64| hash::unit_f32(hash::hash4(seed, 900 + variant, i, 0));
-    let palette = [[0.85, 0.35, 0.08], [0.75, 0.12, 0.08], [0.92, 0.70, 0.15], [0.50, 0.30, 0.12], [0.45, 0.55, 0.15], [0.95, 0.50, 0.10]];
+    let palette = [
+        [0.85, 0.35, 0.08],
+        [0.75, 0.12, 0.08],
+        [0.92, 0.70, 0.15],
+        [0.50, 0.30, 0.12],
+        [0.45, 0.55, 0.15],
+        [0.95, 0.50, 0.10],
+    ];
     let base = palette[(h(0) * palette.len() as f32) as usize % palette.len()];
     let width = 0.35 + 0.25 * h(1);
     let lobes = (h(2) * 3.0) as i32;

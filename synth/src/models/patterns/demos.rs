@@ -27,7 +27,17 @@ fn family(f: Family, seed: u64) -> Vec<Rgba8Image> {
 
 /// Params of one tiling layer plus everything else defaulted.
 fn params(width: u64, height: u64, reference: [u32; 2], layers: Vec<LayerParams>) -> Params {
-    Params { width, height, pattern_size: S, reference, seed: SEED, background: [0, 0, 0, 0], layers, sprites: BTreeMap::new(), fps: None }
+    Params {
+        width,
+        height,
+        pattern_size: S,
+        reference,
+        seed: SEED,
+        background: [0, 0, 0, 0],
+        layers,
+        sprites: BTreeMap::new(),
+        fps: None,
+    }
 }
 
 fn layer(kind: LayerKind, cell: u32, choice: Option<Choice>) -> LayerParams {
@@ -73,7 +83,11 @@ pub fn two_materials() -> Bundle {
     let mut grass: Vec<i32> = (16..24).flat_map(|p| [p, p, p]).collect();
     grass.extend(24..32);
     let materials = vec![MaterialParams { patterns: ground, family: 0 }, MaterialParams { patterns: grass, family: 1 }];
-    let choice = Choice::Materials { materials, areas: Some(AreasParams { map: inline(8, 8, island(8, 8)), dithered: true }), pixel_map: None };
+    let choice = Choice::Materials {
+        materials,
+        areas: Some(AreasParams { map: inline(8, 8, island(8, 8)), dithered: true }),
+        pixel_map: None,
+    };
     let mut l = layer(LayerKind::Tiling, S, Some(choice));
     l.transitions = Some(TransitionParams { tiles: vec![(32..46).collect()] });
     let p = params(4096, 4096, [8, 6], vec![l]);
@@ -114,17 +128,23 @@ pub fn leaves() -> Bundle {
 /// `params.sprites.<name>`.
 pub fn sprites() -> Bundle {
     let mut p = params(4096, 4096, [6, 4], vec![ground_layer(), layer(LayerKind::Sprites, 64, None)]);
-    let spots = [("maple", 16, 700, 400), ("oak", 17, 1510, 1333), ("birch", 18, 2222, 902), ("elm", 19, 3050, 2950), ("ash", 20, 530, 3180)];
+    let spots = [
+        ("maple", 16, 700, 400),
+        ("oak", 17, 1510, 1333),
+        ("birch", 18, 2222, 902),
+        ("elm", 19, 3050, 2950),
+        ("ash", 20, 530, 3180),
+    ];
     for (name, pattern, x, y) in spots {
         p.sprites.insert(name.into(), SpriteParams { pattern, x, y });
     }
     bundle("Patterns: texture sprites on a tiled ground (4096²)", &p, &ground_and_leaves(), vec![])
 }
 
-/// Eight LED states: off (rest), rising, on, falling.
+/// Twelve LED states: off (rest), rising, on, falling.
 fn led_reference() -> Rgba8Image {
-    let levels = [0.0, 0.3, 0.65, 1.0, 1.0, 1.0, 0.65, 0.3];
-    art::pack(&levels.map(|l| art::led(l, 32)), 4, 2)
+    let levels = [0.0, 0.3, 0.65, 1.0, 1.0, 1.0, 1.0, 1.0, 1.0, 1.0, 0.65, 0.3];
+    art::pack(&levels.map(|l| art::led(l, 32)), 4, 3)
 }
 
 /// The Z map of a message: short rests in the letters, long ones in the background.
@@ -142,7 +162,13 @@ pub fn led_board(transition: bool) -> Bundle {
         map: Some(MapRef { size: [w, h], values: None, section: Some(section.into()), depth: 1 }),
         random: 4,
     };
-    let mut anim = AnimationParams { sequence: (0..8).collect(), a: 1.0, phi: ValueParams { map: None, random: 64 }, z: z("z-new"), previous: None };
+    let mut anim = AnimationParams {
+        sequence: (0..12).collect(),
+        a: 1.0,
+        phi: ValueParams { map: None, random: 64 },
+        z: z("z-new"),
+        previous: None,
+    };
     let mut sections = vec![("z-new", led_z("PATTERN TEXTURES", w, h))];
     let name = if transition {
         anim.previous = Some(PreviousParams { a: 1.0, z: z("z-old"), t0: 120 });
@@ -153,7 +179,7 @@ pub fn led_board(transition: bool) -> Bundle {
     };
     let mut l = layer(LayerKind::Tiling, 32, None);
     l.animation = Some(anim);
-    let mut p = params(w as u64 * 32, h as u64 * 32, [4, 2], vec![l]);
+    let mut p = params(w as u64 * 32, h as u64 * 32, [4, 3], vec![l]);
     p.pattern_size = 32;
     p.fps = Some(12.0);
     bundle(name, &p, &led_reference(), sections)
@@ -167,7 +193,9 @@ pub fn pixel_map_path() -> Bundle {
     for y in 0..h {
         for x in 0..w {
             let fy = y as f32;
-            let centre = 512.0 + 260.0 * libm::sinf(fy / 1024.0 * 2.0 * core::f32::consts::PI) + 60.0 * (art::noise(3, x as f32, fy, 64.0, 16) - 0.5);
+            let centre = 512.0
+                + 260.0 * libm::sinf(fy / 1024.0 * 2.0 * core::f32::consts::PI)
+                + 60.0 * (art::noise(3, x as f32, fy, 64.0, 16) - 0.5);
             mask[(y * w + x) as usize] = ((x as f32 - centre).abs() > 70.0) as u8;
         }
     }
@@ -176,10 +204,24 @@ pub fn pixel_map_path() -> Bundle {
     let pm = PixelMapParams { section: "path".into(), size: [w, h], scale: 4, block };
     let choice = Choice::Materials { materials: vec![ground, grass], areas: None, pixel_map: Some(pm) };
     let p = params(4096, 4096, [8, 6], vec![layer(LayerKind::Tiling, S, Some(choice))]);
-    bundle("Patterns: pixel-map path through grass (4096²)", &p, &two_families(), vec![("path", pixel_map::encode(w, h, block, &mask))])
+    bundle(
+        "Patterns: pixel-map path through grass (4096²)",
+        &p,
+        &two_families(),
+        vec![("path", pixel_map::encode(w, h, block, &mask))],
+    )
 }
 
 /// Every demo of the model.
 pub fn demos() -> Vec<Bundle> {
-    vec![aperiodic(64), aperiodic(1563), two_materials(), leaves(), sprites(), led_board(false), led_board(true), pixel_map_path()]
+    vec![
+        aperiodic(64),
+        aperiodic(1563),
+        two_materials(),
+        leaves(),
+        sprites(),
+        led_board(false),
+        led_board(true),
+        pixel_map_path(),
+    ]
 }

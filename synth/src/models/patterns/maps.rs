@@ -17,7 +17,14 @@ pub struct Map {
 impl Map {
     /// Reads `r` (named `what` in errors), checks its size divides the `grid` it is laid over
     /// and every value is below `limit` (or equals `allowed` when given).
-    pub fn load(what: &str, r: &MapRef, bundle: &Bundle, grid: (u64, u64), limit: u32, allowed: Option<u16>) -> Result<Self> {
+    pub fn load(
+        what: &str,
+        r: &MapRef,
+        bundle: &Bundle,
+        grid: (u64, u64),
+        limit: u32,
+        allowed: Option<u16>,
+    ) -> Result<Self> {
         let [w, h] = r.size;
         if w == 0 || h == 0 || w as u64 * h as u64 > MAX_MAP_VALUES {
             return Err(Error::param(what, format!("size {w}×{h}: each side ≥ 1, at most {MAX_MAP_VALUES} values")));
@@ -34,7 +41,10 @@ impl Map {
             (None, Some(name)) => {
                 let data = bundle.section(name)?;
                 if data.len() != n * r.depth.max(1) as usize {
-                    return Err(Error::param(what, format!("section `{name}` has {} bytes for {w}×{h} values of {} bytes", data.len(), r.depth)));
+                    return Err(Error::param(
+                        what,
+                        format!("section `{name}` has {} bytes for {w}×{h} values of {} bytes", data.len(), r.depth),
+                    ));
                 }
                 match r.depth {
                     1 => data.iter().map(|&b| b as u16).collect(),
@@ -50,7 +60,11 @@ impl Map {
         if let Some((i, v)) = values.iter().enumerate().find(|(_, &v)| v as u32 >= limit && Some(v) != allowed) {
             return Err(Error::param(
                 what,
-                format!("value {v} at ({}, {}) is out of range; values must be below {limit}", i as u32 % w, i as u32 / w),
+                format!(
+                    "value {v} at ({}, {}) is out of range; values must be below {limit}",
+                    i as u32 % w,
+                    i as u32 / w
+                ),
             ));
         }
         Ok(Self { w, h, values })

@@ -26,7 +26,10 @@ pub struct Material {
 pub enum Placement {
     /// Material 0 everywhere.
     Uniform,
-    Areas { map: Map, dithered: bool },
+    Areas {
+        map: Map,
+        dithered: bool,
+    },
     Pixels(PixelMap),
 }
 
@@ -82,7 +85,9 @@ impl ChoiceBlock {
                         dithered: a.dithered,
                     },
                     (None, Some(p)) => Placement::Pixels(PixelMap::load(p, bundle, texture, mats.len())?),
-                    (Some(_), Some(_)) => return Err(Error::param("choice", "give an areas map or a pixel map, not both")),
+                    (Some(_), Some(_)) => {
+                        return Err(Error::param("choice", "give an areas map or a pixel map, not both"))
+                    }
                 };
                 ChoiceBlock::Materials { materials: mats, placement }
             }
@@ -207,7 +212,13 @@ pub fn dither_axis(g: u64, areas: u32, cells: u64, r: f32) -> i64 {
     (a0 + (r < b as f32) as i128) as i64
 }
 
-fn material(i: usize, m: &MaterialParams, reference: &Reference, rng: &LayerRng, allow_blank: bool) -> Result<Material> {
+fn material(
+    i: usize,
+    m: &MaterialParams,
+    reference: &Reference,
+    rng: &LayerRng,
+    allow_blank: bool,
+) -> Result<Material> {
     let what = format!("materials[{i}].patterns");
     rng.table(Role::Choice).check_range(&what, m.patterns.len() as u32)?;
     let mut patterns = Vec::with_capacity(m.patterns.len());

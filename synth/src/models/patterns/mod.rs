@@ -38,9 +38,11 @@ use crate::{bundle::Bundle, Error, Result};
 pub fn create(name: &str, params: &serde_json::Value, inputs: &Inputs) -> Result<Bundle> {
     let p: Params = serde_json::from_value(params.clone()).map_err(|e| Error::param("params", e.to_string()))?;
     let reference = super::input_image(inputs, "reference")?;
-    let mut bundle = Bundle::new(MODEL, name, params.clone())
-        .with_section("reference.png", reference.to_png())
-        .with_section("sigma", sigma::to_bytes(&sigma::generate_all(p.reference[0].clamp(1, 256), p.reference[1].clamp(1, 256), p.seed)));
+    let mut bundle =
+        Bundle::new(MODEL, name, params.clone()).with_section("reference.png", reference.to_png()).with_section(
+            "sigma",
+            sigma::to_bytes(&sigma::generate_all(p.reference[0].clamp(1, 256), p.reference[1].clamp(1, 256), p.seed)),
+        );
     let pixel_maps: Vec<(String, u32)> = p
         .layers
         .iter()
@@ -55,7 +57,10 @@ pub fn create(name: &str, params: &serde_json::Value, inputs: &Inputs) -> Result
         let data = match pixel_maps.iter().find(|(s, _)| s == input) {
             Some(&(_, block)) => {
                 if block == 0 || !block.is_power_of_two() || img.width % block != 0 || img.height % block != 0 {
-                    return Err(Error::image(input, format!("{}×{} is not a whole number of {block}-pixel blocks", img.width, img.height)));
+                    return Err(Error::image(
+                        input,
+                        format!("{}×{} is not a whole number of {block}-pixel blocks", img.width, img.height),
+                    ));
                 }
                 pixel_map::encode(img.width, img.height, block, &values)
             }

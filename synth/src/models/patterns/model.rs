@@ -55,7 +55,10 @@ impl PatternTexture {
     pub fn load(bundle: &Bundle) -> Result<Self> {
         let p: Params = bundle.params()?;
         if p.width == 0 || p.height == 0 || p.width > MAX_SIDE || p.height > MAX_SIDE {
-            return Err(Error::param("width/height", format!("{}×{}: each side must be 1..={MAX_SIDE}", p.width, p.height)));
+            return Err(Error::param(
+                "width/height",
+                format!("{}×{}: each side must be 1..={MAX_SIDE}", p.width, p.height),
+            ));
         }
         let img = crate::pixels::decode_png("reference", bundle.section("reference.png")?)?;
         let reference = Reference::new(&img, p.pattern_size, p.reference[0], p.reference[1])?;
@@ -95,6 +98,27 @@ impl PatternTexture {
     pub fn reference(&self) -> &Reference {
         &self.reference
     }
+
+    /// Grid size (cells) of layer `layer`.
+    pub fn grid(&self, layer: usize) -> (u64, u64) {
+        self.layers[layer].grid
+    }
+
+    /// What tiling layer `layer` shows in cell g at frame t (for tests and tools).
+    pub fn pick(&self, layer: usize, gx: u64, gy: u64, t: u32) -> Pick {
+        self.layers[layer].pick(gx, gy, t)
+    }
+
+    /// The material the (dithered) areas map gives cell g of layer `layer`.
+    pub fn material(&self, layer: usize, gx: u64, gy: u64) -> u16 {
+        let l = &self.layers[layer];
+        l.choice.as_ref().map_or(0, |c| c.material(&l.rng, gx, gy, l.grid))
+    }
+
+    /// The pixel map's material at level-0 pixel (x, y) of layer `layer`, if it has one.
+    pub fn pixel_material(&self, layer: usize, x: u64, y: u64) -> Option<u16> {
+        self.layers[layer].choice.as_ref()?.pixel_map().map(|p| p.at(x, y))
+    }
 }
 
 fn gcd(a: u64, b: u64) -> u64 {
@@ -113,12 +137,22 @@ fn in_layer(i: usize, e: Error) -> Error {
 }
 
 impl Layer {
-    fn load(i: usize, lp: &LayerParams, p: &Params, bundle: &Bundle, reference: &Reference, tables: Arc<[Sigma]>) -> Result<Self> {
+    fn load(
+        i: usize,
+        lp: &LayerParams,
+        p: &Params,
+        bundle: &Bundle,
+        reference: &Reference,
+        tables: Arc<[Sigma]>,
+    ) -> Result<Self> {
         let c = lp.cell as u64;
         if c == 0 || p.width % c != 0 || p.height % c != 0 {
             return Err(Error::param(
                 "cell",
-                format!("{c} px cells do not divide the {}×{} texture (the virtual tile map must tile it)", p.width, p.height),
+                format!(
+                    "{c} px cells do not divide the {}×{} texture (the virtual tile map must tile it)",
+                    p.width, p.height
+                ),
             ));
         }
         let grid = (p.width / c, p.height / c);
@@ -146,7 +180,13 @@ impl Layer {
         match lp.kind {
             LayerKind::Tiling => {
                 if lp.cell != p.pattern_size {
-                    return Err(Error::param("cell", format!("{}: a tiling cell holds one pattern, so it must equal pattern_size {}", lp.cell, p.pattern_size)));
+                    return Err(Error::param(
+                        "cell",
+                        format!(
+                            "{}: a tiling cell holds one pattern, so it must equal pattern_size {}",
+                            lp.cell, p.pattern_size
+                        ),
+                    ));
                 }
                 unused("transform", lp.transform.is_some())?;
                 match (&lp.choice, &lp.animation) {
@@ -164,7 +204,12 @@ impl Layer {
                         unused("transitions", lp.transitions.is_some())?;
                         layer.animation = Some(AnimationBlock::load(a, bundle, &layer.rng, grid, count)?);
                     }
-                    _ => return Err(Error::param("choice", "a tiling layer has exactly one of `choice` and `animation`")),
+                    _ => {
+                        return Err(Error::param(
+                            "choice",
+                            "a tiling layer has exactly one of `choice` and `animation`",
+                        ))
+                    }
                 }
             }
             LayerKind::Sparse => {
@@ -172,14 +217,23 @@ impl Layer {
                 unused("animation", lp.animation.is_some())?;
                 let ch = lp.choice.as_ref().ok_or_else(|| Error::param("choice", "a sparse layer needs a choice"))?;
                 if let Choice::Explicit { .. } = ch {
-                    return Err(Error::param("choice", "sparse layers choose virtually or by materials; explicit positions are sprites"));
+                    return Err(Error::param(
+                        "choice",
+                        "sparse layers choose virtually or by materials; explicit positions are sprites",
+                    ));
                 }
                 let choice = ChoiceBlock::load(ch, bundle, reference, &layer.rng, grid, texture, true)?;
                 if choice.pixel_map().is_some() {
-                    return Err(Error::param("choice.pixel_map", "sparse layers place materials per cell (areas maps)"));
+                    return Err(Error::param(
+                        "choice.pixel_map",
+                        "sparse layers place materials per cell (areas maps)",
+                    ));
                 }
                 layer.choice = Some(choice);
-                let t = lp.transform.as_ref().ok_or_else(|| Error::param("transform", "a sparse layer needs a transform"))?;
+                let t = lp
+                    .transform
+                    .as_ref()
+                    .ok_or_else(|| Error::param("transform", "a sparse layer needs a transform"))?;
                 layer.transform = Some(TransformBlock::load(t)?);
             }
             LayerKind::Sprites => {
@@ -312,7 +366,10 @@ impl Layer {
         if k <= OVERSAMPLE {
             return self.block_mean(r, cx, cy, k, t);
         }
-        let centre = ((cx as f64 + k as f64 * 0.5).min(self.grid.0 as f64), (cy as f64 + k as f64 * 0.5).min(self.grid.1 as f64));
+        let centre = (
+            (cx as f64 + k as f64 * 0.5).min(self.grid.0 as f64),
+            (cy as f64 + k as f64 * 0.5).min(self.grid.1 as f64),
+        );
         if self.transitions.is_none() && self.animation.is_none() {
             if let Some(e) = self.choice.as_ref().and_then(|c| c.expected(r, centre.0, centre.1, self.grid, false)) {
                 return e.map(|v| (v + 0.5).floor().clamp(0.0, 255.0) as u8);
@@ -362,7 +419,9 @@ impl Layer {
                 for col in 0..w {
                     let px = wrap(region.x + col as i64, lw) as f64;
                     let (cx, cy) = ((px + 0.5) * f / c, (py + 0.5) * f / c);
-                    let e = choice.expected(r, cx.min(self.grid.0 as f64), cy.min(self.grid.1 as f64), self.grid, true).unwrap_or([0.0; 4]);
+                    let e = choice
+                        .expected(r, cx.min(self.grid.0 as f64), cy.min(self.grid.1 as f64), self.grid, true)
+                        .unwrap_or([0.0; 4]);
                     over_pm(&mut out[(row * w + col) * 4..][..4], e.map(|v| v * area));
                 }
             }
@@ -382,7 +441,9 @@ impl Layer {
             let ry = ((y - uy as f64 * c) / c) as f32;
             let first = uy - left;
             if first != rows_y0 {
-                rows = (first..=uy + right).map(|yy| (0..span).map(|i| self.placed(tex, ux0 + i as i64, yy)).collect()).collect();
+                rows = (first..=uy + right)
+                    .map(|yy| (0..span).map(|i| self.placed(tex, ux0 + i as i64, yy)).collect())
+                    .collect();
                 rows_y0 = first;
             }
             for col in 0..w {
@@ -430,7 +491,8 @@ impl Layer {
                     if dx >= s || dy >= s {
                         continue;
                     }
-                    let (u, v) = (dx as f32 + if f == 1 { 0.5 } else { 0.0 }, dy as f32 + if f == 1 { 0.5 } else { 0.0 });
+                    let (u, v) =
+                        (dx as f32 + if f == 1 { 0.5 } else { 0.0 }, dy as f32 + if f == 1 { 0.5 } else { 0.0 });
                     let c = r.bilinear_pm(e.pattern, level, u * k, v * k);
                     over_pm(&mut out[(row * w + col) * 4..][..4], c);
                 }

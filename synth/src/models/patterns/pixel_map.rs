@@ -29,7 +29,10 @@ impl PixelMap {
             return Err(err(format!("scale {} and block {} must be powers of two (block ≤ 256)", p.scale, p.block)));
         }
         if w as u64 * p.scale as u64 != texture.0 || h as u64 * p.scale as u64 != texture.1 {
-            return Err(err(format!("{w}×{h} map pixels × scale {} do not cover the {}×{} texture", p.scale, texture.0, texture.1)));
+            return Err(err(format!(
+                "{w}×{h} map pixels × scale {} do not cover the {}×{} texture",
+                p.scale, texture.0, texture.1
+            )));
         }
         if w % p.block != 0 || h % p.block != 0 {
             return Err(err(format!("block {} does not divide the map size {w}×{h}", p.block)));
@@ -39,7 +42,11 @@ impl PixelMap {
         let top_bytes = (bw as usize * bh as usize) * 2;
         let b2 = (p.block * p.block) as usize;
         if data.len() < top_bytes || (data.len() - top_bytes) % b2 != 0 {
-            return Err(err(format!("section `{}` has {} bytes; not a {bw}×{bh} grid plus {b2}-byte blocks", p.section, data.len())));
+            return Err(err(format!(
+                "section `{}` has {} bytes; not a {bw}×{bh} grid plus {b2}-byte blocks",
+                p.section,
+                data.len()
+            )));
         }
         let top: Vec<u16> = data[..top_bytes].chunks_exact(2).map(|c| u16::from_le_bytes([c[0], c[1]])).collect();
         let pool = data[top_bytes..].to_vec();

@@ -2,7 +2,7 @@
 //! mip chain built from that pattern alone — the "sub-textures" §5.2 asks hardware for — so
 //! packed neighbours never bleed into each other at any level.
 
-use crate::{mip, Error, Rgba8Image, Result};
+use crate::{mip, Error, Result, Rgba8Image};
 
 pub struct Reference {
     /// Pattern side S (a power of two) and log2 S.
@@ -31,12 +31,19 @@ impl Reference {
         if img.width != tx * size || img.height != ty * size {
             return Err(Error::image(
                 "reference",
-                format!("{}×{} pixels; {tx}×{ty} patterns of {size}² need {}×{}", img.width, img.height, tx * size, ty * size),
+                format!(
+                    "{}×{} pixels; {tx}×{ty} patterns of {size}² need {}×{}",
+                    img.width,
+                    img.height,
+                    tx * size,
+                    ty * size
+                ),
             ));
         }
         let log2 = size.trailing_zeros();
         let count = (tx * ty) as usize;
-        let mut levels: Vec<Vec<u8>> = (0..=log2).map(|l| Vec::with_capacity(count * ((size >> l).pow(2) * 4) as usize)).collect();
+        let mut levels: Vec<Vec<u8>> =
+            (0..=log2).map(|l| Vec::with_capacity(count * ((size >> l).pow(2) * 4) as usize)).collect();
         let mut pm_mean = Vec::with_capacity(count);
         for p in 0..count as u32 {
             let mut level = img.crop((p % tx) * size, (p / tx) * size, size, size);

@@ -53,6 +53,7 @@ impl Sigma {
         Self { tx, ty, table: cells }
     }
 
+    #[allow(clippy::len_without_is_empty)] // a table always has entries
     pub fn len(&self) -> u32 {
         self.tx * self.ty
     }
@@ -60,7 +61,8 @@ impl Sigma {
     /// Smallest number of hashing steps k with tx^k ≥ nx and ty^k ≥ ny, or `None` when an
     /// axis of the table has one entry and so cannot tell cells of that axis apart.
     pub fn steps_for(&self, nx: u64, ny: u64) -> Option<u32> {
-        let covers = |t: u32, n: u64, k: u32| n <= 1 || (t > 1 && (t as u128).pow(k) >= n as u128);
+        let covers =
+            |t: u32, n: u64, k: u32| n <= 1 || (t > 1 && (t as u128).checked_pow(k).is_none_or(|p| p >= n as u128));
         (1..=64).find(|&k| covers(self.tx, nx, k) && covers(self.ty, ny, k))
     }
 

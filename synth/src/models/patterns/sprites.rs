@@ -48,11 +48,19 @@ impl Positioning {
         let mut list = Vec::with_capacity(sprites.len());
         for (name, s) in sprites {
             if s.pattern >= patterns {
-                return Err(Error::param(format!("sprites.{name}.pattern"), format!("pattern {} is missing: the reference holds 0..{patterns}", s.pattern)));
+                return Err(Error::param(
+                    format!("sprites.{name}.pattern"),
+                    format!("pattern {} is missing: the reference holds 0..{patterns}", s.pattern),
+                ));
             }
-            let e = Entry { pattern: s.pattern, x: s.x.rem_euclid(texture.0 as i64) as u64, y: s.y.rem_euclid(texture.1 as i64) as u64 };
+            let e = Entry {
+                pattern: s.pattern,
+                x: s.x.rem_euclid(texture.0 as i64) as u64,
+                y: s.y.rem_euclid(texture.1 as i64) as u64,
+            };
             let (c0x, c0y) = (e.x / cell as u64, e.y / cell as u64);
-            let (c1x, c1y) = ((e.x + pattern_size as u64 - 1) / cell as u64, (e.y + pattern_size as u64 - 1) / cell as u64);
+            let (c1x, c1y) =
+                ((e.x + pattern_size as u64 - 1) / cell as u64, (e.y + pattern_size as u64 - 1) / cell as u64);
             for cy in [c0y, c1y] {
                 for cx in [c0x, c1x] {
                     let key = (cy % grid.1) * grid.0 + (cx % grid.0);

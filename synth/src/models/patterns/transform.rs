@@ -44,11 +44,18 @@ impl TransformBlock {
         if !p.overflow && half(smax) > 0.5 {
             return Err(Error::param(
                 "transform.scale",
-                format!("max scale {smax} does not fit inside a cell without overflow{}", if p.rotate { " once rotated" } else { "" }),
+                format!(
+                    "max scale {smax} does not fit inside a cell without overflow{}",
+                    if p.rotate { " once rotated" } else { "" }
+                ),
             ));
         }
         // Overflow: the corner is at d ∈ [0,1), the centre at d + s/2, the box ±e around it.
-        let (left, right) = if p.overflow { ((smax * 0.5 + half(smax)).ceil() as i64, (half(smax) - smax * 0.5).max(0.0).ceil() as i64) } else { (0, 0) };
+        let (left, right) = if p.overflow {
+            ((smax * 0.5 + half(smax)).ceil() as i64, (half(smax) - smax * 0.5).max(0.0).ceil() as i64)
+        } else {
+            (0, 0)
+        };
         Ok(Self { smin, smax, rotate: p.rotate, overflow: p.overflow, left, right })
     }
 
@@ -57,7 +64,11 @@ impl TransformBlock {
         let s = self.smin + rng.unit(Role::Scale, gx, gy) * (self.smax - self.smin);
         let e = if self.rotate { s * SQRT2_2 } else { s * 0.5 };
         let (dx, dy) = (rng.unit(Role::OffsetX, gx, gy), rng.unit(Role::OffsetY, gx, gy));
-        let (cx, cy) = if self.overflow { (dx + s * 0.5, dy + s * 0.5) } else { (e + (1.0 - 2.0 * e) * dx, e + (1.0 - 2.0 * e) * dy) };
+        let (cx, cy) = if self.overflow {
+            (dx + s * 0.5, dy + s * 0.5)
+        } else {
+            (e + (1.0 - 2.0 * e) * dx, e + (1.0 - 2.0 * e) * dy)
+        };
         let (cos, sin) = if self.rotate {
             let theta = rng.unit(Role::Rotation, gx, gy) * (2.0 * core::f32::consts::PI);
             (libm::cosf(theta), libm::sinf(theta))

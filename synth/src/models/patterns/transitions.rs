@@ -42,7 +42,10 @@ impl Transitions {
         if families < 2 || t.tiles.len() != families - 1 {
             return Err(Error::param(
                 "transitions.tiles",
-                format!("{} tile sets for {families} families; give one set per family above 0 (and ≥ 2 families)", t.tiles.len()),
+                format!(
+                    "{} tile sets for {families} families; give one set per family above 0 (and ≥ 2 families)",
+                    t.tiles.len()
+                ),
             ));
         }
         for (f, set) in t.tiles.iter().enumerate() {
@@ -53,7 +56,10 @@ impl Transitions {
                 ));
             }
             if let Some(p) = set.iter().find(|&&p| p >= patterns) {
-                return Err(Error::param("transitions.tiles", format!("pattern {p} is missing: the reference holds 0..{patterns}")));
+                return Err(Error::param(
+                    "transitions.tiles",
+                    format!("pattern {p} is missing: the reference holds 0..{patterns}"),
+                ));
             }
         }
         for f in 0..families as u16 {
