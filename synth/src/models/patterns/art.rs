@@ -92,7 +92,9 @@ impl Family {
                 let mut c = self.base(seed, fx, fy, s);
                 let inside = interior(x as f32, y as f32, sf, sf / 16.0);
                 let var = fbm(seed + 100 + variant, fx, fy, s);
-                c = mix(c, mix(c, [c[0] * 0.8, c[1] * 0.85, c[2] * 0.8], var), inside);
+                // Zero-mean variation, so the shared border band is not a visible grid.
+                let k = 1.0 + (var - 0.5) * 0.35 * inside;
+                c = [c[0] * k, c[1] * k, c[2] * k];
                 for &(cx, cy, r, colour) in &features {
                     let d = ((fx - cx) * (fx - cx) + (fy - cy) * (fy - cy)).sqrt();
                     let cover = ((r - d) + 0.5).clamp(0.0, 1.0) * inside;

@@ -375,19 +375,18 @@ impl Layer {
                 return e.map(|v| (v + 0.5).floor().clamp(0.0, 255.0) as u8);
             }
         }
-        // Stratified sample: the centre cell of each of 4 × 4 sub-blocks.
-        let step = k / 4;
+        // Stratified sample: the centre cell of each of 4 × 4 sub-blocks of the part of the
+        // block inside the grid (the last block of a level may be partial).
+        let (ex, ey) = (k.min(self.grid.0 - cx), k.min(self.grid.1 - cy));
         let (mut acc, mut n) = ([0u32; 4], 0u32);
         for j in 0..4 {
             for i in 0..4 {
-                let (x, y) = (cx + i * step + step / 2, cy + j * step + step / 2);
-                if x < self.grid.0 && y < self.grid.1 {
-                    let c = self.cell_mean(r, x, y, t);
-                    for ch in 0..4 {
-                        acc[ch] += c[ch] as u32;
-                    }
-                    n += 1;
+                let (x, y) = (cx + (2 * i + 1) * ex / 8, cy + (2 * j + 1) * ey / 8);
+                let c = self.cell_mean(r, x, y, t);
+                for ch in 0..4 {
+                    acc[ch] += c[ch] as u32;
                 }
+                n += 1;
             }
         }
         let n = n.max(1);
@@ -410,8 +409,8 @@ impl Layer {
         let c = self.cell as f64;
         let w = region.width as usize;
         let (lw, lh) = level_size(tex.width, tex.height, level);
-        if f * 2.0 > c {
-            // Several cells per pixel: expected premultiplied coverage (law of large numbers).
+        if f * 4.0 > c {
+            // Under four pixels per cell: expected premultiplied coverage (law of large numbers).
             let choice = self.choice.as_ref().unwrap();
             let area = tr.mean_area();
             for row in 0..region.height as usize {
