@@ -47,7 +47,9 @@ fn compositions(c: &mut Criterion) {
     let tex = models::load(&demos::aperiodic(1563)).unwrap();
     for level in [7u32, 9] {
         let region = Region::new(level, 0, 0, 256, 256);
-        g.bench_function(format!("basic tiling level {level}"), |b| b.iter(|| tex.render(black_box(&region), &mut out)));
+        g.bench_function(format!("basic tiling level {level}"), |b| {
+            b.iter(|| tex.render(black_box(&region), &mut out))
+        });
     }
     g.finish();
 }

@@ -570,6 +570,17 @@ fn demos_are_reproducible_and_compact() {
     for (bytes, d) in a.iter().zip(demos::demos()) {
         let t = models::load(&d).unwrap();
         let explicit = t.width() * t.height() * 3;
+        let sections: Vec<String> = d.sections.iter().map(|s| format!("{} {}", s.name, s.data.len())).collect();
+        println!(
+            "| {} | {}×{} | {} ({}) | {} | {:.0}× |",
+            d.manifest.name,
+            t.width(),
+            t.height(),
+            bytes.len(),
+            sections.join(", "),
+            explicit,
+            explicit as f64 / bytes.len() as f64
+        );
         assert!((bytes.len() as u64) * 100 < explicit, "{}: {} bytes for {explicit}", d.manifest.name, bytes.len());
     }
 }
@@ -759,4 +770,50 @@ fn bad_encodings_are_clear_errors() {
     let mut garbage = build(&ok, &r);
     garbage.manifest.params = serde_json::json!({"width": "wide"});
     assert!(err(&garbage).contains("params"));
+}
+
+#[test]
+fn explicit_indirection_map_places_its_patterns_and_repeats() {
+    // A 2 × 3 map over a 6 × 6 grid repeats (maps wrap, §3.1).
+    let values = vec![5, 0, 9, 3, 15, 7];
+    let p = params(6 * 8, 6 * 8, 8, [4, 4], vec![tiling(8, Choice::Explicit { map: inline(2, 3, values.clone()) })]);
+    let r = flat_reference(4, 4, 8);
+    let t = load(&build(&p, &r));
+    let img = render_image(&t, &Region::new(0, 0, 0, 48, 48)).unwrap();
+    for gy in 0..6u32 {
+        for gx in 0..6u32 {
+            let want = values[((gy % 3) * 2 + gx % 2) as usize] as u32;
+            assert_eq!(t.pick(0, gx as u64, gy as u64, 0).base, Some(want));
+            let src = r.crop((want % 4) * 8, (want / 4) * 8, 8, 8);
+            assert_eq!(img.crop(gx * 8, gy * 8, 8, 8), src, "cell ({gx}, {gy}) shows pattern {want} exactly");
+        }
+    }
+}
+
+#[test]
+fn composited_layers_stay_close_to_the_exact_downsample() {
+    // Leaves over a tiling and grass transitions: not exact (rotated, bilinear, composited
+    // patterns), but every level stays near the box chain and the top level near the mean.
+    let small = |mut b: Bundle| {
+        b.manifest.params["width"] = 1024.into();
+        b.manifest.params["height"] = 1024.into();
+        models::load(&b).unwrap()
+    };
+    for (b, floor) in [(demos::leaves(), 22.0), (demos::two_materials(), 30.0)] {
+        let name = b.manifest.name.clone();
+        let t = small(b);
+        let full = render_image(&*t, &Region::new(0, 0, 0, 1024, 1024)).unwrap();
+        let mut exact = full.clone();
+        for level in 1..level_count(1024, 1024) {
+            exact = mip::downsample(&exact);
+            let got = render_image(&*t, &Region::new(level, 0, 0, exact.width, exact.height)).unwrap();
+            let db = mip::psnr(&got, &exact);
+            assert!(db > floor, "{name} level {level}: {db:.1} dB");
+        }
+        let (m, top) = (mip::mean_rgba(&full), exact.pixel(0, 0));
+        let got = render_image(&*t, &Region::new(10, 0, 0, 1, 1)).unwrap().pixel(0, 0);
+        for c in 0..3 {
+            assert!((got[c] as f64 - m[c]).abs() < 6.0, "{name}: top {got:?}, mean {m:?}, exact chain {top:?}");
+        }
+    }
 }
