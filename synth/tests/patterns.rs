@@ -817,3 +817,67 @@ fn composited_layers_stay_close_to_the_exact_downsample() {
         }
     }
 }
+
+/// Every number and string in a demo's params replaced by hostile values: loading gives a
+/// result (usually an error naming the field) and rendering what loads never panics.
+#[test]
+fn hostile_params_never_panic() {
+    fn leaves(v: &serde_json::Value, path: &mut Vec<String>, out: &mut Vec<Vec<String>>) {
+        match v {
+            serde_json::Value::Object(m) => m.iter().for_each(|(k, x)| {
+                path.push(k.clone());
+                leaves(x, path, out);
+                path.pop();
+            }),
+            serde_json::Value::Array(a) => a.iter().enumerate().take(3).for_each(|(i, x)| {
+                path.push(i.to_string());
+                leaves(x, path, out);
+                path.pop();
+            }),
+            _ => out.push(path.clone()),
+        }
+    }
+    fn at<'a>(v: &'a mut serde_json::Value, path: &[String]) -> &'a mut serde_json::Value {
+        path.iter().fold(v, |v, k| match v {
+            serde_json::Value::Array(a) => &mut a[k.parse::<usize>().unwrap()],
+            other => &mut other[k.as_str()],
+        })
+    }
+    let hostile = [
+        serde_json::json!(0),
+        serde_json::json!(-1),
+        serde_json::json!(1u64 << 40),
+        serde_json::json!(3),
+        serde_json::json!("x"),
+    ];
+    let mut loaded = 0;
+    for b in [demos::two_materials(), demos::leaves(), demos::sprites(), demos::led_board(true)] {
+        let mut paths = Vec::new();
+        leaves(&b.manifest.params, &mut Vec::new(), &mut paths);
+        for path in &paths {
+            for h in &hostile {
+                let mut m = b.clone();
+                *at(&mut m.manifest.params, path) = h.clone();
+                if let Ok(t) = pat::load(&m) {
+                    loaded += 1;
+                    let l = (level_count(t.width(), t.height()) - 1).min(3);
+                    render_image(&t, &Region::new(l, -5, -5, 40, 40).at_frame(7)).unwrap();
+                }
+            }
+        }
+    }
+    assert!(loaded > 0);
+}
+
+#[test]
+fn basic_sparse_convolution_of_one_pattern() {
+    // T = 1 (Fig. 18): a virtual choice over a single pattern, random place, scale, rotation.
+    let mut layer = sparse(32, [0.4, 0.7], true, true);
+    layer.choice = Some(Choice::Virtual);
+    let p = params(32 * 32, 32 * 32, 32, [1, 1], vec![layer]);
+    let t = load(&build(&p, &gradient_reference(32)));
+    let img = render_image(&t, &Region::new(0, 0, 0, 1024, 1024)).unwrap();
+    let covered = img.data.chunks_exact(4).filter(|p| p[3] > 0).count() as f64 / (1024.0 * 1024.0);
+    // Expected coverage: E[s²] = (0.16 + 0.28 + 0.49) / 3 = 0.31 of each cell, minus overlaps.
+    assert!(covered > 0.2 && covered < 0.31, "coverage {covered:.3}");
+}

@@ -53,7 +53,7 @@ impl ChoiceBlock {
         let count = reference.count();
         Ok(match c {
             Choice::Virtual => {
-                if rng.pattern_steps().is_none() {
+                if rng.pattern_steps().is_none() && reference.count() > 1 {
                     return Err(Error::param(
                         "choice",
                         format!(

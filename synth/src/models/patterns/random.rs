@@ -36,8 +36,11 @@ impl LayerRng {
     /// Vectorial pattern index from the pattern table (basic aperiodic tiling), row-major.
     #[inline]
     pub fn pattern(&self, gx: u64, gy: u64) -> u32 {
-        let steps = self.pattern_steps.expect("checked at load");
-        self.tables[0].index(gx + self.off.0, gy + self.off.1, steps)
+        match self.pattern_steps {
+            Some(steps) => self.tables[0].index(gx + self.off.0, gy + self.off.1, steps),
+            // A one-pattern reference (basic sparse convolution, T = 1): always pattern 0.
+            None => 0,
+        }
     }
 
     #[inline]
