@@ -25,3 +25,16 @@ fn render_demos() {
         println!("{i}: {} {}×{} level {level}", b.manifest.name, w, h);
     }
 }
+
+#[test]
+#[ignore = "writes PNGs for inspection"]
+fn render_led_transition_frames() {
+    let dir = std::env::var("VTEX_RENDER_DIR")
+        .unwrap_or_else(|_| concat!(env!("CARGO_MANIFEST_DIR"), "/../target/patterns-renders").into());
+    std::fs::create_dir_all(&dir).unwrap();
+    let tex = models::load(&demos::led_board(true)).unwrap();
+    for frame in [100u32, 125, 140, 200] {
+        let img = render_image(&*tex, &Region::new(3, 0, 0, 1536, 192).at_frame(frame)).unwrap();
+        std::fs::write(format!("{dir}/led-transition-{frame}.png"), img.to_png()).unwrap();
+    }
+}

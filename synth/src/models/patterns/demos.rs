@@ -149,7 +149,7 @@ fn led_reference() -> Rgba8Image {
 
 /// The Z map of a message: short rests in the letters, long ones in the background.
 fn led_z(text: &str, w: u32, h: u32) -> Vec<u8> {
-    art::text_mask(text, w, h, 4).iter().map(|&on| if on { 0 } else { 160 }).collect()
+    art::text_mask(text, w, h, 4).iter().map(|&on| if on { 0 } else { 240 }).collect()
 }
 
 /// Fig. 21c: the blinking LED message board, 12288 × 1536 (384 × 48 LEDs of 32 px). The
@@ -165,7 +165,7 @@ pub fn led_board(transition: bool) -> Bundle {
     let mut anim = AnimationParams {
         sequence: (0..12).collect(),
         a: 1.0,
-        phi: ValueParams { map: None, random: 64 },
+        phi: ValueParams { map: None, random: 256 },
         z: z("z-new"),
         previous: None,
     };
