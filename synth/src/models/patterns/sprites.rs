@@ -5,7 +5,7 @@
 
 use super::params::SpriteParams;
 use crate::{Error, Result};
-use std::collections::{BTreeMap, HashMap};
+use std::collections::BTreeMap;
 
 /// Most sprites one texture may hold.
 pub const MAX_SPRITES: usize = 4096;
@@ -21,7 +21,8 @@ pub struct Entry {
 pub struct Positioning {
     pub cell: u32,
     grid: (u64, u64),
-    map: HashMap<u64, Entry>,
+    /// The positioning map's occupied cells, sorted by cell key (y · width + x).
+    map: Vec<(u64, Entry)>,
     pub list: Vec<Entry>,
 }
 
@@ -43,8 +44,8 @@ impl Positioning {
             return Err(Error::param("sprites", format!("{} sprites; at most {MAX_SPRITES}", sprites.len())));
         }
         let grid = (texture.0 / cell as u64, texture.1 / cell as u64);
-        let mut map: HashMap<u64, Entry> = HashMap::new();
-        let mut owner: HashMap<u64, &str> = HashMap::new();
+        let mut map: BTreeMap<u64, Entry> = BTreeMap::new();
+        let mut owner: BTreeMap<u64, &str> = BTreeMap::new();
         let mut list = Vec::with_capacity(sprites.len());
         for (name, s) in sprites {
             if s.pattern >= patterns {
@@ -78,13 +79,14 @@ impl Positioning {
             }
             list.push(e);
         }
-        Ok(Self { cell, grid, map, list })
+        Ok(Self { cell, grid, map: map.into_iter().collect(), list })
     }
 
     /// The sprite recorded in the positioning cell containing level-0 pixel (x, y).
     #[inline]
     pub fn at(&self, x: u64, y: u64) -> Option<&Entry> {
         let (cx, cy) = (x / self.cell as u64 % self.grid.0, y / self.cell as u64 % self.grid.1);
-        self.map.get(&(cy * self.grid.0 + cx))
+        let key = cy * self.grid.0 + cx;
+        self.map.binary_search_by_key(&key, |e| e.0).ok().map(|i| &self.map[i].1)
     }
 }
