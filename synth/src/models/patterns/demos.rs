@@ -110,8 +110,8 @@ fn ground_layer() -> LayerParams {
 /// overflowing into neighbouring cells, their density set by a dithered 8 × 8 areas map.
 pub fn leaves() -> Bundle {
     let dense = MaterialParams { patterns: (16..24).collect(), family: 0 };
-    let medium = MaterialParams { patterns: vec![16, 17, 18, 19, 20, 21, -1, -1], family: 0 };
-    let sparse = MaterialParams { patterns: vec![16, 19, 22, -1, -1, -1, -1, -1], family: 0 };
+    let medium = MaterialParams { patterns: vec![16, 17, 18, 19, -1, -1, -1, -1], family: 0 };
+    let sparse = MaterialParams { patterns: vec![20, -1, -1, -1, -1, -1, -1, -1], family: 0 };
     let density: Vec<u16> = (0..64).map(|i| [0u16, 1, 2, 1][((i % 8) / 2 + (i / 8) / 3) % 4]).collect();
     let choice = Choice::Materials {
         materials: vec![dense, medium, sparse],
