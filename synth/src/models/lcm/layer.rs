@@ -1,0 +1,242 @@
+//! One layer: the replications of one resolution, controlled by one LCM, and its evaluation
+//! over a row of pixels directly from the LCM entries that cover it (paper §6).
+//!
+//! At resolution r (element side s = 2^r) the replication points sit every h = s/2 pixels,
+//! so a pixel lies in exactly two point spans per axis: at most four replications of a layer
+//! meet at a pixel, those of points (i0−1, j0−1), (i0, j0−1), (i0−1, j0), (i0, j0) with
+//! i0 = ⌊x/h⌋, j0 = ⌊y/h⌋. They are applied in that (row-major) order, which is what the
+//! non-commutative operations see within a layer.
+//!
+//! When a mip level shifts a layer below resolution 1 (§2.4: its elements would be smaller
+//! than 2 pixels), the layer is evaluated prefiltered instead: each pixel takes the exact box
+//! mean of the layer's resolution-1 field over its footprint, read in O(1) from a summed-area
+//! table of one LCM period. Non-additive replications also carry their coverage, so that
+//! a ← a·(1 − coverage) + mean is the box filter of "paint over a" (exact for opaque or
+//! additive layers, an approximation where partly transparent replications overlap).
+
+use super::colour::QI;
+use super::element::{Copies, Q};
+use super::event::{Event, Operation};
+use std::sync::OnceLock;
+
+/// Fixed-point shift of layer weights: element (Q8) × weight (Q12) = intensity (Q20).
+pub const QW: u32 = QI - Q;
+
+/// Counts the work of evaluation, per pixel of the current row. The renderer is generic over
+/// it so that the counting build and the real one run the same code; [`NoCount`] costs nothing.
+pub trait Counter {
+    /// `n` additions (or the similar operations non-zero / maximum) at row pixel `x`.
+    #[inline]
+    fn add(&mut self, _x: usize, _n: u32) {}
+    /// `n` multiplications at row pixel `x`.
+    #[inline]
+    fn mul(&mut self, _x: usize, _n: u32) {}
+    /// `k` replications of one layer meet at row pixel `x`.
+    #[inline]
+    fn touch(&mut self, _x: usize, _k: u32) {}
+}
+
+/// The counter of real rendering.
+pub struct NoCount;
+impl Counter for NoCount {}
+
+/// A layer as rendered: its LCM, weight and resolution offset.
+#[derive(Debug)]
+pub struct Layer {
+    /// The paper's layer number: layer n renders at resolution K + magnify − n at level 0.
+    pub index: u32,
+    /// Weight in Q12.
+    pub weight: i64,
+    pub w: usize,
+    pub h: usize,
+    /// Event codes, row-major, every "no replication" as 0.
+    pub codes: Vec<u8>,
+    /// Every replication adds (the paper's fast path: sum, then one multiplication).
+    pub all_add: bool,
+    /// Summed-area tables of the resolution-1 field, per intensity plane, made when first needed.
+    sat: Vec<OnceLock<Sat>>,
+}
+
+impl Layer {
+    pub fn new(index: u32, weight: i64, w: usize, h: usize, codes: &[u8], planes: usize) -> Layer {
+        let codes: Vec<u8> = codes.iter().map(|&c| Event::canonical(c)).collect();
+        let all_add = codes.iter().all(|&c| c == 0 || Event::operation_of(c) == Operation::Add);
+        Layer { index, weight, w, h, codes, all_add, sat: (0..planes).map(|_| OnceLock::new()).collect() }
+    }
+
+    /// Applies the layer at resolution `r` ≥ 1 to `acc`, the intensities of the pixels
+    /// (x0 .. x0 + acc.len(), y) of its level. `first` says `acc` holds nothing yet.
+    /// `cover`, when given, is set to 1 where a non-additive replication paints.
+    #[allow(clippy::too_many_arguments)]
+    pub fn apply_native<C: Counter>(
+        &self,
+        copies: &Copies,
+        r: u32,
+        y: u64,
+        x0: u64,
+        acc: &mut [i64],
+        mut cover: Option<&mut [u8]>,
+        first: bool,
+        cnt: &mut C,
+        cx: usize,
+    ) {
+        let sh = r - 1;
+        let hh = 1u64 << sh;
+        let s = 2 * hh as usize;
+        let (w, h) = (self.w as u64, self.h as u64);
+        let j0 = y >> sh;
+        let v = (y & (hh - 1)) as usize;
+        // Earlier point row first: (row in the LCM, local y within the element).
+        let rows = [(((j0 % h) + h - 1) % h, v + hh as usize), (j0 % h, v)];
+        let end = x0 + acc.len() as u64;
+        let mut x = x0;
+        while x < end {
+            let i0 = x >> sh;
+            let u0 = (x & (hh - 1)) as usize;
+            let len = (hh - u0 as u64).min(end - x) as usize;
+            let cols = [(((i0 % w) + w - 1) % w, hh as usize), (i0 % w, 0)];
+            let mut reps: [(&[i16], i64, i64, Operation); 4] = [(&[], 0, 0, Operation::Add); 4];
+            let mut k = 0;
+            for &(row, vl) in &rows {
+                for &(col, uoff) in &cols {
+                    let code = self.codes[(row * w + col) as usize];
+                    if code != 0 {
+                        let img = copies.get(r, Event::orientation_of(code));
+                        let line = &img[vl * s + uoff + u0..vl * s + uoff + u0 + len];
+                        let sign = Event::sign_of(code) as i64;
+                        reps[k] = (line, sign, sign * self.weight, Event::operation_of(code));
+                        k += 1;
+                    }
+                }
+            }
+            let p0 = (x - x0) as usize;
+            let reps = &reps[..k];
+            if k > 0 {
+                for t in 0..len {
+                    cnt.touch(cx + p0 + t, k as u32);
+                }
+            }
+            if k == 0 {
+                // Nothing of this layer here.
+            } else if self.all_add {
+                // The paper's count: up to 3 additions, 1 multiplication, 1 addition into the sum
+                // of layers (none for the first layer).
+                let into = if first { 0 } else { 1 };
+                for t in 0..len {
+                    let mut sum = 0i64;
+                    for (line, sign, _, _) in reps {
+                        sum += line[t] as i64 * sign;
+                    }
+                    let val = sum * self.weight;
+                    if first {
+                        acc[p0 + t] = val;
+                    } else {
+                        acc[p0 + t] += val;
+                    }
+                    cnt.add(cx + p0 + t, k as u32 - 1 + into);
+                    cnt.mul(cx + p0 + t, 1);
+                }
+            } else {
+                for t in 0..len {
+                    let a = &mut acc[p0 + t];
+                    for (line, _, sw, op) in reps {
+                        let e = line[t] as i64;
+                        let b = e * sw;
+                        match op {
+                            Operation::Add => *a += b,
+                            Operation::NonZero => {
+                                if e != 0 {
+                                    *a = b;
+                                }
+                            }
+                            Operation::Maximum => {
+                                if b.abs() > a.abs() {
+                                    *a = b;
+                                }
+                            }
+                        }
+                        if *op != Operation::Add && e != 0 {
+                            if let Some(c) = cover.as_deref_mut() {
+                                c[p0 + t] = 1;
+                            }
+                        }
+                    }
+                    cnt.add(cx + p0 + t, k as u32);
+                    cnt.mul(cx + p0 + t, k as u32);
+                }
+            }
+            x += len as u64;
+        }
+    }
+
+    /// Applies the layer prefiltered at resolution `r` ≤ 0 to the pixels (x0 .., y) of its
+    /// level: every pixel is the box mean of the resolution-1 field over 2^(1−r) pixels a side.
+    pub fn apply_prefiltered(&self, copies: &Copies, plane: usize, r: i64, y: u64, x0: u64, acc: &mut [i64]) {
+        let sat = self.sat[plane].get_or_init(|| Sat::build(self, copies));
+        let shift = (1 - r) as u32;
+        let f = 1u128 << shift;
+        let fy = (y as u128 * f) % self.h as u128;
+        for (p, a) in acc.iter_mut().enumerate() {
+            let fx = ((x0 + p as u64) as u128 * f) % self.w as u128;
+            let (sum, cov) = sat.rect(fx, fy, f);
+            *a = if self.all_add {
+                *a + (sum >> (2 * shift)) as i64
+            } else {
+                ((*a as i128 * ((1i128 << (2 * shift)) - cov) + sum) >> (2 * shift)) as i64
+            };
+        }
+    }
+}
+
+/// Summed-area tables over one LCM period of a layer's resolution-1 field, applied onto zero.
+#[derive(Debug)]
+struct Sat {
+    w: usize,
+    h: usize,
+    value: Vec<i64>,
+    cover: Vec<i64>,
+}
+
+impl Sat {
+    fn build(layer: &Layer, copies: &Copies) -> Sat {
+        let (w, h) = (layer.w, layer.h);
+        let mut value = vec![0i64; (w + 1) * (h + 1)];
+        let mut cover = vec![0i64; (w + 1) * (h + 1)];
+        let mut row = vec![0i64; w];
+        let mut cov = vec![0u8; w];
+        for y in 0..h {
+            row.fill(0);
+            cov.fill(0);
+            layer.apply_native(copies, 1, y as u64, 0, &mut row, Some(&mut cov), true, &mut NoCount, 0);
+            let (mut rs, mut rc) = (0i64, 0i64);
+            for x in 0..w {
+                rs += row[x];
+                rc += cov[x] as i64;
+                let at = (y + 1) * (w + 1) + x + 1;
+                value[at] = value[at - (w + 1)] + rs;
+                cover[at] = cover[at - (w + 1)] + rc;
+            }
+        }
+        Sat { w, h, value, cover }
+    }
+
+    /// Sums over [0, x) × [0, y) of the periodic field, for any x, y ≥ 0.
+    fn prefix(&self, x: u128, y: u128) -> (i128, i128) {
+        let (w, h) = (self.w as u128, self.h as u128);
+        let (qx, rx, qy, ry) = ((x / w) as i128, (x % w) as usize, (y / h) as i128, (y % h) as usize);
+        let at = |t: &[i64], a: usize, b: usize| t[b * (self.w + 1) + a] as i128;
+        let f = |t: &[i64]| {
+            qx * qy * at(t, self.w, self.h) + qx * at(t, self.w, ry) + qy * at(t, rx, self.h) + at(t, rx, ry)
+        };
+        (f(&self.value), f(&self.cover))
+    }
+
+    /// (sum, covered pixels) over the f × f square at (x, y), with 0 ≤ x < w, 0 ≤ y < h.
+    fn rect(&self, x: u128, y: u128, f: u128) -> (i128, i128) {
+        let (a, ac) = self.prefix(x + f, y + f);
+        let (b, bc) = self.prefix(x, y + f);
+        let (c, cc) = self.prefix(x + f, y);
+        let (d, dc) = self.prefix(x, y);
+        (a - b - c + d, ac - bc - cc + dc)
+    }
+}
