@@ -96,7 +96,9 @@ pub fn cheese() -> CreateParams {
 /// Two stops: an affine map from intensity to colour commutes with the box filter, so the
 /// native mip levels (filtered in intensity) match the exact ones (filtered in colour).
 fn brick_palette() -> Vec<[f64; 4]> {
-    vec![[-66.0, 214.0, 208.0, 196.0], [60.0, 168.0, 74.0, 48.0]]
+    // Mortar (−62) is (190, 186, 178), brick (50) is (160, 84, 64); the ends leave room for
+    // the noise layers without clamping.
+    vec![[-110.0, 203.0, 230.0, 227.0], [110.0, 144.0, 29.0, 3.0]]
 }
 
 /// "Brick wall", simple (Fig. 3 centre): Tab. 3 on layer 0 only.

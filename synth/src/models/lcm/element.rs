@@ -112,6 +112,10 @@ impl Stored {
 pub struct Copies {
     /// `by_res[r]` for r in 0..=top holds 8 oriented copies of side 2^r (index 0 unused).
     by_res: Vec<[Vec<i16>; 8]>,
+    /// The same for coverage: the share of opaque (non-zero) resolution-K pixels under each
+    /// pixel, 0..=256. At resolution K it is 0 or 256; below, the box mean of that mask, so
+    /// that non-zero application of a downsampled copy blends like the pixels it stands for.
+    alpha: Vec<[Vec<u16>; 8]>,
     /// The finest resolution held: K + magnification.
     pub top: u32,
 }
@@ -140,24 +144,36 @@ impl Copies {
                 }
             }
         }
+        let mut mask: Vec<Vec<i32>> = vec![Vec::new(); top as usize + 1];
+        mask[k as usize] = plain[k as usize].iter().map(|&p| if p != 0 { 1 << Q } else { 0 }).collect();
+        for r in (0..k).rev() {
+            mask[r as usize] = box_half(&mask[r as usize + 1], 1 << (r + 1));
+        }
         for r in k + 1..=top {
             plain[r as usize] = stretch(&plain[r as usize - 1], 1 << (r - 1));
+            mask[r as usize] = stretch(&mask[r as usize - 1], 1 << (r - 1));
         }
-        let by_res = plain
-            .iter()
-            .enumerate()
-            .map(|(r, img)| {
-                let s = 1usize << r;
-                std::array::from_fn(|o| if r == 0 { Vec::new() } else { orient(img, s, o) })
-            })
-            .collect();
-        Copies { by_res, top }
+        let all = |imgs: &[Vec<i32>]| -> Vec<[Vec<i32>; 8]> {
+            imgs.iter()
+                .enumerate()
+                .map(|(r, img)| std::array::from_fn(|o| if r == 0 { Vec::new() } else { orient(img, 1 << r, o) }))
+                .collect()
+        };
+        let by_res = all(&plain).into_iter().map(|a| a.map(|v| v.into_iter().map(|p| p as i16).collect())).collect();
+        let alpha = all(&mask).into_iter().map(|a| a.map(|v| v.into_iter().map(|p| p as u16).collect())).collect();
+        Copies { by_res, alpha, top }
     }
 
     /// The copy of resolution `r` (1 ..= top) in orientation `o` (mirror × 4 + quarter turns).
     #[inline]
     pub fn get(&self, r: u32, o: usize) -> &[i16] {
         &self.by_res[r as usize][o]
+    }
+
+    /// The coverage (0..=256) of [`Copies::get`]'s pixels.
+    #[inline]
+    pub fn alpha(&self, r: u32, o: usize) -> &[u16] {
+        &self.alpha[r as usize][o]
     }
 }
 
@@ -195,9 +211,9 @@ fn stretch(img: &[i32], s: usize) -> Vec<i32> {
 }
 
 /// The element mirrored left–right if `o` ≥ 4, then turned clockwise by `o` mod 4 quarters.
-fn orient(img: &[i32], s: usize, o: usize) -> Vec<i16> {
+fn orient(img: &[i32], s: usize, o: usize) -> Vec<i32> {
     let (mirror, rot) = (o >= 4, o & 3);
-    let mut out = vec![0i16; s * s];
+    let mut out = vec![0i32; s * s];
     for v in 0..s {
         for u in 0..s {
             // Undo the rotation: which pixel of the mirrored element lands at (u, v).
@@ -208,7 +224,7 @@ fn orient(img: &[i32], s: usize, o: usize) -> Vec<i16> {
                 _ => (s - 1 - v, u),
             };
             let x = if mirror { s - 1 - x } else { x };
-            out[v * s + u] = img[y * s + x] as i16;
+            out[v * s + u] = img[y * s + x];
         }
     }
     out

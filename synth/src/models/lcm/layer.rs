@@ -66,7 +66,7 @@ impl Layer {
 
     /// Applies the layer at resolution `r` ≥ 1 to `acc`, the intensities of the pixels
     /// (x0 .. x0 + acc.len(), y) of its level. `first` says `acc` holds nothing yet.
-    /// `cover`, when given, is set to 1 where a non-additive replication paints.
+    /// `cover`, when given, accumulates the coverage (0..=256) of non-additive replications.
     #[allow(clippy::too_many_arguments)]
     pub fn apply_native<C: Counter>(
         &self,
@@ -75,7 +75,7 @@ impl Layer {
         y: u64,
         x0: u64,
         acc: &mut [i64],
-        mut cover: Option<&mut [u8]>,
+        mut cover: Option<&mut [u16]>,
         first: bool,
         cnt: &mut C,
         cx: usize,
@@ -95,16 +95,17 @@ impl Layer {
             let u0 = (x & (hh - 1)) as usize;
             let len = (hh - u0 as u64).min(end - x) as usize;
             let cols = [(((i0 % w) + w - 1) % w, hh as usize), (i0 % w, 0)];
-            let mut reps: [(&[i16], i64, i64, Operation); 4] = [(&[], 0, 0, Operation::Add); 4];
+            let mut reps: [(&[i16], &[u16], i64, i64, Operation); 4] = [(&[], &[], 0, 0, Operation::Add); 4];
             let mut k = 0;
             for &(row, vl) in &rows {
                 for &(col, uoff) in &cols {
                     let code = self.codes[(row * w + col) as usize];
                     if code != 0 {
-                        let img = copies.get(r, Event::orientation_of(code));
-                        let line = &img[vl * s + uoff + u0..vl * s + uoff + u0 + len];
+                        let o = Event::orientation_of(code);
+                        let at = vl * s + uoff + u0..vl * s + uoff + u0 + len;
+                        let (line, alpha) = (&copies.get(r, o)[at.clone()], &copies.alpha(r, o)[at]);
                         let sign = Event::sign_of(code) as i64;
-                        reps[k] = (line, sign, sign * self.weight, Event::operation_of(code));
+                        reps[k] = (line, alpha, sign, sign * self.weight, Event::operation_of(code));
                         k += 1;
                     }
                 }
@@ -124,7 +125,7 @@ impl Layer {
                 let into = if first { 0 } else { 1 };
                 for t in 0..len {
                     let mut sum = 0i64;
-                    for (line, sign, _, _) in reps {
+                    for (line, _, sign, _, _) in reps {
                         sum += line[t] as i64 * sign;
                     }
                     let val = sum * self.weight;
@@ -139,14 +140,17 @@ impl Layer {
             } else {
                 for t in 0..len {
                     let a = &mut acc[p0 + t];
-                    for (line, _, sw, op) in reps {
+                    let mut muls = 0;
+                    for (line, alpha, _, sw, op) in reps {
                         let e = line[t] as i64;
                         let b = e * sw;
+                        let al = alpha[t] as i64;
                         match op {
                             Operation::Add => *a += b,
                             Operation::NonZero => {
-                                if e != 0 {
-                                    *a = b;
+                                if al != 0 {
+                                    *a = *a - ((*a * al) >> 8) + b;
+                                    muls += 1;
                                 }
                             }
                             Operation::Maximum => {
@@ -155,14 +159,15 @@ impl Layer {
                                 }
                             }
                         }
-                        if *op != Operation::Add && e != 0 {
+                        if *op != Operation::Add {
                             if let Some(c) = cover.as_deref_mut() {
-                                c[p0 + t] = 1;
+                                let cv = c[p0 + t] as i64;
+                                c[p0 + t] = (cv + al - ((cv * al) >> 8)) as u16;
                             }
                         }
                     }
                     cnt.add(cx + p0 + t, k as u32);
-                    cnt.mul(cx + p0 + t, k as u32);
+                    cnt.mul(cx + p0 + t, k as u32 + muls);
                 }
             }
             x += len as u64;
@@ -182,7 +187,9 @@ impl Layer {
             *a = if self.all_add {
                 *a + (sum >> (2 * shift)) as i64
             } else {
-                ((*a as i128 * ((1i128 << (2 * shift)) - cov) + sum) >> (2 * shift)) as i64
+                // Coverage is in 1/256 of a pixel.
+                let whole = 1i128 << (2 * shift + 8);
+                ((*a as i128 * (whole - cov) + (sum << 8)) >> (2 * shift + 8)) as i64
             };
         }
     }
@@ -203,7 +210,7 @@ impl Sat {
         let mut value = vec![0i64; (w + 1) * (h + 1)];
         let mut cover = vec![0i64; (w + 1) * (h + 1)];
         let mut row = vec![0i64; w];
-        let mut cov = vec![0u8; w];
+        let mut cov = vec![0u16; w];
         for y in 0..h {
             row.fill(0);
             cov.fill(0);

@@ -34,6 +34,11 @@ impl LcmTexture {
         self.period
     }
 
+    /// Number of intensity planes (1 with a palette, 3 for RGB).
+    pub fn planes(&self) -> usize {
+        self.copies.len()
+    }
+
     /// Number of layers.
     pub fn layer_count(&self) -> usize {
         self.layers.len()
