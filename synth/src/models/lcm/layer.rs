@@ -36,6 +36,10 @@ pub trait Counter {
     fn touch(&mut self, _x: usize, _k: u32) {}
 }
 
+/// One replication over a run of pixels: its element row, coverage row, sign, sign × weight
+/// and operation.
+type Rep<'a> = (&'a [i16], &'a [u16], i64, i64, Operation);
+
 /// The counter of real rendering.
 pub struct NoCount;
 impl Counter for NoCount {}
@@ -95,7 +99,7 @@ impl Layer {
             let u0 = (x & (hh - 1)) as usize;
             let len = (hh - u0 as u64).min(end - x) as usize;
             let cols = [(((i0 % w) + w - 1) % w, hh as usize), (i0 % w, 0)];
-            let mut reps: [(&[i16], &[u16], i64, i64, Operation); 4] = [(&[], &[], 0, 0, Operation::Add); 4];
+            let mut reps: [Rep; 4] = [(&[], &[], 0, 0, Operation::Add); 4];
             let mut k = 0;
             for &(row, vl) in &rows {
                 for &(col, uoff) in &cols {
