@@ -25,6 +25,8 @@ pub const QW: u32 = QI - Q;
 /// Counts the work of evaluation, per pixel of the current row. The renderer is generic over
 /// it so that the counting build and the real one run the same code; [`NoCount`] costs nothing.
 pub trait Counter {
+    /// False for [`NoCount`]: the counting loops compile away.
+    const ACTIVE: bool = true;
     /// `n` additions (or the similar operations non-zero / maximum) at row pixel `x`.
     #[inline]
     fn add(&mut self, _x: usize, _n: u32) {}
@@ -42,7 +44,9 @@ type Rep<'a> = (&'a [i16], &'a [u16], i64, i64, Operation);
 
 /// The counter of real rendering.
 pub struct NoCount;
-impl Counter for NoCount {}
+impl Counter for NoCount {
+    const ACTIVE: bool = false;
+}
 
 /// A layer as rendered: its LCM, weight and resolution offset.
 #[derive(Debug)]
@@ -94,11 +98,14 @@ impl Layer {
         let rows = [(((j0 % h) + h - 1) % h, v + hh as usize), (j0 % h, v)];
         let end = x0 + acc.len() as u64;
         let mut x = x0;
+        // The LCM column of the current point span, advanced without division.
+        let mut col = (x0 >> sh) % w;
+        let mut sums = [0i64; 1 << (super::element::MAX_TOP - 1)];
         while x < end {
-            let i0 = x >> sh;
             let u0 = (x & (hh - 1)) as usize;
             let len = (hh - u0 as u64).min(end - x) as usize;
-            let cols = [(((i0 % w) + w - 1) % w, hh as usize), (i0 % w, 0)];
+            let cols = [(if col == 0 { w - 1 } else { col - 1 }, hh as usize), (col, 0)];
+            col = if col + 1 == w { 0 } else { col + 1 };
             let mut reps: [Rep; 4] = [(&[], &[], 0, 0, Operation::Add); 4];
             let mut k = 0;
             for &(row, vl) in &rows {
@@ -116,7 +123,7 @@ impl Layer {
             }
             let p0 = (x - x0) as usize;
             let reps = &reps[..k];
-            if k > 0 {
+            if C::ACTIVE && k > 0 {
                 for t in 0..len {
                     cnt.touch(cx + p0 + t, k as u32);
                 }
@@ -125,21 +132,31 @@ impl Layer {
                 // Nothing of this layer here.
             } else if self.all_add {
                 // The paper's count: up to 3 additions, 1 multiplication, 1 addition into the sum
-                // of layers (none for the first layer).
-                let into = if first { 0 } else { 1 };
-                for t in 0..len {
-                    let mut sum = 0i64;
-                    for (line, _, sign, _, _) in reps {
-                        sum += line[t] as i64 * sign;
-                    }
-                    let val = sum * self.weight;
-                    if first {
-                        acc[p0 + t] = val;
+                // of layers (none for the first layer). Written as whole-run loops that vectorize.
+                let sum = &mut sums[..len];
+                let (line, _, sign, _, _) = reps[0];
+                for (d, &e) in sum.iter_mut().zip(line) {
+                    *d = if sign > 0 { e as i64 } else { -(e as i64) };
+                }
+                for (line, _, sign, _, _) in &reps[1..] {
+                    if *sign > 0 {
+                        sum.iter_mut().zip(*line).for_each(|(d, &e)| *d += e as i64);
                     } else {
-                        acc[p0 + t] += val;
+                        sum.iter_mut().zip(*line).for_each(|(d, &e)| *d -= e as i64);
                     }
-                    cnt.add(cx + p0 + t, k as u32 - 1 + into);
-                    cnt.mul(cx + p0 + t, 1);
+                }
+                let dst = &mut acc[p0..p0 + len];
+                if first {
+                    dst.iter_mut().zip(sum.iter()).for_each(|(d, &v)| *d = v * self.weight);
+                } else {
+                    dst.iter_mut().zip(sum.iter()).for_each(|(d, &v)| *d += v * self.weight);
+                }
+                if C::ACTIVE {
+                    let into = if first { 0 } else { 1 };
+                    for t in 0..len {
+                        cnt.add(cx + p0 + t, k as u32 - 1 + into);
+                        cnt.mul(cx + p0 + t, 1);
+                    }
                 }
             } else {
                 for t in 0..len {
@@ -183,20 +200,39 @@ impl Layer {
     pub fn apply_prefiltered(&self, copies: &Copies, plane: usize, r: i64, y: u64, x0: u64, acc: &mut [i64]) {
         let sat = self.sat[plane].get_or_init(|| Sat::build(self, copies));
         let shift = (1 - r) as u32;
-        let f = 1u128 << shift;
-        let fy = (y as u128 * f) % self.h as u128;
-        for (p, a) in acc.iter_mut().enumerate() {
-            let fx = ((x0 + p as u64) as u128 * f) % self.w as u128;
-            let (sum, cov) = sat.rect(fx, fy, f);
+        let f = 1u64 << shift;
+        let (w, h) = (self.w as u64, self.h as u64);
+        // The footprint [fx, fx + f) × [fy, fy + f) of the resolution-1 field, reduced by its
+        // period; fx advances by f mod w per pixel, without division.
+        let fy = ((y as u128 * f as u128) % h as u128) as u64;
+        let rows = sat.rows(fy, f);
+        let step = f % w;
+        let mut fx = ((x0 as u128 * f as u128) % w as u128) as u64;
+        let whole = 1i128 << (2 * shift + 8);
+        for a in acc.iter_mut() {
+            let (sum, cov) = sat.rect(fx, &rows);
             *a = if self.all_add {
                 *a + (sum >> (2 * shift)) as i64
             } else {
                 // Coverage is in 1/256 of a pixel.
-                let whole = 1i128 << (2 * shift + 8);
                 ((*a as i128 * (whole - cov) + (sum << 8)) >> (2 * shift + 8)) as i64
             };
+            fx += step;
+            if fx >= w {
+                fx -= w;
+            }
         }
     }
+}
+
+/// The two rows of a footprint, y0 = fy < h and y1 = fy + f: (whole periods, remainder).
+struct Rows {
+    y0: usize,
+    q1: i128,
+    r1: usize,
+    /// f = fq·w + fr.
+    fq: i128,
+    fr: u64,
 }
 
 /// Summed-area tables over one LCM period of a layer's resolution-1 field, applied onto zero.
@@ -231,23 +267,36 @@ impl Sat {
         Sat { w, h, value, cover }
     }
 
-    /// Sums over [0, x) × [0, y) of the periodic field, for any x, y ≥ 0.
-    fn prefix(&self, x: u128, y: u128) -> (i128, i128) {
-        let (w, h) = (self.w as u128, self.h as u128);
-        let (qx, rx, qy, ry) = ((x / w) as i128, (x % w) as usize, (y / h) as i128, (y % h) as usize);
-        let at = |t: &[i64], a: usize, b: usize| t[b * (self.w + 1) + a] as i128;
-        let f = |t: &[i64]| {
-            qx * qy * at(t, self.w, self.h) + qx * at(t, self.w, ry) + qy * at(t, rx, self.h) + at(t, rx, ry)
-        };
-        (f(&self.value), f(&self.cover))
+    fn rows(&self, fy: u64, f: u64) -> Rows {
+        let y1 = fy + f;
+        let w = self.w as u64;
+        Rows {
+            y0: fy as usize,
+            q1: (y1 / self.h as u64) as i128,
+            r1: (y1 % self.h as u64) as usize,
+            fq: (f / w) as i128,
+            fr: f % w,
+        }
     }
 
-    /// (sum, covered pixels) over the f × f square at (x, y), with 0 ≤ x < w, 0 ≤ y < h.
-    fn rect(&self, x: u128, y: u128, f: u128) -> (i128, i128) {
-        let (a, ac) = self.prefix(x + f, y + f);
-        let (b, bc) = self.prefix(x, y + f);
-        let (c, cc) = self.prefix(x + f, y);
-        let (d, dc) = self.prefix(x, y);
-        (a - b - c + d, ac - bc - cc + dc)
+    /// (sum, coverage) over the f × f square at (fx, rows.y0) of the periodic field, fx < w:
+    /// four corners of the prefix sum F(x, y) = qx·qy·T + qx·S(w, ry) + qy·S(rx, h) + S(rx, ry)
+    /// where x = qx·w + rx and y = qy·h + ry.
+    fn rect(&self, fx: u64, rows: &Rows) -> (i128, i128) {
+        // x1 = fx + f, split as f = fq·w + fr without dividing per pixel.
+        let (fq, fr) = (rows.fq, rows.fr);
+        let t = fx + fr;
+        let (q1, r1) = if t >= self.w as u64 { (fq + 1, (t - self.w as u64) as usize) } else { (fq, t as usize) };
+        let x0 = fx as usize;
+        let (w, h) = (self.w, self.h);
+        let one = |t: &[i64]| {
+            let s = |a: usize, b: usize| t[b * (w + 1) + a] as i128;
+            let f00 = s(x0, rows.y0);
+            let f10 = q1 * s(w, rows.y0) + s(r1, rows.y0);
+            let f01 = rows.q1 * s(x0, h) + s(x0, rows.r1);
+            let f11 = q1 * rows.q1 * s(w, h) + q1 * s(w, rows.r1) + rows.q1 * s(r1, h) + s(r1, rows.r1);
+            f11 - f10 - f01 + f00
+        };
+        (one(&self.value), one(&self.cover))
     }
 }
