@@ -209,12 +209,22 @@ impl Layer {
         let step = f % w;
         let mut fx = ((x0 as u128 * f as u128) % w as u128) as u64;
         let whole = 1i128 << (2 * shift + 8);
+        // Up to 64 × 64 footprints every term fits in i64 (a footprint's sum is below 2^47 and
+        // its prefix sums may wrap but their difference does not), beyond that in i128.
+        let narrow = shift <= 6;
         for a in acc.iter_mut() {
-            let (sum, cov) = sat.rect(fx, &rows);
+            let (sum, cov) = if narrow {
+                let (s, c) = sat.rect::<i64>(fx, &rows);
+                (s as i128, c as i128)
+            } else {
+                sat.rect::<i128>(fx, &rows)
+            };
             *a = if self.all_add {
                 *a + (sum >> (2 * shift)) as i64
+            } else if narrow {
+                // Coverage is in 1/256 of a pixel; a·(whole − cov) < 2^41 · 2^20.
+                (*a * (whole - cov) as i64 + ((sum as i64) << 8)) >> (2 * shift + 8)
             } else {
-                // Coverage is in 1/256 of a pixel.
                 ((*a as i128 * (whole - cov) + (sum << 8)) >> (2 * shift + 8)) as i64
             };
             fx += step;
@@ -222,6 +232,53 @@ impl Layer {
                 fx -= w;
             }
         }
+    }
+}
+
+/// Integer arithmetic for summed-area look-ups: i64 wraps (its results are exact when the true
+/// result fits), i128 never overflows here.
+trait Wide: Copy {
+    fn of(v: i64) -> Self;
+    fn add(self, o: Self) -> Self;
+    fn sub(self, o: Self) -> Self;
+    fn mul(self, o: Self) -> Self;
+}
+
+impl Wide for i64 {
+    #[inline]
+    fn of(v: i64) -> Self {
+        v
+    }
+    #[inline]
+    fn add(self, o: Self) -> Self {
+        self.wrapping_add(o)
+    }
+    #[inline]
+    fn sub(self, o: Self) -> Self {
+        self.wrapping_sub(o)
+    }
+    #[inline]
+    fn mul(self, o: Self) -> Self {
+        self.wrapping_mul(o)
+    }
+}
+
+impl Wide for i128 {
+    #[inline]
+    fn of(v: i64) -> Self {
+        v as i128
+    }
+    #[inline]
+    fn add(self, o: Self) -> Self {
+        self + o
+    }
+    #[inline]
+    fn sub(self, o: Self) -> Self {
+        self - o
+    }
+    #[inline]
+    fn mul(self, o: Self) -> Self {
+        self * o
     }
 }
 
@@ -282,20 +339,21 @@ impl Sat {
     /// (sum, coverage) over the f × f square at (fx, rows.y0) of the periodic field, fx < w:
     /// four corners of the prefix sum F(x, y) = qx·qy·T + qx·S(w, ry) + qy·S(rx, h) + S(rx, ry)
     /// where x = qx·w + rx and y = qy·h + ry.
-    fn rect(&self, fx: u64, rows: &Rows) -> (i128, i128) {
+    fn rect<T: Wide>(&self, fx: u64, rows: &Rows) -> (T, T) {
         // x1 = fx + f, split as f = fq·w + fr without dividing per pixel.
         let (fq, fr) = (rows.fq, rows.fr);
         let t = fx + fr;
         let (q1, r1) = if t >= self.w as u64 { (fq + 1, (t - self.w as u64) as usize) } else { (fq, t as usize) };
         let x0 = fx as usize;
         let (w, h) = (self.w, self.h);
+        let (q1, rq1) = (T::of(q1 as i64), T::of(rows.q1 as i64));
         let one = |t: &[i64]| {
-            let s = |a: usize, b: usize| t[b * (w + 1) + a] as i128;
+            let s = |a: usize, b: usize| T::of(t[b * (w + 1) + a]);
             let f00 = s(x0, rows.y0);
-            let f10 = q1 * s(w, rows.y0) + s(r1, rows.y0);
-            let f01 = rows.q1 * s(x0, h) + s(x0, rows.r1);
-            let f11 = q1 * rows.q1 * s(w, h) + q1 * s(w, rows.r1) + rows.q1 * s(r1, h) + s(r1, rows.r1);
-            f11 - f10 - f01 + f00
+            let f10 = q1.mul(s(w, rows.y0)).add(s(r1, rows.y0));
+            let f01 = rq1.mul(s(x0, h)).add(s(x0, rows.r1));
+            let f11 = q1.mul(rq1).mul(s(w, h)).add(q1.mul(s(w, rows.r1))).add(rq1.mul(s(r1, h))).add(s(r1, rows.r1));
+            f11.sub(f10).sub(f01).add(f00)
         };
         (one(&self.value), one(&self.cover))
     }
