@@ -522,6 +522,10 @@ fn bad_encodings_are_refused_with_the_reason() {
     assert!(e.contains("tiles"), "{e}");
     let e = edit(&|b| b.manifest.params["layers"][0]["table"]["cells"][0]["sign"] = json!([-1.0, 1.0, 1.0]));
     assert!(e.contains("negative"), "{e}");
+    let e = edit(&|b| b.manifest.params["magnify"] = json!(u32::MAX));
+    assert!(e.contains("magnify"), "{e}");
+    let e = edit(&|b| b.manifest.params["layers"][0]["lcm"] = json!([5000, 40]));
+    assert!(e.contains("LCM size"), "{e}");
     let e = edit(&|b| b.manifest.params["planes"] = json!(2));
     assert!(e.contains("planes") || e.contains("palette"), "{e}");
     // Through the registry too, from raw bytes.

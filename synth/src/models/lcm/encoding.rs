@@ -26,7 +26,8 @@ pub const MAX_LAYERS: usize = 16;
 /// An LCM side is at most this many points.
 pub const MAX_LCM_SIDE: u32 = 4096;
 /// All LCMs together hold at most this many points (bytes).
-pub const MAX_LCM_POINTS: u64 = 1 << 22;
+/// (The summed-area tables of coarse levels take 16 bytes a point and plane.)
+pub const MAX_LCM_POINTS: u64 = 1 << 20;
 /// The served size is at most this many pixels a side.
 pub const MAX_SIZE: u64 = 1 << 40;
 /// Layer weights lie within ± this.
@@ -209,6 +210,9 @@ pub fn create(name: &str, params: &serde_json::Value, inputs: &Inputs) -> Result
         None => image_planes(inputs, if p.palette.is_empty() { 3 } else { 1 })?,
     };
     let k = planes[0].k;
+    if p.magnify > MAX_TOP - k {
+        return Err(Error::param("magnify", format!("{}: k + magnify may not exceed {MAX_TOP}", p.magnify)));
+    }
     let background = p.background.clone().unwrap_or_else(|| vec![0.0; planes.len()]);
     let mut sections: Vec<(String, Vec<u8>)> = Vec::new();
     for (n, l) in p.layers.iter().enumerate() {
@@ -285,8 +289,8 @@ pub fn load(bundle: &Bundle) -> Result<LcmTexture> {
     if !(1..=MAX_K).contains(&p.k) {
         return Err(Error::param("k", format!("{}: the base element side must be 2^k with 1 ≤ k ≤ {MAX_K}", p.k)));
     }
-    if p.k + p.magnify > MAX_TOP {
-        return Err(Error::param("magnify", format!("k + magnify = {} exceeds {MAX_TOP}", p.k + p.magnify)));
+    if p.magnify > MAX_TOP - p.k {
+        return Err(Error::param("magnify", format!("{}: k + magnify may not exceed {MAX_TOP}", p.magnify)));
     }
     let top = p.k + p.magnify;
     let colour = match (p.planes, p.palette.is_empty()) {

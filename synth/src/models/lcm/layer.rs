@@ -159,36 +159,39 @@ impl Layer {
                     }
                 }
             } else {
-                for t in 0..len {
-                    let a = &mut acc[p0 + t];
-                    let mut muls = 0;
-                    for (line, alpha, _, sw, op) in reps {
-                        let e = line[t] as i64;
-                        let b = e * sw;
-                        let al = alpha[t] as i64;
-                        match op {
-                            Operation::Add => *a += b,
-                            Operation::NonZero => {
-                                if al != 0 {
-                                    *a = *a - ((*a * al) >> 8) + b;
-                                    muls += 1;
-                                }
+                // Replication by replication over the run, in order: each pixel still sees its
+                // replications in row-major order, and every loop is branch-light.
+                let dst = &mut acc[p0..p0 + len];
+                let mut blends = 0;
+                for &(line, alpha, _, sw, op) in reps {
+                    match op {
+                        Operation::Add => dst.iter_mut().zip(line).for_each(|(a, &e)| *a += e as i64 * sw),
+                        Operation::NonZero => {
+                            blends += 1;
+                            for ((a, &e), &al) in dst.iter_mut().zip(line).zip(alpha) {
+                                *a = *a - ((*a * al as i64) >> 8) + e as i64 * sw;
                             }
-                            Operation::Maximum => {
+                        }
+                        Operation::Maximum => {
+                            for (a, &e) in dst.iter_mut().zip(line) {
+                                let b = e as i64 * sw;
                                 if b.abs() > a.abs() {
                                     *a = b;
                                 }
                             }
                         }
-                        if *op != Operation::Add {
-                            if let Some(c) = cover.as_deref_mut() {
-                                let cv = c[p0 + t] as i64;
-                                c[p0 + t] = (cv + al - ((cv * al) >> 8)) as u16;
-                            }
+                    }
+                    if let (Some(c), false) = (cover.as_deref_mut(), op == Operation::Add) {
+                        for (cv, &al) in c[p0..p0 + len].iter_mut().zip(alpha) {
+                            *cv = (*cv as u32 + al as u32 - ((*cv as u32 * al as u32) >> 8)) as u16;
                         }
                     }
-                    cnt.add(cx + p0 + t, k as u32);
-                    cnt.mul(cx + p0 + t, k as u32 + muls);
+                }
+                if C::ACTIVE {
+                    for t in 0..len {
+                        cnt.add(cx + p0 + t, k as u32);
+                        cnt.mul(cx + p0 + t, k as u32 + blends);
+                    }
                 }
             }
             x += len as u64;
