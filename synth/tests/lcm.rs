@@ -398,6 +398,13 @@ fn brick_wall_encoding_size_beside_the_paper() {
         pw * ph,
         (pw * ph) as f64 / payload as f64
     );
+    for (name, p) in demos::all_params() {
+        let b = demos::make(name, &p).unwrap();
+        let t = lcm::load(&b).unwrap();
+        let explicit = t.width() as f64 * t.height() as f64 * 3.0;
+        let bytes = b.to_bytes().len();
+        eprintln!("{name}: bundle {bytes} B for {}×{} px ({explicit:.3e} B at 24 bits)", t.width(), t.height());
+    }
 }
 
 #[test]

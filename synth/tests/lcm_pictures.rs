@@ -24,6 +24,13 @@ fn demos_render_with_contrast() {
                 std::fs::write(format!("{d}/{file}_L{level}.png"), img.to_png()).unwrap();
             }
         }
+        // The whole texture at the first level that fits in 512 px.
+        let level = (0..40).find(|l| tex.width().max(tex.height()) >> l <= 512).unwrap();
+        let (w, h) = vtex_synth::texture::level_size(tex.width(), tex.height(), level);
+        let whole = render_image(&tex, &Region::new(level, 0, 0, w as u32, h as u32)).unwrap();
+        if let Some(d) = &dir {
+            std::fs::write(format!("{d}/{file}_whole_L{level}.png"), whole.to_png()).unwrap();
+        }
         eprintln!("{name}: period {:?}, size {}×{}", tex.period(), tex.width(), tex.height());
     }
 }

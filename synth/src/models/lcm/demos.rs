@@ -131,8 +131,9 @@ pub fn brick_wall() -> CreateParams {
 
 /// Pebbles on sand, 100,800 × 100,800: five layers of a colour pebble (one plane per
 /// channel), small ones first and the largest on top, over a faint sand noise. The LCM sizes
-/// are chosen so that the periods (64·45, 64·35, 64·25, 64·9, 64·7 px across) have the least
-/// common multiple 64 · 1575 = 100,800; the largest LCM is only 100 × 36.
+/// are chosen so that the layer periods (across: 64·225, 32·225, 16·100, 8·56, 4·36 px) have
+/// the least common multiple 64 · 1575 = 100,800 along each axis. The two largest layers get
+/// the largest LCMs: their own repetition is what shows when the whole texture is in view.
 pub fn pebbles() -> CreateParams {
     let stones = |pos: f64, neg: f64| {
         Table::single(Cell { sign: [pos, neg, 1.0 - pos - neg], rotation: UNIFORM, mirror: 0.5, operation: NON_ZERO })
@@ -145,10 +146,10 @@ pub fn pebbles() -> CreateParams {
             "pebble",
             7,
             vec![
-                layer(0, 1.0, [45, 63], stones(0.2, 0.1)),
-                layer(1, 0.9, [70, 50], stones(0.25, 0.12)),
+                layer(0, 1.0, [225, 175], stones(0.2, 0.1)),
+                layer(1, 0.9, [225, 350], stones(0.25, 0.12)),
                 layer(2, 0.8, [100, 36], stones(0.3, 0.15)),
-                layer(3, 0.7, [72, 56], stones(0.3, 0.2)),
+                layer(3, 0.7, [56, 56], stones(0.3, 0.2)),
                 layer(4, 0.25, [36, 28], table_noise()),
             ],
         )
