@@ -10,19 +10,21 @@ use std::collections::BTreeMap;
 use std::sync::Arc;
 
 pub mod chaos_mosaic;
+pub mod lcm;
 pub mod patterns;
 
 /// Input images by name (PNG bytes), e.g. `sample` for the chaos mosaic.
 pub type Inputs = BTreeMap<String, Vec<u8>>;
 
 /// The model ids this build knows.
-pub const MODELS: &[&str] = &[chaos_mosaic::MODEL, patterns::MODEL];
+pub const MODELS: &[&str] = &[chaos_mosaic::MODEL, lcm::MODEL, patterns::MODEL];
 
 /// Makes a new encoding of `model` from its JSON parameters and input images.
 pub fn create(model: &str, name: &str, params: &serde_json::Value, inputs: &Inputs) -> Result<Bundle> {
     check_name(name)?;
     match model {
         chaos_mosaic::MODEL => chaos_mosaic::create(name, params, inputs),
+        lcm::MODEL => lcm::create(name, params, inputs),
         patterns::MODEL => patterns::create(name, params, inputs),
         other => Err(Error::UnknownModel(other.into())),
     }
@@ -32,6 +34,7 @@ pub fn create(model: &str, name: &str, params: &serde_json::Value, inputs: &Inpu
 pub fn load(bundle: &Bundle) -> Result<Arc<dyn Texture>> {
     match bundle.manifest.model.as_str() {
         chaos_mosaic::MODEL => Ok(Arc::new(chaos_mosaic::load(bundle)?)),
+        lcm::MODEL => Ok(Arc::new(lcm::load(bundle)?)),
         patterns::MODEL => Ok(Arc::new(patterns::load(bundle)?)),
         other => Err(Error::UnknownModel(other.into())),
     }
@@ -40,6 +43,7 @@ pub fn load(bundle: &Bundle) -> Result<Arc<dyn Texture>> {
 /// Every model's demo encodings.
 pub fn demos() -> Vec<Bundle> {
     let mut all = chaos_mosaic::demos();
+    all.extend(lcm::demos());
     all.extend(patterns::demos());
     all.sort_by(|a, b| a.manifest.name.cmp(&b.manifest.name));
     all
