@@ -6,6 +6,8 @@
 //! `demos() -> Vec<Bundle>` makes its demo encodings from project-made inputs.
 
 use crate::{bundle::Bundle, Error, Result, Texture};
+
+pub mod cascade;
 use std::collections::BTreeMap;
 use std::sync::Arc;
 
@@ -13,12 +15,13 @@ use std::sync::Arc;
 pub type Inputs = BTreeMap<String, Vec<u8>>;
 
 /// The model ids this build knows.
-pub const MODELS: &[&str] = &[];
+pub const MODELS: &[&str] = &[cascade::MODEL];
 
 /// Makes a new encoding of `model` from its JSON parameters and input images.
-pub fn create(model: &str, name: &str, _params: &serde_json::Value, _inputs: &Inputs) -> Result<Bundle> {
+pub fn create(model: &str, name: &str, params: &serde_json::Value, inputs: &Inputs) -> Result<Bundle> {
     check_name(name)?;
     match model {
+        cascade::MODEL => cascade::create(name, params, inputs),
         other => Err(Error::UnknownModel(other.into())),
     }
 }
@@ -26,6 +29,7 @@ pub fn create(model: &str, name: &str, _params: &serde_json::Value, _inputs: &In
 /// Validates an encoding completely and returns the texture it describes.
 pub fn load(bundle: &Bundle) -> Result<Arc<dyn Texture>> {
     match bundle.manifest.model.as_str() {
+        cascade::MODEL => Ok(Arc::new(cascade::load(bundle)?)),
         other => Err(Error::UnknownModel(other.into())),
     }
 }
@@ -33,6 +37,7 @@ pub fn load(bundle: &Bundle) -> Result<Arc<dyn Texture>> {
 /// Every model's demo encodings.
 pub fn demos() -> Vec<Bundle> {
     let mut all: Vec<Bundle> = Vec::new();
+    all.extend(cascade::demos());
     all.sort_by(|a, b| a.manifest.name.cmp(&b.manifest.name));
     all
 }
