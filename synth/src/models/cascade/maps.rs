@@ -80,7 +80,8 @@ impl Map {
                 let c = clamp(*x);
                 *x = mu * c.min(1.0 - c)
             }),
-            Map::Sine(r) => v.iter_mut().for_each(|x| *x = r * libm::sinf(PI * clamp(*x))),
+            // sin(π·1) rounds to −8.7e−8 in f32: keep the range closed.
+            Map::Sine(r) => v.iter_mut().for_each(|x| *x = (r * libm::sinf(PI * clamp(*x))).max(0.0)),
             Map::Circle { omega, k } => {
                 let a = k / (2.0 * PI);
                 v.iter_mut().for_each(|x| {

@@ -197,3 +197,62 @@ pub fn load(bundle: &Bundle) -> Result<Cascade> {
     let initial = section_image(bundle, INITIAL_SECTION, "initial")?;
     Cascade::build(p, control.as_ref(), initial.as_ref())
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::models::Inputs;
+    use serde_json::json;
+
+    fn cascade(params: serde_json::Value) -> Cascade {
+        load(&create("t", &params, &Inputs::new()).unwrap()).unwrap()
+    }
+
+    /// The dependency margin is exactly right: computing any stage from a window one point
+    /// narrower (edge values repeated) changes the result, and the full margin reproduces it.
+    #[test]
+    fn one_point_less_of_margin_changes_the_result() {
+        let t = cascade(json!({"seed": 9, "stages": [
+            {"kernel": {"size": 5, "preset": "gauss"}, "map": {"kind": "logistic", "r": 3.8}},
+            {"upsample": 2, "jitter": 0.1, "kernel": {"size": 3, "preset": "box"}, "map": {"kind": "tent", "mu": 1.7}, "iterations": 3},
+            {"upsample": 4, "jitter": 0.1, "kernel": {"size": 7, "preset": "gauss"}, "map": {"kind": "sine", "r": 0.95}, "iterations": 2, "dilation": 2}]}));
+        let e = t.engine();
+        let last = e.stages.len() - 1;
+        let (x, y, w, h) = (u64::MAX - 20, 1 << 40, 48, 40);
+        let full = e.field(last, x, y, w, h);
+        assert_eq!(e.field_with(last, x, y, w, h, None), full);
+        for s in 0..=last {
+            let short = e.field_with(last, x, y, w, h, Some(s));
+            let differ = full.v.iter().zip(&short.v).filter(|(a, b)| a != b).count();
+            assert!(differ > 0, "stage {s}: a margin one point short went unnoticed");
+        }
+        // The margins are the formula k·r·d: 5·2·1, 3·1·1, 2·3·2.
+        assert_eq!((0..=last).map(|s| e.margin(s)).collect::<Vec<_>>(), vec![10, 3, 12]);
+    }
+
+    #[test]
+    fn margin_with_a_dilation_map_uses_the_largest_dilation() {
+        let mut inputs = Inputs::new();
+        let white = Rgba8Image::from_raw(2, 2, vec![255; 16]).unwrap();
+        inputs.insert("control".into(), white.to_png());
+        let params = json!({"seed": 2, "stages": [{"kernel": {"size": 3, "preset": "box"}, "map": {"kind": "logistic", "r": 3.9}, "iterations": 4}],
+                            "dilation_map": {"max": 3, "cell": 8}});
+        let t = load(&create("d", &params, &inputs).unwrap()).unwrap();
+        let e = t.engine();
+        assert_eq!(e.margin(0), 4 * 3);
+        let full = e.field(0, 5, 5, 30, 30);
+        assert_ne!(e.field_with(0, 5, 5, 30, 30, Some(0)), full);
+    }
+
+    #[test]
+    fn dilation_map_changes_the_scale_of_features() {
+        let mut inputs = Inputs::new();
+        inputs.insert("control".into(), demos::control_map(16).to_png());
+        let base = json!({"seed": 5, "stages": [{"kernel": {"size": 3, "preset": "gauss"}, "map": {"kind": "sine", "r": 0.97}}]});
+        let mut with_map = base.clone();
+        with_map["dilation_map"] = json!({"max": 4, "cell": 64});
+        let plain = cascade(base);
+        let dilated = load(&create("d", &with_map, &inputs).unwrap()).unwrap();
+        assert_ne!(plain.level0(0, 0, 64, 64), dilated.level0(0, 0, 64, 64));
+    }
+}
