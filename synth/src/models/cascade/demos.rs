@@ -35,7 +35,7 @@ pub fn initial_image(w: u32, h: u32) -> Rgba8Image {
     let mut img = Rgba8Image::new(w, h);
     let (cx, cy) = (w as f64 / 2.0, h as f64 / 2.0);
     let unit = (w / 26).max(1);
-    let (ox, oy) = ((w - unit * 23) / 2, (h - unit * 7) / 2);
+    let (ox, oy) = (w.saturating_sub(unit * 23) / 2, h.saturating_sub(unit * 7) / 2);
     for y in 0..h {
         for x in 0..w {
             let r = libm::sqrt((x as f64 - cx).powi(2) + (y as f64 - cy).powi(2)) / w as f64;

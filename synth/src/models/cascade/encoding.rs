@@ -223,7 +223,10 @@ pub fn build_engine(p: &Params, control: Option<&Rgba8Image>, initial: Option<&R
     }
     let total: u32 = stages.iter().map(|s| s.up).sum();
     if total > MAX_TOTAL_SHIFT {
-        return Err(Error::param("stages", format!("the coarsest stage is 2^{total} pixels apart; at most 2^{MAX_TOTAL_SHIFT}")));
+        return Err(Error::param(
+            "stages",
+            format!("the coarsest stage is 2^{total} pixels apart; at most 2^{MAX_TOTAL_SHIFT}"),
+        ));
     }
     let mut shift = 0;
     for st in stages.iter_mut().rev() {

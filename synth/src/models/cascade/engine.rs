@@ -9,7 +9,7 @@
 //! in, so a region is bit-identical to the crop of any larger one.
 
 use super::kernel::Kernel;
-use super::lattice::{lattice_mask, noise, upsample, upsample_footprint, Grid, ImageField};
+use super::lattice::{lattice_mask, noise, signed, upsample, upsample_footprint, Grid, ImageField};
 use super::maps::Map;
 use crate::hash::{hash4, unit_f64};
 
@@ -92,14 +92,24 @@ impl Engine {
         let (iw, ih) = (w + 2 * m, h + 2 * m);
         let (ix0, iy0) = (x0.wrapping_sub(m as u64) & mask, y0.wrapping_sub(m as u64) & mask);
         let v = if short == Some(s) && m > 0 {
-            let inner = self.initial_values(s, ix0.wrapping_add(1) & mask, iy0.wrapping_add(1) & mask, iw - 2, ih - 2, short);
+            let inner =
+                self.initial_values(s, ix0.wrapping_add(1) & mask, iy0.wrapping_add(1) & mask, iw - 2, ih - 2, short);
             pad_edges(&inner, iw - 2, ih - 2)
         } else {
             self.initial_values(s, ix0, iy0, iw, ih, short)
         };
         let mut g = Grid { x0: ix0, y0: iy0, w: iw, h: ih, v };
         let e = self.step_margin(s);
-        let dil = self.control.as_ref().map(|c| self.dilations(s, c, ix0.wrapping_add(e as u64) & mask, iy0.wrapping_add(e as u64) & mask, iw - 2 * e, ih - 2 * e));
+        let dil = self.control.as_ref().map(|c| {
+            self.dilations(
+                s,
+                c,
+                ix0.wrapping_add(e as u64) & mask,
+                iy0.wrapping_add(e as u64) & mask,
+                iw - 2 * e,
+                ih - 2 * e,
+            )
+        });
         for i in 0..st.iterations as usize {
             g = self.step(s, &g, dil.as_ref().map(|d| (d, iw - 2 * e, i * e)));
         }
@@ -119,7 +129,7 @@ impl Engine {
                 let y = y0.wrapping_add(j) & mask;
                 for i in 0..w as u64 {
                     let x = x0.wrapping_add(i) & mask;
-                    let n = noise(self.seed, stream, x, y);
+                    let n = noise(self.seed, stream, x, y, st.shift);
                     v.push(match &self.initial {
                         Some(init) => match init.field.sample((x << st.shift) as i64, (y << st.shift) as i64) {
                             Some(l) => (1.0 - init.strength) * n + init.strength * l as f32,
@@ -141,7 +151,7 @@ impl Engine {
                 let y = y0.wrapping_add(j as u64) & mask;
                 for i in 0..w {
                     let x = x0.wrapping_add(i as u64) & mask;
-                    v[j * w + i] += st.jitter * (noise(self.seed, stream, x, y) - 0.5);
+                    v[j * w + i] += st.jitter * (noise(self.seed, stream, x, y, st.shift) - 0.5);
                 }
             }
         }
@@ -158,7 +168,7 @@ impl Engine {
             for i in 0..w as u64 {
                 let x = x0.wrapping_add(i) & mask;
                 let ctl = c.field.sample((x << st.shift) as i64, (y << st.shift) as i64).unwrap_or(0.0);
-                let u = unit_f64(hash4(self.seed, STREAM_DITHER + s as u64, x as i64, y as i64));
+                let u = unit_f64(hash4(self.seed, STREAM_DITHER + s as u64, signed(x, st.shift), signed(y, st.shift)));
                 let d = (1.0 + ctl * (c.max - 1) as f64 + u).floor().clamp(1.0, c.max as f64) as u32;
                 out.push((d * st.dilation) as u8);
             }

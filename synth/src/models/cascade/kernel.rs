@@ -95,7 +95,10 @@ impl Kernel {
                     ));
                 }
                 if let Some(bad) = w.iter().find(|v| !v.is_finite() || v.abs() > 1e6) {
-                    return Err(Error::param(format!("{at}.weights"), format!("{bad}: weights must be finite, |w| ≤ 1e6")));
+                    return Err(Error::param(
+                        format!("{at}.weights"),
+                        format!("{bad}: weights must be finite, |w| ≤ 1e6"),
+                    ));
                 }
                 w.clone()
             }
@@ -107,13 +110,16 @@ impl Kernel {
                     let s2 = positive("sigma2", spec.sigma2, n as f64 / 3.0, 16.0)?;
                     let a = positive("amount", spec.amount, 0.5, 1.0)?;
                     if s2 <= s1 {
-                        return Err(Error::param(format!("{at}.sigma2"), "must exceed `sigma` (the surround is wider)"));
+                        return Err(Error::param(
+                            format!("{at}.sigma2"),
+                            "must exceed `sigma` (the surround is wider)",
+                        ));
                     }
                     gauss(s1).iter().zip(gauss(s2)).map(|(c, s)| c - a * s).collect()
                 }
-                "cross" => (-r..=r)
-                    .flat_map(|y| (-r..=r).map(move |x| if x == 0 || y == 0 { 1.0 } else { 0.0 }))
-                    .collect(),
+                "cross" => {
+                    (-r..=r).flat_map(|y| (-r..=r).map(move |x| if x == 0 || y == 0 { 1.0 } else { 0.0 })).collect()
+                }
                 "ring" => (-r..=r)
                     .flat_map(|y| {
                         (-r..=r).map(move |x| {
@@ -137,7 +143,10 @@ impl Kernel {
         let sum: f64 = raw.iter().sum();
         let abs: f64 = raw.iter().map(|v| v.abs()).sum();
         if !(sum.abs() > 1e-6 * abs.max(f64::MIN_POSITIVE)) {
-            return Err(Error::param(at, format!("weights sum to {sum}; they must not cancel (the kernel is normalised to sum 1)")));
+            return Err(Error::param(
+                at,
+                format!("weights sum to {sum}; they must not cancel (the kernel is normalised to sum 1)"),
+            ));
         }
         let mut taps = Vec::new();
         for (i, v) in raw.iter().enumerate() {
@@ -178,7 +187,12 @@ mod tests {
         }
         let bad = KernelSpec { size: 3, preset: None, weights: Some(vec![1.0; 8]), ..KernelSpec::default() };
         assert!(Kernel::build(&bad, "k").unwrap_err().to_string().contains("8 weights"));
-        let cancel = KernelSpec { size: 3, preset: None, weights: Some(vec![1., -1., 0., 0., 0., 0., 0., 0., 0.]), ..bad.clone() };
+        let cancel = KernelSpec {
+            size: 3,
+            preset: None,
+            weights: Some(vec![1., -1., 0., 0., 0., 0., 0., 0., 0.]),
+            ..bad.clone()
+        };
         assert!(Kernel::build(&cancel, "k").unwrap_err().to_string().contains("cancel"));
         let nan = KernelSpec { size: 1, preset: None, weights: Some(vec![f64::NAN]), ..bad };
         assert!(Kernel::build(&nan, "k").is_err());

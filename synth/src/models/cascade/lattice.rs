@@ -32,10 +32,18 @@ pub fn lattice_mask(shift: u32) -> u64 {
     u64::MAX >> shift
 }
 
-/// Uniform noise in [0, 1) at lattice point (x, y) (already reduced by the lattice mask).
+/// The signed representative of a coordinate of the lattice with spacing 2^`shift`:
+/// lattice point −1 is −1 (not 2^(64−shift) − 1), so hashes near the origin are those of
+/// the plain integer plane.
 #[inline]
-pub fn noise(seed: u64, stream: u64, x: u64, y: u64) -> f32 {
-    unit_f32(hash4(seed, stream, x as i64, y as i64))
+pub fn signed(c: u64, shift: u32) -> i64 {
+    ((c << shift) as i64) >> shift
+}
+
+/// Uniform noise in [0, 1) at lattice point (x, y) of the lattice with spacing 2^`shift`.
+#[inline]
+pub fn noise(seed: u64, stream: u64, x: u64, y: u64, shift: u32) -> f32 {
+    unit_f32(hash4(seed, stream, signed(x, shift), signed(y, shift)))
 }
 
 /// A grey image stretched over the plane at `cell` pixels per texel, sampled bilinearly
@@ -97,13 +105,13 @@ pub fn upsample(coarse: &Grid, k: u32, x0: u64, y0: u64, w: usize, h: usize) -> 
     let f = 1u64 << k;
     let inv = 1.0 / f as f32;
     let (tx0, ty0) = ((x0 & (f - 1)) as usize, (y0 & (f - 1)) as usize);
-    let cols: Vec<(usize, f32)> =
-        (0..w).map(|i| ((tx0 + i) >> k, ((tx0 + i) as u64 & (f - 1)) as f32 * inv)).collect();
+    let cols: Vec<(usize, f32)> = (0..w).map(|i| ((tx0 + i) >> k, ((tx0 + i) as u64 & (f - 1)) as f32 * inv)).collect();
     let mut out = Vec::with_capacity(w * h);
     for j in 0..h {
         let cy = (ty0 + j) >> k;
         let fy = ((ty0 + j) as u64 & (f - 1)) as f32 * inv;
-        let (r0, r1) = (&coarse.v[cy * coarse.w..(cy + 1) * coarse.w], &coarse.v[(cy + 1) * coarse.w..(cy + 2) * coarse.w]);
+        let (r0, r1) =
+            (&coarse.v[cy * coarse.w..(cy + 1) * coarse.w], &coarse.v[(cy + 1) * coarse.w..(cy + 2) * coarse.w]);
         for &(cx, fx) in &cols {
             let a = r0[cx] + (r0[cx + 1] - r0[cx]) * fx;
             let b = r1[cx] + (r1[cx + 1] - r1[cx]) * fx;

@@ -135,6 +135,13 @@ mod tests {
         // Bit patterns pinned: any change (e.g. a fused multiply-add) changes every texture.
         let mut v = [0.3f32, 0.7, 0.123_456];
         Map::Logistic(3.7).apply(&mut v);
-        assert_eq!(v.map(f32::to_bits), [(3.7f32 * 0.3 * 0.7).to_bits(), (3.7f32 * 0.7 * (1.0 - 0.7)).to_bits(), (3.7f32 * 0.123_456 * (1.0 - 0.123_456)).to_bits()]);
+        assert_eq!(
+            v.map(f32::to_bits),
+            [
+                (3.7f32 * 0.3 * 0.7).to_bits(),
+                (3.7f32 * 0.7 * (1.0 - 0.7)).to_bits(),
+                (3.7f32 * 0.123_456 * (1.0 - 0.123_456)).to_bits()
+            ]
+        );
     }
 }

@@ -132,7 +132,8 @@ impl Texture for Cascade {
                 };
                 for r in 0..h as usize {
                     let dst = (cy as usize + r) * row + cx as usize * 4;
-                    out[dst..dst + w as usize * 4].copy_from_slice(&img.data[r * w as usize * 4..(r + 1) * w as usize * 4]);
+                    out[dst..dst + w as usize * 4]
+                        .copy_from_slice(&img.data[r * w as usize * 4..(r + 1) * w as usize * 4]);
                 }
             }
         }

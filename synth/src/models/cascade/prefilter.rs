@@ -36,6 +36,8 @@ const MIN_COUNT: f64 = 4.0;
 pub struct Calibration {
     /// Per stage (coarse to fine; the last is unused): g_s as `BINS` RGB means.
     pub tables: Vec<Vec<[f32; 3]>>,
+    /// g over the structured initial image's value (texture transfer), when there is one.
+    pub image: Option<Vec<[f32; 3]>>,
     /// Mean colour of the texture.
     pub mean: [f32; 3],
 }
@@ -51,7 +53,8 @@ impl Calibration {
     pub fn compute(tex: &Cascade) -> Self {
         let e = tex.engine();
         let n = e.stages.len();
-        let mut sums = vec![vec![[0.0f64; 4]; BINS]; n];
+        // One table per stage, plus one over the initial image's value.
+        let mut sums = vec![vec![[0.0f64; 4]; BINS]; n + 1];
         let mut mean = [0.0f64; 3];
         let mut count = 0.0;
         for i in 0..WINDOWS {
@@ -63,6 +66,18 @@ impl Calibration {
                     mean[c] += p[c] as f64;
                 }
                 count += 1.0;
+            }
+            if let Some(init) = &e.initial {
+                for (k, p) in img.data.chunks_exact(4).enumerate() {
+                    let (i, j) = ((k % WINDOW as usize) as u64, (k / WINDOW as usize) as u64);
+                    if let Some(v) = init.field.sample(x.wrapping_add(i) as i64, y.wrapping_add(j) as i64) {
+                        let b = &mut sums[n][bin(v as f32)];
+                        for c in 0..3 {
+                            b[c] += p[c] as f64;
+                        }
+                        b[3] += 1.0;
+                    }
+                }
             }
             for (s, bins) in sums.iter_mut().enumerate().take(n - 1) {
                 let a = stage_at_pixels(tex, s, x, y, WINDOW as usize, WINDOW as usize);
@@ -76,8 +91,9 @@ impl Calibration {
             }
         }
         let mean = mean.map(|m| (m / count) as f32);
-        let tables = sums.iter().map(|bins| fill(bins, mean)).collect();
-        Calibration { tables, mean }
+        let mut tables: Vec<Vec<[f32; 3]>> = sums.iter().map(|bins| fill(bins, mean)).collect();
+        let image = tables.pop().filter(|_| e.initial.is_some());
+        Calibration { tables, image, mean }
     }
 }
 
@@ -124,6 +140,33 @@ pub fn render(tex: &Cascade, cal: &Calibration, l: u32, x: u64, y: u64, w: u32, 
     let last = e.stages.len() - 1;
     let mut img = Rgba8Image::new(w, h);
     let Some(s) = (0..=last).rev().find(|&s| e.stages[s].shift + 2 >= l) else {
+        if let (Some(init), Some(table)) = (&e.initial, &cal.image) {
+            // Texture transfer: the image carries structure at every scale; average g over
+            // n × n samples of it per block, about one per texel (4 to 64 per axis, at most
+            // 2^22 samples a call).
+            let per_texel = ((1u64 << l.min(40)) / init.field.cell).clamp(4, 64);
+            let budget = libm::sqrt((1u64 << 22) as f64 / (w as f64 * h as f64)) as u64;
+            let n = per_texel.min(budget.max(4)).next_power_of_two().min(1 << (l - 1));
+            let nl = n.trailing_zeros();
+            let offs: Vec<u64> = (0..n).map(|j| (j << (l - nl)) + (1 << (l - nl - 1))).collect();
+            let inv = 1.0 / (n * n) as f32;
+            for j in 0..h as u64 {
+                for i in 0..w as u64 {
+                    let (px, py) = (x.wrapping_add(i) << l, y.wrapping_add(j) << l);
+                    let mut acc = [0.0f32; 3];
+                    for oy in &offs {
+                        for ox in &offs {
+                            let v = init.field.sample(px.wrapping_add(*ox) as i64, py.wrapping_add(*oy) as i64);
+                            let c = v.map_or(cal.mean, |v| eval(table, v as f32));
+                            (0..3).for_each(|k| acc[k] += c[k]);
+                        }
+                    }
+                    let p = acc.map(|v| (v * inv + 0.5).floor().clamp(0.0, 255.0) as u8);
+                    img.set_pixel(i as u32, j as u32, [p[0], p[1], p[2], 255]);
+                }
+            }
+            return img;
+        }
         let px = cal.mean.map(|m| (m + 0.5).floor() as u8);
         for p in img.data.chunks_exact_mut(4) {
             p.copy_from_slice(&[px[0], px[1], px[2], 255]);
