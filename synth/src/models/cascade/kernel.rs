@@ -142,7 +142,7 @@ impl Kernel {
         };
         let sum: f64 = raw.iter().sum();
         let abs: f64 = raw.iter().map(|v| v.abs()).sum();
-        if !(sum.abs() > 1e-6 * abs.max(f64::MIN_POSITIVE)) {
+        if sum.abs() <= 1e-6 * abs.max(f64::MIN_POSITIVE) {
             return Err(Error::param(
                 at,
                 format!("weights sum to {sum}; they must not cancel (the kernel is normalised to sum 1)"),
