@@ -9,13 +9,11 @@
 //! in, so a region is bit-identical to the crop of any larger one.
 
 use super::kernel::Kernel;
-use super::lattice::{lattice_mask, noise, signed, upsample, upsample_footprint, Grid, ImageField};
+use super::lattice::{lattice_mask, noise, upsample, upsample_footprint, Grid, ImageField};
 use super::maps::Map;
-use crate::hash::{hash4, unit_f64};
 
 /// Hash streams (one per use of the seed).
 pub const STREAM_NOISE: u64 = 0x100;
-pub const STREAM_DITHER: u64 = 0x200;
 pub const STREAM_CALIBRATION: u64 = 0x300;
 
 /// One level of the cascade, validated.
@@ -35,8 +33,9 @@ pub struct Stage {
 }
 
 /// Spatially varying dilation (the paper's image C): the control value c ∈ [0, 1] at a
-/// point selects a dilation 1 + c·(max − 1), stochastically rounded per point so that
-/// transitions between dilations are dithered rather than stepped.
+/// point scales the kernel by the real factor 1 + c·(max − 1). Taps then fall between
+/// lattice points and are read bilinearly, so the scale varies continuously and the lattice
+/// does not split into independent sub-lattices (as integer dilation with holes would).
 #[derive(Clone, Debug, PartialEq)]
 pub struct Control {
     pub field: ImageField,
@@ -159,7 +158,7 @@ impl Engine {
     }
 
     /// Per-point dilations of stage `s` on a window (its first iteration's output window).
-    fn dilations(&self, s: usize, c: &Control, x0: u64, y0: u64, w: usize, h: usize) -> Vec<u8> {
+    fn dilations(&self, s: usize, c: &Control, x0: u64, y0: u64, w: usize, h: usize) -> Vec<f32> {
         let st = &self.stages[s];
         let mask = lattice_mask(st.shift);
         let mut out = Vec::with_capacity(w * h);
@@ -168,9 +167,7 @@ impl Engine {
             for i in 0..w as u64 {
                 let x = x0.wrapping_add(i) & mask;
                 let ctl = c.field.sample((x << st.shift) as i64, (y << st.shift) as i64).unwrap_or(0.0);
-                let u = unit_f64(hash4(self.seed, STREAM_DITHER + s as u64, signed(x, st.shift), signed(y, st.shift)));
-                let d = (1.0 + ctl * (c.max - 1) as f64 + u).floor().clamp(1.0, c.max as f64) as u32;
-                out.push((d * st.dilation) as u8);
+                out.push((st.dilation as f64 * (1.0 + ctl * (c.max - 1) as f64)) as f32);
             }
         }
         out
@@ -179,7 +176,7 @@ impl Engine {
     /// One iteration: convolve, then map. The output window is the input shrunk by the step
     /// margin on each side. `dil` = (per-point dilations, their row length, offset of this
     /// iteration's output window inside them).
-    fn step(&self, s: usize, g: &Grid, dil: Option<(&Vec<u8>, usize, usize)>) -> Grid {
+    fn step(&self, s: usize, g: &Grid, dil: Option<(&Vec<f32>, usize, usize)>) -> Grid {
         let st = &self.stages[s];
         let mask = lattice_mask(st.shift);
         let e = self.step_margin(s);
@@ -201,14 +198,30 @@ impl Engine {
                 }
             }
             Some((dv, dw, off)) => {
+                let w = g.w as isize;
                 for (y, row) in out.chunks_exact_mut(ow).enumerate() {
                     let drow = &dv[(y + off) * dw + off..];
                     for (x, o) in row.iter_mut().enumerate() {
-                        let d = drow[x] as isize;
-                        let base = ((y + e) * g.w + x + e) as isize;
+                        let d = drow[x];
+                        let (cx, cy) = ((x + e) as isize, (y + e) as isize);
                         let mut acc = 0.0f32;
                         for t in &st.kernel.taps {
-                            acc += t.w * g.v[(base + (t.dy as isize * g.w as isize + t.dx as isize) * d) as usize];
+                            // The tap lands between lattice points: read it bilinearly (exact
+                            // f32 ops; a zero fraction reads one point, so the margin holds).
+                            let (ox, oy) = (t.dx as f32 * d, t.dy as f32 * d);
+                            let (fx0, fy0) = (libm::floorf(ox), libm::floorf(oy));
+                            let (fx, fy) = (ox - fx0, oy - fy0);
+                            let at = |dx: isize, dy: isize| {
+                                g.v[((cy + fy0 as isize + dy) * w + cx + fx0 as isize + dx) as usize]
+                            };
+                            let row0 = if fx > 0.0 { at(0, 0) + (at(1, 0) - at(0, 0)) * fx } else { at(0, 0) };
+                            let v = if fy > 0.0 {
+                                let row1 = if fx > 0.0 { at(0, 1) + (at(1, 1) - at(0, 1)) * fx } else { at(0, 1) };
+                                row0 + (row1 - row0) * fy
+                            } else {
+                                row0
+                            };
+                            acc += t.w * v;
                         }
                         *o = acc;
                     }

@@ -26,7 +26,7 @@ use crate::pixels::Rgba8Image;
 /// Bins of the conditional-mean tables over stage values in [0, 1].
 const BINS: usize = 64;
 /// Calibration windows (level-0 pixels, `WINDOW²` each) scattered over the plane.
-const WINDOWS: u64 = 64;
+const WINDOWS: u64 = 256;
 const WINDOW: u32 = 32;
 /// A bin needs this many samples to be trusted; others are interpolated.
 const MIN_COUNT: f64 = 4.0;
@@ -36,10 +36,17 @@ const MIN_COUNT: f64 = 4.0;
 pub struct Calibration {
     /// Per stage (coarse to fine; the last is unused): g_s as `BINS` RGB means.
     pub tables: Vec<Vec<[f32; 3]>>,
-    /// g over the structured initial image's value (texture transfer), when there is one.
+    /// g over the guide image's value (the initial image, else the control map), if any.
     pub image: Option<Vec<[f32; 3]>>,
     /// Mean colour of the texture.
     pub mean: [f32; 3],
+}
+
+/// The image whose value predicts the local mean beyond the coarsest stage: the structured
+/// initial image, else the dilation control map.
+fn guide(tex: &Cascade) -> Option<&super::lattice::ImageField> {
+    let e = tex.engine();
+    e.initial.as_ref().map(|i| &i.field).or(e.control.as_ref().map(|c| &c.field))
 }
 
 /// Stage `s` of the cascade upsampled straight to level-0 pixels (bilinear, one step).
@@ -67,10 +74,10 @@ impl Calibration {
                 }
                 count += 1.0;
             }
-            if let Some(init) = &e.initial {
+            if let Some(guide) = guide(tex) {
                 for (k, p) in img.data.chunks_exact(4).enumerate() {
                     let (i, j) = ((k % WINDOW as usize) as u64, (k / WINDOW as usize) as u64);
-                    if let Some(v) = init.field.sample(x.wrapping_add(i) as i64, y.wrapping_add(j) as i64) {
+                    if let Some(v) = guide.sample(x.wrapping_add(i) as i64, y.wrapping_add(j) as i64) {
                         let b = &mut sums[n][bin(v as f32)];
                         for c in 0..3 {
                             b[c] += p[c] as f64;
@@ -92,7 +99,7 @@ impl Calibration {
         }
         let mean = mean.map(|m| (m / count) as f32);
         let mut tables: Vec<Vec<[f32; 3]>> = sums.iter().map(|bins| fill(bins, mean)).collect();
-        let image = tables.pop().filter(|_| e.initial.is_some());
+        let image = tables.pop().filter(|_| guide(tex).is_some());
         Calibration { tables, image, mean }
     }
 }
@@ -140,23 +147,29 @@ pub fn render(tex: &Cascade, cal: &Calibration, l: u32, x: u64, y: u64, w: u32, 
     let last = e.stages.len() - 1;
     let mut img = Rgba8Image::new(w, h);
     let Some(s) = (0..=last).rev().find(|&s| e.stages[s].shift + 2 >= l) else {
-        if let (Some(init), Some(table)) = (&e.initial, &cal.image) {
-            // Texture transfer: the image carries structure at every scale; average g over
-            // n × n samples of it per block, about one per texel (4 to 64 per axis, at most
-            // 2^22 samples a call).
-            let per_texel = ((1u64 << l.min(40)) / init.field.cell).clamp(4, 64);
+        if let (Some(guide), Some(table)) = (guide(tex), &cal.image) {
+            // A guide image (texture transfer, dilation map) carries structure at every
+            // scale; average g over n × n samples of it per block, about one per texel
+            // (4 to 64 per axis, at most 2^22 samples a call).
+            let per_texel = ((1u64 << l.min(40)) / guide.cell).clamp(4, 64);
             let budget = libm::sqrt((1u64 << 22) as f64 / (w as f64 * h as f64)) as u64;
             let n = per_texel.min(budget.max(4)).next_power_of_two().min(1 << (l - 1));
-            let nl = n.trailing_zeros();
-            let offs: Vec<u64> = (0..n).map(|j| (j << (l - nl)) + (1 << (l - nl - 1))).collect();
+            // Spread the samples over the block, or over one period of a repeating guide
+            // when the block is larger (sampling a period at a fixed phase would alias).
+            let offsets = |texels: u32| -> Vec<u64> {
+                let block = 1u64 << l.min(62);
+                let span = if guide.repeat { block.min(guide.cell * texels as u64) } else { block };
+                (0..n).map(|j| (2 * j + 1) * span / (2 * n)).collect()
+            };
+            let (offs_x, offs_y) = (offsets(guide.w), offsets(guide.h));
             let inv = 1.0 / (n * n) as f32;
             for j in 0..h as u64 {
                 for i in 0..w as u64 {
                     let (px, py) = (x.wrapping_add(i) << l, y.wrapping_add(j) << l);
                     let mut acc = [0.0f32; 3];
-                    for oy in &offs {
-                        for ox in &offs {
-                            let v = init.field.sample(px.wrapping_add(*ox) as i64, py.wrapping_add(*oy) as i64);
+                    for oy in &offs_y {
+                        for ox in &offs_x {
+                            let v = guide.sample(px.wrapping_add(*ox) as i64, py.wrapping_add(*oy) as i64);
                             let c = v.map_or(cal.mean, |v| eval(table, v as f32));
                             (0..3).for_each(|k| acc[k] += c[k]);
                         }
