@@ -267,17 +267,15 @@ fn mip_levels_approximate_the_exact_downsample() {
         // The coarsest level (1×1) against the mean colour of a large level-0 sample.
         let top = level_count(t.width(), t.height()) - 1;
         let one = render(t.as_ref(), top, 0, 0, 1, 1);
-        let acc;
-        if t.width() * t.height() <= 1 << 24 {
+        let m = if t.width() * t.height() <= 1 << 24 {
             // A bounded texture (texture transfer): its true mean over the whole extent, from
             // the exact level 2.
-            let m = mean_rgba(&render(t.as_ref(), 2, 0, 0, (t.width() / 4) as u32, (t.height() / 4) as u32));
-            acc = [m[0], m[1], m[2]];
+            mean_rgba(&render(t.as_ref(), 2, 0, 0, (t.width() / 4) as u32, (t.height() / 4) as u32))
         } else {
             // 2048² level-0 pixels (one whole period of the demo control map), via the exact level 2.
-            let m = mean_rgba(&render(t.as_ref(), 2, 0, 0, 512, 512));
-            acc = [m[0], m[1], m[2]];
-        }
+            mean_rgba(&render(t.as_ref(), 2, 0, 0, 512, 512))
+        };
+        let acc = [m[0], m[1], m[2]];
         let diff = (0..3).map(|c| (one.pixel(0, 0)[c] as f64 - acc[c]).abs()).fold(0.0, f64::max);
         println!("coarsest level {name}: {:?} vs sample mean {acc:.1?} (max diff {diff:.1})", one.pixel(0, 0));
         assert!(diff < 8.0, "{name}: coarsest {:?} vs mean {acc:?}", one.pixel(0, 0));
