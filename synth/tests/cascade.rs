@@ -357,3 +357,49 @@ fn bad_input_gives_clear_errors() {
     broken.sections[0].data.truncate(40);
     assert!(models::load(&broken).err().unwrap().to_string().contains("control"));
 }
+
+/// FNV-1a hashes of 96×96 tiles of the demos, as computed by this crate compiled to
+/// `wasm32-unknown-unknown` and run under Node (and identically natively): a change in any
+/// operation's order or rounding (e.g. a fused multiply-add) breaks native/wasm agreement and
+/// fails here.
+#[test]
+fn tiles_match_hashes_measured_on_wasm32() {
+    let pinned: [(usize, u32, i64, i64, u64); 30] = [
+        (0, 0, 0, 0, 0x4ac858416035c910),
+        (0, 0, 1099511627776, -8589934592, 0x280cb8339fe09c3b),
+        (0, 2, 5, 7, 0x0684687a7a43000c),
+        (0, 4, 100, 100, 0x94f6d49e8aed3325),
+        (0, 9, 0, 0, 0x94f6d49e8aed3325),
+        (1, 0, 0, 0, 0xc8bf4ab275aae4d6),
+        (1, 0, 1099511627776, -8589934592, 0x13f94873dd34e2dc),
+        (1, 2, 5, 7, 0x788a41598449ac3e),
+        (1, 4, 100, 100, 0x956423ce89266325),
+        (1, 9, 0, 0, 0x956423ce89266325),
+        (2, 0, 0, 0, 0xa0f25f57971879e1),
+        (2, 0, 1099511627776, -8589934592, 0xbf54393d2867258b),
+        (2, 2, 5, 7, 0xc4ddf10c406fa456),
+        (2, 4, 100, 100, 0xf485b899ca49c26f),
+        (2, 9, 0, 0, 0x2b1670571d67f625),
+        (3, 0, 0, 0, 0x11157f6a95652ae5),
+        (3, 0, 1099511627776, -8589934592, 0x0719c3a0dfe8458b),
+        (3, 2, 5, 7, 0x35f038e7f9a6a100),
+        (3, 4, 100, 100, 0xa4730a18259e1930),
+        (3, 9, 0, 0, 0xdfcbb6267a634b25),
+        (4, 0, 0, 0, 0x467eb3a32fc50ab8),
+        (4, 0, 1099511627776, -8589934592, 0x3401aa7b8af4c24d),
+        (4, 2, 5, 7, 0x4ffe4495adfd5823),
+        (4, 4, 100, 100, 0xd60f8bc873d719b1),
+        (4, 9, 0, 0, 0xccd2b8191d648325),
+        (5, 0, 0, 0, 0xa4988b01a70b96ca),
+        (5, 0, 1099511627776, -8589934592, 0xb645f666fb6e2c88),
+        (5, 2, 5, 7, 0xd3e0451bc6dedb41),
+        (5, 4, 100, 100, 0x36e61f70ec4ce6a6),
+        (5, 9, 0, 0, 0x23ab79f3f8bca325),
+    ];
+    let textures: Vec<Arc<dyn Texture>> = cascade::demos().iter().map(|b| models::load(b).unwrap()).collect();
+    for (d, level, x, y, expect) in pinned {
+        let img = render(textures[d].as_ref(), level, x, y, 96, 96);
+        let h = img.data.iter().fold(0xcbf29ce484222325u64, |h, &v| (h ^ v as u64).wrapping_mul(0x100000001b3));
+        assert_eq!(h, expect, "demo {d} level {level} at ({x}, {y})");
+    }
+}
