@@ -209,11 +209,11 @@ impl Engine {
                             // The tap lands between lattice points: read it bilinearly (exact
                             // f32 ops; a zero fraction reads one point, so the margin holds).
                             let (ox, oy) = (t.dx as f32 * d, t.dy as f32 * d);
-                            let (fx0, fy0) = (libm::floorf(ox), libm::floorf(oy));
-                            let (fx, fy) = (ox - fx0, oy - fy0);
-                            let at = |dx: isize, dy: isize| {
-                                g.v[((cy + fy0 as isize + dy) * w + cx + fx0 as isize + dx) as usize]
-                            };
+                            // Exact floor: truncate, then step down for negative fractions.
+                            let floor = |v: f32| (v as isize) - ((v as isize as f32) > v) as isize;
+                            let (ix, iy) = (floor(ox), floor(oy));
+                            let (fx, fy) = (ox - ix as f32, oy - iy as f32);
+                            let at = |dx: isize, dy: isize| g.v[((cy + iy + dy) * w + cx + ix + dx) as usize];
                             let row0 = if fx > 0.0 { at(0, 0) + (at(1, 0) - at(0, 0)) * fx } else { at(0, 0) };
                             let v = if fy > 0.0 {
                                 let row1 = if fx > 0.0 { at(0, 1) + (at(1, 1) - at(0, 1)) * fx } else { at(0, 1) };
