@@ -4,7 +4,7 @@
 import { createTileSource } from './tilesource.js';
 import { TileStats, formatBytes, formatRatio } from './stats.js';
 import { parseView, formatView } from './view-url.js';
-import { vtexLevel } from './pyramid.js';
+import { drawLevel, MIN_PIXEL_RATIO, vtexLevel } from './pyramid.js';
 
 const OSD = window.OpenSeadragon;
 const $ = (id) => document.getElementById(id);
@@ -45,6 +45,9 @@ const viewer = OSD({
   visibilityRatio: 0.25,
   animationTime: 0.5,
   blendTime: 0,
+  // Draw the coarsest level that is not magnified: at exactly 1/2^L, level L at 1:1 (OSD's
+  // default of 0.5 would fetch level L-1, four times the tiles, to draw it at half size).
+  minPixelRatio: MIN_PIXEL_RATIO,
   immediateRender: false,
   // Start several tile requests per frame (the default of one makes a cold view crawl in);
   // few enough in flight that the loader's queue, cleared every frame, drops stale tiles
@@ -115,6 +118,7 @@ function openTexture(info, view = {}) {
     if (seq !== state.openSeq) return;
     state.item = viewer.world.getItemAt(0);
     if (view.zoom > 0 && Number.isFinite(view.x) && Number.isFinite(view.y)) setView(view, true);
+    updateSmoothing();
     updateUrl();
     updateReadouts();
   });
@@ -233,7 +237,7 @@ function updateReadouts() {
     const p = item.viewerElementToImageCoordinates(new OSD.Point(pointer.x, pointer.y));
     const x = Math.floor(p.x);
     const y = Math.floor(p.y);
-    $('coords').textContent = x >= 0 && y >= 0 && x < info.width && y < info.height ? `x ${num(x)}  y ${num(y)}` : 'outside';
+    $('coords').textContent = x >= 0 && y >= 0 && x < info.width && y < info.height ? `x ${num(x)}, y ${num(y)}` : 'outside';
   }
 }
 
@@ -355,12 +359,21 @@ $('frame-slider').addEventListener('input', (e) => {
 
 viewer.addHandler('animation-finish', updateUrl);
 viewer.addHandler('update-viewport', updateReadouts);
-// Magnified past 1:1, show texels as crisp squares rather than blurred.
-viewer.addHandler('zoom', () => {
-  if (!state.item) return;
+// Smooth only when the drawn level is minified: at 1:1 tile pixels land on screen pixels
+// exactly, and magnified past 1:1 texels show as crisp squares rather than blurred.
+// The canvas drawer normally enlarges every tile by one screen pixel to hide seams that
+// smoothing leaves at fractional tile edges; that stretch would shift texels, so it is only
+// asked for while smoothing is on.
+let smoothing = true;
+function updateSmoothing() {
+  if (!state.item || !state.info) return;
   const zoom = state.item.viewportToImageZoom(viewer.viewport.getZoom(true));
-  viewer.drawer.setImageSmoothingEnabled(zoom < 1);
-});
+  const ratio = zoom * 2 ** drawLevel(state.info, zoom);
+  smoothing = ratio < 0.999;
+  viewer.drawer.setImageSmoothingEnabled(smoothing);
+}
+viewer.drawer.minimumOverlapRequired = () => smoothing;
+viewer.addHandler('zoom', updateSmoothing);
 viewer.addHandler('open-failed', (e) => showError(`Could not open the texture: ${e.message}`));
 
 $('texture-picker').addEventListener('change', (e) => {

@@ -46,9 +46,18 @@ export function tileUrl(info, level, x, y, frame = 0, format = 'png') {
   return info.animated ? `${base}?frame=${frame >>> 0}` : base;
 }
 
-/** The vtex level OpenSeadragon would draw at `zoom` screen pixels per level-0 pixel. */
-export function levelForZoom(info, zoom) {
+/**
+ * OpenSeadragon's `minPixelRatio`: the smallest on-screen size of a tile pixel before the next
+ * finer level is fetched. Just above one half, so at exactly 1/2^L level L is drawn at 1:1
+ * (OSD's default of 0.5 fetches level L-1, four times the tiles, to draw it at half size) and
+ * no level is ever drawn magnified by more than 2 %.
+ */
+export const MIN_PIXEL_RATIO = 0.51;
+
+/** The finest vtex level OpenSeadragon draws at `zoom` screen pixels per level-0 pixel. */
+export function drawLevel(info, zoom) {
   if (!(zoom > 0)) return info.levels - 1;
-  const l = Math.floor(Math.log2(1 / zoom));
-  return Math.min(info.levels - 1, Math.max(0, l));
+  // OSD: highest level = floor(log2(zoom × 2^(levels-1) / minPixelRatio)), capped at maxLevel.
+  const osd = Math.floor(Math.log2((zoom * 2 ** (info.levels - 1)) / MIN_PIXEL_RATIO));
+  return vtexLevel(info, Math.min(info.levels - 1, Math.max(0, osd)));
 }

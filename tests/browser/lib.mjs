@@ -122,11 +122,16 @@ export async function openViewer(context, url) {
 
 /** Resolves when every tile the current view needs is loaded and drawn. */
 export async function waitForIdle(page, timeout = 60_000) {
+  // Let OpenSeadragon run at least one update after whatever the caller just did.
+  await page.evaluate(() => new Promise((r) => requestAnimationFrame(() => requestAnimationFrame(r))));
   await page.waitForFunction(
     () => {
       const v = window.vtexViewer;
       const item = v.state.item;
-      return item && item.getFullyLoaded() && !v.viewer.world.needsDraw() && v.state.pending === null;
+      const vp = v.viewer.viewport;
+      const settled =
+        vp.getZoom(true) === vp.getZoom(false) && vp.getCenter(true).equals(vp.getCenter(false));
+      return settled && item && item.getFullyLoaded() && !v.viewer.world.needsDraw() && v.state.pending === null;
     },
     null,
     { timeout, polling: 50 },
