@@ -16,6 +16,8 @@ const state = {
   info: null,
   /** Counts texture opens, so a slow open superseded by a newer one is ignored. */
   openSeq: 0,
+  /** The open in progress: its tile source and the view to apply once it is open. */
+  opening: null,
   /** The animation frame on screen, and the tiled image showing it. */
   frame: 0,
   item: null,
@@ -114,16 +116,23 @@ function openTexture(info, view = {}) {
   renderInfo(info);
   setupAnimationPanel(info);
   const source = createTileSource(OSD, info, { frame: state.frame, stats });
-  viewer.addOnceHandler('open', () => {
-    if (seq !== state.openSeq) return;
-    state.item = viewer.world.getItemAt(0);
-    if (view.zoom > 0 && Number.isFinite(view.x) && Number.isFinite(view.y)) setView(view, true);
-    updateSmoothing();
-    updateUrl();
-    updateReadouts();
-  });
+  state.opening = { source, view, seq };
+  state.item = null;
   viewer.open(source);
 }
+
+// Only the most recent open counts: a texture picked while another was still opening wins.
+viewer.addHandler('open', (e) => {
+  const opening = state.opening;
+  if (!opening || e.source !== opening.source || opening.seq !== state.openSeq) return;
+  state.opening = null;
+  state.item = viewer.world.getItemAt(0);
+  const view = opening.view;
+  if (view.zoom > 0 && Number.isFinite(view.x) && Number.isFinite(view.y)) setView(view, true);
+  updateSmoothing();
+  updateUrl();
+  updateReadouts();
+});
 
 // ---------------------------------------------------------------------------------------
 // The view in level-0 pixels

@@ -291,6 +291,12 @@ test('switching textures with the picker shows the other texture', async () => {
   await page.waitForFunction((id) => new URLSearchParams(location.search).get('texture') === id, other.id);
   const view = await page.evaluate(() => window.vtexViewer.getView());
   assert.ok(Math.abs(view.x - other.width / 2) < other.width * 0.01, 'the new texture opens whole, centred');
+  // Rapid switching: the last pick wins.
+  for (const id of [big.id, other.id, big.id, other.id, big.id]) await page.selectOption('#texture-picker', id);
+  await page.waitForFunction((id) => window.vtexViewer.state.item?.source.vtexInfo.id === id, big.id);
+  await waitForIdle(page);
+  assert.equal(await page.evaluate(() => window.vtexViewer.viewer.world.getItemCount()), 1);
+  assert.equal(await page.evaluate(() => window.vtexViewer.getView().texture), big.id);
   assertClean(log);
   await page.close();
 });
