@@ -199,7 +199,7 @@ test('drawn pixels equal the server tiles: level 0 and level 3 at 1:1, level 0 m
   await page.close();
 });
 
-test('drag and wheel zoom request new tiles and move the navigator box', async () => {
+test('drag, wheel, keys, double-click and pinch move the view; the navigator box follows', async () => {
   const { page, log } = await openViewer(browser.context, `${server.url}/?texture=${big.id}&zoom=0.02&x=50000&y=50000`);
   await waitForIdle(page);
   const box = () => page.locator('.displayregion').boundingBox();
@@ -246,6 +246,13 @@ test('drag and wheel zoom request new tiles and move the navigator box', async (
   await waitForIdle(page);
   const afterDbl = await page.evaluate(() => window.vtexViewer.getView());
   assert.ok(afterDbl.zoom > afterKey.zoom * 1.5, 'double-click zoomed in');
+  // A two-finger pinch (touch events synthesised by Chromium).
+  const cdp = await browser.context.newCDPSession(page);
+  await cdp.send('Input.synthesizePinchGesture', { x: cx, y: cy, scaleFactor: 0.4, gestureSourceType: 'touch' });
+  await waitForIdle(page);
+  const afterPinch = await page.evaluate(() => window.vtexViewer.getView());
+  assert.ok(afterPinch.zoom < afterDbl.zoom / 1.5, `pinch zoomed out (${afterDbl.zoom} → ${afterPinch.zoom})`);
+  await cdp.detach();
   assertClean(log);
   await page.close();
 });
