@@ -17,6 +17,7 @@ pub mod hash;
 pub mod mip;
 pub mod models;
 pub mod pixels;
+pub mod samples;
 pub mod texture;
 
 pub use error::{Error, Result};

@@ -9,16 +9,19 @@ use crate::{bundle::Bundle, Error, Result, Texture};
 use std::collections::BTreeMap;
 use std::sync::Arc;
 
+pub mod chaos_mosaic;
+
 /// Input images by name (PNG bytes), e.g. `sample` for the chaos mosaic.
 pub type Inputs = BTreeMap<String, Vec<u8>>;
 
 /// The model ids this build knows.
-pub const MODELS: &[&str] = &[];
+pub const MODELS: &[&str] = &[chaos_mosaic::MODEL];
 
 /// Makes a new encoding of `model` from its JSON parameters and input images.
-pub fn create(model: &str, name: &str, _params: &serde_json::Value, _inputs: &Inputs) -> Result<Bundle> {
+pub fn create(model: &str, name: &str, params: &serde_json::Value, inputs: &Inputs) -> Result<Bundle> {
     check_name(name)?;
     match model {
+        chaos_mosaic::MODEL => chaos_mosaic::create(name, params, inputs),
         other => Err(Error::UnknownModel(other.into())),
     }
 }
@@ -26,13 +29,14 @@ pub fn create(model: &str, name: &str, _params: &serde_json::Value, _inputs: &In
 /// Validates an encoding completely and returns the texture it describes.
 pub fn load(bundle: &Bundle) -> Result<Arc<dyn Texture>> {
     match bundle.manifest.model.as_str() {
+        chaos_mosaic::MODEL => Ok(Arc::new(chaos_mosaic::load(bundle)?)),
         other => Err(Error::UnknownModel(other.into())),
     }
 }
 
 /// Every model's demo encodings.
 pub fn demos() -> Vec<Bundle> {
-    let mut all: Vec<Bundle> = Vec::new();
+    let mut all = chaos_mosaic::demos();
     all.sort_by(|a, b| a.manifest.name.cmp(&b.manifest.name));
     all
 }
