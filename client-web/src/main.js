@@ -3,7 +3,7 @@
 
 import { createTileSource } from './tilesource.js';
 import { TileStats, formatBytes, formatRatio } from './stats.js';
-import { parseView, formatView } from './view-url.js';
+import { FORMATS, parseView, formatView } from './view-url.js';
 import { drawLevel, MIN_PIXEL_RATIO, vtexLevel } from './pyramid.js';
 
 const OSD = window.OpenSeadragon;
@@ -11,6 +11,9 @@ const $ = (id) => document.getElementById(id);
 const num = (n) => Number(n).toLocaleString('en-US');
 
 const stats = new TileStats();
+// On this machine bandwidth is free and decoding is the cost: raw RGBA. Over a network, PNG.
+const LOOPBACK = ['127.0.0.1', 'localhost', '[::1]'].includes(location.hostname);
+const DEFAULT_FORMAT = LOOPBACK ? 'rgba' : 'png';
 const state = {
   textures: [],
   info: null,
@@ -21,6 +24,8 @@ const state = {
   /** The animation frame on screen, and the tiled image showing it. */
   frame: 0,
   item: null,
+  /** Tile format requested (png, webp, jpg, rgba). */
+  format: DEFAULT_FORMAT,
   /** A frame being loaded behind the visible one (invisible until fully loaded). */
   pending: null,
   playing: false,
@@ -115,7 +120,9 @@ function openTexture(info, view = {}) {
   document.title = `${info.name} – vtex viewer`;
   renderInfo(info);
   setupAnimationPanel(info);
-  const source = createTileSource(OSD, info, { frame: state.frame, stats });
+  if (view.format) state.format = view.format;
+  $('format').value = state.format;
+  const source = createTileSource(OSD, info, { frame: state.frame, format: state.format, stats });
   state.opening = { source, view, seq };
   state.item = null;
   viewer.open(source);
@@ -148,6 +155,7 @@ function getView() {
     x: centre.x,
     y: centre.y,
     frame: state.frame,
+    format: state.format === DEFAULT_FORMAT ? undefined : state.format,
   };
 }
 
@@ -293,7 +301,7 @@ function showFrame(frame) {
   }
   const seq = state.openSeq;
   viewer.addTiledImage({
-    tileSource: createTileSource(OSD, info, { frame, stats }),
+    tileSource: createTileSource(OSD, info, { frame, format: state.format, stats }),
     opacity: 0,
     preload: true,
     success: ({ item }) => {
@@ -385,6 +393,12 @@ viewer.drawer.minimumOverlapRequired = () => smoothing;
 viewer.addHandler('zoom', updateSmoothing);
 viewer.addHandler('open-failed', (e) => showError(`Could not open the texture: ${e.message}`));
 
+$('format').addEventListener('change', (e) => {
+  if (!FORMATS.includes(e.target.value) || !state.info) return;
+  const view = getView() || {};
+  openTexture(state.info, { ...view, format: e.target.value });
+});
+
 $('texture-picker').addEventListener('change', (e) => {
   const info = findTexture(e.target.value);
   if (info) openTexture(info);
@@ -436,7 +450,8 @@ async function start() {
   if (view.texture && !info) {
     showError(`No texture "${view.texture}" on this server; showing ${state.textures[0].name}.`);
   }
-  info = info || state.textures[0];
+  // Without a texture in the link, open the largest: vtex is about textures too big to store.
+  info = info || state.textures.reduce((a, b) => (b.width * b.height > a.width * a.height ? b : a));
   fillPicker(state.textures, info.id);
   openTexture(info, view);
   $('osd').querySelector('.openseadragon-canvas')?.focus();

@@ -1,5 +1,8 @@
-// The view in the URL: `?texture=<id or name>&zoom=<screen px per level-0 px>&x=<cx>&y=<cy>[&frame=N]`.
+// The view in the URL: `?texture=<id or name>&zoom=<screen px per level-0 px>&x=<cx>&y=<cy>[&frame=N][&format=F]`.
 // x and y are the view centre in level-0 pixels, so a link means the same place at any window size.
+
+/** Tile formats the server offers. */
+export const FORMATS = ['png', 'webp', 'jpg', 'rgba'];
 
 /** Parses a query string into a view; fields that are absent or malformed are left out. */
 export function parseView(search) {
@@ -23,6 +26,8 @@ export function parseView(search) {
   }
   const frame = num('frame');
   if (frame !== undefined && Number.isInteger(frame) && frame >= 0 && frame < 2 ** 32) view.frame = frame;
+  const format = q.get('format');
+  if (FORMATS.includes(format)) view.format = format;
   return view;
 }
 
@@ -37,5 +42,6 @@ export function formatView(view) {
     q.set('y', String(Math.round(view.y * 1000) / 1000));
   }
   if (view.frame > 0) q.set('frame', String(view.frame));
+  if (view.format) q.set('format', view.format);
   return `?${q}`;
 }

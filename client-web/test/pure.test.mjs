@@ -69,6 +69,9 @@ test('a view survives the URL round trip; malformed fields are dropped', () => {
   assert.deepEqual(parseView('?texture=t&zoom=-1&x=1&y=nope&frame=1.5'), { texture: 't' });
   assert.deepEqual(parseView('?zoom=0.001&x=5&y=6'), { zoom: 0.001, x: 5, y: 6 });
   assert.deepEqual(parseView(''), {});
+  assert.deepEqual(parseView('?format=rgba'), { format: 'rgba' });
+  assert.deepEqual(parseView('?format=gif'), {});
+  assert.equal(formatView({ texture: 't', format: 'webp' }), '?texture=t&format=webp');
   assert.equal(formatView({ zoom: 0.123456789012, x: 1.23456, y: 2 }), '?zoom=0.123456789&x=1.235&y=2');
   assert.equal(formatView({ texture: 'a b', zoom: 1, x: 1, y: 2, frame: 0 }), '?texture=a+b&zoom=1&x=1&y=2');
 });
