@@ -182,22 +182,25 @@ test('the page loads cleanly, requests tiles and draws them', async () => {
   await page.close();
 });
 
-test('drawn pixels equal the server tiles: level 0 and level 3 at 1:1, level 0 magnified', async () => {
-  const { page, log } = await openViewer(browser.context, `${server.url}/?texture=${big.id}`);
-  await waitForIdle(page);
-  // Level 0 at 1:1, deep inside the texture.
-  await setAlignedView(page, 1, 73_000, 41_000);
-  assert.deepEqual(await page.evaluate(() => window.vtexViewer.drawnLevels()), [0]);
-  assert.equal(await compareScreenToTile(page, big, 0, 73_000, 41_000), 0, 'level-0 pixels exact');
-  // Level 3 drawn at 1:1 (zoom 1/8).
-  await setAlignedView(page, 1 / 8, 8 * 9_000, 8 * 5_000);
-  assert.deepEqual(await page.evaluate(() => window.vtexViewer.drawnLevels()), [3]);
-  assert.equal(await compareScreenToTile(page, big, 3, 9_000, 5_000), 0, 'level-3 pixels exact');
-  // Magnified 3.3× across the corner of four level-0 tiles.
-  assert.ok((await checkMagnified(page, big, 3.3, 285 * 256 + 0.37, 160 * 256 + 0.81)) > 40_000);
-  assertClean(log);
-  await page.close();
-});
+for (const format of ['rgba', 'png', 'webp']) {
+  test(`drawn pixels equal the server tiles (${format}): level 0 and level 3 at 1:1, level 0 magnified`, async () => {
+    const { page, log } = await openViewer(browser.context, `${server.url}/?texture=${big.id}&format=${format}`);
+    await waitForIdle(page);
+    // Level 0 at 1:1, deep inside the texture.
+    await setAlignedView(page, 1, 73_000, 41_000);
+    assert.deepEqual(await page.evaluate(() => window.vtexViewer.drawnLevels()), [0]);
+    assert.equal(await compareScreenToTile(page, big, 0, 73_000, 41_000), 0, 'level-0 pixels exact');
+    // Level 3 drawn at 1:1 (zoom 1/8).
+    await setAlignedView(page, 1 / 8, 8 * 9_000, 8 * 5_000);
+    assert.deepEqual(await page.evaluate(() => window.vtexViewer.drawnLevels()), [3]);
+    assert.equal(await compareScreenToTile(page, big, 3, 9_000, 5_000), 0, 'level-3 pixels exact');
+    // Magnified 3.3× across the corner of four level-0 tiles.
+    assert.ok((await checkMagnified(page, big, 3.3, 285 * 256 + 0.37, 160 * 256 + 0.81)) > 40_000);
+    assert.ok(tileRequests(log.requests).every((t) => t.format === format), `every tile fetched as ${format}`);
+    assertClean(log);
+    await page.close();
+  });
+}
 
 test('drag, wheel, keys, double-click and pinch move the view; the navigator box follows', async () => {
   const { page, log } = await openViewer(browser.context, `${server.url}/?texture=${big.id}&zoom=0.02&x=50000&y=50000`);
