@@ -258,7 +258,9 @@ mod tests {
         assert!(cache.get_or_compute(key(1), || async { Err::<Tile, _>("boom") }).await.is_err());
         assert_eq!(cache.pending(), 0);
         let (t, src) = cache
-            .get_or_compute(key(1), || async { Ok::<_, &str>(Tile { body: Bytes::from_static(b"x"), width: 1, height: 1 }) })
+            .get_or_compute(key(1), || async {
+                Ok::<_, &str>(Tile { body: Bytes::from_static(b"x"), width: 1, height: 1 })
+            })
             .await
             .unwrap();
         assert_eq!((&t.body[..], src), (&b"x"[..], Source::Miss));

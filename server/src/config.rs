@@ -54,7 +54,12 @@ impl ServeConfig {
     /// Checks ranges clap cannot express; the message names the setting.
     pub fn validate(&self) -> Result<(), String> {
         if !TILE_SIZES.contains(&self.tile_size) {
-            return Err(format!("tile size {} is outside {}..={}", self.tile_size, TILE_SIZES.start(), TILE_SIZES.end()));
+            return Err(format!(
+                "tile size {} is outside {}..={}",
+                self.tile_size,
+                TILE_SIZES.start(),
+                TILE_SIZES.end()
+            ));
         }
         let positive = |v: f64, name: &str| {
             if v.is_finite() && v > 0.0 {

@@ -64,7 +64,8 @@ pub fn encode(img: &Rgba8Image, format: Format) -> Result<Vec<u8>, String> {
         Format::Rgba => return Ok(img.data.clone()),
         Format::Png => {
             // Fast deflate keeps a cold 256² tile within a few milliseconds; still lossless.
-            let enc = png::PngEncoder::new_with_quality(&mut out, png::CompressionType::Fast, png::FilterType::Adaptive);
+            let enc =
+                png::PngEncoder::new_with_quality(&mut out, png::CompressionType::Fast, png::FilterType::Adaptive);
             enc.write_image(&img.data, w, h, ExtendedColorType::Rgba8)
         }
         Format::Webp => WebPEncoder::new_lossless(&mut out).write_image(&img.data, w, h, ExtendedColorType::Rgba8),
@@ -102,7 +103,11 @@ mod tests {
                 assert_eq!((back.width(), back.height()), (37, 21));
                 continue;
             }
-            let back = if f == Format::Rgba { img.data.clone() } else { image::load_from_memory(&a).unwrap().into_rgba8().into_raw() };
+            let back = if f == Format::Rgba {
+                img.data.clone()
+            } else {
+                image::load_from_memory(&a).unwrap().into_rgba8().into_raw()
+            };
             assert_eq!(back, img.data, "{f:?} is lossless");
         }
     }

@@ -32,13 +32,15 @@ fn must<T>(r: prometheus::Result<T>) -> T {
 impl Metrics {
     pub fn new() -> Self {
         let registry = Registry::new();
-        let fast = vec![0.0001, 0.00025, 0.0005, 0.001, 0.0025, 0.005, 0.01, 0.025, 0.05, 0.1, 0.25, 0.5, 1.0, 2.5, 5.0];
+        let fast =
+            vec![0.0001, 0.00025, 0.0005, 0.001, 0.0025, 0.005, 0.01, 0.025, 0.05, 0.1, 0.25, 0.5, 1.0, 2.5, 5.0];
         let requests = must(IntCounterVec::new(
             Opts::new("vtex_http_requests_total", "HTTP requests by route, method and status"),
             &["route", "method", "status"],
         ));
         let request_seconds = must(HistogramVec::new(
-            HistogramOpts::new("vtex_http_request_duration_seconds", "HTTP request latency by route").buckets(fast.clone()),
+            HistogramOpts::new("vtex_http_request_duration_seconds", "HTTP request latency by route")
+                .buckets(fast.clone()),
             &["route"],
         ));
         let bytes_out = must(IntCounter::new("vtex_http_response_bytes_total", "Response body bytes sent"));
@@ -50,7 +52,8 @@ impl Metrics {
             Opts::new("vtex_tile_cache_misses_total", "Tiles not in the cache, by level"),
             &["level"],
         ));
-        let syntheses = must(IntCounter::new("vtex_syntheses_total", "Tile syntheses run (a coalesced miss counts once)"));
+        let syntheses =
+            must(IntCounter::new("vtex_syntheses_total", "Tile syntheses run (a coalesced miss counts once)"));
         let synthesis_seconds = must(Histogram::with_opts(
             HistogramOpts::new("vtex_synthesis_seconds", "Time to render one tile or region").buckets(fast.clone()),
         ));

@@ -71,15 +71,7 @@ impl Entry {
         let id = id_of(bytes);
         let key = blake3::Hash::from_hex(&id).expect("id_of gives hex").into();
         let levels = served_levels(texture.width(), texture.height(), tile_size);
-        Ok(Entry {
-            id,
-            key,
-            manifest: bundle.manifest,
-            texture,
-            encoding_bytes: bytes.len() as u64,
-            levels,
-            tile_size,
-        })
+        Ok(Entry { id, key, manifest: bundle.manifest, texture, encoding_bytes: bytes.len() as u64, levels, tile_size })
     }
 
     pub fn info(&self) -> TextureInfo {
@@ -171,7 +163,9 @@ impl Store {
             for demo in models::demos() {
                 let (_, created) = store.put(demo.to_bytes()).map_err(|e| match e {
                     StoreError::Io(e) => e,
-                    StoreError::Invalid(e) => std::io::Error::other(format!("demo `{}` is invalid: {e}", demo.manifest.name)),
+                    StoreError::Invalid(e) => {
+                        std::io::Error::other(format!("demo `{}` is invalid: {e}", demo.manifest.name))
+                    }
                 })?;
                 report.demos_written += created as usize;
             }

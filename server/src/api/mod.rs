@@ -198,9 +198,11 @@ async fn observe(State(app): State<App>, req: Request, next: Next) -> Response {
 /// True when `If-None-Match` names `etag` (weak comparison, as RFC 9110 requires) or is `*`.
 pub fn not_modified(headers: &HeaderMap, etag: &str) -> bool {
     let bare = |t: &str| t.trim().trim_start_matches("W/").to_string();
-    headers.get_all(header::IF_NONE_MATCH).iter().filter_map(|v| v.to_str().ok()).any(|v| {
-        v.trim() == "*" || v.split(',').any(|t| bare(t) == bare(etag))
-    })
+    headers
+        .get_all(header::IF_NONE_MATCH)
+        .iter()
+        .filter_map(|v| v.to_str().ok())
+        .any(|v| v.trim() == "*" || v.split(',').any(|t| bare(t) == bare(etag)))
 }
 
 /// A 304 carrying the validators a 200 would have carried.
@@ -213,9 +215,8 @@ pub fn not_modified_response(etag: HeaderValue) -> Response {
 
 /// Reads a request body of at most `limit` bytes; larger is 413 naming the limit.
 pub async fn read_body(req: Request, limit: usize) -> Result<bytes::Bytes, ApiError> {
-    let too_large = || {
-        ApiError::new(StatusCode::PAYLOAD_TOO_LARGE, format!("request body larger than the limit of {limit} bytes"))
-    };
+    let too_large =
+        || ApiError::new(StatusCode::PAYLOAD_TOO_LARGE, format!("request body larger than the limit of {limit} bytes"));
     let declared = req.headers().get(header::CONTENT_LENGTH).and_then(|v| v.to_str().ok()?.parse::<u64>().ok());
     if declared.is_some_and(|n| n > limit as u64) {
         return Err(too_large());

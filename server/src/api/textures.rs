@@ -120,8 +120,7 @@ async fn bundle_from_multipart(req: Request, limit: usize) -> Result<Vec<u8>, Ap
             ApiError::new(status, format!("malformed multipart body: {text}"))
         }
     };
-    let mut form =
-        Multipart::from_request(req, &()).await.map_err(|e| multipart_error(e.status(), e.body_text()))?;
+    let mut form = Multipart::from_request(req, &()).await.map_err(|e| multipart_error(e.status(), e.body_text()))?;
     let (mut model, mut name, mut params) = (None, None, None);
     let mut inputs = Inputs::new();
     let mut fields = 0;

@@ -2,7 +2,9 @@
 
 use super::error::{echo, ApiError};
 use super::params::{parse_i64, parse_u32, query_pairs};
-use super::{lookup, not_modified, not_modified_response, App, CACHE_IMMUTABLE, X_VTEX_CACHE, X_VTEX_HEIGHT, X_VTEX_WIDTH};
+use super::{
+    lookup, not_modified, not_modified_response, App, CACHE_IMMUTABLE, X_VTEX_CACHE, X_VTEX_HEIGHT, X_VTEX_WIDTH,
+};
 use crate::cache::{Source, Tile, TileKey};
 use crate::config::MAX_REGION_SIDE;
 use crate::encode::Format;
@@ -55,8 +57,7 @@ fn image_response(body: Bytes, format: Format, etag: HeaderValue, width: u32, he
 }
 
 fn parse_format(s: &str) -> Result<Format, ApiError> {
-    Format::parse(s)
-        .ok_or_else(|| ApiError::bad_request(format!("unknown format `{}`; {}", echo(s), Format::EXPECTED)))
+    Format::parse(s).ok_or_else(|| ApiError::bad_request(format!("unknown format `{}`; {}", echo(s), Format::EXPECTED)))
 }
 
 /// `GET /api/v1/textures/{id}/tiles/{level}/{x}/{y}.{format}[?frame=N]`

@@ -24,6 +24,11 @@ impl Server {
     /// Starts `vtex serve` on a free port over `data_dir` with `extra` flags (no demos unless
     /// `--demos` is among them), and waits for its `vtex listening on` line.
     pub fn start(data_dir: &Path, extra: &[&str]) -> Server {
+        Self::start_env(data_dir, extra, &[])
+    }
+
+    /// [`Server::start`] with extra environment variables.
+    pub fn start_env(data_dir: &Path, extra: &[&str], env: &[(&str, &str)]) -> Server {
         let log = data_dir.with_extension(format!("log-{}", std::process::id()));
         let mut args = vec!["serve", "--bind", "127.0.0.1:0", "--data-dir", data_dir.to_str().unwrap()];
         let demos = extra.contains(&"--demos");
@@ -36,6 +41,7 @@ impl Server {
             .env_remove("VTEX_BIND")
             .env("VTEX_WEB_DIR", data_dir.join("no-web-dir"))
             .env("VTEX_LOG", "info")
+            .envs(env.iter().copied())
             .stdout(Stdio::piped())
             .stderr(std::fs::File::create(&log).unwrap())
             .spawn()
