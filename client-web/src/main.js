@@ -41,6 +41,7 @@ const viewer = OSD({
   showNavigator: true,
   navigatorPosition: 'BOTTOM_RIGHT',
   navigatorAutoFade: false,
+  navigatorOpacity: 1, // opaque: the view behind must not show through the minimap
   navigatorDisplayRegionColor: '#f22',
   navigatorBorderColor: '#888',
   navigatorSizeRatio: 0.18,
