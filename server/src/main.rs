@@ -1,3 +1,22 @@
-fn main() {
-    eprintln!("vtex {}", env!("CARGO_PKG_VERSION"));
+//! The `vtex` binary. Logs go to stderr (filter with `VTEX_LOG` or `RUST_LOG`, default
+//! `info`); stdout carries only command results and the `vtex listening on …` line.
+
+use clap::Parser;
+use tracing_subscriber::EnvFilter;
+use vtex_server::cli::{self, Cli, Command};
+
+fn main() -> anyhow::Result<()> {
+    let filter = EnvFilter::try_from_env("VTEX_LOG")
+        .or_else(|_| EnvFilter::try_from_default_env())
+        .unwrap_or_else(|_| EnvFilter::new("info"));
+    tracing_subscriber::fmt().with_env_filter(filter).with_writer(std::io::stderr).init();
+    match Cli::parse().command {
+        Command::Serve(cfg) => tokio::runtime::Builder::new_multi_thread()
+            .enable_all()
+            .build()?
+            .block_on(vtex_server::serve::run(cfg, vtex_server::serve::shutdown_signal())),
+        Command::Create(args) => cli::create(args),
+        Command::Render(args) => cli::render(args),
+        Command::Info(args) => cli::info(args),
+    }
 }

@@ -6,8 +6,6 @@
 //! `demos() -> Vec<Bundle>` makes its demo encodings from project-made inputs.
 
 use crate::{bundle::Bundle, Error, Result, Texture};
-
-pub mod cascade;
 use std::collections::BTreeMap;
 use std::sync::Arc;
 

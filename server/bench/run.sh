@@ -1,0 +1,151 @@
+#!/usr/bin/env bash
+# Load benchmarks of `vtex serve` on loopback, each beside a baseline in the same run:
+#   1. warm tiles/s and p50/p99 at 8 and 64 connections, vtex vs nginx serving the same
+#      tile bytes as static files;
+#   2. cold 256² tiles per format over HTTP (every request a tile never seen before);
+#   3. resident memory after a long pan with a 256 MB cache.
+# Needs: wrk, nginx, curl, python3 (apt-get install wrk nginx curl python3).
+# Usage: server/bench/run.sh [seconds per run, default 10]
+set -euo pipefail
+DUR=${1:-10}
+ROOT=$(cd "$(dirname "$0")/../.." && pwd)
+WORK=$(mktemp -d /tmp/vtex-bench.XXXXXX)
+VTEX_PID=""; NGINX_PID=""
+cleanup() {
+  [ -n "$VTEX_PID" ] && kill "$VTEX_PID" 2>/dev/null || true
+  [ -n "$NGINX_PID" ] && kill "$NGINX_PID" 2>/dev/null || true
+  rm -rf "$WORK"
+}
+trap cleanup EXIT
+
+cargo build --release -q -p vtex-server --manifest-path "$ROOT/Cargo.toml"
+BIN="$ROOT/target/release/vtex"
+
+start_vtex() { # $1 = cache MB
+  VTEX_LOG=warn "$BIN" serve --bind 127.0.0.1:0 --data-dir "$WORK/data" --cache-mb "$1" \
+    --web-dir "$WORK/none" > "$WORK/vtex.out" 2> "$WORK/vtex.err" &
+  VTEX_PID=$!
+  for _ in $(seq 1 600); do grep -q listening "$WORK/vtex.out" 2>/dev/null && break; sleep 0.1; done
+  VTEX=$(sed -n 's/^vtex listening on //p' "$WORK/vtex.out")
+}
+stop_vtex() { kill -TERM "$VTEX_PID"; wait "$VTEX_PID" || true; VTEX_PID=""; }
+
+# wrk: $1 = connections, $2 = lua script, $3 = base URL → "req/s p50 p99"
+run_wrk() {
+  local threads=${4:-2}; [ "$1" -lt "$threads" ] && threads=$1
+  wrk -t"$threads" -c"$1" -d"${DUR}s" --latency -s "$2" "$3" > "$WORK/wrk.txt"
+  local rps p50 p99 non2xx
+  rps=$(awk '/^Requests\/sec/ {print $2}' "$WORK/wrk.txt")
+  p50=$(awk '$1=="50%" {print $2}' "$WORK/wrk.txt")
+  p99=$(awk '$1=="99%" {print $2}' "$WORK/wrk.txt")
+  non2xx=$(awk '/Non-2xx/ {print $NF}' "$WORK/wrk.txt")
+  [ -n "$non2xx" ] && { echo "wrk saw $non2xx non-2xx responses" >&2; cat "$WORK/wrk.txt" >&2; exit 1; }
+  echo "$rps $p50 $p99"
+}
+
+echo "# vtex server benchmarks — $(date -u +%FT%TZ), $(nproc) CPUs, loopback, ${DUR}s per run"
+start_vtex 256
+ID=$(curl -s "$VTEX/api/v1/textures" | python3 -c '
+import json, sys
+print(next(t["id"] for t in json.load(sys.stdin)["textures"] if t["width"] == 100000))')
+
+# 1. Warm tiles: 64 PNG tiles of the 100k mosaic, fetched once into vtex's cache and
+#    written to nginx's root at the same paths.
+mkdir -p "$WORK/www"
+URLS=()
+for y in 0 1 2 3 4 5 6 7; do for x in 0 1 2 3 4 5 6 7; do
+  P="/api/v1/textures/$ID/tiles/0/$((100 + x))/$((200 + y)).png"
+  mkdir -p "$WORK/www$(dirname "$P")"
+  curl -sf "$VTEX$P" -o "$WORK/www$P"
+  URLS+=("$P")
+done; done
+{
+  echo 'local paths = {'
+  for p in "${URLS[@]}"; do echo "  \"$p\","; done
+  echo '}'
+  echo 'local i = 0'
+  echo 'request = function() i = i + 1; return wrk.format("GET", paths[(i % #paths) + 1]) end'
+} > "$WORK/warm.lua"
+cat > "$WORK/nginx.conf" <<NGINX
+worker_processes auto;
+pid $WORK/nginx.pid;
+error_log $WORK/nginx.err warn;
+events { worker_connections 1024; }
+http {
+  access_log off;
+  sendfile on; tcp_nopush on; tcp_nodelay on;
+  keepalive_requests 1000000;
+  open_file_cache max=1000;
+  types { image/png png; }
+  server { listen 127.0.0.1:18089; root $WORK/www; etag on;
+           add_header Cache-Control "public, max-age=31536000, immutable"; }
+}
+NGINX
+nginx -c "$WORK/nginx.conf" -g 'daemon off;' & NGINX_PID=$!
+sleep 0.5
+TILE_BYTES=$(du -sb "$WORK/www" | cut -f1)
+echo
+echo "## Warm tiles (64 distinct 256² PNG tiles, $((TILE_BYTES / 64)) bytes each on average)"
+echo
+echo "| server | connections | tiles/s | p50 | p99 |"
+echo "|---|---|---|---|---|"
+for c in 8 64; do
+  read -r rps p50 p99 < <(run_wrk "$c" "$WORK/warm.lua" "http://127.0.0.1:18089")
+  echo "| nginx (static files) | $c | $rps | $p50 | $p99 |"
+  read -r rps p50 p99 < <(run_wrk "$c" "$WORK/warm.lua" "$VTEX")
+  echo "| vtex (tile cache) | $c | $rps | $p50 | $p99 |"
+done
+kill "$NGINX_PID"; wait "$NGINX_PID" 2>/dev/null || true; NGINX_PID=""
+
+# 2. Cold tiles: every request is a new tile of level 0 (391² tiles exist).
+echo
+echo "## Cold 256² tiles over HTTP (synthesis + encode + HTTP; 1 connection, then 2)"
+echo
+echo "| format | connections | tiles/s | p50 | p99 |"
+echo "|---|---|---|---|---|"
+RUN=0
+for fmt in png webp jpg rgba; do
+  for c in 1 2; do
+    # One wrk thread walks disjoint stretches of tiles per run, so no request repeats a key.
+    RUN=$((RUN + 1))
+    cat > "$WORK/cold.lua" <<LUA
+local n = $((RUN * 19000))
+request = function()
+  n = n + 1
+  local k = n % (391 * 391)
+  return wrk.format("GET", "/api/v1/textures/$ID/tiles/0/" .. (k % 391) .. "/" .. math.floor(k / 391) .. ".$fmt")
+end
+LUA
+    read -r rps p50 p99 < <(run_wrk "$c" "$WORK/cold.lua" "$VTEX" 1)
+    echo "| $fmt | $c | $rps | $p50 | $p99 |"
+  done
+done
+stop_vtex
+
+# 3. Memory: a long pan over level 0 (every request a new PNG tile) with a 256 MB cache.
+start_vtex 256
+RSS0=$(awk '/VmRSS/ {print $2}' "/proc/$VTEX_PID/status")
+cat > "$WORK/pan.lua" <<LUA
+local n = 0
+request = function()
+  n = n + 1
+  local k = n % (391 * 391)
+  return wrk.format("GET", "/api/v1/textures/$ID/tiles/0/" .. (k % 391) .. "/" .. math.floor(k / 391) .. ".png")
+end
+LUA
+PAN_DUR=$((DUR * 6))
+wrk -t1 -c8 -d"${PAN_DUR}s" -s "$WORK/pan.lua" "$VTEX" > "$WORK/pan.txt"
+RSS1=$(awk '/VmRSS/ {print $2}' "/proc/$VTEX_PID/status")
+HWM=$(awk '/VmHWM/ {print $2}' "/proc/$VTEX_PID/status")
+M=$(curl -s "$VTEX/metrics")
+CACHE=$(echo "$M" | awk '/^vtex_tile_cache_bytes / {print $2}')
+BUDGET=$(echo "$M" | awk '/^vtex_tile_cache_budget_bytes / {print $2}')
+SENT=$(echo "$M" | awk '/^vtex_http_response_bytes_total / {print $2}')
+REQS=$(awk '/requests in/ {print $1}' "$WORK/pan.txt")
+echo
+echo "## Resident memory after a ${PAN_DUR}s pan (8 connections, $REQS new PNG tiles, $((${SENT%.*} / 1048576)) MiB sent)"
+echo
+echo "| cache budget | cache bytes held | RSS at start | RSS after pan | peak RSS |"
+echo "|---|---|---|---|---|"
+echo "| $((${BUDGET%.*} / 1048576)) MiB | $((${CACHE%.*} / 1048576)) MiB | $((RSS0 / 1024)) MiB | $((RSS1 / 1024)) MiB | $((HWM / 1024)) MiB |"
+stop_vtex

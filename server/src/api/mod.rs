@@ -1,0 +1,268 @@
+//! The HTTP API v1 (DESIGN §4, CONTRACT), the static viewer, and the middleware around them.
+
+pub mod error;
+pub mod params;
+mod textures;
+mod tiles;
+
+use crate::cache::TileCache;
+use crate::config::ServeConfig;
+use crate::encode::{self, Format};
+use crate::metrics::Metrics;
+use crate::store::{Entry, Store};
+use axum::extract::{DefaultBodyLimit, Request, State};
+use axum::http::{header, HeaderMap, HeaderName, HeaderValue, Method, StatusCode};
+use axum::middleware::{self, Next};
+use axum::response::{IntoResponse, Response};
+use axum::routing::{any, get};
+use axum::Router;
+use error::ApiError;
+use http_body_util::BodyExt;
+use std::sync::Arc;
+use std::time::{Duration, Instant};
+use tokio::sync::Semaphore;
+use tower_http::cors::{Any, CorsLayer};
+use tower_http::services::ServeDir;
+use vtex_synth::Region;
+
+pub use error::ApiError as Error;
+
+pub const CACHE_IMMUTABLE: HeaderValue = HeaderValue::from_static("public, max-age=31536000, immutable");
+pub static X_VTEX_CACHE: HeaderName = HeaderName::from_static("x-vtex-cache");
+pub static X_VTEX_WIDTH: HeaderName = HeaderName::from_static("x-vtex-width");
+pub static X_VTEX_HEIGHT: HeaderName = HeaderName::from_static("x-vtex-height");
+
+/// Everything a request handler needs.
+pub struct AppState {
+    pub store: Arc<Store>,
+    pub cache: TileCache,
+    pub metrics: Metrics,
+    /// Permits for syntheses; a miss waits for one (back-pressure), never runs unbounded.
+    pub synth_permits: Semaphore,
+    pub cfg: ServeConfig,
+}
+
+pub type App = Arc<AppState>;
+
+impl AppState {
+    pub fn new(store: Arc<Store>, cfg: ServeConfig) -> App {
+        let metrics = Metrics::new();
+        let cache = TileCache::new(cfg.cache_bytes());
+        metrics.cache_budget_bytes.set(cache.budget() as i64);
+        Arc::new(AppState { store, cache, metrics, synth_permits: Semaphore::new(cfg.syntheses()), cfg })
+    }
+
+    /// Renders `region` of `entry` and encodes it, on the blocking pool, holding a permit.
+    /// Returns the encoded bytes. Bad regions are 400s; a panicking model is a 500.
+    pub async fn synthesize(&self, entry: Arc<Entry>, region: Region, format: Format) -> Result<Vec<u8>, ApiError> {
+        let _permit = self.synth_permits.acquire().await.expect("the semaphore is never closed");
+        let (synth_s, encode_s, in_flight, count) = (
+            self.metrics.synthesis_seconds.clone(),
+            self.metrics.encode_seconds.with_label_values(&[format.ext()]),
+            self.metrics.syntheses_in_flight.clone(),
+            self.metrics.syntheses.clone(),
+        );
+        tokio::task::spawn_blocking(move || {
+            count.inc();
+            in_flight.inc();
+            let t0 = Instant::now();
+            let img = vtex_synth::texture::render_image(&*entry.texture, &region);
+            synth_s.observe(t0.elapsed().as_secs_f64());
+            in_flight.dec();
+            let img = img?;
+            let t1 = Instant::now();
+            let bytes = encode::encode(&img, format).map_err(ApiError::internal)?;
+            encode_s.observe(t1.elapsed().as_secs_f64());
+            Ok(bytes)
+        })
+        .await
+        .map_err(|e| {
+            tracing::error!(error = %e, "synthesis task failed");
+            ApiError::internal("synthesis failed inside the model; the texture cannot render this region")
+        })?
+    }
+}
+
+/// The whole application: API routes, the static viewer, and middleware.
+pub fn router(app: App) -> Router {
+    let cors = CorsLayer::new()
+        .allow_origin(Any)
+        .allow_methods([Method::GET, Method::HEAD, Method::POST, Method::PATCH, Method::OPTIONS])
+        .allow_headers(Any)
+        .expose_headers([header::ETAG, X_VTEX_CACHE.clone(), X_VTEX_WIDTH.clone(), X_VTEX_HEIGHT.clone()]);
+    let web = ServeDir::new(&app.cfg.web_dir).append_index_html_on_directories(true);
+    Router::new()
+        .route("/api/v1/textures", get(textures::list).post(textures::upload))
+        .route("/api/v1/textures/{id}", get(textures::info).patch(textures::patch))
+        .route("/api/v1/textures/{id}/encoding", get(textures::encoding))
+        .route("/api/v1/textures/{id}/tiles/{level}/{x}/{file}", get(tiles::tile))
+        .route("/api/v1/textures/{id}/region", get(tiles::region))
+        .route("/healthz", get(healthz))
+        .route("/metrics", get(metrics))
+        .route("/api", any(api_not_found))
+        .route("/api/{*rest}", any(api_not_found))
+        .method_not_allowed_fallback(method_not_allowed)
+        .fallback_service(web)
+        .layer(DefaultBodyLimit::max(app.cfg.max_upload_bytes()))
+        .layer(middleware::from_fn_with_state(app.cfg.request_timeout(), deadline))
+        .layer(cors)
+        .layer(middleware::from_fn_with_state(app.clone(), observe))
+        .with_state(app)
+}
+
+async fn healthz() -> Response {
+    ([(header::CONTENT_TYPE, "application/json")], r#"{"status":"ok"}"#).into_response()
+}
+
+async fn metrics(State(app): State<App>) -> Response {
+    let m = &app.metrics;
+    m.cache_bytes.set(app.cache.bytes() as i64);
+    m.cache_entries.set(app.cache.len() as i64);
+    m.cache_evictions.set(app.cache.evictions() as i64);
+    m.textures.set(app.store.len() as i64);
+    ([(header::CONTENT_TYPE, "text/plain; version=0.0.4")], m.render()).into_response()
+}
+
+async fn api_not_found(req: Request) -> ApiError {
+    ApiError::not_found(format!("no API route {} {}", req.method(), error::echo(req.uri().path())))
+}
+
+async fn method_not_allowed(req: Request) -> ApiError {
+    ApiError::new(
+        StatusCode::METHOD_NOT_ALLOWED,
+        format!("method {} is not allowed on {}", req.method(), error::echo(req.uri().path())),
+    )
+}
+
+/// Bounds a whole request (slow bodies included): past the deadline the client gets 408.
+async fn deadline(State(limit): State<Duration>, req: Request, next: Next) -> Response {
+    match tokio::time::timeout(limit, next.run(req)).await {
+        Ok(resp) => resp,
+        Err(_) => ApiError::new(
+            StatusCode::REQUEST_TIMEOUT,
+            format!("request not completed within {} s (slow client or overload)", limit.as_secs_f64()),
+        )
+        .into_response(),
+    }
+}
+
+/// The metrics route label: the route pattern, never the raw path (bounded cardinality).
+fn route_of(path: &str) -> &'static str {
+    let Some(rest) = path.strip_prefix("/api/v1/textures") else {
+        return match path {
+            "/healthz" => "/healthz",
+            "/metrics" => "/metrics",
+            p if p.starts_with("/api") => "/api/other",
+            _ => "static",
+        };
+    };
+    let parts: Vec<&str> = rest.split('/').collect();
+    match parts.as_slice() {
+        [""] | ["", ""] => "/api/v1/textures",
+        ["", _] => "/api/v1/textures/{id}",
+        ["", _, "encoding"] => "/api/v1/textures/{id}/encoding",
+        ["", _, "region"] => "/api/v1/textures/{id}/region",
+        ["", _, "tiles", _, _, _] => "/api/v1/textures/{id}/tiles",
+        _ => "/api/other",
+    }
+}
+
+/// Counts, times and logs every request.
+async fn observe(State(app): State<App>, req: Request, next: Next) -> Response {
+    let start = Instant::now();
+    let method = req.method().clone();
+    let route = route_of(req.uri().path());
+    let path = tracing::enabled!(tracing::Level::INFO).then(|| req.uri().path().to_owned());
+    let resp = next.run(req).await;
+    let elapsed = start.elapsed();
+    let status = resp.status();
+    let bytes = http_body::Body::size_hint(resp.body()).exact().unwrap_or(0);
+    let m = &app.metrics;
+    m.requests.with_label_values(&[route, method.as_str(), status.as_str()]).inc();
+    m.request_seconds.with_label_values(&[route]).observe(elapsed.as_secs_f64());
+    m.bytes_out.inc_by(bytes);
+    if let Some(path) = path {
+        tracing::info!(
+            target: "vtex::http",
+            method = %method,
+            path,
+            status = status.as_u16(),
+            latency_us = elapsed.as_micros() as u64,
+            bytes,
+            "request"
+        );
+    }
+    resp
+}
+
+/// True when `If-None-Match` names `etag` (weak comparison, as RFC 9110 requires) or is `*`.
+pub fn not_modified(headers: &HeaderMap, etag: &str) -> bool {
+    let bare = |t: &str| t.trim().trim_start_matches("W/").to_string();
+    headers
+        .get_all(header::IF_NONE_MATCH)
+        .iter()
+        .filter_map(|v| v.to_str().ok())
+        .any(|v| v.trim() == "*" || v.split(',').any(|t| bare(t) == bare(etag)))
+}
+
+/// A 304 carrying the validators a 200 would have carried.
+pub fn not_modified_response(etag: HeaderValue) -> Response {
+    let mut resp = StatusCode::NOT_MODIFIED.into_response();
+    resp.headers_mut().insert(header::ETAG, etag);
+    resp.headers_mut().insert(header::CACHE_CONTROL, CACHE_IMMUTABLE);
+    resp
+}
+
+/// Reads a request body of at most `limit` bytes; larger is 413 naming the limit.
+pub async fn read_body(req: Request, limit: usize) -> Result<bytes::Bytes, ApiError> {
+    let too_large =
+        || ApiError::new(StatusCode::PAYLOAD_TOO_LARGE, format!("request body larger than the limit of {limit} bytes"));
+    let declared = req.headers().get(header::CONTENT_LENGTH).and_then(|v| v.to_str().ok()?.parse::<u64>().ok());
+    if declared.is_some_and(|n| n > limit as u64) {
+        return Err(too_large());
+    }
+    match http_body_util::Limited::new(req.into_body(), limit).collect().await {
+        Ok(c) => Ok(c.to_bytes()),
+        Err(e) if e.downcast_ref::<http_body_util::LengthLimitError>().is_some() => Err(too_large()),
+        Err(e) => Err(ApiError::bad_request(format!("could not read the request body: {e}"))),
+    }
+}
+
+/// A texture id from the path: checked before it can reach a file name.
+pub fn lookup(app: &AppState, id: &str) -> Result<Arc<Entry>, ApiError> {
+    if !vtex_synth::bundle::is_valid_id(id) {
+        return Err(ApiError::bad_request(format!(
+            "invalid texture id `{}`: expected 64 lowercase hex characters",
+            error::echo(id)
+        )));
+    }
+    app.store.get(id).ok_or_else(|| ApiError::not_found(format!("no texture with id {id}")))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn routes_have_bounded_labels() {
+        let id = "ab".repeat(32);
+        assert_eq!(route_of("/api/v1/textures"), "/api/v1/textures");
+        assert_eq!(route_of(&format!("/api/v1/textures/{id}")), "/api/v1/textures/{id}");
+        assert_eq!(route_of(&format!("/api/v1/textures/{id}/tiles/1/2/3.png")), "/api/v1/textures/{id}/tiles");
+        assert_eq!(route_of(&format!("/api/v1/textures/{id}/region")), "/api/v1/textures/{id}/region");
+        assert_eq!(route_of("/api/v1/texturesX/9"), "/api/other");
+        assert_eq!(route_of("/index.html"), "static");
+    }
+
+    #[test]
+    fn if_none_match_forms() {
+        let mut h = HeaderMap::new();
+        h.insert(header::IF_NONE_MATCH, HeaderValue::from_static("\"a\", W/\"b\""));
+        assert!(not_modified(&h, "\"a\""));
+        assert!(not_modified(&h, "\"b\""));
+        assert!(!not_modified(&h, "\"c\""));
+        h.insert(header::IF_NONE_MATCH, HeaderValue::from_static("*"));
+        assert!(not_modified(&h, "\"c\""));
+        assert!(!not_modified(&HeaderMap::new(), "\"a\""));
+    }
+}

@@ -1,0 +1,234 @@
+//! Texture resources: list, info, upload, merge-patch, encoding download.
+
+use super::error::{echo, ApiError};
+use super::{lookup, not_modified, not_modified_response, read_body, App, CACHE_IMMUTABLE};
+use crate::store::{StoreError, TextureInfo};
+use axum::extract::rejection::PathRejection;
+use axum::extract::{FromRequest, Multipart, Path, Request, State};
+use axum::http::{header, HeaderMap, HeaderValue, StatusCode};
+use axum::response::{IntoResponse, Response};
+use axum::Json;
+use serde_json::Value;
+use vtex_synth::bundle::{Bundle, Manifest};
+use vtex_synth::models::{self, Inputs};
+
+/// Most multipart fields an upload may carry (model, name, params and input images).
+const MAX_FIELDS: usize = 16;
+/// Largest PATCH body: a merge patch of names and parameters.
+const MAX_PATCH_BYTES: usize = 1 << 20;
+
+fn path_id(path: Result<Path<String>, PathRejection>) -> Result<String, ApiError> {
+    path.map(|Path(id)| id).map_err(|e| ApiError::bad_request(e.body_text()))
+}
+
+pub async fn list(State(app): State<App>) -> Json<Value> {
+    let textures: Vec<TextureInfo> = app.store.list().iter().map(|e| e.info()).collect();
+    Json(serde_json::json!({ "textures": textures }))
+}
+
+pub async fn info(
+    State(app): State<App>,
+    path: Result<Path<String>, PathRejection>,
+) -> Result<Json<TextureInfo>, ApiError> {
+    Ok(Json(lookup(&app, &path_id(path)?)?.info()))
+}
+
+/// The bundle bytes exactly as stored. The id is the content hash: a perfect strong ETag.
+pub async fn encoding(
+    State(app): State<App>,
+    path: Result<Path<String>, PathRejection>,
+    headers: HeaderMap,
+) -> Result<Response, ApiError> {
+    let entry = lookup(&app, &path_id(path)?)?;
+    let tag = HeaderValue::from_str(&format!("\"{}\"", entry.id)).expect("hex id");
+    if not_modified(&headers, tag.to_str().unwrap_or_default()) {
+        return Ok(not_modified_response(tag));
+    }
+    let bytes = tokio::fs::read(app.store.path_of(&entry.id))
+        .await
+        .map_err(|e| ApiError::internal(format!("reading the stored bundle failed: {e}")))?;
+    let disposition = format!("attachment; filename=\"{}.vtex\"", entry.id);
+    Ok((
+        [
+            (header::CONTENT_TYPE, HeaderValue::from_static("application/octet-stream")),
+            (header::ETAG, tag),
+            (header::CACHE_CONTROL, CACHE_IMMUTABLE),
+            (header::CONTENT_DISPOSITION, HeaderValue::from_str(&disposition).expect("ascii")),
+        ],
+        bytes,
+    )
+        .into_response())
+}
+
+/// Validates and stores bundle bytes off the runtime: 201 when new, 200 when already stored.
+async fn store_bundle(app: &App, bytes: Vec<u8>) -> Result<(StatusCode, Json<TextureInfo>), ApiError> {
+    let store = app.store.clone();
+    let (entry, created) = tokio::task::spawn_blocking(move || store.put(bytes))
+        .await
+        .map_err(|_| ApiError::internal("validating the bundle failed inside the model"))?
+        .map_err(|e| match e {
+            StoreError::Invalid(e) => ApiError::from(e),
+            StoreError::Io(e) => {
+                tracing::error!(error = %e, "storing a bundle failed");
+                ApiError::internal(format!("storage failure: {e}"))
+            }
+        })?;
+    if created {
+        tracing::info!(id = %entry.id, name = %entry.manifest.name, model = %entry.manifest.model, "texture stored");
+    }
+    Ok((if created { StatusCode::CREATED } else { StatusCode::OK }, Json(entry.info())))
+}
+
+/// `POST /api/v1/textures`: a raw bundle, or multipart `model`, `name`, `params` + input images.
+pub async fn upload(State(app): State<App>, req: Request) -> Result<(StatusCode, Json<TextureInfo>), ApiError> {
+    let content_type = req
+        .headers()
+        .get(header::CONTENT_TYPE)
+        .and_then(|v| v.to_str().ok())
+        .unwrap_or("application/octet-stream")
+        .to_ascii_lowercase();
+    let limit = app.cfg.max_upload_bytes();
+    if content_type.starts_with("multipart/form-data") {
+        let declared = req.headers().get(header::CONTENT_LENGTH).and_then(|v| v.to_str().ok()?.parse::<u64>().ok());
+        if declared.is_some_and(|n| n > limit as u64) {
+            return Err(ApiError::new(
+                StatusCode::PAYLOAD_TOO_LARGE,
+                format!("request body larger than the limit of {limit} bytes"),
+            ));
+        }
+        let bytes = bundle_from_multipart(req, limit).await?;
+        store_bundle(&app, bytes).await
+    } else if content_type.starts_with("application/octet-stream") {
+        let bytes = read_body(req, limit).await?;
+        store_bundle(&app, bytes.to_vec()).await
+    } else {
+        Err(ApiError::new(
+            StatusCode::UNSUPPORTED_MEDIA_TYPE,
+            format!(
+                "content type `{}`; expected application/octet-stream (a bundle) or multipart/form-data",
+                echo(&content_type)
+            ),
+        ))
+    }
+}
+
+async fn bundle_from_multipart(req: Request, limit: usize) -> Result<Vec<u8>, ApiError> {
+    let multipart_error = |status: StatusCode, text: String| {
+        if status == StatusCode::PAYLOAD_TOO_LARGE {
+            ApiError::new(status, format!("request body larger than the limit of {limit} bytes"))
+        } else {
+            ApiError::new(status, format!("malformed multipart body: {text}"))
+        }
+    };
+    let mut form = Multipart::from_request(req, &()).await.map_err(|e| multipart_error(e.status(), e.body_text()))?;
+    let (mut model, mut name, mut params) = (None, None, None);
+    let mut inputs = Inputs::new();
+    let mut fields = 0;
+    while let Some(field) = form.next_field().await.map_err(|e| multipart_error(e.status(), e.body_text()))? {
+        fields += 1;
+        if fields > MAX_FIELDS {
+            return Err(ApiError::bad_request(format!("more than {MAX_FIELDS} multipart fields")));
+        }
+        let field_name = field.name().unwrap_or_default().to_string();
+        let data = field.bytes().await.map_err(|e| multipart_error(e.status(), e.body_text()))?;
+        let text = || {
+            String::from_utf8(data.to_vec())
+                .map_err(|_| ApiError::bad_request(format!("multipart field `{field_name}` is not UTF-8 text")))
+        };
+        match field_name.as_str() {
+            "model" => model = Some(text()?),
+            "name" => name = Some(text()?),
+            "params" => {
+                let v: Value = serde_json::from_slice(&data)
+                    .map_err(|e| ApiError::bad_request(format!("multipart field `params` is not JSON: {e}")))?;
+                params = Some(v)
+            }
+            "" => return Err(ApiError::bad_request("a multipart field has no name")),
+            _ => {
+                inputs.insert(field_name.clone(), data.to_vec());
+            }
+        }
+    }
+    let model = model.ok_or_else(|| ApiError::bad_request("missing multipart field `model`"))?;
+    let name = name.unwrap_or_else(|| model.clone());
+    let params = params.unwrap_or_else(|| serde_json::json!({}));
+    let bundle = tokio::task::spawn_blocking(move || models::create(&model, &name, &params, &inputs))
+        .await
+        .map_err(|_| ApiError::internal("creating the encoding failed inside the model"))??;
+    Ok(bundle.to_bytes())
+}
+
+/// RFC 7396 JSON merge patch: objects merge recursively, `null` deletes, anything else replaces.
+pub fn merge_patch(target: &mut Value, patch: &Value) {
+    let Value::Object(patch) = patch else {
+        *target = patch.clone();
+        return;
+    };
+    if !target.is_object() {
+        *target = Value::Object(Default::default());
+    }
+    let map = target.as_object_mut().expect("made an object above");
+    for (k, v) in patch {
+        if v.is_null() {
+            map.remove(k);
+        } else {
+            merge_patch(map.entry(k.clone()).or_insert(Value::Null), v);
+        }
+    }
+}
+
+/// `PATCH /api/v1/textures/{id}`: merge-patch `name` and `params` of the manifest; the
+/// result is validated and stored as a new texture (bundles are immutable).
+pub async fn patch(
+    State(app): State<App>,
+    path: Result<Path<String>, PathRejection>,
+    req: Request,
+) -> Result<(StatusCode, Json<TextureInfo>), ApiError> {
+    let entry = lookup(&app, &path_id(path)?)?;
+    let body = read_body(req, MAX_PATCH_BYTES).await?;
+    let patch: Value =
+        serde_json::from_slice(&body).map_err(|e| ApiError::bad_request(format!("patch is not JSON: {e}")))?;
+    let Value::Object(fields) = &patch else {
+        return Err(ApiError::bad_request("patch must be a JSON object with `name` and/or `params`"));
+    };
+    if let Some(k) = fields.keys().find(|k| *k != "name" && *k != "params") {
+        return Err(ApiError::bad_request(format!("`{}` cannot be patched; only `name` and `params`", echo(k))));
+    }
+    let mut doc = serde_json::json!({ "name": entry.manifest.name, "params": entry.manifest.params });
+    merge_patch(&mut doc, &patch);
+    let name = match doc.get("name") {
+        Some(Value::String(s)) => s.clone(),
+        _ => return Err(ApiError::bad_request("`name` must remain a string")),
+    };
+    let params = doc.get("params").cloned().unwrap_or(Value::Null);
+    let bytes = tokio::fs::read(app.store.path_of(&entry.id))
+        .await
+        .map_err(|e| ApiError::internal(format!("reading the stored bundle failed: {e}")))?;
+    let old = Bundle::from_bytes(&bytes)?;
+    let new = Bundle { manifest: Manifest { name, params, ..old.manifest }, sections: old.sections };
+    store_bundle(&app, new.to_bytes()).await
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use serde_json::json;
+
+    #[test]
+    fn merge_patch_follows_rfc7396() {
+        // The example of RFC 7396 §3.
+        let mut doc = json!({"title": "Goodbye!", "author": {"givenName": "John", "familyName": "Doe"},
+                             "tags": ["example", "sample"], "content": "This will be unchanged"});
+        let patch = json!({"title": "Hello!", "phoneNumber": "+01-123-456-7890",
+                           "author": {"familyName": null}, "tags": ["example"]});
+        merge_patch(&mut doc, &patch);
+        assert_eq!(
+            doc,
+            json!({"title": "Hello!", "author": {"givenName": "John"}, "tags": ["example"],
+                   "content": "This will be unchanged", "phoneNumber": "+01-123-456-7890"})
+        );
+        let mut scalar = json!(1);
+        merge_patch(&mut scalar, &json!({"a": {"b": null, "c": 2}}));
+        assert_eq!(scalar, json!({"a": {"c": 2}}));
+    }
+}

@@ -1,0 +1,151 @@
+//! The command line: `vtex serve | create | render | info`.
+
+use crate::config::ServeConfig;
+use crate::encode::{self, Format};
+use crate::store::{self, Entry, Store};
+use anyhow::{anyhow, bail, Context};
+use clap::{Args, Parser, Subcommand};
+use std::path::{Path, PathBuf};
+use vtex_synth::models::{self, Inputs};
+use vtex_synth::Region;
+
+#[derive(Parser, Debug)]
+#[command(name = "vtex", version, about = "Virtual textures: store compact encodings, serve any tile at any level.")]
+pub struct Cli {
+    #[command(subcommand)]
+    pub command: Command,
+}
+
+#[derive(Subcommand, Debug)]
+pub enum Command {
+    /// Serve the HTTP API and the viewer.
+    Serve(ServeConfig),
+    /// Make an encoding from model parameters and input images; prints its id.
+    Create(CreateArgs),
+    /// Render a region of a texture at a level to an image file.
+    Render(RenderArgs),
+    /// Print a texture's info as JSON, or every texture in the data directory.
+    Info(InfoArgs),
+}
+
+#[derive(Args, Debug)]
+pub struct CreateArgs {
+    /// Model id, e.g. `chaos-mosaic`.
+    #[arg(long)]
+    pub model: String,
+    /// Display name.
+    #[arg(long)]
+    pub name: String,
+    /// Model parameters: JSON text, or `@file.json`.
+    #[arg(long, default_value = "{}")]
+    pub params: String,
+    /// An input image, `NAME=PATH.png` (e.g. `sample=stones.png`); repeatable.
+    #[arg(long = "input", value_name = "NAME=PATH")]
+    pub inputs: Vec<String>,
+    /// Store the bundle in this data directory (atomically).
+    #[arg(long, env = "VTEX_DATA_DIR", default_value = "./vtex-data")]
+    pub data_dir: PathBuf,
+    /// Write the bundle to this file instead of the data directory.
+    #[arg(long)]
+    pub out: Option<PathBuf>,
+}
+
+#[derive(Args, Debug)]
+pub struct RenderArgs {
+    /// A texture id in the data directory, or the path of a `.vtex` bundle.
+    pub texture: String,
+    #[arg(long, env = "VTEX_DATA_DIR", default_value = "./vtex-data")]
+    pub data_dir: PathBuf,
+    #[arg(long, default_value_t = 0)]
+    pub level: u32,
+    #[arg(long, default_value_t = 0, allow_hyphen_values = true)]
+    pub x: i64,
+    #[arg(long, default_value_t = 0, allow_hyphen_values = true)]
+    pub y: i64,
+    #[arg(long, default_value_t = 256)]
+    pub width: u32,
+    #[arg(long, default_value_t = 256)]
+    pub height: u32,
+    #[arg(long, default_value_t = 0)]
+    pub frame: u32,
+    /// Output file; its extension picks the format (png, webp, jpg, rgba).
+    #[arg(long)]
+    pub out: PathBuf,
+}
+
+#[derive(Args, Debug)]
+pub struct InfoArgs {
+    /// A texture id in the data directory, or the path of a `.vtex` bundle; all when absent.
+    pub texture: Option<String>,
+    #[arg(long, env = "VTEX_DATA_DIR", default_value = "./vtex-data")]
+    pub data_dir: PathBuf,
+    #[arg(long, env = "VTEX_TILE_SIZE", default_value_t = 256)]
+    pub tile_size: u32,
+}
+
+/// Loads and validates a texture named by id (in `data_dir`) or by path.
+fn open_texture(texture: &str, data_dir: &Path, tile_size: u32) -> anyhow::Result<Entry> {
+    let by_id = data_dir.join(format!("{texture}.{}", store::BUNDLE_EXT));
+    let path = if vtex_synth::bundle::is_valid_id(texture) && by_id.is_file() { by_id } else { PathBuf::from(texture) };
+    let bytes = std::fs::read(&path).with_context(|| format!("reading {}", path.display()))?;
+    Entry::from_bytes(&bytes, tile_size).with_context(|| format!("loading {}", path.display()))
+}
+
+pub fn create(args: CreateArgs) -> anyhow::Result<()> {
+    let params_text = match args.params.strip_prefix('@') {
+        Some(file) => std::fs::read_to_string(file).with_context(|| format!("reading params file {file}"))?,
+        None => args.params.clone(),
+    };
+    let params: serde_json::Value = serde_json::from_str(&params_text).context("params are not valid JSON")?;
+    let mut inputs = Inputs::new();
+    for spec in &args.inputs {
+        let (name, path) = spec.split_once('=').ok_or_else(|| anyhow!("--input `{spec}`: expected NAME=PATH"))?;
+        let bytes = std::fs::read(path).with_context(|| format!("reading input `{name}` from {path}"))?;
+        inputs.insert(name.to_string(), bytes);
+    }
+    let bundle = models::create(&args.model, &args.name, &params, &inputs)?;
+    let bytes = bundle.to_bytes();
+    let id = vtex_synth::bundle::id_of(&bytes);
+    match &args.out {
+        Some(out) => {
+            // Validate exactly as the server would before writing anything.
+            Entry::from_bytes(&bytes, 256)?;
+            let dir = out.parent().filter(|p| !p.as_os_str().is_empty()).unwrap_or(Path::new("."));
+            store::write_atomic(dir, out, &bytes).with_context(|| format!("writing {}", out.display()))?;
+        }
+        None => {
+            std::fs::create_dir_all(&args.data_dir)?;
+            let (store, _) = Store::open(&args.data_dir, 256, false)?;
+            store.put(bytes)?;
+        }
+    }
+    println!("{id}");
+    Ok(())
+}
+
+pub fn render(args: RenderArgs) -> anyhow::Result<()> {
+    let ext = args.out.extension().and_then(|e| e.to_str()).unwrap_or("");
+    let Some(format) = Format::parse(ext) else { bail!("output extension `{ext}`; {}", Format::EXPECTED) };
+    let entry = open_texture(&args.texture, &args.data_dir, 256)?;
+    let region = Region::new(args.level, args.x, args.y, args.width, args.height).at_frame(args.frame);
+    let img = vtex_synth::texture::render_image(&*entry.texture, &region)?;
+    let bytes = encode::encode(&img, format).map_err(anyhow::Error::msg)?;
+    std::fs::write(&args.out, bytes).with_context(|| format!("writing {}", args.out.display()))?;
+    Ok(())
+}
+
+pub fn info(args: InfoArgs) -> anyhow::Result<()> {
+    let out = match &args.texture {
+        Some(t) => serde_json::to_string_pretty(&open_texture(t, &args.data_dir, args.tile_size)?.info())?,
+        None => {
+            let (store, report) = Store::open(&args.data_dir, args.tile_size, false)?;
+            for (path, why) in report.rejected {
+                eprintln!("skipping {}: {why}", path.display());
+            }
+            let all: Vec<_> = store.list().iter().map(|e| e.info()).collect();
+            serde_json::to_string_pretty(&serde_json::json!({ "textures": all }))?
+        }
+    };
+    println!("{out}");
+    Ok(())
+}

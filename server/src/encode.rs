@@ -1,0 +1,123 @@
+//! Tile formats. Every encoder here is deterministic, so a tile's bytes are a pure function
+//! of its pixels and format — the property that lets tiles carry strong ETags.
+
+use image::codecs::{jpeg::JpegEncoder, png, webp::WebPEncoder};
+use image::{ExtendedColorType, ImageEncoder};
+use vtex_synth::Rgba8Image;
+
+/// JPEG quality for tiles: visually lossless for textures at a third of PNG's size.
+pub const JPEG_QUALITY: u8 = 90;
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum Format {
+    Png,
+    /// Lossless WebP (the only WebP encoder the `image` crate offers).
+    Webp,
+    /// Baseline JPEG; alpha is dropped.
+    Jpg,
+    /// Raw row-major RGBA8; width and height travel in `X-Vtex-Width`/`X-Vtex-Height`.
+    Rgba,
+}
+
+impl Format {
+    pub const ALL: [Format; 4] = [Format::Png, Format::Webp, Format::Jpg, Format::Rgba];
+
+    /// The format for a file extension or `format=` value.
+    pub fn parse(s: &str) -> Option<Format> {
+        match s {
+            "png" => Some(Format::Png),
+            "webp" => Some(Format::Webp),
+            "jpg" | "jpeg" => Some(Format::Jpg),
+            "rgba" => Some(Format::Rgba),
+            _ => None,
+        }
+    }
+
+    pub fn ext(self) -> &'static str {
+        match self {
+            Format::Png => "png",
+            Format::Webp => "webp",
+            Format::Jpg => "jpg",
+            Format::Rgba => "rgba",
+        }
+    }
+
+    pub fn content_type(self) -> &'static str {
+        match self {
+            Format::Png => "image/png",
+            Format::Webp => "image/webp",
+            Format::Jpg => "image/jpeg",
+            Format::Rgba => "application/octet-stream",
+        }
+    }
+
+    /// The sentence used in errors that list the accepted formats.
+    pub const EXPECTED: &'static str = "expected png, webp, jpg or rgba";
+}
+
+/// Encodes an image. Fails only for sizes a format cannot hold (WebP: 16383 px a side),
+/// which the API's region bound keeps out of reach.
+pub fn encode(img: &Rgba8Image, format: Format) -> Result<Vec<u8>, String> {
+    let (w, h) = (img.width, img.height);
+    let mut out = Vec::with_capacity(img.data.len() / 2);
+    let res = match format {
+        Format::Rgba => return Ok(img.data.clone()),
+        Format::Png => {
+            // Fast deflate keeps a cold 256² tile within a few milliseconds; still lossless.
+            let enc =
+                png::PngEncoder::new_with_quality(&mut out, png::CompressionType::Fast, png::FilterType::Adaptive);
+            enc.write_image(&img.data, w, h, ExtendedColorType::Rgba8)
+        }
+        Format::Webp => WebPEncoder::new_lossless(&mut out).write_image(&img.data, w, h, ExtendedColorType::Rgba8),
+        Format::Jpg => {
+            let rgb: Vec<u8> = img.data.chunks_exact(4).flat_map(|p| [p[0], p[1], p[2]]).collect();
+            JpegEncoder::new_with_quality(&mut out, JPEG_QUALITY).write_image(&rgb, w, h, ExtendedColorType::Rgb8)
+        }
+    };
+    res.map_err(|e| format!("{} encoding of {w}×{h} failed: {e}", format.ext()))?;
+    Ok(out)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn gradient(w: u32, h: u32) -> Rgba8Image {
+        let mut img = Rgba8Image::new(w, h);
+        for y in 0..h {
+            for x in 0..w {
+                img.set_pixel(x, y, [(x * 7) as u8, (y * 5) as u8, (x ^ y) as u8, 255]);
+            }
+        }
+        img
+    }
+
+    #[test]
+    fn lossless_formats_round_trip_and_are_deterministic() {
+        let img = gradient(37, 21);
+        for f in Format::ALL {
+            let a = encode(&img, f).unwrap();
+            assert_eq!(a, encode(&img, f).unwrap(), "{f:?} is deterministic");
+            if f == Format::Jpg {
+                let back = image::load_from_memory(&a).unwrap();
+                assert_eq!((back.width(), back.height()), (37, 21));
+                continue;
+            }
+            let back = if f == Format::Rgba {
+                img.data.clone()
+            } else {
+                image::load_from_memory(&a).unwrap().into_rgba8().into_raw()
+            };
+            assert_eq!(back, img.data, "{f:?} is lossless");
+        }
+    }
+
+    #[test]
+    fn parse_and_names_agree() {
+        for f in Format::ALL {
+            assert_eq!(Format::parse(f.ext()), Some(f));
+        }
+        assert_eq!(Format::parse("gif"), None);
+        assert_eq!(Format::parse("PNG"), None);
+    }
+}

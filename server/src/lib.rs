@@ -1,0 +1,23 @@
+//! vtex-server: serves virtual textures over HTTP.
+//!
+//! Data flows one way: request → [`cache`] lookup → (miss) model render → [`encode`] →
+//! cache → response. The server never knows how a model works; it only calls
+//! [`vtex_synth::Texture::render`] on regions it has validated.
+//!
+//! * [`config`] — settings of `vtex serve` (flags beat environment beat defaults).
+//! * [`store`] — the data directory of content-addressed bundles, written atomically.
+//! * [`cache`] — the sharded, byte-bounded tile LRU with coalesced misses.
+//! * [`encode`] — tile formats (PNG, WebP, JPEG, raw RGBA).
+//! * [`metrics`] — Prometheus counters, gauges and histograms.
+//! * [`api`] — the HTTP API v1 (axum).
+//! * [`serve`] — the listener: connection timeouts and graceful shutdown.
+//! * [`cli`] — the offline subcommands `create`, `render`, `info`.
+
+pub mod api;
+pub mod cache;
+pub mod cli;
+pub mod config;
+pub mod encode;
+pub mod metrics;
+pub mod serve;
+pub mod store;

@@ -1,0 +1,351 @@
+//! Every endpoint of the HTTP API v1 over a real socket, against the real binary.
+
+mod common;
+use common::*;
+use serde_json::{json, Value};
+
+#[tokio::test]
+async fn healthz_metrics_and_empty_list() {
+    let dir = tempdir();
+    let s = Server::start(dir.path(), &[]);
+    let c = client();
+    let r = c.get(s.url("/healthz")).send().await.unwrap();
+    assert_eq!(r.status(), 200);
+    assert_eq!(r.json::<Value>().await.unwrap(), json!({"status": "ok"}));
+    let list: Value = c.get(s.url("/api/v1/textures")).send().await.unwrap().json().await.unwrap();
+    assert_eq!(list, json!({"textures": []}));
+    let m = metrics(&c, &s).await;
+    for name in [
+        "vtex_http_requests_total",
+        "vtex_tile_cache_bytes",
+        "vtex_tile_cache_budget_bytes",
+        "vtex_syntheses_in_flight",
+        "vtex_http_response_bytes_total",
+    ] {
+        assert!(m.contains(name), "{name} missing from /metrics");
+    }
+    assert_eq!(metric(&m, "vtex_http_requests_total", &[("route", "/healthz"), ("status", "200")]), 1.0);
+}
+
+#[tokio::test]
+async fn upload_info_list_encoding() {
+    let dir = tempdir();
+    let s = Server::start(dir.path(), &[]);
+    let c = client();
+    let b = mosaic(64, 16, 1);
+    let bytes = b.to_bytes();
+    let (status, info) = upload(&c, &s, bytes.clone()).await;
+    assert_eq!(status, 201, "{info}");
+    let id = info["id"].as_str().unwrap().to_string();
+    assert_eq!(id, vtex_synth::bundle::id_of(&bytes));
+    assert_eq!(info["model"], "chaos-mosaic");
+    assert_eq!(info["width"], 1024);
+    assert_eq!(info["height"], 1024);
+    assert_eq!(info["levels"], 3, "1024 → 512 → 256: the last level fits one tile");
+    assert_eq!(info["tile_size"], 256);
+    assert_eq!(info["encoding_bytes"], bytes.len());
+    assert_eq!(info["explicit_bytes"], 1024 * 1024 * 3);
+    assert_eq!(info["wraps"], true);
+    assert_eq!(info["domain"], "torus");
+    assert_eq!(info["animated"], false);
+    assert_eq!(info["animation"], Value::Null);
+
+    // The same bundle again: 200, nothing new stored.
+    let (status, again) = upload(&c, &s, bytes.clone()).await;
+    assert_eq!((status, &again), (200, &info));
+    assert_eq!(store_files(dir.path()), vec![format!("{id}.vtex")]);
+
+    let got: Value = c.get(s.url(&format!("/api/v1/textures/{id}"))).send().await.unwrap().json().await.unwrap();
+    assert_eq!(got, info);
+
+    let other = put(&c, &s, &mosaic(32, 8, 2)).await;
+    let list: Value = c.get(s.url("/api/v1/textures")).send().await.unwrap().json().await.unwrap();
+    let names: Vec<&str> = list["textures"].as_array().unwrap().iter().map(|t| t["name"].as_str().unwrap()).collect();
+    let mut sorted = names.clone();
+    sorted.sort();
+    assert_eq!(names, sorted, "list is sorted by name");
+    assert_eq!(names.len(), 2);
+    assert!(list["textures"].as_array().unwrap().iter().any(|t| t["id"] == other.as_str()));
+
+    let (status, headers, body) = get_bytes(&c, &s.url(&format!("/api/v1/textures/{id}/encoding"))).await;
+    assert_eq!(status, 200);
+    assert_eq!(body, bytes, "the encoding is served exactly as stored");
+    assert_eq!(headers["etag"], format!("\"{id}\""));
+    let r = c
+        .get(s.url(&format!("/api/v1/textures/{id}/encoding")))
+        .header("if-none-match", format!("\"{id}\""))
+        .send()
+        .await
+        .unwrap();
+    assert_eq!(r.status(), 304);
+}
+
+#[tokio::test]
+async fn multipart_upload_creates_a_mosaic() {
+    let dir = tempdir();
+    let s = Server::start(dir.path(), &[]);
+    let c = client();
+    let form = reqwest::multipart::Form::new()
+        .text("model", "chaos-mosaic")
+        .text("name", "uploaded pebbles")
+        .text("params", r#"{"tiles_x":8,"tiles_y":8,"iterations":10,"seed":1}"#)
+        .part("sample", reqwest::multipart::Part::bytes(sample_png(64, 3)).file_name("s.png"));
+    let r = c.post(s.url("/api/v1/textures")).multipart(form).send().await.unwrap();
+    assert_eq!(r.status(), 201);
+    let info: Value = r.json().await.unwrap();
+    assert_eq!(info["name"], "uploaded pebbles");
+    assert_eq!((info["width"].as_u64(), info["height"].as_u64()), (Some(512), Some(512)));
+    let id = info["id"].as_str().unwrap();
+    let (status, _, png) = get_bytes(&c, &s.tile_url(id, 0, 1, 1, "png")).await;
+    assert_eq!(status, 200);
+    assert_eq!(image::load_from_memory(&png).unwrap().width(), 256);
+}
+
+#[tokio::test]
+async fn tiles_in_every_format_with_headers() {
+    let dir = tempdir();
+    let s = Server::start(dir.path(), &[]);
+    let c = client();
+    // 40×40 tiles of a 30² sample: 1200², so edge tiles are clipped (1200 = 4·256 + 176).
+    let id = put(&c, &s, &mosaic(30, 40, 4)).await;
+    let region = c
+        .get(s.url(&format!("/api/v1/textures/{id}/region?level=0&x=0&y=0&w=1200&h=1200&format=rgba")))
+        .send()
+        .await
+        .unwrap();
+    assert_eq!(region.status(), 200);
+    let full = region.bytes().await.unwrap().to_vec();
+    assert_eq!(full.len(), 1200 * 1200 * 4);
+    for (fmt, ctype) in
+        [("png", "image/png"), ("webp", "image/webp"), ("jpg", "image/jpeg"), ("rgba", "application/octet-stream")]
+    {
+        let (status, h, body) = get_bytes(&c, &s.tile_url(&id, 0, 4, 2, fmt)).await;
+        assert_eq!(status, 200, "{fmt}");
+        assert_eq!(h["content-type"], ctype);
+        assert_eq!(h["cache-control"], "public, max-age=31536000, immutable");
+        assert_eq!(h["access-control-allow-origin"], "*");
+        let exposed = h["access-control-expose-headers"].to_str().unwrap().to_ascii_lowercase();
+        for name in ["etag", "x-vtex-cache", "x-vtex-width", "x-vtex-height"] {
+            assert!(exposed.contains(name), "{exposed}");
+        }
+        assert_eq!(h["x-vtex-cache"], "miss");
+        assert_eq!((h["x-vtex-width"].to_str().unwrap(), h["x-vtex-height"].to_str().unwrap()), ("176", "256"));
+        let etag = h["etag"].to_str().unwrap();
+        assert!(etag.starts_with('"') && etag.ends_with('"') && !etag.starts_with("W/"), "strong ETag: {etag}");
+        let pixels = match fmt {
+            "rgba" => body.clone(),
+            _ => image::load_from_memory(&body).unwrap().into_rgba8().into_raw(),
+        };
+        assert_eq!(pixels.len(), 176 * 256 * 4);
+        if fmt != "jpg" {
+            // The tile equals the matching crop of the whole level rendered in one call.
+            for row in 0..256usize {
+                let src = ((512 + row) * 1200 + 1024) * 4;
+                assert_eq!(&pixels[row * 176 * 4..(row + 1) * 176 * 4], &full[src..src + 176 * 4], "{fmt} row {row}");
+            }
+        }
+        let (_, h2, body2) = get_bytes(&c, &s.tile_url(&id, 0, 4, 2, fmt)).await;
+        assert_eq!(h2["x-vtex-cache"], "hit");
+        assert_eq!(h2["etag"], h["etag"]);
+        assert_eq!(body2, body);
+    }
+    // The coarsest level fits one tile.
+    let (status, h, _) = get_bytes(&c, &s.tile_url(&id, 3, 0, 0, "png")).await;
+    assert_eq!(status, 200);
+    assert_eq!((h["x-vtex-width"].to_str().unwrap(), h["x-vtex-height"].to_str().unwrap()), ("150", "150"));
+    let _ = expect_error(&c, &s.tile_url(&id, 4, 0, 0, "png"), 400).await;
+}
+
+#[tokio::test]
+async fn etag_gives_304_without_a_body() {
+    let dir = tempdir();
+    let s = Server::start(dir.path(), &[]);
+    let c = client();
+    let id = put(&c, &s, &mosaic(64, 8, 5)).await;
+    let url = s.tile_url(&id, 0, 1, 0, "webp");
+    let (_, h, _) = get_bytes(&c, &url).await;
+    let etag = h["etag"].to_str().unwrap().to_string();
+    for inm in [etag.clone(), format!("\"nope\", {etag}"), format!("W/{etag}"), "*".to_string()] {
+        let r = c.get(&url).header("if-none-match", &inm).send().await.unwrap();
+        assert_eq!(r.status(), 304, "{inm}");
+        assert_eq!(r.headers()["etag"], etag.as_str());
+        assert_eq!(r.headers()["cache-control"], "public, max-age=31536000, immutable");
+        assert!(r.bytes().await.unwrap().is_empty());
+    }
+    let r = c.get(&url).header("if-none-match", "\"other\"").send().await.unwrap();
+    assert_eq!(r.status(), 200);
+    // A 304 never needs the tile: a cold tile answers it without synthesis.
+    let m0 = metric(&metrics(&c, &s).await, "vtex_syntheses_total", &[]);
+    let cold = s.tile_url(&id, 0, 0, 1, "png");
+    let cold_tag = {
+        let s2 = Server::start(dir.path(), &[]);
+        let (_, h, _) = get_bytes(&c, &s2.tile_url(&id, 0, 0, 1, "png")).await;
+        h["etag"].to_str().unwrap().to_string()
+    };
+    let r = c.get(&cold).header("if-none-match", &cold_tag).send().await.unwrap();
+    assert_eq!(r.status(), 304);
+    assert_eq!(metric(&metrics(&c, &s).await, "vtex_syntheses_total", &[]), m0);
+    // ETags differ by tile, format and frame-independence holds for still textures.
+    let (_, a, _) = get_bytes(&c, &s.tile_url(&id, 0, 1, 0, "png")).await;
+    assert_ne!(a["etag"].to_str().unwrap(), etag);
+    let (_, f, _) = get_bytes(&c, &format!("{url}?frame=7")).await;
+    assert_eq!(f["etag"].to_str().unwrap(), etag, "frame is normalised to 0 for still textures");
+}
+
+#[tokio::test]
+async fn region_endpoint_and_its_bound() {
+    let dir = tempdir();
+    let s = Server::start(dir.path(), &[]);
+    let c = client();
+    let id = put(&c, &s, &mosaic(64, 80, 6)).await; // 5120²
+    let base = s.url(&format!("/api/v1/textures/{id}/region"));
+    let r = c.get(format!("{base}?level=0&x=-100&y=5000&w=300&h=200")).send().await.unwrap();
+    assert_eq!(r.status(), 200);
+    assert_eq!(r.headers()["content-type"], "image/png");
+    let img = image::load_from_memory(&r.bytes().await.unwrap()).unwrap();
+    assert_eq!((img.width(), img.height()), (300, 200));
+    // Torus: x = -100 is x = 5020.
+    let a =
+        c.get(format!("{base}?level=0&x=-100&y=0&w=100&h=10&format=rgba")).send().await.unwrap().bytes().await.unwrap();
+    let b =
+        c.get(format!("{base}?level=0&x=5020&y=0&w=100&h=10&format=rgba")).send().await.unwrap().bytes().await.unwrap();
+    assert_eq!(a, b);
+    // 4096 × 4096 is allowed.
+    let r = c.get(format!("{base}?level=0&x=0&y=0&w=4096&h=4096&format=rgba")).send().await.unwrap();
+    assert_eq!(r.status(), 200);
+    assert_eq!(r.bytes().await.unwrap().len(), 4096 * 4096 * 4);
+    // Beyond the bound: a 4xx naming the limit.
+    let msg = expect_error(&c, &format!("{base}?level=0&x=0&y=0&w=4097&h=4096"), 400).await;
+    assert!(msg.contains("16777216"), "{msg}");
+    let msg = expect_error(&c, &format!("{base}?level=0&x=0&y=0&w=0&h=10"), 400).await;
+    assert!(msg.contains("0×10"), "{msg}");
+    let msg = expect_error(&c, &format!("{base}?level=0&x=0&y=0&w=10"), 400).await;
+    assert!(msg.contains("missing query parameter `h`"), "{msg}");
+    let msg = expect_error(&c, &format!("{base}?level=0&x=0&y=0&w=10&h=10&format=gif"), 400).await;
+    assert!(msg.contains("unknown format `gif`"), "{msg}");
+    let msg = expect_error(&c, &format!("{base}?level=0&x=0&y=0&w=10&h=10&zoom=2"), 400).await;
+    assert!(msg.contains("unknown query parameter `zoom`"), "{msg}");
+    let msg = expect_error(&c, &format!("{base}?level=40&x=0&y=0&w=10&h=10"), 400).await;
+    assert!(msg.contains("level 40 does not exist"), "{msg}");
+    let msg = expect_error(&c, &format!("{base}?level=0&x=9223372036854775800&y=0&w=100&h=10"), 400).await;
+    assert!(msg.contains("overflow"), "{msg}");
+}
+
+#[tokio::test]
+async fn patch_makes_a_new_texture() {
+    let dir = tempdir();
+    let s = Server::start(dir.path(), &[]);
+    let c = client();
+    let b = mosaic(64, 8, 7);
+    let id = put(&c, &s, &b).await;
+    let url = s.url(&format!("/api/v1/textures/{id}"));
+    let r = c.patch(&url).json(&json!({"name": "renamed", "params": {"seed": 99}})).send().await.unwrap();
+    assert_eq!(r.status(), 201);
+    let info: Value = r.json().await.unwrap();
+    let new_id = info["id"].as_str().unwrap();
+    assert_ne!(new_id, id);
+    assert_eq!(info["name"], "renamed");
+    // The stored bundle carries the merged params; the original is untouched.
+    let (_, _, bytes) = get_bytes(&c, &s.url(&format!("/api/v1/textures/{new_id}/encoding"))).await;
+    let patched = vtex_synth::bundle::Bundle::from_bytes(&bytes).unwrap();
+    assert_eq!(patched.manifest.params["seed"], 99);
+    assert_eq!(patched.manifest.params["tiles_x"], b.manifest.params["tiles_x"]);
+    assert_eq!(patched.sections, b.sections);
+    let (status, _, old) = get_bytes(&c, &s.url(&format!("/api/v1/textures/{id}/encoding"))).await;
+    assert_eq!((status, old), (200, b.to_bytes()));
+    // A new seed is a different texture.
+    let (_, _, t0) = get_bytes(&c, &s.tile_url(&id, 0, 0, 0, "rgba")).await;
+    let (_, _, t1) = get_bytes(&c, &s.tile_url(new_id, 0, 0, 0, "rgba")).await;
+    assert_ne!(t0, t1);
+
+    // Invalid patches: 4xx naming the problem, nothing stored.
+    let before = store_files(dir.path());
+    for (patch, needle) in [
+        (json!({"model": "lcm"}), "`model` cannot be patched"),
+        (json!({"params": {"tiles_x": 0}}), "tiles_x"),
+        (json!({"params": {"bogus": 1}}), "bogus"),
+        (json!({"name": 5}), "`name` must remain a string"),
+        (json!([1, 2]), "JSON object"),
+    ] {
+        let r = c.patch(&url).json(&patch).send().await.unwrap();
+        assert_eq!(r.status(), 400, "{patch}");
+        let e: Value = r.json().await.unwrap();
+        assert!(e["error"].as_str().unwrap().contains(needle), "{patch}: {e}");
+    }
+    let r = c.patch(&url).body("{not json").send().await.unwrap();
+    assert_eq!(r.status(), 400);
+    assert_eq!(store_files(dir.path()), before);
+}
+
+#[tokio::test]
+async fn static_viewer_and_unknown_routes() {
+    let dir = tempdir();
+    let web = tempdir();
+    std::fs::write(web.path().join("index.html"), "<html>vtex viewer</html>").unwrap();
+    std::fs::write(web.path().join("app.js"), "console.log(1)").unwrap();
+    std::fs::write(dir.path().with_extension("secret"), "secret").unwrap();
+    let s = Server::start(dir.path(), &["--web-dir", web.path().to_str().unwrap()]);
+    let c = client();
+    let r = c.get(s.url("/")).send().await.unwrap();
+    assert_eq!(r.status(), 200);
+    assert!(r.text().await.unwrap().contains("vtex viewer"));
+    assert_eq!(c.get(s.url("/app.js")).send().await.unwrap().status(), 200);
+    let raw = raw_request(&s.addr, b"GET /../secret HTTP/1.1\r\nHost: x\r\nConnection: close\r\n\r\n");
+    assert!(!raw.contains("secret\n") && !raw.starts_with("HTTP/1.1 200"), "{raw}");
+    let msg = expect_error(&c, &s.url("/api/v2/whatever"), 404).await;
+    assert!(msg.contains("no API route"), "{msg}");
+    let r = c.delete(s.url("/api/v1/textures")).send().await.unwrap();
+    assert_eq!(r.status(), 405);
+    assert!(r.text().await.unwrap().contains("not allowed"));
+    let _ = std::fs::remove_file(dir.path().with_extension("secret"));
+}
+
+#[tokio::test]
+async fn settings_flags_beat_env_beat_defaults() {
+    let dir = tempdir();
+    let c = client();
+    let b = mosaic(64, 16, 8);
+    {
+        let s = Server::start_env(dir.path(), &[], &[("VTEX_TILE_SIZE", "128")]);
+        let id = put(&c, &s, &b).await;
+        let info: Value = c.get(s.url(&format!("/api/v1/textures/{id}"))).send().await.unwrap().json().await.unwrap();
+        assert_eq!((info["tile_size"].as_u64(), info["levels"].as_u64()), (Some(128), Some(4)));
+    }
+    let s = Server::start_env(dir.path(), &["--tile-size", "512"], &[("VTEX_TILE_SIZE", "128")]);
+    let id = vtex_synth::bundle::id_of(&b.to_bytes());
+    let info: Value = c.get(s.url(&format!("/api/v1/textures/{id}"))).send().await.unwrap().json().await.unwrap();
+    assert_eq!((info["tile_size"].as_u64(), info["levels"].as_u64()), (Some(512), Some(2)));
+    let (_, h, _) = get_bytes(&c, &s.tile_url(&id, 0, 1, 1, "rgba")).await;
+    assert_eq!(h["x-vtex-width"], "512");
+    drop(s);
+    let s = Server::start(dir.path(), &[]);
+    let info: Value = c.get(s.url(&format!("/api/v1/textures/{id}"))).send().await.unwrap().json().await.unwrap();
+    assert_eq!(info["tile_size"], 256, "default");
+}
+
+#[tokio::test]
+async fn demos_are_written_into_an_empty_data_dir() {
+    let dir = tempdir();
+    let c = client();
+    let s = Server::start(dir.path(), &["--demos"]);
+    let list: Value = c.get(s.url("/api/v1/textures")).send().await.unwrap().json().await.unwrap();
+    let all = list["textures"].as_array().unwrap();
+    assert_eq!(all.len(), vtex_synth::models::demos().len());
+    let big =
+        all.iter().find(|t| t["width"] == 100_000 && t["model"] == "chaos-mosaic").expect("a 100k chaos mosaic demo");
+    assert_eq!(big["height"], 100_000);
+    assert_eq!(big["levels"], 10);
+    assert!(big["encoding_bytes"].as_u64().unwrap() < 1 << 20);
+    let id = big["id"].as_str().unwrap();
+    let (status, _, _) = get_bytes(&c, &s.tile_url(id, 0, 390, 390, "png")).await;
+    assert_eq!(status, 200);
+    let (status, _, _) = get_bytes(&c, &s.tile_url(id, 9, 0, 0, "png")).await;
+    assert_eq!(status, 200);
+    assert_eq!(s.terminate().code(), Some(0));
+    // A second start does not rewrite them, and serves the same set.
+    let files = store_files(dir.path());
+    let s = Server::start(dir.path(), &["--demos"]);
+    assert_eq!(store_files(dir.path()), files);
+    let again: Value = c.get(s.url("/api/v1/textures")).send().await.unwrap().json().await.unwrap();
+    assert_eq!(again, list);
+}
