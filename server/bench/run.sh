@@ -10,6 +10,7 @@ set -euo pipefail
 DUR=${1:-10}
 ROOT=$(cd "$(dirname "$0")/../.." && pwd)
 WORK=$(mktemp -d /tmp/vtex-bench.XXXXXX)
+chmod 755 "$WORK" # nginx workers run unprivileged
 VTEX_PID=""; NGINX_PID=""
 cleanup() {
   [ -n "$VTEX_PID" ] && kill "$VTEX_PID" 2>/dev/null || true
@@ -66,6 +67,7 @@ done; done
   echo 'local i = 0'
   echo 'request = function() i = i + 1; return wrk.format("GET", paths[(i % #paths) + 1]) end'
 } > "$WORK/warm.lua"
+chmod -R a+rX "$WORK/www"
 cat > "$WORK/nginx.conf" <<NGINX
 worker_processes auto;
 pid $WORK/nginx.pid;

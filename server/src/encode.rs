@@ -75,6 +75,8 @@ pub fn encode(img: &Rgba8Image, format: Format) -> Result<Vec<u8>, String> {
         }
     };
     res.map_err(|e| format!("{} encoding of {w}×{h} failed: {e}", format.ext()))?;
+    // The cache charges a tile by its length; make that the memory it really holds.
+    out.shrink_to_fit();
     Ok(out)
 }
 

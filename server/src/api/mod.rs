@@ -65,15 +65,20 @@ impl AppState {
         tokio::task::spawn_blocking(move || {
             count.inc();
             in_flight.inc();
-            let t0 = Instant::now();
-            let img = vtex_synth::texture::render_image(&*entry.texture, &region);
-            synth_s.observe(t0.elapsed().as_secs_f64());
+            let work = || {
+                let t0 = Instant::now();
+                let img = vtex_synth::texture::render_image(&*entry.texture, &region)?;
+                synth_s.observe(t0.elapsed().as_secs_f64());
+                let t1 = Instant::now();
+                let bytes = encode::encode(&img, format).map_err(ApiError::internal)?;
+                encode_s.observe(t1.elapsed().as_secs_f64());
+                Ok(bytes)
+            };
+            let result = std::panic::catch_unwind(std::panic::AssertUnwindSafe(work));
             in_flight.dec();
-            let img = img?;
-            let t1 = Instant::now();
-            let bytes = encode::encode(&img, format).map_err(ApiError::internal)?;
-            encode_s.observe(t1.elapsed().as_secs_f64());
-            Ok(bytes)
+            result.unwrap_or_else(|_| {
+                Err(ApiError::internal("synthesis failed inside the model; the texture cannot render this region"))
+            })
         })
         .await
         .map_err(|e| {
