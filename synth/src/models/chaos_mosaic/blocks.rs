@@ -52,23 +52,26 @@ impl SizeRule {
     }
 }
 
-/// The sequence of the paper: one block per tile, in row-major tile order, its size drawn
+/// The sequence of the paper: `blocks_per_tile` blocks per tile (one in the paper), in
+/// row-major tile order, each block's size drawn
 /// under the area constraint and its position inside the sample uniformly, its tile corner
 /// moved by `iterations` steps of the cat map.
 pub fn generate(p: &Params, sample_w: u32, sample_h: u32, rule: &SizeRule) -> Vec<Block> {
     let (tex_w, tex_h) = (p.tiles_x as u64 * sample_w as u64, p.tiles_y as u64 * sample_h as u64);
-    let mut out = Vec::with_capacity(p.tiles_x as usize * p.tiles_y as usize);
+    let mut out = Vec::with_capacity(p.tiles_x as usize * p.tiles_y as usize * p.blocks_per_tile as usize);
     for ty in 0..p.tiles_y as i64 {
         for tx in 0..p.tiles_x as i64 {
-            let draw = |stream: u64| hash::hash4(p.seed, stream, tx, ty);
-            let (w, h_lo, h_hi) = rule.widths[hash::below(draw(1), rule.widths.len() as u64) as usize];
-            let h = h_lo + hash::below(draw(2), (h_hi - h_lo + 1) as u64) as u16;
-            let x = hash::below(draw(3), (sample_w - w as u32 + 1) as u64) as u16;
-            let y = hash::below(draw(4), (sample_h - h as u32 + 1) as u64) as u16;
-            let x0 = x as u64 + tx as u64 * sample_w as u64;
-            let y0 = y as u64 + ty as u64 * sample_h as u64;
-            let (s, t) = catmap::iterate(x0, y0, tex_w, tex_h, p.iterations);
-            out.push(Block { x, y, w, h, s: s as u32, t: t as u32 });
+            for k in 0..p.blocks_per_tile as u64 {
+                let draw = |stream: u64| hash::hash4(p.seed, stream + 8 * k, tx, ty);
+                let (w, h_lo, h_hi) = rule.widths[hash::below(draw(1), rule.widths.len() as u64) as usize];
+                let h = h_lo + hash::below(draw(2), (h_hi - h_lo + 1) as u64) as u16;
+                let x = hash::below(draw(3), (sample_w - w as u32 + 1) as u64) as u16;
+                let y = hash::below(draw(4), (sample_h - h as u32 + 1) as u64) as u16;
+                let x0 = x as u64 + tx as u64 * sample_w as u64;
+                let y0 = y as u64 + ty as u64 * sample_h as u64;
+                let (s, t) = catmap::iterate(x0, y0, tex_w, tex_h, p.iterations);
+                out.push(Block { x, y, w, h, s: s as u32, t: t as u32 });
+            }
         }
     }
     out

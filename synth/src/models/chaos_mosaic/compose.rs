@@ -9,6 +9,10 @@
 use super::ChaosMosaic;
 use crate::texture::wrap;
 
+/// Per composite row, the column boundaries to test; and (row boundary, first column, end
+/// column) pieces to test between rows.
+type SeamCandidates = (Vec<Vec<usize>>, Vec<(usize, usize, usize)>);
+
 /// A block at unwrapped texture coordinates (the torus unrolled around a region).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord)]
 pub(super) struct Placed {
@@ -20,10 +24,14 @@ pub(super) struct Placed {
 /// The unfiltered mosaic over a rectangle: sample coordinates packed as `sy << 16 | sx`
 /// and the RGBA pixel (as a little-endian `u32`) copied from there.
 pub(super) struct Composite {
+    pub x0: i64,
+    pub y0: i64,
     pub w: usize,
     pub h: usize,
     pub src: Vec<u32>,
     pub rgba: Vec<u32>,
+    /// The blocks pasted, in order.
+    pub placed: Vec<Placed>,
 }
 
 impl ChaosMosaic {
@@ -83,7 +91,8 @@ impl ChaosMosaic {
             }
         }
         // The random blocks, later ones over earlier ones.
-        for p in self.placements(x0, y0, w as u64, h as u64) {
+        let placed = self.placements(x0, y0, w as u64, h as u64);
+        for p in &placed {
             let b = &self.blocks[p.id as usize];
             let (cx0, cx1) = ((p.x.max(x0) - x0) as usize, ((p.x + b.w as i64).min(x0 + w as i64) - x0) as usize);
             let (cy0, cy1) = ((p.y.max(y0) - y0) as usize, ((p.y + b.h as i64).min(y0 + h as i64) - y0) as usize);
@@ -98,7 +107,7 @@ impl ChaosMosaic {
                 }
             }
         }
-        Composite { w, h, src, rgba }
+        Composite { x0, y0, w, h, src, rgba, placed }
     }
 
     /// True when the pixel with sample coordinate `b` may follow `a` to its right unseamed.
@@ -113,6 +122,39 @@ impl ChaosMosaic {
         b == a.wrapping_add(1 << 16) || (self.seamless && a >> 16 == self.sample.height - 1 && b == a & 0xffff)
     }
 
+    /// Where seams can be in a composite: a seam needs a change of layer, so it lies on a
+    /// block's edge, or on a tile edge when the sample is not seamless. Returns, per
+    /// composite row, the column boundaries to test, and the (row boundary, column range)
+    /// pieces to test between rows. A boundary `b` lies between pixels `b − 1` and `b`.
+    fn seam_candidates(&self, c: &Composite) -> SeamCandidates {
+        let (sw, sh) = (self.sample.width as i64, self.sample.height as i64);
+        let mut cols: Vec<Vec<usize>> = vec![Vec::new(); c.h];
+        let mut rows = Vec::new();
+        let inner = |v: i64, n: usize| (v > 0 && v < n as i64).then_some(v as usize);
+        for p in &c.placed {
+            let b = &self.blocks[p.id as usize];
+            let (x0, x1) = ((p.x - c.x0).max(0) as usize, ((p.x + b.w as i64 - c.x0).min(c.w as i64)) as usize);
+            let (y0, y1) = ((p.y - c.y0).max(0) as usize, ((p.y + b.h as i64 - c.y0).min(c.h as i64)) as usize);
+            for edge in [p.x - c.x0, p.x + b.w as i64 - c.x0].into_iter().filter_map(|e| inner(e, c.w)) {
+                cols[y0..y1].iter_mut().for_each(|row| row.push(edge));
+            }
+            for edge in [p.y - c.y0, p.y + b.h as i64 - c.y0].into_iter().filter_map(|e| inner(e, c.h)) {
+                rows.push((edge, x0, x1));
+            }
+        }
+        if !self.seamless {
+            let first_col = (sw - c.x0.rem_euclid(sw)) % sw;
+            for edge in (first_col as usize..c.w).step_by(sw as usize).filter(|&e| e > 0) {
+                cols.iter_mut().for_each(|row| row.push(edge));
+            }
+            let first_row = (sh - c.y0.rem_euclid(sh)) % sh;
+            for edge in (first_row as usize..c.h).step_by(sh as usize).filter(|&e| e > 0) {
+                rows.push((edge, 0, c.w));
+            }
+        }
+        (cols, rows)
+    }
+
     /// Level 0 of the chaos mosaic into `out` (RGBA8, `w × h`): the composite, then a
     /// horizontal and a vertical filter pass that touch only the pixels near seams. A pixel
     /// at distance d < r from the nearest seam becomes the mean of the 2(r − d) + 1 pixels
@@ -121,72 +163,63 @@ impl ChaosMosaic {
         let r = self.params.filter_width as usize;
         let (w, h) = (w as usize, h as usize);
         let c = self.composite(x0 - r as i64, y0 - r as i64, w + 2 * r, h + 2 * r);
+        let (seam_cols, seam_rows) = self.seam_candidates(&c);
         // Horizontal pass: every composite row, the output columns.
         let mut hbuf = vec![0u32; c.h * w];
         let mut dist = vec![u8::MAX; w];
-        for j in 0..c.h {
+        let mut row_seams = Vec::new();
+        for (j, candidates) in seam_cols.iter().enumerate() {
             let (row_src, row_rgba) = (&c.src[j * c.w..(j + 1) * c.w], &c.rgba[j * c.w..(j + 1) * c.w]);
             let hrow = &mut hbuf[j * w..(j + 1) * w];
             hrow.copy_from_slice(&row_rgba[r..r + w]);
-            if r == 0 {
-                continue;
+            row_seams.clear();
+            row_seams
+                .extend(candidates.iter().copied().filter(|&b| r > 0 && !self.continues_x(row_src[b - 1], row_src[b])));
+            for &b in &row_seams {
+                mark_near_boundary(&mut dist, b as isize - r as isize, r);
             }
-            let mut any = false;
-            for b in 1..c.w {
-                if !self.continues_x(row_src[b - 1], row_src[b]) {
-                    if !any {
-                        dist.fill(u8::MAX);
-                        any = true;
-                    }
-                    mark_near_boundary(&mut dist, b as isize - r as isize, r);
-                }
-            }
-            if any {
-                for (i, o) in hrow.iter_mut().enumerate() {
-                    let d = dist[i] as usize;
+            // Each marked pixel is filtered once, then unmarked for the next row.
+            for &b in &row_seams {
+                for i in (b as isize - 2 * r as isize).max(0) as usize..(b.min(w)) {
+                    let d = std::mem::replace(&mut dist[i], u8::MAX) as usize;
                     if d < r {
-                        *o = mean(&row_rgba[i + d..=i + 2 * r - d]);
+                        hrow[i] = mean(&row_rgba[i + d..=i + 2 * r - d]);
                     }
                 }
             }
         }
         // Vertical pass over the horizontally filtered rows.
-        for (y, o) in out.chunks_exact_mut(w * 4).enumerate() {
-            for (p, v) in o.chunks_exact_mut(4).zip(&hbuf[(y + r) * w..(y + r + 1) * w]) {
-                p.copy_from_slice(&v.to_le_bytes());
-            }
+        for (o, v) in out.chunks_exact_mut(4).zip(&hbuf[r * w..(r + h) * w]) {
+            o.copy_from_slice(&v.to_le_bytes());
         }
         if r == 0 {
             return;
         }
-        let mut vdist = vec![u8::MAX; w * h];
-        let mut column = vec![0u32; 2 * r + 1];
         let mut seams = Vec::new();
-        for b in 1..c.h {
-            let (above, below) =
-                (&c.src[(b - 1) * c.w + r..(b - 1) * c.w + r + w], &c.src[b * c.w + r..b * c.w + r + w]);
-            for i in 0..w {
-                if !self.continues_y(above[i], below[i]) {
-                    seams.push((b, i));
+        for &(b, from, to) in &seam_rows {
+            let (above, below) = (&c.src[(b - 1) * c.w..b * c.w], &c.src[b * c.w..(b + 1) * c.w]);
+            for x in from.max(r)..to.min(r + w) {
+                if !self.continues_y(above[x], below[x]) {
+                    seams.push((b, x - r));
                 }
             }
         }
+        let mut vdist = vec![u8::MAX; w * h];
+        let near = |b: usize| (b as isize - r as isize).max(r as isize) as usize..(b + r).min(h + r);
         for &(b, i) in &seams {
-            for y in (b as isize - r as isize).max(r as isize)..(b + r).min(h + r) as isize {
-                let y = y as usize;
+            for y in near(b) {
                 let d = if y >= b { y - b } else { b - 1 - y };
                 let slot = &mut vdist[(y - r) * w + i];
                 *slot = (*slot).min(d as u8);
             }
         }
+        let mut column = vec![0u32; 2 * r + 1];
         for &(b, i) in &seams {
-            for y in (b as isize - r as isize).max(r as isize)..(b + r).min(h + r) as isize {
-                let y = y as usize;
-                let d = vdist[(y - r) * w + i] as usize;
-                if d == u8::MAX as usize {
+            for y in near(b) {
+                let d = std::mem::replace(&mut vdist[(y - r) * w + i], u8::MAX) as usize;
+                if d >= r {
                     continue;
                 }
-                vdist[(y - r) * w + i] = u8::MAX;
                 let n = 2 * (r - d) + 1;
                 for (k, v) in column[..n].iter_mut().enumerate() {
                     *v = hbuf[(y - (r - d) + k) * w + i];

@@ -17,7 +17,7 @@ pub fn demos() -> Vec<Bundle> {
         make(
             "Pebbles — chaos mosaic 100k",
             samples::pebbles(160, 24, 11, true),
-            json!({"tiles_x": 625, "tiles_y": 625, "seed": 2000}),
+            json!({"tiles_x": 625, "tiles_y": 625, "seed": 2000, "blocks_per_tile": 2}),
         ),
         make(
             "Lichen — chaos mosaic 5120 (explicit blocks)",

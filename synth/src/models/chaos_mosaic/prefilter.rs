@@ -15,7 +15,7 @@ use super::ChaosMosaic;
 use crate::{mip, pixels::Rgba8Image, texture::level_size, Region};
 
 /// Levels computed by rendering level 0 and downsampling (exact, bit for bit).
-pub const EXACT_LEVELS: u32 = 2;
+pub const EXACT_LEVELS: u32 = 1;
 /// Cells per axis for footprints that straddle seams.
 const CELLS: i64 = 4;
 
@@ -45,24 +45,46 @@ impl PeriodicSums {
     }
 
     #[inline]
-    fn corner(&self, x: i64, y: i64) -> [i64; 4] {
-        self.table[(y * (self.w + 1) + x) as usize]
+    fn corner(&self, x: i64, y: i64) -> &[i64; 4] {
+        &self.table[(y * (self.w + 1) + x) as usize]
     }
 
-    /// Sum over [0, x) × [0, y) of the periodic sample, for any integers (negative too).
-    #[inline]
-    fn prefix(&self, x: i64, y: i64) -> [i64; 4] {
-        let (qx, rx, qy, ry) = (x.div_euclid(self.w), x.rem_euclid(self.w), y.div_euclid(self.h), y.rem_euclid(self.h));
-        let (all, cols, rows, part) =
-            (self.corner(self.w, self.h), self.corner(self.w, ry), self.corner(rx, self.h), self.corner(rx, ry));
-        std::array::from_fn(|c| qx * qy * all[c] + qx * cols[c] + qy * rows[c] + part[c])
-    }
-
-    /// Sum over [x0, x1) × [y0, y1) of the periodic sample.
+    /// Sum over [x0, x1) × [y0, y1) of the periodic sample. With x = qx·w + rx and
+    /// C(rx, ry) the table, the periodic prefix sum is
+    /// qx·qy·C(w,h) + qx·C(w,ry) + qy·C(rx,h) + C(rx,ry); the box is its four-corner difference.
     #[inline]
     pub fn box_sum(&self, x0: i64, y0: i64, x1: i64, y1: i64) -> [i64; 4] {
-        let (a, b, c, d) = (self.prefix(x1, y1), self.prefix(x0, y1), self.prefix(x1, y0), self.prefix(x0, y0));
-        std::array::from_fn(|i| a[i] - b[i] - c[i] + d[i])
+        let (qx0, rx0, qx1, rx1) = split(x0, x1, self.w);
+        let (qy0, ry0, qy1, ry1) = split(y0, y1, self.h);
+        let inner = |c: usize| {
+            self.corner(rx1, ry1)[c] - self.corner(rx0, ry1)[c] - self.corner(rx1, ry0)[c] + self.corner(rx0, ry0)[c]
+        };
+        if qx0 == qx1 && qy0 == qy1 {
+            return std::array::from_fn(inner);
+        }
+        let (dqx, dqy) = (qx1 - qx0, qy1 - qy0);
+        let (all, w, h) = (self.w, self.w, self.h);
+        std::array::from_fn(|c| {
+            dqx * dqy * self.corner(all, h)[c]
+                + dqx * (self.corner(w, ry1)[c] - self.corner(w, ry0)[c])
+                + dqy * (self.corner(rx1, h)[c] - self.corner(rx0, h)[c])
+                + inner(c)
+        })
+    }
+}
+
+/// Both ends of [a, b) as (quotient, remainder) by `period`, with one division when the
+/// interval is shorter than a period.
+#[inline]
+fn split(a: i64, b: i64, period: i64) -> (i64, i64, i64, i64) {
+    let (qa, ra) = (a.div_euclid(period), a.rem_euclid(period));
+    let rb = ra + (b - a);
+    if rb < period {
+        (qa, ra, qa, rb)
+    } else if rb < 2 * period {
+        (qa, ra, qa + 1, rb - period)
+    } else {
+        (qa, ra, b.div_euclid(period), b.rem_euclid(period))
     }
 }
 
@@ -74,13 +96,15 @@ impl ChaosMosaic {
             return;
         }
         let (lw, lh) = level_size(self.width, self.height, region.level);
-        for j in 0..region.height as i64 {
-            for i in 0..region.width as i64 {
-                let x = (region.x + i).rem_euclid(lw as i64);
-                let y = (region.y + j).rem_euclid(lh as i64);
-                let px = self.footprint_mean(region.level, x, y);
-                let o = ((j * region.width as i64 + i) * 4) as usize;
-                out[o..o + 4].copy_from_slice(&px);
+        for (oy, ly, ny) in wrap_runs(region.y, region.height, lh) {
+            for (ox, lx, nx) in wrap_runs(region.x, region.width, lw) {
+                let piece = self.integrate(region.level, lx as i64, ly as i64, nx, ny);
+                for (j, row) in piece.chunks_exact(nx as usize).enumerate() {
+                    let at = ((oy as usize + j) * region.width as usize + ox as usize) * 4;
+                    for (o, px) in out[at..at + nx as usize * 4].chunks_exact_mut(4).zip(row) {
+                        o.copy_from_slice(px);
+                    }
+                }
             }
         }
     }
@@ -103,38 +127,152 @@ impl ChaosMosaic {
         out.copy_from_slice(&dst.data);
     }
 
-    /// The mean colour of level-L pixel (x, y)'s footprint on level 0.
-    fn footprint_mean(&self, level: u32, x: i64, y: i64) -> [u8; 4] {
+    /// Level-`level` pixels [lx, lx+nx) × [ly, ly+ny), which must not wrap, by integration.
+    ///
+    /// First every pixel is classified by rasterizing the blocks near it in sequence order:
+    /// a pixel is *clean* when one layer covers its footprint grown by the filter's reach
+    /// (then the last block to touch that neighbourhood covers it whole); otherwise *dirty*.
+    fn integrate(&self, level: u32, lx: i64, ly: i64, nx: u32, ny: u32) -> Vec<[u8; 4]> {
         let f = 1i64 << level;
-        let (x0, y0) = (x * f, y * f);
-        let (x1, y1) = ((x0 + f).min(self.width as i64), (y0 + f).min(self.height as i64));
-        let area = (x1 - x0) * (y1 - y0);
-        let sum = match self.uniform_offset(x0, y0, x1, y1) {
-            Some((ox, oy)) => self.sums.box_sum(x0 + ox, y0 + oy, x1 + ox, y1 + oy),
-            None => {
-                let mut acc = [0i64; 4];
-                for cy in 0..CELLS {
-                    let (b0, b1) = (y0 + (y1 - y0) * cy / CELLS, y0 + (y1 - y0) * (cy + 1) / CELLS);
-                    for cx in 0..CELLS {
-                        let (a0, a1) = (x0 + (x1 - x0) * cx / CELLS, x0 + (x1 - x0) * (cx + 1) / CELLS);
-                        if a0 == a1 || b0 == b1 {
-                            continue;
-                        }
-                        let (ox, oy) = self.offset_at((a0 + a1) / 2, (b0 + b1) / 2);
-                        let s = self.sums.box_sum(a0 + ox, b0 + oy, a1 + ox, b1 + oy);
-                        for c in 0..4 {
-                            acc[c] += s[c];
-                        }
+        let (nx, ny) = (nx as usize, ny as usize);
+        let (tw, th) = (self.width as i64, self.height as i64);
+        let (sw, sh) = (self.sample.width as i64, self.sample.height as i64);
+        let span = |i: i64, lo: i64, n: i64| ((lo + i) * f, ((lo + i + 1) * f).min(n));
+        let reach = self.params.filter_width as i64 + 1;
+        let (x0, x1) = (lx * f, ((lx + nx as i64) * f).min(tw));
+        let (y0, y1) = (ly * f, ((ly + ny as i64) * f).min(th));
+        // Three regimes by footprint size: small footprints are classified and rasterized from
+        // the blocks near the region; footprints up to two sample periods look layers up per
+        // cell through the tile index; larger ones span so many blocks that each box of the
+        // periodic sample is the tiling's own mean to within a level, so blocks are skipped.
+        let fine = f + 2 * reach <= sw.min(sh) / 2;
+        let coarse = f >= 2 * sw.max(sh);
+        let placed = match fine {
+            true => self.placements(x0 - reach, y0 - reach, (x1 - x0 + 2 * reach) as u64, (y1 - y0 + 2 * reach) as u64),
+            false => Vec::new(),
+        };
+
+        const DIRTY: u32 = u32::MAX;
+        const BACKGROUND: u32 = u32::MAX - 1;
+        let mut state = vec![if coarse { BACKGROUND } else { DIRTY }; nx * ny];
+        if fine {
+            for j in 0..ny {
+                let (fy0, fy1) = span(j as i64, ly, th);
+                let one_row = (fy0 - reach).div_euclid(sh) == (fy1 + reach - 1).div_euclid(sh);
+                for i in 0..nx {
+                    let (fx0, fx1) = span(i as i64, lx, tw);
+                    let one_col = (fx0 - reach).div_euclid(sw) == (fx1 + reach - 1).div_euclid(sw);
+                    if self.seamless || (one_row && one_col) {
+                        state[j * nx + i] = BACKGROUND;
                     }
                 }
-                acc
+            }
+            // Pixels i whose grown footprint [(lo+i)·f − reach, (lo+i+1)·f + reach) meets [a, b).
+            let meets = |a: i64, b: i64, lo: i64, n: usize| {
+                (((a - reach).div_euclid(f) - lo).max(0), ((b + reach - 1).div_euclid(f) - lo).min(n as i64 - 1))
+            };
+            for (k, p) in placed.iter().enumerate() {
+                let b = &self.blocks[p.id as usize];
+                let (bx1, by1) = (p.x + b.w as i64, p.y + b.h as i64);
+                let (i0, i1) = meets(p.x, bx1, lx, nx);
+                let (j0, j1) = meets(p.y, by1, ly, ny);
+                for j in j0..=j1 {
+                    let (fy0, fy1) = span(j, ly, th);
+                    let rows_in = fy0 - reach >= p.y && fy1 + reach <= by1;
+                    for i in i0..=i1 {
+                        let (fx0, fx1) = span(i, lx, tw);
+                        let inside = rows_in && fx0 - reach >= p.x && fx1 + reach <= bx1;
+                        state[j as usize * nx + i as usize] = if inside { k as u32 } else { DIRTY };
+                    }
+                }
+            }
+        }
+
+        // Dirty pixels are split into cells of at least 2 × 2 level-0 pixels (two per axis once
+        // a footprint spans a tile), each taking the layer at its centre: rasterize the blocks
+        // at cell centres, then integrate each run of equal cells in a row as one box.
+        let cells = if f >= sw.min(sh) { 2 } else { CELLS.min(f / 2) } as usize;
+        let centres = |lo: i64, n: usize, extent: i64| -> Vec<(i64, i64, i64)> {
+            (0..n as i64)
+                .flat_map(|i| {
+                    let (a, b) = span(i, lo, extent);
+                    (0..cells as i64).map(move |c| {
+                        let (c0, c1) = (a + (b - a) * c / cells as i64, a + (b - a) * (c + 1) / cells as i64);
+                        (c0, c1, (c0 + c1) / 2)
+                    })
+                })
+                .collect()
+        };
+        let (cols, rows) = (centres(lx, nx, tw), centres(ly, ny, th));
+        let mut label = vec![0u32; if fine { cols.len() * rows.len() } else { 0 }];
+        for (k, p) in placed.iter().enumerate() {
+            let b = &self.blocks[p.id as usize];
+            let inside = |v: &[(i64, i64, i64)], lo: i64, hi: i64| {
+                v.partition_point(|c| c.2 < lo)..v.partition_point(|c| c.2 < hi)
+            };
+            let (ci, cj) = (inside(&cols, p.x, p.x + b.w as i64), inside(&rows, p.y, p.y + b.h as i64));
+            for j in cj {
+                label[j * cols.len() + ci.start..j * cols.len() + ci.end].fill(k as u32 + 1);
+            }
+        }
+        let offset = |l: u32| match l {
+            0 => (0, 0),
+            l => {
+                let p = &placed[l as usize - 1];
+                let b = &self.blocks[p.id as usize];
+                (b.x as i64 - p.x, b.y as i64 - p.y)
             }
         };
-        sum.map(|s| ((s + area / 2) / area) as u8)
+        let layer = |ci: usize, cj: usize| match fine {
+            true => offset(label[cj * cols.len() + ci]),
+            false => self.offset_at(cols[ci].2, rows[cj].2),
+        };
+
+        let mut out = vec![[0u8; 4]; nx * ny];
+        for j in 0..ny {
+            let (fy0, fy1) = span(j as i64, ly, th);
+            for i in 0..nx {
+                let (fx0, fx1) = span(i as i64, lx, tw);
+                let sum = match state[j * nx + i] {
+                    DIRTY => {
+                        let mut acc = [0i64; 4];
+                        for (cj, &(b0, b1, _)) in rows.iter().enumerate().skip(j * cells).take(cells) {
+                            let mut ci = i * cells;
+                            while ci < (i + 1) * cells {
+                                let (ox, oy) = layer(ci, cj);
+                                let start = ci;
+                                ci += 1;
+                                while ci < (i + 1) * cells && layer(ci, cj) == (ox, oy) {
+                                    ci += 1;
+                                }
+                                let (a0, a1) = (cols[start].0, cols[ci - 1].1);
+                                if a0 == a1 || b0 == b1 {
+                                    continue;
+                                }
+                                let s = self.sums.box_sum(a0 + ox, b0 + oy, a1 + ox, b1 + oy);
+                                for c in 0..4 {
+                                    acc[c] += s[c];
+                                }
+                            }
+                        }
+                        acc
+                    }
+                    BACKGROUND => self.sums.box_sum(fx0, fy0, fx1, fy1),
+                    k => {
+                        let (ox, oy) = offset(k + 1);
+                        debug_assert!(fine);
+                        self.sums.box_sum(fx0 + ox, fy0 + oy, fx1 + ox, fy1 + oy)
+                    }
+                };
+                let area = (fx1 - fx0) * (fy1 - fy0);
+                out[j * nx + i] = sum.map(|s| ((s + area / 2) / area) as u8);
+            }
+        }
+        out
     }
 
     /// The translation from texture to (periodic) sample coordinates of the top layer at a
-    /// level-0 point of the torus.
+    /// level-0 point of the torus, through the tile index.
     fn offset_at(&self, x: i64, y: i64) -> (i64, i64) {
         let (sw, sh) = (self.sample.width as i64, self.sample.height as i64);
         for &id in self.index.blocks((x / sw) as u32, (y / sh) as u32).iter().rev() {
@@ -146,30 +284,6 @@ impl ChaosMosaic {
             }
         }
         (0, 0)
-    }
-
-    /// The translation shared by every pixel near a footprint, when one layer covers the
-    /// footprint and the filter's reach around it with no seam; `None` otherwise.
-    fn uniform_offset(&self, x0: i64, y0: i64, x1: i64, y1: i64) -> Option<(i64, i64)> {
-        let r = self.params.filter_width as i64 + 1;
-        let (sw, sh) = (self.sample.width as i64, self.sample.height as i64);
-        if x1 - x0 + 2 * r > sw / 2 || y1 - y0 + 2 * r > sh / 2 {
-            return None;
-        }
-        let (ex0, ey0, ex1, ey1) = (x0 - r, y0 - r, x1 + r, y1 + r);
-        let placed = self.placements(ex0, ey0, (ex1 - ex0) as u64, (ey1 - ey0) as u64);
-        match placed.last() {
-            None => {
-                let one_tile =
-                    ex0.div_euclid(sw) == (ex1 - 1).div_euclid(sw) && ey0.div_euclid(sh) == (ey1 - 1).div_euclid(sh);
-                (self.seamless || one_tile).then_some((0, 0))
-            }
-            Some(p) => {
-                let b = &self.blocks[p.id as usize];
-                let covers = p.x <= ex0 && p.y <= ey0 && p.x + b.w as i64 >= ex1 && p.y + b.h as i64 >= ey1;
-                covers.then_some((b.x as i64 - p.x, b.y as i64 - p.y))
-            }
-        }
     }
 }
 

@@ -1,0 +1,461 @@
+// The vtex viewer: OpenSeadragon deep zoom over the vtex tile API, with a navigator, a texture
+// picker, an info panel, live tile statistics, the view in the URL and animation playback.
+
+import { createTileSource } from './tilesource.js';
+import { TileStats, formatBytes, formatRatio } from './stats.js';
+import { FORMATS, parseView, formatView } from './view-url.js';
+import { drawLevel, MIN_PIXEL_RATIO, vtexLevel } from './pyramid.js';
+
+const OSD = window.OpenSeadragon;
+const $ = (id) => document.getElementById(id);
+const num = (n) => Number(n).toLocaleString('en-US');
+
+const stats = new TileStats();
+// On this machine bandwidth is free and decoding is the cost: raw RGBA. Over a network, PNG.
+const LOOPBACK = ['127.0.0.1', 'localhost', '[::1]'].includes(location.hostname);
+const DEFAULT_FORMAT = LOOPBACK ? 'rgba' : 'png';
+const state = {
+  textures: [],
+  info: null,
+  /** Counts texture opens, so a slow open superseded by a newer one is ignored. */
+  openSeq: 0,
+  /** The open in progress: its tile source and the view to apply once it is open. */
+  opening: null,
+  /** The animation frame on screen, and the tiled image showing it. */
+  frame: 0,
+  item: null,
+  /** Tile format requested (png, webp, jpg, rgba). */
+  format: DEFAULT_FORMAT,
+  /** A frame being loaded behind the visible one (invisible until fully loaded). */
+  pending: null,
+  playing: false,
+  playTimer: 0,
+  frameTimes: [],
+};
+
+const viewer = OSD({
+  element: $('osd'),
+  prefixUrl: 'osd/images/',
+  // The 2D canvas drawer: exact pixels at 1:1 and no dependence on a GPU.
+  drawer: 'canvas',
+  showNavigator: true,
+  navigatorPosition: 'BOTTOM_RIGHT',
+  navigatorAutoFade: false,
+  navigatorOpacity: 1, // opaque: the view behind must not show through the minimap
+  navigatorDisplayRegionColor: '#f22',
+  navigatorBorderColor: '#888',
+  navigatorSizeRatio: 0.18,
+  showRotationControl: false,
+  autoHideControls: false,
+  // Deep zoom down past 1:1 so single texels can be inspected; out to the whole texture.
+  maxZoomPixelRatio: 16,
+  minZoomImageRatio: 0.5,
+  visibilityRatio: 0.25,
+  animationTime: 0.5,
+  blendTime: 0,
+  // Draw the coarsest level that is not magnified: at exactly 1/2^L, level L at 1:1 (OSD's
+  // default of 0.5 would fetch level L-1, four times the tiles, to draw it at half size).
+  minPixelRatio: MIN_PIXEL_RATIO,
+  immediateRender: false,
+  // Start several tile requests per frame (the default of one makes a cold view crawl in);
+  // few enough in flight that the loader's queue, cleared every frame, drops stale tiles
+  // during fast zooms instead of the network stack queueing them.
+  maxTilesPerFrame: 8,
+  imageLoaderLimit: 8,
+  maxImageCacheCount: 400,
+  timeout: 30000,
+  gestureSettingsMouse: { clickToZoom: false, dblClickToZoom: true, scrollToZoom: true, dragToPan: true },
+  gestureSettingsTouch: { pinchToZoom: true, dblClickToZoom: true, flickEnabled: true },
+  crossOriginPolicy: false,
+});
+
+// ---------------------------------------------------------------------------------------
+// Texture list, picker and opening
+
+async function getJson(url) {
+  const response = await fetch(url);
+  let body = null;
+  try {
+    body = await response.json();
+  } catch {
+    body = null;
+  }
+  if (!response.ok) {
+    throw new Error(`${url}: HTTP ${response.status}${body && body.error ? ` – ${body.error}` : ''}`);
+  }
+  return body;
+}
+
+function showError(message) {
+  const box = $('error');
+  box.textContent = message;
+  box.hidden = !message;
+}
+
+function fillPicker(textures, selectedId) {
+  const picker = $('texture-picker');
+  picker.replaceChildren(
+    ...textures.map((t) => {
+      const option = document.createElement('option');
+      option.value = t.id;
+      option.textContent = `${t.name} — ${t.model}, ${num(t.width)} × ${num(t.height)}${t.animated ? ', animated' : ''}`;
+      option.selected = t.id === selectedId;
+      return option;
+    }),
+  );
+  picker.disabled = textures.length === 0;
+}
+
+function findTexture(key) {
+  if (!key) return null;
+  return state.textures.find((t) => t.id === key) || state.textures.find((t) => t.name === key) || null;
+}
+
+/** Opens `info`; `view` (zoom, x, y, frame) is applied once it is open, else the whole texture shows. */
+function openTexture(info, view = {}) {
+  const seq = ++state.openSeq;
+  stopPlayback();
+  state.info = info;
+  state.pending = null;
+  state.frame = info.animated ? normaliseFrame(view.frame || 0) : 0;
+  document.title = `${info.name} – vtex viewer`;
+  renderInfo(info);
+  setupAnimationPanel(info);
+  if (view.format) state.format = view.format;
+  $('format').value = state.format;
+  const source = createTileSource(OSD, info, { frame: state.frame, format: state.format, stats });
+  state.opening = { source, view, seq };
+  state.item = null;
+  viewer.open(source);
+}
+
+// Only the most recent open counts: a texture picked while another was still opening wins.
+viewer.addHandler('open', (e) => {
+  const opening = state.opening;
+  if (!opening || e.source !== opening.source || opening.seq !== state.openSeq) return;
+  state.opening = null;
+  state.item = viewer.world.getItemAt(0);
+  const view = opening.view;
+  if (view.zoom > 0 && Number.isFinite(view.x) && Number.isFinite(view.y)) setView(view, true);
+  updateSmoothing();
+  updateUrl();
+  updateReadouts();
+});
+
+// ---------------------------------------------------------------------------------------
+// The view in level-0 pixels
+
+/** The current view: centre in level-0 pixels and zoom in screen pixels per level-0 pixel. */
+function getView() {
+  const item = state.item;
+  if (!item || !state.info) return null;
+  const centre = item.viewportToImageCoordinates(viewer.viewport.getCenter(true));
+  return {
+    texture: state.info.id,
+    zoom: item.viewportToImageZoom(viewer.viewport.getZoom(true)),
+    x: centre.x,
+    y: centre.y,
+    frame: state.frame,
+    format: state.format === DEFAULT_FORMAT ? undefined : state.format,
+  };
+}
+
+/** Moves to `view` (any of zoom, x, y), immediately or animated. */
+function setView(view, immediately = false) {
+  const item = state.item;
+  if (!item) return;
+  if (view.zoom > 0) viewer.viewport.zoomTo(item.imageToViewportZoom(view.zoom), null, immediately);
+  if (Number.isFinite(view.x) && Number.isFinite(view.y)) {
+    viewer.viewport.panTo(item.imageToViewportCoordinates(view.x, view.y), immediately);
+  }
+}
+
+let urlTimer = 0;
+function updateUrl() {
+  clearTimeout(urlTimer);
+  urlTimer = setTimeout(() => {
+    const view = getView();
+    if (view) history.replaceState(null, '', formatView(view));
+  }, 150);
+}
+
+/** vtex level of the finest tiles drawn in the last frame (what the screen shows). */
+function drawnLevels() {
+  const item = state.item;
+  if (!item || !state.info) return [];
+  const levels = new Set();
+  for (const t of item.getTilesToDraw()) if (t.tile.loaded) levels.add(vtexLevel(state.info, t.tile.level));
+  return [...levels].sort((a, b) => a - b);
+}
+
+// ---------------------------------------------------------------------------------------
+// Panels
+
+function renderInfo(info) {
+  const rows = [
+    ['Name', info.name],
+    ['Model', info.model],
+    ['Size', `${num(info.width)} × ${num(info.height)} px`],
+    ['Levels', `${info.levels} (0 = full res.)`],
+    ['Tile size', `${info.tile_size} px`],
+    ['Domain', `${info.domain}${info.wraps ? ', wraps' : ''}`],
+    ['Encoding', `${formatBytes(info.encoding_bytes)} (${num(info.encoding_bytes)} B)`],
+    ['Explicit (24-bit)', `${formatBytes(info.explicit_bytes)}`],
+    ['Explicit : encoding', formatRatio(info.explicit_bytes, info.encoding_bytes)],
+    ['Id', info.id.slice(0, 16) + '…'],
+  ];
+  if (info.animated && info.animation) {
+    rows.splice(6, 0, ['Animation', `${info.animation.fps} fps, ${info.animation.period_frames ? `period ${info.animation.period_frames} frames` : 'aperiodic'}`]);
+  }
+  fillDl($('info'), rows);
+  $('info').lastElementChild.title = info.id;
+}
+
+function fillDl(dl, rows) {
+  dl.replaceChildren(
+    ...rows.flatMap(([k, v]) => {
+      const dt = document.createElement('dt');
+      dt.textContent = k;
+      const dd = document.createElement('dd');
+      dd.textContent = v;
+      return [dt, dd];
+    }),
+  );
+}
+
+function renderStats() {
+  const s = stats.snapshot();
+  const ms = (v) => (Number.isFinite(v) ? `${v.toFixed(1)} ms` : '–');
+  const served = s.serverHits + s.serverMisses;
+  const rows = [
+    ['Requested', num(s.requested)],
+    ['Loaded', num(s.loaded)],
+    ['Transferred', formatBytes(s.wireBytes)],
+    ['Tile bodies', formatBytes(s.bodyBytes)],
+    ['Server cache hits', served ? `${num(s.serverHits)} / ${num(served)} (${((100 * s.serverHits) / served).toFixed(0)}%)` : '–'],
+    ['Browser cache', num(s.browserCached)],
+    ['Latency p50', ms(s.p50)],
+    ['Latency p95', ms(s.p95)],
+  ];
+  if (s.aborted) rows.push(['Cancelled', num(s.aborted)]);
+  if (s.failed) rows.push(['Failed', `${num(s.failed)}: ${s.lastError}`]);
+  fillDl($('stats'), rows);
+}
+
+let pointer = null;
+function updateReadouts() {
+  const item = state.item;
+  const info = state.info;
+  if (!item || !info) return;
+  const zoom = item.viewportToImageZoom(viewer.viewport.getZoom(true));
+  const levels = drawnLevels();
+  const shown = levels.length ? `level ${levels[0]}` : 'loading';
+  $('zoom-readout').textContent = `zoom ${zoom >= 1 ? zoom.toFixed(2) : `1/${(1 / zoom).toFixed(1)}`} · ${shown}`;
+  if (pointer) {
+    const p = item.viewerElementToImageCoordinates(new OSD.Point(pointer.x, pointer.y));
+    const x = Math.floor(p.x);
+    const y = Math.floor(p.y);
+    $('coords').textContent = x >= 0 && y >= 0 && x < info.width && y < info.height ? `x ${num(x)}, y ${num(y)}` : 'outside';
+  }
+}
+
+$('osd').addEventListener('pointermove', (e) => {
+  const r = viewer.element.getBoundingClientRect();
+  pointer = { x: e.clientX - r.left, y: e.clientY - r.top };
+  updateReadouts();
+});
+$('osd').addEventListener('pointerleave', () => {
+  pointer = null;
+  $('coords').textContent = '–';
+});
+
+// ---------------------------------------------------------------------------------------
+// Animation: each frame is its own tiled image, loaded invisibly behind the one on screen and
+// swapped in once complete, so playback never shows a half-drawn frame.
+
+function normaliseFrame(f) {
+  const period = state.info && state.info.animation ? state.info.animation.period_frames : 0;
+  f = Math.max(0, Math.floor(f));
+  return period > 0 ? f % period : f;
+}
+
+function setupAnimationPanel(info) {
+  const panel = $('animation');
+  panel.hidden = !info.animated;
+  if (!info.animated) return;
+  const period = info.animation ? info.animation.period_frames : 0;
+  const slider = $('frame-slider');
+  slider.max = String(period > 0 ? period - 1 : 999);
+  slider.value = String(state.frame);
+  $('frame-readout').textContent = `frame ${state.frame}`;
+  $('fps-readout').textContent = '';
+}
+
+function showFrame(frame) {
+  const info = state.info;
+  if (!info || !info.animated || !state.item) return;
+  frame = normaliseFrame(frame);
+  if (frame === state.frame && !state.pending) return;
+  if (state.pending) {
+    viewer.world.removeItem(state.pending.item);
+    state.pending = null;
+  }
+  const seq = state.openSeq;
+  viewer.addTiledImage({
+    tileSource: createTileSource(OSD, info, { frame, format: state.format, stats }),
+    opacity: 0,
+    preload: true,
+    success: ({ item }) => {
+      if (seq !== state.openSeq) return;
+      const pending = { item, frame };
+      state.pending = pending;
+      const swap = () => {
+        if (state.pending !== pending) return;
+        item.setOpacity(1);
+        const old = state.item;
+        state.item = item;
+        state.pending = null;
+        state.frame = frame;
+        if (old) viewer.world.removeItem(old);
+        frameShown(frame);
+      };
+      if (item.getFullyLoaded()) swap();
+      else item.addHandler('fully-loaded-change', (e) => e.fullyLoaded && swap());
+    },
+  });
+}
+
+function frameShown(frame) {
+  $('frame-readout').textContent = `frame ${frame}`;
+  $('frame-slider').value = String(frame);
+  updateUrl();
+  if (!state.playing) return;
+  const now = performance.now();
+  state.frameTimes.push(now);
+  while (state.frameTimes.length > 20) state.frameTimes.shift();
+  if (state.frameTimes.length > 1) {
+    const span = (now - state.frameTimes[0]) / 1000;
+    $('fps-readout').textContent = `playing at ${((state.frameTimes.length - 1) / span).toFixed(1)} fps (target ${state.info.animation.fps})`;
+  }
+  const interval = 1000 / Math.max(0.1, state.info.animation.fps);
+  const last = state.frameTimes.length > 1 ? state.frameTimes[state.frameTimes.length - 2] : now - interval;
+  clearTimeout(state.playTimer);
+  state.playTimer = setTimeout(() => state.playing && showFrame(state.frame + 1), Math.max(0, last + interval - now));
+}
+
+function startPlayback() {
+  if (!state.info || !state.info.animated || state.playing) return;
+  state.playing = true;
+  state.frameTimes = [];
+  $('play').textContent = 'Pause';
+  showFrame(state.frame + 1);
+}
+
+function stopPlayback() {
+  state.playing = false;
+  clearTimeout(state.playTimer);
+  $('play').textContent = 'Play';
+}
+
+$('play').addEventListener('click', () => (state.playing ? stopPlayback() : startPlayback()));
+$('step-back').addEventListener('click', () => {
+  stopPlayback();
+  const period = state.info.animation ? state.info.animation.period_frames : 0;
+  showFrame(state.frame > 0 ? state.frame - 1 : period > 0 ? period - 1 : 0);
+});
+$('step-fwd').addEventListener('click', () => {
+  stopPlayback();
+  showFrame(state.frame + 1);
+});
+$('frame-slider').addEventListener('input', (e) => {
+  stopPlayback();
+  showFrame(Number(e.target.value));
+});
+
+// ---------------------------------------------------------------------------------------
+// Wiring
+
+viewer.addHandler('animation-finish', updateUrl);
+viewer.addHandler('update-viewport', updateReadouts);
+// Smooth only when the drawn level is minified: at 1:1 tile pixels land on screen pixels
+// exactly, and magnified past 1:1 texels show as crisp squares rather than blurred.
+// The canvas drawer normally enlarges every tile by one screen pixel to hide seams that
+// smoothing leaves at fractional tile edges; that stretch would shift texels, so it is only
+// asked for while smoothing is on.
+let smoothing = true;
+function updateSmoothing() {
+  if (!state.item || !state.info) return;
+  const zoom = state.item.viewportToImageZoom(viewer.viewport.getZoom(true));
+  const ratio = zoom * 2 ** drawLevel(state.info, zoom);
+  smoothing = ratio < 0.999;
+  viewer.drawer.setImageSmoothingEnabled(smoothing);
+}
+viewer.drawer.minimumOverlapRequired = () => smoothing;
+viewer.addHandler('zoom', updateSmoothing);
+viewer.addHandler('open-failed', (e) => showError(`Could not open the texture: ${e.message}`));
+
+$('format').addEventListener('change', (e) => {
+  if (!FORMATS.includes(e.target.value) || !state.info) return;
+  const view = getView() || {};
+  openTexture(state.info, { ...view, format: e.target.value });
+});
+
+$('texture-picker').addEventListener('change', (e) => {
+  const info = findTexture(e.target.value);
+  if (info) openTexture(info);
+});
+
+$('copy-link').addEventListener('click', async () => {
+  const view = getView();
+  if (!view) return;
+  const link = new URL(formatView(view), location.href).href;
+  history.replaceState(null, '', formatView(view));
+  try {
+    await navigator.clipboard.writeText(link);
+    $('copy-link').textContent = 'Copied';
+  } catch {
+    $('copy-link').textContent = 'Link in address bar';
+  }
+  setTimeout(() => ($('copy-link').textContent = 'Copy link'), 1500);
+});
+
+$('reset-stats').addEventListener('click', () => {
+  stats.reset();
+  renderStats();
+});
+
+// Bytes on the wire per tile, from Resource Timing (fetch responses appear there too).
+new PerformanceObserver((list) => {
+  for (const entry of list.getEntries()) if (entry.name.includes('/tiles/')) stats.resource(entry);
+}).observe({ type: 'resource', buffered: false });
+performance.addEventListener('resourcetimingbufferfull', () => performance.clearResourceTimings());
+setInterval(renderStats, 250);
+
+// Hooks for the end-to-end tests and the measured session in tests/browser/.
+window.vtexViewer = { viewer, stats, state, getView, setView, drawnLevels, openTexture, findTexture, showFrame };
+
+async function start() {
+  renderStats();
+  const view = parseView(location.search);
+  try {
+    state.textures = (await getJson('/api/v1/textures')).textures;
+  } catch (e) {
+    showError(`Could not list textures: ${e.message}`);
+    return;
+  }
+  if (state.textures.length === 0) {
+    showError('The server has no textures yet. Upload one with POST /api/v1/textures.');
+    return;
+  }
+  let info = findTexture(view.texture);
+  if (view.texture && !info) {
+    showError(`No texture "${view.texture}" on this server; showing ${state.textures[0].name}.`);
+  }
+  // Without a texture in the link, open the largest: vtex is about textures too big to store.
+  info = info || state.textures.reduce((a, b) => (b.width * b.height > a.width * a.height ? b : a));
+  fillPicker(state.textures, info.id);
+  openTexture(info, view);
+  $('osd').querySelector('.openseadragon-canvas')?.focus();
+}
+
+start();

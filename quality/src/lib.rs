@@ -1,0 +1,34 @@
+//! vtex-quality: network-free texture metrics that every vtex model is judged with (DESIGN §5).
+//!
+//! Each metric compares a synthesized output with the sample it was made from, or inspects the
+//! output alone, without any learned model or network:
+//!
+//! * [`repetition`] — long-range repetition: the largest normalised autocorrelation of the
+//!   luminance at lags beyond the sample size (a plain tiling scores 1, white noise 0).
+//! * [`seam`] — seam ratio: mean gradient magnitude on the places where a model joins copies
+//!   of its sample, over the mean elsewhere (invisible joins score 1).
+//! * [`contrast`] — contrast ratio: σ of the output's luminance over σ of the sample's.
+//! * [`histogram`] — per-channel 1-D Wasserstein (W1) distance between colour histograms.
+//! * [`patch_sw`] — sliced-Wasserstein distance between patch distributions at several
+//!   pyramid scales.
+//!
+//! [`report`] gathers them for one output; [`gimp_pattern`] and [`sample`] read and prepare the
+//! real samples the `quality-report` binary judges the models on.
+//!
+//! All metrics ignore alpha and work on sRGB-coded byte values as stored (no linearisation):
+//! they judge what is served.
+
+pub mod contrast;
+pub mod gimp_pattern;
+pub mod histogram;
+pub mod luma;
+pub mod patch_sw;
+pub mod repetition;
+pub mod report;
+pub mod sample;
+pub mod seam;
+
+pub use vtex_synth::{Error, Result, Rgba8Image};
+
+#[cfg(test)]
+pub(crate) mod test_images;

@@ -1,0 +1,53 @@
+//! Synthesis speed of the `lcm` demos: 256 × 256 tiles at level 0 and at coarser levels,
+//! in pixels per second on one core, with the operation counts per pixel beside the paper's
+//! bound of 4N additions and N multiplications for N layers (§6).
+//!
+//! `cargo bench -p vtex-synth --bench lcm`
+
+use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion, Throughput};
+use vtex_synth::models::lcm::{demos, load, OpCount};
+use vtex_synth::{Region, Texture};
+
+const TILE: u32 = 256;
+
+fn bench(c: &mut Criterion) {
+    let mut group = c.benchmark_group("lcm");
+    group.throughput(Throughput::Elements((TILE * TILE) as u64));
+    group.sample_size(20);
+    for (name, params) in demos::all_params() {
+        let tex = load(&demos::make(name, &params).unwrap()).unwrap();
+        let short = name.trim_start_matches("LCM ").replace(' ', "-");
+        // Operation counts of one level-0 tile, per intensity plane.
+        let mut count = OpCount::default();
+        let region = Region::new(0, 4096, 2048, TILE, TILE);
+        let mut out = vec![0u8; region.byte_len()];
+        tex.render_counted(&region, &mut out, &mut count);
+        let (n, planes) = (tex.layer_count(), tex.planes() as f64);
+        eprintln!(
+            "{short}: N = {n} layers, {planes} plane(s); per pixel and plane: additions {:.2} (max {:.0}; 4N = {}), \
+             multiplications {:.2} (max {:.0}; N = {n})",
+            count.mean_adds() / planes,
+            count.max_adds as f64 / planes,
+            4 * n,
+            count.mean_muls() / planes,
+            count.max_muls as f64 / planes,
+        );
+        for level in [0u32, 3, 6] {
+            let mut out = vec![0u8; (TILE * TILE * 4) as usize];
+            let mut k = 0i64;
+            group.bench_with_input(BenchmarkId::new(short.as_str(), format!("L{level}")), &level, |b, &level| {
+                b.iter(|| {
+                    // Walk over different tiles so the LCM reads are not all cache-hot.
+                    k += 1;
+                    let region = Region::new(level, (k * 7919) % 50_000, (k * 104_729) % 50_000, TILE, TILE);
+                    tex.render(&region, &mut out);
+                    out[0]
+                })
+            });
+        }
+    }
+    group.finish();
+}
+
+criterion_group!(benches, bench);
+criterion_main!(benches);

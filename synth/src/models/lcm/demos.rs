@@ -1,0 +1,179 @@
+//! The demo encodings of the paper's §3, from the project-made elements of [`super::elements`]:
+//! "random rotation" (Tab. 1), "cheese", "brick wall" simple and with the noise layers of
+//! Tab. 2 (Tab. 3, §6's 40 × 40 + 20 × 20 LCMs and 640 × 640 period), and a 100,800 ×
+//! 100,800 colour texture of pebbles (one element plane per channel).
+
+use super::encoding::{create, CreateParams, LayerParams, Order, Representation, PEBBLE_SAND};
+use super::table::{Cell, Table};
+use crate::bundle::Bundle;
+use crate::models::Inputs;
+use crate::Result;
+
+const UNIFORM: [f64; 4] = [0.25; 4];
+const ADD: [f64; 3] = [1.0, 0.0, 0.0];
+const NON_ZERO: [f64; 3] = [0.0, 1.0, 0.0];
+
+fn layer(layer: u32, weight: f64, lcm: [u32; 2], table: Table) -> LayerParams {
+    LayerParams { layer, weight, lcm, share: None, table: Some(table) }
+}
+
+/// Tab. 1: two staggered "no replication" entries, two of uniform rotation.
+pub fn table_random_rotation() -> Table {
+    let on = Cell::positive(UNIFORM, 0.0, ADD);
+    Table { width: 2, height: 2, cells: vec![Cell::none(), on.clone(), on, Cell::none()] }
+}
+
+/// Tab. 2: the "simple noise" model.
+pub fn table_noise() -> Table {
+    Table::single(Cell { sign: [0.33, 0.33, 0.34], rotation: UNIFORM, mirror: 0.5, operation: ADD })
+}
+
+/// Tab. 3: the "brick wall" model, non-zero application, rows as printed in the paper.
+pub fn table_brick() -> Table {
+    let c = |r: [f64; 4]| Cell::positive(r, 0.0, NON_ZERO);
+    Table {
+        width: 2,
+        height: 2,
+        cells: vec![
+            c([0.8, 0.05, 0.15, 0.0]),
+            c([0.2, 0.0, 0.8, 0.0]),
+            c([0.75, 0.05, 0.2, 0.0]),
+            c([0.1, 0.02, 0.88, 0.0]),
+        ],
+    }
+}
+
+fn params(element: &str, k: u32, layers: Vec<LayerParams>) -> CreateParams {
+    CreateParams {
+        element: Some(super::encoding::Builtin { builtin: element.into(), k }),
+        representation: Representation::Explicit,
+        magnify: 0,
+        background: None,
+        order: Order::TopDown,
+        palette: Vec::new(),
+        tiles: [1, 1],
+        seed: 1,
+        layers,
+    }
+}
+
+/// "Random rotation": 4 layers of the zero-mean stroke, Tab. 1 on each, weights 1. LCM sizes
+/// 50 × 60 and 76 × 46 (not multiples of each other, §5) give a period far beyond any layer's.
+pub fn random_rotation() -> CreateParams {
+    let t = table_random_rotation;
+    CreateParams {
+        palette: vec![[-160.0, 16.0, 34.0, 78.0], [160.0, 246.0, 236.0, 206.0]],
+        seed: 11,
+        ..params(
+            "stroke",
+            7,
+            vec![
+                layer(0, 1.0, [50, 60], t()),
+                layer(1, 1.0, [76, 46], t()),
+                layer(2, 1.0, [64, 64], t()),
+                layer(3, 1.0, [64, 64], t()),
+            ],
+        )
+    }
+}
+
+/// "Cheese": one hole element at two scales, rarely replicated, holes painted over each other.
+pub fn cheese() -> CreateParams {
+    let holes =
+        |p: f64| Table::single(Cell { sign: [p, 0.0, 1.0 - p], rotation: UNIFORM, mirror: 0.5, operation: NON_ZERO });
+    CreateParams {
+        palette: vec![
+            [-130.0, 120.0, 78.0, 14.0],
+            [-60.0, 196.0, 146.0, 40.0],
+            [0.0, 240.0, 204.0, 100.0],
+            [45.0, 254.0, 236.0, 168.0],
+        ],
+        seed: 5,
+        ..params("hole", 6, vec![layer(0, 1.0, [40, 40], holes(0.08)), layer(1, 1.0, [50, 50], holes(0.05))])
+    }
+}
+
+/// Two stops: an affine map from intensity to colour commutes with the box filter, so the
+/// native mip levels (filtered in intensity) match the exact ones (filtered in colour).
+fn brick_palette() -> Vec<[f64; 4]> {
+    // Mortar (−62) is (190, 186, 178), brick (50) is (160, 84, 64); the ends leave room for
+    // the noise layers without clamping.
+    vec![[-110.0, 203.0, 230.0, 227.0], [110.0, 144.0, 29.0, 3.0]]
+}
+
+/// "Brick wall", simple (Fig. 3 centre): Tab. 3 on layer 0 only.
+pub fn brick_wall_simple() -> CreateParams {
+    CreateParams {
+        palette: brick_palette(),
+        seed: 3,
+        tiles: [2, 2],
+        ..params("brick", 5, vec![layer(0, 1.0, [40, 40], table_brick())])
+    }
+}
+
+/// "Brick wall" (Fig. 3 right, §6): Tab. 3 on layer 0 (LCM 40 × 40) and the element again as
+/// noise (Tab. 2) with weight 0.2 on layers 2 and 3, which share one 20 × 20 LCM — the
+/// 40² + 20² + 32² + 8² + 4² = 3,104 bytes of the paper, for a 640 × 640 period.
+pub fn brick_wall() -> CreateParams {
+    let mut shared = layer(3, 0.2, [20, 20], table_noise());
+    shared.share = Some(1);
+    CreateParams {
+        palette: brick_palette(),
+        seed: 3,
+        tiles: [2, 2],
+        ..params(
+            "brick",
+            5,
+            vec![layer(0, 1.0, [40, 40], table_brick()), layer(2, 0.2, [20, 20], table_noise()), shared],
+        )
+    }
+}
+
+/// Pebbles on sand, 100,800 × 100,800: five layers of a colour pebble (one plane per
+/// channel), small ones first and the largest on top, over a faint sand noise. The LCM sizes
+/// are chosen so that the layer periods (across: 64·225, 32·225, 16·100, 8·56, 4·36 px) have
+/// the least common multiple 64 · 1575 = 100,800 along each axis. The two largest layers get
+/// the largest LCMs: their own repetition is what shows when the whole texture is in view.
+pub fn pebbles() -> CreateParams {
+    let stones = |pos: f64, neg: f64| {
+        Table::single(Cell { sign: [pos, neg, 1.0 - pos - neg], rotation: UNIFORM, mirror: 0.5, operation: NON_ZERO })
+    };
+    CreateParams {
+        background: Some(PEBBLE_SAND.to_vec()),
+        order: Order::BottomUp,
+        seed: 100_800,
+        ..params(
+            "pebble",
+            7,
+            vec![
+                layer(0, 1.0, [225, 175], stones(0.2, 0.1)),
+                layer(1, 0.9, [225, 350], stones(0.25, 0.12)),
+                layer(2, 0.8, [100, 36], stones(0.3, 0.15)),
+                layer(3, 0.7, [56, 56], stones(0.3, 0.2)),
+                layer(4, 0.25, [36, 28], table_noise()),
+            ],
+        )
+    }
+}
+
+/// The named demo parameter sets.
+pub fn all_params() -> Vec<(&'static str, CreateParams)> {
+    vec![
+        ("LCM random rotation", random_rotation()),
+        ("LCM cheese", cheese()),
+        ("LCM brick wall (simple)", brick_wall_simple()),
+        ("LCM brick wall", brick_wall()),
+        ("LCM pebbles 100k", pebbles()),
+    ]
+}
+
+/// Makes one demo's encoding.
+pub fn make(name: &str, p: &CreateParams) -> Result<Bundle> {
+    let json = serde_json::to_value(p).expect("demo parameters serialize");
+    create(name, &json, &Inputs::new())
+}
+
+/// Every demo encoding.
+pub fn demos() -> Vec<Bundle> {
+    all_params().iter().map(|(n, p)| make(n, p).expect("the demos are valid encodings")).collect()
+}

@@ -1,0 +1,575 @@
+//! The composed texture: loads and validates an encoding, then evaluates any region of any
+//! level and frame, layer by layer, pixel by pixel — each pixel a pure function of
+//! (encoding, level, x, y, frame).
+//!
+//! Filtering (§5): while a level-L pixel stays inside one pattern (2^L ≤ S) it reads that
+//! pattern's own mip level L, which is exactly the box downsample for aligned tilings. Beyond
+//! one pattern per pixel the indirection level itself is filtered: up to 4 × 4 cells per
+//! pixel their exact means are combined as the 2 × 2 box chain would ("oversampling"), and
+//! beyond that materials are replaced by their mean colours weighted by their probabilities
+//! (the law-of-large-numbers option of §5.1), or by a stratified 4 × 4 sample of cells where
+//! no expectation exists (explicit maps, animation, pixel maps).
+
+use super::animation::AnimationBlock;
+use super::materials::ChoiceBlock;
+use super::params::{Choice, LayerKind, LayerParams, Params};
+use super::random::LayerRng;
+use super::reference::{over_pm, over_u8, Reference};
+use super::sigma::{self, Sigma};
+use super::sprites::Positioning;
+use super::transform::{Placed, TransformBlock};
+use super::transitions::{Pick, Transitions};
+use crate::texture::{level_size, wrap};
+use crate::{bundle::Bundle, Animation, Domain, Error, Region, Result, Texture};
+use std::sync::Arc;
+
+pub const MODEL: &str = "patterns";
+/// Largest side of a texture, in pixels.
+pub const MAX_SIDE: u64 = 1 << 24;
+pub const MAX_LAYERS: usize = 8;
+/// Cells per pixel side up to which coarse levels combine exact cell means.
+const OVERSAMPLE: u64 = 4;
+
+pub struct PatternTexture {
+    width: u64,
+    height: u64,
+    reference: Reference,
+    background: [u8; 4],
+    layers: Vec<Layer>,
+    animation: Option<Animation>,
+}
+
+struct Layer {
+    kind: LayerKind,
+    cell: u32,
+    grid: (u64, u64),
+    rng: LayerRng,
+    choice: Option<ChoiceBlock>,
+    transform: Option<TransformBlock>,
+    transitions: Option<Transitions>,
+    animation: Option<AnimationBlock>,
+    positioning: Option<Positioning>,
+}
+
+impl PatternTexture {
+    pub fn load(bundle: &Bundle) -> Result<Self> {
+        let p: Params = bundle.params()?;
+        if p.width == 0 || p.height == 0 || p.width > MAX_SIDE || p.height > MAX_SIDE {
+            return Err(Error::param(
+                "width/height",
+                format!("{}×{}: each side must be 1..={MAX_SIDE}", p.width, p.height),
+            ));
+        }
+        let img = crate::pixels::decode_png("reference", bundle.section("reference.png")?)?;
+        let reference = Reference::new(&img, p.pattern_size, p.reference[0], p.reference[1])?;
+        let tables: Arc<[Sigma]> = sigma::from_bytes(bundle.section("sigma")?)?.into();
+        if (tables[0].tx, tables[0].ty) != (reference.tx, reference.ty) {
+            return Err(Error::bundle(format!(
+                "section `sigma`: the pattern table is {}×{} but the reference packs {}×{} patterns",
+                tables[0].tx, tables[0].ty, reference.tx, reference.ty
+            )));
+        }
+        if p.layers.is_empty() || p.layers.len() > MAX_LAYERS {
+            return Err(Error::param("layers", format!("{} layers; 1..={MAX_LAYERS}", p.layers.len())));
+        }
+        let mut layers = Vec::with_capacity(p.layers.len());
+        for (i, lp) in p.layers.iter().enumerate() {
+            layers.push(Layer::load(i, lp, &p, bundle, &reference, tables.clone()).map_err(|e| in_layer(i, e))?);
+        }
+        let animated: Vec<&AnimationBlock> = layers.iter().filter_map(|l| l.animation.as_ref()).collect();
+        let animation = match (animated.is_empty(), p.fps) {
+            (true, _) => None,
+            (false, Some(fps)) if fps > 0.0 && fps <= 240.0 => {
+                let mut period = 1u64;
+                for a in &animated {
+                    let q = a.period() as u64;
+                    period = if q == 0 || period == 0 { 0 } else { period / gcd(period, q) * q };
+                    if period > u32::MAX as u64 {
+                        period = 0;
+                    }
+                }
+                Some(Animation { fps, period_frames: period as u32 })
+            }
+            (false, _) => return Err(Error::param("fps", "animated layers need fps in (0, 240]")),
+        };
+        Ok(Self { width: p.width, height: p.height, reference, background: p.background, layers, animation })
+    }
+
+    pub fn reference(&self) -> &Reference {
+        &self.reference
+    }
+
+    /// Grid size (cells) of layer `layer`.
+    pub fn grid(&self, layer: usize) -> (u64, u64) {
+        self.layers[layer].grid
+    }
+
+    /// What tiling layer `layer` shows in cell g at frame t (for tests and tools).
+    pub fn pick(&self, layer: usize, gx: u64, gy: u64, t: u32) -> Pick {
+        self.layers[layer].pick(gx, gy, t)
+    }
+
+    /// The material the (dithered) areas map gives cell g of layer `layer`.
+    pub fn material(&self, layer: usize, gx: u64, gy: u64) -> u16 {
+        let l = &self.layers[layer];
+        l.choice.as_ref().map_or(0, |c| c.material(&l.rng, gx, gy, l.grid))
+    }
+
+    /// The pixel map's material at level-0 pixel (x, y) of layer `layer`, if it has one.
+    pub fn pixel_material(&self, layer: usize, x: u64, y: u64) -> Option<u16> {
+        self.layers[layer].choice.as_ref()?.pixel_map().map(|p| p.at(x, y))
+    }
+}
+
+fn gcd(a: u64, b: u64) -> u64 {
+    if b == 0 {
+        a
+    } else {
+        gcd(b, a % b)
+    }
+}
+
+fn in_layer(i: usize, e: Error) -> Error {
+    match e {
+        Error::Param { name, reason } => Error::param(format!("layers[{i}].{name}"), reason),
+        other => other,
+    }
+}
+
+impl Layer {
+    fn load(
+        i: usize,
+        lp: &LayerParams,
+        p: &Params,
+        bundle: &Bundle,
+        reference: &Reference,
+        tables: Arc<[Sigma]>,
+    ) -> Result<Self> {
+        let c = lp.cell as u64;
+        if c == 0 || p.width % c != 0 || p.height % c != 0 {
+            return Err(Error::param(
+                "cell",
+                format!(
+                    "{c} px cells do not divide the {}×{} texture (the virtual tile map must tile it)",
+                    p.width, p.height
+                ),
+            ));
+        }
+        let grid = (p.width / c, p.height / c);
+        let texture = (p.width, p.height);
+        let rng = LayerRng::new(tables, i, grid);
+        let count = reference.count();
+        let unused = |what: &str, present: bool| {
+            if present {
+                Err(Error::param(what, format!("not used by {:?} layers", lp.kind)))
+            } else {
+                Ok(())
+            }
+        };
+        let mut layer = Layer {
+            kind: lp.kind,
+            cell: lp.cell,
+            grid,
+            rng,
+            choice: None,
+            transform: None,
+            transitions: None,
+            animation: None,
+            positioning: None,
+        };
+        match lp.kind {
+            LayerKind::Tiling => {
+                if lp.cell != p.pattern_size {
+                    return Err(Error::param(
+                        "cell",
+                        format!(
+                            "{}: a tiling cell holds one pattern, so it must equal pattern_size {}",
+                            lp.cell, p.pattern_size
+                        ),
+                    ));
+                }
+                unused("transform", lp.transform.is_some())?;
+                match (&lp.choice, &lp.animation) {
+                    (Some(ch), None) => {
+                        let choice = ChoiceBlock::load(ch, bundle, reference, &layer.rng, grid, texture, false)?;
+                        if let Some(t) = &lp.transitions {
+                            if choice.pixel_map().is_some() {
+                                return Err(Error::param("transitions", "a pixel map already gives sharp transitions; use an areas map with transition tiles"));
+                            }
+                            layer.transitions = Some(Transitions::load(t, &choice, count)?);
+                        }
+                        layer.choice = Some(choice);
+                    }
+                    (None, Some(a)) => {
+                        unused("transitions", lp.transitions.is_some())?;
+                        layer.animation = Some(AnimationBlock::load(a, bundle, &layer.rng, grid, count)?);
+                    }
+                    _ => {
+                        return Err(Error::param(
+                            "choice",
+                            "a tiling layer has exactly one of `choice` and `animation`",
+                        ))
+                    }
+                }
+            }
+            LayerKind::Sparse => {
+                unused("transitions", lp.transitions.is_some())?;
+                unused("animation", lp.animation.is_some())?;
+                let ch = lp.choice.as_ref().ok_or_else(|| Error::param("choice", "a sparse layer needs a choice"))?;
+                if let Choice::Explicit { .. } = ch {
+                    return Err(Error::param(
+                        "choice",
+                        "sparse layers choose virtually or by materials; explicit positions are sprites",
+                    ));
+                }
+                let choice = ChoiceBlock::load(ch, bundle, reference, &layer.rng, grid, texture, true)?;
+                if choice.pixel_map().is_some() {
+                    return Err(Error::param(
+                        "choice.pixel_map",
+                        "sparse layers place materials per cell (areas maps)",
+                    ));
+                }
+                layer.choice = Some(choice);
+                let t = lp
+                    .transform
+                    .as_ref()
+                    .ok_or_else(|| Error::param("transform", "a sparse layer needs a transform"))?;
+                layer.transform = Some(TransformBlock::load(t)?);
+            }
+            LayerKind::Sprites => {
+                for (what, present) in [
+                    ("choice", lp.choice.is_some()),
+                    ("transform", lp.transform.is_some()),
+                    ("transitions", lp.transitions.is_some()),
+                    ("animation", lp.animation.is_some()),
+                ] {
+                    unused(what, present)?;
+                }
+                layer.positioning = Some(Positioning::load(&p.sprites, lp.cell, texture, p.pattern_size, count)?);
+            }
+        }
+        Ok(layer)
+    }
+
+    /// What tiling cell g shows at frame t.
+    #[inline]
+    fn pick(&self, gx: u64, gy: u64, t: u32) -> Pick {
+        if let Some(a) = &self.animation {
+            return Pick::single(Some(a.pattern(&self.rng, gx, gy, t)));
+        }
+        let choice = self.choice.as_ref().expect("tiling layers have a choice or an animation");
+        match &self.transitions {
+            Some(tr) => tr.pick(choice, &self.rng, gx, gy, self.grid),
+            None => Pick::single(choice.pattern(&self.rng, gx, gy, self.grid)),
+        }
+    }
+
+    /// Texel (x, y) of a pick's patterns at `level`, overlays composited on the base.
+    #[inline]
+    fn compose(&self, r: &Reference, pick: &Pick, level: u32, x: u32, y: u32) -> [u8; 4] {
+        let mut c = match pick.base {
+            Some(p) => r.texel(p, level, x, y),
+            None => [0; 4],
+        };
+        for &o in &pick.overlays[..pick.n_overlays as usize] {
+            over_u8(&mut c, r.texel(o, level, x, y));
+        }
+        c
+    }
+
+    fn render(&self, tex: &PatternTexture, region: &Region, out: &mut [u8]) {
+        match self.kind {
+            LayerKind::Tiling => self.render_tiling(tex, region, out),
+            LayerKind::Sparse => self.render_sparse(tex, region, out),
+            LayerKind::Sprites => self.render_sprites(tex, region, out),
+        }
+    }
+
+    fn render_tiling(&self, tex: &PatternTexture, region: &Region, out: &mut [u8]) {
+        let r = &tex.reference;
+        let level = region.level;
+        let t = region.frame;
+        let (lw, lh) = level_size(tex.width, tex.height, level);
+        let w = region.width as usize;
+        if level <= r.log2 {
+            let cs = (r.size >> level) as u64;
+            let pixel_map = self.choice.as_ref().and_then(|c| c.pixel_map());
+            for row in 0..region.height as usize {
+                let py = wrap(region.y + row as i64, lh);
+                let (gy, ly) = (py / cs, (py % cs) as u32);
+                let mut last = u64::MAX;
+                let mut pick = Pick::default();
+                for col in 0..w {
+                    let px = wrap(region.x + col as i64, lw);
+                    let (gx, lx) = (px / cs, (px % cs) as u32);
+                    let c = if let Some(pm) = pixel_map {
+                        let half = (1u64 << level) >> 1;
+                        let m = pm.at((px << level) + half, (py << level) + half);
+                        let choice = self.choice.as_ref().unwrap();
+                        self.compose(r, &Pick::single(choice.pattern_of(&self.rng, m, gx, gy)), level, lx, ly)
+                    } else {
+                        if gx != last {
+                            pick = self.pick(gx, gy, t);
+                            last = gx;
+                        }
+                        self.compose(r, &pick, level, lx, ly)
+                    };
+                    over_u8(&mut out[(row * w + col) * 4..][..4], c);
+                }
+            }
+            return;
+        }
+        let k = 1u64 << (level - r.log2);
+        for row in 0..region.height as usize {
+            let py = wrap(region.y + row as i64, lh);
+            for col in 0..w {
+                let px = wrap(region.x + col as i64, lw);
+                let c = self.coarse_tiling(tex, px * k, py * k, k, t);
+                over_u8(&mut out[(row * w + col) * 4..][..4], c);
+            }
+        }
+    }
+
+    /// The mean of a cell at the level where its pattern is one texel.
+    fn cell_mean(&self, r: &Reference, gx: u64, gy: u64, t: u32) -> [u8; 4] {
+        if let Some(pm) = self.choice.as_ref().and_then(|c| c.pixel_map()) {
+            let half = r.size as u64 / 2;
+            let m = pm.at(gx * r.size as u64 + half, gy * r.size as u64 + half);
+            let p = self.choice.as_ref().unwrap().pattern_of(&self.rng, m, gx, gy);
+            return self.compose(r, &Pick::single(p), r.log2, 0, 0);
+        }
+        self.compose(r, &self.pick(gx, gy, t), r.log2, 0, 0)
+    }
+
+    /// A k × k block of cells as the 2 × 2 box chain filters it: recursive rounded means of
+    /// the sub-blocks that exist (the grid's last block may be partial, as odd levels are).
+    fn block_mean(&self, r: &Reference, cx: u64, cy: u64, k: u64, t: u32) -> [u8; 4] {
+        if k == 1 {
+            return self.cell_mean(r, cx, cy, t);
+        }
+        let h = k / 2;
+        let (mut acc, mut n) = ([0u32; 4], 0u32);
+        for (dx, dy) in [(0, 0), (h, 0), (0, h), (h, h)] {
+            if cx + dx < self.grid.0 && cy + dy < self.grid.1 {
+                let c = self.block_mean(r, cx + dx, cy + dy, h, t);
+                for i in 0..4 {
+                    acc[i] += c[i] as u32;
+                }
+                n += 1;
+            }
+        }
+        acc.map(|a| ((a + n / 2) / n) as u8)
+    }
+
+    fn coarse_tiling(&self, tex: &PatternTexture, cx: u64, cy: u64, k: u64, t: u32) -> [u8; 4] {
+        let r = &tex.reference;
+        if k <= OVERSAMPLE {
+            return self.block_mean(r, cx, cy, k, t);
+        }
+        let centre = (
+            (cx as f64 + k as f64 * 0.5).min(self.grid.0 as f64),
+            (cy as f64 + k as f64 * 0.5).min(self.grid.1 as f64),
+        );
+        if self.transitions.is_none() && self.animation.is_none() {
+            if let Some(e) = self.choice.as_ref().and_then(|c| c.expected(r, centre.0, centre.1, self.grid, false)) {
+                return e.map(|v| (v + 0.5).floor().clamp(0.0, 255.0) as u8);
+            }
+        }
+        // Stratified sample: the centre cell of each of 4 × 4 sub-blocks of the part of the
+        // block inside the grid (the last block of a level may be partial).
+        let (ex, ey) = (k.min(self.grid.0 - cx), k.min(self.grid.1 - cy));
+        let (mut acc, mut n) = ([0u32; 4], 0u32);
+        for j in 0..4 {
+            for i in 0..4 {
+                let (x, y) = (cx + (2 * i + 1) * ex / 8, cy + (2 * j + 1) * ey / 8);
+                let c = self.cell_mean(r, x, y, t);
+                for ch in 0..4 {
+                    acc[ch] += c[ch] as u32;
+                }
+                n += 1;
+            }
+        }
+        let n = n.max(1);
+        acc.map(|a| ((a + n / 2) / n) as u8)
+    }
+
+    /// Placed pattern of sparse cell (unwrapped) u, if the cell is not blank.
+    fn placed(&self, tex: &PatternTexture, ux: i64, uy: i64) -> Option<Placed> {
+        let (gx, gy) = (wrap(ux, self.grid.0), wrap(uy, self.grid.1));
+        let choice = self.choice.as_ref().unwrap();
+        let p = choice.pattern(&self.rng, gx, gy, self.grid)?;
+        Some(self.transform.as_ref().unwrap().place(&self.rng, gx, gy, p, tex.reference.size))
+    }
+
+    fn render_sparse(&self, tex: &PatternTexture, region: &Region, out: &mut [u8]) {
+        let r = &tex.reference;
+        let tr = self.transform.as_ref().unwrap();
+        let level = region.level;
+        let f = (1u64 << level.min(62)) as f64;
+        let c = self.cell as f64;
+        let w = region.width as usize;
+        let (lw, lh) = level_size(tex.width, tex.height, level);
+        if f * 4.0 > c {
+            // Under four pixels per cell: expected premultiplied coverage (law of large numbers).
+            let choice = self.choice.as_ref().unwrap();
+            let area = tr.mean_area();
+            for row in 0..region.height as usize {
+                let py = wrap(region.y + row as i64, lh) as f64;
+                for col in 0..w {
+                    let px = wrap(region.x + col as i64, lw) as f64;
+                    let (cx, cy) = ((px + 0.5) * f / c, (py + 0.5) * f / c);
+                    let e = choice
+                        .expected(r, cx.min(self.grid.0 as f64), cy.min(self.grid.1 as f64), self.grid, true)
+                        .unwrap_or([0.0; 4]);
+                    over_pm(&mut out[(row * w + col) * 4..][..4], e.map(|v| v * area));
+                }
+            }
+            return;
+        }
+        let size = r.size as f32;
+        let (left, right) = (tr.left, tr.right);
+        let x_first = region.x as f64 * f;
+        let ux0 = (x_first / c).floor() as i64 - left;
+        let ux1 = (((region.x + w as i64) as f64 * f) / c).floor() as i64 + right;
+        let span = (ux1 - ux0 + 1) as usize;
+        let mut rows: Vec<Vec<Option<Placed>>> = Vec::new();
+        let mut rows_y0 = i64::MIN;
+        for row in 0..region.height as usize {
+            let y = (region.y + row as i64) as f64 * f + f * 0.5;
+            let uy = (y / c).floor() as i64;
+            let ry = ((y - uy as f64 * c) / c) as f32;
+            let first = uy - left;
+            if first != rows_y0 {
+                rows = (first..=uy + right)
+                    .map(|yy| (0..span).map(|i| self.placed(tex, ux0 + i as i64, yy)).collect())
+                    .collect();
+                rows_y0 = first;
+            }
+            for col in 0..w {
+                let x = (region.x + col as i64) as f64 * f + f * 0.5;
+                let ux = (x / c).floor() as i64;
+                let rx = ((x - ux as f64 * c) / c) as f32;
+                let mut acc = [0f32; 4];
+                // Cells in row-major order, later ones on top ("over" instead of a sum so
+                // colliding patterns hide each other).
+                for dy in -left..=right {
+                    let cells = &rows[(dy + left) as usize];
+                    for dx in -left..=right {
+                        let Some(pl) = &cells[(ux + dx - ux0) as usize] else { continue };
+                        let Some((u, v)) = pl.local(rx - dx as f32, ry - dy as f32, size) else { continue };
+                        let lvl = mip_for(level, pl.texels / c as f32, r.log2);
+                        let k = 1.0 / (1u32 << lvl) as f32;
+                        let s = r.bilinear_pm(pl.pattern, lvl, u * k, v * k);
+                        let keep = 1.0 - s[3];
+                        acc = [s[0] + acc[0] * keep, s[1] + acc[1] * keep, s[2] + acc[2] * keep, s[3] + acc[3] * keep];
+                    }
+                }
+                over_pm(&mut out[(row * w + col) * 4..][..4], acc);
+            }
+        }
+    }
+
+    fn render_sprites(&self, tex: &PatternTexture, region: &Region, out: &mut [u8]) {
+        let r = &tex.reference;
+        let pos = self.positioning.as_ref().unwrap();
+        let level = region.level;
+        let (lw, lh) = level_size(tex.width, tex.height, level);
+        let w = region.width as usize;
+        let s = r.size as u64;
+        if level <= r.log2 {
+            let f = 1u64 << level;
+            let k = 1.0 / f as f32;
+            for row in 0..region.height as usize {
+                let py = wrap(region.y + row as i64, lh);
+                let y = (py * f + f / 2) % tex.height;
+                for col in 0..w {
+                    let px = wrap(region.x + col as i64, lw);
+                    let x = (px * f + f / 2) % tex.width;
+                    let Some(e) = pos.at(x, y) else { continue };
+                    let (dx, dy) = (wrap(x as i64 - e.x as i64, tex.width), wrap(y as i64 - e.y as i64, tex.height));
+                    if dx >= s || dy >= s {
+                        continue;
+                    }
+                    let (u, v) =
+                        (dx as f32 + if f == 1 { 0.5 } else { 0.0 }, dy as f32 + if f == 1 { 0.5 } else { 0.0 });
+                    let c = r.bilinear_pm(e.pattern, level, u * k, v * k);
+                    over_pm(&mut out[(row * w + col) * 4..][..4], c);
+                }
+            }
+            return;
+        }
+        // Patterns smaller than a pixel: splat each sprite's coverage-weighted mean colour.
+        let f = 1u64 << level.min(62);
+        for e in &pos.list {
+            let pm = r.pm_mean(e.pattern);
+            let span = |v: u64| {
+                let (a, b) = (v / f, (v + s - 1) / f);
+                if a == b {
+                    vec![a]
+                } else {
+                    vec![a, b]
+                }
+            };
+            for sy in span(e.y) {
+                let cov_y = overlap(sy * f, f, e.y, s);
+                for sx in span(e.x) {
+                    let cov = cov_y * overlap(sx * f, f, e.x, s) / (f as f32 * f as f32);
+                    let (lx, ly) = (sx % lw, sy % lh);
+                    let mut row = (ly as i64 - region.y).rem_euclid(lh as i64);
+                    while row < region.height as i64 {
+                        let mut col = (lx as i64 - region.x).rem_euclid(lw as i64);
+                        while col < w as i64 {
+                            over_pm(&mut out[(row as usize * w + col as usize) * 4..][..4], pm.map(|v| v * cov));
+                            col += lw as i64;
+                        }
+                        row += lh as i64;
+                    }
+                }
+            }
+        }
+    }
+}
+
+/// Length of [a, a + la) ∩ [b, b + lb), as f32.
+fn overlap(a: u64, la: u64, b: u64, lb: u64) -> f32 {
+    let lo = a.max(b);
+    let hi = (a + la).min(b + lb);
+    hi.saturating_sub(lo) as f32
+}
+
+/// The pattern mip level for a level-L pixel when one level-0 pixel spans
+/// `texels_per_pixel` pattern texels: the finest level with at least one texel per pixel.
+fn mip_for(level: u32, texels_per_pixel: f32, log2: u32) -> u32 {
+    let texels = (1u64 << level) as f32 * texels_per_pixel;
+    let mut l = 0;
+    while l < log2 && (2u64 << l) as f32 <= texels {
+        l += 1;
+    }
+    l
+}
+
+impl Texture for PatternTexture {
+    fn model(&self) -> &'static str {
+        MODEL
+    }
+    fn width(&self) -> u64 {
+        self.width
+    }
+    fn height(&self) -> u64 {
+        self.height
+    }
+    fn domain(&self) -> Domain {
+        Domain::Torus
+    }
+    fn animation(&self) -> Option<Animation> {
+        self.animation
+    }
+    fn render(&self, region: &Region, out: &mut [u8]) {
+        for px in out.chunks_exact_mut(4) {
+            px.copy_from_slice(&self.background);
+        }
+        for layer in &self.layers {
+            layer.render(self, region, out);
+        }
+    }
+}

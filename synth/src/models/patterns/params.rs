@@ -1,0 +1,207 @@
+//! The encoding's JSON part: a composition of §3 blocks described as data (§4).
+//!
+//! A texture is a stack of layers composited bottom to top ("over"). Each layer is one of the
+//! paper's compositions, chosen by which blocks it plugs in: a `tiling` layer with a virtual
+//! choice is the basic aperiodic tiling (Fig. 16); with materials, a (dithered) areas map and
+//! transition tiles it is the extended tiling (Fig. 17); a `sparse` layer is the sparse
+//! convolution (Fig. 18–19); `sprites` is explicit positioning (texture sprites, Fig. 21d);
+//! an `animation` block makes a tiling layer an animated tiling (Fig. 20).
+
+use serde::{Deserialize, Serialize};
+use std::collections::BTreeMap;
+
+/// Everything in the manifest's `params`.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Params {
+    /// Level-0 size in pixels; every layer's cell size must divide both (the texture is a torus).
+    pub width: u64,
+    pub height: u64,
+    /// Side S of every pattern, in pixels; a power of two so each pattern has its own mip chain.
+    pub pattern_size: u32,
+    /// The reference texture packs `reference[0] × reference[1]` patterns (§3.5), row-major.
+    pub reference: [u32; 2],
+    /// Seed the permutation tables σ were generated from (kept for provenance; the tables
+    /// themselves are stored in the `sigma` section).
+    pub seed: u64,
+    /// Colour under the first layer (straight RGBA8).
+    #[serde(default)]
+    pub background: [u8; 4],
+    pub layers: Vec<LayerParams>,
+    /// Texture sprites by name, drawn by `sprites` layers. Kept in params (an object, not a
+    /// list) so a JSON merge patch can move one sprite: `{"params":{"sprites":{"ball":{"x":9}}}}`.
+    #[serde(default, skip_serializing_if = "BTreeMap::is_empty")]
+    pub sprites: BTreeMap<String, SpriteParams>,
+    /// Frames per second of animated textures (needed when a layer has an animation map).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub fps: Option<f32>,
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum LayerKind {
+    /// One pattern per cell of the virtual tile map (aperiodic tiling).
+    Tiling,
+    /// Transformed patterns on a transparent background (sparse convolution).
+    Sparse,
+    /// Patterns at explicit positions (texture sprites).
+    Sprites,
+}
+
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct LayerParams {
+    pub kind: LayerKind,
+    /// Side of a virtual tile map cell in pixels (the grid is width/cell × height/cell).
+    pub cell: u32,
+    /// How the pattern of a cell is chosen (tiling and sparse layers).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub choice: Option<Choice>,
+    /// Tile transform of sparse layers.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub transform: Option<TransformParams>,
+    /// Transition tiles between material families (tiling layers).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub transitions: Option<TransitionParams>,
+    /// Animation sequence and map (tiling layers).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub animation: Option<AnimationParams>,
+}
+
+/// The pattern-choice blocks.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(tag = "kind", rename_all = "snake_case", deny_unknown_fields)]
+pub enum Choice {
+    /// Virtual indirection map: σ-hashed vectorial pattern index over the whole reference.
+    Virtual,
+    /// Explicit indirection map: one pattern index per cell (65535 = no pattern); a map
+    /// smaller than the grid repeats (maps wrap, §3.1) and must divide it.
+    Explicit { map: MapRef },
+    /// Materials (probability maps) placed by an optional areas map or pixel map.
+    Materials {
+        materials: Vec<MaterialParams>,
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        areas: Option<AreasParams>,
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        pixel_map: Option<PixelMapParams>,
+    },
+}
+
+/// A material: a probability map (pattern indices, duplicated in proportion; -1 = blank)
+/// and the family of compatible tiles it belongs to (§3.3).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct MaterialParams {
+    pub patterns: Vec<i32>,
+    #[serde(default)]
+    pub family: u16,
+}
+
+/// An areas map: one material index per area; each area covers (grid / size) cells.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct AreasParams {
+    pub map: MapRef,
+    /// Dithered areas map: materials are interpolated between area centres (Fig. 9).
+    #[serde(default)]
+    pub dithered: bool,
+}
+
+/// A high-resolution material mask stored as an adaptive (indirection-compressed) map.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct PixelMapParams {
+    /// Section holding the compressed map (see `pixel_map.rs`).
+    pub section: String,
+    /// Map size in map pixels; one map pixel covers `scale × scale` texture pixels.
+    pub size: [u32; 2],
+    pub scale: u32,
+    /// Side of the compressed blocks, a power of two.
+    pub block: u32,
+}
+
+/// A map: `size` values given inline or in a bundle section (`depth` bytes each, LE).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct MapRef {
+    pub size: [u32; 2],
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub values: Option<Vec<u16>>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub section: Option<String>,
+    /// Bytes per value in `section`: 1 or 2.
+    #[serde(default = "one", skip_serializing_if = "is_one")]
+    pub depth: u8,
+}
+
+fn one() -> u8 {
+    1
+}
+fn is_one(v: &u8) -> bool {
+    *v == 1
+}
+
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct TransformParams {
+    /// Scale range relative to the cell: s = min + r (max − min).
+    pub scale: [f32; 2],
+    /// Random rotation in [0, 2π).
+    #[serde(default)]
+    pub rotate: bool,
+    /// Let patterns overflow into neighbouring cells (Fig. 4 right, 5); otherwise they are
+    /// shrunk and translated so they stay strictly inside their cell (Fig. 4 middle).
+    #[serde(default)]
+    pub overflow: bool,
+}
+
+/// Transition tiles: for every family f ≥ 1, 14 pattern indices drawn with a transparent
+/// background, indexed by the 4-bit mask (1..=14) of the corners that belong to f.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct TransitionParams {
+    pub tiles: Vec<Vec<u32>>,
+}
+
+/// Animation sequence + animation map + temporal transition (§3.4).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct AnimationParams {
+    /// Pattern indices of the sequence; the first is the rest state.
+    pub sequence: Vec<u32>,
+    /// Global rate a (density of animation): the rest time of a cell is ⌊a Z⌋ frames.
+    pub a: f64,
+    pub phi: ValueParams,
+    pub z: ValueParams,
+    /// Parameters before a temporal transition at frame `t0`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub previous: Option<PreviousParams>,
+}
+
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct PreviousParams {
+    pub a: f64,
+    pub z: ValueParams,
+    pub t0: u32,
+}
+
+/// A per-cell integer: an explicit map (per cell, wrapping) plus a virtual random value in
+/// `0..random` (which must divide the σ size, 256, to avoid the bias of Fig. 2.2).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ValueParams {
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub map: Option<MapRef>,
+    #[serde(default)]
+    pub random: u32,
+}
+
+/// A texture sprite: pattern `pattern` with its top-left corner at (x, y) level-0 pixels.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SpriteParams {
+    pub pattern: u32,
+    pub x: i64,
+    pub y: i64,
+}

@@ -1,0 +1,405 @@
+//! The cascade model against DESIGN §3: seamless regions (also far from the origin),
+//! agreement with a direct evaluation of the definition, determinism, mip coherence with
+//! measured PSNR, and clear errors for bad encodings.
+
+use serde_json::json;
+use std::sync::Arc;
+use vtex_synth::bundle::Bundle;
+use vtex_synth::mip::{downsample_n, mean_rgba, psnr};
+use vtex_synth::models::cascade::{self, demos::control_map, demos::initial_image, Cascade};
+use vtex_synth::models::{self, Inputs};
+use vtex_synth::texture::{level_count, render_image, Region, Texture};
+use vtex_synth::Rgba8Image;
+
+fn tex(params: serde_json::Value) -> Cascade {
+    cascade::load(&models::create("cascade", "t", &params, &Inputs::new()).unwrap()).unwrap()
+}
+
+fn single() -> serde_json::Value {
+    json!({"seed": 3, "stages": [{"kernel": {"size": 5, "preset": "gauss"}, "map": {"kind": "logistic", "r": 3.8}}]})
+}
+
+fn cascade3() -> serde_json::Value {
+    json!({"seed": 4, "palette": "earth", "stages": [
+        {"kernel": {"size": 3, "weights": [1, 2, 1, 2, 4, 2, 1, 2, 1]}, "map": {"kind": "sine", "r": 0.95}},
+        {"upsample": 4, "jitter": 0.1, "map": {"kind": "tent", "mu": 1.7}, "iterations": 3},
+        {"upsample": 2, "jitter": 0.05, "kernel": {"size": 7, "preset": "dog"}, "map": {"kind": "circle", "omega": 0.2, "k": 2.0}, "iterations": 2}]})
+}
+
+fn render(t: &dyn Texture, level: u32, x: i64, y: i64, w: u32, h: u32) -> Rgba8Image {
+    render_image(t, &Region::new(level, x, y, w, h)).unwrap()
+}
+
+fn all_textures() -> Vec<(String, Arc<dyn Texture>)> {
+    let mut v: Vec<(String, Arc<dyn Texture>)> = cascade::demos()
+        .into_iter()
+        .map(|b| (b.manifest.name.clone(), models::load(&Bundle::from_bytes(&b.to_bytes()).unwrap()).unwrap()))
+        .collect();
+    v.push(("single".into(), Arc::new(tex(single()))));
+    v.push(("cascade3".into(), Arc::new(tex(cascade3()))));
+    v
+}
+
+#[test]
+fn tiles_equal_crops_of_larger_regions_near_and_far() {
+    let origins: [(i64, i64); 6] = [
+        (0, 0),
+        (-37, 21),
+        (1 << 31, (1 << 31) - 50),
+        (-(1 << 31) - 7, 3),
+        (1 << 40, -(1 << 45)),
+        (i64::MAX - 200, i64::MIN + 5),
+    ];
+    for (name, t) in all_textures() {
+        for (ox, oy) in origins {
+            let big = render(t.as_ref(), 0, ox, oy, 150, 120);
+            for (dx, dy, w, h) in [(0, 0, 64, 64), (33, 17, 80, 71), (149, 119, 1, 1), (5, 90, 145, 30)] {
+                let tile = render(t.as_ref(), 0, ox + dx as i64, oy + dy as i64, w, h);
+                assert_eq!(tile, big.crop(dx, dy, w, h), "{name}: tile ({dx},{dy}) {w}×{h} at origin ({ox},{oy})");
+            }
+        }
+        // Mip levels too, exact and prefiltered.
+        for level in 1..=5 {
+            let big = render(t.as_ref(), level, 1 << 20, -(1 << 21), 96, 64);
+            let tile = render(t.as_ref(), level, (1 << 20) + 40, -(1 << 21) + 8, 33, 50);
+            assert_eq!(tile, big.crop(40, 8, 33, 50), "{name}: level {level}");
+        }
+    }
+}
+
+#[test]
+fn renders_are_not_degenerate() {
+    for (name, t) in all_textures() {
+        let img = render(t.as_ref(), 0, 1000, 1000, 128, 128);
+        let m = mean_rgba(&img);
+        let var: f64 = img
+            .data
+            .chunks_exact(4)
+            .map(|p| (p[0] as f64 + p[1] as f64 + p[2] as f64) / 3.0)
+            .map(|g| {
+                let d = g - (m[0] + m[1] + m[2]) / 3.0;
+                d * d
+            })
+            .sum::<f64>()
+            / (128.0 * 128.0);
+        assert!(var.sqrt() > 10.0, "{name}: flat image, σ = {}", var.sqrt());
+        assert!(img.is_opaque());
+        // Far from the origin the statistics are the same (no precision loss with distance).
+        let far = render(t.as_ref(), 0, (1 << 50) + 1000, -(1 << 52), 128, 128);
+        let mf = mean_rgba(&far);
+        assert!((0..3).all(|c| (m[c] - mf[c]).abs() < 40.0), "{name}: near {m:?} far {mf:?}");
+        assert_ne!(img, far);
+    }
+}
+
+/// A direct evaluation of the definition, written independently of the model's window
+/// machinery: whole lattices in i128 coordinates, per-point convolution, floor-division
+/// upsampling. Used near and far from the origin (away from the 2^64 wrap).
+fn direct(t: &Cascade, x0: i128, y0: i128, w: usize, h: usize) -> Vec<f32> {
+    let e = t.engine();
+    fn stage(
+        e: &vtex_synth::models::cascade::engine::Engine,
+        s: usize,
+        x0: i128,
+        y0: i128,
+        w: usize,
+        h: usize,
+    ) -> Vec<f32> {
+        let st = &e.stages[s];
+        let r = st.kernel.radius as i128 * st.dilation as i128;
+        let m = st.iterations as i128 * r;
+        let (ax, ay, aw, ah) = (x0 - m, y0 - m, w as i128 + 2 * m, h as i128 + 2 * m);
+        let mut a = vec![0.0f32; (aw * ah) as usize];
+        let f = 1i128 << st.up;
+        let coarse = (s > 0).then(|| {
+            let (cx, cy) = (ax.div_euclid(f), ay.div_euclid(f));
+            let cw = (ax + aw - 1).div_euclid(f) - cx + 2;
+            let ch = (ay + ah - 1).div_euclid(f) - cy + 2;
+            (cx, cy, cw, stage(e, s - 1, cx, cy, cw as usize, ch as usize))
+        });
+        for j in 0..ah {
+            for i in 0..aw {
+                let (x, y) = (ax + i, ay + j);
+                let n =
+                    vtex_synth::hash::unit_f32(vtex_synth::hash::hash4(e.seed, 0x100 + s as u64, x as i64, y as i64));
+                a[(j * aw + i) as usize] = match &coarse {
+                    None => n,
+                    Some((cx, cy, cw, c)) => {
+                        let (qx, qy) = (x.div_euclid(f) - cx, y.div_euclid(f) - cy);
+                        let (fx, fy) = (x.rem_euclid(f) as f32 / f as f32, y.rem_euclid(f) as f32 / f as f32);
+                        let at = |u: i128, v: i128| c[(v * cw + u) as usize];
+                        let r0 = at(qx, qy) + (at(qx + 1, qy) - at(qx, qy)) * fx;
+                        let r1 = at(qx, qy + 1) + (at(qx + 1, qy + 1) - at(qx, qy + 1)) * fx;
+                        let up = r0 + (r1 - r0) * fy;
+                        if st.jitter > 0.0 {
+                            up + st.jitter * (n - 0.5)
+                        } else {
+                            up
+                        }
+                    }
+                };
+            }
+        }
+        let (mut cur, mut cw, mut ch) = (a, aw, ah);
+        for _ in 0..st.iterations {
+            let (nw, nh) = (cw - 2 * r, ch - 2 * r);
+            let mut next = vec![0.0f32; (nw * nh) as usize];
+            for j in 0..nh {
+                for i in 0..nw {
+                    let mut acc = 0.0f32;
+                    for tap in &st.kernel.taps {
+                        let (sx, sy) = (
+                            i + r + tap.dx as i128 * st.dilation as i128,
+                            j + r + tap.dy as i128 * st.dilation as i128,
+                        );
+                        acc += tap.w * cur[(sy * cw + sx) as usize];
+                    }
+                    next[(j * nw + i) as usize] = acc;
+                }
+            }
+            st.map.apply(&mut next);
+            (cur, cw, ch) = (next, nw, nh);
+        }
+        assert_eq!((cw, ch), (w as i128, h as i128));
+        cur
+    }
+    stage(e, e.stages.len() - 1, x0, y0, w, h)
+}
+
+#[test]
+fn far_coordinates_agree_with_a_direct_evaluation() {
+    for params in [single(), cascade3()] {
+        let t = tex(params);
+        for (x, y) in [
+            (0i64, 0i64),
+            (-5, 7),
+            ((1 << 31) - 20, (1 << 31) + 3),
+            (-(1 << 31) - 9, 1 << 33),
+            (1 << 40, -(1 << 41)),
+            (-(1 << 58), 1 << 57),
+        ] {
+            let img = render(&t, 0, x, y, 40, 24);
+            let reference = direct(&t, x as i128, y as i128, 40, 24);
+            let field = t.engine().field(t.engine().stages.len() - 1, x as u64, y as u64, 40, 24);
+            let same = field.v.iter().zip(&reference).filter(|(a, b)| a == b).count();
+            assert_eq!(same, reference.len(), "at ({x}, {y}): {same} of {} values agree", reference.len());
+            let expect: Vec<u8> = reference.iter().flat_map(|v| t.colour(*v)).collect();
+            assert!(img.data == expect, "at ({x}, {y}): colours differ");
+        }
+    }
+}
+
+#[test]
+fn determinism_and_bundle_round_trip() {
+    let a: Vec<Bundle> = cascade::demos();
+    let b: Vec<Bundle> = cascade::demos();
+    assert_eq!(a.len(), b.len());
+    assert!(a.len() >= 6);
+    for (p, q) in a.iter().zip(&b) {
+        assert_eq!(p.to_bytes(), q.to_bytes(), "demo bundles are reproducible");
+        let t1 = models::load(&Bundle::from_bytes(&p.to_bytes()).unwrap()).unwrap();
+        let t2 = models::load(q).unwrap();
+        // Different request orders and sizes give the same pixels.
+        let r1 = render(t1.as_ref(), 0, 300, -200, 64, 64);
+        let _ = render(t1.as_ref(), 3, 9, 9, 20, 20);
+        let r2 = render(t2.as_ref(), 0, 300, -200, 64, 64);
+        assert_eq!(r1, r2, "{}", p.manifest.name);
+        assert_eq!(t1.model(), "cascade");
+    }
+    // At least one demo is 100k × 100k or larger; encodings are kilobytes.
+    let largest = a.iter().map(|b| models::load(b).unwrap()).map(|t| t.width().min(t.height())).max().unwrap();
+    assert!(largest >= 100_000);
+    for b in &a {
+        assert!(b.to_bytes().len() < 64 << 10, "{}: {} bytes", b.manifest.name, b.to_bytes().len());
+    }
+    // The looks the issue asks for: single-scale, cascades, a dilation map, an initial image.
+    let names: Vec<&Bundle> = a.iter().collect();
+    let stages = |b: &Bundle| b.manifest.params["stages"].as_array().unwrap().len();
+    assert!(names.iter().filter(|b| stages(b) == 1).count() >= 2);
+    assert!(names.iter().filter(|b| stages(b) >= 2).count() >= 2);
+    assert!(names.iter().any(|b| b.section("control.png").is_ok()));
+    assert!(names.iter().any(|b| b.section("initial.png").is_ok()));
+}
+
+/// PSNR of each served level against the exact 2×2-box chain of a level-0 render, next to
+/// the PSNR of the aliasing baseline DESIGN §3.3 rules out (the procedure evaluated at low
+/// resolution, i.e. every 2^L-th level-0 pixel).
+fn mip_psnr(t: &dyn Texture, x: i64, y: i64, side: u32, max_level: u32) -> Vec<(f64, f64)> {
+    let base = render(t, 0, x, y, side, side);
+    (1..=max_level)
+        .map(|l| {
+            let exact = downsample_n(&base, l);
+            let served = render(t, l, x >> l, y >> l, side >> l, side >> l);
+            let mut point = Rgba8Image::new(side >> l, side >> l);
+            for j in 0..side >> l {
+                for i in 0..side >> l {
+                    point.set_pixel(i, j, base.pixel(i << l, j << l));
+                }
+            }
+            (psnr(&exact, &served), psnr(&exact, &point))
+        })
+        .collect()
+}
+
+#[test]
+fn mip_levels_approximate_the_exact_downsample() {
+    for (name, t) in all_textures() {
+        let exact_levels = cascade::demos()
+            .iter()
+            .find(|b| b.manifest.name == name)
+            .and_then(|b| b.manifest.params["exact_levels"].as_u64())
+            .unwrap_or(2) as usize;
+        let p = mip_psnr(t.as_ref(), 1 << 24, 3 << 22, 1024, 6);
+        let show: Vec<String> =
+            p.iter().enumerate().map(|(i, (v, b))| format!("L{}={v:.1}dB (point {b:.1})", i + 1)).collect();
+        println!("mip PSNR {name}: {}", show.join(" "));
+        for (i, (v, baseline)) in p.iter().enumerate() {
+            if i < exact_levels {
+                assert!(v.is_infinite(), "{name}: level {} must be exact, PSNR {v}", i + 1);
+            } else {
+                assert!(
+                    *v > 15.0 && v > baseline,
+                    "{name}: level {} PSNR {v:.1} dB, point sampling {baseline:.1}",
+                    i + 1
+                );
+            }
+        }
+        // The coarsest level (1×1) against the mean colour of a large level-0 sample.
+        let top = level_count(t.width(), t.height()) - 1;
+        let one = render(t.as_ref(), top, 0, 0, 1, 1);
+        let m = if t.width() * t.height() <= 1 << 24 {
+            // A bounded texture (texture transfer): its true mean over the whole extent, from
+            // the exact level 2.
+            mean_rgba(&render(t.as_ref(), 2, 0, 0, (t.width() / 4) as u32, (t.height() / 4) as u32))
+        } else {
+            // 2048² level-0 pixels (one whole period of the demo control map), via the exact level 2.
+            mean_rgba(&render(t.as_ref(), 2, 0, 0, 512, 512))
+        };
+        let acc = [m[0], m[1], m[2]];
+        let diff = (0..3).map(|c| (one.pixel(0, 0)[c] as f64 - acc[c]).abs()).fold(0.0, f64::max);
+        println!("coarsest level {name}: {:?} vs sample mean {acc:.1?} (max diff {diff:.1})", one.pixel(0, 0));
+        assert!(diff < 8.0, "{name}: coarsest {:?} vs mean {acc:?}", one.pixel(0, 0));
+    }
+}
+
+fn err(params: serde_json::Value, inputs: &Inputs) -> String {
+    models::create("cascade", "bad", &params, inputs).unwrap_err().to_string()
+}
+
+fn with_stage(stage: serde_json::Value) -> serde_json::Value {
+    json!({"seed": 1, "stages": [stage]})
+}
+
+#[test]
+fn bad_input_gives_clear_errors() {
+    let none = Inputs::new();
+    let cases: Vec<(serde_json::Value, &str)> = vec![
+        (with_stage(json!({"kernel": {"size": 9, "preset": "box"}})), "7×7"),
+        (with_stage(json!({"kernel": {"size": 4, "preset": "box"}})), "kernel.size"),
+        (with_stage(json!({"kernel": {"size": 3, "weights": [1, 2, 3]}})), "3 weights"),
+        (with_stage(json!({"iterations": 0})), "iterations"),
+        (with_stage(json!({"iterations": 1000})), "iterations"),
+        (with_stage(json!({"map": {"kind": "logistic", "r": 4.2}})), "stages[0].map.r"),
+        (with_stage(json!({"map": {"kind": "tent", "mu": -1}})), "map.mu"),
+        (with_stage(json!({"map": {"kind": "sigmoid", "gain": 0, "center": 0.5}})), "map.gain"),
+        (with_stage(json!({"map": {"kind": "henon", "a": 1.4}})), "params"),
+        (with_stage(json!({"dilation": 0})), "dilation"),
+        (with_stage(json!({"upsample": 2})), "upsample"),
+        (json!({"seed": 1, "stages": [{}, {"upsample": 3}]}), "stages[1].upsample"),
+        (json!({"seed": 1, "stages": []}), "stages"),
+        (json!({"seed": 1, "stages": [{}], "colour": "red"}), "unknown field"),
+        (json!({"seed": 1, "stages": [{}], "palette": "neon"}), "palette"),
+        (json!({"seed": 1, "stages": [{}], "width": 0}), "width"),
+        (json!({"seed": 1, "stages": [{}], "range": [1, 0]}), "range"),
+        (json!({"seed": 1, "stages": [{}], "exact_levels": 9}), "exact_levels"),
+        (json!({"seed": -1, "stages": [{}]}), "params"),
+        (json!({"seed": 1, "stages": [{}], "dilation_map": {"max": 3, "cell": 16}}), "control"),
+        (
+            json!({"seed": 1, "stages": [{"iterations": 64, "kernel": {"size": 7, "preset": "box"}, "dilation": 8}]}),
+            "at most",
+        ),
+    ];
+    for (params, needle) in cases {
+        let e = err(params.clone(), &none);
+        assert!(e.contains(needle), "{params}: `{e}` should mention `{needle}`");
+    }
+    // Control maps of the wrong size, and images that are not PNGs.
+    let dm = json!({"seed": 1, "stages": [{}], "dilation_map": {"max": 3, "cell": 16}});
+    for (img, needle) in [(control_map(300), "300×300"), (Rgba8Image::new(1, 1), "1×1")] {
+        let mut inputs = Inputs::new();
+        inputs.insert("control".into(), img.to_png());
+        let e = err(dm.clone(), &inputs);
+        assert!(e.contains("control") && e.contains(needle) && e.contains("low resolution"), "{e}");
+    }
+    let mut junk = Inputs::new();
+    junk.insert("control".into(), b"not a png".to_vec());
+    assert!(err(dm.clone(), &junk).contains("control"));
+    let mut stray = Inputs::new();
+    stray.insert("initial".into(), initial_image(16, 16).to_png());
+    assert!(err(json!({"seed": 1, "stages": [{}]}), &stray).contains("`initial` is not set"));
+    let mut sample = Inputs::new();
+    sample.insert("sample".into(), initial_image(16, 16).to_png());
+    assert!(err(json!({"seed": 1, "stages": [{}]}), &sample).contains("sample"));
+
+    // Loading validates too: a tampered manifest or a stray section is refused.
+    let good = models::create("cascade", "ok", &single(), &none).unwrap();
+    let mut bad = good.clone();
+    bad.manifest.params["stages"][0]["kernel"]["size"] = json!(11);
+    assert!(models::load(&bad).err().unwrap().to_string().contains("7×7"));
+    let stray_section = good.clone().with_section("blocks", vec![1, 2, 3]);
+    assert!(models::load(&stray_section).err().unwrap().to_string().contains("unexpected section"));
+    let mut broken = models::create("cascade", "c", &dm, &{
+        let mut i = Inputs::new();
+        i.insert("control".into(), control_map(32).to_png());
+        i
+    })
+    .unwrap();
+    broken.sections[0].data.truncate(40);
+    assert!(models::load(&broken).err().unwrap().to_string().contains("control"));
+}
+
+/// FNV-1a hashes of 96×96 tiles of the demos, as computed by this crate compiled to
+/// `wasm32-unknown-unknown` and run under Node (and identically natively): a change in any
+/// operation's order or rounding (e.g. a fused multiply-add) breaks native/wasm agreement and
+/// fails here.
+#[test]
+fn tiles_match_hashes_measured_on_wasm32() {
+    let pinned: [(usize, u32, i64, i64, u64); 30] = [
+        (0, 0, 0, 0, 0x4ac858416035c910),
+        (0, 0, 1099511627776, -8589934592, 0x280cb8339fe09c3b),
+        (0, 2, 5, 7, 0x0684687a7a43000c),
+        (0, 4, 100, 100, 0x94f6d49e8aed3325),
+        (0, 9, 0, 0, 0x94f6d49e8aed3325),
+        (1, 0, 0, 0, 0xc8bf4ab275aae4d6),
+        (1, 0, 1099511627776, -8589934592, 0x13f94873dd34e2dc),
+        (1, 2, 5, 7, 0x788a41598449ac3e),
+        (1, 4, 100, 100, 0x956423ce89266325),
+        (1, 9, 0, 0, 0x956423ce89266325),
+        (2, 0, 0, 0, 0xa0f25f57971879e1),
+        (2, 0, 1099511627776, -8589934592, 0xbf54393d2867258b),
+        (2, 2, 5, 7, 0xc4ddf10c406fa456),
+        (2, 4, 100, 100, 0xf485b899ca49c26f),
+        (2, 9, 0, 0, 0x2b1670571d67f625),
+        (3, 0, 0, 0, 0x11157f6a95652ae5),
+        (3, 0, 1099511627776, -8589934592, 0x0719c3a0dfe8458b),
+        (3, 2, 5, 7, 0x35f038e7f9a6a100),
+        (3, 4, 100, 100, 0xa4730a18259e1930),
+        (3, 9, 0, 0, 0xdfcbb6267a634b25),
+        (4, 0, 0, 0, 0x467eb3a32fc50ab8),
+        (4, 0, 1099511627776, -8589934592, 0x3401aa7b8af4c24d),
+        (4, 2, 5, 7, 0x4ffe4495adfd5823),
+        (4, 4, 100, 100, 0xd60f8bc873d719b1),
+        (4, 9, 0, 0, 0xccd2b8191d648325),
+        (5, 0, 0, 0, 0xa4988b01a70b96ca),
+        (5, 0, 1099511627776, -8589934592, 0xb645f666fb6e2c88),
+        (5, 2, 5, 7, 0xd3e0451bc6dedb41),
+        (5, 4, 100, 100, 0x36e61f70ec4ce6a6),
+        (5, 9, 0, 0, 0x23ab79f3f8bca325),
+    ];
+    let textures: Vec<Arc<dyn Texture>> = cascade::demos().iter().map(|b| models::load(b).unwrap()).collect();
+    for (d, level, x, y, expect) in pinned {
+        let img = render(textures[d].as_ref(), level, x, y, 96, 96);
+        let h = img.data.iter().fold(0xcbf29ce484222325u64, |h, &v| (h ^ v as u64).wrapping_mul(0x100000001b3));
+        assert_eq!(h, expect, "demo {d} level {level} at ({x}, {y})");
+    }
+}

@@ -1,0 +1,366 @@
+//! The chaos mosaic against the paper and DESIGN §3: determinism, seamlessness, the cat map
+//! and block constraint, i = 0 as the plain tiling, explicit ≡ seed-derived sequences, mip
+//! coherence, the storage arithmetic of §3.1, and refusal of bad encodings.
+
+use serde_json::{json, Value};
+use std::sync::Arc;
+use vtex_synth::models::chaos_mosaic::{self, ChaosMosaic, RECORD_BYTES};
+use vtex_synth::texture::{level_count, level_size, render_image};
+use vtex_synth::{bundle::Bundle, mip, models, samples, Error, Region, Rgba8Image, Texture};
+
+fn inputs(sample: &Rgba8Image) -> models::Inputs {
+    models::Inputs::from([("sample".to_string(), sample.to_png())])
+}
+
+fn bundle(sample: &Rgba8Image, params: Value) -> Bundle {
+    models::create("chaos-mosaic", "test", &params, &inputs(sample)).unwrap()
+}
+
+fn mosaic(sample: &Rgba8Image, params: Value) -> ChaosMosaic {
+    chaos_mosaic::load(&bundle(sample, params)).unwrap()
+}
+
+fn render(tex: &dyn Texture, level: u32, x: i64, y: i64, w: u32, h: u32) -> Rgba8Image {
+    render_image(tex, &Region::new(level, x, y, w, h)).unwrap()
+}
+
+fn pebbles64() -> Rgba8Image {
+    samples::pebbles(64, 9, 4, true)
+}
+
+#[test]
+fn output_is_pinned_across_runs_and_builds() {
+    // A change to this hash changes every chaos-mosaic tile ever served: it must be deliberate.
+    let tex = mosaic(&pebbles64(), json!({"tiles_x": 8, "tiles_y": 8, "seed": 1}));
+    let img = render(&tex, 0, 100, 37, 300, 200);
+    assert_eq!(&vtex_synth::bundle::id_of(&img.data)[..16], "3f28d4fcc4240078");
+}
+
+#[test]
+fn same_bytes_on_any_thread_count_and_order() {
+    let tex = Arc::new(mosaic(&pebbles64(), json!({"tiles_x": 16, "tiles_y": 16, "seed": 9})));
+    let tiles: Vec<(i64, i64)> = (0..4).flat_map(|y| (0..4).map(move |x| (x * 256, y * 256))).collect();
+    let serial: Vec<Rgba8Image> = tiles.iter().map(|&(x, y)| render(&*tex, 0, x, y, 256, 256)).collect();
+    for threads in [2, 4, 8] {
+        // Worker k renders tiles k, k + threads, … in reverse order.
+        let mut parallel: Vec<Option<Rgba8Image>> = vec![None; tiles.len()];
+        std::thread::scope(|s| {
+            let workers: Vec<_> = (0..threads)
+                .map(|k| {
+                    let (tex, tiles) = (Arc::clone(&tex), &tiles);
+                    s.spawn(move || {
+                        (k..tiles.len())
+                            .step_by(threads)
+                            .rev()
+                            .map(|i| (i, render(&*tex, 0, tiles[i].0, tiles[i].1, 256, 256)))
+                            .collect::<Vec<_>>()
+                    })
+                })
+                .collect();
+            for w in workers {
+                for (i, img) in w.join().unwrap() {
+                    parallel[i] = Some(img);
+                }
+            }
+        });
+        let parallel: Vec<Rgba8Image> = parallel.into_iter().map(Option::unwrap).collect();
+        assert_eq!(parallel, serial, "{threads} threads");
+    }
+}
+
+/// Renders `tiles × tiles` tiles of `size` and one region covering them, and compares.
+fn assert_tiles_match_region(tex: &dyn Texture, level: u32, x0: i64, y0: i64, size: u32, tiles: u32) {
+    let whole = render(tex, level, x0, y0, size * tiles, size * tiles);
+    for ty in 0..tiles {
+        for tx in 0..tiles {
+            let tile = render(tex, level, x0 + (tx * size) as i64, y0 + (ty * size) as i64, size, size);
+            assert_eq!(
+                tile,
+                whole.crop(tx * size, ty * size, size, size),
+                "level {level} tile ({tx},{ty}) from ({x0},{y0})"
+            );
+        }
+    }
+}
+
+#[test]
+fn tiles_equal_crops_of_one_region_including_across_the_wrap() {
+    let tex = mosaic(&pebbles64(), json!({"tiles_x": 20, "tiles_y": 20, "seed": 3}));
+    assert_tiles_match_region(&tex, 0, 0, 0, 256, 4);
+    // Across the torus edge (width 1280): the region spans x = 768..1792, y = 1024..2048.
+    assert_tiles_match_region(&tex, 0, 768, 1024, 256, 4);
+    for level in 1..=5 {
+        assert_tiles_match_region(&tex, level, 0, 0, 64, 3);
+        let (lw, lh) = level_size(tex.width(), tex.height(), level);
+        assert_tiles_match_region(&tex, level, lw as i64 - 70, lh as i64 - 50, 64, 3);
+    }
+}
+
+#[test]
+fn the_texture_is_a_torus_without_seam() {
+    let tex = mosaic(&samples::lichen(48, 2), json!({"tiles_x": 5, "tiles_y": 7, "seed": 5}));
+    let (w, h) = (tex.width() as i64, tex.height() as i64);
+    for level in 0..3 {
+        let (lw, lh) = level_size(w as u64, h as u64, level);
+        let a = render(&tex, level, -37, -21, 90, 60);
+        let b = render(&tex, level, lw as i64 - 37, lh as i64 - 21, 90, 60);
+        let c = render(&tex, level, 3 * lw as i64 - 37, -(lh as i64) - 21, 90, 60);
+        assert_eq!(a, b, "level {level}");
+        assert_eq!(a, c, "level {level}");
+    }
+}
+
+#[test]
+fn every_block_obeys_the_area_constraint_and_lies_in_the_sample() {
+    for (n, cl, cu, per_tile) in [(64u32, 0.5, 0.75, 1), (100, 0.3, 0.4, 1), (37, 0.5, 0.75, 1), (64, 0.5, 0.75, 3)] {
+        let sample = samples::lichen(n, 1);
+        let params =
+            json!({"tiles_x": 30, "tiles_y": 30, "seed": n, "c_lambda": cl, "c_mu": cu, "blocks_per_tile": per_tile});
+        let tex = mosaic(&sample, params);
+        assert_eq!(tex.blocks().len(), 900 * per_tile, "{per_tile} blocks per tile");
+        for b in tex.blocks() {
+            let ratio = b.w as f64 * b.h as f64 / (n * n) as f64;
+            assert!((cl..=cu).contains(&ratio), "{b:?}: wh/n² = {ratio}");
+            assert!(b.x as u32 + b.w as u32 <= n && b.y as u32 + b.h as u32 <= n, "{b:?}");
+            assert!((b.s as u64) < tex.width() && (b.t as u64) < tex.height());
+        }
+    }
+}
+
+#[test]
+fn block_corners_follow_the_cat_map_from_their_tile() {
+    let n = 64u64;
+    let tex = mosaic(&pebbles64(), json!({"tiles_x": 10, "tiles_y": 10, "seed": 2, "iterations": 10}));
+    let m = 10 * n;
+    for (i, b) in tex.blocks().iter().enumerate() {
+        let (k1, k2) = (i as u64 % 10, i as u64 / 10);
+        let (mut x, mut y) = (b.x as u64 + k1 * n, b.y as u64 + k2 * n);
+        for _ in 0..10 {
+            (x, y) = ((x + y) % m, (x + 2 * y) % m);
+        }
+        assert_eq!((b.s as u64, b.t as u64), (x, y), "block {i}");
+    }
+}
+
+#[test]
+fn zero_iterations_reproduce_the_plain_tiling_exactly() {
+    let sample = pebbles64();
+    let tex = mosaic(&sample, json!({"tiles_x": 6, "tiles_y": 4, "iterations": 0, "seamless": true, "seed": 8}));
+    let img = render(&tex, 0, -50, 20, 500, 300);
+    for y in 0..300 {
+        for x in 0..500 {
+            let (sx, sy) = ((x as i64 - 50).rem_euclid(64) as u32, (y + 20) % 64);
+            assert_eq!(img.pixel(x, y), sample.pixel(sx, sy), "({x},{y})");
+        }
+    }
+}
+
+#[test]
+fn ten_iterations_are_not_the_tiling() {
+    let sample = pebbles64();
+    let tex = mosaic(&sample, json!({"tiles_x": 6, "tiles_y": 4, "seed": 8}));
+    let img = render(&tex, 0, 0, 0, 384, 256);
+    let differing = (0..256)
+        .flat_map(|y| (0..384).map(move |x| (x, y)))
+        .filter(|&(x, y)| img.pixel(x, y) != sample.pixel(x % 64, y % 64))
+        .count();
+    assert!(differing > 384 * 256 / 2, "only {differing} pixels differ from the tiling");
+}
+
+#[test]
+fn explicit_and_seed_derived_sequences_render_identically() {
+    let sample = samples::lichen(128, 3);
+    let seeded = bundle(&sample, json!({"tiles_x": 12, "tiles_y": 9, "seed": 77}));
+    let explicit = bundle(&sample, json!({"tiles_x": 12, "tiles_y": 9, "seed": 77, "sequence": "explicit"}));
+    assert_eq!(explicit.section("blocks").unwrap().len(), 12 * 9 * RECORD_BYTES);
+    let (a, b) = (models::load(&seeded).unwrap(), models::load(&explicit).unwrap());
+    for level in [0, 1, 3, 6] {
+        assert_eq!(render(&*a, level, 0, 0, 200, 150), render(&*b, level, 0, 0, 200, 150), "level {level}");
+    }
+}
+
+#[test]
+fn storage_matches_the_papers_arithmetic() {
+    // §3.1: 12 m²/n² bytes for the block sequence; §3.3: a 5000² texture from a 128² 24-bit
+    // sample is about 67 KB. 5000 is not a multiple of 128, so the nearest mosaic is 40×40
+    // tiles (5120²).
+    let paper = 12.0 * 5000f64.powi(2) / 128f64.powi(2) + 128.0 * 128.0 * 3.0;
+    assert!((paper / 1000.0 - 67.0).abs() < 1.0, "{paper}");
+    let sample = samples::lichen(128, 3);
+    let b = bundle(&sample, json!({"tiles_x": 40, "tiles_y": 40, "sequence": "explicit"}));
+    assert_eq!(b.section("blocks").unwrap().len(), 12 * 40 * 40);
+    let stored = b.to_bytes().len();
+    let explicit = 5120usize * 5120 * 3;
+    println!("5120² chaos mosaic: bundle {stored} B (paper's estimate {paper:.0} B), explicit texture {explicit} B, ratio {:.0}×", explicit as f64 / stored as f64);
+    assert!(stored < 80_000, "bundle of {stored} bytes");
+    // Seed-derived: the structure is a few bytes whatever the size.
+    let seeded = bundle(&sample, json!({"tiles_x": 781, "tiles_y": 781}));
+    assert!(seeded.to_bytes().len() < sample.to_png().len() + 1000);
+}
+
+/// PSNR of `level` against the exact 2×2-box downsample of level 0 over a `size²` window at
+/// level `level` (so a (size·2^level)² window at level 0).
+fn level_psnr(tex: &dyn Texture, level: u32, size: u32) -> f64 {
+    let full = render(tex, 0, 0, 0, size << level, size << level);
+    let exact = mip::downsample_n(&full, level);
+    mip::psnr(&render(tex, level, 0, 0, size, size), &exact)
+}
+
+#[test]
+fn mip_levels_match_the_exact_downsample() {
+    for (name, sample) in [
+        ("pebbles", samples::pebbles(128, 18, 5, true)),
+        ("lichen", samples::lichen(128, 7)),
+        ("cobbles", samples::pebbles(128, 18, 21, false)),
+    ] {
+        let tex = mosaic(&sample, json!({"tiles_x": 16, "tiles_y": 16, "seed": 4}));
+        let mut report = Vec::new();
+        // Levels 1–5 take the fine path, 6–7 the per-cell index path, 8–11 the coarse path.
+        for level in 1..=11 {
+            let size = (2048 >> level).min(256);
+            let p = level_psnr(&tex, level, size);
+            report.push(format!("L{level} {p:.1} dB"));
+            assert!(p >= 30.0, "{name} level {level}: {p:.1} dB");
+        }
+        println!("{name}: {}", report.join(", "));
+    }
+}
+
+#[test]
+fn coarsest_level_mean_is_the_textures_mean() {
+    for sample in [samples::pebbles(128, 18, 5, true), samples::lichen(64, 7)] {
+        let n = sample.width;
+        let tiles = 2048 / n;
+        let tex = mosaic(&sample, json!({"tiles_x": tiles, "tiles_y": tiles, "seed": 6}));
+        let level0 = mip::mean_rgba(&render(&tex, 0, 0, 0, 2048, 2048));
+        let last = level_count(tex.width(), tex.height()) - 1;
+        let top = mip::mean_rgba(&render(&tex, last, 0, 0, 1, 1));
+        for c in 0..3 {
+            assert!((level0[c] - top[c]).abs() <= 2.0, "channel {c}: level 0 {} vs level {last} {}", level0[c], top[c]);
+        }
+    }
+}
+
+#[test]
+fn non_square_textures_and_samples_work() {
+    let sample = Rgba8Image::from_raw(48, 30, samples::lichen(48, 1).crop(0, 0, 48, 30).data).unwrap();
+    let tex = mosaic(&sample, json!({"tiles_x": 7, "tiles_y": 3, "seed": 1}));
+    assert_eq!((tex.width(), tex.height()), (336, 90));
+    assert_tiles_match_region(&tex, 0, 300, 60, 32, 3);
+    assert_tiles_match_region(&tex, 1, 0, 0, 32, 2);
+}
+
+#[test]
+fn alpha_is_carried_through() {
+    let mut sample = pebbles64();
+    for (i, px) in sample.data.chunks_exact_mut(4).enumerate() {
+        px[3] = (i % 200) as u8 + 50;
+    }
+    let tex = mosaic(&sample, json!({"tiles_x": 4, "tiles_y": 4, "seed": 1, "iterations": 0, "seamless": true}));
+    assert_eq!(render(&tex, 0, 0, 0, 64, 64), sample);
+}
+
+fn create_err(sample: &Rgba8Image, params: Value) -> String {
+    match models::create("chaos-mosaic", "bad", &params, &inputs(sample)) {
+        Ok(_) => panic!("{params} was accepted"),
+        Err(e) => e.to_string(),
+    }
+}
+
+#[test]
+fn bad_parameters_are_refused_with_a_reason() {
+    let s = pebbles64();
+    let cases = [
+        (json!({"tiles_x": 0, "tiles_y": 4}), "tiles_x"),
+        (json!({"tiles_x": 100000, "tiles_y": 100000}), "tiles"),
+        (json!({"tiles_x": 4, "tiles_y": 4, "iterations": 1_000_000}), "iterations"),
+        (json!({"tiles_x": 4, "tiles_y": 4, "c_lambda": 0.9, "c_mu": 0.5}), "c_lambda"),
+        (json!({"tiles_x": 4, "tiles_y": 4, "c_mu": 1.5}), "c_mu"),
+        (json!({"tiles_x": 4, "tiles_y": 4, "filter_width": 99}), "filter_width"),
+        (json!({"tiles_x": 4, "tiles_y": 4, "blocks_per_tile": 0}), "blocks_per_tile"),
+        (json!({"tiles_x": 4, "tiles_y": 4, "blocks_per_tile": 9}), "blocks_per_tile"),
+        (json!({"tiles_x": 4}), "tiles_y"),
+        (json!({"tiles_x": -3, "tiles_y": 4}), "params"),
+        (json!({"tiles_x": 4, "tiles_y": 4, "colour": "red"}), "colour"),
+        (json!("not an object"), "params"),
+    ];
+    for (params, needle) in cases {
+        let e = create_err(&s, params.clone());
+        assert!(e.contains(needle), "{params} → {e}");
+    }
+    // A sample too small for the block constraint.
+    let tiny = samples::lichen(1, 1);
+    assert!(create_err(&tiny, json!({"tiles_x": 4, "tiles_y": 4, "c_lambda": 0.6, "c_mu": 0.7})).contains("too small"));
+    // Explicit 12-byte records need a sample of at most 256².
+    let big = samples::lichen(300, 1);
+    assert!(create_err(&big, json!({"tiles_x": 2, "tiles_y": 2, "sequence": "explicit"})).contains("256"));
+    // Missing or broken sample.
+    let e = models::create("chaos-mosaic", "bad", &json!({"tiles_x": 2, "tiles_y": 2}), &models::Inputs::new())
+        .unwrap_err();
+    assert!(e.to_string().contains("sample"), "{e}");
+    let junk = models::Inputs::from([("sample".to_string(), b"\x89PNG\r\n\x1a\nnot really".to_vec())]);
+    assert!(matches!(
+        models::create("chaos-mosaic", "bad", &json!({"tiles_x": 2, "tiles_y": 2}), &junk),
+        Err(Error::Image { .. })
+    ));
+}
+
+fn explicit_bundle() -> Bundle {
+    bundle(&pebbles64(), json!({"tiles_x": 4, "tiles_y": 4, "seed": 1, "sequence": "explicit"}))
+}
+
+fn load_err(b: &Bundle) -> String {
+    match models::load(b) {
+        Ok(_) => panic!("accepted"),
+        Err(e) => e.to_string(),
+    }
+}
+
+fn with_blocks(mut b: Bundle, edit: impl FnOnce(&mut Vec<u8>)) -> Bundle {
+    let s = b.sections.iter_mut().find(|s| s.name == "blocks").unwrap();
+    edit(&mut s.data);
+    b
+}
+
+#[test]
+fn hostile_block_sequences_are_refused() {
+    // Truncated record.
+    assert!(load_err(&with_blocks(explicit_bundle(), |d| d.truncate(d.len() - 5))).contains("multiple of 12"));
+    // Block reaching outside the sample: x = 60 with w ≥ 32 in a 64² sample.
+    assert!(load_err(&with_blocks(explicit_bundle(), |d| d[0] = 60)).contains("outside the 64×64 sample"));
+    // Pasted outside the texture (s = 10^6 on a 256-wide torus).
+    assert!(load_err(&with_blocks(explicit_bundle(), |d| d[4..8].copy_from_slice(&1_000_000u32.to_le_bytes())))
+        .contains("outside the 256×256 texture"));
+    // A 1×1 block breaks the area constraint.
+    assert!(load_err(&with_blocks(explicit_bundle(), |d| {
+        d[2] = 0;
+        d[3] = 0;
+    }))
+    .contains("area constraint"));
+    // Sections that do not belong.
+    let mut b = explicit_bundle();
+    b.sections.retain(|s| s.name != "blocks");
+    assert!(load_err(&b).contains("blocks"));
+    let b = explicit_bundle().with_section("extra", vec![1]);
+    assert!(load_err(&b).contains("unexpected section"));
+    let mut b = explicit_bundle();
+    b.manifest.params["seamless"] = Value::Null;
+    assert!(load_err(&b).contains("seamless"));
+}
+
+#[test]
+fn every_truncation_of_a_real_bundle_is_refused_without_panic() {
+    let bytes = explicit_bundle().to_bytes();
+    for cut in (0..bytes.len()).step_by(7) {
+        let parsed = Bundle::from_bytes(&bytes[..cut]);
+        assert!(parsed.is_err(), "truncated at {cut} parsed");
+    }
+    // Flipped bytes anywhere either fail to parse or fail to load, never panic.
+    for i in (0..bytes.len()).step_by(13) {
+        let mut b = bytes.clone();
+        b[i] ^= 0x5a;
+        if let Ok(bundle) = Bundle::from_bytes(&b) {
+            let _ = models::load(&bundle);
+        }
+    }
+}

@@ -1,0 +1,883 @@
+//! The `patterns` model: each §3 block's stated behaviour, the DESIGN §3 invariants and bad input.
+
+use std::collections::BTreeMap;
+use vtex_synth::bundle::Bundle;
+use vtex_synth::models::patterns::animation::{frame, transition_frame};
+use vtex_synth::models::patterns::demos;
+use vtex_synth::models::patterns::params::*;
+use vtex_synth::models::patterns::sigma::{Sigma, RANDOM_SIZE};
+use vtex_synth::models::patterns::{self as pat, art, pixel_map, PatternTexture};
+use vtex_synth::texture::{level_count, level_size, render_image};
+use vtex_synth::{mip, models, Region, Rgba8Image, Texture};
+
+/// A reference of `tx × ty` flat patterns of side `s`, pattern i coloured (i·16, 255 − i·16, i).
+fn flat_reference(tx: u32, ty: u32, s: u32) -> Rgba8Image {
+    let pats: Vec<Rgba8Image> = (0..tx * ty)
+        .map(|i| {
+            let mut img = Rgba8Image::new(s, s);
+            for y in 0..s {
+                for x in 0..s {
+                    // A little texture inside so mip levels are not trivially flat.
+                    let v = ((x * 7 + y * 3 + i * 11) % 17) as u8;
+                    img.set_pixel(x, y, [(i * 15) as u8 + v, 255 - (i * 15) as u8 - v, (i * 9) as u8 + v, 255]);
+                }
+            }
+            img
+        })
+        .collect();
+    art::pack(&pats, tx, ty)
+}
+
+fn params(w: u64, h: u64, s: u32, reference: [u32; 2], layers: Vec<LayerParams>) -> Params {
+    Params {
+        width: w,
+        height: h,
+        pattern_size: s,
+        reference,
+        seed: 7,
+        background: [0; 4],
+        layers,
+        sprites: BTreeMap::new(),
+        fps: None,
+    }
+}
+
+fn tiling(cell: u32, choice: Choice) -> LayerParams {
+    LayerParams {
+        kind: LayerKind::Tiling,
+        cell,
+        choice: Some(choice),
+        transform: None,
+        transitions: None,
+        animation: None,
+    }
+}
+
+fn inline(w: u32, h: u32, values: Vec<u16>) -> MapRef {
+    MapRef { size: [w, h], values: Some(values), section: None, depth: 1 }
+}
+
+fn build(p: &Params, reference: &Rgba8Image) -> Bundle {
+    demos::bundle("test", p, reference, vec![])
+}
+
+fn load(b: &Bundle) -> PatternTexture {
+    pat::load(b).unwrap()
+}
+
+fn err(b: &Bundle) -> String {
+    match pat::load(b) {
+        Ok(_) => panic!("loaded an invalid encoding"),
+        Err(e) => e.to_string(),
+    }
+}
+
+fn chi_square(counts: &[u64]) -> f64 {
+    let n: u64 = counts.iter().sum();
+    let e = n as f64 / counts.len() as f64;
+    counts.iter().map(|&c| (c as f64 - e).powi(2) / e).sum()
+}
+
+// ---------------------------------------------------------------- virtual indirection (σ)
+
+#[test]
+fn sigma_hash_is_the_papers_series() {
+    // 1D reading of σ(g/T² + σ(g/T + σ(g))) with T = 4, vectorial per §3.5.
+    let s = Sigma::generate(4, 4, 9, 0);
+    let lookup = |x: u64, y: u64| s.hash(x % 4, y % 4, 1);
+    for (gx, gy) in [(0u64, 0u64), (5, 9), (63, 17), (40, 61)] {
+        let s0 = lookup(gx, gy);
+        let s1 = lookup(gx / 4 + s0.0 as u64, gy / 4 + s0.1 as u64);
+        let s2 = lookup(gx / 16 + s1.0 as u64, gy / 16 + s1.1 as u64);
+        assert_eq!(s.hash(gx, gy, 3), s2, "cell ({gx}, {gy})");
+    }
+    assert_eq!(s.steps_for(64, 64), Some(3), "4³ = 64 cells need three steps");
+    assert_eq!(Sigma::generate(4, 1, 9, 0).steps_for(64, 64), None, "a 1-wide table cannot hash y");
+}
+
+#[test]
+fn virtual_choice_is_uniform_and_aperiodic() {
+    let b = build(&params(64 * 8, 64 * 8, 8, [4, 4], vec![tiling(8, Choice::Virtual)]), &flat_reference(4, 4, 8));
+    let t = load(&b);
+    let n = 64u64;
+    let grid: Vec<u32> = (0..n * n).map(|i| t.pick(0, i % n, i / n, 0).base.unwrap()).collect();
+    // Uniform over all 16 patterns: chi-square with 15 dof, p = 0.001 → 37.7. Also on an
+    // unaligned window, where the digit structure does not make it exact.
+    let mut counts = [0u64; 16];
+    grid.iter().for_each(|&p| counts[p as usize] += 1);
+    assert!(chi_square(&counts) < 37.7, "{counts:?}");
+    let mut win = [0u64; 16];
+    for y in 5..42 {
+        for x in 3..56 {
+            win[grid[(y * n + x) as usize] as usize] += 1;
+        }
+    }
+    assert!(chi_square(&win) < 37.7, "window {win:?}");
+    // Neighbours: every step of the σ chain is a bijection, so two cells whose base-T digits
+    // differ in one place never get the same pattern; equal neighbours only occur across a
+    // carry. Neighbour repeats are therefore rarer than the 1/16 of independent choices.
+    for (dx, dy) in [(1, 0), (0, 1), (1, 1)] {
+        let same = (0..n * n)
+            .filter(|&i| grid[i as usize] == grid[(((i / n + dy) % n) * n + (i % n + dx) % n) as usize])
+            .count();
+        let share = same as f64 / (n * n) as f64;
+        println!("neighbour ({dx}, {dy}) equal in {share:.4} of cells");
+        assert!(share < 1.0 / 16.0, "neighbour ({dx}, {dy}) equal in {share:.3} of cells");
+    }
+    let mut pairs = vec![0u64; 256];
+    for y in 0..n {
+        for x in 0..n - 1 {
+            pairs[(grid[(y * n + x) as usize] * 16 + grid[(y * n + x + 1) as usize]) as usize] += 1;
+        }
+    }
+    println!("horizontal pair chi-square {:.1} on 255 dof", chi_square(&pairs));
+    // Aperiodic: for every translation within the grid, the share of cells equal to their
+    // translate stays near 1/16 (a period would give 1).
+    let mut worst = 0.0f64;
+    let mut at = (0, 0);
+    for dy in 0..n {
+        for dx in 0..n {
+            if dx == 0 && dy == 0 {
+                continue;
+            }
+            let same = (0..n * n)
+                .filter(|&i| grid[i as usize] == grid[(((i / n + dy) % n) * n + (i % n + dx) % n) as usize])
+                .count();
+            if same as f64 / (n * n) as f64 > worst {
+                worst = same as f64 / (n * n) as f64;
+                at = (dx, dy);
+            }
+        }
+    }
+    println!("most repeating translation {at:?}: {worst:.3} of cells");
+    assert!(worst < 0.25, "translation {at:?} repeats {worst:.3} of the cells");
+}
+
+#[test]
+fn aliasing_of_fig_2_2_is_refused_and_power_of_two_ranges_are_exact() {
+    // A σ of 256 entries maps onto 16 values exactly: each appears 16 times.
+    let s = Sigma::generate(16, 16, 1, 3);
+    let mut counts = [0u32; 16];
+    for y in 0..16 {
+        for x in 0..16 {
+            counts[s.below(x, y, 1, 16) as usize] += 1;
+        }
+    }
+    assert!(counts.iter().all(|&c| c == 16), "{counts:?}");
+    // A probability map of 12 entries cannot be indexed without bias by a 256-entry σ.
+    let m = vec![MaterialParams { patterns: (0..12).collect(), family: 0 }];
+    let p =
+        params(64, 64, 8, [4, 4], vec![tiling(8, Choice::Materials { materials: m, areas: None, pixel_map: None })]);
+    let e = err(&build(&p, &flat_reference(4, 4, 8)));
+    assert!(e.contains("aliasing") && e.contains("12"), "{e}");
+    assert_eq!(RANDOM_SIZE, 256);
+}
+
+// ---------------------------------------------------------------- probability, areas, dithering
+
+#[test]
+fn probability_map_gives_its_proportions() {
+    // Material: pattern 3 three times, pattern 5 once → 75 % / 25 %.
+    let m = vec![MaterialParams { patterns: vec![3, 3, 5, 3], family: 0 }];
+    let p = params(
+        128 * 4,
+        128 * 4,
+        4,
+        [4, 4],
+        vec![tiling(4, Choice::Materials { materials: m, areas: None, pixel_map: None })],
+    );
+    let t = load(&build(&p, &flat_reference(4, 4, 4)));
+    let mut c3 = 0;
+    for y in 0..128 {
+        for x in 0..128 {
+            match t.pick(0, x, y, 0).base {
+                Some(3) => c3 += 1,
+                Some(5) => {}
+                other => panic!("pattern {other:?} is not in the probability map"),
+            }
+        }
+    }
+    let share = c3 as f64 / (128.0 * 128.0);
+    assert!((share - 0.75).abs() < 0.015, "pattern 3 in {share:.3} of cells, expected 0.75");
+}
+
+#[test]
+fn dithering_gives_the_barycentric_proportion() {
+    // Areas map 2 × 1: material 0 then 1. The grid is 64 cells wide, so area centres sit at
+    // cells 16 and 48: between them the share of material 1 rises linearly (b), and it
+    // falls back from 48 to 16 + 64 across the wrap.
+    let mats = vec![MaterialParams { patterns: vec![0], family: 0 }, MaterialParams { patterns: vec![1], family: 0 }];
+    let areas = AreasParams { map: inline(2, 1, vec![0, 1]), dithered: true };
+    let p = params(
+        64 * 2,
+        2048 * 2,
+        2,
+        [2, 2],
+        vec![tiling(2, Choice::Materials { materials: mats, areas: Some(areas), pixel_map: None })],
+    );
+    let t = load(&build(&p, &flat_reference(2, 2, 2)));
+    for gx in 0..64u64 {
+        let ones = (0..2048u64).filter(|&gy| t.material(0, gx, gy) == 1).count() as f64 / 2048.0;
+        let a = (gx as f64 + 0.5) * 2.0 / 64.0 - 0.5; // area coordinate of the cell centre
+        let b = a - a.floor();
+        let expected = if a.floor() as i64 % 2 == 0 { b } else { 1.0 - b };
+        assert!((ones - expected).abs() < 0.045, "column {gx}: {ones:.3} of material 1, barycentric {expected:.3}");
+    }
+    // Without dithering the areas are sharp.
+    let mats = vec![MaterialParams { patterns: vec![0], family: 0 }, MaterialParams { patterns: vec![1], family: 0 }];
+    let areas = AreasParams { map: inline(2, 1, vec![0, 1]), dithered: false };
+    let p = params(
+        64 * 2,
+        64 * 2,
+        2,
+        [2, 2],
+        vec![tiling(2, Choice::Materials { materials: mats, areas: Some(areas), pixel_map: None })],
+    );
+    let t = load(&build(&p, &flat_reference(2, 2, 2)));
+    for gx in 0..64 {
+        assert_eq!(t.material(0, gx, 5), (gx >= 32) as u16);
+    }
+}
+
+#[test]
+fn transition_tiles_come_from_the_four_neighbouring_materials() {
+    let b = demos::two_materials();
+    let t = load(&b);
+    let (nx, ny) = t.grid(0);
+    let family = |m: u16| m; // materials 0 and 1 are families 0 and 1 in this demo
+    let (mut plain, mut transitions) = (0, 0);
+    for gy in 0..ny {
+        for gx in 0..nx {
+            let corners = [(gx, gy), ((gx + 1) % nx, gy), (gx, (gy + 1) % ny), ((gx + 1) % nx, (gy + 1) % ny)];
+            let f = corners.map(|(x, y)| family(t.material(0, x, y)));
+            let pick = t.pick(0, gx, gy, 0);
+            if f.iter().all(|&v| v == f[0]) {
+                plain += 1;
+                assert_eq!(pick.n_overlays, 0);
+                let base = pick.base.unwrap();
+                assert_eq!(base / 16, f[0] as u32, "plain cell ({gx}, {gy}) takes its family's pattern");
+            } else {
+                transitions += 1;
+                let mask: u32 = f.iter().enumerate().map(|(i, &v)| (v as u32) << i).sum();
+                assert_eq!(pick.n_overlays, 1);
+                assert_eq!(pick.overlays[0], 32 + mask - 1, "cell ({gx}, {gy}) corners {f:?}");
+                assert!(pick.base.unwrap() < 16, "the base under a grass border is ground");
+            }
+        }
+    }
+    assert!(plain > 1000 && transitions > 100, "{plain} plain, {transitions} transition cells");
+}
+
+// ---------------------------------------------------------------- tile transform
+
+/// A square pattern whose red/green channels encode its texel coordinates.
+fn gradient_reference(s: u32) -> Rgba8Image {
+    let mut img = Rgba8Image::new(s, s);
+    for y in 0..s {
+        for x in 0..s {
+            img.set_pixel(x, y, [(x * 255 / (s - 1)) as u8, (y * 255 / (s - 1)) as u8, 128, 255]);
+        }
+    }
+    img
+}
+
+fn sparse(cell: u32, scale: [f32; 2], rotate: bool, overflow: bool) -> LayerParams {
+    LayerParams {
+        kind: LayerKind::Sparse,
+        cell,
+        choice: Some(Choice::Materials {
+            materials: vec![MaterialParams { patterns: vec![0], family: 0 }],
+            areas: None,
+            pixel_map: None,
+        }),
+        transform: Some(TransformParams { scale, rotate, overflow }),
+        transitions: None,
+        animation: None,
+    }
+}
+
+#[test]
+fn overflowing_patterns_are_continuous_across_cells() {
+    // One cell in four holds a pattern (probability map [0, -1, -1, -1]), so most patterns
+    // are alone in their neighbourhood and a border pixel belongs to exactly one of them.
+    let mut layer = sparse(32, [0.9, 0.9], false, true);
+    layer.choice = Some(Choice::Materials {
+        materials: vec![MaterialParams { patterns: vec![0, -1, -1, -1], family: 0 }],
+        areas: None,
+        pixel_map: None,
+    });
+    let n = 64u32;
+    let p = params(32 * n as u64, 32 * n as u64, 32, [1, 1], vec![layer]);
+    let t = load(&build(&p, &gradient_reference(32)));
+    let img = render_image(&t, &Region::new(0, 0, 0, 32 * n, 32 * n)).unwrap();
+    let filled =
+        |x: i64, y: i64| t.pick(0, x.rem_euclid(n as i64) as u64, y.rem_euclid(n as i64) as u64, 0).base.is_some();
+    let step = 255.0 / 31.0 / 0.9; // red per pixel inside a pattern drawn at scale 0.9
+    let mut crossings = 0;
+    for y in 0..img.height {
+        let gy = (y / 32) as i64;
+        for k in 1..n as i64 {
+            // Patterns touching pixels x = 32k − 1 and 32k come from cells k−2..=k, rows gy−1..=gy.
+            let owners = (k - 2..=k)
+                .flat_map(|cx| (gy - 1..=gy).map(move |cy| (cx, cy)))
+                .filter(|&(cx, cy)| filled(cx, cy))
+                .count();
+            if owners != 1 {
+                continue;
+            }
+            let x = (k * 32) as u32;
+            let (l, r) = (img.pixel(x - 1, y), img.pixel(x, y));
+            if l[3] == 255 && (l[0] as f32) < 255.0 - 2.0 * step {
+                // Inside the pattern, not at its right edge: it must go on in the next cell.
+                assert_eq!(r[3], 255, "pattern clipped at the cell border x = {x}, y = {y}");
+                let d = r[0] as f32 - l[0] as f32;
+                assert!(d > 0.0 && d < step + 2.0, "gradient jumps by {d} across x = {x}, y = {y}");
+                crossings += 1;
+            }
+        }
+    }
+    assert!(crossings > 300, "only {crossings} border pixels checked");
+    // Without overflow every pattern stays inside its cell: coverage never crosses a border
+    // with a continuing gradient.
+    let p = params(32 * 20, 32 * 20, 32, [1, 1], vec![sparse(32, [0.9, 0.9], false, false)]);
+    let t = load(&build(&p, &gradient_reference(32)));
+    let img = render_image(&t, &Region::new(0, 0, 0, 32 * 20, 32 * 20)).unwrap();
+    for y in 0..img.height {
+        for k in 1..20 {
+            let x = k * 32;
+            assert!(
+                img.pixel(x - 1, y)[3] == 0 || img.pixel(x, y)[3] == 0 || img.pixel(x, y)[0] < img.pixel(x - 1, y)[0]
+            );
+        }
+    }
+}
+
+#[test]
+fn rotated_sparse_patterns_reach_two_cells_away_when_needed() {
+    // Rotated patterns of scale 0.95 have a bounding box of 1.34 cells: the gather must look
+    // at enough neighbours. A region equals the crop of a larger one, so nothing depends on
+    // where the region starts.
+    let p = params(64 * 16, 64 * 16, 32, [1, 1], vec![sparse(64, [0.5, 0.95], true, true)]);
+    let t = load(&build(&p, &gradient_reference(32)));
+    let big = render_image(&t, &Region::new(0, 0, 0, 512, 512)).unwrap();
+    for (x, y, w, h) in [(0, 0, 64, 64), (63, 1, 70, 65), (200, 317, 100, 31), (448, 448, 64, 64)] {
+        let small = render_image(&t, &Region::new(0, x as i64, y as i64, w, h)).unwrap();
+        assert_eq!(small, big.crop(x, y, w, h), "region at ({x}, {y})");
+    }
+    let covered = big.data.chunks_exact(4).filter(|p| p[3] > 0).count() as f64 / (512.0 * 512.0);
+    assert!(covered > 0.2 && covered < 0.8, "coverage {covered:.2}");
+}
+
+// ---------------------------------------------------------------- animation
+
+#[test]
+fn animation_formula_holds() {
+    // Fig. 12: φ = 3, Z = 2, n = 4 (a = 1): p = max(0, (t + 3) mod 6 − 2).
+    let seq: Vec<i64> = (0..12).map(|t| frame(t, 3, 4, 2)).collect();
+    // t = 0: (0 + 3) mod 6 − 2 = 1; the rest lasts Z + 1 frames (frame 0 is the rest state).
+    assert_eq!(seq, vec![1, 2, 3, 0, 0, 0, 1, 2, 3, 0, 0, 0]);
+    // Through the model: explicit φ and Z maps, a = 2.
+    let (w, h) = (8u32, 4u32);
+    let phi: Vec<u16> = (0..w * h).map(|i| (i * 5 % 13) as u16).collect();
+    let z: Vec<u16> = (0..w * h).map(|i| (i % 4) as u16).collect();
+    let anim = AnimationParams {
+        sequence: vec![3, 1, 2, 0, 5],
+        a: 2.0,
+        phi: ValueParams { map: Some(inline(w, h, phi.clone())), random: 0 },
+        z: ValueParams { map: Some(inline(w, h, z.clone())), random: 0 },
+        previous: None,
+    };
+    let layer = LayerParams {
+        kind: LayerKind::Tiling,
+        cell: 4,
+        choice: None,
+        transform: None,
+        transitions: None,
+        animation: Some(anim),
+    };
+    let mut p = params(w as u64 * 4, h as u64 * 4, 4, [2, 4], vec![layer]);
+    p.fps = Some(10.0);
+    let t = load(&build(&p, &flat_reference(2, 4, 4)));
+    let seq = [3, 1, 2, 0, 5];
+    for frame_t in 0..40u32 {
+        for i in 0..(w * h) as u64 {
+            let (gx, gy) = (i % w as u64, i / w as u64);
+            let (f, r) = (phi[i as usize] as i64, 2 * z[i as usize] as i64);
+            let expected = ((frame_t as i64 + f).rem_euclid(5 + r) - r).max(0);
+            assert_eq!(t.pick(0, gx, gy, frame_t).base, Some(seq[expected as usize]), "cell {i} at t = {frame_t}");
+        }
+    }
+    let a = t.animation().unwrap();
+    // Cycle lengths 5 + 2Z for Z in 0..4: 5, 7, 9, 11 → lcm 3465.
+    assert_eq!(a.period_frames, 3465);
+    // The texture at frame t + period equals frame t.
+    let r = Region::new(0, 0, 0, 32, 16);
+    assert_eq!(render_image(&t, &r.at_frame(17)).unwrap(), render_image(&t, &r.at_frame(17 + 3465)).unwrap());
+}
+
+#[test]
+fn temporal_transitions_never_jump_to_a_mid_cycle_frame() {
+    let n = 6i64;
+    for phi in 0..14 {
+        for old in [0i64, 1, 3, 7, 12] {
+            for new in [0i64, 2, 5, 9] {
+                for t0 in 0..20 {
+                    let mut prev = transition_frame(t0 - 2 * n - 1, phi, n, old, new, t0);
+                    for t in t0 - 2 * n..t0 + 4 * n {
+                        let p = transition_frame(t, phi, n, old, new, t0);
+                        // A frame either continues its cycle, starts one (1 after rest or after
+                        // the end of the previous cycle), or rests after a completed cycle.
+                        assert!(
+                            p == 0 && (prev == 0 || prev == n - 1) || p == prev + 1 || p == 1 && prev == n - 1,
+                            "φ={phi} old={old} new={new} t0={t0}: {prev} → {p} at t={t}"
+                        );
+                        if t < t0 {
+                            assert_eq!(p, frame(t, phi, n, old), "before t0 the old cycling runs");
+                        }
+                        if t >= t0 + 2 * n {
+                            assert_eq!(p, frame(t, phi, n, new), "after t0 + 2n the new cycling runs");
+                        }
+                        prev = p;
+                    }
+                }
+            }
+        }
+    }
+}
+
+#[test]
+fn led_board_is_animated_and_frames_differ() {
+    let t = models::load(&demos::led_board(false)).unwrap();
+    assert_eq!((t.width(), t.height()), (12288, 1536));
+    let a = t.animation().expect("the LED board moves");
+    assert!(a.fps > 0.0);
+    // Level 2: 8 px per LED, the first 64 columns of LEDs (the first letters) and all rows.
+    let r = Region::new(2, 0, 0, 512, 384);
+    let f0 = render_image(&*t, &r.at_frame(0)).unwrap();
+    let f1 = render_image(&*t, &r.at_frame(1)).unwrap();
+    assert_ne!(f0, f1, "LEDs blink");
+    assert_eq!(f1, render_image(&*t, &r.at_frame(1)).unwrap());
+}
+
+// ---------------------------------------------------------------- sprites and pixel map
+
+#[test]
+fn sprites_move_by_a_merge_patch_of_their_params() {
+    let b = demos::sprites();
+    let t = load(&b);
+    let mut moved = b.clone();
+    let sprites = moved.manifest.params.get_mut("sprites").unwrap().as_object_mut().unwrap();
+    sprites.insert("maple".into(), serde_json::json!({"pattern": 16, "x": 1000, "y": 1900}));
+    let t2 = load(&moved);
+    assert_ne!(vtex_synth::bundle::id_of(&b.to_bytes()), vtex_synth::bundle::id_of(&moved.to_bytes()));
+    let mut gone = b.clone();
+    gone.manifest.params.get_mut("sprites").unwrap().as_object_mut().unwrap().remove("maple");
+    let ground = load(&gone);
+    let at = |tex: &PatternTexture, x, y| render_image(tex, &Region::new(0, x, y, 64, 64)).unwrap();
+    assert_ne!(at(&t, 700, 400), at(&ground, 700, 400), "the sprite is drawn at its place");
+    assert_eq!(at(&t2, 700, 400), at(&ground, 700, 400), "after the move the old place shows the ground");
+    // The moved sprite is the same picture over a different ground: compare where the leaf is opaque.
+    let (a, b2) = (at(&t, 700, 400), at(&t2, 1000, 1900));
+    let leaf = art::leaf(2003, 0, 64);
+    let mut same = 0;
+    for y in 0..64 {
+        for x in 0..64 {
+            if leaf.pixel(x, y)[3] == 255 {
+                assert_eq!(a.pixel(x, y), b2.pixel(x, y));
+                same += 1;
+            }
+        }
+    }
+    assert!(same > 500);
+}
+
+#[test]
+fn colliding_sprites_are_an_error() {
+    let mut b = demos::sprites();
+    let s = b.manifest.params.get_mut("sprites").unwrap().as_object_mut().unwrap();
+    s.insert("clash".into(), serde_json::json!({"pattern": 17, "x": 720, "y": 410}));
+    let e = err(&b);
+    assert!(e.contains("positioning cell") && e.contains("maple"), "{e}");
+}
+
+#[test]
+fn pixel_map_is_sharp_and_compressed() {
+    let (w, h, block) = (256u32, 128u32, 16u32);
+    let mask: Vec<u8> =
+        (0..w * h).map(|i| (((i % w) as i64 - 100).pow(2) + ((i / w) as i64 - 60).pow(2) < 40 * 40) as u8).collect();
+    let data = pixel_map::encode(w, h, block, &mask);
+    assert!(data.len() < mask.len() / 3, "{} bytes for a {}-byte mask", data.len(), mask.len());
+    let mats =
+        vec![MaterialParams { patterns: vec![0, 1], family: 0 }, MaterialParams { patterns: vec![2, 3], family: 1 }];
+    let pm = PixelMapParams { section: "mask".into(), size: [w, h], scale: 2, block };
+    let p = params(
+        512,
+        256,
+        8,
+        [2, 2],
+        vec![tiling(8, Choice::Materials { materials: mats, areas: None, pixel_map: Some(pm) })],
+    );
+    let b = demos::bundle("pm", &p, &flat_reference(2, 2, 8), vec![("mask", data)]);
+    let t = load(&b);
+    let img = render_image(&t, &Region::new(0, 0, 0, 512, 256)).unwrap();
+    let reference = flat_reference(2, 2, 8);
+    for y in 0..256u32 {
+        for x in 0..512u32 {
+            let m = mask[((y / 2) * w + x / 2) as usize];
+            assert_eq!(t.pixel_material(0, x as u64, y as u64), Some(m as u16));
+            // The pixel comes from a pattern of its own material, at pixel precision.
+            let px = img.pixel(x, y);
+            let candidates: Vec<[u8; 4]> = [0u32, 1]
+                .iter()
+                .map(|k| m as u32 * 2 + k)
+                .map(|p| reference.pixel((p % 2) * 8 + x % 8, (p / 2) * 8 + y % 8))
+                .collect();
+            assert!(candidates.contains(&px), "pixel ({x}, {y}) of material {m}");
+        }
+    }
+}
+
+// ---------------------------------------------------------------- DESIGN §3 invariants
+
+#[test]
+fn regions_equal_crops_wrap_and_are_deterministic_for_every_demo() {
+    for b in demos::demos() {
+        let bytes = b.to_bytes();
+        let t = models::load(&Bundle::from_bytes(&bytes).unwrap()).unwrap();
+        let t2 = models::load(&b).unwrap();
+        let levels = level_count(t.width(), t.height());
+        for level in [0, 1, 3, 6, 7, 9, levels - 1] {
+            let (lw, lh) = level_size(t.width(), t.height(), level);
+            let frame = if t.animation().is_some() { 123 } else { 0 };
+            let (x0, y0) = (lw as i64 / 3, lh as i64 / 2);
+            let big = render_image(&*t, &Region::new(level, x0 - 40, y0 - 40, 300, 200).at_frame(frame)).unwrap();
+            let tile = render_image(&*t2, &Region::new(level, x0 + 17, y0 - 3, 61, 90).at_frame(frame)).unwrap();
+            assert_eq!(tile, big.crop(57, 37, 61, 90), "{} level {level}: tile ≠ crop", b.manifest.name);
+            // Torus: one level width (height) further is the same pixels.
+            let shifted =
+                render_image(&*t, &Region::new(level, x0 + 17 + lw as i64, y0 - 3 - lh as i64, 61, 90).at_frame(frame))
+                    .unwrap();
+            assert_eq!(tile, shifted, "{} level {level}: does not wrap", b.manifest.name);
+        }
+    }
+}
+
+#[test]
+fn demos_are_reproducible_and_compact() {
+    let a: Vec<Vec<u8>> = demos::demos().iter().map(|b| b.to_bytes()).collect();
+    let b: Vec<Vec<u8>> = demos::demos().iter().map(|b| b.to_bytes()).collect();
+    assert_eq!(a, b, "demo encodings are pure functions of the code");
+    for (bytes, d) in a.iter().zip(demos::demos()) {
+        let t = models::load(&d).unwrap();
+        let explicit = t.width() * t.height() * 3;
+        let sections: Vec<String> = d.sections.iter().map(|s| format!("{} {}", s.name, s.data.len())).collect();
+        println!(
+            "| {} | {}×{} | {} ({}) | {} | {:.0}× |",
+            d.manifest.name,
+            t.width(),
+            t.height(),
+            bytes.len(),
+            sections.join(", "),
+            explicit,
+            explicit as f64 / bytes.len() as f64
+        );
+        assert!((bytes.len() as u64) * 100 < explicit, "{}: {} bytes for {explicit}", d.manifest.name, bytes.len());
+    }
+}
+
+#[test]
+fn create_from_inputs_matches_the_registry() {
+    let p = params(256, 256, 16, [2, 2], vec![tiling(16, Choice::Virtual)]);
+    let mut inputs = models::Inputs::new();
+    inputs.insert("reference".into(), flat_reference(2, 2, 16).to_png());
+    let b = models::create("patterns", "made", &serde_json::to_value(&p).unwrap(), &inputs).unwrap();
+    let t = models::load(&b).unwrap();
+    assert_eq!(t.model(), "patterns");
+    assert!(models::MODELS.contains(&"patterns"));
+    inputs.clear();
+    assert!(models::create("patterns", "made", &serde_json::to_value(&p).unwrap(), &inputs)
+        .unwrap_err()
+        .to_string()
+        .contains("reference"));
+}
+
+// ---------------------------------------------------------------- mip coherence
+
+/// PSNR of each level of `t` against the exact 2×2 box chain of its level 0.
+fn psnr_per_level(t: &dyn Texture) -> Vec<(u32, f64)> {
+    let (w, h) = (t.width() as u32, t.height() as u32);
+    let mut exact = render_image(t, &Region::new(0, 0, 0, w, h)).unwrap();
+    let mut out = Vec::new();
+    for level in 1..level_count(w as u64, h as u64) {
+        exact = mip::downsample(&exact);
+        let got = render_image(t, &Region::new(level, 0, 0, exact.width, exact.height)).unwrap();
+        out.push((level, mip::psnr(&got, &exact)));
+    }
+    out
+}
+
+#[test]
+fn tiling_levels_are_the_exact_downsample_up_to_four_cells_per_pixel() {
+    // 40 × 24 cells of 16 px (sizes that are not powers of two, so odd levels appear).
+    let p = params(40 * 16, 24 * 16, 16, [4, 4], vec![tiling(16, Choice::Virtual)]);
+    let t = load(&build(&p, &flat_reference(4, 4, 16)));
+    let levels = psnr_per_level(&t);
+    for &(level, db) in &levels {
+        if level <= 4 + 2 {
+            assert!(db.is_infinite(), "level {level}: {db:.1} dB; per-pattern mips and 4×4 oversampling are exact");
+        } else {
+            assert!(db > 30.0, "level {level}: {db:.1} dB with filtered indirection");
+        }
+    }
+    // The coarsest level's colour is the texture's true mean.
+    let full = render_image(&t, &Region::new(0, 0, 0, 640, 384)).unwrap();
+    let last = level_count(640, 384) - 1;
+    let top = render_image(&t, &Region::new(last, 0, 0, 1, 1)).unwrap();
+    let (m, g) = (mip::mean_rgba(&full), top.pixel(0, 0));
+    for c in 0..3 {
+        assert!((m[c] - g[c] as f64).abs() < 3.0, "channel {c}: mean {:.1}, top level {}", m[c], g[c]);
+    }
+}
+
+#[test]
+fn per_pattern_mips_do_not_bleed() {
+    // Two packed patterns, black and white: the 1×1 level of each is its own colour.
+    let mut img = Rgba8Image::new(32, 16);
+    for y in 0..16 {
+        for x in 16..32 {
+            img.set_pixel(x, y, [255, 255, 255, 255]);
+        }
+        for x in 0..16 {
+            img.set_pixel(x, y, [0, 0, 0, 255]);
+        }
+    }
+    let r = pat::reference::Reference::new(&img, 16, 2, 1).unwrap();
+    for l in 0..=4 {
+        let side = 16 >> l;
+        for y in 0..side {
+            for x in 0..side {
+                assert_eq!(r.texel(0, l, x, y), [0, 0, 0, 255]);
+                assert_eq!(r.texel(1, l, x, y), [255, 255, 255, 255]);
+            }
+        }
+    }
+}
+
+// ---------------------------------------------------------------- bad input
+
+#[test]
+fn bad_encodings_are_clear_errors() {
+    let r = flat_reference(4, 4, 8);
+    let ok = params(64, 64, 8, [4, 4], vec![tiling(8, Choice::Virtual)]);
+    pat::load(&build(&ok, &r)).unwrap();
+    let cases: Vec<(Params, &str)> = vec![
+        (params(64, 64, 12, [4, 4], vec![tiling(12, Choice::Virtual)]), "power of two"),
+        (params(60, 64, 8, [4, 4], vec![tiling(8, Choice::Virtual)]), "do not divide"),
+        (
+            params(64, 64, 8, [4, 4], vec![tiling(8, Choice::Explicit { map: inline(3, 3, vec![0; 9]) })]),
+            "does not divide",
+        ),
+        (
+            params(64, 64, 8, [4, 4], vec![tiling(8, Choice::Explicit { map: inline(2, 2, vec![0, 1, 2, 99]) })]),
+            "out of range",
+        ),
+        (params(64, 64, 8, [4, 4], vec![tiling(8, Choice::Explicit { map: inline(2, 2, vec![0, 1, 2]) })]), "3 values"),
+        (
+            params(
+                64,
+                64,
+                8,
+                [4, 4],
+                vec![tiling(
+                    8,
+                    Choice::Materials {
+                        materials: vec![MaterialParams { patterns: vec![0, 40], family: 0 }],
+                        areas: None,
+                        pixel_map: None,
+                    },
+                )],
+            ),
+            "pattern 40 is missing",
+        ),
+        (
+            params(
+                64,
+                64,
+                8,
+                [4, 4],
+                vec![tiling(
+                    8,
+                    Choice::Materials {
+                        materials: vec![MaterialParams { patterns: vec![0, -1], family: 0 }],
+                        areas: None,
+                        pixel_map: None,
+                    },
+                )],
+            ),
+            "cannot be blank",
+        ),
+        (
+            params(
+                64,
+                64,
+                8,
+                [4, 4],
+                vec![tiling(
+                    8,
+                    Choice::Materials {
+                        materials: vec![MaterialParams { patterns: vec![0], family: 0 }],
+                        areas: Some(AreasParams { map: inline(2, 2, vec![0, 0, 1, 0]), dithered: true }),
+                        pixel_map: None,
+                    },
+                )],
+            ),
+            "below 1",
+        ),
+        (params(64, 64, 8, [4, 4], vec![]), "layers"),
+        (params(64, 64, 8, [4, 4], vec![sparse(8, [0.5, 2.0], true, false)]), "does not fit"),
+    ];
+    for (p, needle) in cases {
+        let e = err(&build(&p, &r));
+        assert!(e.contains(needle), "expected `{needle}` in: {e}");
+    }
+    // Reference image of the wrong size, transitions with the wrong count, animation
+    // without fps, corrupted σ, missing sections.
+    let e = err(&build(&ok, &flat_reference(4, 3, 8)));
+    assert!(e.contains("reference"), "{e}");
+    let mut tr = demos::two_materials();
+    let l = &mut tr.manifest.params["layers"][0]["transitions"]["tiles"][0];
+    l.as_array_mut().unwrap().pop();
+    assert!(err(&tr).contains("corner mask"));
+    let mut led = demos::led_board(false);
+    led.manifest.params.as_object_mut().unwrap().remove("fps");
+    assert!(err(&led).contains("fps"));
+    let mut bad_sigma = build(&ok, &r);
+    let s = bad_sigma.sections.iter_mut().find(|s| s.name == "sigma").unwrap();
+    // Entries start at byte 5: make the second entry of the first table repeat the first.
+    s.data[7] = s.data[5];
+    s.data[8] = s.data[6];
+    assert!(err(&bad_sigma).contains("sigma"));
+    let mut missing = build(&ok, &r);
+    missing.sections.retain(|s| s.name != "reference.png");
+    assert!(err(&missing).contains("reference.png"));
+    let mut truncated = build(&ok, &r);
+    truncated.sections.iter_mut().find(|s| s.name == "sigma").unwrap().data.truncate(100);
+    assert!(err(&truncated).contains("truncated"));
+    // A virtual choice over a 16 × 1 reference cannot hash the y axis (§3.5).
+    let flat = params(64, 64, 8, [16, 1], vec![tiling(8, Choice::Virtual)]);
+    assert!(err(&build(&flat, &flat_reference(16, 1, 8))).contains("2D"));
+    // Garbage params never panic.
+    let mut garbage = build(&ok, &r);
+    garbage.manifest.params = serde_json::json!({"width": "wide"});
+    assert!(err(&garbage).contains("params"));
+}
+
+#[test]
+fn explicit_indirection_map_places_its_patterns_and_repeats() {
+    // A 2 × 3 map over a 6 × 6 grid repeats (maps wrap, §3.1).
+    let values = vec![5, 0, 9, 3, 15, 7];
+    let p = params(6 * 8, 6 * 8, 8, [4, 4], vec![tiling(8, Choice::Explicit { map: inline(2, 3, values.clone()) })]);
+    let r = flat_reference(4, 4, 8);
+    let t = load(&build(&p, &r));
+    let img = render_image(&t, &Region::new(0, 0, 0, 48, 48)).unwrap();
+    for gy in 0..6u32 {
+        for gx in 0..6u32 {
+            let want = values[((gy % 3) * 2 + gx % 2) as usize] as u32;
+            assert_eq!(t.pick(0, gx as u64, gy as u64, 0).base, Some(want));
+            let src = r.crop((want % 4) * 8, (want / 4) * 8, 8, 8);
+            assert_eq!(img.crop(gx * 8, gy * 8, 8, 8), src, "cell ({gx}, {gy}) shows pattern {want} exactly");
+        }
+    }
+}
+
+#[test]
+fn composited_layers_stay_close_to_the_exact_downsample() {
+    // Leaves over a tiling and grass transitions: not exact (rotated, bilinear, composited
+    // patterns), but every level stays near the box chain and the top level near the mean.
+    let small = |mut b: Bundle| {
+        b.manifest.params["width"] = 1024.into();
+        b.manifest.params["height"] = 1024.into();
+        models::load(&b).unwrap()
+    };
+    for (b, floor) in [(demos::leaves(), 22.0), (demos::two_materials(), 30.0)] {
+        let name = b.manifest.name.clone();
+        let t = small(b);
+        let full = render_image(&*t, &Region::new(0, 0, 0, 1024, 1024)).unwrap();
+        let mut exact = full.clone();
+        for level in 1..level_count(1024, 1024) {
+            exact = mip::downsample(&exact);
+            let got = render_image(&*t, &Region::new(level, 0, 0, exact.width, exact.height)).unwrap();
+            let db = mip::psnr(&got, &exact);
+            assert!(db > floor, "{name} level {level}: {db:.1} dB");
+        }
+        let (m, top) = (mip::mean_rgba(&full), exact.pixel(0, 0));
+        let got = render_image(&*t, &Region::new(10, 0, 0, 1, 1)).unwrap().pixel(0, 0);
+        for c in 0..3 {
+            assert!((got[c] as f64 - m[c]).abs() < 6.0, "{name}: top {got:?}, mean {m:?}, exact chain {top:?}");
+        }
+    }
+}
+
+/// Every number and string in a demo's params replaced by hostile values: loading gives a
+/// result (usually an error naming the field) and rendering what loads never panics.
+#[test]
+fn hostile_params_never_panic() {
+    fn leaves(v: &serde_json::Value, path: &mut Vec<String>, out: &mut Vec<Vec<String>>) {
+        match v {
+            serde_json::Value::Object(m) => m.iter().for_each(|(k, x)| {
+                path.push(k.clone());
+                leaves(x, path, out);
+                path.pop();
+            }),
+            serde_json::Value::Array(a) => a.iter().enumerate().take(3).for_each(|(i, x)| {
+                path.push(i.to_string());
+                leaves(x, path, out);
+                path.pop();
+            }),
+            _ => out.push(path.clone()),
+        }
+    }
+    fn at<'a>(v: &'a mut serde_json::Value, path: &[String]) -> &'a mut serde_json::Value {
+        path.iter().fold(v, |v, k| match v {
+            serde_json::Value::Array(a) => &mut a[k.parse::<usize>().unwrap()],
+            other => &mut other[k.as_str()],
+        })
+    }
+    let hostile = [
+        serde_json::json!(0),
+        serde_json::json!(-1),
+        serde_json::json!(1u64 << 40),
+        serde_json::json!(3),
+        serde_json::json!("x"),
+    ];
+    let mut loaded = 0;
+    for b in [demos::two_materials(), demos::leaves(), demos::sprites(), demos::led_board(true)] {
+        let mut paths = Vec::new();
+        leaves(&b.manifest.params, &mut Vec::new(), &mut paths);
+        for path in &paths {
+            for h in &hostile {
+                let mut m = b.clone();
+                *at(&mut m.manifest.params, path) = h.clone();
+                if let Ok(t) = pat::load(&m) {
+                    loaded += 1;
+                    let l = (level_count(t.width(), t.height()) - 1).min(3);
+                    render_image(&t, &Region::new(l, -5, -5, 40, 40).at_frame(7)).unwrap();
+                }
+            }
+        }
+    }
+    assert!(loaded > 0);
+}
+
+#[test]
+fn basic_sparse_convolution_of_one_pattern() {
+    // T = 1 (Fig. 18): a virtual choice over a single pattern, random place, scale, rotation.
+    let mut layer = sparse(32, [0.4, 0.7], true, true);
+    layer.choice = Some(Choice::Virtual);
+    let p = params(32 * 32, 32 * 32, 32, [1, 1], vec![layer]);
+    let t = load(&build(&p, &gradient_reference(32)));
+    let img = render_image(&t, &Region::new(0, 0, 0, 1024, 1024)).unwrap();
+    let covered = img.data.chunks_exact(4).filter(|p| p[3] > 0).count() as f64 / (1024.0 * 1024.0);
+    // Expected coverage: E[s²] = (0.16 + 0.28 + 0.49) / 3 = 0.31 of each cell, minus overlaps.
+    assert!(covered > 0.2 && covered < 0.31, "coverage {covered:.3}");
+}

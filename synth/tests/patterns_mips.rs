@@ -1,0 +1,45 @@
+//! Mip coherence of the `patterns` demos against the exact 2×2 box chain of their level 0
+//! (DESIGN §3.3), printed as a table: `cargo test -p vtex-synth --release --test
+//! patterns_mips -- --ignored --nocapture`. (Ignored by default: it renders 4096² images.)
+
+use vtex_synth::models::{self, patterns::demos};
+use vtex_synth::texture::{level_count, render_image};
+use vtex_synth::{mip, Region};
+
+#[test]
+#[ignore = "renders whole 4096² demos; run to measure"]
+fn psnr_of_every_level_of_the_demos() {
+    let list = vec![
+        demos::aperiodic(64),
+        demos::two_materials(),
+        demos::leaves(),
+        demos::sprites(),
+        demos::pixel_map_path(),
+        demos::led_board(false),
+    ];
+    for b in list {
+        let t = models::load(&b).unwrap();
+        let (w, h) = (t.width() as u32, t.height() as u32);
+        let frame = if t.animation().is_some() { 30 } else { 0 };
+        let mut exact = render_image(&*t, &Region::new(0, 0, 0, w, h).at_frame(frame)).unwrap();
+        let true_mean = mip::mean_rgba(&exact);
+        let mut row = Vec::new();
+        for level in 1..level_count(w as u64, h as u64) {
+            exact = mip::downsample(&exact);
+            let got = render_image(&*t, &Region::new(level, 0, 0, exact.width, exact.height).at_frame(frame)).unwrap();
+            let db = mip::psnr(&got, &exact);
+            row.push(if db.is_infinite() { format!("L{level} exact") } else { format!("L{level} {db:.1}") });
+            if level == level_count(w as u64, h as u64) - 1 {
+                let p = got.pixel(0, 0);
+                row.push(format!(
+                    "| top {:?} vs true mean [{:.1}, {:.1}, {:.1}]",
+                    &p[..3],
+                    true_mean[0],
+                    true_mean[1],
+                    true_mean[2]
+                ));
+            }
+        }
+        println!("{} :: {}", b.manifest.name, row.join(", "));
+    }
+}

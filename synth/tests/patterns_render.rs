@@ -1,0 +1,40 @@
+//! Renders every demo to PNG for looking at: `cargo test -p vtex-synth --test patterns_render
+//! -- --ignored` writes into `$VTEX_RENDER_DIR` (default `target/patterns-renders`).
+
+use vtex_synth::models::patterns::demos;
+use vtex_synth::texture::{level_count, render_image};
+use vtex_synth::{models, Region};
+
+#[test]
+#[ignore = "writes PNGs for inspection"]
+fn render_demos() {
+    let dir = std::env::var("VTEX_RENDER_DIR")
+        .unwrap_or_else(|_| concat!(env!("CARGO_MANIFEST_DIR"), "/../target/patterns-renders").into());
+    std::fs::create_dir_all(&dir).unwrap();
+    for (i, b) in demos::demos().iter().enumerate() {
+        let tex = models::load(b).unwrap();
+        let (w, h) = (tex.width(), tex.height());
+        // A 1024² detail at level 0, and the whole texture at the level where it fits 1024.
+        let detail =
+            render_image(&*tex, &Region::new(0, 0, 0, 1024.min(w) as u32, 1024.min(h) as u32).at_frame(30)).unwrap();
+        std::fs::write(format!("{dir}/{i}-detail.png"), detail.to_png()).unwrap();
+        let level = (0..level_count(w, h)).find(|&l| (w >> l) <= 1024 && (h >> l) <= 1024).unwrap();
+        let (lw, lh) = vtex_synth::texture::level_size(w, h, level);
+        let whole = render_image(&*tex, &Region::new(level, 0, 0, lw as u32, lh as u32).at_frame(30)).unwrap();
+        std::fs::write(format!("{dir}/{i}-level{level}.png"), whole.to_png()).unwrap();
+        println!("{i}: {} {}×{} level {level}", b.manifest.name, w, h);
+    }
+}
+
+#[test]
+#[ignore = "writes PNGs for inspection"]
+fn render_led_transition_frames() {
+    let dir = std::env::var("VTEX_RENDER_DIR")
+        .unwrap_or_else(|_| concat!(env!("CARGO_MANIFEST_DIR"), "/../target/patterns-renders").into());
+    std::fs::create_dir_all(&dir).unwrap();
+    let tex = models::load(&demos::led_board(true)).unwrap();
+    for frame in [100u32, 125, 140, 200] {
+        let img = render_image(&*tex, &Region::new(3, 0, 0, 1536, 192).at_frame(frame)).unwrap();
+        std::fs::write(format!("{dir}/led-transition-{frame}.png"), img.to_png()).unwrap();
+    }
+}

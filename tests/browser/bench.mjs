@@ -1,0 +1,198 @@
+// A measured pan-and-zoom session in headless Chromium against a real `vtex serve` (loopback).
+//
+//   node tests/browser/bench.mjs [--steps 60] [--pan-seconds 5] [--shots DIR] [--json FILE]
+//
+// 1. View changes: a fixed, seeded sequence of jumps, pans and zooms over the 100k × 100k
+//    texture. For each, the time from the change (applied at once, no animation) to the moment
+//    OpenSeadragon has drawn every tile the new view needs. Run three times:
+//      cold         fresh server (empty tile cache) and fresh browser profile;
+//      warm-server  same server (its tile cache now holds the session), fresh browser profile;
+//      warm-browser same browser after a reload (tiles from its HTTP cache, OSD's memory empty).
+// 2. A continuous pan at level 0 (a steady drag across fresh texture), recording every
+//    animation-frame interval, cold and then warm (the same path again).
+import { parseArgs } from 'node:util';
+import { writeFileSync } from 'node:fs';
+import { launchBrowser, openViewer, startServer, waitForIdle } from './lib.mjs';
+
+const { values: args } = parseArgs({
+  options: {
+    steps: { type: 'string', default: '60' },
+    'pan-seconds': { type: 'string', default: '5' },
+    'pan-speed': { type: 'string', default: '8' },
+    shots: { type: 'string' },
+    json: { type: 'string' },
+    width: { type: 'string', default: '1280' },
+    height: { type: 'string', default: '800' },
+  },
+});
+const STEPS = Number(args.steps);
+const PAN_SECONDS = Number(args['pan-seconds']);
+const PAN_SPEED = Number(args['pan-speed']); // screen pixels per frame
+const SIZE = { width: Number(args.width), height: Number(args.height) };
+
+/** Small seeded PRNG (mulberry32) so every run replays the same session. */
+function rng(seed) {
+  let a = seed >>> 0;
+  return () => {
+    a = (a + 0x6d2b79f5) >>> 0;
+    let t = a;
+    t = Math.imul(t ^ (t >>> 15), t | 1);
+    t ^= t + Math.imul(t ^ (t >>> 7), t | 61);
+    return ((t ^ (t >>> 14)) >>> 0) / 4294967296;
+  };
+}
+
+/** The session: views (zoom in screen px per level-0 px, centre in level-0 px). */
+function session(info, steps) {
+  const r = rng(1);
+  const views = [];
+  let v = { zoom: 0.05, x: info.width / 2, y: info.height / 2 };
+  for (let i = 0; i < steps; i++) {
+    const kind = i % 3;
+    if (kind === 0) {
+      // jump somewhere new at a zoom between 1/128 and 2
+      v = { zoom: 2 ** (-7 + 8 * r()), x: info.width * (0.05 + 0.9 * r()), y: info.height * (0.05 + 0.9 * r()) };
+    } else if (kind === 1) {
+      // pan by half to one screen
+      const a = 2 * Math.PI * r();
+      const d = (0.5 + 0.5 * r()) * SIZE.width;
+      v = { ...v, x: v.x + (Math.cos(a) * d) / v.zoom, y: v.y + (Math.sin(a) * d) / v.zoom };
+    } else {
+      // zoom in or out by 2 about the centre
+      v = { ...v, zoom: r() < 0.5 ? v.zoom * 2 : v.zoom / 2 };
+    }
+    v.zoom = Math.min(4, Math.max(1 / 256, v.zoom));
+    v.x = Math.min(info.width - 1, Math.max(0, v.x));
+    v.y = Math.min(info.height - 1, Math.max(0, v.y));
+    views.push({ ...v });
+  }
+  return views;
+}
+
+function summary(ms) {
+  const s = [...ms].sort((a, b) => a - b);
+  const q = (p) => s[Math.min(s.length - 1, Math.max(0, Math.ceil(p * s.length) - 1))];
+  return { n: s.length, p50: q(0.5), p95: q(0.95), max: s[s.length - 1], mean: s.reduce((a, b) => a + b, 0) / s.length };
+}
+
+/** Applies each view at once and measures until every tile it needs is drawn. */
+async function measureViews(page, views, shots, tag) {
+  const times = [];
+  const tiles = [];
+  for (let i = 0; i < views.length; i++) {
+    const r = await page.evaluate(
+      (view) =>
+        new Promise((resolve, reject) => {
+          const { viewer, state, setView, stats } = window.vtexViewer;
+          const requested0 = stats.requested;
+          const t0 = performance.now();
+          const timer = setTimeout(() => reject(new Error(`view not drawn in 30 s: ${JSON.stringify(view)}`)), 30_000);
+          const check = () => {
+            if (state.item.getFullyLoaded() && !viewer.world.needsDraw()) {
+              viewer.removeHandler('update-viewport', check);
+              clearTimeout(timer);
+              resolve({ ms: performance.now() - t0, tiles: stats.requested - requested0 });
+            }
+          };
+          viewer.addHandler('update-viewport', check);
+          setView(view, true);
+          viewer.forceRedraw();
+        }),
+      views[i],
+    );
+    times.push(r.ms);
+    tiles.push(r.tiles);
+    if (shots && i % 15 === 0) await page.screenshot({ path: `${shots}/${tag}-${i}.png` });
+  }
+  return { ...summary(times), tilesPerView: tiles.reduce((a, b) => a + b, 0) / tiles.length };
+}
+
+/** A steady pan of PAN_SPEED screen px per frame for PAN_SECONDS, recording frame intervals. */
+async function measurePan(page, start) {
+  return page.evaluate(
+    ({ start, seconds, speed }) =>
+      new Promise((resolve) => {
+        const { viewer, setView, stats } = window.vtexViewer;
+        setView(start, true);
+        const requested0 = stats.requested;
+        const frames = [];
+        let last = 0;
+        const t0 = performance.now();
+        const step = (now) => {
+          if (last) frames.push(now - last);
+          last = now;
+          const d = viewer.viewport.deltaPointsFromPixels(new OpenSeadragon.Point(speed, speed * 0.3), true);
+          viewer.viewport.panBy(d, true);
+          if (now - t0 < seconds * 1000) requestAnimationFrame(step);
+          else resolve({ frames, tiles: stats.requested - requested0 });
+        };
+        requestAnimationFrame(step);
+      }),
+    { start, seconds: PAN_SECONDS, speed: PAN_SPEED },
+  );
+}
+
+function panSummary({ frames, tiles }) {
+  const s = summary(frames);
+  return { ...s, over50: frames.filter((f) => f > 50).length, over33: frames.filter((f) => f > 33.4).length, tiles };
+}
+
+const server = await startServer();
+const results = { when: new Date().toISOString(), viewport: SIZE, steps: STEPS };
+try {
+  const textures = (await (await fetch(`${server.url}/api/v1/textures`)).json()).textures;
+  const big = textures.find((t) => t.width >= 100_000 && t.height >= 100_000);
+  if (!big) throw new Error('no 100k × 100k texture on the server');
+  results.texture = { name: big.name, model: big.model, width: big.width, height: big.height };
+  const views = session(big, STEPS);
+  const panStart = { zoom: 1, x: 20_000, y: 60_000 };
+  const url = `${server.url}/?texture=${big.id}&zoom=0.01&x=50000&y=50000`;
+
+  // Cold: fresh server, fresh browser.
+  let b = await launchBrowser(SIZE);
+  let { page } = await openViewer(b.context, url);
+  await waitForIdle(page);
+  results.cold = await measureViews(page, views, args.shots, 'cold');
+  results.panCold = panSummary(await measurePan(page, panStart));
+  await waitForIdle(page);
+  results.panWarm = panSummary(await measurePan(page, panStart));
+  // Warm browser: reload in the same profile (HTTP cache warm, OpenSeadragon's memory empty).
+  await page.reload();
+  await page.waitForFunction(() => window.vtexViewer && window.vtexViewer.state.item);
+  await waitForIdle(page);
+  results.warmBrowser = await measureViews(page, views, args.shots, 'warm-browser');
+  await b.close();
+
+  // Warm server: a fresh browser profile; every tile comes from the server's cache.
+  b = await launchBrowser(SIZE);
+  ({ page } = await openViewer(b.context, url));
+  await waitForIdle(page);
+  results.warmServer = await measureViews(page, views, args.shots, 'warm-server');
+  results.serverStats = await page.evaluate(() => window.vtexViewer.stats.snapshot());
+  await b.close();
+} finally {
+  await server.stop();
+}
+
+const f = (v) => v.toFixed(1);
+console.log(`texture ${results.texture.name} (${results.texture.model}), ${results.viewport.width}×${results.viewport.height} browser viewport, ${STEPS} view changes`);
+console.log('| view change → every visible tile drawn | p50 ms | p95 ms | max ms | tiles/view |');
+console.log('|---|---|---|---|---|');
+for (const [k, label] of [
+  ['cold', 'cold (empty server cache, fresh browser)'],
+  ['warmServer', 'warm server cache, fresh browser'],
+  ['warmBrowser', 'warm browser HTTP cache (after reload)'],
+]) {
+  const r = results[k];
+  console.log(`| ${label} | ${f(r.p50)} | ${f(r.p95)} | ${f(r.max)} | ${r.tilesPerView.toFixed(1)} |`);
+}
+console.log(`\n| continuous pan, ${PAN_SPEED} px/frame for ${PAN_SECONDS} s at level 0 | frames | p50 ms | p95 ms | max ms | > 33 ms | > 50 ms | tiles |`);
+console.log('|---|---|---|---|---|---|---|---|');
+for (const [k, label] of [
+  ['panCold', 'cold'],
+  ['panWarm', 'warm (same path again)'],
+]) {
+  const r = results[k];
+  console.log(`| ${label} | ${r.n} | ${f(r.p50)} | ${f(r.p95)} | ${f(r.max)} | ${r.over33} | ${r.over50} | ${r.tiles} |`);
+}
+if (args.json) writeFileSync(args.json, JSON.stringify(results, null, 2));

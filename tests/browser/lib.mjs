@@ -1,0 +1,198 @@
+// Shared harness for the browser tests and the measured session: a real `vtex serve` on a free
+// loopback port with a fresh data directory, and Debian's Chromium driven by playwright-core.
+import { spawn } from 'node:child_process';
+import { mkdtempSync, rmSync, existsSync } from 'node:fs';
+import { createRequire } from 'node:module';
+import { tmpdir } from 'node:os';
+import { dirname, join, resolve } from 'node:path';
+import { createInterface } from 'node:readline';
+import { fileURLToPath } from 'node:url';
+import { inflateSync } from 'node:zlib';
+
+export const ROOT = resolve(dirname(fileURLToPath(import.meta.url)), '..', '..');
+// playwright-core is a dependency of client-web (one `npm ci` installs the viewer and its tests).
+const require = createRequire(join(ROOT, 'client-web', 'package.json'));
+const { chromium } = require('playwright-core');
+
+export const VTEX_BIN = process.env.VTEX_BIN || join(ROOT, 'target', 'release', 'vtex');
+export const CHROMIUM = process.env.CHROMIUM || '/usr/bin/chromium';
+export const WEB_DIR = join(ROOT, 'client-web', 'dist');
+
+/** Starts `vtex serve` on 127.0.0.1:0 with a fresh data dir; resolves once it prints its URL. */
+export async function startServer({ extraArgs = [] } = {}) {
+  if (!existsSync(VTEX_BIN)) throw new Error(`${VTEX_BIN} not found: run cargo build --release -p vtex-server`);
+  if (!existsSync(join(WEB_DIR, 'index.html'))) throw new Error(`${WEB_DIR} not built: run npm ci && npm run build in client-web/`);
+  const dataDir = mkdtempSync(join(tmpdir(), 'vtex-browser-data-'));
+  const proc = spawn(
+    VTEX_BIN,
+    ['serve', '--bind', '127.0.0.1:0', '--data-dir', dataDir, '--web-dir', WEB_DIR, ...extraArgs],
+    { stdio: ['ignore', 'pipe', 'pipe'] },
+  );
+  let stderr = '';
+  proc.stderr.on('data', (d) => {
+    stderr = (stderr + d).slice(-4000);
+  });
+  const url = await new Promise((resolveUrl, reject) => {
+    const timer = setTimeout(() => reject(new Error(`vtex did not print its URL within 120 s; stderr:\n${stderr}`)), 120_000);
+    const lines = createInterface({ input: proc.stdout });
+    lines.on('line', (line) => {
+      const m = line.match(/^vtex listening on (http:\/\/\S+)/);
+      if (m) {
+        clearTimeout(timer);
+        resolveUrl(m[1].replace(/\/$/, ''));
+      }
+    });
+    proc.on('exit', (code) => {
+      clearTimeout(timer);
+      reject(new Error(`vtex exited with ${code} before listening; stderr:\n${stderr}`));
+    });
+  });
+  return {
+    url,
+    dataDir,
+    stderr: () => stderr,
+    async stop() {
+      if (proc.exitCode === null) {
+        proc.kill('SIGTERM');
+        await new Promise((r) => {
+          const t = setTimeout(() => {
+            proc.kill('SIGKILL');
+            r();
+          }, 5000);
+          proc.once('exit', () => {
+            clearTimeout(t);
+            r();
+          });
+        });
+      }
+      rmSync(dataDir, { recursive: true, force: true });
+    },
+  };
+}
+
+/** Launches headless Chromium with a fresh profile (so a fresh, empty HTTP cache). */
+export async function launchBrowser({ width = 1280, height = 800 } = {}) {
+  const profile = mkdtempSync(join(tmpdir(), 'vtex-chromium-'));
+  const context = await chromium.launchPersistentContext(profile, {
+    executablePath: CHROMIUM,
+    headless: true,
+    viewport: { width, height },
+    deviceScaleFactor: 1,
+    args: [
+      '--headless',
+      '--no-sandbox',
+      '--disable-gpu',
+      '--disable-quic',
+      '--no-first-run',
+      '--disable-background-networking',
+      '--disable-component-update',
+      '--disable-sync',
+      '--force-color-profile=srgb',
+    ],
+  });
+  return {
+    context,
+    async close() {
+      await context.close();
+      rmSync(profile, { recursive: true, force: true });
+    },
+  };
+}
+
+/**
+ * Opens `url` in a new page that records console errors, page errors, failed requests and
+ * every request made, so tests can assert on all of them.
+ */
+export async function openViewer(context, url) {
+  const page = await context.newPage();
+  const log = { errors: [], requests: [], failed: [], badResponses: [] };
+  page.on('console', (m) => {
+    if (m.type() === 'error') log.errors.push(m.text());
+  });
+  page.on('pageerror', (e) => log.errors.push(String(e)));
+  page.on('request', (r) => log.requests.push(r.url()));
+  page.on('requestfailed', (r) => log.failed.push(`${r.url()}: ${r.failure()?.errorText}`));
+  page.on('response', (r) => {
+    if (r.status() >= 400) log.badResponses.push(`${r.status()} ${r.url()}`);
+  });
+  await page.goto(url);
+  await page.waitForFunction(() => window.vtexViewer && window.vtexViewer.state.item);
+  return { page, log };
+}
+
+/** Resolves when every tile the current view needs is loaded and drawn. */
+export async function waitForIdle(page, timeout = 60_000) {
+  // Let OpenSeadragon run at least one update after whatever the caller just did.
+  await page.evaluate(() => new Promise((r) => requestAnimationFrame(() => requestAnimationFrame(r))));
+  await page.waitForFunction(
+    () => {
+      const v = window.vtexViewer;
+      const item = v.state.item;
+      const vp = v.viewer.viewport;
+      const settled =
+        vp.getZoom(true) === vp.getZoom(false) && vp.getCenter(true).equals(vp.getCenter(false));
+      return settled && item && item.getFullyLoaded() && !v.viewer.world.needsDraw() && v.state.pending === null;
+    },
+    null,
+    { timeout, polling: 50 },
+  );
+}
+
+/** Decodes an 8-bit, non-interlaced RGB or RGBA PNG (what Chromium's screenshots are). */
+export function decodePng(buf) {
+  const sig = '89504e470d0a1a0a';
+  if (buf.subarray(0, 8).toString('hex') !== sig) throw new Error('not a PNG');
+  let off = 8;
+  let width = 0;
+  let height = 0;
+  let colorType = 0;
+  const idat = [];
+  while (off < buf.length) {
+    const len = buf.readUInt32BE(off);
+    const type = buf.toString('latin1', off + 4, off + 8);
+    const data = buf.subarray(off + 8, off + 8 + len);
+    if (type === 'IHDR') {
+      width = data.readUInt32BE(0);
+      height = data.readUInt32BE(4);
+      if (data[8] !== 8 || data[12] !== 0) throw new Error('only 8-bit non-interlaced PNGs');
+      colorType = data[9];
+    } else if (type === 'IDAT') idat.push(data);
+    else if (type === 'IEND') break;
+    off += 12 + len;
+  }
+  const channels = { 2: 3, 6: 4 }[colorType];
+  if (!channels) throw new Error(`PNG colour type ${colorType} not supported`);
+  const raw = inflateSync(Buffer.concat(idat));
+  const stride = width * channels;
+  const out = Buffer.alloc(width * height * 4);
+  let prev = Buffer.alloc(stride);
+  for (let y = 0; y < height; y++) {
+    const filter = raw[y * (stride + 1)];
+    const line = Buffer.from(raw.subarray(y * (stride + 1) + 1, (y + 1) * (stride + 1)));
+    for (let i = 0; i < stride; i++) {
+      const a = i >= channels ? line[i - channels] : 0;
+      const b = prev[i];
+      const c = i >= channels ? prev[i - channels] : 0;
+      let p;
+      if (filter === 0) p = 0;
+      else if (filter === 1) p = a;
+      else if (filter === 2) p = b;
+      else if (filter === 3) p = (a + b) >> 1;
+      else if (filter === 4) {
+        const pa = Math.abs(b - c);
+        const pb = Math.abs(a - c);
+        const pc = Math.abs(a + b - 2 * c);
+        p = pa <= pb && pa <= pc ? a : pb <= pc ? b : c;
+      } else throw new Error(`bad PNG filter ${filter}`);
+      line[i] = (line[i] + p) & 255;
+    }
+    for (let x = 0; x < width; x++) {
+      out[(y * width + x) * 4] = line[x * channels];
+      out[(y * width + x) * 4 + 1] = line[x * channels + 1];
+      out[(y * width + x) * 4 + 2] = line[x * channels + 2];
+      out[(y * width + x) * 4 + 3] = channels === 4 ? line[x * channels + 3] : 255;
+    }
+    prev = line;
+  }
+  return { width, height, data: out };
+}

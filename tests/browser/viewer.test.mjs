@@ -1,0 +1,381 @@
+// End-to-end tests of the viewer: headless Chromium against a real `vtex serve`.
+// Run: node --test tests/browser/   (needs target/release/vtex and client-web/dist built)
+import test, { after, before } from 'node:test';
+import assert from 'node:assert/strict';
+import { decodePng, launchBrowser, openViewer, startServer, waitForIdle } from './lib.mjs';
+import { inPyramid } from '../../client-web/src/pyramid.js';
+
+let server;
+let browser;
+let textures;
+let big;
+
+before(async () => {
+  server = await startServer();
+  browser = await launchBrowser();
+  textures = (await (await fetch(`${server.url}/api/v1/textures`)).json()).textures;
+  big = textures.find((t) => t.width >= 100_000 && t.height >= 100_000);
+  assert.ok(big, `the demo textures include a 100k × 100k one: ${textures.map((t) => `${t.name} ${t.width}×${t.height}`)}`);
+});
+
+after(async () => {
+  await browser?.close();
+  await server?.stop();
+});
+
+/** Every tile request in `urls`, parsed, with its texture info. */
+function tileRequests(urls) {
+  const out = [];
+  for (const u of urls) {
+    const m = new URL(u).pathname.match(/^\/api\/v1\/textures\/([^/]+)\/tiles\/(\d+)\/(\d+)\/(\d+)\.(\w+)$/);
+    if (m) out.push({ id: m[1], level: +m[2], x: +m[3], y: +m[4], format: m[5], frame: new URL(u).searchParams.get('frame') });
+  }
+  return out;
+}
+
+/** No console errors, no failed or 4xx/5xx requests, every tile request inside its pyramid. */
+function assertClean(log) {
+  assert.deepEqual(log.errors, [], 'console errors');
+  assert.deepEqual(log.failed, [], 'failed requests');
+  assert.deepEqual(log.badResponses, [], 'error responses');
+  for (const t of tileRequests(log.requests)) {
+    const info = textures.find((i) => i.id === t.id);
+    assert.ok(info, `tile of a listed texture: ${t.id}`);
+    assert.ok(inPyramid(info, t.level, t.x, t.y), `tile ${t.level}/${t.x}/${t.y} lies inside the pyramid of ${info.name}`);
+  }
+  for (const u of log.requests) {
+    const path = new URL(u).pathname;
+    assert.ok(!/^https?:/.test(u) || u.startsWith(server.url), `request to another origin: ${u}`);
+    assert.ok(path.startsWith('/api/v1/') || !path.startsWith('/api'), `unexpected API request ${path}`);
+  }
+}
+
+/** Where level-0 pixel (x, y)'s top-left corner is, in viewer-element and page coordinates. */
+async function screenPointOf(page, x, y) {
+  return page.evaluate(
+    ([x, y]) => {
+      const { viewer, state } = window.vtexViewer;
+      const p = state.item.imageToViewerElementCoordinates(new OpenSeadragon.Point(x, y));
+      const r = viewer.element.getBoundingClientRect();
+      return { ex: p.x, ey: p.y, px: p.x + r.left, py: p.y + r.top };
+    },
+    [x, y],
+  );
+}
+
+/** Sets the view (zoom in screen px per level-0 px, centre in level-0 px) and moves it by a
+ * fraction of a screen pixel so that level-0 pixel (x, y) starts on a whole screen pixel. */
+async function setAlignedView(page, zoom, x, y) {
+  await page.evaluate(
+    ([zoom, x, y]) => {
+      const { viewer, state, setView } = window.vtexViewer;
+      setView({ zoom, x, y }, true);
+      viewer.viewport.applyConstraints(true);
+      const p = state.item.imageToViewerElementCoordinates(new OpenSeadragon.Point(x, y));
+      const r = viewer.element.getBoundingClientRect();
+      const px = p.x + r.left;
+      const py = p.y + r.top;
+      const d = new OpenSeadragon.Point(px - Math.round(px), py - Math.round(py));
+      viewer.viewport.panBy(viewer.viewport.deltaPointsFromPixels(d, true), true);
+    },
+    [zoom, x, y],
+  );
+  await waitForIdle(page);
+}
+
+/** The server's tile as raw RGBA (the `.rgba` format, sized by X-Vtex-Width/Height). */
+async function serverTile(info, level, tx, ty, frame) {
+  const q = frame === undefined ? '' : `?frame=${frame}`;
+  const r = await fetch(`${server.url}/api/v1/textures/${info.id}/tiles/${level}/${tx}/${ty}.rgba${q}`);
+  assert.equal(r.status, 200);
+  return { width: +r.headers.get('x-vtex-width'), height: +r.headers.get('x-vtex-height'), data: Buffer.from(await r.arrayBuffer()) };
+}
+
+/**
+ * Compares a `size`² patch of the screen whose top-left shows level-`level` pixel (lx, ly) at
+ * 1:1 against the server's tile. Returns the largest channel difference (alpha ignored).
+ */
+async function compareScreenToTile(page, info, level, lx, ly, size = 32, frame) {
+  const ts = info.tile_size;
+  const tile = await serverTile(info, level, Math.floor(lx / ts), Math.floor(ly / ts), frame);
+  const ox = lx % ts;
+  const oy = ly % ts;
+  assert.ok(ox + size <= tile.width && oy + size <= tile.height, 'patch inside one tile');
+  const s = 2 ** level;
+  const at = await screenPointOf(page, lx * s, ly * s);
+  const shot = decodePng(await page.screenshot({ clip: { x: Math.round(at.px), y: Math.round(at.py), width: size, height: size } }));
+  let worst = 0;
+  for (let j = 0; j < size; j++) {
+    for (let i = 0; i < size; i++) {
+      const a = (j * size + i) * 4;
+      const b = ((oy + j) * tile.width + ox + i) * 4;
+      for (let c = 0; c < 3; c++) worst = Math.max(worst, Math.abs(shot.data[a + c] - tile.data[b + c]));
+    }
+  }
+  return worst;
+}
+
+/**
+ * Sets a magnified view (zoom > 1, at a fractional offset) and checks that every screen pixel
+ * of a `size`² box at the centre shows exactly the level-0 texel under its centre: no seams,
+ * no stretched tiles, no smoothing. Returns the number of pixels compared.
+ */
+async function checkMagnified(page, info, zoom, x, y, size = 240) {
+  await page.evaluate(
+    ([zoom, x, y]) => {
+      window.vtexViewer.setView({ zoom, x, y }, true);
+      window.vtexViewer.viewer.viewport.applyConstraints(true);
+    },
+    [zoom, x, y],
+  );
+  await waitForIdle(page);
+  const a = await screenPointOf(page, x, y);
+  const b = await screenPointOf(page, x + 100, y + 100);
+  const sx = (b.px - a.px) / 100;
+  const sy = (b.py - a.py) / 100;
+  const clip = { x: Math.round(a.px - size / 2), y: Math.round(a.py - size / 2), width: size, height: size };
+  const shot = decodePng(await page.screenshot({ clip }));
+  const ts = info.tile_size;
+  const tiles = new Map();
+  let compared = 0;
+  for (let j = 0; j < size; j++) {
+    for (let i = 0; i < size; i++) {
+      const ix = x + (clip.x + i + 0.5 - a.px) / sx;
+      const iy = y + (clip.y + j + 0.5 - a.py) / sy;
+      // A pixel centre within 1 % of a texel edge may round either way.
+      const fx = ix - Math.floor(ix);
+      const fy = iy - Math.floor(iy);
+      if (fx < 0.01 || fx > 0.99 || fy < 0.01 || fy > 0.99) continue;
+      const tx = Math.floor(ix);
+      const ty = Math.floor(iy);
+      const key = `${Math.floor(tx / ts)},${Math.floor(ty / ts)}`;
+      if (!tiles.has(key)) tiles.set(key, await serverTile(info, 0, Math.floor(tx / ts), Math.floor(ty / ts)));
+      const tile = tiles.get(key);
+      const t = ((ty % ts) * tile.width + (tx % ts)) * 4;
+      const p = (j * size + i) * 4;
+      for (let c = 0; c < 3; c++) {
+        assert.equal(shot.data[p + c], tile.data[t + c], `screen (${clip.x + i}, ${clip.y + j}) shows texel (${tx}, ${ty})`);
+      }
+      compared++;
+    }
+  }
+  assert.ok(tiles.size >= 2, 'the box spans a tile boundary');
+  return compared;
+}
+
+test('the page loads cleanly, requests tiles and draws them', async () => {
+  const { page, log } = await openViewer(browser.context, `${server.url}/`);
+  await waitForIdle(page);
+  const tiles = tileRequests(log.requests);
+  assert.ok(tiles.length > 0, 'tiles were requested');
+  const drawn = await page.evaluate(() => window.vtexViewer.drawnLevels());
+  assert.ok(drawn.length > 0, 'tiles were drawn');
+  // The info panel shows encoding bytes beside the explicit texture's bytes.
+  const info = await page.locator('#info').innerText();
+  assert.match(info, /Encoding/);
+  assert.match(info, /Explicit/);
+  assert.match(info, / : 1/);
+  const stats = await page.evaluate(() => window.vtexViewer.stats.snapshot());
+  assert.equal(stats.loaded, tiles.length, 'every requested tile was loaded');
+  assert.equal(stats.serverHits + stats.serverMisses, stats.loaded, 'X-Vtex-Cache read on every tile');
+  assertClean(log);
+  await page.close();
+});
+
+for (const format of ['rgba', 'png', 'webp']) {
+  test(`drawn pixels equal the server tiles (${format}): level 0 and level 3 at 1:1, level 0 magnified`, async () => {
+    const { page, log } = await openViewer(browser.context, `${server.url}/?texture=${big.id}&format=${format}`);
+    await waitForIdle(page);
+    // Level 0 at 1:1, deep inside the texture.
+    await setAlignedView(page, 1, 73_000, 41_000);
+    assert.deepEqual(await page.evaluate(() => window.vtexViewer.drawnLevels()), [0]);
+    assert.equal(await compareScreenToTile(page, big, 0, 73_000, 41_000), 0, 'level-0 pixels exact');
+    // Level 3 drawn at 1:1 (zoom 1/8).
+    await setAlignedView(page, 1 / 8, 8 * 9_000, 8 * 5_000);
+    assert.deepEqual(await page.evaluate(() => window.vtexViewer.drawnLevels()), [3]);
+    assert.equal(await compareScreenToTile(page, big, 3, 9_000, 5_000), 0, 'level-3 pixels exact');
+    // Magnified 3.3× across the corner of four level-0 tiles.
+    assert.ok((await checkMagnified(page, big, 3.3, 285 * 256 + 0.37, 160 * 256 + 0.81)) > 40_000);
+    assert.ok(tileRequests(log.requests).every((t) => t.format === format), `every tile fetched as ${format}`);
+    assertClean(log);
+    await page.close();
+  });
+}
+
+test('drag, wheel, keys, double-click and pinch move the view; the navigator box follows', async () => {
+  const { page, log } = await openViewer(browser.context, `${server.url}/?texture=${big.id}&zoom=0.02&x=50000&y=50000`);
+  await waitForIdle(page);
+  const box = () => page.locator('.displayregion').boundingBox();
+  const canvas = await page.locator('#osd').boundingBox();
+  const cx = canvas.x + canvas.width / 2;
+  const cy = canvas.y + canvas.height / 2;
+
+  const before = await box();
+  let count = tileRequests(log.requests).length;
+  await page.mouse.move(cx, cy);
+  await page.mouse.down();
+  for (let i = 1; i <= 10; i++) await page.mouse.move(cx - 30 * i, cy - 20 * i);
+  await page.mouse.up();
+  await waitForIdle(page);
+  const afterDrag = await box();
+  assert.ok(tileRequests(log.requests).length > count, 'the drag requested new tiles');
+  assert.ok(afterDrag.x > before.x + 2 && afterDrag.y > before.y + 1, `navigator box moved right and down: ${JSON.stringify([before, afterDrag])}`);
+  const viewAfterDrag = await page.evaluate(() => window.vtexViewer.getView());
+  assert.ok(viewAfterDrag.x > 50_000 + 10_000 && viewAfterDrag.y > 50_000 + 5_000, 'the view moved with the drag');
+
+  count = tileRequests(log.requests).length;
+  await page.mouse.move(cx, cy);
+  for (let i = 0; i < 5; i++) {
+    await page.mouse.wheel(0, -120);
+    await page.waitForTimeout(60);
+  }
+  await waitForIdle(page);
+  const afterWheel = await box();
+  const zoomed = await page.evaluate(() => window.vtexViewer.getView());
+  assert.ok(zoomed.zoom > viewAfterDrag.zoom * 1.5, 'wheel zoomed in');
+  assert.ok(afterWheel.width < afterDrag.width * 0.75, 'navigator box shrank');
+  assert.ok(tileRequests(log.requests).length > count, 'the wheel zoom requested new tiles');
+
+  // Keyboard and double-click go through OpenSeadragon's own handlers.
+  await page.locator('#osd .openseadragon-canvas').first().focus();
+  const beforeKey = await page.evaluate(() => window.vtexViewer.getView());
+  await page.keyboard.press('ArrowRight');
+  await page.keyboard.press('-');
+  await waitForIdle(page);
+  const afterKey = await page.evaluate(() => window.vtexViewer.getView());
+  assert.ok(afterKey.x !== beforeKey.x, 'arrow key panned');
+  assert.ok(afterKey.zoom < beforeKey.zoom, 'minus key zoomed out');
+  await page.mouse.dblclick(cx, cy);
+  await waitForIdle(page);
+  const afterDbl = await page.evaluate(() => window.vtexViewer.getView());
+  assert.ok(afterDbl.zoom > afterKey.zoom * 1.5, 'double-click zoomed in');
+  // A two-finger pinch (touch events synthesised by Chromium).
+  const cdp = await browser.context.newCDPSession(page);
+  await cdp.send('Input.synthesizePinchGesture', { x: cx, y: cy, scaleFactor: 0.4, gestureSourceType: 'touch' });
+  await waitForIdle(page);
+  const afterPinch = await page.evaluate(() => window.vtexViewer.getView());
+  assert.ok(afterPinch.zoom < afterDbl.zoom / 1.5, `pinch zoomed out (${afterDbl.zoom} → ${afterPinch.zoom})`);
+  await cdp.detach();
+  assertClean(log);
+  await page.close();
+});
+
+test('many fast wheel zooms reach level 0 around (73000, 41000) cleanly', async () => {
+  const { page, log } = await openViewer(browser.context, `${server.url}/?texture=${big.id}&zoom=0.005&x=73000&y=41000`);
+  await waitForIdle(page);
+  const at = await screenPointOf(page, 73_000, 41_000);
+  await page.mouse.move(at.px, at.py);
+  // Faster than the zoom animation (0.5 s); OpenSeadragon drops wheel events < 50 ms apart.
+  for (let i = 0; i < 36; i++) {
+    await page.mouse.wheel(0, -100);
+    await page.waitForTimeout(55);
+  }
+  await waitForIdle(page);
+  const view = await page.evaluate(() => window.vtexViewer.getView());
+  assert.ok(view.zoom >= 1, `zoomed to full resolution (zoom ${view.zoom})`);
+  assert.ok(Math.abs(view.x - 73_000) < 2000 && Math.abs(view.y - 41_000) < 2000, 'zoomed around the cursor');
+  assert.deepEqual(await page.evaluate(() => window.vtexViewer.drawnLevels()), [0], 'level-0 tiles on screen');
+  const level0 = tileRequests(log.requests).filter((t) => t.level === 0);
+  assert.ok(level0.some((t) => t.x === Math.floor(73_000 / 256) && t.y === Math.floor(41_000 / 256)), 'the level-0 tile under (73000, 41000) was requested');
+  // The readout names the level-0 pixel under the cursor.
+  const here = await screenPointOf(page, 73_000.5, 41_000.5);
+  await page.mouse.move(here.px, here.py);
+  assert.equal(await page.locator('#coords').innerText(), 'x 73,000, y 41,000');
+  const stats = await page.evaluate(() => window.vtexViewer.stats.snapshot());
+  assert.equal(stats.failed, 0);
+  assertClean(log);
+  if (process.env.VTEX_SHOT_DIR) await page.screenshot({ path: `${process.env.VTEX_SHOT_DIR}/level0.png` });
+  await page.close();
+});
+
+test('switching textures with the picker shows the other texture', async () => {
+  assert.ok(textures.length >= 2, 'the server lists at least two textures');
+  const { page, log } = await openViewer(browser.context, `${server.url}/?texture=${big.id}`);
+  await waitForIdle(page);
+  const other = textures.find((t) => t.id !== big.id);
+  await page.selectOption('#texture-picker', other.id);
+  await page.waitForFunction((id) => window.vtexViewer.state.info.id === id && window.vtexViewer.state.item?.source.vtexInfo.id === id, other.id);
+  await waitForIdle(page);
+  assert.ok(tileRequests(log.requests).some((t) => t.id === other.id), 'tiles of the new texture requested');
+  assert.match(await page.locator('#info').innerText(), new RegExp(other.name.replace(/[.*+?^${}()|[\]\\]/g, '\\$&')));
+  await page.waitForFunction((id) => new URLSearchParams(location.search).get('texture') === id, other.id);
+  const view = await page.evaluate(() => window.vtexViewer.getView());
+  assert.ok(Math.abs(view.x - other.width / 2) < other.width * 0.01, 'the new texture opens whole, centred');
+  // Rapid switching: the last pick wins.
+  for (const id of [big.id, other.id, big.id, other.id, big.id]) await page.selectOption('#texture-picker', id);
+  await page.waitForFunction((id) => window.vtexViewer.state.item?.source.vtexInfo.id === id, big.id);
+  await waitForIdle(page);
+  assert.equal(await page.evaluate(() => window.vtexViewer.viewer.world.getItemCount()), 1);
+  assert.equal(await page.evaluate(() => window.vtexViewer.getView().texture), big.id);
+  assertClean(log);
+  await page.close();
+});
+
+test('a permalink restores the view', async () => {
+  const { page, log } = await openViewer(browser.context, `${server.url}/?texture=${big.id}&zoom=0.3&x=31000&y=62000`);
+  await waitForIdle(page);
+  // Move somewhere by dragging, then take the link the page now shows.
+  const canvas = await page.locator('#osd').boundingBox();
+  await page.mouse.move(canvas.x + 400, canvas.y + 300);
+  await page.mouse.down();
+  await page.mouse.move(canvas.x + 250, canvas.y + 200, { steps: 8 });
+  await page.mouse.up();
+  await page.mouse.move(canvas.x + 300, canvas.y + 300);
+  await page.mouse.wheel(0, -240);
+  await waitForIdle(page);
+  await page.waitForTimeout(400); // the URL is written 150 ms after the view settles
+  const view = await page.evaluate(() => window.vtexViewer.getView());
+  const link = page.url();
+  assert.match(link, /texture=/);
+  const shot = decodePng(await page.locator('#osd').screenshot());
+
+  const again = await openViewer(browser.context, link);
+  await waitForIdle(again.page);
+  const restored = await again.page.evaluate(() => window.vtexViewer.getView());
+  assert.equal(restored.texture, view.texture);
+  assert.ok(Math.abs(restored.zoom / view.zoom - 1) < 1e-4, `zoom ${restored.zoom} vs ${view.zoom}`);
+  assert.ok(Math.abs(restored.x - view.x) < 0.5 && Math.abs(restored.y - view.y) < 0.5, 'centre restored');
+  // The same pixels on screen (controls and navigator included).
+  const shot2 = decodePng(await again.page.locator('#osd').screenshot());
+  if (process.env.VTEX_SHOT_DIR) {
+    await page.locator('#osd').screenshot({ path: `${process.env.VTEX_SHOT_DIR}/permalink-a.png` });
+    await again.page.locator('#osd').screenshot({ path: `${process.env.VTEX_SHOT_DIR}/permalink-b.png` });
+  }
+  let differing = 0;
+  for (let i = 0; i < shot.data.length; i += 4) if (Math.abs(shot.data[i] - shot2.data[i]) > 8) differing++;
+  assert.ok(differing / (shot.width * shot.height) < 0.01, `screens match (${differing} pixels differ)`);
+  assertClean(log);
+  assertClean(again.log);
+  await page.close();
+  await again.page.close();
+});
+
+test('animated textures play through frames', async (t) => {
+  const anim = textures.find((i) => i.animated);
+  if (!anim) {
+    t.skip('the server has no animated texture');
+    return;
+  }
+  const { page, log } = await openViewer(browser.context, `${server.url}/?texture=${anim.id}&frame=2`);
+  await waitForIdle(page);
+  assert.equal(await page.evaluate(() => window.vtexViewer.state.frame), 2);
+  assert.ok(tileRequests(log.requests).every((r) => r.id !== anim.id || r.frame === '2'), 'frame 2 requested');
+  // Frame 2 on screen equals the server's frame-2 tile.
+  // A level at least 1024 px wide (or level 0), drawn at 1:1 around its middle.
+  let level = 0;
+  while (level + 1 < anim.levels && Math.ceil(anim.width / 2 ** (level + 1)) >= 1024) level++;
+  const s = 2 ** level;
+  const lx = Math.floor(Math.ceil(anim.width / s) / 2 / anim.tile_size) * anim.tile_size + 16;
+  const ly = Math.floor(Math.ceil(anim.height / s) / 2 / anim.tile_size) * anim.tile_size + 16;
+  await setAlignedView(page, 1 / s, lx * s, ly * s);
+  assert.equal(await compareScreenToTile(page, anim, level, lx, ly, 32, 2), 0, 'frame-2 pixels exact');
+  await page.click('#play');
+  await page.waitForFunction(() => window.vtexViewer.state.frame >= 5 || window.vtexViewer.state.frame < 2, null, { timeout: 30_000 });
+  await page.click('#play');
+  await waitForIdle(page);
+  const frames = new Set(tileRequests(log.requests).filter((r) => r.id === anim.id).map((r) => r.frame));
+  assert.ok(frames.size >= 3, `several frames requested: ${[...frames]}`);
+  await page.waitForFunction(() => /frame=\d+/.test(location.search));
+  assertClean(log);
+  await page.close();
+});
