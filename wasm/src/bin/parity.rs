@@ -1,0 +1,4 @@
+//! Prints the native probe hashes, one a line: the reference the WebAssembly build must match.
+fn main() {
+    println!("{}", vtex_synth_wasm::probe().join("\n"));
+}
