@@ -48,7 +48,7 @@ echo "# vtex server benchmarks — $(date -u +%FT%TZ), $(nproc) CPUs, loopback, 
 start_vtex 256
 ID=$(curl -s "$VTEX/api/v1/textures" | python3 -c '
 import json, sys
-print(next(t["id"] for t in json.load(sys.stdin)["textures"] if t["width"] == 100000))')
+print(next(t["id"] for t in json.load(sys.stdin)["textures"] if t["width"] == 100000 and t["model"] == "chaos-mosaic"))')
 
 # 1. Warm tiles: 64 PNG tiles of the 100k mosaic, fetched once into vtex's cache and
 #    written to nginx's root at the same paths.
