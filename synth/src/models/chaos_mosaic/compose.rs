@@ -72,8 +72,8 @@ impl ChaosMosaic {
     /// The unfiltered mosaic over `[x0, x0+w) × [y0, y0+h)`: sample rows copied run by run.
     pub(super) fn composite(&self, x0: i64, y0: i64, w: usize, h: usize) -> Composite {
         let (sw, sh) = (self.sample.width as usize, self.sample.height as usize);
-        let mut src = vec![0u32; w * h];
-        let mut rgba = vec![0u32; w * h];
+        let mut src = Vec::with_capacity(w * h);
+        let mut rgba = Vec::with_capacity(w * h);
         // The tiling T: each row is its sample row, repeated from the wrapped start column.
         let sx0 = wrap(x0, sw as u64) as usize;
         let sy0 = wrap(y0, sh as u64) as usize;
@@ -83,10 +83,8 @@ impl ChaosMosaic {
             let (mut i, mut sx) = (0, sx0);
             while i < w {
                 let n = (sw - sx).min(w - i);
-                rgba[j * w + i..j * w + i + n].copy_from_slice(&sample_row[sx..sx + n]);
-                for (k, s) in src[j * w + i..j * w + i + n].iter_mut().enumerate() {
-                    *s = (sy as u32) << 16 | (sx + k) as u32;
-                }
+                rgba.extend_from_slice(&sample_row[sx..sx + n]);
+                src.extend((sx..sx + n).map(|k| (sy as u32) << 16 | k as u32));
                 (i, sx) = (i + n, 0);
             }
         }
@@ -165,13 +163,13 @@ impl ChaosMosaic {
         let c = self.composite(x0 - r as i64, y0 - r as i64, w + 2 * r, h + 2 * r);
         let (seam_cols, seam_rows) = self.seam_candidates(&c);
         // Horizontal pass: every composite row, the output columns.
-        let mut hbuf = vec![0u32; c.h * w];
+        let mut hbuf = Vec::with_capacity(c.h * w);
         let mut dist = vec![u8::MAX; w];
         let mut row_seams = Vec::new();
         for (j, candidates) in seam_cols.iter().enumerate() {
             let (row_src, row_rgba) = (&c.src[j * c.w..(j + 1) * c.w], &c.rgba[j * c.w..(j + 1) * c.w]);
+            hbuf.extend_from_slice(&row_rgba[r..r + w]);
             let hrow = &mut hbuf[j * w..(j + 1) * w];
-            hrow.copy_from_slice(&row_rgba[r..r + w]);
             row_seams.clear();
             row_seams
                 .extend(candidates.iter().copied().filter(|&b| r > 0 && !self.continues_x(row_src[b - 1], row_src[b])));
