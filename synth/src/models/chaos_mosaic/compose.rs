@@ -166,6 +166,7 @@ impl ChaosMosaic {
         let mut hbuf = Vec::with_capacity(c.h * w);
         let mut dist = vec![u8::MAX; w];
         let mut row_seams = Vec::new();
+        let mut prefix: Vec<(u32, u32)> = Vec::with_capacity(4 * r + 2);
         for (j, candidates) in seam_cols.iter().enumerate() {
             let (row_src, row_rgba) = (&c.src[j * c.w..(j + 1) * c.w], &c.rgba[j * c.w..(j + 1) * c.w]);
             hbuf.extend_from_slice(&row_rgba[r..r + w]);
@@ -176,12 +177,23 @@ impl ChaosMosaic {
             for &b in &row_seams {
                 mark_near_boundary(&mut dist, b as isize - r as isize, r);
             }
-            // Each marked pixel is filtered once, then unmarked for the next row.
+            // Each marked pixel is filtered once, then unmarked for the next row. The windows
+            // near one seam all lie in composite columns [b − 2r, b + 2r): sum them from one
+            // lane-packed prefix sum of that band.
             for &b in &row_seams {
-                for i in (b as isize - 2 * r as isize).max(0) as usize..(b.min(w)) {
+                let base = b.saturating_sub(2 * r);
+                let band = &row_rgba[base..(b + 2 * r).min(c.w)];
+                prefix.clear();
+                prefix.push((0, 0));
+                for &p in band {
+                    let &(even, odd) = prefix.last().unwrap();
+                    prefix.push((even + (p & 0x00ff_00ff), odd + ((p >> 8) & 0x00ff_00ff)));
+                }
+                for i in b.saturating_sub(2 * r)..b.min(w) {
                     let d = std::mem::replace(&mut dist[i], u8::MAX) as usize;
                     if d < r {
-                        hrow[i] = mean(&row_rgba[i + d..=i + 2 * r - d]);
+                        let (lo, hi) = (prefix[i + d - base], prefix[i + 2 * r - d + 1 - base]);
+                        hrow[i] = mean_of_sums(hi.0 - lo.0, hi.1 - lo.1, (2 * (r - d) + 1) as u32);
                     }
                 }
             }
@@ -267,13 +279,18 @@ fn mark_near_boundary(dist: &mut [u8], first: isize, r: usize) {
 /// 2 · `MAX_FILTER_WIDTH` + 1 of them.
 #[inline]
 fn mean(pixels: &[u32]) -> u32 {
-    // Two 16-bit lanes a half: even bytes (R, B) and odd bytes (G, A) sum without carries.
     let (mut even, mut odd) = (0u32, 0u32);
     for &p in pixels {
         even += p & 0x00ff_00ff;
         odd += (p >> 8) & 0x00ff_00ff;
     }
-    let n = pixels.len() as u32;
+    mean_of_sums(even, odd, pixels.len() as u32)
+}
+
+/// The rounded means of `n` pixels from their channel sums in two 16-bit lanes a half: even
+/// bytes (R, B) and odd bytes (G, A), which add without carries for up to 257 pixels.
+#[inline]
+fn mean_of_sums(even: u32, odd: u32, n: u32) -> u32 {
     // (v + n/2) / n by a 20-bit reciprocal: exact for v < 2^20 / n, far above 255 · 17.
     let reciprocal = (1 << 20) / n + 1;
     let lane = |v: u32, shift: u32| ((((v >> shift) & 0xffff) + n / 2) * reciprocal) >> 20;
