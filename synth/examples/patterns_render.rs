@@ -1,12 +1,16 @@
-//! Renders every demo to PNG for looking at: `cargo test -p vtex-synth --test patterns_render
-//! -- --ignored` writes into `$VTEX_RENDER_DIR` (default `target/patterns-renders`).
+//! Renders every `patterns` demo to PNG for looking at, and the LED board across its temporal
+//! transition: `cargo run --release -p vtex-synth --example patterns_render` writes into
+//! `$VTEX_RENDER_DIR` (default `target/patterns-renders`).
 
 use vtex_synth::models::patterns::demos;
 use vtex_synth::texture::{level_count, render_image};
 use vtex_synth::{models, Region};
 
-#[test]
-#[ignore = "writes PNGs for inspection"]
+fn main() {
+    render_demos();
+    render_led_transition_frames();
+}
+
 fn render_demos() {
     let dir = std::env::var("VTEX_RENDER_DIR")
         .unwrap_or_else(|_| concat!(env!("CARGO_MANIFEST_DIR"), "/../target/patterns-renders").into());
@@ -26,8 +30,6 @@ fn render_demos() {
     }
 }
 
-#[test]
-#[ignore = "writes PNGs for inspection"]
 fn render_led_transition_frames() {
     let dir = std::env::var("VTEX_RENDER_DIR")
         .unwrap_or_else(|_| concat!(env!("CARGO_MANIFEST_DIR"), "/../target/patterns-renders").into());

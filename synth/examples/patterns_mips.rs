@@ -1,14 +1,12 @@
 //! Mip coherence of the `patterns` demos against the exact 2×2 box chain of their level 0
-//! (DESIGN §3.3), printed as a table: `cargo test -p vtex-synth --release --test
-//! patterns_mips -- --ignored --nocapture`. (Ignored by default: it renders 4096² images.)
+//! (DESIGN §3.3), printed as a table: `cargo run --release -p vtex-synth --example
+//! patterns_mips`. (A measurement, not a test: it renders whole 4096² demos.)
 
 use vtex_synth::models::{self, patterns::demos};
 use vtex_synth::texture::{level_count, render_image};
 use vtex_synth::{mip, Region};
 
-#[test]
-#[ignore = "renders whole 4096² demos; run to measure"]
-fn psnr_of_every_level_of_the_demos() {
+fn main() {
     let list = vec![
         demos::aperiodic(64),
         demos::two_materials(),
