@@ -17,6 +17,7 @@ pub mod catmap;
 mod compose;
 mod demos;
 mod index;
+mod layout;
 mod params;
 mod prefilter;
 
