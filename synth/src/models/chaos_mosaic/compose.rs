@@ -38,7 +38,8 @@ impl ChaosMosaic {
         let mut prefix = [(0u32, 0u32); 4 * MAX_FILTER_WIDTH as usize + 1];
         let mut first_seam = 0;
         for band in &layout.bands {
-            (seams.clear(), near.clear());
+            seams.clear();
+            near.clear();
             for b in self.column_seams(&layout, band) {
                 mark_near_boundary(&mut dist, b as isize - r as isize, r);
             }
@@ -46,8 +47,8 @@ impl ChaosMosaic {
                 // The windows of the pixels near seam b all lie in mosaic columns [b − 2r, b + 2r).
                 let base = b.saturating_sub(2 * r);
                 let first = near.len();
-                for i in base..b.min(w) {
-                    let d = std::mem::replace(&mut dist[i], u8::MAX) as usize;
+                for (i, slot) in (base..).zip(&mut dist[base..b.min(w)]) {
+                    let d = std::mem::replace(slot, u8::MAX) as usize;
                     if d < r {
                         near.push((i, i + d - base, i + 2 * r - d + 1 - base, (2 * (r - d) + 1) as u32));
                     }
