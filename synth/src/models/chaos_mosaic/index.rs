@@ -48,6 +48,11 @@ impl TileIndex {
         &self.ids[self.starts[i] as usize..self.starts[i + 1] as usize]
     }
 
+    /// The mean number of blocks listed a tile, as a fraction `(entries, tiles)`.
+    pub fn blocks_per_tile(&self) -> (u64, u64) {
+        (self.ids.len() as u64, self.starts.len() as u64 - 1)
+    }
+
     /// Heap bytes held by the index.
     pub fn heap_bytes(&self) -> usize {
         (self.starts.capacity() + self.ids.capacity()) * 4

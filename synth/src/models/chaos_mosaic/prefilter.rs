@@ -21,8 +21,8 @@ const CELLS: i64 = 4;
 
 /// Box sums of the sample extended periodically over the whole plane.
 pub(super) struct PeriodicSums {
-    w: i64,
-    h: i64,
+    w: Period,
+    h: Period,
     /// `table[y][x]` = sum of sample[0..y][0..x], (w+1) × (h+1) entries.
     table: Vec<[i64; 4]>,
 }
@@ -41,12 +41,12 @@ impl PeriodicSums {
                 }
             }
         }
-        Self { w: w as i64, h: h as i64, table }
+        Self { w: Period::new(w as i64), h: Period::new(h as i64), table }
     }
 
     #[inline]
-    fn corner(&self, x: i64, y: i64) -> &[i64; 4] {
-        &self.table[(y * (self.w + 1) + x) as usize]
+    fn corner(&self, x: i64, y: i64) -> [i64; 4] {
+        self.table[(y * (self.w.n + 1) + x) as usize]
     }
 
     /// Sum over [x0, x1) × [y0, y1) of the periodic sample. With x = qx·w + rx and
@@ -54,37 +54,68 @@ impl PeriodicSums {
     /// qx·qy·C(w,h) + qx·C(w,ry) + qy·C(rx,h) + C(rx,ry); the box is its four-corner difference.
     #[inline]
     pub fn box_sum(&self, x0: i64, y0: i64, x1: i64, y1: i64) -> [i64; 4] {
-        let (qx0, rx0, qx1, rx1) = split(x0, x1, self.w);
-        let (qy0, ry0, qy1, ry1) = split(y0, y1, self.h);
-        let inner = |c: usize| {
-            self.corner(rx1, ry1)[c] - self.corner(rx0, ry1)[c] - self.corner(rx1, ry0)[c] + self.corner(rx0, ry0)[c]
-        };
+        let (qx0, rx0, qx1, rx1) = self.w.split(x0, x1);
+        let (qy0, ry0, qy1, ry1) = self.h.split(y0, y1);
+        let c = |x, y| self.corner(x, y);
+        let inner = lanes(|k| [c(rx1, ry1)[k], -c(rx0, ry1)[k], -c(rx1, ry0)[k], c(rx0, ry0)[k]]);
         if qx0 == qx1 && qy0 == qy1 {
-            return std::array::from_fn(inner);
+            return inner;
         }
-        let (dqx, dqy) = (qx1 - qx0, qy1 - qy0);
-        let (all, w, h) = (self.w, self.w, self.h);
-        std::array::from_fn(|c| {
-            dqx * dqy * self.corner(all, h)[c]
-                + dqx * (self.corner(w, ry1)[c] - self.corner(w, ry0)[c])
-                + dqy * (self.corner(rx1, h)[c] - self.corner(rx0, h)[c])
-                + inner(c)
-        })
+        let (dqx, dqy, w, h) = (qx1 - qx0, qy1 - qy0, self.w.n, self.h.n);
+        let (all, right, bottom) =
+            (c(w, h), lanes(|k| [c(w, ry1)[k], -c(w, ry0)[k], 0, 0]), lanes(|k| [c(rx1, h)[k], -c(rx0, h)[k], 0, 0]));
+        lanes(|k| [dqx * dqy * all[k], dqx * right[k], dqy * bottom[k], inner[k]])
     }
 }
 
-/// Both ends of [a, b) as (quotient, remainder) by `period`, with one division when the
-/// interval is shorter than a period.
+/// Per channel k, the sum of the four terms `terms(k)`.
 #[inline]
-fn split(a: i64, b: i64, period: i64) -> (i64, i64, i64, i64) {
-    let (qa, ra) = (a.div_euclid(period), a.rem_euclid(period));
-    let rb = ra + (b - a);
-    if rb < period {
-        (qa, ra, qa, rb)
-    } else if rb < 2 * period {
-        (qa, ra, qa + 1, rb - period)
-    } else {
-        (qa, ra, b.div_euclid(period), b.rem_euclid(period))
+fn lanes(terms: impl Fn(usize) -> [i64; 4]) -> [i64; 4] {
+    let mut out = [0; 4];
+    for (k, o) in out.iter_mut().enumerate() {
+        *o = terms(k).iter().sum();
+    }
+    out
+}
+
+/// A period of the sample, with a reciprocal so that splitting a coordinate into periods
+/// multiplies instead of dividing (Lemire's fastmod; exact for 0 ≤ v < 2^32 and n ≥ 2).
+struct Period {
+    n: i64,
+    /// ⌈2^64 / n⌉, or 0 for n = 1 (which divides the slow way).
+    reciprocal: u64,
+}
+
+impl Period {
+    fn new(n: i64) -> Self {
+        Self { n, reciprocal: (u64::MAX / n as u64).wrapping_add(1) }
+    }
+
+    /// `v` as (quotient, remainder) by the period, rounding down.
+    #[inline]
+    fn div_rem(&self, v: i64) -> (i64, i64) {
+        if self.reciprocal != 0 && (0..1 << 32).contains(&v) {
+            let q = ((self.reciprocal as u128 * v as u128) >> 64) as i64;
+            (q, v - q * self.n)
+        } else {
+            (v.div_euclid(self.n), v.rem_euclid(self.n))
+        }
+    }
+
+    /// Both ends of [a, b) as (quotient, remainder), with one split when the interval is
+    /// shorter than two periods.
+    #[inline]
+    fn split(&self, a: i64, b: i64) -> (i64, i64, i64, i64) {
+        let (qa, ra) = self.div_rem(a);
+        let rb = ra + (b - a);
+        if rb < self.n {
+            (qa, ra, qa, rb)
+        } else if rb < 2 * self.n {
+            (qa, ra, qa + 1, rb - self.n)
+        } else {
+            let (qb, rb) = self.div_rem(b);
+            (qa, ra, qb, rb)
+        }
     }
 }
 
@@ -98,7 +129,7 @@ impl ChaosMosaic {
         let (lw, lh) = level_size(self.width, self.height, region.level);
         for (oy, ly, ny) in wrap_runs(region.y, region.height, lh) {
             for (ox, lx, nx) in wrap_runs(region.x, region.width, lw) {
-                let piece = self.integrate(region.level, lx as i64, ly as i64, nx, ny);
+                let piece = self.integrate(region.level, lx as i64, ly as i64, nx, ny, None);
                 for (j, row) in piece.chunks_exact(nx as usize).enumerate() {
                     let at = ((oy as usize + j) * region.width as usize + ox as usize) * 4;
                     for (o, px) in out[at..at + nx as usize * 4].chunks_exact_mut(4).zip(row) {
@@ -132,7 +163,9 @@ impl ChaosMosaic {
     /// First every pixel is classified by rasterizing the blocks near it in sequence order:
     /// a pixel is *clean* when one layer covers its footprint grown by the filter's reach
     /// (then the last block to touch that neighbourhood covers it whole); otherwise *dirty*.
-    fn integrate(&self, level: u32, lx: i64, ly: i64, nx: u32, ny: u32) -> Vec<[u8; 4]> {
+    /// `rasterize` forces how cells find their layers (the two ways give the same result);
+    /// `None` picks the cheaper one.
+    fn integrate(&self, level: u32, lx: i64, ly: i64, nx: u32, ny: u32, rasterize: Option<bool>) -> Vec<[u8; 4]> {
         let f = 1i64 << level;
         let (nx, ny) = (nx as usize, ny as usize);
         let (tw, th) = (self.width as i64, self.height as i64);
@@ -142,12 +175,19 @@ impl ChaosMosaic {
         let (x0, x1) = (lx * f, ((lx + nx as i64) * f).min(tw));
         let (y0, y1) = (ly * f, ((ly + ny as i64) * f).min(th));
         // Three regimes by footprint size: small footprints are classified and rasterized from
-        // the blocks near the region; footprints up to two sample periods look layers up per
-        // cell through the tile index; larger ones span so many blocks that each box of the
-        // periodic sample is the tiling's own mean to within a level, so blocks are skipped.
+        // the blocks near the region; footprints up to two sample periods take the layer of
+        // each cell, from the blocks rasterized onto the cells or, when the region holds more
+        // blocks than cells, looked up per cell through the tile index; larger ones span so
+        // many blocks that each box of the periodic sample is the tiling's own mean to within
+        // a level, so blocks are skipped.
         let fine = f + 2 * reach <= sw.min(sh) / 2;
         let coarse = f >= 2 * sw.max(sh);
-        let placed = match fine {
+        let cells = if f >= sw.min(sh) { 2 } else { CELLS.min(f / 2) } as usize;
+        let tiles_met = ((x1 - x0 + 2 * reach) / sw + 2) as u64 * ((y1 - y0 + 2 * reach) / sh + 2) as u64;
+        let (entries, tiles) = self.index.blocks_per_tile();
+        let cheaper = tiles_met * entries / tiles < (nx * ny * cells * cells) as u64;
+        let rasterize = fine || (!coarse && rasterize.unwrap_or(cheaper));
+        let placed = match rasterize {
             true => self.placements(x0 - reach, y0 - reach, (x1 - x0 + 2 * reach) as u64, (y1 - y0 + 2 * reach) as u64),
             false => Vec::new(),
         };
@@ -191,7 +231,6 @@ impl ChaosMosaic {
         // Dirty pixels are split into cells of at least 2 × 2 level-0 pixels (two per axis once
         // a footprint spans a tile), each taking the layer at its centre: rasterize the blocks
         // at cell centres, then integrate each run of equal cells in a row as one box.
-        let cells = if f >= sw.min(sh) { 2 } else { CELLS.min(f / 2) } as usize;
         let centres = |lo: i64, n: usize, extent: i64| -> Vec<(i64, i64, i64)> {
             (0..n as i64)
                 .flat_map(|i| {
@@ -204,7 +243,7 @@ impl ChaosMosaic {
                 .collect()
         };
         let (cols, rows) = (centres(lx, nx, tw), centres(ly, ny, th));
-        let mut label = vec![0u32; if fine { cols.len() * rows.len() } else { 0 }];
+        let mut label = vec![0u32; if rasterize { cols.len() * rows.len() } else { 0 }];
         for (k, p) in placed.iter().enumerate() {
             let b = &self.blocks[p.id as usize];
             let inside = |v: &[(i64, i64, i64)], lo: i64, hi: i64| {
@@ -215,20 +254,26 @@ impl ChaosMosaic {
                 label[j * cols.len() + ci.start..j * cols.len() + ci.end].fill(k as u32 + 1);
             }
         }
-        let offset = |l: u32| match l {
-            0 => (0, 0),
-            l => {
-                let p = &placed[l as usize - 1];
+        // The translation from texture to sample coordinates of each label's layer.
+        let offsets: Vec<(i64, i64)> = std::iter::once((0, 0))
+            .chain(placed.iter().map(|p| {
                 let b = &self.blocks[p.id as usize];
                 (b.x as i64 - p.x, b.y as i64 - p.y)
-            }
+            }))
+            .collect();
+        let offset = |l: u32| offsets[l as usize];
+        let tile = |v: &[(i64, i64, i64)], size: i64| v.iter().map(|c| (c.2 / size) as u32).collect::<Vec<_>>();
+        let (col_tiles, row_tiles) = match rasterize {
+            true => (Vec::new(), Vec::new()),
+            false => (tile(&cols, sw), tile(&rows, sh)),
         };
-        let layer = |ci: usize, cj: usize| match fine {
+        let layer = |ci: usize, cj: usize| match rasterize {
             true => offset(label[cj * cols.len() + ci]),
-            false => self.offset_at(cols[ci].2, rows[cj].2),
+            false => self.offset_at(cols[ci].2, rows[cj].2, col_tiles[ci], row_tiles[cj]),
         };
 
         let mut out = vec![[0u8; 4]; nx * ny];
+        let mut layers = [(0i64, 0i64); CELLS as usize];
         for j in 0..ny {
             let (fy0, fy1) = span(j as i64, ly, th);
             for i in 0..nx {
@@ -237,21 +282,23 @@ impl ChaosMosaic {
                     DIRTY => {
                         let mut acc = [0i64; 4];
                         for (cj, &(b0, b1, _)) in rows.iter().enumerate().skip(j * cells).take(cells) {
-                            let mut ci = i * cells;
-                            while ci < (i + 1) * cells {
-                                let (ox, oy) = layer(ci, cj);
-                                let start = ci;
-                                ci += 1;
-                                while ci < (i + 1) * cells && layer(ci, cj) == (ox, oy) {
-                                    ci += 1;
+                            if b0 == b1 {
+                                continue;
+                            }
+                            for (c, l) in layers[..cells].iter_mut().enumerate() {
+                                *l = layer(i * cells + c, cj);
+                            }
+                            // Runs of cells on one layer are one box.
+                            let mut c = 0;
+                            while c < cells {
+                                let (start, (ox, oy)) = (c, layers[c]);
+                                while c < cells && layers[c] == (ox, oy) {
+                                    c += 1;
                                 }
-                                let (a0, a1) = (cols[start].0, cols[ci - 1].1);
-                                if a0 == a1 || b0 == b1 {
-                                    continue;
-                                }
-                                let s = self.sums.box_sum(a0 + ox, b0 + oy, a1 + ox, b1 + oy);
-                                for c in 0..4 {
-                                    acc[c] += s[c];
+                                let (a0, a1) = (cols[i * cells + start].0, cols[i * cells + c - 1].1);
+                                if a0 < a1 {
+                                    let s = self.sums.box_sum(a0 + ox, b0 + oy, a1 + ox, b1 + oy);
+                                    acc.iter_mut().zip(s).for_each(|(a, s)| *a += s);
                                 }
                             }
                         }
@@ -272,13 +319,14 @@ impl ChaosMosaic {
     }
 
     /// The translation from texture to (periodic) sample coordinates of the top layer at a
-    /// level-0 point of the torus, through the tile index.
-    fn offset_at(&self, x: i64, y: i64) -> (i64, i64) {
-        let (sw, sh) = (self.sample.width as i64, self.sample.height as i64);
-        for &id in self.index.blocks((x / sw) as u32, (y / sh) as u32).iter().rev() {
+    /// level-0 point (x, y) of the torus, in tile (tx, ty), through the tile index.
+    fn offset_at(&self, x: i64, y: i64, tx: u32, ty: u32) -> (i64, i64) {
+        let (tw, th) = (self.width as i64, self.height as i64);
+        for &id in self.index.blocks(tx, ty).iter().rev() {
             let b = &self.blocks[id as usize];
-            let u = (x - b.s as i64).rem_euclid(self.width as i64);
-            let v = (y - b.t as i64).rem_euclid(self.height as i64);
+            // x and b.s both lie on [0, width): the wrapped difference needs no division.
+            let (u, v) = (x - b.s as i64, y - b.t as i64);
+            let (u, v) = (u + tw * (u < 0) as i64, v + th * (v < 0) as i64);
             if u < b.w as i64 && v < b.h as i64 {
                 return (b.x as i64 + u - x, b.y as i64 + v - y);
             }
@@ -326,6 +374,32 @@ mod tests {
                 }
             }
             assert_eq!(sums.box_sum(x0, y0, x1, y1), want, "box ({x0},{y0})-({x1},{y1})");
+        }
+    }
+
+    #[test]
+    fn periods_split_like_euclidean_division() {
+        for n in [1i64, 2, 3, 7, 64, 160, 4095, 4096] {
+            let p = Period::new(n);
+            for v in [0i64, 1, n - 1, n, n + 1, 12_345, (1 << 32) - 1, 1 << 32, -1, -n, -12_345, i64::MAX / 4] {
+                assert_eq!(p.div_rem(v), (v.div_euclid(n), v.rem_euclid(n)), "v={v} n={n}");
+            }
+        }
+    }
+
+    #[test]
+    fn cells_find_the_same_layers_rasterized_or_through_the_index() {
+        use crate::models::{self, Inputs};
+        let sample = crate::samples::pebbles(40, 6, 3, true);
+        let inputs = Inputs::from([("sample".to_string(), sample.to_png())]);
+        for bpt in [1, 2] {
+            let params = serde_json::json!({"tiles_x": 30, "tiles_y": 20, "seed": 5, "blocks_per_tile": bpt});
+            let tex = super::super::load(&models::create("chaos-mosaic", "t", &params, &inputs).unwrap()).unwrap();
+            // Footprints of 16 and 32 pixels: between the fine and the coarse regimes.
+            for (level, lx, ly, n) in [(4, 0, 0, 50), (4, 13, 40, 9), (5, 3, 2, 20)] {
+                let rasterized = tex.integrate(level, lx, ly, n, n, Some(true));
+                assert_eq!(rasterized, tex.integrate(level, lx, ly, n, n, Some(false)), "level {level} bpt {bpt}");
+            }
         }
     }
 
