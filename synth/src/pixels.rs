@@ -99,6 +99,11 @@ pub fn decode_png(name: &str, bytes: &[u8]) -> Result<Rgba8Image> {
     if w == 0 || h == 0 || w > MAX_IMAGE_SIDE || h > MAX_IMAGE_SIDE {
         return Err(fail(format!("{w}×{h} pixels; each side must be 1..={MAX_IMAGE_SIDE}")));
     }
+    // 16-bit samples decode to twice the bytes of RGBA8: bound what the decoder allocates.
+    let decoded = decoder.total_bytes();
+    if decoded > MAX_IMAGE_ALLOC {
+        return Err(fail(format!("{w}×{h} pixels decode to {decoded} bytes; at most {MAX_IMAGE_ALLOC} allowed")));
+    }
     let mut limits = image::Limits::default();
     limits.max_image_width = Some(MAX_IMAGE_SIDE);
     limits.max_image_height = Some(MAX_IMAGE_SIDE);
@@ -146,6 +151,34 @@ mod tests {
         png[16..20].copy_from_slice(&100_000u32.to_be_bytes());
         let err = decode_png("sample", &png).unwrap_err().to_string();
         assert!(err.contains("sample"), "{err}");
+    }
+
+    /// A PNG whose header declares `w × h` RGBA pixels of `bits` bits (valid CRCs), no pixel data.
+    fn header_only(w: u32, h: u32, bits: u8) -> Vec<u8> {
+        let mut ihdr = b"IHDR".to_vec();
+        ihdr.extend(w.to_be_bytes());
+        ihdr.extend(h.to_be_bytes());
+        ihdr.extend([bits, 6, 0, 0, 0]);
+        let mut png = b"\x89PNG\r\n\x1a\n".to_vec();
+        png.extend(13u32.to_be_bytes());
+        png.extend(&ihdr);
+        png.extend(crc32fast::hash(&ihdr).to_be_bytes());
+        for empty in [b"IDAT", b"IEND"] {
+            png.extend(0u32.to_be_bytes());
+            png.extend(empty);
+            png.extend(crc32fast::hash(empty).to_be_bytes());
+        }
+        png
+    }
+
+    #[test]
+    fn refuses_sixteen_bit_images_that_decode_past_the_allocation_bound() {
+        // 4096² RGBA16 is within the side bound but decodes to 128 MiB.
+        let err = decode_png("sample", &header_only(4096, 4096, 16)).unwrap_err().to_string();
+        assert!(err.contains("134217728 bytes"), "{err}");
+        // The same size in 8 bits passes the bound (and then fails for its missing data).
+        let err = decode_png("sample", &header_only(4096, 4096, 8)).unwrap_err().to_string();
+        assert!(!err.contains("bytes; at most"), "{err}");
     }
 
     #[test]
