@@ -182,10 +182,10 @@ impl ChaosMosaic {
         // a level, so blocks are skipped.
         let fine = f + 2 * reach <= sw.min(sh) / 2;
         let coarse = f >= 2 * sw.max(sh);
-        let cells = if f >= sw.min(sh) { 2 } else { CELLS.min(f / 2) } as usize;
+        let cells = if 2 * f >= sw.min(sh) { 2 } else { CELLS.min(f / 2) } as usize;
         let tiles_met = ((x1 - x0 + 2 * reach) / sw + 2) as u64 * ((y1 - y0 + 2 * reach) / sh + 2) as u64;
         let (entries, tiles) = self.index.blocks_per_tile();
-        let cheaper = tiles_met * entries / tiles < (nx * ny * cells * cells) as u64;
+        let cheaper = 4 * tiles_met * entries / tiles < (nx * ny * cells * cells) as u64;
         let rasterize = fine || (!coarse && rasterize.unwrap_or(cheaper));
         let placed = match rasterize {
             true => self.placements(x0 - reach, y0 - reach, (x1 - x0 + 2 * reach) as u64, (y1 - y0 + 2 * reach) as u64),
