@@ -229,8 +229,8 @@ impl ChaosMosaic {
         }
 
         // Dirty pixels are split into cells of at least 2 × 2 level-0 pixels (two per axis once
-        // a footprint spans a tile), each taking the layer at its centre: rasterize the blocks
-        // at cell centres, then integrate each run of equal cells in a row as one box.
+        // a footprint spans half a tile), each taking the layer at its centre; each run of equal
+        // cells in a row is integrated as one box.
         let centres = |lo: i64, n: usize, extent: i64| -> Vec<(i64, i64, i64)> {
             (0..n as i64)
                 .flat_map(|i| {
