@@ -78,6 +78,67 @@ fn lanes(terms: impl Fn(usize) -> [i64; 4]) -> [i64; 4] {
     out
 }
 
+/// The sums of every `side` × `side` box of the periodic sample, by the box's corner in the
+/// sample: a cell of a mip footprint then costs one look-up, whatever its layer's offset.
+struct BoxTable {
+    w: Period,
+    h: Period,
+    sums: Vec<[u32; 4]>,
+}
+
+impl BoxTable {
+    /// Samples up to this many pixels get a table (4 MiB); larger ones sum each box instead.
+    const MAX_SAMPLE_PIXELS: usize = 1 << 18;
+
+    /// Sliding sums along rows, then along columns of those. `None` for samples too large.
+    fn new(sample: &Rgba8Image, side: usize) -> Option<Self> {
+        let (w, h) = (sample.width as usize, sample.height as usize);
+        if w * h > Self::MAX_SAMPLE_PIXELS {
+            return None;
+        }
+        let px = |i: usize| std::array::from_fn(|c| sample.data[i * 4 + c] as u32);
+        let mut rows = Vec::with_capacity(w * h);
+        let mut line = Vec::new();
+        for y in 0..h {
+            line.clear();
+            line.extend((0..w).map(|x| px(y * w + x)));
+            rows.extend(window_sums(&line, side));
+        }
+        let mut sums = vec![[0; 4]; w * h];
+        for x in 0..w {
+            line.clear();
+            line.extend((0..h).map(|y| rows[y * w + x]));
+            for (y, s) in window_sums(&line, side).into_iter().enumerate() {
+                sums[y * w + x] = s;
+            }
+        }
+        Some(Self { w: Period::new(w as i64), h: Period::new(h as i64), sums })
+    }
+
+    /// The sum of the box with corner (x, y) of the plane.
+    #[inline]
+    fn sum(&self, x: i64, y: i64) -> [i64; 4] {
+        let (u, v) = (self.w.div_rem(x).1, self.h.div_rem(y).1);
+        self.sums[(v * self.w.n + u) as usize].map(i64::from)
+    }
+}
+
+/// For each i of a periodic `line`, the sum of its `side` values from i on. Sums wrap in u32
+/// arithmetic, exact because every window of the sample (≤ 4096² · 255) is below 2^32.
+fn window_sums(line: &[[u32; 4]], side: usize) -> impl Iterator<Item = [u32; 4]> + '_ {
+    let n = line.len();
+    let (laps, rest) = ((side / n) as u32, side % n);
+    let mut prefix = vec![[0u32; 4]; n + rest + 1];
+    for k in 0..n + rest {
+        prefix[k + 1] = std::array::from_fn(|c| prefix[k][c].wrapping_add(line[k % n][c]));
+    }
+    (0..n).map(move |i| {
+        std::array::from_fn(|c| {
+            laps.wrapping_mul(prefix[n][c]).wrapping_add(prefix[i + rest][c]).wrapping_sub(prefix[i][c])
+        })
+    })
+}
+
 /// A period of the sample, with a reciprocal so that splitting a coordinate into periods
 /// multiplies instead of dividing (Lemire's fastmod; exact for 0 ≤ v < 2^32 and n ≥ 2).
 struct Period {
@@ -229,8 +290,7 @@ impl ChaosMosaic {
         }
 
         // Dirty pixels are split into cells of at least 2 × 2 level-0 pixels (two per axis once
-        // a footprint spans half a tile), each taking the layer at its centre; each run of equal
-        // cells in a row is integrated as one box.
+        // a footprint spans half a tile), each integrated with the layer at its centre.
         let centres = |lo: i64, n: usize, extent: i64| -> Vec<(i64, i64, i64)> {
             (0..n as i64)
                 .flat_map(|i| {
@@ -272,8 +332,20 @@ impl ChaosMosaic {
             false => self.offset_at(cols[ci].2, rows[cj].2, col_tiles[ci], row_tiles[cj]),
         };
 
+        // A full cell is `side` pixels square: its sum is one look-up in a table of every such
+        // box of the sample, built on first use.
+        let side = f / cells as i64;
+        let table = std::cell::OnceCell::new();
+        let cell_sum = |(c0, c1): (i64, i64), (r0, r1): (i64, i64), (ox, oy): (i64, i64)| {
+            if c1 - c0 == side && r1 - r0 == side {
+                if let Some(t) = table.get_or_init(|| BoxTable::new(&self.sample, side as usize)) {
+                    return t.sum(c0 + ox, r0 + oy);
+                }
+            }
+            self.sums.box_sum(c0 + ox, r0 + oy, c1 + ox, r1 + oy)
+        };
+
         let mut out = vec![[0u8; 4]; nx * ny];
-        let mut layers = [(0i64, 0i64); CELLS as usize];
         for j in 0..ny {
             let (fy0, fy1) = span(j as i64, ly, th);
             for i in 0..nx {
@@ -281,23 +353,10 @@ impl ChaosMosaic {
                 let sum = match state[j * nx + i] {
                     DIRTY => {
                         let mut acc = [0i64; 4];
-                        for (cj, &(b0, b1, _)) in rows.iter().enumerate().skip(j * cells).take(cells) {
-                            if b0 == b1 {
-                                continue;
-                            }
-                            for (c, l) in layers[..cells].iter_mut().enumerate() {
-                                *l = layer(i * cells + c, cj);
-                            }
-                            // Runs of cells on one layer are one box.
-                            let mut c = 0;
-                            while c < cells {
-                                let (start, (ox, oy)) = (c, layers[c]);
-                                while c < cells && layers[c] == (ox, oy) {
-                                    c += 1;
-                                }
-                                let (a0, a1) = (cols[i * cells + start].0, cols[i * cells + c - 1].1);
-                                if a0 < a1 {
-                                    let s = self.sums.box_sum(a0 + ox, b0 + oy, a1 + ox, b1 + oy);
+                        for (cj, &(r0, r1, _)) in rows.iter().enumerate().skip(j * cells).take(cells) {
+                            for (ci, &(c0, c1, _)) in cols.iter().enumerate().skip(i * cells).take(cells) {
+                                if c0 < c1 && r0 < r1 {
+                                    let s = cell_sum((c0, c1), (r0, r1), layer(ci, cj));
                                     acc.iter_mut().zip(s).for_each(|(a, s)| *a += s);
                                 }
                             }
@@ -399,6 +458,22 @@ mod tests {
             for (level, lx, ly, n) in [(4, 0, 0, 50), (4, 13, 40, 9), (5, 3, 2, 20)] {
                 let rasterized = tex.integrate(level, lx, ly, n, n, Some(true));
                 assert_eq!(rasterized, tex.integrate(level, lx, ly, n, n, Some(false)), "level {level} bpt {bpt}");
+            }
+        }
+    }
+
+    #[test]
+    fn box_tables_match_box_sums() {
+        let mut s = Rgba8Image::new(7, 5);
+        for (i, b) in s.data.iter_mut().enumerate() {
+            *b = (i * 53 % 256) as u8;
+        }
+        let sums = PeriodicSums::new(&s);
+        for side in [1, 2, 3, 5, 7, 8, 16, 33] {
+            let table = BoxTable::new(&s, side).unwrap();
+            for (x, y) in [(0i64, 0i64), (3, 4), (6, 1), (-2, -9), (100, 37)] {
+                let side = side as i64;
+                assert_eq!(table.sum(x, y), sums.box_sum(x, y, x + side, y + side), "side {side} at ({x}, {y})");
             }
         }
     }
