@@ -108,7 +108,7 @@ impl BoxTable {
         for x in 0..w {
             line.clear();
             line.extend((0..h).map(|y| rows[y * w + x]));
-            for (y, s) in window_sums(&line, side).into_iter().enumerate() {
+            for (y, s) in window_sums(&line, side).enumerate() {
                 sums[y * w + x] = s;
             }
         }
