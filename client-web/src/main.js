@@ -5,6 +5,7 @@ import { createTileSource } from './tilesource.js';
 import { TileStats, formatBytes, formatRatio } from './stats.js';
 import { FORMATS, parseView, formatView } from './view-url.js';
 import { drawLevel, MIN_PIXEL_RATIO, vtexLevel } from './pyramid.js';
+import { keepQueueUntilNextUpdate } from './loader.js';
 
 const OSD = window.OpenSeadragon;
 const $ = (id) => document.getElementById(id);
@@ -68,6 +69,7 @@ const viewer = OSD({
   gestureSettingsTouch: { pinchToZoom: true, dblClickToZoom: true, flickEnabled: true },
   crossOriginPolicy: false,
 });
+keepQueueUntilNextUpdate(viewer);
 
 // ---------------------------------------------------------------------------------------
 // Texture list, picker and opening

@@ -12,7 +12,9 @@
 //    animation-frame interval, cold and then warm (the same path again).
 import { parseArgs } from 'node:util';
 import { writeFileSync } from 'node:fs';
-import { launchBrowser, openViewer, startServer, waitForIdle } from './lib.mjs';
+import { launchBrowser, openViewer, startServer } from './lib.mjs';
+import { launchBare } from './cdp.mjs';
+import { collectTrace, formatBreakdown, installTracer, viewBreakdown } from './trace.mjs';
 
 const { values: args } = parseArgs({
   options: {
@@ -23,6 +25,17 @@ const { values: args } = parseArgs({
     json: { type: 'string' },
     width: { type: 'string', default: '1280' },
     height: { type: 'string', default: '800' },
+    // Per-stage timing of every view change (tests/browser/trace.mjs); adds a little overhead.
+    trace: { type: 'boolean', default: false },
+    // Extra OpenSeadragon options as JSON, merged over the viewer's (A/B experiments only).
+    osd: { type: 'string' },
+    // Server flags, e.g. --server-args "--max-syntheses 4".
+    'server-args': { type: 'string', default: '' },
+    // Drive Chromium with Playwright (its network instrumentation costs ~2 ms CPU per request)
+    // instead of the bare DevTools pipe (tests/browser/cdp.mjs).
+    playwright: { type: 'boolean', default: false },
+    // Texture to measure (name, id or model); default: the 100k × 100k chaos mosaic.
+    texture: { type: 'string' },
   },
 });
 const STEPS = Number(args.steps);
@@ -79,6 +92,8 @@ function summary(ms) {
 async function measureViews(page, views, shots, tag) {
   const times = [];
   const tiles = [];
+  const breakdowns = [];
+  if (args.trace) await page.evaluate(installTracer);
   for (let i = 0; i < views.length; i++) {
     const r = await page.evaluate(
       (view) =>
@@ -91,7 +106,8 @@ async function measureViews(page, views, shots, tag) {
             if (state.item.getFullyLoaded() && !viewer.world.needsDraw()) {
               viewer.removeHandler('update-viewport', check);
               clearTimeout(timer);
-              resolve({ ms: performance.now() - t0, tiles: stats.requested - requested0 });
+              const t1 = performance.now();
+              resolve({ ms: t1 - t0, t0, t1, tiles: stats.requested - requested0 });
             }
           };
           viewer.addHandler('update-viewport', check);
@@ -102,9 +118,13 @@ async function measureViews(page, views, shots, tag) {
     );
     times.push(r.ms);
     tiles.push(r.tiles);
-    if (shots && i % 15 === 0) await page.screenshot({ path: `${shots}/${tag}-${i}.png` });
+    if (args.trace) {
+      const trace = await page.evaluate(collectTrace, { t0: r.t0, t1: r.t1 });
+      breakdowns.push(viewBreakdown({ ...trace, t0: r.t0, t1: r.t1 }));
+    }
+    if (shots && i % 15 === 0) await page.screenshot(`${shots}/${tag}-${i}.png`);
   }
-  return { ...summary(times), tilesPerView: tiles.reduce((a, b) => a + b, 0) / tiles.length };
+  return { ...summary(times), tilesPerView: tiles.reduce((a, b) => a + b, 0) / tiles.length, breakdowns };
 }
 
 /** A steady pan of PAN_SPEED screen px per frame for PAN_SECONDS, recording frame intervals. */
@@ -137,45 +157,151 @@ function panSummary({ frames, tiles }) {
   return { ...s, over50: frames.filter((f) => f > 50).length, over33: frames.filter((f) => f > 33.4).length, tiles };
 }
 
-const server = await startServer();
-const results = { when: new Date().toISOString(), viewport: SIZE, steps: STEPS };
+/** Server-side counters from /metrics: syntheses, their total seconds, misses by level. */
+async function serverCounters(url) {
+  const text = await (await fetch(`${url}/metrics`)).text();
+  const value = (re) => {
+    const m = text.match(re);
+    return m ? Number(m[1]) : 0;
+  };
+  const misses = {};
+  for (const m of text.matchAll(/^vtex_tile_cache_misses_total\{level="(\d+)"\} (\S+)$/gm)) misses[m[1]] = Number(m[2]);
+  const buckets = [];
+  for (const m of text.matchAll(/^vtex_synthesis_seconds_bucket\{le="([^"]+)"\} (\S+)$/gm)) buckets.push([m[1], Number(m[2])]);
+  return {
+    syntheses: value(/^vtex_syntheses_total (\S+)$/m),
+    synthSeconds: value(/^vtex_synthesis_seconds_sum (\S+)$/m),
+    synthCount: value(/^vtex_synthesis_seconds_count (\S+)$/m),
+    buckets,
+    misses,
+  };
+}
+
+/** What the server did between two counter snapshots. */
+function serverDelta(a, b) {
+  const misses = {};
+  for (const [level, n] of Object.entries(b.misses)) if (n - (a.misses[level] || 0) > 0) misses[level] = n - (a.misses[level] || 0);
+  const count = b.synthCount - a.synthCount;
+  return {
+    syntheses: count,
+    synthMeanMs: count ? (1000 * (b.synthSeconds - a.synthSeconds)) / count : NaN,
+    synthBuckets: b.buckets.map(([le, n], i) => [le, n - (a.buckets[i] ? a.buckets[i][1] : 0)]),
+    missesByLevel: misses,
+  };
+}
+
+/**
+ * The texture to measure: by default the 100k × 100k chaos mosaic, the flagship demo (as
+ * server/bench/run.sh picks it); `--texture` names another (name, id or model).
+ */
+function pickTexture(textures, key) {
+  const big = (t) => t.width >= 100_000 && t.height >= 100_000;
+  const found = key
+    ? textures.find((t) => t.id === key || t.name === key) || textures.find((t) => t.model === key && big(t))
+    : textures.find((t) => t.model === 'chaos-mosaic' && big(t));
+  if (!found) throw new Error(`no texture ${key ? `"${key}"` : '100k × 100k chaos-mosaic'} on the server: ${textures.map((t) => t.name).join(', ')}`);
+  return found;
+}
+
+/** Source of an init script merging `--osd` options over the viewer's when it builds its viewer. */
+function osdInitScript(overrides) {
+  return `(${((o) => {
+    // After openseadragon.min.js ran (its script element's load event) and before main.js.
+    document.addEventListener(
+      'load',
+      (e) => {
+        if (!(e.target instanceof HTMLScriptElement) || !e.target.src.includes('openseadragon')) return;
+        window.OpenSeadragon = new Proxy(window.OpenSeadragon, {
+          apply: (target, self, [options]) => target({ ...options, ...o }),
+        });
+      },
+      true,
+    );
+  }).toString()})(${JSON.stringify(overrides)})`;
+}
+
+/**
+ * A fresh browser profile with the viewer open at `url`, as { evaluate, waitFor, reload,
+ * screenshot, close }: over the bare DevTools pipe, or with `--playwright` through Playwright.
+ */
+async function openPage(url) {
+  const initScript = args.osd ? osdInitScript(JSON.parse(args.osd)) : undefined;
+  let page;
+  if (args.playwright) {
+    const b = await launchBrowser(SIZE);
+    if (initScript) await b.context.addInitScript({ content: initScript });
+    const p = (await openViewer(b.context, url)).page;
+    page = {
+      evaluate: (fn, arg) => p.evaluate(fn, arg),
+      waitFor: (fn, arg, { timeout = 60_000 } = {}) => p.waitForFunction(fn, arg, { timeout, polling: 50 }),
+      reload: () => p.reload(),
+      screenshot: (path) => p.screenshot({ path }),
+      close: () => b.close(),
+    };
+  } else {
+    page = await launchBare(url, { ...SIZE, initScript });
+  }
+  await page.waitFor(() => window.vtexViewer && window.vtexViewer.state.item);
+  return page;
+}
+
+/** Resolves when every tile the current view needs is loaded and drawn (as lib.mjs waitForIdle). */
+async function idle(page) {
+  await page.evaluate(() => new Promise((r) => requestAnimationFrame(() => requestAnimationFrame(r))));
+  await page.waitFor(() => {
+    const v = window.vtexViewer;
+    const item = v.state.item;
+    const vp = v.viewer.viewport;
+    const settled = vp.getZoom(true) === vp.getZoom(false) && vp.getCenter(true).equals(vp.getCenter(false));
+    return settled && item && item.getFullyLoaded() && !v.viewer.world.needsDraw() && v.state.pending === null;
+  });
+}
+
+// The session's raw tiles (~500 MB) must fit the server's cache for "warm server" to be warm.
+const serverArgs = ['--cache-mb', '2048', ...args['server-args'].split(/\s+/).filter(Boolean)];
+const server = await startServer({ extraArgs: serverArgs });
+const results = { when: new Date().toISOString(), viewport: SIZE, steps: STEPS, serverArgs, osd: args.osd || null, driver: args.playwright ? 'playwright' : 'cdp' };
 try {
   const textures = (await (await fetch(`${server.url}/api/v1/textures`)).json()).textures;
-  const big = textures.find((t) => t.width >= 100_000 && t.height >= 100_000);
-  if (!big) throw new Error('no 100k × 100k texture on the server');
+  const big = pickTexture(textures, args.texture);
   results.texture = { name: big.name, model: big.model, width: big.width, height: big.height };
   const views = session(big, STEPS);
   const panStart = { zoom: 1, x: 20_000, y: 60_000 };
   const url = `${server.url}/?texture=${big.id}&zoom=0.01&x=50000&y=50000`;
+  results.server = {};
 
   // Cold: fresh server, fresh browser.
-  let b = await launchBrowser(SIZE);
-  let { page } = await openViewer(b.context, url);
-  await waitForIdle(page);
+  let page = await openPage(url);
+  await idle(page);
+  let c0 = await serverCounters(server.url);
   results.cold = await measureViews(page, views, args.shots, 'cold');
+  let c1 = await serverCounters(server.url);
+  results.server.cold = serverDelta(c0, c1);
   results.panCold = panSummary(await measurePan(page, panStart));
-  await waitForIdle(page);
+  await idle(page);
   results.panWarm = panSummary(await measurePan(page, panStart));
   // Warm browser: reload in the same profile (HTTP cache warm, OpenSeadragon's memory empty).
   await page.reload();
-  await page.waitForFunction(() => window.vtexViewer && window.vtexViewer.state.item);
-  await waitForIdle(page);
+  await page.waitFor(() => window.vtexViewer && window.vtexViewer.state.item);
+  await idle(page);
   results.warmBrowser = await measureViews(page, views, args.shots, 'warm-browser');
-  await b.close();
+  await page.close();
 
   // Warm server: a fresh browser profile; every tile comes from the server's cache.
-  b = await launchBrowser(SIZE);
-  ({ page } = await openViewer(b.context, url));
-  await waitForIdle(page);
+  page = await openPage(url);
+  await idle(page);
+  c0 = await serverCounters(server.url);
   results.warmServer = await measureViews(page, views, args.shots, 'warm-server');
+  c1 = await serverCounters(server.url);
+  results.server.warmServer = serverDelta(c0, c1);
   results.serverStats = await page.evaluate(() => window.vtexViewer.stats.snapshot());
-  await b.close();
+  await page.close();
 } finally {
   await server.stop();
 }
 
 const f = (v) => v.toFixed(1);
-console.log(`texture ${results.texture.name} (${results.texture.model}), ${results.viewport.width}×${results.viewport.height} browser viewport, ${STEPS} view changes`);
+console.log(`texture ${results.texture.name} (${results.texture.model}), ${results.viewport.width}×${results.viewport.height} browser viewport, ${STEPS} view changes${args.osd ? `, OSD options ${args.osd}` : ''}, server ${serverArgs.join(' ')}, driven by ${results.driver}`);
 console.log('| view change → every visible tile drawn | p50 ms | p95 ms | max ms | tiles/view |');
 console.log('|---|---|---|---|---|');
 for (const [k, label] of [
@@ -194,5 +320,22 @@ for (const [k, label] of [
 ]) {
   const r = results[k];
   console.log(`| ${label} | ${r.n} | ${f(r.p50)} | ${f(r.p95)} | ${f(r.max)} | ${r.over33} | ${r.over50} | ${r.tiles} |`);
+}
+for (const [k, label] of [
+  ['cold', 'server, cold pass'],
+  ['warmServer', 'server, warm-server pass'],
+]) {
+  const d = results.server[k];
+  const levels = Object.entries(d.missesByLevel).map(([l, n]) => `L${l}: ${n}`).join(', ') || 'none';
+  console.log(`\n${label}: ${d.syntheses} syntheses, mean ${Number.isFinite(d.synthMeanMs) ? f(d.synthMeanMs) : '–'} ms; misses by level ${levels}`);
+}
+if (args.trace) {
+  for (const [k, label] of [
+    ['cold', 'cold'],
+    ['warmServer', 'warm server'],
+    ['warmBrowser', 'warm browser'],
+  ]) {
+    console.log(formatBreakdown(label, results[k].breakdowns));
+  }
 }
 if (args.json) writeFileSync(args.json, JSON.stringify(results, null, 2));

@@ -16,7 +16,8 @@ const { chromium } = require('playwright-core');
 
 export const VTEX_BIN = process.env.VTEX_BIN || join(ROOT, 'target', 'release', 'vtex');
 export const CHROMIUM = process.env.CHROMIUM || '/usr/bin/chromium';
-export const WEB_DIR = join(ROOT, 'client-web', 'dist');
+// VTEX_WEB_DIR: another build of the viewer (the bench's A/B comparisons).
+export const WEB_DIR = process.env.VTEX_WEB_DIR || join(ROOT, 'client-web', 'dist');
 
 /** Starts `vtex serve` on 127.0.0.1:0 with a fresh data dir; resolves once it prints its URL. */
 export async function startServer({ extraArgs = [] } = {}) {
