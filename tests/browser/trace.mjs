@@ -179,9 +179,15 @@ export function viewBreakdown(view) {
     critical.after = t1 - last.drawn;
   }
   const firstWant = tiles.length ? Math.min(...tiles.map((r) => r.want)) - t0 : NaN;
+  const levels = {};
+  for (const r of tiles) {
+    const m = r.src.match(/\/tiles\/(\d+)\//);
+    if (m) levels[m[1]] = (levels[m[1]] || 0) + 1;
+  }
   return {
     total: t1 - t0,
     tiles: tiles.length,
+    levels,
     completed: done.length,
     abandoned: tiles.filter((r) => r.ready === undefined).length,
     misses: tiles.filter((r) => r.cache === 'miss').length,
