@@ -88,34 +88,47 @@ function summary(ms) {
   return { n: s.length, p50: q(0.5), p95: q(0.95), max: s[s.length - 1], mean: s.reduce((a, b) => a + b, 0) / s.length };
 }
 
-/** Applies each view at once and measures until every tile it needs is drawn. */
-async function measureViews(page, views, shots, tag) {
+/** Applies `view` at once and resolves once every tile it needs is drawn. */
+function showView(page, view) {
+  return page.evaluate(
+    (view) =>
+      new Promise((resolve, reject) => {
+        const { viewer, state, setView, stats } = window.vtexViewer;
+        const requested0 = stats.requested;
+        const t0 = performance.now();
+        const timer = setTimeout(() => reject(new Error(`view not drawn in 30 s: ${JSON.stringify(view)}`)), 30_000);
+        // update-viewport follows every draw; the first one after which the image is fully
+        // loaded and needs no further draw is the frame that completed the view.
+        const check = () => {
+          if (state.item.getFullyLoaded() && !viewer.world.needsDraw()) {
+            viewer.removeHandler('update-viewport', check);
+            clearTimeout(timer);
+            const t1 = performance.now();
+            resolve({ ms: t1 - t0, t0, t1, tiles: stats.requested - requested0 });
+          }
+        };
+        viewer.addHandler('update-viewport', check);
+        setView(view, true);
+        viewer.forceRedraw();
+      }),
+    view,
+  );
+}
+
+/**
+ * Applies each view at once and measures until every tile it needs is drawn. With `back`,
+ * each measured view is the previous one revisited: views[i] is shown first (not measured),
+ * then views[i-1] is measured — its tiles are still in OpenSeadragon's memory.
+ */
+async function measureViews(page, views, shots, tag, { back = false } = {}) {
   const times = [];
   const tiles = [];
   const breakdowns = [];
   if (args.trace) await page.evaluate(installTracer);
-  for (let i = 0; i < views.length; i++) {
-    const r = await page.evaluate(
-      (view) =>
-        new Promise((resolve, reject) => {
-          const { viewer, state, setView, stats } = window.vtexViewer;
-          const requested0 = stats.requested;
-          const t0 = performance.now();
-          const timer = setTimeout(() => reject(new Error(`view not drawn in 30 s: ${JSON.stringify(view)}`)), 30_000);
-          const check = () => {
-            if (state.item.getFullyLoaded() && !viewer.world.needsDraw()) {
-              viewer.removeHandler('update-viewport', check);
-              clearTimeout(timer);
-              const t1 = performance.now();
-              resolve({ ms: t1 - t0, t0, t1, tiles: stats.requested - requested0 });
-            }
-          };
-          viewer.addHandler('update-viewport', check);
-          setView(view, true);
-          viewer.forceRedraw();
-        }),
-      views[i],
-    );
+  for (let i = back ? 1 : 0; i < views.length; i++) {
+    if (back) await showView(page, views[i]);
+    if (args.trace) await page.evaluate(collectTrace, { t0: 0, t1: -1 }); // forget the unmeasured view
+    const r = await showView(page, back ? views[i - 1] : views[i]);
     times.push(r.ms);
     tiles.push(r.tiles);
     if (args.trace) {
@@ -124,7 +137,34 @@ async function measureViews(page, views, shots, tag) {
     }
     if (shots && i % 15 === 0) await page.screenshot(`${shots}/${tag}-${i}.png`);
   }
+  if (!times.length) return null;
   return { ...summary(times), tilesPerView: tiles.reduce((a, b) => a + b, 0) / tiles.length, breakdowns };
+}
+
+/**
+ * Screenshots two frames after a view change, before the new tiles arrive: a zoom in, a pan
+ * by one screen and a jump into texture never seen. Coarser levels already loaded must show
+ * where the new tiles are still missing (no black holes).
+ */
+async function midLoadShots(page, dir, info) {
+  const v = await page.evaluate(() => window.vtexViewer.getView());
+  const steps = [
+    ['zoom-in', { zoom: v.zoom * 2, x: v.x + 3000, y: v.y + 3000 }],
+    ['pan', { zoom: v.zoom * 2, x: v.x + 3000 + 960 / (v.zoom * 2), y: v.y + 3000 }],
+    ['jump', { zoom: 0.3, x: info.width * 0.31, y: info.height * 0.77 }],
+  ];
+  for (const [name, view] of steps) {
+    await page.evaluate(
+      (view) =>
+        new Promise((resolve) => {
+          window.vtexViewer.setView(view, true);
+          requestAnimationFrame(() => requestAnimationFrame(resolve));
+        }),
+      view,
+    );
+    await page.screenshot(`${dir}/mid-load-${name}.png`);
+    await idle(page);
+  }
 }
 
 /** A steady pan of PAN_SPEED screen px per frame for PAN_SECONDS, recording frame intervals. */
@@ -277,6 +317,7 @@ try {
   results.cold = await measureViews(page, views, args.shots, 'cold');
   let c1 = await serverCounters(server.url);
   results.server.cold = serverDelta(c0, c1);
+  if (args.shots) await midLoadShots(page, args.shots, big);
   results.panCold = panSummary(await measurePan(page, panStart));
   await idle(page);
   results.panWarm = panSummary(await measurePan(page, panStart));
@@ -294,6 +335,8 @@ try {
   results.warmServer = await measureViews(page, views, args.shots, 'warm-server');
   c1 = await serverCounters(server.url);
   results.server.warmServer = serverDelta(c0, c1);
+  // Warm viewer: back to the view before (its tiles still in OpenSeadragon's memory).
+  results.warmViewer = await measureViews(page, views, args.shots, 'warm-viewer', { back: true });
   results.serverStats = await page.evaluate(() => window.vtexViewer.stats.snapshot());
   await page.close();
 } finally {
@@ -308,6 +351,7 @@ for (const [k, label] of [
   ['cold', 'cold (empty server cache, fresh browser)'],
   ['warmServer', 'warm server cache, fresh browser'],
   ['warmBrowser', 'warm browser HTTP cache (after reload)'],
+  ['warmViewer', 'warm viewer: back to the previous view (tiles in memory)'],
 ]) {
   const r = results[k];
   console.log(`| ${label} | ${f(r.p50)} | ${f(r.p95)} | ${f(r.max)} | ${r.tilesPerView.toFixed(1)} |`);
@@ -334,6 +378,7 @@ if (args.trace) {
     ['cold', 'cold'],
     ['warmServer', 'warm server'],
     ['warmBrowser', 'warm browser'],
+    ['warmViewer', 'warm viewer'],
   ]) {
     console.log(formatBreakdown(label, results[k].breakdowns));
   }
