@@ -5,7 +5,7 @@ import { createTileSource } from './tilesource.js';
 import { TileStats, formatBytes, formatRatio } from './stats.js';
 import { FORMATS, parseView, formatView } from './view-url.js';
 import { drawLevel, MIN_PIXEL_RATIO, vtexLevel } from './pyramid.js';
-import { keepQueueUntilNextUpdate } from './loader.js';
+import { scheduleTiles } from './loader.js';
 
 const OSD = window.OpenSeadragon;
 const $ = (id) => document.getElementById(id);
@@ -57,7 +57,8 @@ const viewer = OSD({
   // Draw the coarsest level that is not magnified: at exactly 1/2^L, level L at 1:1 (OSD's
   // default of 0.5 would fetch level L-1, four times the tiles, to draw it at half size).
   minPixelRatio: MIN_PIXEL_RATIO,
-  immediateRender: false,
+  // Finest level first (OSD's default loads from the coarsest level up); see loader.js.
+  immediateRender: true,
   // Ask for every tile the view needs in its first frame (OSD's default of one a frame makes
   // a view crawl in), with at most 8 requests in flight (the browser opens 6 connections to a
   // host; 2 more keep them busy while a response is being read). The rest wait in the
@@ -71,7 +72,7 @@ const viewer = OSD({
   gestureSettingsTouch: { pinchToZoom: true, dblClickToZoom: true, flickEnabled: true },
   crossOriginPolicy: false,
 });
-keepQueueUntilNextUpdate(viewer);
+scheduleTiles(viewer);
 
 // ---------------------------------------------------------------------------------------
 // Texture list, picker and opening
