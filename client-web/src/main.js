@@ -57,8 +57,7 @@ const viewer = OSD({
   // Draw the coarsest level that is not magnified: at exactly 1/2^L, level L at 1:1 (OSD's
   // default of 0.5 would fetch level L-1, four times the tiles, to draw it at half size).
   minPixelRatio: MIN_PIXEL_RATIO,
-  // Finest level first (OSD's default loads from the coarsest level up); see loader.js.
-  immediateRender: true,
+  immediateRender: false, // coarsest first: the preview of loader.js, then the finest level
   // Ask for every tile the view needs in its first frame (OSD's default of one a frame makes
   // a view crawl in), with at most 8 requests in flight (the browser opens 6 connections to a
   // host; 2 more keep them busy while a response is being read). The rest wait in the
