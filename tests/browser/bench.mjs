@@ -1,13 +1,22 @@
 // A measured pan-and-zoom session in headless Chromium against a real `vtex serve` (loopback).
 //
 //   node tests/browser/bench.mjs [--steps 60] [--pan-seconds 5] [--shots DIR] [--json FILE]
+//        [--trace] [--texture NAME] [--server-args="--tile-size 512"] [--osd JSON] [--playwright]
 //
-// 1. View changes: a fixed, seeded sequence of jumps, pans and zooms over the 100k × 100k
-//    texture. For each, the time from the change (applied at once, no animation) to the moment
-//    OpenSeadragon has drawn every tile the new view needs. Run three times:
+// The texture is the 100k × 100k chaos mosaic (the flagship demo, as server/bench/run.sh picks
+// it) unless --texture names another. Chromium is driven over a bare DevTools pipe (cdp.mjs):
+// Playwright's network instrumentation would add ~2 ms of CPU to every tile request.
+//
+// 1. View changes: a fixed, seeded sequence of jumps, pans and zooms over the texture. For
+//    each, the time from the change (applied at once, no animation) to the end of the first
+//    OpenSeadragon frame that has drawn every tile the new view needs. Four passes:
 //      cold         fresh server (empty tile cache) and fresh browser profile;
-//      warm-server  same server (its tile cache now holds the session), fresh browser profile;
-//      warm-browser same browser after a reload (tiles from its HTTP cache, OSD's memory empty).
+//      warm-browser same browser after a reload (tiles from its HTTP cache, OSD's memory empty);
+//      warm-server  fresh browser profile; every tile comes from the server's cache (2 GiB, so
+//                   the whole session fits);
+//      warm-viewer  same page: after each view, back to the one before (tiles in OSD's memory).
+//    --trace breaks every view change into stages (trace.mjs); --shots also takes screenshots
+//    two frames after a zoom, a pan and a jump, before the new tiles arrive.
 // 2. A continuous pan at level 0 (a steady drag across fresh texture), recording every
 //    animation-frame interval, cold and then warm (the same path again).
 import { parseArgs } from 'node:util';

@@ -186,7 +186,8 @@ export function viewBreakdown(view) {
   }
   return {
     total: t1 - t0,
-    tiles: tiles.length,
+    // tiles whose request started (OSD may ask for more; the viewer's scheduler drops some)
+    tiles: tiles.filter((r) => r.start !== undefined).length,
     levels,
     completed: done.length,
     abandoned: tiles.filter((r) => r.ready === undefined).length,
