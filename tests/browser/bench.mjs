@@ -21,7 +21,7 @@
 //    animation-frame interval, cold and then warm (the same path again).
 import { parseArgs } from 'node:util';
 import { writeFileSync } from 'node:fs';
-import { launchBrowser, openViewer, startServer } from './lib.mjs';
+import { launchBrowser, openViewer, startServer, viewerIdle } from './lib.mjs';
 import { launchBare } from './cdp.mjs';
 import { collectTrace, formatBreakdown, installTracer, viewBreakdown } from './trace.mjs';
 
@@ -294,16 +294,10 @@ async function openPage(url) {
   return page;
 }
 
-/** Resolves when every tile the current view needs is loaded and drawn (as lib.mjs waitForIdle). */
+/** Resolves when every tile the current view needs is loaded and drawn (lib.mjs waitForIdle). */
 async function idle(page) {
   await page.evaluate(() => new Promise((r) => requestAnimationFrame(() => requestAnimationFrame(r))));
-  await page.waitFor(() => {
-    const v = window.vtexViewer;
-    const item = v.state.item;
-    const vp = v.viewer.viewport;
-    const settled = vp.getZoom(true) === vp.getZoom(false) && vp.getCenter(true).equals(vp.getCenter(false));
-    return settled && item && item.getFullyLoaded() && !v.viewer.world.needsDraw() && v.state.pending === null;
-  });
+  await page.waitFor(viewerIdle);
 }
 
 // The session's raw tiles (~500 MB) must fit the server's cache for "warm server" to be warm.

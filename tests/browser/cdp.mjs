@@ -10,7 +10,7 @@ import { spawn } from 'node:child_process';
 import { mkdtempSync, rmSync, writeFileSync } from 'node:fs';
 import { tmpdir } from 'node:os';
 import { join } from 'node:path';
-import { CHROMIUM } from './lib.mjs';
+import { CHROMIUM, CHROMIUM_ARGS } from './lib.mjs';
 
 /**
  * Launches headless Chromium (fresh profile, same flags as lib.mjs) with `url` open;
@@ -21,15 +21,7 @@ export async function launchBare(url, { width = 1280, height = 800, initScript }
   const proc = spawn(
     CHROMIUM,
     [
-      '--headless',
-      '--no-sandbox',
-      '--disable-gpu',
-      '--disable-quic',
-      '--no-first-run',
-      '--disable-background-networking',
-      '--disable-component-update',
-      '--disable-sync',
-      '--force-color-profile=srgb',
+      ...CHROMIUM_ARGS,
       '--force-device-scale-factor=1',
       `--window-size=${width},${height}`,
       `--user-data-dir=${profile}`,
