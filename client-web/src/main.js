@@ -5,6 +5,7 @@ import { createTileSource } from './tilesource.js';
 import { TileStats, formatBytes, formatRatio } from './stats.js';
 import { FORMATS, parseView, formatView } from './view-url.js';
 import { drawLevel, MIN_PIXEL_RATIO, vtexLevel } from './pyramid.js';
+import { scheduleTiles } from './loader.js';
 
 const OSD = window.OpenSeadragon;
 const $ = (id) => document.getElementById(id);
@@ -56,11 +57,13 @@ const viewer = OSD({
   // Draw the coarsest level that is not magnified: at exactly 1/2^L, level L at 1:1 (OSD's
   // default of 0.5 would fetch level L-1, four times the tiles, to draw it at half size).
   minPixelRatio: MIN_PIXEL_RATIO,
-  immediateRender: false,
-  // Start several tile requests per frame (the default of one makes a cold view crawl in);
-  // few enough in flight that the loader's queue, cleared every frame, drops stale tiles
-  // during fast zooms instead of the network stack queueing them.
-  maxTilesPerFrame: 8,
+  immediateRender: false, // coarsest first: the preview of loader.js, then the finest level
+  // Ask for every tile the view needs in its first frame (OSD's default of one a frame makes
+  // a view crawl in), with at most 8 requests in flight (the browser opens 6 connections to a
+  // host; 2 more keep them busy while a response is being read). The rest wait in the
+  // loader's queue, which is rebuilt at every update from what the current view needs, so
+  // fast zooms never fetch tiles of views already left (see loader.js).
+  maxTilesPerFrame: 64,
   imageLoaderLimit: 8,
   maxImageCacheCount: 400,
   timeout: 30000,
@@ -68,6 +71,7 @@ const viewer = OSD({
   gestureSettingsTouch: { pinchToZoom: true, dblClickToZoom: true, flickEnabled: true },
   crossOriginPolicy: false,
 });
+scheduleTiles(viewer);
 
 // ---------------------------------------------------------------------------------------
 // Texture list, picker and opening

@@ -60,10 +60,10 @@ export function createTileSource(OSD, info, { frame = 0, format = 'png', stats }
             throw new Error(`HTTP ${response.status} for ${job.src}${detail ? `: ${detail}` : ''}`);
           }
           const cache = response.headers.get('X-Vtex-Cache');
-          const { bitmap, bytes } = format === 'rgba' ? await rgbaBitmap(response) : await imageBitmap(response);
+          const { context, bytes } = format === 'rgba' ? await rgbaTile(response) : await encodedTile(response);
           stats.loadedTile(performance.now() - t0, bytes, cache);
-          if (data.done) bitmap.close();
-          else finish(bitmap, null);
+          if (data.done) releaseContext(context);
+          else finish(context, null);
         })
         .catch((error) => {
           if (error && error.name === 'AbortError') {
@@ -80,14 +80,15 @@ export function createTileSource(OSD, info, { frame = 0, format = 'png', stats }
       if (job.userData.controller) job.userData.controller.abort();
     },
 
-    createTileCache(cache, bitmap) {
-      cache._data = bitmap;
+    // A tile arrives as the 2D context the canvas drawer draws from (see tileContext below), so
+    // nothing is converted while a frame is drawn.
+    createTileCache(cache, context) {
+      cache._data = context;
     },
 
     destroyTileCache(cache) {
-      if (cache._data && cache._data.close) cache._data.close();
+      if (cache._data) releaseContext(cache._data);
       cache._data = null;
-      cache._renderedContext = null;
     },
 
     getTileCacheData(cache) {
@@ -95,42 +96,54 @@ export function createTileSource(OSD, info, { frame = 0, format = 'png', stats }
     },
 
     getTileCacheDataAsImage(cache) {
-      return cache._data;
+      return cache._data && cache._data.canvas;
     },
 
-    // The canvas drawer draws from a 2D context; copy the bitmap once, then free it (the html
-    // drawer, the only user of getTileCacheDataAsImage, is not used by this viewer).
     getTileCacheDataAsContext2D(cache) {
-      if (!cache._renderedContext) {
-        const bitmap = cache._data;
-        const canvas = document.createElement('canvas');
-        canvas.width = bitmap.width;
-        canvas.height = bitmap.height;
-        const ctx = canvas.getContext('2d');
-        ctx.drawImage(bitmap, 0, 0);
-        bitmap.close();
-        cache._data = null;
-        cache._renderedContext = ctx;
-      }
-      return cache._renderedContext;
+      return cache._data;
     },
   });
 }
 
-/** An encoded tile (PNG, WebP, JPEG), decoded off the main thread. */
-async function imageBitmap(response) {
-  const blob = await response.blob();
-  return { bitmap: await createImageBitmap(blob), bytes: blob.size };
+/**
+ * A canvas of w × h and its 2D context: a tile's pixels, ready for the drawer. Filled when the
+ * tile arrives (in the fetch's task, between frames) rather than on first draw (inside a frame).
+ */
+function tileContext(w, h) {
+  const canvas = document.createElement('canvas');
+  canvas.width = w;
+  canvas.height = h;
+  return canvas.getContext('2d');
 }
 
-/** A raw RGBA tile: no decoding at all, its size from X-Vtex-Width/Height. */
-async function rgbaBitmap(response) {
+/** Frees a tile's pixels now rather than at the next garbage collection. */
+function releaseContext(context) {
+  context.canvas.width = 0;
+  context.canvas.height = 0;
+}
+
+/** An encoded tile (PNG, WebP, JPEG), decoded off the main thread, then copied into a canvas. */
+async function encodedTile(response) {
+  const blob = await response.blob();
+  const bitmap = await createImageBitmap(blob);
+  const context = tileContext(bitmap.width, bitmap.height);
+  context.drawImage(bitmap, 0, 0);
+  bitmap.close();
+  return { context, bytes: blob.size };
+}
+
+/**
+ * A raw RGBA tile: no decoding at all, its size from X-Vtex-Width/Height; the bytes go straight
+ * into the tile's canvas (one copy, no ImageBitmap round trip through another thread).
+ */
+async function rgbaTile(response) {
   const w = Number(response.headers.get('X-Vtex-Width'));
   const h = Number(response.headers.get('X-Vtex-Height'));
   const buffer = await response.arrayBuffer();
   if (!(Number.isInteger(w) && Number.isInteger(h) && w > 0 && h > 0) || buffer.byteLength !== w * h * 4) {
     throw new Error(`raw tile of ${buffer.byteLength} bytes does not match ${w} × ${h} RGBA`);
   }
-  const pixels = new ImageData(new Uint8ClampedArray(buffer), w, h);
-  return { bitmap: await createImageBitmap(pixels), bytes: buffer.byteLength };
+  const context = tileContext(w, h);
+  context.putImageData(new ImageData(new Uint8ClampedArray(buffer), w, h), 0, 0);
+  return { context, bytes: buffer.byteLength };
 }

@@ -1,9 +1,11 @@
-// Unit tests of the viewer's pure modules (no browser): pyramid mapping, view URLs, statistics.
+// Unit tests of the viewer's pure modules (no browser): pyramid mapping, view URLs, statistics,
+// tile scheduling (against a stand-in for OpenSeadragon's loader and world).
 import test from 'node:test';
 import assert from 'node:assert/strict';
 import { inPyramid, levelSize, osdLevel, tileCount, tileUrl, vtexLevel, drawLevel } from '../src/pyramid.js';
 import { formatView, parseView } from '../src/view-url.js';
 import { TileStats, formatBytes, formatRatio, percentile } from '../src/stats.js';
+import { PREVIEW_STEPS, scheduleTiles, wantedLevel } from '../src/loader.js';
 
 const big = { id: 'ab'.repeat(32), width: 100_000, height: 100_000, levels: 10, tile_size: 256, animated: false };
 const odd = { id: 'cd'.repeat(32), width: 3000, height: 700, levels: 5, tile_size: 256, animated: true };
@@ -109,4 +111,69 @@ test('byte counts and ratios read well', () => {
   assert.equal(formatRatio(30_000_000_000, 12_345), '2,430,134 : 1');
   assert.equal(formatRatio(30, 4), '7.50 : 1');
   assert.equal(formatRatio(1, 0), '–');
+});
+
+test('only the finest level, one preview level and the whole-texture tile are fetched', () => {
+  assert.equal(PREVIEW_STEPS, 3);
+  assert.ok(wantedLevel(9, 9) && wantedLevel(6, 9) && wantedLevel(0, 9));
+  for (const level of [8, 7, 5, 4, 1]) assert.ok(!wantedLevel(level, 9), `level ${level}`);
+  assert.ok(wantedLevel(2, 2) && wantedLevel(0, 2) && !wantedLevel(1, 2));
+});
+
+/** A stand-in for OpenSeadragon's viewer: a loader with a queue, a world whose update adds jobs. */
+function fakeViewer(jobsPerUpdate) {
+  const started = [];
+  const aborted = [];
+  let cleared = 0;
+  const handlers = {};
+  const loader = {
+    jobQueue: [],
+    addJob(o) {
+      started.push(o.src);
+    },
+    clear() {
+      cleared++;
+      this.jobQueue = [];
+    },
+  };
+  let n = 0;
+  const viewer = {
+    imageLoader: loader,
+    addHandler: (name, f) => (handlers[name] = f),
+    world: {
+      update() {
+        for (const [src, level] of jobsPerUpdate[n++] || []) {
+          loader.addJob({ src, tile: { level }, abort: () => aborted.push(src) });
+        }
+        return true;
+      },
+    },
+  };
+  return { viewer, loader, started, aborted, cleared: () => cleared, handlers };
+}
+
+test('scheduling keeps the queue until the next update and drops unwanted coarse levels', () => {
+  const f = fakeViewer([
+    [
+      ['top', 0],
+      ['mid', 5],
+      ['preview', 6],
+      ['coarse', 8],
+      ['a', 9],
+      ['b', 9],
+    ],
+    [['c', 9]],
+  ]);
+  scheduleTiles(f.viewer);
+  // OpenSeadragon empties the queue after each draw: now that waits for the next update.
+  f.loader.clear();
+  assert.equal(f.cleared(), 0);
+  f.viewer.world.update(true);
+  assert.equal(f.cleared(), 1, 'an update starts from an empty queue');
+  assert.deepEqual(f.started, ['top', 'preview', 'a', 'b'], "OpenSeadragon's order, unwanted levels left out");
+  assert.deepEqual(f.aborted, ['mid', 'coarse'], 'dropped tiles are marked as not loading');
+  f.viewer.world.update(true);
+  assert.deepEqual(f.started.at(-1), 'c');
+  f.handlers.close();
+  assert.equal(f.cleared(), 3, 'closing empties the queue at once');
 });

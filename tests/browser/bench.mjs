@@ -1,18 +1,29 @@
 // A measured pan-and-zoom session in headless Chromium against a real `vtex serve` (loopback).
 //
 //   node tests/browser/bench.mjs [--steps 60] [--pan-seconds 5] [--shots DIR] [--json FILE]
+//        [--trace] [--texture NAME] [--server-args="--tile-size 512"] [--osd JSON] [--playwright]
 //
-// 1. View changes: a fixed, seeded sequence of jumps, pans and zooms over the 100k × 100k
-//    texture. For each, the time from the change (applied at once, no animation) to the moment
-//    OpenSeadragon has drawn every tile the new view needs. Run three times:
+// The texture is the 100k × 100k chaos mosaic (the flagship demo, as server/bench/run.sh picks
+// it) unless --texture names another. Chromium is driven over a bare DevTools pipe (cdp.mjs):
+// Playwright's network instrumentation would add ~2 ms of CPU to every tile request.
+//
+// 1. View changes: a fixed, seeded sequence of jumps, pans and zooms over the texture. For
+//    each, the time from the change (applied at once, no animation) to the end of the first
+//    OpenSeadragon frame that has drawn every tile the new view needs. Four passes:
 //      cold         fresh server (empty tile cache) and fresh browser profile;
-//      warm-server  same server (its tile cache now holds the session), fresh browser profile;
-//      warm-browser same browser after a reload (tiles from its HTTP cache, OSD's memory empty).
+//      warm-browser same browser after a reload (tiles from its HTTP cache, OSD's memory empty);
+//      warm-server  fresh browser profile; every tile comes from the server's cache (2 GiB, so
+//                   the whole session fits);
+//      warm-viewer  same page: after each view, back to the one before (tiles in OSD's memory).
+//    --trace breaks every view change into stages (trace.mjs); --shots also takes screenshots
+//    two frames after a zoom, a pan and a jump, before the new tiles arrive.
 // 2. A continuous pan at level 0 (a steady drag across fresh texture), recording every
 //    animation-frame interval, cold and then warm (the same path again).
 import { parseArgs } from 'node:util';
 import { writeFileSync } from 'node:fs';
-import { launchBrowser, openViewer, startServer, waitForIdle } from './lib.mjs';
+import { launchBrowser, openViewer, startServer, viewerIdle } from './lib.mjs';
+import { launchBare } from './cdp.mjs';
+import { collectTrace, formatBreakdown, installTracer, viewBreakdown } from './trace.mjs';
 
 const { values: args } = parseArgs({
   options: {
@@ -23,6 +34,17 @@ const { values: args } = parseArgs({
     json: { type: 'string' },
     width: { type: 'string', default: '1280' },
     height: { type: 'string', default: '800' },
+    // Per-stage timing of every view change (tests/browser/trace.mjs); adds a little overhead.
+    trace: { type: 'boolean', default: false },
+    // Extra OpenSeadragon options as JSON, merged over the viewer's (A/B experiments only).
+    osd: { type: 'string' },
+    // Server flags, e.g. --server-args "--max-syntheses 4".
+    'server-args': { type: 'string', default: '' },
+    // Drive Chromium with Playwright (its network instrumentation costs ~2 ms CPU per request)
+    // instead of the bare DevTools pipe (tests/browser/cdp.mjs).
+    playwright: { type: 'boolean', default: false },
+    // Texture to measure (name, id or model); default: the 100k × 100k chaos mosaic.
+    texture: { type: 'string' },
   },
 });
 const STEPS = Number(args.steps);
@@ -75,36 +97,83 @@ function summary(ms) {
   return { n: s.length, p50: q(0.5), p95: q(0.95), max: s[s.length - 1], mean: s.reduce((a, b) => a + b, 0) / s.length };
 }
 
-/** Applies each view at once and measures until every tile it needs is drawn. */
-async function measureViews(page, views, shots, tag) {
+/** Applies `view` at once and resolves once every tile it needs is drawn. */
+function showView(page, view) {
+  return page.evaluate(
+    (view) =>
+      new Promise((resolve, reject) => {
+        const { viewer, state, setView, stats } = window.vtexViewer;
+        const requested0 = stats.requested;
+        const t0 = performance.now();
+        const timer = setTimeout(() => reject(new Error(`view not drawn in 30 s: ${JSON.stringify(view)}`)), 30_000);
+        // update-viewport follows every draw; the first one after which the image is fully
+        // loaded and needs no further draw is the frame that completed the view.
+        const check = () => {
+          if (state.item.getFullyLoaded() && !viewer.world.needsDraw()) {
+            viewer.removeHandler('update-viewport', check);
+            clearTimeout(timer);
+            const t1 = performance.now();
+            resolve({ ms: t1 - t0, t0, t1, tiles: stats.requested - requested0 });
+          }
+        };
+        viewer.addHandler('update-viewport', check);
+        setView(view, true);
+        viewer.forceRedraw();
+      }),
+    view,
+  );
+}
+
+/**
+ * Applies each view at once and measures until every tile it needs is drawn. With `back`,
+ * each measured view is the previous one revisited: views[i] is shown first (not measured),
+ * then views[i-1] is measured — its tiles are still in OpenSeadragon's memory.
+ */
+async function measureViews(page, views, shots, tag, { back = false } = {}) {
   const times = [];
   const tiles = [];
-  for (let i = 0; i < views.length; i++) {
-    const r = await page.evaluate(
-      (view) =>
-        new Promise((resolve, reject) => {
-          const { viewer, state, setView, stats } = window.vtexViewer;
-          const requested0 = stats.requested;
-          const t0 = performance.now();
-          const timer = setTimeout(() => reject(new Error(`view not drawn in 30 s: ${JSON.stringify(view)}`)), 30_000);
-          const check = () => {
-            if (state.item.getFullyLoaded() && !viewer.world.needsDraw()) {
-              viewer.removeHandler('update-viewport', check);
-              clearTimeout(timer);
-              resolve({ ms: performance.now() - t0, tiles: stats.requested - requested0 });
-            }
-          };
-          viewer.addHandler('update-viewport', check);
-          setView(view, true);
-          viewer.forceRedraw();
-        }),
-      views[i],
-    );
+  const breakdowns = [];
+  if (args.trace) await page.evaluate(installTracer);
+  for (let i = back ? 1 : 0; i < views.length; i++) {
+    if (back) await showView(page, views[i]);
+    if (args.trace) await page.evaluate(collectTrace, { t0: 0, t1: -1 }); // forget the unmeasured view
+    const r = await showView(page, back ? views[i - 1] : views[i]);
     times.push(r.ms);
     tiles.push(r.tiles);
-    if (shots && i % 15 === 0) await page.screenshot({ path: `${shots}/${tag}-${i}.png` });
+    if (args.trace) {
+      const trace = await page.evaluate(collectTrace, { t0: r.t0, t1: r.t1 });
+      breakdowns.push(viewBreakdown({ ...trace, t0: r.t0, t1: r.t1 }));
+    }
+    if (shots && i % 15 === 0) await page.screenshot(`${shots}/${tag}-${i}.png`);
   }
-  return { ...summary(times), tilesPerView: tiles.reduce((a, b) => a + b, 0) / tiles.length };
+  if (!times.length) return null;
+  return { ...summary(times), tilesPerView: tiles.reduce((a, b) => a + b, 0) / tiles.length, breakdowns };
+}
+
+/**
+ * Screenshots two frames after a view change, before the new tiles arrive: a zoom in, a pan
+ * by one screen and a jump into texture never seen. Coarser levels already loaded must show
+ * where the new tiles are still missing (no black holes).
+ */
+async function midLoadShots(page, dir, info) {
+  const v = await page.evaluate(() => window.vtexViewer.getView());
+  const steps = [
+    ['zoom-in', { zoom: v.zoom * 2, x: v.x + 3000, y: v.y + 3000 }],
+    ['pan', { zoom: v.zoom * 2, x: v.x + 3000 + 960 / (v.zoom * 2), y: v.y + 3000 }],
+    ['jump', { zoom: 0.3, x: info.width * 0.31, y: info.height * 0.77 }],
+  ];
+  for (const [name, view] of steps) {
+    await page.evaluate(
+      (view) =>
+        new Promise((resolve) => {
+          window.vtexViewer.setView(view, true);
+          requestAnimationFrame(() => requestAnimationFrame(resolve));
+        }),
+      view,
+    );
+    await page.screenshot(`${dir}/mid-load-${name}.png`);
+    await idle(page);
+  }
 }
 
 /** A steady pan of PAN_SPEED screen px per frame for PAN_SECONDS, recording frame intervals. */
@@ -137,51 +206,155 @@ function panSummary({ frames, tiles }) {
   return { ...s, over50: frames.filter((f) => f > 50).length, over33: frames.filter((f) => f > 33.4).length, tiles };
 }
 
-const server = await startServer();
-const results = { when: new Date().toISOString(), viewport: SIZE, steps: STEPS };
+/** Server-side counters from /metrics: syntheses, their total seconds, misses by level. */
+async function serverCounters(url) {
+  const text = await (await fetch(`${url}/metrics`)).text();
+  const value = (re) => {
+    const m = text.match(re);
+    return m ? Number(m[1]) : 0;
+  };
+  const misses = {};
+  for (const m of text.matchAll(/^vtex_tile_cache_misses_total\{level="(\d+)"\} (\S+)$/gm)) misses[m[1]] = Number(m[2]);
+  const buckets = [];
+  for (const m of text.matchAll(/^vtex_synthesis_seconds_bucket\{le="([^"]+)"\} (\S+)$/gm)) buckets.push([m[1], Number(m[2])]);
+  return {
+    syntheses: value(/^vtex_syntheses_total (\S+)$/m),
+    synthSeconds: value(/^vtex_synthesis_seconds_sum (\S+)$/m),
+    synthCount: value(/^vtex_synthesis_seconds_count (\S+)$/m),
+    buckets,
+    misses,
+  };
+}
+
+/** What the server did between two counter snapshots. */
+function serverDelta(a, b) {
+  const misses = {};
+  for (const [level, n] of Object.entries(b.misses)) if (n - (a.misses[level] || 0) > 0) misses[level] = n - (a.misses[level] || 0);
+  const count = b.synthCount - a.synthCount;
+  return {
+    syntheses: count,
+    synthMeanMs: count ? (1000 * (b.synthSeconds - a.synthSeconds)) / count : NaN,
+    synthBuckets: b.buckets.map(([le, n], i) => [le, n - (a.buckets[i] ? a.buckets[i][1] : 0)]),
+    missesByLevel: misses,
+  };
+}
+
+/**
+ * The texture to measure: by default the 100k × 100k chaos mosaic, the flagship demo (as
+ * server/bench/run.sh picks it); `--texture` names another (name, id or model).
+ */
+function pickTexture(textures, key) {
+  const big = (t) => t.width >= 100_000 && t.height >= 100_000;
+  const found = key
+    ? textures.find((t) => t.id === key || t.name === key) || textures.find((t) => t.model === key && big(t))
+    : textures.find((t) => t.model === 'chaos-mosaic' && big(t));
+  if (!found) throw new Error(`no texture ${key ? `"${key}"` : '100k × 100k chaos-mosaic'} on the server: ${textures.map((t) => t.name).join(', ')}`);
+  return found;
+}
+
+/** Source of an init script merging `--osd` options over the viewer's when it builds its viewer. */
+function osdInitScript(overrides) {
+  return `(${((o) => {
+    // After openseadragon.min.js ran (its script element's load event) and before main.js.
+    document.addEventListener(
+      'load',
+      (e) => {
+        if (!(e.target instanceof HTMLScriptElement) || !e.target.src.includes('openseadragon')) return;
+        window.OpenSeadragon = new Proxy(window.OpenSeadragon, {
+          apply: (target, self, [options]) => target({ ...options, ...o }),
+        });
+      },
+      true,
+    );
+  }).toString()})(${JSON.stringify(overrides)})`;
+}
+
+/**
+ * A fresh browser profile with the viewer open at `url`, as { evaluate, waitFor, reload,
+ * screenshot, close }: over the bare DevTools pipe, or with `--playwright` through Playwright.
+ */
+async function openPage(url) {
+  const initScript = args.osd ? osdInitScript(JSON.parse(args.osd)) : undefined;
+  let page;
+  if (args.playwright) {
+    const b = await launchBrowser(SIZE);
+    if (initScript) await b.context.addInitScript({ content: initScript });
+    const p = (await openViewer(b.context, url)).page;
+    page = {
+      evaluate: (fn, arg) => p.evaluate(fn, arg),
+      waitFor: (fn, arg, { timeout = 60_000 } = {}) => p.waitForFunction(fn, arg, { timeout, polling: 50 }),
+      reload: () => p.reload(),
+      screenshot: (path) => p.screenshot({ path }),
+      close: () => b.close(),
+    };
+  } else {
+    page = await launchBare(url, { ...SIZE, initScript });
+  }
+  await page.waitFor(() => window.vtexViewer && window.vtexViewer.state.item);
+  return page;
+}
+
+/** Resolves when every tile the current view needs is loaded and drawn (lib.mjs waitForIdle). */
+async function idle(page) {
+  await page.evaluate(() => new Promise((r) => requestAnimationFrame(() => requestAnimationFrame(r))));
+  await page.waitFor(viewerIdle);
+}
+
+// The session's raw tiles (~500 MB) must fit the server's cache for "warm server" to be warm.
+const serverArgs = ['--cache-mb', '2048', ...args['server-args'].split(/\s+/).filter(Boolean)];
+const server = await startServer({ extraArgs: serverArgs });
+const results = { when: new Date().toISOString(), viewport: SIZE, steps: STEPS, serverArgs, osd: args.osd || null, driver: args.playwright ? 'playwright' : 'cdp' };
 try {
   const textures = (await (await fetch(`${server.url}/api/v1/textures`)).json()).textures;
-  const big = textures.find((t) => t.width >= 100_000 && t.height >= 100_000);
-  if (!big) throw new Error('no 100k × 100k texture on the server');
+  const big = pickTexture(textures, args.texture);
   results.texture = { name: big.name, model: big.model, width: big.width, height: big.height };
   const views = session(big, STEPS);
   const panStart = { zoom: 1, x: 20_000, y: 60_000 };
   const url = `${server.url}/?texture=${big.id}&zoom=0.01&x=50000&y=50000`;
+  results.server = {};
 
   // Cold: fresh server, fresh browser.
-  let b = await launchBrowser(SIZE);
-  let { page } = await openViewer(b.context, url);
-  await waitForIdle(page);
+  let page = await openPage(url);
+  await idle(page);
+  let c0 = await serverCounters(server.url);
   results.cold = await measureViews(page, views, args.shots, 'cold');
+  let c1 = await serverCounters(server.url);
+  results.server.cold = serverDelta(c0, c1);
+  if (args.shots) await midLoadShots(page, args.shots, big);
   results.panCold = panSummary(await measurePan(page, panStart));
-  await waitForIdle(page);
+  await idle(page);
   results.panWarm = panSummary(await measurePan(page, panStart));
   // Warm browser: reload in the same profile (HTTP cache warm, OpenSeadragon's memory empty).
   await page.reload();
-  await page.waitForFunction(() => window.vtexViewer && window.vtexViewer.state.item);
-  await waitForIdle(page);
+  await page.waitFor(() => window.vtexViewer && window.vtexViewer.state.item);
+  await idle(page);
   results.warmBrowser = await measureViews(page, views, args.shots, 'warm-browser');
-  await b.close();
+  await page.close();
 
   // Warm server: a fresh browser profile; every tile comes from the server's cache.
-  b = await launchBrowser(SIZE);
-  ({ page } = await openViewer(b.context, url));
-  await waitForIdle(page);
+  page = await openPage(url);
+  await idle(page);
+  c0 = await serverCounters(server.url);
   results.warmServer = await measureViews(page, views, args.shots, 'warm-server');
+  c1 = await serverCounters(server.url);
+  results.server.warmServer = serverDelta(c0, c1);
+  // Warm viewer: back to the view before (its tiles still in OpenSeadragon's memory).
+  results.warmViewer = await measureViews(page, views, args.shots, 'warm-viewer', { back: true });
   results.serverStats = await page.evaluate(() => window.vtexViewer.stats.snapshot());
-  await b.close();
+  await page.close();
 } finally {
   await server.stop();
 }
 
 const f = (v) => v.toFixed(1);
-console.log(`texture ${results.texture.name} (${results.texture.model}), ${results.viewport.width}×${results.viewport.height} browser viewport, ${STEPS} view changes`);
+console.log(`texture ${results.texture.name} (${results.texture.model}), ${results.viewport.width}×${results.viewport.height} browser viewport, ${STEPS} view changes${args.osd ? `, OSD options ${args.osd}` : ''}, server ${serverArgs.join(' ')}, driven by ${results.driver}`);
 console.log('| view change → every visible tile drawn | p50 ms | p95 ms | max ms | tiles/view |');
 console.log('|---|---|---|---|---|');
 for (const [k, label] of [
   ['cold', 'cold (empty server cache, fresh browser)'],
   ['warmServer', 'warm server cache, fresh browser'],
   ['warmBrowser', 'warm browser HTTP cache (after reload)'],
+  ['warmViewer', 'warm viewer: back to the previous view (tiles in memory)'],
 ]) {
   const r = results[k];
   console.log(`| ${label} | ${f(r.p50)} | ${f(r.p95)} | ${f(r.max)} | ${r.tilesPerView.toFixed(1)} |`);
@@ -194,5 +367,23 @@ for (const [k, label] of [
 ]) {
   const r = results[k];
   console.log(`| ${label} | ${r.n} | ${f(r.p50)} | ${f(r.p95)} | ${f(r.max)} | ${r.over33} | ${r.over50} | ${r.tiles} |`);
+}
+for (const [k, label] of [
+  ['cold', 'server, cold pass'],
+  ['warmServer', 'server, warm-server pass'],
+]) {
+  const d = results.server[k];
+  const levels = Object.entries(d.missesByLevel).map(([l, n]) => `L${l}: ${n}`).join(', ') || 'none';
+  console.log(`\n${label}: ${d.syntheses} syntheses, mean ${Number.isFinite(d.synthMeanMs) ? f(d.synthMeanMs) : '–'} ms; misses by level ${levels}`);
+}
+if (args.trace) {
+  for (const [k, label] of [
+    ['cold', 'cold'],
+    ['warmServer', 'warm server'],
+    ['warmBrowser', 'warm browser'],
+    ['warmViewer', 'warm viewer'],
+  ]) {
+    console.log(formatBreakdown(label, results[k].breakdowns));
+  }
 }
 if (args.json) writeFileSync(args.json, JSON.stringify(results, null, 2));

@@ -16,7 +16,8 @@ const { chromium } = require('playwright-core');
 
 export const VTEX_BIN = process.env.VTEX_BIN || join(ROOT, 'target', 'release', 'vtex');
 export const CHROMIUM = process.env.CHROMIUM || '/usr/bin/chromium';
-export const WEB_DIR = join(ROOT, 'client-web', 'dist');
+// VTEX_WEB_DIR: another build of the viewer (the bench's A/B comparisons).
+export const WEB_DIR = process.env.VTEX_WEB_DIR || join(ROOT, 'client-web', 'dist');
 
 /** Starts `vtex serve` on 127.0.0.1:0 with a fresh data dir; resolves once it prints its URL. */
 export async function startServer({ extraArgs = [] } = {}) {
@@ -70,6 +71,19 @@ export async function startServer({ extraArgs = [] } = {}) {
   };
 }
 
+/** Chromium's flags for the tests and the bench: headless, software only, no background traffic. */
+export const CHROMIUM_ARGS = [
+  '--headless',
+  '--no-sandbox',
+  '--disable-gpu',
+  '--disable-quic',
+  '--no-first-run',
+  '--disable-background-networking',
+  '--disable-component-update',
+  '--disable-sync',
+  '--force-color-profile=srgb',
+];
+
 /** Launches headless Chromium with a fresh profile (so a fresh, empty HTTP cache). */
 export async function launchBrowser({ width = 1280, height = 800 } = {}) {
   const profile = mkdtempSync(join(tmpdir(), 'vtex-chromium-'));
@@ -78,17 +92,7 @@ export async function launchBrowser({ width = 1280, height = 800 } = {}) {
     headless: true,
     viewport: { width, height },
     deviceScaleFactor: 1,
-    args: [
-      '--headless',
-      '--no-sandbox',
-      '--disable-gpu',
-      '--disable-quic',
-      '--no-first-run',
-      '--disable-background-networking',
-      '--disable-component-update',
-      '--disable-sync',
-      '--force-color-profile=srgb',
-    ],
+    args: CHROMIUM_ARGS,
   });
   return {
     context,
@@ -120,22 +124,20 @@ export async function openViewer(context, url) {
   return { page, log };
 }
 
+/** In the page: whether the view has settled and every tile it needs is loaded and drawn. */
+export function viewerIdle() {
+  const v = window.vtexViewer;
+  const item = v.state.item;
+  const vp = v.viewer.viewport;
+  const settled = vp.getZoom(true) === vp.getZoom(false) && vp.getCenter(true).equals(vp.getCenter(false));
+  return settled && item && item.getFullyLoaded() && !v.viewer.world.needsDraw() && v.state.pending === null;
+}
+
 /** Resolves when every tile the current view needs is loaded and drawn. */
 export async function waitForIdle(page, timeout = 60_000) {
   // Let OpenSeadragon run at least one update after whatever the caller just did.
   await page.evaluate(() => new Promise((r) => requestAnimationFrame(() => requestAnimationFrame(r))));
-  await page.waitForFunction(
-    () => {
-      const v = window.vtexViewer;
-      const item = v.state.item;
-      const vp = v.viewer.viewport;
-      const settled =
-        vp.getZoom(true) === vp.getZoom(false) && vp.getCenter(true).equals(vp.getCenter(false));
-      return settled && item && item.getFullyLoaded() && !v.viewer.world.needsDraw() && v.state.pending === null;
-    },
-    null,
-    { timeout, polling: 50 },
-  );
+  await page.waitForFunction(viewerIdle, null, { timeout, polling: 50 });
 }
 
 /** Decodes an 8-bit, non-interlaced RGB or RGBA PNG (what Chromium's screenshots are). */

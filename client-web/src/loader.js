@@ -1,0 +1,64 @@
+// Tile request scheduling on top of OpenSeadragon's image loader.
+
+/** Levels coarser than the finest at which a view's preview is loaded (≤ 2 × 2 tiles). */
+export const PREVIEW_STEPS = 3;
+
+/**
+ * Whether a tile of OpenSeadragon level `level` is worth fetching while the view's finest
+ * level is `finest` (OSD levels count up from the single-tile level 0): the finest level, one
+ * preview level PREVIEW_STEPS coarser, and the single whole-texture tile, the fallback under
+ * everything (OSD never evicts it).
+ */
+export function wantedLevel(level, finest) {
+  return level === finest || level === finest - PREVIEW_STEPS || level === 0;
+}
+
+/**
+ * Two changes to how OpenSeadragon 5 feeds its image loader, both measured with
+ * `node tests/browser/bench.mjs --trace` (BENCHMARKS.md, "Viewer"):
+ *
+ * 1. It empties the loader's queue after every draw (`drawWorld` in viewer.js), so a request
+ *    slot freed between two frames stays idle until the next frame. Here the queue is kept
+ *    until the start of the next update instead: the loader starts the next queued tile the
+ *    moment one finishes, and every update still rebuilds the queue from what the current
+ *    view needs, so tiles of views already left are never fetched.
+ * 2. While tiles of the finest level are missing it fetches every coarser level under them
+ *    too, coarsest first, for a progressive preview: a third of a view's requests, and the
+ *    mid levels are the dearest to synthesize. Here only `wantedLevel` levels are fetched: a
+ *    preview of at most 2 × 2 tiles comes first, then the finest level. Coarser tiles already
+ *    in memory (the previous view's) are still drawn under missing ones.
+ *
+ * OpenSeadragon adds jobs only while it updates its tiled images; here the jobs of one update
+ * are collected, filtered against the finest level among them, and handed to the loader in
+ * OpenSeadragon's order. Closing the viewer empties the queue at once, as before.
+ */
+export function scheduleTiles(viewer) {
+  const loader = viewer.imageLoader;
+  const clear = loader.clear.bind(loader);
+  loader.clear = () => {};
+  const addJob = loader.addJob.bind(loader);
+  let batch = null;
+  loader.addJob = (options) => (batch ? batch.push(options) : addJob(options));
+  const world = viewer.world;
+  const update = world.update.bind(world);
+  world.update = (viewportChanged) => {
+    clear();
+    batch = [];
+    try {
+      return update(viewportChanged);
+    } finally {
+      const jobs = batch;
+      batch = null;
+      const finest = Math.max(...jobs.map((o) => (o.tile && Number.isInteger(o.tile.level) ? o.tile.level : -Infinity)));
+      for (const options of jobs) {
+        const level = options.tile && options.tile.level;
+        if (Number.isInteger(level) && !wantedLevel(level, finest)) {
+          if (typeof options.abort === 'function') options.abort(); // the tile is not loading after all
+        } else {
+          addJob(options);
+        }
+      }
+    }
+  };
+  viewer.addHandler('close', clear);
+}

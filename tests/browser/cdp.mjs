@@ -1,0 +1,134 @@
+// Chromium driven over a bare DevTools pipe, for the measured session (`bench.mjs`).
+//
+// Playwright enables DevTools' Network domain on every page (it reports every request and
+// response to its driver), which costs Chromium about 2 ms of CPU per tile request on the
+// 2-core test machine — 40 % more than the request itself (measured with /proc CPU times
+// around 128 fetches; see BENCHMARKS.md "Viewer"). A view change fetches ~32 tiles, so the
+// measurement would mostly measure the instrumentation. Here only Runtime.evaluate,
+// Page.reload and Page.captureScreenshot are sent: the page runs as it would for a user.
+import { spawn } from 'node:child_process';
+import { mkdtempSync, rmSync, writeFileSync } from 'node:fs';
+import { tmpdir } from 'node:os';
+import { join } from 'node:path';
+import { CHROMIUM, CHROMIUM_ARGS } from './lib.mjs';
+
+/**
+ * Launches headless Chromium (fresh profile, same flags as lib.mjs) with `url` open;
+ * `initScript` (source text) runs in every document before the page's own scripts.
+ */
+export async function launchBare(url, { width = 1280, height = 800, initScript } = {}) {
+  const profile = mkdtempSync(join(tmpdir(), 'vtex-chromium-bare-'));
+  const proc = spawn(
+    CHROMIUM,
+    [
+      ...CHROMIUM_ARGS,
+      '--force-device-scale-factor=1',
+      `--window-size=${width},${height}`,
+      `--user-data-dir=${profile}`,
+      '--remote-debugging-pipe',
+      'about:blank',
+    ],
+    { stdio: ['ignore', 'ignore', 'pipe', 'pipe', 'pipe'] },
+  );
+  let stderr = '';
+  proc.stderr.on('data', (d) => (stderr = (stderr + d).slice(-4000)));
+  const toChrome = proc.stdio[3];
+  const fromChrome = proc.stdio[4];
+  let id = 0;
+  const pending = new Map();
+  let buffer = '';
+  fromChrome.on('data', (chunk) => {
+    buffer += chunk.toString('utf8');
+    let end;
+    while ((end = buffer.indexOf('\0')) >= 0) {
+      const message = JSON.parse(buffer.slice(0, end));
+      buffer = buffer.slice(end + 1);
+      const p = message.id !== undefined && pending.get(message.id);
+      if (p) {
+        pending.delete(message.id);
+        if (message.error) p.reject(new Error(`${p.method}: ${message.error.message}`));
+        else p.resolve(message.result);
+      }
+    }
+  });
+  proc.on('exit', () => {
+    for (const p of pending.values()) p.reject(new Error(`chromium exited; stderr:\n${stderr}`));
+    pending.clear();
+  });
+  const send = (method, params = {}, sessionId) =>
+    new Promise((resolve, reject) => {
+      const i = ++id;
+      pending.set(i, { resolve, reject, method });
+      toChrome.write(`${JSON.stringify({ id: i, method, params, ...(sessionId ? { sessionId } : {}) })}\0`);
+    });
+
+  const { targetInfos } = await send('Target.getTargets');
+  const target = targetInfos.find((t) => t.type === 'page');
+  const { sessionId } = await send('Target.attachToTarget', { targetId: target.targetId, flatten: true });
+  const page = (method, params) => send(method, params, sessionId);
+  // The page's viewport exactly width × height (as Playwright's `viewport`), whatever the window.
+  await page('Emulation.setDeviceMetricsOverride', { width, height, deviceScaleFactor: 1, mobile: false });
+  if (initScript) await page('Page.addScriptToEvaluateOnNewDocument', { source: initScript });
+  await page('Page.navigate', { url });
+
+  /** Runs `fn(arg)` in the page (awaiting a returned promise) and returns its JSON value. */
+  async function evaluate(fn, arg, { truthy = false } = {}) {
+    let expression = `(${fn.toString()})(${arg === undefined ? '' : JSON.stringify(arg)})`;
+    if (truthy) expression = `Promise.resolve(${expression}).then((v) => !!v)`;
+    const r = await page('Runtime.evaluate', { expression, awaitPromise: true, returnByValue: true });
+    if (r.exceptionDetails) {
+      const e = r.exceptionDetails;
+      throw new Error(`in page: ${e.exception ? e.exception.description || e.exception.value : e.text}`);
+    }
+    return r.result.value;
+  }
+
+  /** Polls `fn(arg)` in the page every `interval` ms until it is truthy. */
+  async function waitFor(fn, arg, { timeout = 60_000, interval = 50 } = {}) {
+    const t0 = Date.now();
+    for (;;) {
+      try {
+        if (await evaluate(fn, arg, { truthy: true })) return;
+      } catch (e) {
+        // the page may be between documents (navigation, reload)
+        if (!/Execution context|Cannot find context|in page/.test(String(e))) throw e;
+      }
+      if (Date.now() - t0 > timeout) throw new Error(`timed out after ${timeout} ms waiting for ${fn}`);
+      await new Promise((r) => setTimeout(r, interval));
+    }
+  }
+
+  return {
+    evaluate,
+    waitFor,
+    /** Reloads and resolves once the new document runs (the old one is marked to tell them apart). */
+    async reload() {
+      await evaluate(() => (window.__vtexOldDocument = true));
+      await page('Page.reload', {});
+      await waitFor(() => !window.__vtexOldDocument && document.readyState !== 'loading');
+    },
+    async screenshot(path) {
+      const { data } = await page('Page.captureScreenshot', { format: 'png' });
+      writeFileSync(path, Buffer.from(data, 'base64'));
+    },
+    async close() {
+      try {
+        await send('Browser.close');
+      } catch {
+        // already gone
+      }
+      await new Promise((r) => {
+        if (proc.exitCode !== null) return r();
+        const t = setTimeout(() => {
+          proc.kill('SIGKILL');
+          r();
+        }, 5000);
+        proc.once('exit', () => {
+          clearTimeout(t);
+          r();
+        });
+      });
+      rmSync(profile, { recursive: true, force: true });
+    },
+  };
+}
