@@ -5,8 +5,13 @@
 #   2. cold 256² tiles per format over HTTP (every request a tile never seen before);
 #   3. resident memory after a long pan with a 256 MB cache.
 # Needs: wrk, nginx, curl, python3 (apt-get install wrk nginx curl python3).
-# Usage: server/bench/run.sh [seconds per run, default 10]
+# Usage: server/bench/run.sh [--only warm|cold|memory] [seconds per run, default 10]
+#   (--only runs one section, for quick comparisons; the default runs all three)
 set -euo pipefail
+ONLY=all
+if [ "${1:-}" = "--only" ]; then ONLY=$2; shift 2; fi
+case "$ONLY" in all|warm|cold|memory) ;; *) echo "--only takes warm, cold or memory" >&2; exit 2;; esac
+section() { [ "$ONLY" = all ] || [ "$ONLY" = "$1" ]; }
 DUR=${1:-10}
 ROOT=$(cd "$(dirname "$0")/../.." && pwd)
 WORK=$(mktemp -d /tmp/vtex-bench.XXXXXX)
@@ -20,7 +25,7 @@ cleanup() {
 trap cleanup EXIT
 
 cargo build --release -q -p vtex-server --manifest-path "$ROOT/Cargo.toml"
-BIN="$ROOT/target/release/vtex"
+BIN="${CARGO_TARGET_DIR:-$ROOT/target}/release/vtex"
 
 start_vtex() { # $1 = cache MB
   VTEX_LOG=warn "$BIN" serve --bind 127.0.0.1:0 --data-dir "$WORK/data" --cache-mb "$1" \
@@ -45,11 +50,14 @@ run_wrk() {
 }
 
 echo "# vtex server benchmarks — $(date -u +%FT%TZ), $(nproc) CPUs, loopback, ${DUR}s per run"
+echo
+echo "load average before: $(cut -d' ' -f1-3 /proc/loadavg)"
 start_vtex 256
 ID=$(curl -s "$VTEX/api/v1/textures" | python3 -c '
 import json, sys
 print(next(t["id"] for t in json.load(sys.stdin)["textures"] if t["width"] == 100000 and t["model"] == "chaos-mosaic"))')
 
+if section warm; then
 # 1. Warm tiles: 64 PNG tiles of the 100k mosaic, fetched once into vtex's cache and
 #    written to nginx's root at the same paths.
 mkdir -p "$WORK/www"
@@ -98,7 +106,9 @@ for c in 8 64; do
   echo "| vtex (tile cache) | $c | $rps | $p50 | $p99 |"
 done
 kill "$NGINX_PID"; wait "$NGINX_PID" 2>/dev/null || true; NGINX_PID=""
+fi
 
+if section cold; then
 # 2. Cold tiles: every request is a new tile of level 0 (391² tiles exist).
 echo
 echo "## Cold 256² tiles over HTTP (synthesis + encode + HTTP; 1 connection, then 2)"
@@ -122,8 +132,10 @@ LUA
     echo "| $fmt | $c | $rps | $p50 | $p99 |"
   done
 done
+fi
 stop_vtex
 
+if section memory; then
 # 3. Memory: a long pan over level 0 (every request a new PNG tile) with a 256 MB cache.
 start_vtex 256
 RSS0=$(awk '/VmRSS/ {print $2}' "/proc/$VTEX_PID/status")
@@ -151,3 +163,6 @@ echo "| cache budget | cache bytes held | RSS at start | RSS after pan | peak RS
 echo "|---|---|---|---|---|"
 echo "| $((${BUDGET%.*} / 1048576)) MiB | $((${CACHE%.*} / 1048576)) MiB | $((RSS0 / 1024)) MiB | $((RSS1 / 1024)) MiB | $((HWM / 1024)) MiB |"
 stop_vtex
+fi
+echo
+echo "load average after: $(cut -d' ' -f1-3 /proc/loadavg)"

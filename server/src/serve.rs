@@ -7,9 +7,9 @@
 use crate::api::{self, AppState};
 use crate::config::ServeConfig;
 use crate::store::Store;
-use hyper_util::rt::{TokioExecutor, TokioIo, TokioTimer};
+use crate::zerocopy::SpliceIo;
+use hyper_util::rt::{TokioExecutor, TokioTimer};
 use hyper_util::server::conn::auto;
-use hyper_util::service::TowerToHyperService;
 use std::future::Future;
 use std::io::Write;
 use std::sync::Arc;
@@ -40,7 +40,7 @@ pub async fn run(cfg: ServeConfig, shutdown: impl Future<Output = ()>) -> anyhow
         tracing::warn!(web_dir = %cfg.web_dir.display(), "no index.html in the web directory; the viewer is not served");
     }
     let app = AppState::new(Arc::new(store), cfg.clone());
-    let router = api::router(app);
+    let front = api::Front::new(app);
 
     let listener = TcpListener::bind(cfg.bind).await?;
     let addr = listener.local_addr()?;
@@ -69,8 +69,7 @@ pub async fn run(cfg: ServeConfig, shutdown: impl Future<Output = ()>) -> anyhow
                     }
                 };
                 let _ = stream.set_nodelay(true);
-                let service = TowerToHyperService::new(router.clone());
-                let conn = builder.serve_connection_with_upgrades(TokioIo::new(stream), service).into_owned();
+                let conn = builder.serve_connection_with_upgrades(SpliceIo::new(stream), front.clone()).into_owned();
                 let conn = graceful.watch(conn);
                 tokio::spawn(async move {
                     if let Err(e) = conn.await {
