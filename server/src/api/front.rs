@@ -26,12 +26,14 @@ use std::time::{Duration, Instant};
 use tower::ServiceExt;
 use tower_http::cors::{Any, CorsLayer};
 
-/// Cloned per connection; the state is shared.
+/// Cloned per connection and per request (one reference count); the state is shared.
 #[derive(Clone)]
-pub struct Front {
+pub struct Front(Arc<Inner>);
+
+struct Inner {
     app: App,
     router: Router,
-    cors: Arc<CorsHeaders>,
+    cors: CorsHeaders,
 }
 
 /// The CORS policy: any origin, the API's methods, any request header, and the response
@@ -45,7 +47,8 @@ pub fn cors_layer() -> CorsLayer {
 }
 
 /// The headers [`cors_layer`] puts on a response to a request that is not a preflight
-/// (OPTIONS): they do not depend on the request, so they are taken from the layer once.
+/// (OPTIONS): they do not depend on the request, so they are taken from the layer once, as
+/// static values (cloning one then touches no shared reference count).
 struct CorsHeaders(Vec<(header::HeaderName, HeaderValue)>);
 
 impl CorsHeaders {
@@ -55,7 +58,11 @@ impl CorsHeaders {
             .service_fn(|_: Request<Body>| async { Ok::<_, Infallible>(Response::new(Body::empty())) });
         let req = Request::get("/").body(Body::empty()).expect("a static request");
         let resp = futures_ready(svc.oneshot(req)).expect("the CORS layer answers at once");
-        CorsHeaders(resp.headers().iter().map(|(k, v)| (k.clone(), v.clone())).collect())
+        let leak = |v: &HeaderValue| {
+            let text: &'static str = v.to_str().expect("CORS header values are ASCII").to_owned().leak();
+            HeaderValue::from_static(text)
+        };
+        CorsHeaders(resp.headers().iter().map(|(k, v)| (k.clone(), leak(v))).collect())
     }
 
     /// Adds them as the layer would (`Vary` appended, the others replaced).
@@ -81,8 +88,8 @@ fn futures_ready<F: Future>(f: F) -> F::Output {
 
 impl Front {
     pub fn new(app: App) -> Front {
-        let cors = Arc::new(CorsHeaders::from_layer(cors_layer()));
-        Front { router: router(app.clone()), app, cors }
+        let cors = CorsHeaders::from_layer(cors_layer());
+        Front(Arc::new(Inner { router: router(app.clone()), app, cors }))
     }
 }
 
@@ -93,13 +100,13 @@ impl hyper::service::Service<Request<Incoming>> for Front {
 
     fn call(&self, req: Request<Incoming>) -> Self::Future {
         let start = Instant::now();
-        let this = self.clone();
+        let this = self.0.clone();
         Box::pin(async move {
             let method = req.method().clone();
-            let route = Route::of(req.uri().path());
             let path = tracing::enabled!(tracing::Level::INFO).then(|| req.uri().path().to_owned());
             let limit = this.app.cfg.request_timeout();
-            let resp = match tokio::time::timeout(limit, this.dispatch(req)).await {
+            let (route, work) = this.dispatch(req);
+            let resp = match tokio::time::timeout(limit, work).await {
                 Ok(resp) => resp,
                 Err(_) => {
                     let mut resp = ApiError::new(
@@ -117,19 +124,24 @@ impl hyper::service::Service<Request<Incoming>> for Front {
     }
 }
 
-impl Front {
-    async fn dispatch(&self, req: Request<Incoming>) -> Response {
-        if req.method() == Method::GET {
-            if let Some(path) = TilePath::plain(req.uri().path()) {
+impl Inner {
+    /// The request's metrics route and the work that answers it.
+    fn dispatch(&self, req: Request<Incoming>) -> (Route, impl Future<Output = Response> + Send + '_) {
+        let direct = req.method() == Method::GET && TilePath::plain(req.uri().path()).is_some();
+        let route = if direct { Route::Tiles } else { Route::of(req.uri().path()) };
+        let work = async move {
+            if direct {
+                let path = TilePath::plain(req.uri().path()).expect("checked above");
                 let mut resp = tiles::tile(&self.app, path, req.uri().query(), req.headers()).await.into_response();
                 self.cors.apply(resp.headers_mut());
                 return resp;
             }
-        }
-        match self.router.clone().oneshot(req.map(Body::new)).await {
-            Ok(resp) => resp,
-            Err(never) => match never {},
-        }
+            match self.router.clone().oneshot(req.map(Body::new)).await {
+                Ok(resp) => resp,
+                Err(never) => match never {},
+            }
+        };
+        (route, work)
     }
 }
 
