@@ -105,19 +105,20 @@ impl hyper::service::Service<Request<Incoming>> for Front {
             let method = req.method().clone();
             let path = tracing::enabled!(tracing::Level::INFO).then(|| req.uri().path().to_owned());
             let limit = this.app.cfg.request_timeout();
-            let (route, work) = this.dispatch(req);
-            let resp = match tokio::time::timeout(limit, work).await {
-                Ok(resp) => resp,
-                Err(_) => {
-                    let mut resp = ApiError::new(
-                        StatusCode::REQUEST_TIMEOUT,
-                        format!("request not completed within {} s (slow client or overload)", limit.as_secs_f64()),
-                    )
-                    .into_response();
-                    this.cors.apply(resp.headers_mut());
-                    resp
-                }
+            let direct = if method == Method::GET { TilePath::plain(req.uri().path()) } else { None };
+            let (route, answer) = match direct {
+                Some(tile) => (Route::Tiles, tokio::time::timeout(limit, this.tile(tile, &req)).await),
+                None => (Route::of(req.uri().path()), tokio::time::timeout(limit, this.route(req)).await),
             };
+            let resp = answer.unwrap_or_else(|_| {
+                let mut resp = ApiError::new(
+                    StatusCode::REQUEST_TIMEOUT,
+                    format!("request not completed within {} s (slow client or overload)", limit.as_secs_f64()),
+                )
+                .into_response();
+                this.cors.apply(resp.headers_mut());
+                resp
+            });
             observe(&this.app, route, &method, path, start.elapsed(), &resp);
             Ok(resp)
         })
@@ -125,23 +126,19 @@ impl hyper::service::Service<Request<Incoming>> for Front {
 }
 
 impl Inner {
-    /// The request's metrics route and the work that answers it.
-    fn dispatch(&self, req: Request<Incoming>) -> (Route, impl Future<Output = Response> + Send + '_) {
-        let direct = req.method() == Method::GET && TilePath::plain(req.uri().path()).is_some();
-        let route = if direct { Route::Tiles } else { Route::of(req.uri().path()) };
-        let work = async move {
-            if direct {
-                let path = TilePath::plain(req.uri().path()).expect("checked above");
-                let mut resp = tiles::tile(&self.app, path, req.uri().query(), req.headers()).await.into_response();
-                self.cors.apply(resp.headers_mut());
-                return resp;
-            }
-            match self.router.clone().oneshot(req.map(Body::new)).await {
-                Ok(resp) => resp,
-                Err(never) => match never {},
-            }
-        };
-        (route, work)
+    /// A plain tile GET, answered directly, with the CORS headers the router would add.
+    async fn tile(&self, path: TilePath<'_>, req: &Request<Incoming>) -> Response {
+        let mut resp = tiles::tile(&self.app, path, req.uri().query(), req.headers()).await.into_response();
+        self.cors.apply(resp.headers_mut());
+        resp
+    }
+
+    /// Everything else, through the router.
+    async fn route(&self, req: Request<Incoming>) -> Response {
+        match self.router.clone().oneshot(req.map(Body::new)).await {
+            Ok(resp) => resp,
+            Err(never) => match never {},
+        }
     }
 }
 
