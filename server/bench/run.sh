@@ -36,17 +36,30 @@ start_vtex() { # $1 = cache MB
 }
 stop_vtex() { kill -TERM "$VTEX_PID"; wait "$VTEX_PID" || true; VTEX_PID=""; }
 
-# wrk: $1 = connections, $2 = lua script, $3 = base URL → "req/s p50 p99"
+# CPU time (ns) the given processes have run, all their threads summed (/proc/PID/task/*/schedstat).
+cpu_ns() {
+  local t=0 a _
+  for p in "$@"; do for f in /proc/"$p"/task/*/schedstat; do read -r a _ < "$f"; t=$((t + a)); done; done
+  echo "$t"
+}
+
+# wrk: $1 = connections, $2 = lua script, $3 = base URL, $4 = wrk threads, $5.. = server PIDs
+# → "req/s p50 p99 server-CPU-µs-per-request" (the last "-" without PIDs)
 run_wrk() {
   local threads=${4:-2}; [ "$1" -lt "$threads" ] && threads=$1
+  local c0 c1 pids=("${@:5}")
+  [ ${#pids[@]} -gt 0 ] && c0=$(cpu_ns "${pids[@]}")
   wrk -t"$threads" -c"$1" -d"${DUR}s" --latency -s "$2" "$3" > "$WORK/wrk.txt"
-  local rps p50 p99 non2xx
+  [ ${#pids[@]} -gt 0 ] && c1=$(cpu_ns "${pids[@]}")
+  local rps p50 p99 non2xx n cpu=-
   rps=$(awk '/^Requests\/sec/ {print $2}' "$WORK/wrk.txt")
   p50=$(awk '$1=="50%" {print $2}' "$WORK/wrk.txt")
   p99=$(awk '$1=="99%" {print $2}' "$WORK/wrk.txt")
+  n=$(awk '/requests in/ {print $1}' "$WORK/wrk.txt")
   non2xx=$(awk '/Non-2xx/ {print $NF}' "$WORK/wrk.txt")
   [ -n "$non2xx" ] && { echo "wrk saw $non2xx non-2xx responses" >&2; cat "$WORK/wrk.txt" >&2; exit 1; }
-  echo "$rps $p50 $p99"
+  [ ${#pids[@]} -gt 0 ] && cpu=$(awk -v d=$((c1 - c0)) -v n="$n" 'BEGIN {printf "%.1f", d / 1000 / n}')
+  echo "$rps $p50 $p99 $cpu"
 }
 
 echo "# vtex server benchmarks — $(date -u +%FT%TZ), $(nproc) CPUs, loopback, ${DUR}s per run"
@@ -97,13 +110,18 @@ TILE_BYTES=$(du -sb "$WORK/www" | cut -f1)
 echo
 echo "## Warm tiles (64 distinct 256² PNG tiles, $((TILE_BYTES / 64)) bytes each on average)"
 echo
-echo "| server | connections | tiles/s | p50 | p99 |"
-echo "|---|---|---|---|---|"
+echo "Server CPU: µs of CPU time the server (all its threads or worker processes) spent per tile;"
+echo "wrk shares the 2 cores, so this decides throughput and is less noisy than tiles/s."
+echo
+echo "| server | connections | tiles/s | p50 | p99 | server CPU µs/tile |"
+echo "|---|---|---|---|---|---|"
+NGINX_WORKERS=$(pgrep -P "$NGINX_PID" | tr '\n' ' ')
 for c in 8 64; do
-  read -r rps p50 p99 < <(run_wrk "$c" "$WORK/warm.lua" "http://127.0.0.1:18089")
-  echo "| nginx (static files) | $c | $rps | $p50 | $p99 |"
-  read -r rps p50 p99 < <(run_wrk "$c" "$WORK/warm.lua" "$VTEX")
-  echo "| vtex (tile cache) | $c | $rps | $p50 | $p99 |"
+  # shellcheck disable=SC2086 # one PID per word
+  read -r rps p50 p99 cpu < <(run_wrk "$c" "$WORK/warm.lua" "http://127.0.0.1:18089" 2 $NGINX_WORKERS)
+  echo "| nginx (static files) | $c | $rps | $p50 | $p99 | $cpu |"
+  read -r rps p50 p99 cpu < <(run_wrk "$c" "$WORK/warm.lua" "$VTEX" 2 "$VTEX_PID")
+  echo "| vtex (tile cache) | $c | $rps | $p50 | $p99 | $cpu |"
 done
 kill "$NGINX_PID"; wait "$NGINX_PID" 2>/dev/null || true; NGINX_PID=""
 fi
@@ -128,7 +146,7 @@ request = function()
   return wrk.format("GET", "/api/v1/textures/$ID/tiles/0/" .. (k % 391) .. "/" .. math.floor(k / 391) .. ".$fmt")
 end
 LUA
-    read -r rps p50 p99 < <(run_wrk "$c" "$WORK/cold.lua" "$VTEX" 1)
+    read -r rps p50 p99 _ < <(run_wrk "$c" "$WORK/cold.lua" "$VTEX" 1)
     echo "| $fmt | $c | $rps | $p50 | $p99 |"
   done
 done
