@@ -29,7 +29,7 @@ fn main() -> anyhow::Result<()> {
         .unwrap_or_else(|_| EnvFilter::new("info"));
     tracing_subscriber::fmt().with_env_filter(filter).with_writer(std::io::stderr).init();
     match Cli::parse().command {
-        Command::Serve(cfg) => tokio::runtime::Builder::new_multi_thread()
+        Command::Serve(cfg) => tokio::runtime::Builder::new_current_thread()
             .enable_all()
             .build()?
             .block_on(vtex_server::serve::run(cfg, vtex_server::serve::shutdown_signal())),
