@@ -5,8 +5,13 @@
 #   2. cold 256² tiles per format over HTTP (every request a tile never seen before);
 #   3. resident memory after a long pan with a 256 MB cache.
 # Needs: wrk, nginx, curl, python3 (apt-get install wrk nginx curl python3).
-# Usage: server/bench/run.sh [seconds per run, default 10]
+# Usage: server/bench/run.sh [--only warm|cold|memory] [seconds per run, default 10]
+#   (--only runs one section, for quick comparisons; the default runs all three)
 set -euo pipefail
+ONLY=all
+if [ "${1:-}" = "--only" ]; then ONLY=$2; shift 2; fi
+case "$ONLY" in all|warm|cold|memory) ;; *) echo "--only takes warm, cold or memory" >&2; exit 2;; esac
+section() { [ "$ONLY" = all ] || [ "$ONLY" = "$1" ]; }
 DUR=${1:-10}
 ROOT=$(cd "$(dirname "$0")/../.." && pwd)
 WORK=$(mktemp -d /tmp/vtex-bench.XXXXXX)
@@ -20,7 +25,7 @@ cleanup() {
 trap cleanup EXIT
 
 cargo build --release -q -p vtex-server --manifest-path "$ROOT/Cargo.toml"
-BIN="$ROOT/target/release/vtex"
+BIN="${CARGO_TARGET_DIR:-$ROOT/target}/release/vtex"
 
 start_vtex() { # $1 = cache MB
   VTEX_LOG=warn "$BIN" serve --bind 127.0.0.1:0 --data-dir "$WORK/data" --cache-mb "$1" \
@@ -31,25 +36,41 @@ start_vtex() { # $1 = cache MB
 }
 stop_vtex() { kill -TERM "$VTEX_PID"; wait "$VTEX_PID" || true; VTEX_PID=""; }
 
-# wrk: $1 = connections, $2 = lua script, $3 = base URL → "req/s p50 p99"
+# CPU time (ns) the given processes have run, all their threads summed (/proc/PID/task/*/schedstat).
+cpu_ns() {
+  local t=0 a _
+  for p in "$@"; do for f in /proc/"$p"/task/*/schedstat; do read -r a _ < "$f"; t=$((t + a)); done; done
+  echo "$t"
+}
+
+# wrk: $1 = connections, $2 = lua script, $3 = base URL, $4 = wrk threads, $5.. = server PIDs
+# → "req/s p50 p99 server-CPU-µs-per-request" (the last "-" without PIDs)
 run_wrk() {
   local threads=${4:-2}; [ "$1" -lt "$threads" ] && threads=$1
+  local c0 c1 pids=("${@:5}")
+  [ ${#pids[@]} -gt 0 ] && c0=$(cpu_ns "${pids[@]}")
   wrk -t"$threads" -c"$1" -d"${DUR}s" --latency -s "$2" "$3" > "$WORK/wrk.txt"
-  local rps p50 p99 non2xx
+  [ ${#pids[@]} -gt 0 ] && c1=$(cpu_ns "${pids[@]}")
+  local rps p50 p99 non2xx n cpu=-
   rps=$(awk '/^Requests\/sec/ {print $2}' "$WORK/wrk.txt")
   p50=$(awk '$1=="50%" {print $2}' "$WORK/wrk.txt")
   p99=$(awk '$1=="99%" {print $2}' "$WORK/wrk.txt")
+  n=$(awk '/requests in/ {print $1}' "$WORK/wrk.txt")
   non2xx=$(awk '/Non-2xx/ {print $NF}' "$WORK/wrk.txt")
   [ -n "$non2xx" ] && { echo "wrk saw $non2xx non-2xx responses" >&2; cat "$WORK/wrk.txt" >&2; exit 1; }
-  echo "$rps $p50 $p99"
+  [ ${#pids[@]} -gt 0 ] && cpu=$(awk -v d=$((c1 - c0)) -v n="$n" 'BEGIN {printf "%.1f", d / 1000 / n}')
+  echo "$rps $p50 $p99 $cpu"
 }
 
 echo "# vtex server benchmarks — $(date -u +%FT%TZ), $(nproc) CPUs, loopback, ${DUR}s per run"
+echo
+echo "load average before: $(cut -d' ' -f1-3 /proc/loadavg)"
 start_vtex 256
 ID=$(curl -s "$VTEX/api/v1/textures" | python3 -c '
 import json, sys
 print(next(t["id"] for t in json.load(sys.stdin)["textures"] if t["width"] == 100000 and t["model"] == "chaos-mosaic"))')
 
+if section warm; then
 # 1. Warm tiles: 64 PNG tiles of the 100k mosaic, fetched once into vtex's cache and
 #    written to nginx's root at the same paths.
 mkdir -p "$WORK/www"
@@ -89,16 +110,23 @@ TILE_BYTES=$(du -sb "$WORK/www" | cut -f1)
 echo
 echo "## Warm tiles (64 distinct 256² PNG tiles, $((TILE_BYTES / 64)) bytes each on average)"
 echo
-echo "| server | connections | tiles/s | p50 | p99 |"
-echo "|---|---|---|---|---|"
+echo "Server CPU: µs of CPU time the server (all its threads or worker processes) spent per tile;"
+echo "wrk shares the 2 cores, so this decides throughput and is less noisy than tiles/s."
+echo
+echo "| server | connections | tiles/s | p50 | p99 | server CPU µs/tile |"
+echo "|---|---|---|---|---|---|"
+NGINX_WORKERS=$(pgrep -P "$NGINX_PID" | tr '\n' ' ')
 for c in 8 64; do
-  read -r rps p50 p99 < <(run_wrk "$c" "$WORK/warm.lua" "http://127.0.0.1:18089")
-  echo "| nginx (static files) | $c | $rps | $p50 | $p99 |"
-  read -r rps p50 p99 < <(run_wrk "$c" "$WORK/warm.lua" "$VTEX")
-  echo "| vtex (tile cache) | $c | $rps | $p50 | $p99 |"
+  # shellcheck disable=SC2086 # one PID per word
+  read -r rps p50 p99 cpu < <(run_wrk "$c" "$WORK/warm.lua" "http://127.0.0.1:18089" 2 $NGINX_WORKERS)
+  echo "| nginx (static files) | $c | $rps | $p50 | $p99 | $cpu |"
+  read -r rps p50 p99 cpu < <(run_wrk "$c" "$WORK/warm.lua" "$VTEX" 2 "$VTEX_PID")
+  echo "| vtex (tile cache) | $c | $rps | $p50 | $p99 | $cpu |"
 done
 kill "$NGINX_PID"; wait "$NGINX_PID" 2>/dev/null || true; NGINX_PID=""
+fi
 
+if section cold; then
 # 2. Cold tiles: every request is a new tile of level 0 (391² tiles exist).
 echo
 echo "## Cold 256² tiles over HTTP (synthesis + encode + HTTP; 1 connection, then 2)"
@@ -118,12 +146,14 @@ request = function()
   return wrk.format("GET", "/api/v1/textures/$ID/tiles/0/" .. (k % 391) .. "/" .. math.floor(k / 391) .. ".$fmt")
 end
 LUA
-    read -r rps p50 p99 < <(run_wrk "$c" "$WORK/cold.lua" "$VTEX" 1)
+    read -r rps p50 p99 _ < <(run_wrk "$c" "$WORK/cold.lua" "$VTEX" 1)
     echo "| $fmt | $c | $rps | $p50 | $p99 |"
   done
 done
+fi
 stop_vtex
 
+if section memory; then
 # 3. Memory: a long pan over level 0 (every request a new PNG tile) with a 256 MB cache.
 start_vtex 256
 RSS0=$(awk '/VmRSS/ {print $2}' "/proc/$VTEX_PID/status")
@@ -151,3 +181,6 @@ echo "| cache budget | cache bytes held | RSS at start | RSS after pan | peak RS
 echo "|---|---|---|---|---|"
 echo "| $((${BUDGET%.*} / 1048576)) MiB | $((${CACHE%.*} / 1048576)) MiB | $((RSS0 / 1024)) MiB | $((RSS1 / 1024)) MiB | $((HWM / 1024)) MiB |"
 stop_vtex
+fi
+echo
+echo "load average after: $(cut -d' ' -f1-3 /proc/loadavg)"

@@ -6,6 +6,7 @@
 //! tile larger than a quarter of a shard is served but not cached (it would flush the shard).
 
 use crate::encode::Format;
+use axum::http::HeaderValue;
 use bytes::Bytes;
 use lru::LruCache;
 use std::collections::HashMap;
@@ -15,8 +16,9 @@ use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::{Arc, Mutex};
 use tokio::sync::OnceCell;
 
-/// Bookkeeping charged per entry on top of the tile bytes (key, LRU links, `Arc`, map slot).
-pub const ENTRY_OVERHEAD: u64 = 160;
+/// Bookkeeping charged per entry on top of the tile bytes (key, LRU links, map slot, the
+/// `Arc<Tile>` with its ETag, the sealed mapping's owner and registry entry).
+pub const ENTRY_OVERHEAD: u64 = 320;
 /// Shards are at least this large, so tiny budgets still hold whole tiles.
 const MIN_SHARD_BYTES: u64 = 8 << 20;
 const MAX_SHARDS: u64 = 16;
@@ -36,13 +38,15 @@ pub struct TileKey {
 #[derive(Debug)]
 pub struct Tile {
     pub body: Bytes,
+    /// Its strong ETag, hashed once when the tile is made rather than on every hit.
+    pub etag: HeaderValue,
     pub width: u32,
     pub height: u32,
 }
 
 impl Tile {
     fn cost(&self) -> u64 {
-        self.body.len() as u64 + ENTRY_OVERHEAD
+        crate::zerocopy::footprint(self.body.len()) as u64 + ENTRY_OVERHEAD
     }
 }
 
@@ -186,7 +190,7 @@ mod tests {
     }
 
     fn tile(n: usize) -> Arc<Tile> {
-        Arc::new(Tile { body: Bytes::from(vec![1u8; n]), width: 1, height: 1 })
+        Arc::new(Tile { body: Bytes::from(vec![1u8; n]), etag: HeaderValue::from_static("\"t\""), width: 1, height: 1 })
     }
 
     #[test]
@@ -237,7 +241,12 @@ mod tests {
                     .get_or_compute(key(3), || async {
                         runs.fetch_add(1, Ordering::SeqCst);
                         tokio::time::sleep(std::time::Duration::from_millis(50)).await;
-                        Ok::<_, ()>(Tile { body: Bytes::from_static(b"abc"), width: 1, height: 1 })
+                        Ok::<_, ()>(Tile {
+                            body: Bytes::from_static(b"abc"),
+                            etag: HeaderValue::from_static("\"t\""),
+                            width: 1,
+                            height: 1,
+                        })
                     })
                     .await
                     .unwrap()
@@ -259,7 +268,12 @@ mod tests {
         assert_eq!(cache.pending(), 0);
         let (t, src) = cache
             .get_or_compute(key(1), || async {
-                Ok::<_, &str>(Tile { body: Bytes::from_static(b"x"), width: 1, height: 1 })
+                Ok::<_, &str>(Tile {
+                    body: Bytes::from_static(b"x"),
+                    etag: HeaderValue::from_static("\"t\""),
+                    width: 1,
+                    height: 1,
+                })
             })
             .await
             .unwrap();

@@ -93,6 +93,11 @@ impl ServeConfig {
         self.max_syntheses.unwrap_or_else(|| std::thread::available_parallelism().map_or(2, |n| n.get()))
     }
 
+    /// Threads serving connections, one single-threaded runtime each: one per core.
+    pub fn io_threads(&self) -> usize {
+        std::thread::available_parallelism().map_or(2, |n| n.get())
+    }
+
     pub fn request_timeout(&self) -> Duration {
         Duration::from_secs_f64(self.request_timeout_secs)
     }

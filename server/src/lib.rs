@@ -11,6 +11,7 @@
 //! * [`metrics`] — Prometheus counters, gauges and histograms.
 //! * [`api`] — the HTTP API v1 (axum).
 //! * [`serve`] — the listener: connection timeouts and graceful shutdown.
+//! * [`zerocopy`] — cached tile bodies sent by page reference (vmsplice + splice), like sendfile.
 //! * [`cli`] — the offline subcommands `create`, `render`, `info`.
 
 pub mod api;
@@ -21,3 +22,4 @@ pub mod encode;
 pub mod metrics;
 pub mod serve;
 pub mod store;
+pub mod zerocopy;

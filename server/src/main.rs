@@ -5,10 +5,12 @@ use clap::Parser;
 use tracing_subscriber::EnvFilter;
 use vtex_server::cli::{self, Cli, Command};
 
-/// Encoded tiles are 64–256 KiB buffers that live in the cache for minutes and die in LRU
-/// order. Taken from glibc's heap they fragment it: after a long pan with a 256 MiB cache the
-/// process held 605 MiB resident (measured, BENCHMARKS.md). Served by mmap instead, each
-/// returns to the OS when evicted: 291 MiB resident for 255 MiB cached.
+/// Encoding makes 64 KiB–1 MiB buffers (pixels, the encoded tile before it is sealed into its
+/// own mapping by `zerocopy::seal`). Taken from glibc's heap, buffers of this size fragment
+/// it: after a long pan with a 256 MiB cache the process once held 605 MiB resident
+/// (BENCHMARKS.md). Served by mmap instead, each returns to the OS when freed: ~300 MiB
+/// resident for 255 MiB cached. (mimalloc was tried for the warm path: no measurable gain
+/// once tile GETs skip the router, and ~100 MiB more resident after the same pan.)
 #[cfg(all(target_os = "linux", target_env = "gnu"))]
 fn tune_allocator() {
     // SAFETY: mallopt only sets an allocator parameter; called before any thread exists.
@@ -27,7 +29,7 @@ fn main() -> anyhow::Result<()> {
         .unwrap_or_else(|_| EnvFilter::new("info"));
     tracing_subscriber::fmt().with_env_filter(filter).with_writer(std::io::stderr).init();
     match Cli::parse().command {
-        Command::Serve(cfg) => tokio::runtime::Builder::new_multi_thread()
+        Command::Serve(cfg) => tokio::runtime::Builder::new_current_thread()
             .enable_all()
             .build()?
             .block_on(vtex_server::serve::run(cfg, vtex_server::serve::shutdown_signal())),

@@ -3,13 +3,18 @@
 //! The accept loop is hyper's own (rather than `axum::serve`) so that a client that never
 //! finishes its request headers is cut off after `--header-timeout-secs`, and so that
 //! shutdown stops accepting, lets requests in flight finish, then exits.
+//!
+//! Connections are served by one single-threaded tokio runtime per core, all accepting from
+//! the same socket, each serving the connections it accepted (nginx's worker model). With one
+//! work-stealing runtime instead, a warm tile cost more CPU and waited on cross-thread
+//! wake-ups (BENCHMARKS.md). Syntheses still run on blocking pools, bounded by one semaphore.
 
 use crate::api::{self, AppState};
 use crate::config::ServeConfig;
 use crate::store::Store;
-use hyper_util::rt::{TokioExecutor, TokioIo, TokioTimer};
+use crate::zerocopy::SpliceIo;
+use hyper_util::rt::{TokioExecutor, TokioTimer};
 use hyper_util::server::conn::auto;
-use hyper_util::service::TowerToHyperService;
 use std::future::Future;
 use std::io::Write;
 use std::sync::Arc;
@@ -40,7 +45,7 @@ pub async fn run(cfg: ServeConfig, shutdown: impl Future<Output = ()>) -> anyhow
         tracing::warn!(web_dir = %cfg.web_dir.display(), "no index.html in the web directory; the viewer is not served");
     }
     let app = AppState::new(Arc::new(store), cfg.clone());
-    let router = api::router(app);
+    let front = api::Front::new(app);
 
     let listener = TcpListener::bind(cfg.bind).await?;
     let addr = listener.local_addr()?;
@@ -51,8 +56,48 @@ pub async fn run(cfg: ServeConfig, shutdown: impl Future<Output = ()>) -> anyhow
     }
     tracing::info!(%addr, cache_mb = cfg.cache_mb, syntheses = cfg.syntheses(), "serving");
 
+    // One single-threaded runtime per core, each accepting from the same socket and serving
+    // its own connections (nginx's worker model): no cross-thread wake-ups on the hot path.
+    let (stop_tx, stop_rx) = tokio::sync::watch::channel(false);
+    let listener = listener.into_std()?;
+    let mut threads = Vec::new();
+    for i in 1..cfg.io_threads() {
+        let (l, front, rx, hdr) = (listener.try_clone()?, front.clone(), stop_rx.clone(), cfg.header_timeout());
+        threads.push(std::thread::Builder::new().name(format!("vtex-io-{i}")).spawn(move || {
+            let rt = tokio::runtime::Builder::new_current_thread().enable_all().build()?;
+            rt.block_on(async move {
+                let l = TcpListener::from_std(l)?;
+                accept_loop(l, front, hdr, stopped(rx)).await;
+                anyhow::Ok(())
+            })
+        })?);
+    }
+    let stop = async move {
+        shutdown.await;
+        let _ = stop_tx.send(true);
+    };
+    accept_loop(TcpListener::from_std(listener)?, front, cfg.header_timeout(), stop).await;
+    for t in threads {
+        tokio::task::spawn_blocking(move || t.join())
+            .await?
+            .map_err(|_| anyhow::anyhow!("an I/O thread panicked"))??;
+    }
+    Ok(())
+}
+
+async fn stopped(mut rx: tokio::sync::watch::Receiver<bool>) {
+    let _ = rx.wait_for(|stop| *stop).await;
+}
+
+/// Accepts and serves connections until `shutdown` resolves, then drains them.
+async fn accept_loop(
+    listener: TcpListener,
+    front: api::Front,
+    header_timeout: Duration,
+    shutdown: impl Future<Output = ()>,
+) {
     let mut builder = auto::Builder::new(TokioExecutor::new());
-    builder.http1().timer(TokioTimer::new()).header_read_timeout(cfg.header_timeout());
+    builder.http1().timer(TokioTimer::new()).header_read_timeout(header_timeout);
     builder.http2().timer(TokioTimer::new());
     let graceful = hyper_util::server::graceful::GracefulShutdown::new();
     tokio::pin!(shutdown);
@@ -69,8 +114,7 @@ pub async fn run(cfg: ServeConfig, shutdown: impl Future<Output = ()>) -> anyhow
                     }
                 };
                 let _ = stream.set_nodelay(true);
-                let service = TowerToHyperService::new(router.clone());
-                let conn = builder.serve_connection_with_upgrades(TokioIo::new(stream), service).into_owned();
+                let conn = builder.serve_connection_with_upgrades(SpliceIo::new(stream), front.clone()).into_owned();
                 let conn = graceful.watch(conn);
                 tokio::spawn(async move {
                     if let Err(e) = conn.await {
@@ -87,7 +131,6 @@ pub async fn run(cfg: ServeConfig, shutdown: impl Future<Output = ()>) -> anyhow
         () = graceful.shutdown() => tracing::info!("all connections closed"),
         () = tokio::time::sleep(DRAIN_TIMEOUT) => tracing::warn!("drain timed out; exiting with connections open"),
     }
-    Ok(())
 }
 
 /// Resolves on SIGTERM or Ctrl-C.

@@ -156,6 +156,63 @@ async fn tiles_in_every_format_with_headers() {
     let _ = expect_error(&c, &s.tile_url(&id, 4, 0, 0, "png"), 400).await;
 }
 
+/// Plain tile GETs are answered without the router (the hot path); HEAD and percent-encoded
+/// paths take the router. Both must answer alike: same bytes, same headers (CORS included,
+/// as on every other route), same metrics.
+#[tokio::test]
+async fn direct_and_routed_tiles_answer_alike() {
+    let dir = tempdir();
+    let s = Server::start(dir.path(), &[]);
+    let c = client();
+    let id = put(&c, &s, &mosaic(64, 16, 9)).await;
+    let direct = s.tile_url(&id, 0, 2, 3, "png");
+    let routed = s.url(&format!("/api/v1/textures/{id}/tiles/%30/%32/3.png"));
+    let (st1, h1, b1) = get_bytes(&c, &direct).await;
+    let (st2, h2, b2) = get_bytes(&c, &routed).await;
+    assert_eq!((st1, st2), (200, 200));
+    assert_eq!(b1, b2);
+    assert!(!b1.is_empty());
+    assert_eq!((h1["x-vtex-cache"].to_str().unwrap(), h2["x-vtex-cache"].to_str().unwrap()), ("miss", "hit"));
+    let info = c.get(s.url(&format!("/api/v1/textures/{id}"))).send().await.unwrap();
+    let head = c.head(&direct).send().await.unwrap();
+    assert_eq!(head.status(), 200);
+    let names = |h: &reqwest::header::HeaderMap| {
+        let mut v: Vec<String> = h.keys().map(|k| k.to_string()).filter(|k| k != "date").collect();
+        v.sort();
+        v
+    };
+    assert_eq!(names(&h1), names(&h2));
+    assert_eq!(names(&h1), names(head.headers()));
+    for name in ["content-type", "content-length", "etag", "cache-control", "x-vtex-width", "x-vtex-height"] {
+        assert_eq!(h1[name], h2[name], "{name}");
+        assert_eq!(h1[name], head.headers()[name], "{name}");
+    }
+    for name in ["access-control-allow-origin", "access-control-expose-headers", "vary"] {
+        let all = |h: &reqwest::header::HeaderMap| h.get_all(name).iter().cloned().collect::<Vec<_>>();
+        assert!(!all(&h1).is_empty(), "{name}");
+        assert_eq!(all(&h1), all(&h2), "{name}");
+        assert_eq!(all(&h1), all(head.headers()), "{name}");
+        assert_eq!(all(&h1), all(info.headers()), "{name}: tiles carry the CORS headers of every route");
+    }
+    // Errors on the direct path: JSON, with CORS.
+    let r = c.get(s.tile_url(&id, 0, 99, 0, "png")).send().await.unwrap();
+    assert_eq!(r.status(), 404);
+    assert_eq!(r.headers()["access-control-allow-origin"], "*");
+    assert!(r.text().await.unwrap().contains("outside level 0"));
+    // Methods other than GET and HEAD still get the router's 405.
+    assert_eq!(c.delete(&direct).send().await.unwrap().status(), 405);
+    // Both paths are counted under the tile route.
+    let m = metrics(&c, &s).await;
+    let tiles = ("route", "/api/v1/textures/{id}/tiles");
+    assert_eq!(metric(&m, "vtex_http_requests_total", &[tiles, ("method", "GET"), ("status", "200")]), 2.0);
+    assert_eq!(metric(&m, "vtex_http_requests_total", &[tiles, ("method", "HEAD"), ("status", "200")]), 1.0);
+    assert_eq!(metric(&m, "vtex_http_requests_total", &[tiles, ("method", "GET"), ("status", "404")]), 1.0);
+    assert_eq!(metric(&m, "vtex_http_requests_total", &[tiles, ("method", "DELETE"), ("status", "405")]), 1.0);
+    assert_eq!(metric(&m, "vtex_tile_cache_misses_total", &[("level", "0")]), 1.0);
+    assert_eq!(metric(&m, "vtex_tile_cache_hits_total", &[("level", "0")]), 2.0);
+    assert!(metric(&m, "vtex_http_response_bytes_total", &[]) >= 2.0 * b1.len() as f64);
+}
+
 #[tokio::test]
 async fn etag_gives_304_without_a_body() {
     let dir = tempdir();

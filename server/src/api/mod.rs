@@ -1,6 +1,7 @@
 //! The HTTP API v1 (DESIGN §4, CONTRACT), the static viewer, and the middleware around them.
 
 pub mod error;
+mod front;
 pub mod params;
 mod textures;
 mod tiles;
@@ -11,21 +12,20 @@ use crate::encode::{self, Format};
 use crate::metrics::Metrics;
 use crate::store::{Entry, Store};
 use axum::extract::{DefaultBodyLimit, Request, State};
-use axum::http::{header, HeaderMap, HeaderName, HeaderValue, Method, StatusCode};
-use axum::middleware::{self, Next};
+use axum::http::{header, HeaderMap, HeaderName, HeaderValue, StatusCode};
 use axum::response::{IntoResponse, Response};
 use axum::routing::{any, get};
 use axum::Router;
 use error::ApiError;
 use http_body_util::BodyExt;
 use std::sync::Arc;
-use std::time::{Duration, Instant};
+use std::time::Instant;
 use tokio::sync::Semaphore;
-use tower_http::cors::{Any, CorsLayer};
 use tower_http::services::ServeDir;
 use vtex_synth::Region;
 
 pub use error::ApiError as Error;
+pub use front::Front;
 
 pub const CACHE_IMMUTABLE: HeaderValue = HeaderValue::from_static("public, max-age=31536000, immutable");
 pub static X_VTEX_CACHE: HeaderName = HeaderName::from_static("x-vtex-cache");
@@ -88,19 +88,15 @@ impl AppState {
     }
 }
 
-/// The whole application: API routes, the static viewer, and middleware.
-pub fn router(app: App) -> Router {
-    let cors = CorsLayer::new()
-        .allow_origin(Any)
-        .allow_methods([Method::GET, Method::HEAD, Method::POST, Method::PATCH, Method::OPTIONS])
-        .allow_headers(Any)
-        .expose_headers([header::ETAG, X_VTEX_CACHE.clone(), X_VTEX_WIDTH.clone(), X_VTEX_HEIGHT.clone()]);
+/// API routes, the static viewer, CORS and the body limit. [`Front`] wraps it with metrics,
+/// logs and the request deadline, and answers plain tile GETs itself.
+fn router(app: App) -> Router {
     let web = ServeDir::new(&app.cfg.web_dir).append_index_html_on_directories(true);
     Router::new()
         .route("/api/v1/textures", get(textures::list).post(textures::upload))
         .route("/api/v1/textures/{id}", get(textures::info).patch(textures::patch))
         .route("/api/v1/textures/{id}/encoding", get(textures::encoding))
-        .route("/api/v1/textures/{id}/tiles/{level}/{x}/{file}", get(tiles::tile))
+        .route("/api/v1/textures/{id}/tiles/{level}/{x}/{file}", get(tiles::tile_route))
         .route("/api/v1/textures/{id}/region", get(tiles::region))
         .route("/healthz", get(healthz))
         .route("/metrics", get(metrics))
@@ -109,9 +105,7 @@ pub fn router(app: App) -> Router {
         .method_not_allowed_fallback(method_not_allowed)
         .fallback_service(web)
         .layer(DefaultBodyLimit::max(app.cfg.max_upload_bytes()))
-        .layer(middleware::from_fn_with_state(app.cfg.request_timeout(), deadline))
-        .layer(cors)
-        .layer(middleware::from_fn_with_state(app.clone(), observe))
+        .layer(front::cors_layer())
         .with_state(app)
 }
 
@@ -137,67 +131,6 @@ async fn method_not_allowed(req: Request) -> ApiError {
         StatusCode::METHOD_NOT_ALLOWED,
         format!("method {} is not allowed on {}", req.method(), error::echo(req.uri().path())),
     )
-}
-
-/// Bounds a whole request (slow bodies included): past the deadline the client gets 408.
-async fn deadline(State(limit): State<Duration>, req: Request, next: Next) -> Response {
-    match tokio::time::timeout(limit, next.run(req)).await {
-        Ok(resp) => resp,
-        Err(_) => ApiError::new(
-            StatusCode::REQUEST_TIMEOUT,
-            format!("request not completed within {} s (slow client or overload)", limit.as_secs_f64()),
-        )
-        .into_response(),
-    }
-}
-
-/// The metrics route label: the route pattern, never the raw path (bounded cardinality).
-fn route_of(path: &str) -> &'static str {
-    let Some(rest) = path.strip_prefix("/api/v1/textures") else {
-        return match path {
-            "/healthz" => "/healthz",
-            "/metrics" => "/metrics",
-            p if p.starts_with("/api") => "/api/other",
-            _ => "static",
-        };
-    };
-    let parts: Vec<&str> = rest.split('/').collect();
-    match parts.as_slice() {
-        [""] | ["", ""] => "/api/v1/textures",
-        ["", _] => "/api/v1/textures/{id}",
-        ["", _, "encoding"] => "/api/v1/textures/{id}/encoding",
-        ["", _, "region"] => "/api/v1/textures/{id}/region",
-        ["", _, "tiles", _, _, _] => "/api/v1/textures/{id}/tiles",
-        _ => "/api/other",
-    }
-}
-
-/// Counts, times and logs every request.
-async fn observe(State(app): State<App>, req: Request, next: Next) -> Response {
-    let start = Instant::now();
-    let method = req.method().clone();
-    let route = route_of(req.uri().path());
-    let path = tracing::enabled!(tracing::Level::INFO).then(|| req.uri().path().to_owned());
-    let resp = next.run(req).await;
-    let elapsed = start.elapsed();
-    let status = resp.status();
-    let bytes = http_body::Body::size_hint(resp.body()).exact().unwrap_or(0);
-    let m = &app.metrics;
-    m.requests.with_label_values(&[route, method.as_str(), status.as_str()]).inc();
-    m.request_seconds.with_label_values(&[route]).observe(elapsed.as_secs_f64());
-    m.bytes_out.inc_by(bytes);
-    if let Some(path) = path {
-        tracing::info!(
-            target: "vtex::http",
-            method = %method,
-            path,
-            status = status.as_u16(),
-            latency_us = elapsed.as_micros() as u64,
-            bytes,
-            "request"
-        );
-    }
-    resp
 }
 
 /// True when `If-None-Match` names `etag` (weak comparison, as RFC 9110 requires) or is `*`.
@@ -247,17 +180,6 @@ pub fn lookup(app: &AppState, id: &str) -> Result<Arc<Entry>, ApiError> {
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    #[test]
-    fn routes_have_bounded_labels() {
-        let id = "ab".repeat(32);
-        assert_eq!(route_of("/api/v1/textures"), "/api/v1/textures");
-        assert_eq!(route_of(&format!("/api/v1/textures/{id}")), "/api/v1/textures/{id}");
-        assert_eq!(route_of(&format!("/api/v1/textures/{id}/tiles/1/2/3.png")), "/api/v1/textures/{id}/tiles");
-        assert_eq!(route_of(&format!("/api/v1/textures/{id}/region")), "/api/v1/textures/{id}/region");
-        assert_eq!(route_of("/api/v1/texturesX/9"), "/api/other");
-        assert_eq!(route_of("/index.html"), "static");
-    }
 
     #[test]
     fn if_none_match_forms() {

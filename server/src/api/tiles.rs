@@ -18,6 +18,9 @@ use bytes::Bytes;
 use vtex_synth::texture::{level_count, level_size};
 use vtex_synth::Region;
 
+/// Headers on a tile response, CORS included: reserved at once rather than grown.
+const RESPONSE_HEADERS: usize = 12;
+
 /// Version of the tile encoding scheme, part of every ETag: bump it when encoders change.
 const ETAG_SCHEME: &[u8] = b"vtex-tile/1";
 
@@ -48,6 +51,7 @@ fn etag(texture: &[u8; 32], what: &[u64], format: Format) -> HeaderValue {
 fn image_response(body: Bytes, format: Format, etag: HeaderValue, width: u32, height: u32) -> Response {
     let mut resp = Response::new(Body::from(body));
     let h = resp.headers_mut();
+    h.reserve(RESPONSE_HEADERS);
     h.insert(header::CONTENT_TYPE, HeaderValue::from_static(format.content_type()));
     h.insert(header::ETAG, etag);
     h.insert(header::CACHE_CONTROL, CACHE_IMMUTABLE);
@@ -60,19 +64,56 @@ fn parse_format(s: &str) -> Result<Format, ApiError> {
     Format::parse(s).ok_or_else(|| ApiError::bad_request(format!("unknown format `{}`; {}", echo(s), Format::EXPECTED)))
 }
 
-/// `GET /api/v1/textures/{id}/tiles/{level}/{x}/{y}.{format}[?frame=N]`
-pub async fn tile(
+/// `GET /api/v1/textures/{id}/tiles/{level}/{x}/{y}.{format}[?frame=N]` through the router
+/// (HEAD, percent-encoded paths); plain GETs take [`tile`] directly (`front`).
+pub async fn tile_route(
     State(app): State<App>,
     path: Result<Path<(String, String, String, String)>, PathRejection>,
     RawQuery(query): RawQuery,
     headers: HeaderMap,
 ) -> Result<Response, ApiError> {
     let Path((id, level, x, file)) = path.map_err(|e| ApiError::bad_request(e.body_text()))?;
-    let entry = lookup(&app, &id)?;
-    let level = parse_u32("level", &level)?;
-    let x = parse_u32("x", &x)?;
+    tile(&app, TilePath { id: &id, level: &level, x: &x, file: &file }, query.as_deref(), &headers).await
+}
+
+/// The path segments of a tile request, percent-decoded.
+#[derive(Clone, Copy, Debug)]
+pub struct TilePath<'a> {
+    pub id: &'a str,
+    pub level: &'a str,
+    pub x: &'a str,
+    /// `{y}.{format}`
+    pub file: &'a str,
+}
+
+impl<'a> TilePath<'a> {
+    /// The segments of `/api/v1/textures/{id}/tiles/{level}/{x}/{file}` when no segment is
+    /// empty or percent-encoded (then they need no decoding); `None` for anything else.
+    pub fn plain(path: &'a str) -> Option<TilePath<'a>> {
+        let rest = path.strip_prefix("/api/v1/textures/")?;
+        if rest.contains('%') {
+            return None;
+        }
+        let mut it = rest.split('/');
+        let (id, tiles, level, x, file) = (it.next()?, it.next()?, it.next()?, it.next()?, it.next()?);
+        let plain = tiles == "tiles" && it.next().is_none() && [id, level, x, file].iter().all(|s| !s.is_empty());
+        plain.then_some(TilePath { id, level, x, file })
+    }
+}
+
+/// A tile: validation, 304, the cache, synthesis on a miss.
+pub async fn tile(
+    app: &App,
+    path: TilePath<'_>,
+    query: Option<&str>,
+    headers: &HeaderMap,
+) -> Result<Response, ApiError> {
+    let TilePath { id, level, x, file } = path;
+    let entry = lookup(app, id)?;
+    let level = parse_u32("level", level)?;
+    let x = parse_u32("x", x)?;
     let (y, ext) = file.rsplit_once('.').ok_or_else(|| {
-        ApiError::bad_request(format!("tile `{}` has no format extension; {}", echo(&file), Format::EXPECTED))
+        ApiError::bad_request(format!("tile `{}` has no format extension; {}", echo(file), Format::EXPECTED))
     })?;
     let format = parse_format(ext)?;
     let y = parse_u32("y", y)?;
@@ -89,35 +130,44 @@ pub async fn tile(
         )));
     }
     let mut frame = None;
-    for (k, v) in query_pairs(query.as_deref())? {
+    for (k, v) in query_pairs(query)? {
         if k == "frame" {
             frame = Some(v);
         }
     }
     let frame = frame_for(&entry, frame.as_deref())?;
-    let tag = etag(&entry.key, &[level as u64, x as u64, y as u64, frame as u64, entry.tile_size as u64], format);
-    if not_modified(&headers, tag.to_str().unwrap_or_default()) {
+    let key = TileKey { texture: entry.key, level, x, y, frame, format };
+    // A cached tile carries its ETag; only a tile not in the cache needs it hashed.
+    let cached = app.cache.get(&key);
+    let tag = match &cached {
+        Some(tile) => tile.etag.clone(),
+        None => etag(&entry.key, &[level as u64, x as u64, y as u64, frame as u64, entry.tile_size as u64], format),
+    };
+    if not_modified(headers, tag.to_str().unwrap_or_default()) {
         return Ok(not_modified_response(tag));
     }
 
-    let key = TileKey { texture: entry.key, level, x, y, frame, format };
-    let (tile, source) = app
-        .cache
-        .get_or_compute(key, || async {
-            let ts = entry.tile_size as u64;
-            let (lw, lh) = level_size(entry.texture.width(), entry.texture.height(), level);
-            let (px, py) = (x as u64 * ts, y as u64 * ts);
-            let (w, h) = ((lw - px).min(ts) as u32, (lh - py).min(ts) as u32);
-            let region = Region::new(level, px as i64, py as i64, w, h).at_frame(frame);
-            let body = app.synthesize(entry.clone(), region, format).await?;
-            Ok::<_, ApiError>(Tile { body: Bytes::from(body), width: w, height: h })
-        })
-        .await?;
+    let (tile, source) = match cached {
+        Some(tile) => (tile, Source::Hit),
+        None => {
+            app.cache
+                .get_or_compute(key, || async {
+                    let ts = entry.tile_size as u64;
+                    let (lw, lh) = level_size(entry.texture.width(), entry.texture.height(), level);
+                    let (px, py) = (x as u64 * ts, y as u64 * ts);
+                    let (w, h) = ((lw - px).min(ts) as u32, (lh - py).min(ts) as u32);
+                    let region = Region::new(level, px as i64, py as i64, w, h).at_frame(frame);
+                    let body = app.synthesize(entry.clone(), region, format).await?;
+                    Ok::<_, ApiError>(Tile { body: crate::zerocopy::seal(body), etag: tag, width: w, height: h })
+                })
+                .await?
+        }
+    };
     match source {
         Source::Hit => app.metrics.cache_hit(level),
         Source::Miss => app.metrics.cache_miss(level),
     }
-    let mut resp = image_response(tile.body.clone(), format, tag, tile.width, tile.height);
+    let mut resp = image_response(tile.body.clone(), format, tile.etag.clone(), tile.width, tile.height);
     let cache_state = if source == Source::Hit { "hit" } else { "miss" };
     resp.headers_mut().insert(X_VTEX_CACHE.clone(), HeaderValue::from_static(cache_state));
     Ok(resp)
