@@ -229,6 +229,12 @@ async fn oversized_uploads_get_413() {
     );
     assert!(resp.starts_with("HTTP/1.1 413"), "{resp}");
     assert!(resp.contains("limit of 1048576 bytes"), "{resp}");
+    // A client waiting for `100 Continue` is refused without being asked for the body.
+    let resp = raw_request(
+        &s.addr,
+        b"POST /api/v1/textures HTTP/1.1\r\nHost: x\r\nContent-Type: application/octet-stream\r\nContent-Length: 2000000\r\nExpect: 100-continue\r\nConnection: close\r\n\r\n",
+    );
+    assert!(resp.starts_with("HTTP/1.1 413"), "{resp}");
     // Chunked, no length: refused once the limit is crossed.
     let mut stream = TcpStream::connect(&s.addr).unwrap();
     stream.set_read_timeout(Some(Duration::from_secs(30))).unwrap();
@@ -253,7 +259,8 @@ async fn oversized_uploads_get_413() {
     let resp = String::from_utf8_lossy(&out);
     assert!(resp.starts_with("HTTP/1.1 413"), "{resp}");
     assert!(resp.contains("\"error\""), "{resp}");
-    // Multipart over the limit.
+    // Multipart over the limit, from a client that sends all of it before reading the
+    // response: it gets the 413, not a broken pipe (the server drains what it refuses).
     let big = vec![0u8; 1_200_000];
     refused_multipart(&s, form_with_sample(big, PARAMS), 413, "limit of 1048576 bytes").await;
     still_fine(&s, &files).await;

@@ -151,19 +151,58 @@ pub fn not_modified_response(etag: HeaderValue) -> Response {
     resp
 }
 
+/// How much more of an oversized body is read and thrown away, and for how long (in all, and
+/// waiting for each piece), so that a client still sending it receives the 413 rather than a
+/// reset connection; past any bound the connection is cut.
+const DRAIN_BYTES: usize = 16 << 20;
+const DRAIN_TIME: std::time::Duration = std::time::Duration::from_secs(5);
+const DRAIN_IDLE: std::time::Duration = std::time::Duration::from_millis(500);
+
 /// Reads a request body of at most `limit` bytes; larger is 413 naming the limit.
 pub async fn read_body(req: Request, limit: usize) -> Result<bytes::Bytes, ApiError> {
-    let too_large =
-        || ApiError::new(StatusCode::PAYLOAD_TOO_LARGE, format!("request body larger than the limit of {limit} bytes"));
-    let declared = req.headers().get(header::CONTENT_LENGTH).and_then(|v| v.to_str().ok()?.parse::<u64>().ok());
-    if declared.is_some_and(|n| n > limit as u64) {
-        return Err(too_large());
+    if declared_length(req.headers()).is_some_and(|n| n > limit as u64) {
+        return Err(refuse_oversized(req, limit).await);
     }
-    match http_body_util::Limited::new(req.into_body(), limit).collect().await {
-        Ok(c) => Ok(c.to_bytes()),
-        Err(e) if e.downcast_ref::<http_body_util::LengthLimitError>().is_some() => Err(too_large()),
-        Err(e) => Err(ApiError::bad_request(format!("could not read the request body: {e}"))),
+    let (parts, mut body) = req.into_parts();
+    let mut bytes = bytes::BytesMut::new();
+    while let Some(frame) = body.frame().await {
+        let frame = frame.map_err(|e| ApiError::bad_request(format!("could not read the request body: {e}")))?;
+        if let Some(data) = frame.data_ref() {
+            if bytes.len() + data.len() > limit {
+                return Err(refuse_oversized(Request::from_parts(parts, body), limit).await);
+            }
+            bytes.extend_from_slice(data);
+        }
     }
+    Ok(bytes.freeze())
+}
+
+/// The request's `Content-Length`, when it has a valid one.
+pub fn declared_length(headers: &HeaderMap) -> Option<u64> {
+    headers.get(header::CONTENT_LENGTH).and_then(|v| v.to_str().ok()?.parse::<u64>().ok())
+}
+
+/// The 413 for a body over `limit`, given after draining the rest of the body within
+/// [`DRAIN_BYTES`] and [`DRAIN_TIME`] — unless the client waits for `100 Continue` before
+/// sending it, or sends nothing for [`DRAIN_IDLE`].
+pub async fn refuse_oversized(req: Request, limit: usize) -> ApiError {
+    let waits_to_send =
+        req.headers().get(header::EXPECT).is_some_and(|v| v.as_bytes().eq_ignore_ascii_case(b"100-continue"));
+    let mut body = req.into_body();
+    let drain = async {
+        let mut left = DRAIN_BYTES;
+        while let Ok(Some(Ok(frame))) = tokio::time::timeout(DRAIN_IDLE, body.frame()).await {
+            match frame.data_ref() {
+                Some(data) if data.len() >= left => return,
+                Some(data) => left -= data.len(),
+                None => {}
+            }
+        }
+    };
+    if !waits_to_send {
+        let _ = tokio::time::timeout(DRAIN_TIME, drain).await;
+    }
+    ApiError::new(StatusCode::PAYLOAD_TOO_LARGE, format!("request body larger than the limit of {limit} bytes"))
 }
 
 /// A texture id from the path: checked before it can reach a file name.

@@ -1,7 +1,9 @@
 //! Texture resources: list, info, upload, merge-patch, encoding download.
 
 use super::error::{echo, ApiError};
-use super::{lookup, not_modified, not_modified_response, read_body, App, CACHE_IMMUTABLE};
+use super::{
+    declared_length, lookup, not_modified, not_modified_response, read_body, refuse_oversized, App, CACHE_IMMUTABLE,
+};
 use crate::store::{StoreError, TextureInfo};
 use axum::extract::rejection::PathRejection;
 use axum::extract::{FromRequest, Multipart, Path, Request, State};
@@ -89,12 +91,8 @@ pub async fn upload(State(app): State<App>, req: Request) -> Result<(StatusCode,
         .to_ascii_lowercase();
     let limit = app.cfg.max_upload_bytes();
     if content_type.starts_with("multipart/form-data") {
-        let declared = req.headers().get(header::CONTENT_LENGTH).and_then(|v| v.to_str().ok()?.parse::<u64>().ok());
-        if declared.is_some_and(|n| n > limit as u64) {
-            return Err(ApiError::new(
-                StatusCode::PAYLOAD_TOO_LARGE,
-                format!("request body larger than the limit of {limit} bytes"),
-            ));
+        if declared_length(req.headers()).is_some_and(|n| n > limit as u64) {
+            return Err(refuse_oversized(req, limit).await);
         }
         let bytes = bundle_from_multipart(req, limit).await?;
         store_bundle(&app, bytes).await
