@@ -10,7 +10,7 @@ import { spawn } from 'node:child_process';
 import { mkdtempSync, rmSync, writeFileSync } from 'node:fs';
 import { tmpdir } from 'node:os';
 import { join } from 'node:path';
-import { CHROMIUM, CHROMIUM_ARGS } from './lib.mjs';
+import { CHROMIUM, CHROMIUM_ARGS, exited } from './lib.mjs';
 
 /**
  * Launches headless Chromium (fresh profile, same flags as lib.mjs) with `url` open;
@@ -117,17 +117,7 @@ export async function launchBare(url, { width = 1280, height = 800, initScript }
       } catch {
         // already gone
       }
-      await new Promise((r) => {
-        if (proc.exitCode !== null) return r();
-        const t = setTimeout(() => {
-          proc.kill('SIGKILL');
-          r();
-        }, 5000);
-        proc.once('exit', () => {
-          clearTimeout(t);
-          r();
-        });
-      });
+      await exited(proc);
       rmSync(profile, { recursive: true, force: true });
     },
   };

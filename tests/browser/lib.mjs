@@ -55,16 +55,7 @@ export async function startServer({ extraArgs = [] } = {}) {
     async stop() {
       if (proc.exitCode === null) {
         proc.kill('SIGTERM');
-        await new Promise((r) => {
-          const t = setTimeout(() => {
-            proc.kill('SIGKILL');
-            r();
-          }, 5000);
-          proc.once('exit', () => {
-            clearTimeout(t);
-            r();
-          });
-        });
+        await exited(proc);
       }
       rmSync(dataDir, { recursive: true, force: true });
     },
@@ -72,6 +63,21 @@ export async function startServer({ extraArgs = [] } = {}) {
 }
 
 /** Chromium's flags for the tests and the bench: headless, software only, no background traffic. */
+/** Resolves once `proc` has exited, killing it if it is still running after `ms`. */
+export function exited(proc, ms = 5000) {
+  return new Promise((r) => {
+    if (proc.exitCode !== null) return r();
+    const t = setTimeout(() => {
+      proc.kill('SIGKILL');
+      r();
+    }, ms);
+    proc.once('exit', () => {
+      clearTimeout(t);
+      r();
+    });
+  });
+}
+
 export const CHROMIUM_ARGS = [
   '--headless',
   '--no-sandbox',
