@@ -16,9 +16,9 @@ use crate::store::Store;
 use crate::zerocopy::SpliceIo;
 use hyper_util::rt::{TokioExecutor, TokioTimer};
 use hyper_util::server::conn::auto;
+use prometheus::IntGauge;
 use std::future::Future;
 use std::io::Write;
-use std::sync::atomic::{AtomicUsize, Ordering};
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 use tokio::net::{TcpListener, TcpStream};
@@ -47,6 +47,8 @@ pub async fn run(cfg: ServeConfig, shutdown: impl Future<Output = ()>) -> anyhow
         tracing::warn!(web_dir = %cfg.web_dir.display(), "no index.html in the web directory; the viewer is not served");
     }
     let app = AppState::new(Arc::new(store), cfg.clone());
+    let live = |i: usize| app.metrics.connections.with_label_values(&[i.to_string().as_str()]);
+    let mut workers: Vec<Worker> = (0..cfg.io_threads()).map(|i| Worker { live: live(i), tx: None }).collect();
     let front = api::Front::new(app);
 
     let listener = TcpListener::bind(cfg.bind).await?;
@@ -61,13 +63,11 @@ pub async fn run(cfg: ServeConfig, shutdown: impl Future<Output = ()>) -> anyhow
     // One single-threaded runtime per core, each serving its own connections (nginx's worker
     // model): no cross-thread wake-ups on the hot path. This runtime accepts and hands each
     // connection to the runtime serving the fewest (see `Worker`).
-    let mut workers = vec![Worker::default()];
     let mut threads = Vec::new();
-    for i in 1..cfg.io_threads() {
+    for (i, worker) in workers.iter_mut().enumerate().skip(1) {
         let (tx, rx) = tokio::sync::mpsc::unbounded_channel();
-        let worker = Worker { live: Arc::default(), tx: Some(tx) };
+        worker.tx = Some(tx);
         let (live, front, hdr) = (worker.live.clone(), front.clone(), cfg.header_timeout());
-        workers.push(worker);
         threads.push(std::thread::Builder::new().name(format!("vtex-io-{i}")).spawn(move || {
             let rt = tokio::runtime::Builder::new_current_thread().enable_all().build()?;
             rt.block_on(serve_handed(rx, Conns::new(front, hdr, live)));
@@ -92,9 +92,9 @@ pub async fn run(cfg: ServeConfig, shutdown: impl Future<Output = ()>) -> anyhow
 /// half the throughput). Handing each new connection to the runtime with the fewest live ones
 /// splits them evenly whatever the timing; the cost is one cross-thread wake-up per connection,
 /// not per request.
-#[derive(Default)]
 struct Worker {
-    live: Arc<AtomicUsize>,
+    /// The `vtex_http_connections` series of this runtime.
+    live: IntGauge,
     /// `None` for the accepting runtime itself.
     tx: Option<tokio::sync::mpsc::UnboundedSender<std::net::TcpStream>>,
 }
@@ -105,11 +105,11 @@ struct Conns {
     front: api::Front,
     builder: auto::Builder<TokioExecutor>,
     graceful: hyper_util::server::graceful::GracefulShutdown,
-    live: Arc<AtomicUsize>,
+    live: IntGauge,
 }
 
 impl Conns {
-    fn new(front: api::Front, header_timeout: Duration, live: Arc<AtomicUsize>) -> Conns {
+    fn new(front: api::Front, header_timeout: Duration, live: IntGauge) -> Conns {
         let mut builder = auto::Builder::new(TokioExecutor::new());
         builder.http1().timer(TokioTimer::new()).header_read_timeout(header_timeout);
         builder.http2().timer(TokioTimer::new());
@@ -141,11 +141,11 @@ impl Conns {
 }
 
 /// Uncounts a connection when its task ends or is dropped.
-struct LiveGuard(Arc<AtomicUsize>);
+struct LiveGuard(IntGauge);
 
 impl Drop for LiveGuard {
     fn drop(&mut self) {
-        self.0.fetch_sub(1, Ordering::Relaxed);
+        self.0.dec();
     }
 }
 
@@ -169,17 +169,17 @@ async fn accept_loop(listener: TcpListener, workers: Vec<Worker>, own: Conns, sh
                 };
                 // The least-loaded runtime; ties go round-robin.
                 let n = workers.len();
-                let k = (0..n).map(|i| (next + i) % n).min_by_key(|&k| workers[k].live.load(Ordering::Relaxed)).unwrap_or(0);
+                let k = (0..n).map(|i| (next + i) % n).min_by_key(|&k| workers[k].live.get()).unwrap_or(0);
                 next = (k + 1) % n;
                 let w = &workers[k];
-                w.live.fetch_add(1, Ordering::Relaxed);
+                w.live.inc();
                 match &w.tx {
                     None => own.serve(stream),
                     Some(tx) => {
                         // Deregistered here, registered again on the receiving runtime.
                         let sent = stream.into_std().map_err(|e| e.to_string()).and_then(|s| tx.send(s).map_err(|_| "runtime gone".into()));
                         if let Err(e) = sent {
-                            w.live.fetch_sub(1, Ordering::Relaxed);
+                            w.live.dec();
                             tracing::warn!(error = %e, "could not hand a connection to its runtime");
                         }
                     }
@@ -201,7 +201,7 @@ async fn serve_handed(mut rx: tokio::sync::mpsc::UnboundedReceiver<std::net::Tcp
         match TcpStream::from_std(stream) {
             Ok(s) => conns.serve(s),
             Err(e) => {
-                conns.live.fetch_sub(1, Ordering::Relaxed);
+                conns.live.dec();
                 tracing::warn!(error = %e, "cannot register a handed connection");
             }
         }
