@@ -80,8 +80,8 @@ run_wrk() {
   wcpu=$(awk -v n="$n" '{printf "%.1f", ($1 + $2) * 1e6 / n}' "$WORK/wrk.time")
   if [ ${#pids[@]} -gt 0 ]; then
     cpu=$(awk -v d=$((c1 - c0)) -v n="$n" 'BEGIN {printf "%.1f", d / 1000 / n}')
-    split=$(awk 'NR == FNR {a[$1] = $2; next} $2 > a[$1] {print $2 - a[$1]}' "$WORK/threads0" "$WORK/threads1" |
-      sort -rn | awk '{v[NR] = $1; t += $1} END {for (i = 1; i <= NR; i++) if (v[i] * 50 > t) s = s (i > 1 ? "/" : "") int(v[i] * 100 / t + 0.5); print s}')
+    split=$(awk 'NR == FNR {a[$1] = $2; next} $2 > a[$1] {printf "%d\n", $2 - a[$1]}' "$WORK/threads0" "$WORK/threads1" |
+      sort -rn | awk '{v[NR] = $1; t += $1} END {for (i = 1; i <= NR; i++) if (v[i] * 50 > t) s = s (i > 1 ? "/" : "") sprintf("%d", v[i] * 100 / t + 0.5); print s}')
   fi
   echo "$rps $p50 $p99 $cpu $wcpu $split"
 }

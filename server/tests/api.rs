@@ -412,7 +412,7 @@ fn connections_per_runtime(s: &Server, runtimes: usize) -> Vec<f64> {
     let m = raw_request(&s.addr, b"GET /metrics HTTP/1.1\r\nHost: x\r\nConnection: close\r\n\r\n");
     let (head, m) = m.split_once("\r\n\r\n").expect("a whole response");
     assert!(head.starts_with("HTTP/1.1 200") && head.to_ascii_lowercase().contains("content-length"), "{head}");
-    (0..runtimes).map(|i| metric(&m, "vtex_http_connections", &[("runtime", &i.to_string())])).collect()
+    (0..runtimes).map(|i| metric(m, "vtex_http_connections", &[("runtime", &i.to_string())])).collect()
 }
 
 /// Keeps `conns` open and answered once each (so each has been handed to its runtime).
