@@ -5,11 +5,20 @@
 #   2. cold 256² tiles per format over HTTP (every request a tile never seen before);
 #   3. resident memory after a long pan with a 256 MB cache.
 # Needs: wrk, nginx, curl, python3 (apt-get install wrk nginx curl python3).
-# Usage: server/bench/run.sh [--only warm|cold|memory] [seconds per run, default 10]
-#   (--only runs one section, for quick comparisons; the default runs all three)
+# Usage: server/bench/run.sh [--only warm|cold|memory] [--rounds N] [seconds per run, default 10]
+#   (--only runs one section, for quick comparisons; the default runs all three. --rounds
+#   repeats the warm comparison N times, nginx and vtex interleaved, since single runs on a
+#   small machine swing by ±15 %)
 set -euo pipefail
 ONLY=all
-if [ "${1:-}" = "--only" ]; then ONLY=$2; shift 2; fi
+ROUNDS=1
+while [ $# -gt 1 ]; do
+  case "$1" in
+    --only) ONLY=$2; shift 2;;
+    --rounds) ROUNDS=$2; shift 2;;
+    *) break;;
+  esac
+done
 case "$ONLY" in all|warm|cold|memory) ;; *) echo "--only takes warm, cold or memory" >&2; exit 2;; esac
 section() { [ "$ONLY" = all ] || [ "$ONLY" = "$1" ]; }
 DUR=${1:-10}
@@ -42,24 +51,47 @@ cpu_ns() {
   for p in "$@"; do for f in /proc/"$p"/task/*/schedstat; do read -r a _ < "$f"; t=$((t + a)); done; done
   echo "$t"
 }
+# Time (ns) the given processes' threads were runnable but waiting for a CPU (schedstat's
+# second field): high when other work competes for the cores, which skews tiles/s.
+wait_ns() {
+  local t=0 _ w
+  for p in "$@"; do for f in /proc/"$p"/task/*/schedstat; do read -r _ w _ < "$f"; t=$((t + w)); done; done
+  echo "$t"
+}
+# "TID NS" for every thread of the given processes.
+thread_ns() {
+  local p f a _
+  for p in "$@"; do for f in /proc/"$p"/task/*; do read -r a _ < "$f/schedstat"; echo "${f##*/} $a"; done; done
+}
 
 # wrk: $1 = connections, $2 = lua script, $3 = base URL, $4 = wrk threads, $5.. = server PIDs
-# → "req/s p50 p99 server-CPU-µs-per-request" (the last "-" without PIDs)
+# → "req/s p50 p99 server-CPU-µs/req wrk-CPU-µs/req split wait-µs/req" (the server figures "-" without
+# PIDs). wrk's own CPU per request (user + system, from bash's `time`) is as much part of the
+# result as the server's: both share the 2 cores. "split" is the share of the server's CPU
+# each of its busy threads or worker processes took, largest first (e.g. 51/49): a lopsided
+# split means one core served most connections.
 run_wrk() {
   local threads=${4:-2}; [ "$1" -lt "$threads" ] && threads=$1
   local c0 c1 pids=("${@:5}")
-  [ ${#pids[@]} -gt 0 ] && c0=$(cpu_ns "${pids[@]}")
-  wrk -t"$threads" -c"$1" -d"${DUR}s" --latency -s "$2" "$3" > "$WORK/wrk.txt"
-  [ ${#pids[@]} -gt 0 ] && c1=$(cpu_ns "${pids[@]}")
-  local rps p50 p99 non2xx n cpu=-
+  [ ${#pids[@]} -gt 0 ] && { c0=$(cpu_ns "${pids[@]}"); w0=$(wait_ns "${pids[@]}"); thread_ns "${pids[@]}" > "$WORK/threads0"; }
+  local TIMEFORMAT='%U %S'
+  { time wrk -t"$threads" -c"$1" -d"${DUR}s" --latency -s "$2" "$3" > "$WORK/wrk.txt"; } 2> "$WORK/wrk.time"
+  [ ${#pids[@]} -gt 0 ] && { c1=$(cpu_ns "${pids[@]}"); w1=$(wait_ns "${pids[@]}"); thread_ns "${pids[@]}" > "$WORK/threads1"; }
+  local rps p50 p99 non2xx n cpu=- wcpu split=- wait=-
   rps=$(awk '/^Requests\/sec/ {print $2}' "$WORK/wrk.txt")
   p50=$(awk '$1=="50%" {print $2}' "$WORK/wrk.txt")
   p99=$(awk '$1=="99%" {print $2}' "$WORK/wrk.txt")
   n=$(awk '/requests in/ {print $1}' "$WORK/wrk.txt")
   non2xx=$(awk '/Non-2xx/ {print $NF}' "$WORK/wrk.txt")
   [ -n "$non2xx" ] && { echo "wrk saw $non2xx non-2xx responses" >&2; cat "$WORK/wrk.txt" >&2; exit 1; }
-  [ ${#pids[@]} -gt 0 ] && cpu=$(awk -v d=$((c1 - c0)) -v n="$n" 'BEGIN {printf "%.1f", d / 1000 / n}')
-  echo "$rps $p50 $p99 $cpu"
+  wcpu=$(awk -v n="$n" '{printf "%.1f", ($1 + $2) * 1e6 / n}' "$WORK/wrk.time")
+  if [ ${#pids[@]} -gt 0 ]; then
+    cpu=$(awk -v d=$((c1 - c0)) -v n="$n" 'BEGIN {printf "%.1f", d / 1000 / n}')
+    wait=$(awk -v d=$((w1 - w0)) -v n="$n" 'BEGIN {printf "%.1f", d / 1000 / n}')
+    split=$(awk 'NR == FNR {a[$1] = $2; next} $2 > a[$1] {printf "%d\n", $2 - a[$1]}' "$WORK/threads0" "$WORK/threads1" |
+      sort -rn | awk '{v[NR] = $1; t += $1} END {for (i = 1; i <= NR; i++) if (v[i] * 50 > t) s = s (i > 1 ? "/" : "") sprintf("%d", v[i] * 100 / t + 0.5); print s}')
+  fi
+  echo "$rps $p50 $p99 $cpu $wcpu ${split:--} $wait"
 }
 
 echo "# vtex server benchmarks — $(date -u +%FT%TZ), $(nproc) CPUs, loopback, ${DUR}s per run"
@@ -111,18 +143,22 @@ echo
 echo "## Warm tiles (64 distinct 256² PNG tiles, $((TILE_BYTES / 64)) bytes each on average)"
 echo
 echo "Server CPU: µs of CPU time the server (all its threads or worker processes) spent per tile;"
-echo "wrk shares the 2 cores, so this decides throughput and is less noisy than tiles/s."
+echo "wrk CPU: the same for wrk (user + system). Both share the 2 cores, so their sum decides"
+echo "throughput and is less noisy than tiles/s. Split: the server's CPU per busy thread (vtex's"
+echo "runtimes) or worker process (nginx), in %, largest first (above 2 % each). Server wait: µs"
+echo "per tile the server's threads were runnable but waiting for a core — high when something"
+echo "else competes for the CPUs (then tiles/s says more about the scheduler than the server)."
 echo
-echo "| server | connections | tiles/s | p50 | p99 | server CPU µs/tile |"
-echo "|---|---|---|---|---|---|"
+echo "| server | connections | tiles/s | p50 | p99 | server CPU µs/tile | wrk CPU µs/tile | split % | server wait µs/tile |"
+echo "|---|---|---|---|---|---|---|---|---|"
 NGINX_WORKERS=$(pgrep -P "$NGINX_PID" | tr '\n' ' ')
-for c in 8 64; do
+for _ in $(seq 1 "$ROUNDS"); do for c in 8 64; do
   # shellcheck disable=SC2086 # one PID per word
-  read -r rps p50 p99 cpu < <(run_wrk "$c" "$WORK/warm.lua" "http://127.0.0.1:18089" 2 $NGINX_WORKERS)
-  echo "| nginx (static files) | $c | $rps | $p50 | $p99 | $cpu |"
-  read -r rps p50 p99 cpu < <(run_wrk "$c" "$WORK/warm.lua" "$VTEX" 2 "$VTEX_PID")
-  echo "| vtex (tile cache) | $c | $rps | $p50 | $p99 | $cpu |"
-done
+  read -r rps p50 p99 cpu wcpu split wait < <(run_wrk "$c" "$WORK/warm.lua" "http://127.0.0.1:18089" 2 $NGINX_WORKERS)
+  echo "| nginx (static files) | $c | $rps | $p50 | $p99 | $cpu | $wcpu | $split | $wait |"
+  read -r rps p50 p99 cpu wcpu split wait < <(run_wrk "$c" "$WORK/warm.lua" "$VTEX" 2 "$VTEX_PID")
+  echo "| vtex (tile cache) | $c | $rps | $p50 | $p99 | $cpu | $wcpu | $split | $wait |"
+done; done
 kill "$NGINX_PID"; wait "$NGINX_PID" 2>/dev/null || true; NGINX_PID=""
 fi
 

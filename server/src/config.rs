@@ -45,6 +45,9 @@ pub struct ServeConfig {
     /// Deadline for a client to send its request headers; the connection is closed after it.
     #[arg(long, env = "VTEX_HEADER_TIMEOUT_SECS", default_value_t = 10.0)]
     pub header_timeout_secs: f64,
+    /// Threads serving connections, one single-threaded runtime each. Default: CPU count.
+    #[arg(long, env = "VTEX_IO_THREADS")]
+    pub io_threads: Option<usize>,
     /// Do not write the demo textures into an empty data directory.
     #[arg(long, env = "VTEX_NO_DEMOS")]
     pub no_demos: bool,
@@ -78,6 +81,9 @@ impl ServeConfig {
         if self.max_syntheses == Some(0) {
             return Err("max-syntheses must be at least 1".into());
         }
+        if self.io_threads == Some(0) {
+            return Err("io-threads must be at least 1".into());
+        }
         Ok(())
     }
 
@@ -93,9 +99,9 @@ impl ServeConfig {
         self.max_syntheses.unwrap_or_else(|| std::thread::available_parallelism().map_or(2, |n| n.get()))
     }
 
-    /// Threads serving connections, one single-threaded runtime each: one per core.
+    /// Threads serving connections, one single-threaded runtime each: one per core by default.
     pub fn io_threads(&self) -> usize {
-        std::thread::available_parallelism().map_or(2, |n| n.get())
+        self.io_threads.unwrap_or_else(|| std::thread::available_parallelism().map_or(2, |n| n.get()))
     }
 
     pub fn request_timeout(&self) -> Duration {

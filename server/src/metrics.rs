@@ -2,7 +2,8 @@
 
 use axum::http::{Method, StatusCode};
 use prometheus::{
-    Encoder, Histogram, HistogramOpts, HistogramVec, IntCounter, IntCounterVec, IntGauge, Opts, Registry, TextEncoder,
+    Encoder, Histogram, HistogramOpts, HistogramVec, IntCounter, IntCounterVec, IntGauge, IntGaugeVec, Opts, Registry,
+    TextEncoder,
 };
 use std::sync::OnceLock;
 
@@ -106,6 +107,8 @@ pub struct Metrics {
     pub cache_entries: IntGauge,
     pub cache_evictions: IntGauge,
     pub textures: IntGauge,
+    /// Open connections by the I/O runtime serving them (`runtime` = 0, 1, …).
+    pub connections: IntGaugeVec,
 }
 
 fn must<T>(r: prometheus::Result<T>) -> T {
@@ -150,6 +153,10 @@ impl Metrics {
         let cache_entries = must(IntGauge::new("vtex_tile_cache_entries", "Tiles held by the tile cache"));
         let cache_evictions = must(IntGauge::new("vtex_tile_cache_evictions", "Tiles evicted since start"));
         let textures = must(IntGauge::new("vtex_textures", "Textures in the store"));
+        let connections = must(IntGaugeVec::new(
+            Opts::new("vtex_http_connections", "Open connections by the I/O runtime (thread) serving them"),
+            &["runtime"],
+        ));
         for c in [
             Box::new(requests.clone()) as Box<dyn prometheus::core::Collector>,
             Box::new(request_seconds.clone()),
@@ -165,6 +172,7 @@ impl Metrics {
             Box::new(cache_entries.clone()),
             Box::new(cache_evictions.clone()),
             Box::new(textures.clone()),
+            Box::new(connections.clone()),
         ] {
             must(registry.register(c));
         }
@@ -190,6 +198,7 @@ impl Metrics {
             cache_entries,
             cache_evictions,
             textures,
+            connections,
         }
     }
 

@@ -4,10 +4,11 @@
 //! finishes its request headers is cut off after `--header-timeout-secs`, and so that
 //! shutdown stops accepting, lets requests in flight finish, then exits.
 //!
-//! Connections are served by one single-threaded tokio runtime per core, all accepting from
-//! the same socket, each serving the connections it accepted (nginx's worker model). With one
-//! work-stealing runtime instead, a warm tile cost more CPU and waited on cross-thread
-//! wake-ups (BENCHMARKS.md). Syntheses still run on blocking pools, bounded by one semaphore.
+//! Connections are served by one single-threaded tokio runtime per core, each serving its own
+//! connections (nginx's worker model); one accepts and hands each new connection to the
+//! runtime serving the fewest. With one work-stealing runtime instead, a warm tile cost more
+//! CPU and waited on cross-thread wake-ups (BENCHMARKS.md). Syntheses still run on blocking
+//! pools, bounded by one semaphore.
 
 use crate::api::{self, AppState};
 use crate::config::ServeConfig;
@@ -15,11 +16,12 @@ use crate::store::Store;
 use crate::zerocopy::SpliceIo;
 use hyper_util::rt::{TokioExecutor, TokioTimer};
 use hyper_util::server::conn::auto;
+use prometheus::IntGauge;
 use std::future::Future;
 use std::io::Write;
 use std::sync::Arc;
 use std::time::{Duration, Instant};
-use tokio::net::TcpListener;
+use tokio::net::{TcpListener, TcpStream};
 
 /// How long shutdown waits for requests in flight before it gives up on them.
 const DRAIN_TIMEOUT: Duration = Duration::from_secs(10);
@@ -45,6 +47,8 @@ pub async fn run(cfg: ServeConfig, shutdown: impl Future<Output = ()>) -> anyhow
         tracing::warn!(web_dir = %cfg.web_dir.display(), "no index.html in the web directory; the viewer is not served");
     }
     let app = AppState::new(Arc::new(store), cfg.clone());
+    let live = |i: usize| app.metrics.connections.with_label_values(&[i.to_string().as_str()]);
+    let mut workers: Vec<Worker> = (0..cfg.io_threads()).map(|i| Worker { live: live(i), tx: None }).collect();
     let front = api::Front::new(app);
 
     let listener = TcpListener::bind(cfg.bind).await?;
@@ -56,27 +60,22 @@ pub async fn run(cfg: ServeConfig, shutdown: impl Future<Output = ()>) -> anyhow
     }
     tracing::info!(%addr, cache_mb = cfg.cache_mb, syntheses = cfg.syntheses(), "serving");
 
-    // One single-threaded runtime per core, each accepting from the same socket and serving
-    // its own connections (nginx's worker model): no cross-thread wake-ups on the hot path.
-    let (stop_tx, stop_rx) = tokio::sync::watch::channel(false);
-    let listener = listener.into_std()?;
+    // One single-threaded runtime per core, each serving its own connections (nginx's worker
+    // model): no cross-thread wake-ups on the hot path. This runtime accepts and hands each
+    // connection to the runtime serving the fewest (see `Worker`).
     let mut threads = Vec::new();
-    for i in 1..cfg.io_threads() {
-        let (l, front, rx, hdr) = (listener.try_clone()?, front.clone(), stop_rx.clone(), cfg.header_timeout());
+    for (i, worker) in workers.iter_mut().enumerate().skip(1) {
+        let (tx, rx) = tokio::sync::mpsc::unbounded_channel();
+        worker.tx = Some(tx);
+        let (live, front, hdr) = (worker.live.clone(), front.clone(), cfg.header_timeout());
         threads.push(std::thread::Builder::new().name(format!("vtex-io-{i}")).spawn(move || {
             let rt = tokio::runtime::Builder::new_current_thread().enable_all().build()?;
-            rt.block_on(async move {
-                let l = TcpListener::from_std(l)?;
-                accept_loop(l, front, hdr, stopped(rx)).await;
-                anyhow::Ok(())
-            })
+            rt.block_on(serve_handed(rx, Conns::new(front, hdr, live)));
+            anyhow::Ok(())
         })?);
     }
-    let stop = async move {
-        shutdown.await;
-        let _ = stop_tx.send(true);
-    };
-    accept_loop(TcpListener::from_std(listener)?, front, cfg.header_timeout(), stop).await;
+    let own = Conns::new(front, cfg.header_timeout(), workers[0].live.clone());
+    accept_loop(listener, workers, own, shutdown).await;
     for t in threads {
         tokio::task::spawn_blocking(move || t.join())
             .await?
@@ -85,21 +84,76 @@ pub async fn run(cfg: ServeConfig, shutdown: impl Future<Output = ()>) -> anyhow
     Ok(())
 }
 
-async fn stopped(mut rx: tokio::sync::watch::Receiver<bool>) {
-    let _ = rx.wait_for(|stop| *stop).await;
+/// One runtime serving connections: how many it serves now, and (for the other runtimes) the
+/// channel the acceptor hands it new ones through.
+///
+/// Why one acceptor: when every runtime accepted from the shared socket, whichever was awake
+/// took the whole burst of a load generator's connections (all 64 on one runtime in one run,
+/// half the throughput). Handing each new connection to the runtime with the fewest live ones
+/// splits them evenly whatever the timing; the cost is one cross-thread wake-up per connection,
+/// not per request.
+struct Worker {
+    /// The `vtex_http_connections` series of this runtime.
+    live: IntGauge,
+    /// `None` for the accepting runtime itself.
+    tx: Option<tokio::sync::mpsc::UnboundedSender<std::net::TcpStream>>,
 }
 
-/// Accepts and serves connections until `shutdown` resolves, then drains them.
-async fn accept_loop(
-    listener: TcpListener,
+/// How one runtime serves its connections: hyper's settings, graceful shutdown, and the count
+/// of connections it serves (shared with the acceptor).
+struct Conns {
     front: api::Front,
-    header_timeout: Duration,
-    shutdown: impl Future<Output = ()>,
-) {
-    let mut builder = auto::Builder::new(TokioExecutor::new());
-    builder.http1().timer(TokioTimer::new()).header_read_timeout(header_timeout);
-    builder.http2().timer(TokioTimer::new());
-    let graceful = hyper_util::server::graceful::GracefulShutdown::new();
+    builder: auto::Builder<TokioExecutor>,
+    graceful: hyper_util::server::graceful::GracefulShutdown,
+    live: IntGauge,
+}
+
+impl Conns {
+    fn new(front: api::Front, header_timeout: Duration, live: IntGauge) -> Conns {
+        let mut builder = auto::Builder::new(TokioExecutor::new());
+        builder.http1().timer(TokioTimer::new()).header_read_timeout(header_timeout);
+        builder.http2().timer(TokioTimer::new());
+        Conns { front, builder, graceful: hyper_util::server::graceful::GracefulShutdown::new(), live }
+    }
+
+    /// Serves `stream` on the current runtime until it closes; counted in `live` meanwhile
+    /// (the acceptor counted it already).
+    fn serve(&self, stream: TcpStream) {
+        let _ = stream.set_nodelay(true);
+        let conn = self.builder.serve_connection_with_upgrades(SpliceIo::new(stream), self.front.clone()).into_owned();
+        let conn = self.graceful.watch(conn);
+        let live = LiveGuard(self.live.clone());
+        tokio::spawn(async move {
+            if let Err(e) = conn.await {
+                tracing::debug!(error = %e, "connection ended with an error");
+            }
+            drop(live);
+        });
+    }
+
+    /// Lets requests in flight finish (up to [`DRAIN_TIMEOUT`]).
+    async fn drain(self) {
+        tokio::select! {
+            () = self.graceful.shutdown() => tracing::debug!("all connections closed"),
+            () = tokio::time::sleep(DRAIN_TIMEOUT) => tracing::warn!("drain timed out; exiting with connections open"),
+        }
+    }
+}
+
+/// Uncounts a connection when its task ends or is dropped.
+struct LiveGuard(IntGauge);
+
+impl Drop for LiveGuard {
+    fn drop(&mut self) {
+        self.0.dec();
+    }
+}
+
+/// Accepts connections until `shutdown` resolves, serving each on the runtime of `workers`
+/// with the fewest live ones (`workers[0]` is this runtime: `own`); then drains this
+/// runtime's connections (closing the channels tells the other runtimes to drain theirs).
+async fn accept_loop(listener: TcpListener, workers: Vec<Worker>, own: Conns, shutdown: impl Future<Output = ()>) {
+    let mut next = 0;
     tokio::pin!(shutdown);
     loop {
         tokio::select! {
@@ -113,24 +167,46 @@ async fn accept_loop(
                         continue;
                     }
                 };
-                let _ = stream.set_nodelay(true);
-                let conn = builder.serve_connection_with_upgrades(SpliceIo::new(stream), front.clone()).into_owned();
-                let conn = graceful.watch(conn);
-                tokio::spawn(async move {
-                    if let Err(e) = conn.await {
-                        tracing::debug!(error = %e, "connection ended with an error");
+                // The least-loaded runtime; ties go round-robin.
+                let n = workers.len();
+                let k = (0..n).map(|i| (next + i) % n).min_by_key(|&k| workers[k].live.get()).unwrap_or(0);
+                next = (k + 1) % n;
+                let w = &workers[k];
+                w.live.inc();
+                match &w.tx {
+                    None => own.serve(stream),
+                    Some(tx) => {
+                        // Deregistered here, registered again on the receiving runtime.
+                        let sent = stream.into_std().map_err(|e| e.to_string()).and_then(|s| tx.send(s).map_err(|_| "runtime gone".into()));
+                        if let Err(e) = sent {
+                            w.live.dec();
+                            tracing::warn!(error = %e, "could not hand a connection to its runtime");
+                        }
                     }
-                });
+                }
             }
             () = &mut shutdown => break,
         }
     }
     drop(listener);
+    drop(workers);
     tracing::info!("shutting down: draining requests in flight");
-    tokio::select! {
-        () = graceful.shutdown() => tracing::info!("all connections closed"),
-        () = tokio::time::sleep(DRAIN_TIMEOUT) => tracing::warn!("drain timed out; exiting with connections open"),
+    own.drain().await;
+}
+
+/// Serves the connections the acceptor hands this runtime until it stops (closes the channel),
+/// then drains them.
+async fn serve_handed(mut rx: tokio::sync::mpsc::UnboundedReceiver<std::net::TcpStream>, conns: Conns) {
+    while let Some(stream) = rx.recv().await {
+        match TcpStream::from_std(stream) {
+            Ok(s) => conns.serve(s),
+            Err(e) => {
+                conns.live.dec();
+                tracing::warn!(error = %e, "cannot register a handed connection");
+            }
+        }
     }
+    conns.drain().await;
 }
 
 /// Resolves on SIGTERM or Ctrl-C.

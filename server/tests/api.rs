@@ -406,3 +406,62 @@ async fn demos_are_written_into_an_empty_data_dir() {
     let again: Value = c.get(s.url("/api/v1/textures")).send().await.unwrap().json().await.unwrap();
     assert_eq!(again, list);
 }
+
+/// Open connections per I/O runtime, from `/metrics` read over a connection that closes.
+fn connections_per_runtime(s: &Server, runtimes: usize) -> Vec<f64> {
+    let m = raw_request(&s.addr, b"GET /metrics HTTP/1.1\r\nHost: x\r\nConnection: close\r\n\r\n");
+    let (head, m) = m.split_once("\r\n\r\n").expect("a whole response");
+    assert!(head.starts_with("HTTP/1.1 200") && head.to_ascii_lowercase().contains("content-length"), "{head}");
+    (0..runtimes).map(|i| metric(m, "vtex_http_connections", &[("runtime", &i.to_string())])).collect()
+}
+
+/// Keeps `conns` open and answered once each (so each has been handed to its runtime).
+fn open_answered(s: &Server, n: usize) -> Vec<std::net::TcpStream> {
+    use std::io::{BufRead, BufReader, Read, Write};
+    (0..n)
+        .map(|_| {
+            let mut c = std::net::TcpStream::connect(&s.addr).unwrap();
+            c.set_read_timeout(Some(std::time::Duration::from_secs(30))).unwrap();
+            c.write_all(b"GET /healthz HTTP/1.1\r\nHost: x\r\n\r\n").unwrap();
+            let mut r = BufReader::new(c.try_clone().unwrap());
+            let mut len = 0;
+            loop {
+                let mut line = String::new();
+                r.read_line(&mut line).unwrap();
+                if let Some(v) = line.to_ascii_lowercase().strip_prefix("content-length:") {
+                    len = v.trim().parse().unwrap();
+                }
+                if line == "\r\n" {
+                    break;
+                }
+            }
+            r.read_exact(&mut vec![0; len]).unwrap();
+            c
+        })
+        .collect()
+}
+
+/// The acceptor hands each connection to the runtime serving the fewest: the counts never
+/// differ by more than one, also after connections close unevenly.
+#[tokio::test]
+async fn connections_are_spread_over_the_runtimes() {
+    let dir = tempdir();
+    let s = Server::start(dir.path(), &["--io-threads", "3"]);
+    let spread = |v: &[f64]| v.iter().cloned().fold(f64::MIN, f64::max) - v.iter().cloned().fold(f64::MAX, f64::min);
+    let mut open = open_answered(&s, 10);
+    // The metrics request's own connection makes 11.
+    let v = connections_per_runtime(&s, 3);
+    assert_eq!(v.iter().sum::<f64>(), 11.0, "{v:?}");
+    assert!(spread(&v) <= 1.0, "{v:?}");
+    open.truncate(4); // closes 6 connections, however they were spread
+    let deadline = std::time::Instant::now() + std::time::Duration::from_secs(10);
+    while connections_per_runtime(&s, 3).iter().sum::<f64>() != 5.0 {
+        assert!(std::time::Instant::now() < deadline, "closed connections still counted");
+        std::thread::sleep(std::time::Duration::from_millis(20));
+    }
+    open.extend(open_answered(&s, 8)); // 12 open, refilling the emptiest runtimes first
+    let v = connections_per_runtime(&s, 3);
+    assert_eq!(v.iter().sum::<f64>(), 13.0, "{v:?}");
+    assert!(spread(&v) <= 1.0, "{v:?}");
+    drop(open);
+}
