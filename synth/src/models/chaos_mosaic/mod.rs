@@ -29,7 +29,7 @@ pub use prefilter::EXACT_LEVELS;
 use crate::{bundle::Bundle, models::Inputs, pixels::Rgba8Image, Domain, Error, Region, Result, Texture};
 use blocks::SizeRule;
 use index::TileIndex;
-use prefilter::PeriodicSums;
+use prefilter::{BoxTables, PeriodicSums};
 
 pub const MODEL: &str = "chaos-mosaic";
 const SAMPLE_SECTION: &str = "sample.png";
@@ -47,6 +47,8 @@ pub struct ChaosMosaic {
     blocks: Vec<Block>,
     index: TileIndex,
     sums: PeriodicSums,
+    /// Box sums of the sample at each power-of-two side, built on first use (mid mip levels).
+    tables: BoxTables,
 }
 
 impl ChaosMosaic {
@@ -78,7 +80,18 @@ impl ChaosMosaic {
         let index = TileIndex::build(&blocks, params.tiles_x, params.tiles_y, sw, sh);
         let sample_px = sample.data.chunks_exact(4).map(|p| u32::from_le_bytes(p.try_into().unwrap())).collect();
         let sums = PeriodicSums::new(&sample);
-        Ok(Self { params, sample_px, seamless, width, height, blocks, index, sums, sample })
+        Ok(Self {
+            params,
+            sample_px,
+            seamless,
+            width,
+            height,
+            blocks,
+            index,
+            sums,
+            sample,
+            tables: BoxTables::default(),
+        })
     }
 
     pub fn params(&self) -> &Params {
