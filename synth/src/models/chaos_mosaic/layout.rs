@@ -65,7 +65,8 @@ impl ChaosMosaic {
         let (sw, sh) = (self.sample.width as i64, self.sample.height as i64);
         let (tw, th) = (self.width as i64, self.height as i64);
         let mut out = Vec::new();
-        for ty in y0.div_euclid(sh)..=(y0 + h as i64 - 1).div_euclid(sh) {
+        let (tx0, ty0) = (x0.div_euclid(sw), y0.div_euclid(sh));
+        for ty in ty0..=(y0 + h as i64 - 1).div_euclid(sh) {
             let wty = ty.rem_euclid(self.params.tiles_y as i64);
             for tx in x0.div_euclid(sw)..=(x0 + w as i64 - 1).div_euclid(sw) {
                 let wtx = tx.rem_euclid(self.params.tiles_x as i64);
@@ -80,7 +81,9 @@ impl ChaosMosaic {
                                 && px + b.w as i64 > x0
                                 && py < y0 + h as i64
                                 && py + b.h as i64 > y0;
-                            if meets {
+                            // Listed once: in the first tile of the scan that it touches.
+                            let first = (px.div_euclid(sw).max(tx0), py.div_euclid(sh).max(ty0)) == (tx, ty);
+                            if meets && first {
                                 out.push(Placed { id, x: px, y: py });
                             }
                         }
@@ -89,7 +92,6 @@ impl ChaosMosaic {
             }
         }
         out.sort_unstable();
-        out.dedup();
         out
     }
 

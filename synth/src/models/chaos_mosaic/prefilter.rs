@@ -483,20 +483,30 @@ impl ChaosMosaic {
     }
 }
 
-/// The sum of the `n` × `n` cells of one footprint whose packed layers are `layer` (rows `gw`
-/// apart) and whose corners modulo the sample are `cx`, `cy`: cells of one layer are merged
-/// 2 × 2 at a time, up to the whole footprint, into one look-up in `tables[log2 of the
-/// merge]` — the same sum, as the merged cells tile a box of that layer.
+/// The sum of the `n` × `n` cells (n = 2 or 4) of one footprint whose packed layers are
+/// `layer` (rows `gw` apart) and whose corners modulo the sample are `cx`, `cy`: cells of one
+/// layer are merged — the whole footprint, else 2 × 2 cells — into one look-up in
+/// `tables[log2 of the merge]`, the same sum, as the merged cells tile a box of that layer.
+#[inline]
 fn merged_sum(layer: &[u32], gw: usize, n: usize, tables: &[&BoxTable], cx: &[u32], cy: &[u32]) -> [u32; 4] {
-    let o = layer[0];
-    if (0..n).all(|r| layer[r * gw..r * gw + n].iter().all(|&l| l == o)) {
-        return tables[n.trailing_zeros() as usize].at(cx[0], cy[0], o);
+    let at = |t: usize, a: usize, b: usize| tables[t].at(cx[a], cy[b], layer[b * gw + a]);
+    let uniform = |a: usize, b: usize, n: usize| {
+        let o = layer[b * gw + a];
+        (b..b + n).all(|r| layer[r * gw + a..r * gw + a + n].iter().all(|&l| l == o))
+    };
+    if uniform(0, 0, n) {
+        return at(n.trailing_zeros() as usize, 0, 0);
     }
-    let h = n / 2;
     let mut acc = [0u32; 4];
-    for (dx, dy) in [(0, 0), (h, 0), (0, h), (h, h)] {
-        let s = merged_sum(&layer[dy * gw + dx..], gw, h, tables, &cx[dx..], &cy[dy..]);
-        acc.iter_mut().zip(s).for_each(|(a, s)| *a += s);
+    let mut add = |s: [u32; 4]| acc.iter_mut().zip(s).for_each(|(a, s)| *a += s);
+    for b in (0..n).step_by(2) {
+        for a in (0..n).step_by(2) {
+            if n == 4 && uniform(a, b, 2) {
+                add(at(1, a, b));
+            } else {
+                [(a, b), (a + 1, b), (a, b + 1), (a + 1, b + 1)].into_iter().for_each(|(a, b)| add(at(0, a, b)));
+            }
+        }
     }
     acc
 }
