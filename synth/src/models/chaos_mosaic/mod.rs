@@ -44,7 +44,10 @@ pub struct ChaosMosaic {
     seamless: bool,
     width: u64,
     height: u64,
+    /// The blocks grouped by the tile of their corner ([`index::by_home_tile`]) and their
+    /// sequence numbers: the index and placements refer to blocks by position in this list.
     blocks: Vec<Block>,
+    seq: Vec<u32>,
     index: TileIndex,
     sums: PeriodicSums,
     /// Box sums of the sample at each power-of-two side, built on first use (mid mip levels).
@@ -77,7 +80,8 @@ impl ChaosMosaic {
             }
             (Sequence::Explicit, None) => return Err(Error::bundle("missing section `blocks`")),
         };
-        let index = TileIndex::build(&blocks, params.tiles_x, params.tiles_y, sw, sh);
+        let (blocks, seq) = index::by_home_tile(blocks, params.tiles_x, params.tiles_y, sw, sh);
+        let index = TileIndex::build(&blocks, &seq, params.tiles_x, params.tiles_y, sw, sh);
         let sample_px = sample.data.chunks_exact(4).map(|p| u32::from_le_bytes(p.try_into().unwrap())).collect();
         let sums = PeriodicSums::new(&sample);
         Ok(Self {
@@ -87,6 +91,7 @@ impl ChaosMosaic {
             width,
             height,
             blocks,
+            seq,
             index,
             sums,
             sample,
@@ -103,13 +108,17 @@ impl ChaosMosaic {
     }
 
     /// The random block sequence R_ε in paste order.
-    pub fn blocks(&self) -> &[Block] {
-        &self.blocks
+    pub fn blocks(&self) -> Vec<Block> {
+        let mut out = self.blocks.clone();
+        for (b, &id) in self.blocks.iter().zip(&self.seq) {
+            out[id as usize] = *b;
+        }
+        out
     }
 
     /// Heap bytes of the block list and the per-tile index.
     pub fn structure_heap_bytes(&self) -> usize {
-        self.blocks.capacity() * std::mem::size_of::<Block>() + self.index.heap_bytes()
+        self.blocks.capacity() * std::mem::size_of::<Block>() + self.seq.capacity() * 4 + self.index.heap_bytes()
     }
 }
 

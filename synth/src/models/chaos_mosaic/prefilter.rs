@@ -332,7 +332,7 @@ impl ChaosMosaic {
                 (((a - reach).div_euclid(f) - lo).max(0), ((b + reach - 1).div_euclid(f) - lo).min(n as i64 - 1))
             };
             for (k, p) in placed.iter().enumerate() {
-                let b = &self.blocks[p.id as usize];
+                let b = &self.blocks[p.pos as usize];
                 let (bx1, by1) = (p.x + b.w as i64, p.y + b.h as i64);
                 let (i0, i1) = meets(p.x, bx1, lx, nx);
                 let (j0, j1) = meets(p.y, by1, ly, ny);
@@ -366,14 +366,14 @@ impl ChaosMosaic {
         // Each label's layer, then each cell's, as packed offsets (0 is the tiling).
         let offsets: Vec<u32> = std::iter::once(0)
             .chain(placed.iter().map(|p| {
-                let b = &self.blocks[p.id as usize];
+                let b = &self.blocks[p.pos as usize];
                 pack(b.x as i64 - p.x, b.y as i64 - p.y, sw, sh)
             }))
             .collect();
         let mut layer = vec![0u32; if coarse { 0 } else { gw * rows.len() }];
         if rasterize {
             for (k, p) in placed.iter().enumerate() {
-                let b = &self.blocks[p.id as usize];
+                let b = &self.blocks[p.pos as usize];
                 let inside = |v: &[(i64, i64, i64)], lo: i64, hi: i64| {
                     v.partition_point(|c| c.2 < lo)..v.partition_point(|c| c.2 < hi)
                 };
@@ -468,8 +468,8 @@ impl ChaosMosaic {
     fn layer_at(&self, x: i64, y: i64, tx: u32, ty: u32, (xm, ym): (i64, i64)) -> u32 {
         let (tw, th) = (self.width as i64, self.height as i64);
         let (sw, sh) = (self.sample.width as i64, self.sample.height as i64);
-        for &id in self.index.blocks(tx, ty).iter().rev() {
-            let b = &self.blocks[id as usize];
+        for &pos in self.index.blocks(tx, ty).iter().rev() {
+            let b = &self.blocks[pos as usize];
             // x and b.s both lie on [0, width): the wrapped difference needs no division.
             let (u, v) = (x - b.s as i64, y - b.t as i64);
             let (u, v) = (u + tw * (u < 0) as i64, v + th * (v < 0) as i64);
