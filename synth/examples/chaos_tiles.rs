@@ -2,6 +2,7 @@
 //! and median over `count` tiles (minimum: the figure least disturbed by a shared machine).
 //!
 //! `cargo run -p vtex-synth --release --example chaos_tiles -- [count] [levels…]`
+//! (CHAOS_PNG=dir also writes each level's tile to dir/level-L.png).
 //!
 //! With count 0, instead prints each level's PSNR against the exact downsample of level 0 over
 //! three 4096² level-0 windows of the demo (what the mip-coherence tests measure on small
@@ -42,6 +43,10 @@ fn main() {
             })
             .collect();
         times.sort_by(|a, b| a.total_cmp(b));
+        if let Ok(dir) = std::env::var("CHAOS_PNG") {
+            let img = vtex_synth::Rgba8Image { width: 256, height: 256, data: out.clone() };
+            std::fs::write(format!("{dir}/level-{level}.png"), img.to_png()).unwrap();
+        }
         println!("level {level}: min {:.3} ms, median {:.3} ms", times[0], times[count / 2]);
     }
 }
