@@ -374,28 +374,21 @@ impl ChaosMosaic {
                 pack(b.x as i64 - p.x, b.y as i64 - p.y, sw, sh)
             }))
             .collect();
-        let mut layer = vec![0u32; if coarse { 0 } else { gw * rows.len() }];
-        if rasterize {
-            for (k, p) in placed.iter().enumerate() {
+        // Each placement's cells (the columns and rows whose centres it covers); for the tile
+        // index, each cell column's centre, tile and remainder.
+        let inside =
+            |v: &[(i64, i64, i64)], lo: i64, hi: i64| v.partition_point(|c| c.2 < lo)..v.partition_point(|c| c.2 < hi);
+        let painted: Vec<_> = placed
+            .iter()
+            .map(|p| {
                 let b = &self.blocks[p.pos as usize];
-                let inside = |v: &[(i64, i64, i64)], lo: i64, hi: i64| {
-                    v.partition_point(|c| c.2 < lo)..v.partition_point(|c| c.2 < hi)
-                };
-                let (ci, cj) = (inside(&cols, p.x, p.x + b.w as i64), inside(&rows, p.y, p.y + b.h as i64));
-                for j in cj {
-                    layer[j * gw + ci.start..j * gw + ci.end].fill(offsets[k + 1]);
-                }
-            }
-        } else if !coarse {
-            // One pass over the cells, the tile index walked in row order.
-            let cols: Vec<_> = cols.iter().map(|c| (c.2, (c.2 / sw) as u32, c.2 % sw)).collect();
-            for (cj, &(_, _, y)) in rows.iter().enumerate() {
-                let (ty, ym) = ((y / sh) as u32, y % sh);
-                for (l, &(x, tx, xm)) in layer[cj * gw..(cj + 1) * gw].iter_mut().zip(&cols) {
-                    *l = self.layer_at(x, y, tx, ty, (xm, ym));
-                }
-            }
-        }
+                (inside(&cols, p.x, p.x + b.w as i64), inside(&rows, p.y, p.y + b.h as i64))
+            })
+            .collect();
+        let indexed: Vec<_> = match rasterize || coarse {
+            true => Vec::new(),
+            false => cols.iter().map(|c| (c.2, (c.2 / sw) as u32, c.2 % sw)).collect(),
+        };
 
         // Box tables for a cell and for 2 × 2, 4 × 4 … cells of one layer (up to the whole
         // footprint), and the cells' and pixels' corners modulo the sample.
@@ -409,46 +402,71 @@ impl ChaosMosaic {
         let cx: Vec<u32> = cols.iter().map(|c| c.0.rem_euclid(sw) as u32).collect();
         let cy: Vec<u32> = rows.iter().map(|c| c.0.rem_euclid(sh) as u32).collect();
 
+        // The cells' layers are made a band of pixel rows at a time, about 256 KiB of them, so
+        // that they are still in cache when summed.
+        let band = (65536 / (gw * cells)).max(1);
+        let mut layer = vec![0u32; if coarse { 0 } else { gw * cells * band.min(ny) }];
         let mut out = vec![[0u8; 4]; nx * ny];
-        for j in 0..ny {
-            let (fy0, fy1) = span(j as i64, ly, th);
-            for i in 0..nx {
-                let (fx0, fx1) = span(i as i64, lx, tw);
-                let full = fx1 - fx0 == f && fy1 - fy0 == f;
-                let (ci, cj) = (i * cells, j * cells);
-                let sum = match (state[j * nx + i], &merged) {
-                    (DIRTY, Some(tables)) if full => {
-                        merged_sum(&layer[cj * gw + ci..], gw, cells, tables, &cx[ci..], &cy[cj..]).map(u64::from)
+        for j0 in (0..ny).step_by(band) {
+            let (j1, r0) = ((j0 + band).min(ny), j0 * cells);
+            let r1 = j1 * cells;
+            if rasterize {
+                layer.fill(0);
+                for ((ci, cj), &o) in painted.iter().zip(&offsets[1..]) {
+                    for j in cj.start.max(r0)..cj.end.min(r1) {
+                        layer[(j - r0) * gw + ci.start..(j - r0) * gw + ci.end].fill(o);
                     }
-                    (DIRTY, _) => {
-                        let mut acc = [0u64; 4];
-                        for (cj, &(r0, r1, _)) in rows.iter().enumerate().skip(cj).take(cells) {
-                            for (ci, &(c0, c1, _)) in cols.iter().enumerate().skip(ci).take(cells) {
-                                if c0 < c1 && r0 < r1 {
-                                    let s = self.cell_sum((c0, c1), (r0, r1), side, layer[cj * gw + ci]);
-                                    acc.iter_mut().zip(s).for_each(|(a, s)| *a += s);
+                }
+            } else if !coarse {
+                // The tile index walked in row order.
+                for (cj, &(_, _, y)) in rows.iter().enumerate().take(r1).skip(r0) {
+                    let (ty, ym) = ((y / sh) as u32, y % sh);
+                    for (l, &(x, tx, xm)) in layer[(cj - r0) * gw..(cj - r0 + 1) * gw].iter_mut().zip(&indexed) {
+                        *l = self.layer_at(x, y, tx, ty, (xm, ym));
+                    }
+                }
+            }
+            for j in j0..j1 {
+                let (fy0, fy1) = span(j as i64, ly, th);
+                for i in 0..nx {
+                    let (fx0, fx1) = span(i as i64, lx, tw);
+                    let full = fx1 - fx0 == f && fy1 - fy0 == f;
+                    let (ci, cj) = (i * cells, j * cells);
+                    let sum = match (state[j * nx + i], &merged) {
+                        (DIRTY, Some(tables)) if full => {
+                            merged_sum(&layer[(cj - r0) * gw + ci..], gw, cells, tables, &cx[ci..], &cy[cj..])
+                                .map(u64::from)
+                        }
+                        (DIRTY, _) => {
+                            let mut acc = [0u64; 4];
+                            for (cj, &(y0, y1, _)) in rows.iter().enumerate().skip(cj).take(cells) {
+                                for (ci, &(c0, c1, _)) in cols.iter().enumerate().skip(ci).take(cells) {
+                                    if c0 < c1 && y0 < y1 {
+                                        let s = self.cell_sum((c0, c1), (y0, y1), side, layer[(cj - r0) * gw + ci]);
+                                        acc.iter_mut().zip(s).for_each(|(a, s)| *a += s);
+                                    }
+                                }
+                            }
+                            acc
+                        }
+                        (k, _) => {
+                            let o = if k == BACKGROUND { 0 } else { offsets[k as usize + 1] };
+                            match whole {
+                                Some(t) if full => t.at(cx[ci], cy[cj], o).map(u64::from),
+                                _ => {
+                                    let (dx, dy) = ((o & 0xffff) as i64, (o >> 16) as i64);
+                                    self.sums.box_sum(fx0 + dx, fy0 + dy, fx1 + dx, fy1 + dy).map(|s| s as u64)
                                 }
                             }
                         }
-                        acc
-                    }
-                    (k, _) => {
-                        let o = if k == BACKGROUND { 0 } else { offsets[k as usize + 1] };
-                        match whole {
-                            Some(t) if full => t.at(cx[ci], cy[cj], o).map(u64::from),
-                            _ => {
-                                let (dx, dy) = ((o & 0xffff) as i64, (o >> 16) as i64);
-                                self.sums.box_sum(fx0 + dx, fy0 + dy, fx1 + dx, fy1 + dy).map(|s| s as u64)
-                            }
-                        }
-                    }
-                };
-                let area = ((fx1 - fx0) * (fy1 - fy0)) as u64;
-                out[j * nx + i] = sum.map(|s| match full {
-                    // area = 4^level: the rounded division is a shift.
-                    true => ((s + area / 2) >> (2 * level)) as u8,
-                    false => ((s + area / 2) / area) as u8,
-                });
+                    };
+                    let area = ((fx1 - fx0) * (fy1 - fy0)) as u64;
+                    out[j * nx + i] = sum.map(|s| match full {
+                        // area = 4^level: the rounded division is a shift.
+                        true => ((s + area / 2) >> (2 * level)) as u8,
+                        false => ((s + area / 2) / area) as u8,
+                    });
+                }
             }
         }
         out
