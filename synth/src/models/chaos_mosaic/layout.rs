@@ -69,15 +69,19 @@ impl ChaosMosaic {
         let (tw, th) = (self.width as i64, self.height as i64);
         let mut out = Vec::new();
         let (tx0, ty0) = (x0.div_euclid(sw), y0.div_euclid(sh));
+        // Whether tile t is the first of the scan (from t0) that [p, …) meets, one that meets t:
+        // max(p div side, t0) = t, without dividing.
+        let first = |p: i64, t: i64, t0: i64, side: i64| (p >= t * side || t == t0) && p < (t + 1) * side;
         for ty in ty0..=(y0 + h as i64 - 1).div_euclid(sh) {
             let wty = ty.rem_euclid(self.params.tiles_y as i64);
-            for tx in x0.div_euclid(sw)..=(x0 + w as i64 - 1).div_euclid(sw) {
+            for tx in tx0..=(x0 + w as i64 - 1).div_euclid(sw) {
                 let wtx = tx.rem_euclid(self.params.tiles_x as i64);
                 for &pos in self.index.blocks(wtx as u32, wty as u32) {
                     let b = &self.blocks[pos as usize];
-                    // A block touching this tile starts at most one torus period before it.
-                    let dx = (b.s as i64 - wtx * sw).rem_euclid(tw);
-                    let dy = (b.t as i64 - wty * sh).rem_euclid(th);
+                    // A block touching this tile starts at most one torus period before it
+                    // (both corners lie on the torus: the wrapped difference needs no division).
+                    let (dx, dy) = (b.s as i64 - wtx * sw, b.t as i64 - wty * sh);
+                    let (dx, dy) = (dx + tw * (dx < 0) as i64, dy + th * (dy < 0) as i64);
                     for px in [tx * sw + dx, tx * sw + dx - tw] {
                         for py in [ty * sh + dy, ty * sh + dy - th] {
                             let meets = px < x0 + w as i64
@@ -85,8 +89,7 @@ impl ChaosMosaic {
                                 && py < y0 + h as i64
                                 && py + b.h as i64 > y0;
                             // Listed once: in the first tile of the scan that it touches.
-                            let first = (px.div_euclid(sw).max(tx0), py.div_euclid(sh).max(ty0)) == (tx, ty);
-                            if meets && first {
+                            if meets && first(px, tx, tx0, sw) && first(py, ty, ty0, sh) {
                                 out.push(Placed { id: self.seq[pos as usize], x: px, y: py, pos });
                             }
                         }

@@ -376,13 +376,26 @@ impl ChaosMosaic {
             .collect();
         // Each placement's cells (the columns and rows whose centres it covers); for the tile
         // index, each cell column's centre, tile and remainder.
-        let inside =
-            |v: &[(i64, i64, i64)], lo: i64, hi: i64| v.partition_point(|c| c.2 < lo)..v.partition_point(|c| c.2 < hi);
+        // Centres of full pixels' cells lie every `side` pixels from lo·f + side/2: the count
+        // below x is estimated by a shift, then corrected (partial pixels at the texture's edge).
+        let side = f / cells as i64;
+        let below = |v: &[(i64, i64, i64)], lo: i64, x: i64| {
+            let d = x - lo * f - side / 2;
+            let mut k = if d <= 0 { 0 } else { ((d + side - 1) >> side.trailing_zeros()).min(v.len() as i64) as usize };
+            while k > 0 && v[k - 1].2 >= x {
+                k -= 1;
+            }
+            while k < v.len() && v[k].2 < x {
+                k += 1;
+            }
+            k
+        };
+        let inside = |v: &[(i64, i64, i64)], lo: i64, a: i64, b: i64| below(v, lo, a)..below(v, lo, b);
         let painted: Vec<_> = placed
             .iter()
             .map(|p| {
                 let b = &self.blocks[p.pos as usize];
-                (inside(&cols, p.x, p.x + b.w as i64), inside(&rows, p.y, p.y + b.h as i64))
+                (inside(&cols, lx, p.x, p.x + b.w as i64), inside(&rows, ly, p.y, p.y + b.h as i64))
             })
             .collect();
         let indexed: Vec<_> = match rasterize || coarse {
@@ -393,7 +406,6 @@ impl ChaosMosaic {
         // Box tables for a cell and for 2 × 2, 4 × 4 … cells of one layer (up to the whole
         // footprint), and the cells' and pixels' corners modulo the sample.
         let merges = cells.trailing_zeros() as usize;
-        let side = f / cells as i64;
         let whole = self.tables.get(&self.sample, f).filter(|_| !paths.general);
         let merged: Option<Vec<&BoxTable>> = match coarse || paths.general {
             true => None,
