@@ -4,16 +4,48 @@
 
 use super::blocks::Block;
 
-/// Compressed rows: the blocks touching tile `i` are `ids[starts[i]..starts[i + 1]]`, ascending.
+/// Compressed rows: the blocks touching tile `i` are `ids[starts[i]..starts[i + 1]]`, by
+/// position in the list of [`by_home_tile`], in sequence order.
 pub struct TileIndex {
     tiles_x: u32,
     starts: Vec<u32>,
     ids: Vec<u32>,
 }
 
+/// The blocks reordered by the tile that holds their corner (row-major), in sequence order
+/// within a tile, with the sequence number of each. The blocks near a region then lie in a few
+/// runs of memory (a region's blocks come from its own and the neighbouring tile rows) instead
+/// of all over the list, whose sequence order the cat map scatters over the texture.
+pub fn by_home_tile(
+    blocks: Vec<Block>,
+    tiles_x: u32,
+    tiles_y: u32,
+    tile_w: u32,
+    tile_h: u32,
+) -> (Vec<Block>, Vec<u32>) {
+    let home = |b: &Block| (b.t / tile_h) as usize * tiles_x as usize + (b.s / tile_w) as usize;
+    let mut at = vec![0u32; tiles_x as usize * tiles_y as usize + 1];
+    for b in &blocks {
+        at[home(b) + 1] += 1;
+    }
+    for i in 1..at.len() {
+        at[i] += at[i - 1];
+    }
+    let mut seq = vec![0u32; blocks.len()];
+    let mut local = blocks.clone();
+    for (id, b) in blocks.iter().enumerate() {
+        let pos = &mut at[home(b)];
+        (local[*pos as usize], seq[*pos as usize]) = (*b, id as u32);
+        *pos += 1;
+    }
+    (local, seq)
+}
+
 impl TileIndex {
-    /// Blocks are never larger than a tile, so each touches at most 2 × 2 tiles of the torus.
-    pub fn build(blocks: &[Block], tiles_x: u32, tiles_y: u32, tile_w: u32, tile_h: u32) -> Self {
+    /// Indexes `blocks` (listed by position, `seq` their sequence numbers): each tile's list
+    /// holds positions in ascending sequence order. Blocks are never larger than a tile, so each
+    /// touches at most 2 × 2 tiles of the torus.
+    pub fn build(blocks: &[Block], seq: &[u32], tiles_x: u32, tiles_y: u32, tile_w: u32, tile_h: u32) -> Self {
         let tiles = tiles_x as usize * tiles_y as usize;
         let touched = |b: &Block| {
             let cols = tile_span(b.s, b.w, tile_w, tiles_x);
@@ -32,16 +64,20 @@ impl TileIndex {
         let starts = counts;
         let mut fill = starts.clone();
         let mut ids = vec![0u32; starts[tiles] as usize];
-        for (id, b) in blocks.iter().enumerate() {
-            for t in touched(b) {
-                ids[fill[t as usize] as usize] = id as u32;
+        let mut in_sequence = vec![0u32; blocks.len()];
+        for (pos, &id) in seq.iter().enumerate() {
+            in_sequence[id as usize] = pos as u32;
+        }
+        for pos in in_sequence {
+            for t in touched(&blocks[pos as usize]) {
+                ids[fill[t as usize] as usize] = pos;
                 fill[t as usize] += 1;
             }
         }
         Self { tiles_x, starts, ids }
     }
 
-    /// Blocks touching tile (tx, ty), in sequence order.
+    /// Positions of the blocks touching tile (tx, ty), in sequence order.
     #[inline]
     pub fn blocks(&self, tx: u32, ty: u32) -> &[u32] {
         let i = (ty * self.tiles_x + tx) as usize;
@@ -74,14 +110,27 @@ mod tests {
     #[test]
     fn wrapping_block_is_found_in_all_four_tiles() {
         let b = Block { x: 0, y: 0, w: 10, h: 10, s: 95, t: 35 };
-        let idx = TileIndex::build(&[b], 10, 4, 10, 10);
+        let idx = TileIndex::build(&[b], &[0], 10, 4, 10, 10);
         for (tx, ty) in [(9, 3), (0, 3), (9, 0), (0, 0)] {
             assert_eq!(idx.blocks(tx, ty), &[0], "tile ({tx},{ty})");
         }
         assert!(idx.blocks(1, 1).is_empty());
         let inside = Block { x: 0, y: 0, w: 10, h: 10, s: 20, t: 10 };
-        let idx = TileIndex::build(&[inside], 10, 4, 10, 10);
+        let idx = TileIndex::build(&[inside], &[0], 10, 4, 10, 10);
         assert_eq!(idx.blocks(2, 1), &[0]);
         assert!(idx.blocks(3, 1).is_empty());
+    }
+
+    #[test]
+    fn blocks_are_grouped_by_home_tile_and_listed_in_sequence_order() {
+        let at = |s, t| Block { x: 0, y: 0, w: 6, h: 6, s, t };
+        let blocks = vec![at(15, 15), at(2, 3), at(18, 11), at(5, 5), at(12, 0)];
+        let (local, seq) = by_home_tile(blocks.clone(), 2, 2, 10, 10);
+        assert_eq!(seq, [1, 3, 4, 0, 2]);
+        assert!(seq.iter().zip(&local).all(|(&id, b)| blocks[id as usize] == *b));
+        let idx = TileIndex::build(&local, &seq, 2, 2, 10, 10);
+        // Tile (1, 1) meets blocks 0 and 2 (its own) and 3 (from tile (0, 0)): sequence order.
+        assert_eq!(idx.blocks(1, 1), &[3, 4, 1]);
+        assert_eq!(idx.blocks(0, 0).iter().map(|&p| seq[p as usize]).collect::<Vec<_>>(), [0, 1, 3]);
     }
 }

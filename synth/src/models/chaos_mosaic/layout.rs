@@ -15,9 +15,12 @@ use std::ops::Range;
 /// A block at unwrapped texture coordinates (the torus unrolled around a region).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord)]
 pub(super) struct Placed {
+    /// The sequence number, first so that placements sort into paste order.
     pub id: u32,
     pub x: i64,
     pub y: i64,
+    /// The position in the model's block list.
+    pub pos: u32,
 }
 
 /// Columns `[x, end)` of a band's rows, copied from sample columns `sx..` of sample row `sy`
@@ -65,23 +68,29 @@ impl ChaosMosaic {
         let (sw, sh) = (self.sample.width as i64, self.sample.height as i64);
         let (tw, th) = (self.width as i64, self.height as i64);
         let mut out = Vec::new();
-        for ty in y0.div_euclid(sh)..=(y0 + h as i64 - 1).div_euclid(sh) {
+        let (tx0, ty0) = (x0.div_euclid(sw), y0.div_euclid(sh));
+        // Whether tile t is the first of the scan (from t0) that [p, …) meets, one that meets t:
+        // max(p div side, t0) = t, without dividing.
+        let first = |p: i64, t: i64, t0: i64, side: i64| (p >= t * side || t == t0) && p < (t + 1) * side;
+        for ty in ty0..=(y0 + h as i64 - 1).div_euclid(sh) {
             let wty = ty.rem_euclid(self.params.tiles_y as i64);
-            for tx in x0.div_euclid(sw)..=(x0 + w as i64 - 1).div_euclid(sw) {
+            for tx in tx0..=(x0 + w as i64 - 1).div_euclid(sw) {
                 let wtx = tx.rem_euclid(self.params.tiles_x as i64);
-                for &id in self.index.blocks(wtx as u32, wty as u32) {
-                    let b = &self.blocks[id as usize];
-                    // A block touching this tile starts at most one torus period before it.
-                    let dx = (b.s as i64 - wtx * sw).rem_euclid(tw);
-                    let dy = (b.t as i64 - wty * sh).rem_euclid(th);
+                for &pos in self.index.blocks(wtx as u32, wty as u32) {
+                    let b = &self.blocks[pos as usize];
+                    // A block touching this tile starts at most one torus period before it
+                    // (both corners lie on the torus: the wrapped difference needs no division).
+                    let (dx, dy) = (b.s as i64 - wtx * sw, b.t as i64 - wty * sh);
+                    let (dx, dy) = (dx + tw * (dx < 0) as i64, dy + th * (dy < 0) as i64);
                     for px in [tx * sw + dx, tx * sw + dx - tw] {
                         for py in [ty * sh + dy, ty * sh + dy - th] {
                             let meets = px < x0 + w as i64
                                 && px + b.w as i64 > x0
                                 && py < y0 + h as i64
                                 && py + b.h as i64 > y0;
-                            if meets {
-                                out.push(Placed { id, x: px, y: py });
+                            // Listed once: in the first tile of the scan that it touches.
+                            if meets && first(px, tx, tx0, sw) && first(py, ty, ty0, sh) {
+                                out.push(Placed { id: self.seq[pos as usize], x: px, y: py, pos });
                             }
                         }
                     }
@@ -89,7 +98,6 @@ impl ChaosMosaic {
             }
         }
         out.sort_unstable();
-        out.dedup();
         out
     }
 
@@ -101,7 +109,7 @@ impl ChaosMosaic {
         let mut cuts = vec![0, h];
         cuts.extend(((sh - wrap(y0, sh as u64) as usize) % sh..h).step_by(sh));
         for p in &placed {
-            let b = &self.blocks[p.id as usize];
+            let b = &self.blocks[p.pos as usize];
             cuts.extend([p.y - y0, p.y + b.h as i64 - y0].into_iter().filter_map(inside));
         }
         cuts.sort_unstable();
@@ -124,7 +132,7 @@ impl ChaosMosaic {
             // The blocks covering the band (a block meeting it covers it: its edges are cuts).
             let (top, bottom) = (y0 + ya as i64, y0 + yb as i64);
             for p in &placed {
-                let b = &self.blocks[p.id as usize];
+                let b = &self.blocks[p.pos as usize];
                 if p.y <= top && p.y + b.h as i64 >= bottom {
                     let (from, to) = ((p.x - x0).max(0) as usize, (p.x + b.w as i64 - x0).min(w as i64) as usize);
                     let sx = b.x as u32 + (x0 + from as i64 - p.x) as u32;

@@ -29,7 +29,7 @@ pub use prefilter::EXACT_LEVELS;
 use crate::{bundle::Bundle, models::Inputs, pixels::Rgba8Image, Domain, Error, Region, Result, Texture};
 use blocks::SizeRule;
 use index::TileIndex;
-use prefilter::PeriodicSums;
+use prefilter::{BoxTables, PeriodicSums};
 
 pub const MODEL: &str = "chaos-mosaic";
 const SAMPLE_SECTION: &str = "sample.png";
@@ -44,9 +44,14 @@ pub struct ChaosMosaic {
     seamless: bool,
     width: u64,
     height: u64,
+    /// The blocks grouped by the tile of their corner ([`index::by_home_tile`]) and their
+    /// sequence numbers: the index and placements refer to blocks by position in this list.
     blocks: Vec<Block>,
+    seq: Vec<u32>,
     index: TileIndex,
     sums: PeriodicSums,
+    /// Box sums of the sample at each power-of-two side, built on first use (mid mip levels).
+    tables: BoxTables,
 }
 
 impl ChaosMosaic {
@@ -75,10 +80,23 @@ impl ChaosMosaic {
             }
             (Sequence::Explicit, None) => return Err(Error::bundle("missing section `blocks`")),
         };
-        let index = TileIndex::build(&blocks, params.tiles_x, params.tiles_y, sw, sh);
+        let (blocks, seq) = index::by_home_tile(blocks, params.tiles_x, params.tiles_y, sw, sh);
+        let index = TileIndex::build(&blocks, &seq, params.tiles_x, params.tiles_y, sw, sh);
         let sample_px = sample.data.chunks_exact(4).map(|p| u32::from_le_bytes(p.try_into().unwrap())).collect();
         let sums = PeriodicSums::new(&sample);
-        Ok(Self { params, sample_px, seamless, width, height, blocks, index, sums, sample })
+        Ok(Self {
+            params,
+            sample_px,
+            seamless,
+            width,
+            height,
+            blocks,
+            seq,
+            index,
+            sums,
+            sample,
+            tables: BoxTables::default(),
+        })
     }
 
     pub fn params(&self) -> &Params {
@@ -90,13 +108,17 @@ impl ChaosMosaic {
     }
 
     /// The random block sequence R_ε in paste order.
-    pub fn blocks(&self) -> &[Block] {
-        &self.blocks
+    pub fn blocks(&self) -> Vec<Block> {
+        let mut out = self.blocks.clone();
+        for (b, &id) in self.blocks.iter().zip(&self.seq) {
+            out[id as usize] = *b;
+        }
+        out
     }
 
     /// Heap bytes of the block list and the per-tile index.
     pub fn structure_heap_bytes(&self) -> usize {
-        self.blocks.capacity() * std::mem::size_of::<Block>() + self.index.heap_bytes()
+        self.blocks.capacity() * std::mem::size_of::<Block>() + self.seq.capacity() * 4 + self.index.heap_bytes()
     }
 }
 

@@ -7,16 +7,19 @@
 //! each pasted block — shows the sample translated, so the sum of a footprint that lies
 //! inside one layer is a box sum of the periodically extended sample, O(1) from a summed-area
 //! table. A footprint whose neighbourhood holds no seam is therefore exact (to rounding); one
-//! that straddles seams is split into 4 × 4 cells, each integrated with the layer at its
-//! centre. The cost is a few table look-ups a pixel at every level, so the coarsest level of a
-//! 100k × 100k texture costs no more than level 4.
+//! that straddles seams is split into 4 × 4 cells (one once it spans half a sample), each
+//! integrated with the layer at its centre, and cells of one layer are merged into one box
+//! (tables of box sums at every power-of-two side, cached in the model). The cost is a few
+//! table look-ups a pixel at every level, so the coarsest level of a 100k × 100k texture costs
+//! no more than level 4.
 
 use super::ChaosMosaic;
 use crate::{mip, pixels::Rgba8Image, texture::level_size, Region};
+use std::sync::OnceLock;
 
 /// Levels computed by rendering level 0 and downsampling (exact, bit for bit).
 pub const EXACT_LEVELS: u32 = 1;
-/// Cells per axis for footprints that straddle seams.
+/// Cells per axis for footprints that straddle seams and span less than half a sample.
 const CELLS: i64 = 4;
 
 /// Box sums of the sample extended periodically over the whole plane.
@@ -80,20 +83,28 @@ fn lanes(terms: impl Fn(usize) -> [i64; 4]) -> [i64; 4] {
 
 /// The sums of every `side` × `side` box of the periodic sample, by the box's corner in the
 /// sample: a cell of a mip footprint then costs one look-up, whatever its layer's offset.
-struct BoxTable {
-    w: Period,
-    h: Period,
-    sums: Vec<[u32; 4]>,
+pub(super) struct BoxTable {
+    w: u32,
+    h: u32,
+    sums: Lanes,
+}
+
+/// A table's entries, in 16 bits a channel where every box sum fits (sides ≤ 16), halving the
+/// table's cache footprint for the cells of levels 2–6.
+enum Lanes {
+    Narrow(Vec<[u16; 4]>),
+    Wide(Vec<[u32; 4]>),
 }
 
 impl BoxTable {
-    /// Samples up to this many pixels get a table (4 MiB); larger ones sum each box instead.
+    /// Samples up to this many pixels get tables (4 MiB each); larger ones sum each box instead.
     const MAX_SAMPLE_PIXELS: usize = 1 << 18;
 
-    /// Sliding sums along rows, then along columns of those. `None` for samples too large.
+    /// Sliding sums along rows, then along columns of those. `None` for samples too large and
+    /// for sides whose sums may not fit 32 bits.
     fn new(sample: &Rgba8Image, side: usize) -> Option<Self> {
         let (w, h) = (sample.width as usize, sample.height as usize);
-        if w * h > Self::MAX_SAMPLE_PIXELS {
+        if w * h > Self::MAX_SAMPLE_PIXELS || (side * side) as u64 * 255 > u32::MAX as u64 {
             return None;
         }
         let px = |i: usize| std::array::from_fn(|c| sample.data[i * 4 + c] as u32);
@@ -112,15 +123,55 @@ impl BoxTable {
                 sums[y * w + x] = s;
             }
         }
-        Some(Self { w: Period::new(w as i64), h: Period::new(h as i64), sums })
+        let sums = match side * side * 255 <= u16::MAX as usize {
+            true => Lanes::Narrow(sums.iter().map(|s| s.map(|v| v as u16)).collect()),
+            false => Lanes::Wide(sums),
+        };
+        Some(Self { w: w as u32, h: h as u32, sums })
     }
 
     /// The sum of the box with corner (x, y) of the plane.
-    #[inline]
-    fn sum(&self, x: i64, y: i64) -> [i64; 4] {
-        let (u, v) = (self.w.div_rem(x).1, self.h.div_rem(y).1);
-        self.sums[(v * self.w.n + u) as usize].map(i64::from)
+    fn sum(&self, x: i64, y: i64) -> [u32; 4] {
+        self.at(x.rem_euclid(self.w as i64) as u32, y.rem_euclid(self.h as i64) as u32, 0)
     }
+
+    /// The sum of the box with corner (x + dx, y + dy) of the plane, for a sample point
+    /// (x, y) and an offset packed by [`pack`] — two additions and no division.
+    #[inline]
+    fn at(&self, x: u32, y: u32, offset: u32) -> [u32; 4] {
+        let (mut u, mut v) = (x + (offset & 0xffff), y + (offset >> 16));
+        u -= self.w * (u >= self.w) as u32;
+        v -= self.h * (v >= self.h) as u32;
+        let i = (v * self.w + u) as usize;
+        match &self.sums {
+            Lanes::Narrow(s) => s[i].map(u32::from),
+            Lanes::Wide(s) => s[i],
+        }
+    }
+}
+
+/// The box tables of one sample, one a power-of-two side, each built on first use and kept:
+/// at most 13 tables of at most 4 MiB (a 160² sample's tables take 200–400 KiB each). A
+/// cached table is the table built afresh, so the cache never changes a result.
+#[derive(Default)]
+pub(super) struct BoxTables([OnceLock<Option<BoxTable>>; 13]);
+
+impl BoxTables {
+    /// The table of `side` × `side` boxes, or `None` when the side is no power of two or the
+    /// sample or the side is too large for a table.
+    fn get(&self, sample: &Rgba8Image, side: i64) -> Option<&BoxTable> {
+        let k = side.trailing_zeros() as usize;
+        if side <= 0 || side.count_ones() != 1 || k >= self.0.len() {
+            return None;
+        }
+        self.0[k].get_or_init(|| BoxTable::new(sample, side as usize)).as_ref()
+    }
+}
+
+/// A layer's translation (dx, dy) from texture to sample coordinates, reduced modulo the sample
+/// (sides ≤ 4096) and packed as `dy << 16 | dx`: equal packed offsets give equal box sums.
+fn pack(dx: i64, dy: i64, sw: i64, sh: i64) -> u32 {
+    (dy.rem_euclid(sh) as u32) << 16 | dx.rem_euclid(sw) as u32
 }
 
 /// For each i of a periodic `line`, the sum of its `side` values from i on. Sums wrap in u32
@@ -180,6 +231,16 @@ impl Period {
     }
 }
 
+/// How [`ChaosMosaic::integrate`] works, for tests that show every way gives the same result.
+#[derive(Clone, Copy, Default)]
+struct Paths {
+    /// Cell layers rasterized from the blocks (`Some(true)`) or looked up through the tile
+    /// index (`Some(false)`); `None` picks the cheaper way.
+    rasterize: Option<bool>,
+    /// Every footprint summed cell by cell with the division by its area, no merged cells.
+    general: bool,
+}
+
 impl ChaosMosaic {
     /// Renders a level ≥ 1.
     pub(super) fn render_prefiltered(&self, region: &Region, out: &mut [u8]) {
@@ -190,7 +251,7 @@ impl ChaosMosaic {
         let (lw, lh) = level_size(self.width, self.height, region.level);
         for (oy, ly, ny) in wrap_runs(region.y, region.height, lh) {
             for (ox, lx, nx) in wrap_runs(region.x, region.width, lw) {
-                let piece = self.integrate(region.level, lx as i64, ly as i64, nx, ny, None);
+                let piece = self.integrate(region.level, lx as i64, ly as i64, nx, ny, Paths::default());
                 for (j, row) in piece.chunks_exact(nx as usize).enumerate() {
                     let at = ((oy as usize + j) * region.width as usize + ox as usize) * 4;
                     for (o, px) in out[at..at + nx as usize * 4].chunks_exact_mut(4).zip(row) {
@@ -226,7 +287,7 @@ impl ChaosMosaic {
     /// (then the last block to touch that neighbourhood covers it whole); otherwise *dirty*.
     /// `rasterize` forces how cells find their layers (the two ways give the same result);
     /// `None` picks the cheaper one.
-    fn integrate(&self, level: u32, lx: i64, ly: i64, nx: u32, ny: u32, rasterize: Option<bool>) -> Vec<[u8; 4]> {
+    fn integrate(&self, level: u32, lx: i64, ly: i64, nx: u32, ny: u32, paths: Paths) -> Vec<[u8; 4]> {
         let f = 1i64 << level;
         let (nx, ny) = (nx as usize, ny as usize);
         let (tw, th) = (self.width as i64, self.height as i64);
@@ -243,11 +304,13 @@ impl ChaosMosaic {
         // a level, so blocks are skipped.
         let fine = f + 2 * reach <= sw.min(sh) / 2;
         let coarse = f >= 2 * sw.max(sh);
-        let cells = if 2 * f >= sw.min(sh) { 2 } else { CELLS.min(f / 2) } as usize;
+        // One cell from half a sample on: 4× fewer layer look-ups through the tile index, for
+        // 1.6–2.0 dB at levels 7–8 of the 100k demo (docs/models/chaos-mosaic.md).
+        let cells = if 2 * f >= sw.min(sh) { 1 } else { CELLS.min(f / 2) } as usize;
         let tiles_met = ((x1 - x0 + 2 * reach) / sw + 2) as u64 * ((y1 - y0 + 2 * reach) / sh + 2) as u64;
         let (entries, tiles) = self.index.blocks_per_tile();
         let cheaper = 4 * tiles_met * entries / tiles < (nx * ny * cells * cells) as u64;
-        let rasterize = fine || (!coarse && rasterize.unwrap_or(cheaper));
+        let rasterize = fine || (!coarse && paths.rasterize.unwrap_or(cheaper));
         let placed = match rasterize {
             true => self.placements(x0 - reach, y0 - reach, (x1 - x0 + 2 * reach) as u64, (y1 - y0 + 2 * reach) as u64),
             false => Vec::new(),
@@ -257,15 +320,15 @@ impl ChaosMosaic {
         const BACKGROUND: u32 = u32::MAX - 1;
         let mut state = vec![if coarse { BACKGROUND } else { DIRTY }; nx * ny];
         if fine {
-            for j in 0..ny {
-                let (fy0, fy1) = span(j as i64, ly, th);
-                let one_row = (fy0 - reach).div_euclid(sh) == (fy1 + reach - 1).div_euclid(sh);
-                for i in 0..nx {
-                    let (fx0, fx1) = span(i as i64, lx, tw);
-                    let one_col = (fx0 - reach).div_euclid(sw) == (fx1 + reach - 1).div_euclid(sw);
-                    if self.seamless || (one_row && one_col) {
-                        state[j * nx + i] = BACKGROUND;
-                    }
+            // Background where no tile edge is near, or none is a seam.
+            let one_tile = |i: usize, lo: i64, extent: i64, side: i64| {
+                let (a, b) = span(i as i64, lo, extent);
+                self.seamless || (a - reach).div_euclid(side) == (b + reach - 1).div_euclid(side)
+            };
+            let one_col: Vec<bool> = (0..nx).map(|i| one_tile(i, lx, tw, sw)).collect();
+            for (j, row) in state.chunks_exact_mut(nx).enumerate() {
+                if one_tile(j, ly, th, sh) {
+                    row.iter_mut().zip(&one_col).filter(|(_, &one)| one).for_each(|(s, _)| *s = BACKGROUND);
                 }
             }
             // Pixels i whose grown footprint [(lo+i)·f − reach, (lo+i+1)·f + reach) meets [a, b).
@@ -273,7 +336,7 @@ impl ChaosMosaic {
                 (((a - reach).div_euclid(f) - lo).max(0), ((b + reach - 1).div_euclid(f) - lo).min(n as i64 - 1))
             };
             for (k, p) in placed.iter().enumerate() {
-                let b = &self.blocks[p.id as usize];
+                let b = &self.blocks[p.pos as usize];
                 let (bx1, by1) = (p.x + b.w as i64, p.y + b.h as i64);
                 let (i0, i1) = meets(p.x, bx1, lx, nx);
                 let (j0, j1) = meets(p.y, by1, ly, ny);
@@ -289,8 +352,8 @@ impl ChaosMosaic {
             }
         }
 
-        // Dirty pixels are split into cells of at least 2 × 2 level-0 pixels (two per axis once
-        // a footprint spans half a tile), each integrated with the layer at its centre.
+        // Dirty pixels are split into cells of at least 2 × 2 level-0 pixels, each integrated
+        // with the layer at its centre; once a footprint spans half a sample, it is one cell.
         let centres = |lo: i64, n: usize, extent: i64| -> Vec<(i64, i64, i64)> {
             (0..n as i64)
                 .flat_map(|i| {
@@ -303,95 +366,183 @@ impl ChaosMosaic {
                 .collect()
         };
         let (cols, rows) = (centres(lx, nx, tw), centres(ly, ny, th));
-        let mut label = vec![0u32; if rasterize { cols.len() * rows.len() } else { 0 }];
-        for (k, p) in placed.iter().enumerate() {
-            let b = &self.blocks[p.id as usize];
-            let inside = |v: &[(i64, i64, i64)], lo: i64, hi: i64| {
-                v.partition_point(|c| c.2 < lo)..v.partition_point(|c| c.2 < hi)
-            };
-            let (ci, cj) = (inside(&cols, p.x, p.x + b.w as i64), inside(&rows, p.y, p.y + b.h as i64));
-            for j in cj {
-                label[j * cols.len() + ci.start..j * cols.len() + ci.end].fill(k as u32 + 1);
-            }
-        }
-        // The translation from texture to sample coordinates of each label's layer.
-        let offsets: Vec<(i64, i64)> = std::iter::once((0, 0))
+        let gw = cols.len();
+        // Each label's layer, then each cell's, as packed offsets (0 is the tiling).
+        let offsets: Vec<u32> = std::iter::once(0)
             .chain(placed.iter().map(|p| {
-                let b = &self.blocks[p.id as usize];
-                (b.x as i64 - p.x, b.y as i64 - p.y)
+                let b = &self.blocks[p.pos as usize];
+                pack(b.x as i64 - p.x, b.y as i64 - p.y, sw, sh)
             }))
             .collect();
-        let offset = |l: u32| offsets[l as usize];
-        let tile = |v: &[(i64, i64, i64)], size: i64| v.iter().map(|c| (c.2 / size) as u32).collect::<Vec<_>>();
-        let (col_tiles, row_tiles) = match rasterize {
-            true => (Vec::new(), Vec::new()),
-            false => (tile(&cols, sw), tile(&rows, sh)),
+        // Each placement's cells (the columns and rows whose centres it covers); for the tile
+        // index, each cell column's centre, tile and remainder.
+        // Centres of full pixels' cells lie every `side` pixels from lo·f + side/2: the count
+        // below x is estimated by a shift, then corrected (partial pixels at the texture's edge).
+        let side = f / cells as i64;
+        let below = |v: &[(i64, i64, i64)], lo: i64, x: i64| {
+            let d = x - lo * f - side / 2;
+            let mut k = if d <= 0 { 0 } else { ((d + side - 1) >> side.trailing_zeros()).min(v.len() as i64) as usize };
+            while k > 0 && v[k - 1].2 >= x {
+                k -= 1;
+            }
+            while k < v.len() && v[k].2 < x {
+                k += 1;
+            }
+            k
         };
-        let layer = |ci: usize, cj: usize| match rasterize {
-            true => offset(label[cj * cols.len() + ci]),
-            false => self.offset_at(cols[ci].2, rows[cj].2, col_tiles[ci], row_tiles[cj]),
+        let inside = |v: &[(i64, i64, i64)], lo: i64, a: i64, b: i64| below(v, lo, a)..below(v, lo, b);
+        let painted: Vec<_> = placed
+            .iter()
+            .map(|p| {
+                let b = &self.blocks[p.pos as usize];
+                (inside(&cols, lx, p.x, p.x + b.w as i64), inside(&rows, ly, p.y, p.y + b.h as i64))
+            })
+            .collect();
+        let indexed: Vec<_> = match rasterize || coarse {
+            true => Vec::new(),
+            false => cols.iter().map(|c| (c.2, (c.2 / sw) as u32, c.2 % sw)).collect(),
         };
 
-        // A full cell is `side` pixels square: its sum is one look-up in a table of every such
-        // box of the sample, built on first use.
-        let side = f / cells as i64;
-        let table = std::cell::OnceCell::new();
-        let cell_sum = |(c0, c1): (i64, i64), (r0, r1): (i64, i64), (ox, oy): (i64, i64)| {
-            if c1 - c0 == side && r1 - r0 == side {
-                if let Some(t) = table.get_or_init(|| BoxTable::new(&self.sample, side as usize)) {
-                    return t.sum(c0 + ox, r0 + oy);
+        // Box tables for a cell and for 2 × 2, 4 × 4 … cells of one layer (up to the whole
+        // footprint), and the cells' and pixels' corners modulo the sample.
+        let merges = cells.trailing_zeros() as usize;
+        let whole = self.tables.get(&self.sample, f).filter(|_| !paths.general);
+        let merged: Option<Vec<&BoxTable>> = match coarse || paths.general {
+            true => None,
+            false => (0..=merges).map(|t| self.tables.get(&self.sample, side << t)).collect(),
+        };
+        let cx: Vec<u32> = cols.iter().map(|c| c.0.rem_euclid(sw) as u32).collect();
+        let cy: Vec<u32> = rows.iter().map(|c| c.0.rem_euclid(sh) as u32).collect();
+
+        // The cells' layers are made a band of pixel rows at a time, about 256 KiB of them, so
+        // that they are still in cache when summed.
+        let band = (65536 / (gw * cells)).max(1);
+        let mut layer = vec![0u32; if coarse { 0 } else { gw * cells * band.min(ny) }];
+        let mut out = vec![[0u8; 4]; nx * ny];
+        for j0 in (0..ny).step_by(band) {
+            let (j1, r0) = ((j0 + band).min(ny), j0 * cells);
+            let r1 = j1 * cells;
+            if rasterize {
+                layer.fill(0);
+                for ((ci, cj), &o) in painted.iter().zip(&offsets[1..]) {
+                    for j in cj.start.max(r0)..cj.end.min(r1) {
+                        layer[(j - r0) * gw + ci.start..(j - r0) * gw + ci.end].fill(o);
+                    }
+                }
+            } else if !coarse {
+                // The tile index walked in row order.
+                for (cj, &(_, _, y)) in rows.iter().enumerate().take(r1).skip(r0) {
+                    let (ty, ym) = ((y / sh) as u32, y % sh);
+                    for (l, &(x, tx, xm)) in layer[(cj - r0) * gw..(cj - r0 + 1) * gw].iter_mut().zip(&indexed) {
+                        *l = self.layer_at(x, y, tx, ty, (xm, ym));
+                    }
                 }
             }
-            self.sums.box_sum(c0 + ox, r0 + oy, c1 + ox, r1 + oy)
-        };
-
-        let mut out = vec![[0u8; 4]; nx * ny];
-        for j in 0..ny {
-            let (fy0, fy1) = span(j as i64, ly, th);
-            for i in 0..nx {
-                let (fx0, fx1) = span(i as i64, lx, tw);
-                let sum = match state[j * nx + i] {
-                    DIRTY => {
-                        let mut acc = [0i64; 4];
-                        for (cj, &(r0, r1, _)) in rows.iter().enumerate().skip(j * cells).take(cells) {
-                            for (ci, &(c0, c1, _)) in cols.iter().enumerate().skip(i * cells).take(cells) {
-                                if c0 < c1 && r0 < r1 {
-                                    let s = cell_sum((c0, c1), (r0, r1), layer(ci, cj));
-                                    acc.iter_mut().zip(s).for_each(|(a, s)| *a += s);
+            for j in j0..j1 {
+                let (fy0, fy1) = span(j as i64, ly, th);
+                for i in 0..nx {
+                    let (fx0, fx1) = span(i as i64, lx, tw);
+                    let full = fx1 - fx0 == f && fy1 - fy0 == f;
+                    let (ci, cj) = (i * cells, j * cells);
+                    let sum = match (state[j * nx + i], &merged) {
+                        (DIRTY, Some(tables)) if full => {
+                            merged_sum(&layer[(cj - r0) * gw + ci..], gw, cells, tables, &cx[ci..], &cy[cj..])
+                                .map(u64::from)
+                        }
+                        (DIRTY, _) => {
+                            let mut acc = [0u64; 4];
+                            for (cj, &(y0, y1, _)) in rows.iter().enumerate().skip(cj).take(cells) {
+                                for (ci, &(c0, c1, _)) in cols.iter().enumerate().skip(ci).take(cells) {
+                                    if c0 < c1 && y0 < y1 {
+                                        let s = self.cell_sum((c0, c1), (y0, y1), side, layer[(cj - r0) * gw + ci]);
+                                        acc.iter_mut().zip(s).for_each(|(a, s)| *a += s);
+                                    }
+                                }
+                            }
+                            acc
+                        }
+                        (k, _) => {
+                            let o = if k == BACKGROUND { 0 } else { offsets[k as usize + 1] };
+                            match whole {
+                                Some(t) if full => t.at(cx[ci], cy[cj], o).map(u64::from),
+                                _ => {
+                                    let (dx, dy) = ((o & 0xffff) as i64, (o >> 16) as i64);
+                                    self.sums.box_sum(fx0 + dx, fy0 + dy, fx1 + dx, fy1 + dy).map(|s| s as u64)
                                 }
                             }
                         }
-                        acc
-                    }
-                    BACKGROUND => self.sums.box_sum(fx0, fy0, fx1, fy1),
-                    k => {
-                        let (ox, oy) = offset(k + 1);
-                        debug_assert!(fine);
-                        self.sums.box_sum(fx0 + ox, fy0 + oy, fx1 + ox, fy1 + oy)
-                    }
-                };
-                let area = (fx1 - fx0) * (fy1 - fy0);
-                out[j * nx + i] = sum.map(|s| ((s + area / 2) / area) as u8);
+                    };
+                    let area = ((fx1 - fx0) * (fy1 - fy0)) as u64;
+                    out[j * nx + i] = sum.map(|s| match full {
+                        // area = 4^level: the rounded division is a shift.
+                        true => ((s + area / 2) >> (2 * level)) as u8,
+                        false => ((s + area / 2) / area) as u8,
+                    });
+                }
             }
         }
         out
     }
 
-    /// The translation from texture to (periodic) sample coordinates of the top layer at a
-    /// level-0 point (x, y) of the torus, in tile (tx, ty), through the tile index.
-    fn offset_at(&self, x: i64, y: i64, tx: u32, ty: u32) -> (i64, i64) {
+    /// The sum of cell [c0, c1) × [r0, r1) of the layer with packed `offset`: one look-up when
+    /// the cell is `side` pixels square and the sample has tables, else four corners.
+    fn cell_sum(&self, (c0, c1): (i64, i64), (r0, r1): (i64, i64), side: i64, offset: u32) -> [u64; 4] {
+        let (dx, dy) = ((offset & 0xffff) as i64, (offset >> 16) as i64);
+        if c1 - c0 == side && r1 - r0 == side {
+            if let Some(t) = self.tables.get(&self.sample, side) {
+                return t.sum(c0 + dx, r0 + dy).map(u64::from);
+            }
+        }
+        self.sums.box_sum(c0 + dx, r0 + dy, c1 + dx, r1 + dy).map(|s| s as u64)
+    }
+
+    /// The packed offset (see [`pack`]) of the top layer at a level-0 point (x, y) of the
+    /// torus, in tile (tx, ty), through the tile index; (xm, ym) is the point modulo the sample.
+    #[inline]
+    fn layer_at(&self, x: i64, y: i64, tx: u32, ty: u32, (xm, ym): (i64, i64)) -> u32 {
         let (tw, th) = (self.width as i64, self.height as i64);
-        for &id in self.index.blocks(tx, ty).iter().rev() {
-            let b = &self.blocks[id as usize];
+        let (sw, sh) = (self.sample.width as i64, self.sample.height as i64);
+        for &pos in self.index.blocks(tx, ty).iter().rev() {
+            let b = &self.blocks[pos as usize];
             // x and b.s both lie on [0, width): the wrapped difference needs no division.
             let (u, v) = (x - b.s as i64, y - b.t as i64);
             let (u, v) = (u + tw * (u < 0) as i64, v + th * (v < 0) as i64);
             if u < b.w as i64 && v < b.h as i64 {
-                return (b.x as i64 + u - x, b.y as i64 + v - y);
+                // The sample point b + (u, v) and (xm, ym) both lie in the sample.
+                let (dx, dy) = (b.x as i64 + u - xm, b.y as i64 + v - ym);
+                return ((dy + sh * (dy < 0) as i64) as u32) << 16 | (dx + sw * (dx < 0) as i64) as u32;
             }
         }
-        (0, 0)
+        0
     }
+}
+
+/// The sum of the `n` × `n` cells (n = 1, 2 or 4) of one footprint whose packed layers are
+/// `layer` (rows `gw` apart) and whose corners modulo the sample are `cx`, `cy`: cells of one
+/// layer are merged — the whole footprint, else 2 × 2 cells — into one look-up in
+/// `tables[log2 of the merge]`, the same sum, as the merged cells tile a box of that layer.
+#[inline]
+fn merged_sum(layer: &[u32], gw: usize, n: usize, tables: &[&BoxTable], cx: &[u32], cy: &[u32]) -> [u32; 4] {
+    let at = |t: usize, a: usize, b: usize| tables[t].at(cx[a], cy[b], layer[b * gw + a]);
+    let uniform = |a: usize, b: usize, n: usize| {
+        let o = layer[b * gw + a];
+        (b..b + n).all(|r| layer[r * gw + a..r * gw + a + n].iter().all(|&l| l == o))
+    };
+    if uniform(0, 0, n) {
+        return at(n.trailing_zeros() as usize, 0, 0);
+    }
+    let mut acc = [0u32; 4];
+    let mut add = |s: [u32; 4]| acc.iter_mut().zip(s).for_each(|(a, s)| *a += s);
+    for b in (0..n).step_by(2) {
+        for a in (0..n).step_by(2) {
+            if n == 4 && uniform(a, b, 2) {
+                add(at(1, a, b));
+            } else {
+                [(a, b), (a + 1, b), (a, b + 1), (a + 1, b + 1)].into_iter().for_each(|(a, b)| add(at(0, a, b)));
+            }
+        }
+    }
+    acc
 }
 
 /// Splits `count` pixels starting at `start` on a torus of `period` into runs that do not
@@ -456,8 +607,9 @@ mod tests {
             let tex = super::super::load(&models::create("chaos-mosaic", "t", &params, &inputs).unwrap()).unwrap();
             // Footprints of 16 and 32 pixels: between the fine and the coarse regimes.
             for (level, lx, ly, n) in [(4, 0, 0, 50), (4, 13, 40, 9), (5, 3, 2, 20)] {
-                let rasterized = tex.integrate(level, lx, ly, n, n, Some(true));
-                assert_eq!(rasterized, tex.integrate(level, lx, ly, n, n, Some(false)), "level {level} bpt {bpt}");
+                let rasterized = tex.integrate(level, lx, ly, n, n, Paths { rasterize: Some(true), general: false });
+                let indexed = Paths { rasterize: Some(false), general: false };
+                assert_eq!(rasterized, tex.integrate(level, lx, ly, n, n, indexed), "level {level} bpt {bpt}");
             }
         }
     }
@@ -473,7 +625,55 @@ mod tests {
             let table = BoxTable::new(&s, side).unwrap();
             for (x, y) in [(0i64, 0i64), (3, 4), (6, 1), (-2, -9), (100, 37)] {
                 let side = side as i64;
-                assert_eq!(table.sum(x, y), sums.box_sum(x, y, x + side, y + side), "side {side} at ({x}, {y})");
+                assert_eq!(
+                    table.sum(x, y).map(i64::from),
+                    sums.box_sum(x, y, x + side, y + side),
+                    "side {side} at ({x}, {y})"
+                );
+            }
+        }
+    }
+
+    #[test]
+    fn cached_tables_are_fresh_tables_and_take_packed_offsets() {
+        let s = crate::samples::pebbles(24, 4, 2, true);
+        let (sums, tables) = (PeriodicSums::new(&s), BoxTables::default());
+        for side in [1i64, 2, 4, 16, 32, 64, 4096] {
+            let cached = tables.get(&s, side).unwrap();
+            assert!(std::ptr::eq(cached, tables.get(&s, side).unwrap()), "built once");
+            let fresh = BoxTable::new(&s, side as usize).unwrap();
+            assert_eq!(matches!(cached.sums, Lanes::Narrow(_)), side <= 16, "side {side}");
+            for (x, y, dx, dy) in [(0i64, 0i64, 0i64, 0i64), (23, 23, 23, 23), (5, 17, -40, 3), (11, 0, 7, -1000)] {
+                let want = sums.box_sum(x + dx, y + dy, x + dx + side, y + dy + side);
+                let got = cached.at(x as u32, y as u32, pack(dx, dy, 24, 24));
+                assert_eq!(got.map(i64::from), want, "side {side} at ({x}, {y}) + ({dx}, {dy})");
+                assert_eq!(fresh.at(x as u32, y as u32, pack(dx, dy, 24, 24)), got);
+            }
+        }
+        assert!(tables.get(&s, 3).is_none() && tables.get(&s, 8192).is_none() && tables.get(&s, 0).is_none());
+    }
+
+    #[test]
+    fn merged_cells_give_the_cell_by_cell_sums() {
+        use crate::models::{self, Inputs};
+        for (n, seamless, bpt) in [(40, true, 2), (48, false, 1), (37, false, 2)] {
+            let sample = crate::samples::pebbles(n, 6, 3, seamless);
+            let inputs = Inputs::from([("sample".to_string(), sample.to_png())]);
+            let params = serde_json::json!({"tiles_x": 30, "tiles_y": 20, "seed": 5, "blocks_per_tile": bpt});
+            let tex = super::super::load(&models::create("chaos-mosaic", "t", &params, &inputs).unwrap()).unwrap();
+            for level in 2..=8u32 {
+                let (lw, lh) = level_size(tex.width, tex.height, level);
+                let (lw, lh) = (lw as i64, lh as i64);
+                // A region inside the level and one reaching its partial last pixels.
+                for (lx, ly) in [(1, 2), (lw - 20, lh - 20)] {
+                    let (lx, ly) = (lx.max(0), ly.max(0));
+                    let (nx, ny) = ((lw - lx).min(24) as u32, (lh - ly).min(24) as u32);
+                    for rasterize in [Some(true), Some(false), None] {
+                        let fast = tex.integrate(level, lx, ly, nx, ny, Paths { rasterize, general: false });
+                        let general = tex.integrate(level, lx, ly, nx, ny, Paths { rasterize, general: true });
+                        assert_eq!(fast, general, "n {n} level {level} at ({lx}, {ly}) {rasterize:?}");
+                    }
+                }
             }
         }
     }
