@@ -104,6 +104,7 @@ function showView(page, view) {
       new Promise((resolve, reject) => {
         const { viewer, state, setView, stats } = window.vtexViewer;
         const requested0 = stats.requested;
+        const batches0 = stats.batches;
         const t0 = performance.now();
         const timer = setTimeout(() => reject(new Error(`view not drawn in 30 s: ${JSON.stringify(view)}`)), 30_000);
         // update-viewport follows every draw; the first one after which the image is fully
@@ -113,7 +114,7 @@ function showView(page, view) {
             viewer.removeHandler('update-viewport', check);
             clearTimeout(timer);
             const t1 = performance.now();
-            resolve({ ms: t1 - t0, t0, t1, tiles: stats.requested - requested0 });
+            resolve({ ms: t1 - t0, t0, t1, tiles: stats.requested - requested0, requests: stats.batches - batches0 });
           }
         };
         viewer.addHandler('update-viewport', check);
@@ -132,6 +133,7 @@ function showView(page, view) {
 async function measureViews(page, views, shots, tag, { back = false } = {}) {
   const times = [];
   const tiles = [];
+  const requests = [];
   const breakdowns = [];
   if (args.trace) await page.evaluate(installTracer);
   for (let i = back ? 1 : 0; i < views.length; i++) {
@@ -140,6 +142,7 @@ async function measureViews(page, views, shots, tag, { back = false } = {}) {
     const r = await showView(page, back ? views[i - 1] : views[i]);
     times.push(r.ms);
     tiles.push(r.tiles);
+    requests.push(r.requests);
     if (args.trace) {
       const trace = await page.evaluate(collectTrace, { t0: r.t0, t1: r.t1 });
       breakdowns.push(viewBreakdown({ ...trace, t0: r.t0, t1: r.t1 }));
@@ -147,7 +150,8 @@ async function measureViews(page, views, shots, tag, { back = false } = {}) {
     if (shots && i % 15 === 0) await page.screenshot(`${shots}/${tag}-${i}.png`);
   }
   if (!times.length) return null;
-  return { ...summary(times), tilesPerView: tiles.reduce((a, b) => a + b, 0) / tiles.length, breakdowns };
+  const perView = (v) => v.reduce((a, b) => a + (b || 0), 0) / v.length;
+  return { ...summary(times), tilesPerView: perView(tiles), requestsPerView: perView(requests), breakdowns };
 }
 
 /**
@@ -348,8 +352,8 @@ try {
 
 const f = (v) => v.toFixed(1);
 console.log(`texture ${results.texture.name} (${results.texture.model}), ${results.viewport.width}×${results.viewport.height} browser viewport, ${STEPS} view changes${args.osd ? `, OSD options ${args.osd}` : ''}, server ${serverArgs.join(' ')}, driven by ${results.driver}`);
-console.log('| view change → every visible tile drawn | p50 ms | p95 ms | max ms | tiles/view |');
-console.log('|---|---|---|---|---|');
+console.log('| view change → every visible tile drawn | p50 ms | p95 ms | max ms | tiles/view | requests/view |');
+console.log('|---|---|---|---|---|---|');
 for (const [k, label] of [
   ['cold', 'cold (empty server cache, fresh browser)'],
   ['warmServer', 'warm server cache, fresh browser'],
@@ -357,7 +361,7 @@ for (const [k, label] of [
   ['warmViewer', 'warm viewer: back to the previous view (tiles in memory)'],
 ]) {
   const r = results[k];
-  console.log(`| ${label} | ${f(r.p50)} | ${f(r.p95)} | ${f(r.max)} | ${r.tilesPerView.toFixed(1)} |`);
+  console.log(`| ${label} | ${f(r.p50)} | ${f(r.p95)} | ${f(r.max)} | ${r.tilesPerView.toFixed(1)} | ${r.requestsPerView.toFixed(1)} |`);
 }
 console.log(`\n| continuous pan, ${PAN_SPEED} px/frame for ${PAN_SECONDS} s at level 0 | frames | p50 ms | p95 ms | max ms | > 33 ms | > 50 ms | tiles |`);
 console.log('|---|---|---|---|---|---|---|---|');

@@ -1,5 +1,6 @@
 //! The HTTP API v1 (DESIGN §4, CONTRACT), the static viewer, and the middleware around them.
 
+pub mod batch;
 pub mod error;
 mod front;
 pub mod params;
@@ -96,6 +97,7 @@ fn router(app: App) -> Router {
         .route("/api/v1/textures", get(textures::list).post(textures::upload))
         .route("/api/v1/textures/{id}", get(textures::info).patch(textures::patch))
         .route("/api/v1/textures/{id}/encoding", get(textures::encoding))
+        .route("/api/v1/textures/{id}/tiles", get(batch::batch))
         .route("/api/v1/textures/{id}/tiles/{level}/{x}/{file}", get(tiles::tile_route))
         .route("/api/v1/textures/{id}/region", get(tiles::region))
         .route("/healthz", get(healthz))
