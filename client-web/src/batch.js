@@ -25,8 +25,9 @@ export function tileKey(level, x, y) {
 /**
  * Splits a batch body into frames as its chunks arrive, whatever their boundaries. Each frame
  * is handed to `onFrame` as { level, x, y, status, cache: 'hit' | 'miss' | null, width,
- * height, body: Uint8Array } the moment its last byte is pushed; a tile's bytes are copied
- * once, into a buffer of their own.
+ * height, length, body: Uint8Array } the moment its last byte is pushed. A frame that lies
+ * wholly inside one chunk is a view of it; one split across chunks is copied once, into a
+ * buffer of its own.
  */
 export class FrameReader {
   constructor(onFrame) {
@@ -42,6 +43,19 @@ export class FrameReader {
   push(chunk) {
     let i = 0;
     while (i < chunk.length) {
+      // A whole frame inside this chunk (most of them: chunks run to ~1 MB) is handed over
+      // as a view of the chunk, not copied.
+      if (!this.frame && this.headerFill === 0 && chunk.length - i >= HEADER_LEN) {
+        const frame = parseHeader(chunk.subarray(i, i + HEADER_LEN), false);
+        const end = i + HEADER_LEN + frame.length;
+        if (end <= chunk.length) {
+          frame.body = chunk.subarray(i + HEADER_LEN, end);
+          i = end;
+          this.frames++;
+          this.onFrame(frame);
+          continue;
+        }
+      }
       if (!this.frame) {
         const n = Math.min(HEADER_LEN - this.headerFill, chunk.length - i);
         this.header.set(chunk.subarray(i, i + n), this.headerFill);
@@ -72,7 +86,8 @@ export class FrameReader {
   }
 }
 
-function parseHeader(h) {
+/** The header in `h` (32 bytes); with `allocate`, a buffer of its body's length to fill. */
+function parseHeader(h, allocate = true) {
   for (let i = 0; i < MAGIC.length; i++) {
     if (h[i] !== MAGIC[i]) throw new Error(`not a vtex tile batch frame (header bytes ${[...h.subarray(0, 4)]})`);
   }
@@ -86,7 +101,8 @@ function parseHeader(h) {
     cache: cache === 1 ? 'hit' : cache === 2 ? 'miss' : null,
     width: v.getUint32(20, true),
     height: v.getUint32(24, true),
-    body: new Uint8Array(v.getUint32(28, true)),
+    length: v.getUint32(28, true),
+    body: allocate ? new Uint8Array(v.getUint32(28, true)) : null,
   };
 }
 

@@ -162,6 +162,8 @@ export function viewBreakdown(view) {
     critical = { wait: last.want - t0 };
     for (const [name, , from, to] of STAGES) critical[name] = to(last) - from(last);
     critical.after = t1 - last.drawn;
+    // The network's view of the same batch: its first to its last byte received.
+    critical.net = last.rt.responseEnd > 0 ? last.rt.responseEnd - last.rt.responseStart : NaN;
   }
   const firstWant = tiles.length ? Math.min(...tiles.map((r) => r.want)) - t0 : NaN;
   const levels = {};
@@ -220,11 +222,11 @@ export function formatBreakdown(label, breakdowns) {
   const top = [...byWhat].sort((a, b) => b[1] - a[1]).slice(0, 6);
   out.push(`${label}: scripts in long frames, ms per view: ${top.map(([w, d]) => `${w}: ${f(d / breakdowns.length)}`).join('; ') || '–'}`);
   out.push(`\n${label}: per view, along the tile drawn last (mean over views; p95 view time ${f(q(breakdowns.map((b) => b.total), 0.95))} ms)`);
-  out.push('| view total | → first ask | → last tile asked | queue | connect | server | stream | decode | draw | → detected | frames | JS in OSD update+draw | of it draw | tiles | requests | misses |');
-  out.push('|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|');
+  out.push('| view total | → first ask | → last tile asked | queue | connect | server | stream | (of it network first → last byte) | decode | draw | → detected | frames | JS in OSD update+draw | of it draw | tiles | requests | misses |');
+  out.push('|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|');
   const m = (k) => f(mean(crit.map((b) => b.critical[k])));
   out.push(
-    `| ${f(mean(breakdowns.map((b) => b.total)))} | ${f(mean(breakdowns.map((b) => b.firstWant).filter(Number.isFinite)))} | ${m('wait')} | ${m('queue')} | ${m('connect')} | ${m('server')} | ${m('stream')} | ${m('decode')} | ${m('draw')} | ${m('after')} | ${f(mean(breakdowns.map((b) => b.frames)))} | ${f(mean(breakdowns.map((b) => b.jsMs)))} | ${f(mean(breakdowns.map((b) => b.drawMs)))} | ${f(mean(breakdowns.map((b) => b.tiles)))} | ${f(mean(breakdowns.map((b) => b.requests)))} | ${f(mean(breakdowns.map((b) => b.misses)))} |`,
+    `| ${f(mean(breakdowns.map((b) => b.total)))} | ${f(mean(breakdowns.map((b) => b.firstWant).filter(Number.isFinite)))} | ${m('wait')} | ${m('queue')} | ${m('connect')} | ${m('server')} | ${m('stream')} | ${m('net')} | ${m('decode')} | ${m('draw')} | ${m('after')} | ${f(mean(breakdowns.map((b) => b.frames)))} | ${f(mean(breakdowns.map((b) => b.jsMs)))} | ${f(mean(breakdowns.map((b) => b.drawMs)))} | ${f(mean(breakdowns.map((b) => b.tiles)))} | ${f(mean(breakdowns.map((b) => b.requests)))} | ${f(mean(breakdowns.map((b) => b.misses)))} |`,
   );
   return out.join('\n');
 }
