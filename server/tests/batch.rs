@@ -62,7 +62,8 @@ async fn frames_equal_single_tiles_hits_first() {
     let list = [(0, 4, 2), (0, 1, 1), (1, 2, 2), (3, 0, 0), (2, 0, 0), (0, 4, 4), (1, 0, 1)];
     let q: Vec<String> = list.iter().map(|(l, x, y)| format!("{l}/{x}/{y}")).collect();
     for fmt in ["rgba", "png"] {
-        let (status, h, body) = get_bytes(&c, &batch_url(&s, &id, &format!("format={fmt}&tiles={}", q.join(",")))).await;
+        let (status, h, body) =
+            get_bytes(&c, &batch_url(&s, &id, &format!("format={fmt}&tiles={}", q.join(",")))).await;
         assert_eq!(status, 200);
         assert_eq!(h["content-type"], "application/x-vtex-tile-batch");
         assert_eq!(h["cache-control"], "no-store");
@@ -103,7 +104,10 @@ async fn frames_equal_single_tiles_hits_first() {
         assert!(again.iter().all(|f| f.cache == 1));
     }
     let m = metrics(&c, &s).await;
-    assert_eq!(metric(&m, "vtex_http_requests_total", &[("route", "/api/v1/textures/{id}/tiles?tiles="), ("status", "200")]), 4.0);
+    assert_eq!(
+        metric(&m, "vtex_http_requests_total", &[("route", "/api/v1/textures/{id}/tiles?tiles="), ("status", "200")]),
+        4.0
+    );
     // 7 tiles × 2 formats × 2 batches + 2 warming + 14 single checks + 2 more per format (= 7 checks each)
     let hits = metric(&m, "vtex_tile_cache_hits_total", &[]);
     let misses = metric(&m, "vtex_tile_cache_misses_total", &[]);
@@ -146,11 +150,16 @@ async fn bad_batches_are_refused_naming_the_problem() {
     }
     let unknown = "ab".repeat(32);
     assert!(expect_error(&c, &batch_url(&s, &unknown, "tiles=0/0/0&format=rgba"), 404).await.contains("no texture"));
-    assert!(expect_error(&c, &batch_url(&s, "nope", "tiles=0/0/0&format=rgba"), 400).await.contains("invalid texture id"));
+    assert!(expect_error(&c, &batch_url(&s, "nope", "tiles=0/0/0&format=rgba"), 400)
+        .await
+        .contains("invalid texture id"));
     // Nothing was synthesized for a refused batch.
     let m = metrics(&c, &s).await;
     assert_eq!(metric(&m, "vtex_syntheses_total", &[]), 0.0);
-    assert_eq!(metric(&m, "vtex_http_requests_total", &[("route", "/api/v1/textures/{id}/tiles?tiles="), ("status", "400")]), 15.0);
+    assert_eq!(
+        metric(&m, "vtex_http_requests_total", &[("route", "/api/v1/textures/{id}/tiles?tiles="), ("status", "400")]),
+        15.0
+    );
 }
 
 /// A client that reads one frame and hangs up: the tiles not yet started are never made.

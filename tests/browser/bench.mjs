@@ -2,6 +2,7 @@
 //
 //   node tests/browser/bench.mjs [--steps 60] [--pan-seconds 5] [--shots DIR] [--json FILE]
 //        [--trace] [--texture NAME] [--server-args="--tile-size 512"] [--osd JSON] [--playwright]
+//        [--format rgba|png|webp|jpg]
 //
 // The texture is the 100k × 100k chaos mosaic (the flagship demo, as server/bench/run.sh picks
 // it) unless --texture names another. Chromium is driven over a bare DevTools pipe (cdp.mjs):
@@ -45,6 +46,8 @@ const { values: args } = parseArgs({
     playwright: { type: 'boolean', default: false },
     // Texture to measure (name, id or model); default: the 100k × 100k chaos mosaic.
     texture: { type: 'string' },
+    // Tile format the viewer asks for (its `format` URL parameter); default: the viewer's (rgba on loopback).
+    format: { type: 'string' },
   },
 });
 const STEPS = Number(args.steps);
@@ -314,7 +317,7 @@ try {
   results.texture = { name: big.name, model: big.model, width: big.width, height: big.height };
   const views = session(big, STEPS);
   const panStart = { zoom: 1, x: 20_000, y: 60_000 };
-  const url = `${server.url}/?texture=${big.id}&zoom=0.01&x=50000&y=50000`;
+  const url = `${server.url}/?texture=${big.id}&zoom=0.01&x=50000&y=50000${args.format ? `&format=${args.format}` : ''}`;
   results.server = {};
 
   // Cold: fresh server, fresh browser.
@@ -351,7 +354,7 @@ try {
 }
 
 const f = (v) => v.toFixed(1);
-console.log(`texture ${results.texture.name} (${results.texture.model}), ${results.viewport.width}×${results.viewport.height} browser viewport, ${STEPS} view changes${args.osd ? `, OSD options ${args.osd}` : ''}, server ${serverArgs.join(' ')}, driven by ${results.driver}`);
+console.log(`texture ${results.texture.name} (${results.texture.model}), ${results.viewport.width}×${results.viewport.height} browser viewport, ${STEPS} view changes${args.format ? `, ${args.format} tiles` : ''}${args.osd ? `, OSD options ${args.osd}` : ''}, server ${serverArgs.join(' ')}, driven by ${results.driver}`);
 console.log('| view change → every visible tile drawn | p50 ms | p95 ms | max ms | tiles/view | requests/view |');
 console.log('|---|---|---|---|---|---|');
 for (const [k, label] of [

@@ -173,7 +173,8 @@ fn parse_query(entry: &Entry, query: Option<&str>) -> Result<BatchQuery, ApiErro
         }
     }
     let tiles = tiles.ok_or_else(|| ApiError::bad_request("missing query parameter `tiles` (level/x/y,…)"))?;
-    let format = format.ok_or_else(|| ApiError::bad_request(format!("missing query parameter `format`; {}", Format::EXPECTED)))?;
+    let format = format
+        .ok_or_else(|| ApiError::bad_request(format!("missing query parameter `format`; {}", Format::EXPECTED)))?;
     for t in &tiles {
         if t.level >= entry.levels {
             return Err(ApiError::bad_request(format!(
@@ -244,19 +245,21 @@ fn push_tile(out: &mut VecDeque<Bytes>, tile: TileRef, t: &Tile, source: Source)
 
 fn push_error(out: &mut VecDeque<Bytes>, tile: TileRef, e: &ApiError) {
     let json = serde_json::json!({ "error": e.message }).to_string();
-    let header =
-        FrameHeader { tile, status: e.status.as_u16(), cache: 0, width: 0, height: 0, len: json.len() as u32 };
+    let header = FrameHeader { tile, status: e.status.as_u16(), cache: 0, width: 0, height: 0, len: json.len() as u32 };
     let mut b = BytesMut::with_capacity(HEADER_LEN + json.len());
     b.put_slice(&header.encode());
     b.put_slice(json.as_bytes());
     out.push_back(b.freeze());
 }
 
+/// A tile as [`tiles::obtain`] answers it.
+type Obtained = Result<(Arc<Tile>, Source), ApiError>;
+
 /// The response body: queued chunks first, then tiles as their tasks finish. Dropping it
 /// drops the [`JoinSet`], which aborts the tasks still running.
 struct BatchBody {
     ready: VecDeque<Bytes>,
-    pending: JoinSet<(TileRef, Result<(Arc<Tile>, Source), ApiError>)>,
+    pending: JoinSet<(TileRef, Obtained)>,
     deadline: Pin<Box<tokio::time::Sleep>>,
     app: App,
 }
