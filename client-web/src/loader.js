@@ -72,7 +72,7 @@ export function scheduleTiles(viewer) {
   };
   viewer.addHandler('close', clear);
   world.addHandler('remove-item', (e) => {
-    for (const job of [...(e.item.source.vtexInFlight || [])]) abortStarted(loader, job);
+    for (const job of [...(e.item.source.vtexInFlight || [])]) if (ownTile(e.item, job.tile)) abortStarted(loader, job);
   });
 }
 
@@ -88,7 +88,16 @@ function dropStale(loader, item, t, jobs) {
   const evaluated =
     jobs.some((o) => o.source === item.source && touched(o.tile)) || item.getTilesToDraw().some((d) => d.currentTime >= t);
   if (!evaluated) return;
-  for (const job of [...started]) if (!touched(job.tile)) abortStarted(loader, job);
+  for (const job of [...started]) if (ownTile(item, job.tile) && !touched(job.tile)) abortStarted(loader, job);
+}
+
+/**
+ * Whether `tile` is one of `item`'s. The navigator shows the same tile source through tiled
+ * images of its own (own tiles, own loader, own updates): its jobs are not this viewer's.
+ */
+function ownTile(item, tile) {
+  const m = item.tilesMatrix;
+  return Boolean(tile && m && m[tile.level] && m[tile.level][tile.x] && m[tile.level][tile.x][tile.y] === tile);
 }
 
 /**

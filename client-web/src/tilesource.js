@@ -132,13 +132,19 @@ function releaseContext(context) {
  */
 function loadBatch(info, jobs, { frame, format, stats }) {
   const controller = new AbortController();
+  // Jobs by tile: the navigator shows this tile source too, so two jobs may want one tile.
   const byKey = new Map();
   const batch = { controller, live: jobs.length };
-  const tiles = jobs.map((job) => {
+  const tiles = [];
+  for (const job of jobs) {
     const t = { level: vtexLevel(info, job.tile.level), x: job.tile.x, y: job.tile.y };
-    byKey.set(tileKey(t.level, t.x, t.y), job);
-    return t;
-  });
+    const key = tileKey(t.level, t.x, t.y);
+    if (byKey.has(key)) byKey.get(key).push(job);
+    else {
+      byKey.set(key, [job]);
+      tiles.push(t);
+    }
+  }
   const url = batchUrl(info, tiles, frame, format);
   const sent = performance.now();
   for (const job of jobs) {
@@ -151,7 +157,10 @@ function loadBatch(info, jobs, { frame, format, stats }) {
   const settle = (job) => {
     if (job.userData.settled) return;
     job.userData.settled = true;
-    byKey.delete(tileKey(vtexLevel(info, job.tile.level), job.tile.x, job.tile.y));
+    const key = tileKey(vtexLevel(info, job.tile.level), job.tile.x, job.tile.y);
+    const left = (byKey.get(key) || []).filter((j) => j !== job);
+    if (left.length) byKey.set(key, left);
+    else byKey.delete(key);
     if (!job.userData.done) batch.live--;
   };
   const fail = (job, message) => {
@@ -161,8 +170,11 @@ function loadBatch(info, jobs, { frame, format, stats }) {
     job.finish(null, null, message);
   };
   const deliver = (f) => {
-    const job = byKey.get(tileKey(f.level, f.x, f.y));
-    if (!job) throw new Error(`the batch answered tile ${f.level}/${f.x}/${f.y}, which it did not ask for`);
+    const waiting = byKey.get(tileKey(f.level, f.x, f.y));
+    if (!waiting) throw new Error(`the batch answered tile ${f.level}/${f.x}/${f.y}, which it did not ask for`);
+    for (const job of waiting) deliverTo(job, f);
+  };
+  const deliverTo = (job, f) => {
     if (f.status !== 200) {
       fail(job, `HTTP ${f.status} for tile ${f.level}/${f.x}/${f.y}: ${errorText(f.body)}`);
       return;
@@ -201,12 +213,12 @@ function loadBatch(info, jobs, { frame, format, stats }) {
         reader.push(value);
       }
       if (!reader.complete) throw new Error('the tile batch ended inside a frame');
-      for (const job of [...byKey.values()]) fail(job, `the tile batch ended without tile ${job.src}`);
+      for (const job of [...byKey.values()].flat()) fail(job, `the tile batch ended without tile ${job.src}`);
     })
     .catch((error) => {
       if (error && error.name === 'AbortError') return; // every tile left was aborted
       const message = String(error && error.message ? error.message : error);
-      for (const job of [...byKey.values()]) fail(job, message);
+      for (const job of [...byKey.values()].flat()) fail(job, message);
     });
 }
 

@@ -185,10 +185,10 @@ test('scheduling keeps the queue until the next update and drops unwanted coarse
 });
 
 /** A started job as OpenSeadragon's ImageJob has it after start(): abort wrapped, a timeout set. */
-function startedJob(name, lastTouchTime, log, inFlight) {
+function startedJob(name, lastTouchTime, log, inFlight, x = 0) {
   const job = {
     name,
-    tile: { lastTouchTime },
+    tile: { level: 3, x, y: 0, lastTouchTime },
     jobId: 0,
     abort: () => {
       inFlight.delete(job); // the tile source's downloadTileAbort
@@ -205,10 +205,13 @@ test('started tiles the view no longer touches are aborted after an update that 
   const log = [];
   const old = Date.now() - 1000;
   const inFlight = new Set();
-  const keep = startedJob('keep', old, log, inFlight);
-  const left = startedJob('left', old, log, inFlight);
+  const keep = startedJob('keep', old, log, inFlight, 0);
+  const left = startedJob('left', old, log, inFlight, 1);
+  // The navigator's tiled image shares the tile source, with tiles of its own.
+  const nav = startedJob('navigator', old, log, inFlight, 0);
   let drawn = [];
-  const item = { source: { vtexInFlight: inFlight }, getTilesToDraw: () => drawn };
+  const tilesMatrix = { 3: { 0: { 0: keep.tile }, 1: { 0: left.tile } } };
+  const item = { source: { vtexInFlight: inFlight }, getTilesToDraw: () => drawn, tilesMatrix };
   f.items.push(item);
   f.loader.jobsInProgress = 2;
   // An update that evaluated nothing (OSD skipped the item): nothing is stale.
@@ -218,12 +221,13 @@ test('started tiles the view no longer touches are aborted after an update that 
   drawn = [{ currentTime: Date.now() + 10 }];
   keep.tile.lastTouchTime = Date.now() + 10;
   f.viewer.world.update(true);
-  assert.deepEqual(log, ['left'], 'the tile the view left is aborted');
+  assert.deepEqual(log, ['left'], "the tile the view left is aborted, not the navigator's");
   assert.equal(f.loader.jobsInProgress, 1);
   // Removing the tiled image aborts the rest.
   f.worldHandlers['remove-item']({ item });
   assert.deepEqual(log, ['left', 'keep']);
   assert.equal(f.loader.jobsInProgress, 0);
+  assert.deepEqual([...inFlight], [nav], "the navigator's job is its own viewer's business");
 });
 
 test('batch URLs list level/x/y and send the frame only for animated textures', () => {

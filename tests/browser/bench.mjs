@@ -109,7 +109,21 @@ function showView(page, view) {
         const requested0 = stats.requested;
         const batches0 = stats.batches;
         const t0 = performance.now();
-        const timer = setTimeout(() => reject(new Error(`view not drawn in 30 s: ${JSON.stringify(view)}`)), 30_000);
+        // What is still loading, for the error: the tile source's started jobs and OSD's tiles.
+        const stuck = () => {
+          const jobs = [...(state.item.source.vtexInFlight || [])].map((j) => ({
+            src: j.src.replace(/^.*\/tiles\//, ''),
+            done: j.userData.done,
+            settled: j.userData.settled,
+            batched: Boolean(j.userData.batchUrl),
+            age: Math.round(performance.now() - j.userData.t0),
+          }));
+          const loading = [];
+          for (const level of Object.values(state.item.tilesMatrix || {}))
+            for (const col of Object.values(level)) for (const t of Object.values(col)) if (t.loading) loading.push(t.getUrl().replace(/^.*\/tiles\//, ''));
+          return JSON.stringify({ jobs, loading, inProgress: viewer.imageLoader.jobsInProgress, fullyLoaded: state.item.getFullyLoaded() });
+        };
+        const timer = setTimeout(() => reject(new Error(`view not drawn in 30 s: ${JSON.stringify(view)}; ${stuck()}`)), 30_000);
         // update-viewport follows every draw; the first one after which the image is fully
         // loaded and needs no further draw is the frame that completed the view.
         const check = () => {
