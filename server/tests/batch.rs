@@ -193,3 +193,36 @@ async fn a_client_going_away_stops_the_batch() {
     assert!(a < 64.0, "{a} of 256 tiles were made after the client left");
     assert_eq!(metric(&metrics(&c, &s).await, "vtex_syntheses_in_flight", &[]), 0.0);
 }
+
+/// Batches dropped while their tiles render never let more syntheses run than permits: a
+/// permit is held by the render itself, not by the request that asked for it.
+#[tokio::test]
+async fn aborted_batches_keep_the_synthesis_bound() {
+    let dir = tempdir();
+    let s = Server::start(dir.path(), &["--max-syntheses", "1"]);
+    let c = client();
+    let id = put(&c, &s, &mosaic(64, 100, 6)).await;
+    let most = std::sync::Arc::new(std::sync::atomic::AtomicU64::new(0));
+    let watch = {
+        let (c, url, most) = (c.clone(), s.url("/metrics"), most.clone());
+        tokio::spawn(async move {
+            loop {
+                let text = c.get(&url).send().await.unwrap().text().await.unwrap();
+                let n = metric(&text, "vtex_syntheses_in_flight", &[]) as u64;
+                most.fetch_max(n, std::sync::atomic::Ordering::SeqCst);
+            }
+        })
+    };
+    for round in 0..12u32 {
+        // Each batch is dropped while a tile of it renders (PNG: render + encode, several ms).
+        let list = (0..8).map(|i| format!("0/{}/{}", (round * 8 + i) % 25, (round * 8 + i) / 25)).collect::<Vec<_>>();
+        let url = s.url(&format!("/api/v1/textures/{id}/tiles?format=png&tiles={}", list.join(",")));
+        let _ = tokio::time::timeout(Duration::from_millis(3), c.get(&url).send()).await;
+    }
+    tokio::time::sleep(Duration::from_millis(500)).await;
+    watch.abort();
+    assert!(metric(&metrics(&c, &s).await, "vtex_syntheses_total", &[]) >= 1.0);
+    // (Before permits were held by the render, this saw 4 with one permit.)
+    let most = most.load(std::sync::atomic::Ordering::SeqCst);
+    assert!(most <= 1, "{most} renders at once with --max-syntheses 1");
+}
