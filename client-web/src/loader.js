@@ -28,6 +28,14 @@ export function wantedLevel(level, finest) {
  *    preview of at most 2 × 2 tiles comes first, then the finest level. Coarser tiles already
  *    in memory (the previous view's) are still drawn under missing ones.
  *
+ * 3. It lets a started tile load to the end even when the view has left it. With every tile of
+ *    a view requested at once (the tile source batches them, tilesource.js), a fast zoom
+ *    would have the server synthesize every intermediate view. Here, after each update that
+ *    re-evaluated the view, every started tile the update did not touch (OpenSeadragon stamps
+ *    `lastTouchTime` on each tile the view still needs) is aborted: its tile goes back to not
+ *    loading, so a later view that needs it asks again, and the tile source aborts a request
+ *    once none of its tiles is wanted. Removing a tiled image aborts all of its tiles.
+ *
  * OpenSeadragon adds jobs only while it updates its tiled images; here the jobs of one update
  * are collected, filtered against the finest level among them, and handed to the loader in
  * OpenSeadragon's order. Closing the viewer empties the queue at once, as before.
@@ -44,11 +52,13 @@ export function scheduleTiles(viewer) {
   world.update = (viewportChanged) => {
     clear();
     batch = [];
+    const t = Date.now(); // OpenSeadragon's clock for lastTouchTime ($.now)
     try {
       return update(viewportChanged);
     } finally {
       const jobs = batch;
       batch = null;
+      for (let i = 0; i < world.getItemCount(); i++) dropStale(loader, world.getItemAt(i), t, jobs);
       const finest = Math.max(...jobs.map((o) => (o.tile && Number.isInteger(o.tile.level) ? o.tile.level : -Infinity)));
       for (const options of jobs) {
         const level = options.tile && options.tile.level;
@@ -61,4 +71,42 @@ export function scheduleTiles(viewer) {
     }
   };
   viewer.addHandler('close', clear);
+  world.addHandler('remove-item', (e) => {
+    for (const job of [...(e.item.source.vtexInFlight || [])]) if (ownTile(e.item, job.tile)) abortStarted(loader, job);
+  });
+}
+
+/**
+ * Aborts the started jobs of `item` that the update begun at `t` did not touch, if that update
+ * re-evaluated the item's tiles: it touched one of them or a tile it now draws (OpenSeadragon
+ * skips the evaluation when nothing changed, and then nothing is stale either).
+ */
+function dropStale(loader, item, t, jobs) {
+  const started = item.source.vtexInFlight;
+  if (!started || started.size === 0) return;
+  const touched = (tile) => tile && tile.lastTouchTime >= t;
+  const evaluated =
+    jobs.some((o) => o.source === item.source && touched(o.tile)) || item.getTilesToDraw().some((d) => d.currentTime >= t);
+  if (!evaluated) return;
+  for (const job of [...started]) if (ownTile(item, job.tile) && !touched(job.tile)) abortStarted(loader, job);
+}
+
+/**
+ * Whether `tile` is one of `item`'s. The navigator shows the same tile source through tiled
+ * images of its own (own tiles, own loader, own updates): its jobs are not this viewer's.
+ */
+function ownTile(item, tile) {
+  const m = item.tilesMatrix;
+  return Boolean(tile && m && m[tile.level] && m[tile.level][tile.x] && m[tile.level][tile.x][tile.y] === tile);
+}
+
+/**
+ * Ends a started job without finishing it (finishing without data would mark its tile as
+ * missing for good and log an error): the tile source's abort, the tile back to not loading,
+ * OpenSeadragon's timeout cleared and its count of jobs in progress decremented.
+ */
+export function abortStarted(loader, job) {
+  if (job.jobId) clearTimeout(job.jobId);
+  job.abort(); // ImageJob.start wrapped it: the source's downloadTileAbort, then tile.loading = false
+  loader.jobsInProgress = Math.max(0, loader.jobsInProgress - 1);
 }

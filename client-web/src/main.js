@@ -59,12 +59,11 @@ const viewer = OSD({
   minPixelRatio: MIN_PIXEL_RATIO,
   immediateRender: false, // coarsest first: the preview of loader.js, then the finest level
   // Ask for every tile the view needs in its first frame (OSD's default of one a frame makes
-  // a view crawl in), with at most 8 requests in flight (the browser opens 6 connections to a
-  // host; 2 more keep them busy while a response is being read). The rest wait in the
-  // loader's queue, which is rebuilt at every update from what the current view needs, so
-  // fast zooms never fetch tiles of views already left (see loader.js).
+  // a view crawl in), all at once: the tile source sends the jobs started in one update as
+  // one batched request (tilesource.js), so the loader sets no limit (0) — a limit would
+  // split a view into several requests. Tiles a view has left are aborted (loader.js).
   maxTilesPerFrame: 64,
-  imageLoaderLimit: 8,
+  imageLoaderLimit: 0,
   maxImageCacheCount: 400,
   timeout: 30000,
   gestureSettingsMouse: { clickToZoom: false, dblClickToZoom: true, scrollToZoom: true, dragToPan: true },
@@ -232,7 +231,7 @@ function renderStats() {
   const ms = (v) => (Number.isFinite(v) ? `${v.toFixed(1)} ms` : '–');
   const served = s.serverHits + s.serverMisses;
   const rows = [
-    ['Requested', num(s.requested)],
+    ['Requested', `${num(s.requested)} tiles in ${num(s.batches)} requests`],
     ['Loaded', num(s.loaded)],
     ['Transferred', formatBytes(s.wireBytes)],
     ['Tile bodies', formatBytes(s.bodyBytes)],
@@ -428,9 +427,9 @@ $('reset-stats').addEventListener('click', () => {
   renderStats();
 });
 
-// Bytes on the wire per tile, from Resource Timing (fetch responses appear there too).
+// Bytes on the wire of tile requests (batches), from Resource Timing (fetch responses too).
 new PerformanceObserver((list) => {
-  for (const entry of list.getEntries()) if (entry.name.includes('/tiles/')) stats.resource(entry);
+  for (const entry of list.getEntries()) if (entry.name.includes('/tiles')) stats.resource(entry);
 }).observe({ type: 'resource', buffered: false });
 performance.addEventListener('resourcetimingbufferfull', () => performance.clearResourceTimings());
 setInterval(renderStats, 250);

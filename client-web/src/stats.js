@@ -16,7 +16,8 @@ export class TileStats {
   }
 
   reset() {
-    this.requested = 0; // tile fetches started
+    this.requested = 0; // tiles asked for
+    this.batches = 0; // requests made for them (batch.js: one per view, most of the time)
     this.loaded = 0; // tiles decoded and handed to OpenSeadragon
     this.failed = 0;
     this.aborted = 0;
@@ -31,6 +32,10 @@ export class TileStats {
 
   started() {
     this.requested++;
+  }
+
+  batchStarted() {
+    this.batches++;
   }
 
   /** One tile arrived: `ms` from request to decoded image, `cache` the X-Vtex-Cache header. */
@@ -52,7 +57,7 @@ export class TileStats {
     this.aborted++;
   }
 
-  /** A Resource Timing entry for a tile: transferSize 0 with a body means the browser cache. */
+  /** A Resource Timing entry for a tile request: transferSize 0 with a body means the browser cache. */
   resource(entry) {
     this.wireBytes += entry.transferSize || 0;
     if (entry.transferSize === 0 && entry.decodedBodySize > 0) this.browserCached++;
@@ -61,6 +66,7 @@ export class TileStats {
   snapshot() {
     return {
       requested: this.requested,
+      batches: this.batches,
       loaded: this.loaded,
       failed: this.failed,
       aborted: this.aborted,

@@ -6,6 +6,7 @@ import { inPyramid, levelSize, osdLevel, tileCount, tileUrl, vtexLevel, drawLeve
 import { formatView, parseView } from '../src/view-url.js';
 import { TileStats, formatBytes, formatRatio, percentile } from '../src/stats.js';
 import { PREVIEW_STEPS, scheduleTiles, wantedLevel } from '../src/loader.js';
+import { FrameReader, HEADER_LEN, MAX_BATCH, batchUrl, encodeHeader, tileKey } from '../src/batch.js';
 
 const big = { id: 'ab'.repeat(32), width: 100_000, height: 100_000, levels: 10, tile_size: 256, animated: false };
 const odd = { id: 'cd'.repeat(32), width: 3000, height: 700, levels: 5, tile_size: 256, animated: true };
@@ -137,6 +138,8 @@ function fakeViewer(jobsPerUpdate) {
     },
   };
   let n = 0;
+  const items = [];
+  const worldHandlers = {};
   const viewer = {
     imageLoader: loader,
     addHandler: (name, f) => (handlers[name] = f),
@@ -147,9 +150,12 @@ function fakeViewer(jobsPerUpdate) {
         }
         return true;
       },
+      getItemCount: () => items.length,
+      getItemAt: (i) => items[i],
+      addHandler: (name, f) => (worldHandlers[name] = f),
     },
   };
-  return { viewer, loader, started, aborted, cleared: () => cleared, handlers };
+  return { viewer, loader, started, aborted, cleared: () => cleared, handlers, items, worldHandlers };
 }
 
 test('scheduling keeps the queue until the next update and drops unwanted coarse levels', () => {
@@ -176,4 +182,88 @@ test('scheduling keeps the queue until the next update and drops unwanted coarse
   assert.deepEqual(f.started.at(-1), 'c');
   f.handlers.close();
   assert.equal(f.cleared(), 3, 'closing empties the queue at once');
+});
+
+/** A started job as OpenSeadragon's ImageJob has it after start(): abort wrapped, a timeout set. */
+function startedJob(name, lastTouchTime, log, inFlight, x = 0) {
+  const job = {
+    name,
+    tile: { level: 3, x, y: 0, lastTouchTime },
+    jobId: 0,
+    abort: () => {
+      inFlight.delete(job); // the tile source's downloadTileAbort
+      log.push(name);
+    },
+  };
+  inFlight.add(job);
+  return job;
+}
+
+test('started tiles the view no longer touches are aborted after an update that evaluated it', () => {
+  const f = fakeViewer([[], [], []]);
+  scheduleTiles(f.viewer);
+  const log = [];
+  const old = Date.now() - 1000;
+  const inFlight = new Set();
+  const keep = startedJob('keep', old, log, inFlight, 0);
+  const left = startedJob('left', old, log, inFlight, 1);
+  // The navigator's tiled image shares the tile source, with tiles of its own.
+  const nav = startedJob('navigator', old, log, inFlight, 0);
+  let drawn = [];
+  const tilesMatrix = { 3: { 0: { 0: keep.tile }, 1: { 0: left.tile } } };
+  const item = { source: { vtexInFlight: inFlight }, getTilesToDraw: () => drawn, tilesMatrix };
+  f.items.push(item);
+  f.loader.jobsInProgress = 2;
+  // An update that evaluated nothing (OSD skipped the item): nothing is stale.
+  f.viewer.world.update(true);
+  assert.deepEqual(log, []);
+  // An update that drew tiles and touched `keep` only (OSD stamps every tile the view needs).
+  drawn = [{ currentTime: Date.now() + 10 }];
+  keep.tile.lastTouchTime = Date.now() + 10;
+  f.viewer.world.update(true);
+  assert.deepEqual(log, ['left'], "the tile the view left is aborted, not the navigator's");
+  assert.equal(f.loader.jobsInProgress, 1);
+  // Removing the tiled image aborts the rest.
+  f.worldHandlers['remove-item']({ item });
+  assert.deepEqual(log, ['left', 'keep']);
+  assert.equal(f.loader.jobsInProgress, 0);
+  assert.deepEqual([...inFlight], [nav], "the navigator's job is its own viewer's business");
+});
+
+test('batch URLs list level/x/y and send the frame only for animated textures', () => {
+  const tiles = [{ level: 0, x: 285, y: 160 }, { level: 3, x: 1, y: 2 }];
+  assert.equal(batchUrl(big, tiles, 5, 'rgba'), `/api/v1/textures/${big.id}/tiles?format=rgba&tiles=0/285/160,3/1/2`);
+  assert.equal(batchUrl(odd, tiles, 7, 'png'), `/api/v1/textures/${odd.id}/tiles?format=png&tiles=0/285/160,3/1/2&frame=7`);
+  assert.equal(tileKey(3, 1, 2), '3/1/2');
+  assert.equal(MAX_BATCH, 256);
+  // The longest list the viewer can send stays well inside the server's 8 KiB query bound.
+  const worst = Array.from({ length: MAX_BATCH }, (_, i) => ({ level: 0, x: 390 - (i % 10), y: 390 - i }));
+  assert.ok(batchUrl(big, worst).length < 8192);
+});
+
+test('batch frames are read whatever the chunk boundaries', () => {
+  const frames = [
+    { level: 0, x: 285, y: 160, status: 200, cache: 'miss', width: 2, height: 1, body: [1, 2, 3, 4, 5, 6, 7, 8] },
+    { level: 3, x: 1, y: 2, status: 404, cache: null, width: 0, height: 0, body: [...new TextEncoder().encode('{"error":"no"}')] },
+    { level: 9, x: 0, y: 0, status: 200, cache: 'hit', width: 1, height: 1, body: [9, 9, 9, 255] },
+  ];
+  const bytes = [];
+  for (const f of frames) bytes.push(...encodeHeader({ ...f, length: f.body.length }), ...f.body);
+  assert.equal(bytes.length, 3 * HEADER_LEN + 8 + 14 + 4);
+  const all = Uint8Array.from(bytes);
+  for (const size of [1, 3, 31, 32, 33, 40, all.length]) {
+    const got = [];
+    const reader = new FrameReader((f) => got.push({ ...f, body: [...f.body], length: undefined }));
+    for (let i = 0; i < all.length; i += size) {
+      reader.push(all.subarray(i, i + size));
+    }
+    assert.deepEqual(got, frames.map((f) => ({ ...f, length: undefined })), `chunks of ${size}`);
+    assert.ok(reader.complete);
+  }
+  const cut = new FrameReader(() => {});
+  cut.push(all.subarray(0, 36));
+  assert.ok(!cut.complete, 'a stream cut inside a frame is noticed');
+  const bad = Uint8Array.from(all);
+  bad[3] = 2;
+  assert.throws(() => new FrameReader(() => {}).push(bad), /not a vtex tile batch frame/);
 });

@@ -16,6 +16,7 @@ pub enum Route {
     Encoding,
     Region,
     Tiles,
+    TileBatch,
     Healthz,
     Metrics,
     OtherApi,
@@ -23,12 +24,13 @@ pub enum Route {
 }
 
 impl Route {
-    const ALL: [Route; 9] = [
+    const ALL: [Route; 10] = [
         Route::Textures,
         Route::Texture,
         Route::Encoding,
         Route::Region,
         Route::Tiles,
+        Route::TileBatch,
         Route::Healthz,
         Route::Metrics,
         Route::OtherApi,
@@ -42,6 +44,7 @@ impl Route {
             Route::Encoding => "/api/v1/textures/{id}/encoding",
             Route::Region => "/api/v1/textures/{id}/region",
             Route::Tiles => "/api/v1/textures/{id}/tiles",
+            Route::TileBatch => "/api/v1/textures/{id}/tiles?tiles=",
             Route::Healthz => "/healthz",
             Route::Metrics => "/metrics",
             Route::OtherApi => "/api/other",
@@ -75,6 +78,7 @@ impl Route {
             ["", _, "encoding"] => Route::Encoding,
             ["", _, "region"] => Route::Region,
             ["", _, "tiles", _, _, _] => Route::Tiles,
+            ["", _, "tiles"] => Route::TileBatch,
             _ => Route::OtherApi,
         }
     }
@@ -251,6 +255,7 @@ mod tests {
         assert_eq!(Route::of(&format!("/api/v1/textures/{id}/tiles/1/2/3.png")), Route::Tiles);
         assert_eq!(Route::of(&format!("/api/v1/textures/{id}/tiles/1/2/3.png/x")), Route::OtherApi);
         assert_eq!(Route::of(&format!("/api/v1/textures/{id}/region")), Route::Region);
+        assert_eq!(Route::of(&format!("/api/v1/textures/{id}/tiles")), Route::TileBatch);
         assert_eq!(Route::of("/api/v1/texturesX/9"), Route::OtherApi);
         assert_eq!(Route::of("/api/v2"), Route::OtherApi);
         assert_eq!(Route::of("/healthz"), Route::Healthz);

@@ -2,6 +2,7 @@
 //
 //   node tests/browser/bench.mjs [--steps 60] [--pan-seconds 5] [--shots DIR] [--json FILE]
 //        [--trace] [--texture NAME] [--server-args="--tile-size 512"] [--osd JSON] [--playwright]
+//        [--format rgba|png|webp|jpg]
 //
 // The texture is the 100k × 100k chaos mosaic (the flagship demo, as server/bench/run.sh picks
 // it) unless --texture names another. Chromium is driven over a bare DevTools pipe (cdp.mjs):
@@ -45,6 +46,8 @@ const { values: args } = parseArgs({
     playwright: { type: 'boolean', default: false },
     // Texture to measure (name, id or model); default: the 100k × 100k chaos mosaic.
     texture: { type: 'string' },
+    // Tile format the viewer asks for (its `format` URL parameter); default: the viewer's (rgba on loopback).
+    format: { type: 'string' },
   },
 });
 const STEPS = Number(args.steps);
@@ -104,8 +107,23 @@ function showView(page, view) {
       new Promise((resolve, reject) => {
         const { viewer, state, setView, stats } = window.vtexViewer;
         const requested0 = stats.requested;
+        const batches0 = stats.batches;
         const t0 = performance.now();
-        const timer = setTimeout(() => reject(new Error(`view not drawn in 30 s: ${JSON.stringify(view)}`)), 30_000);
+        // What is still loading, for the error: the tile source's started jobs and OSD's tiles.
+        const stuck = () => {
+          const jobs = [...(state.item.source.vtexInFlight || [])].map((j) => ({
+            src: j.src.replace(/^.*\/tiles\//, ''),
+            done: j.userData.done,
+            settled: j.userData.settled,
+            batched: Boolean(j.userData.batchUrl),
+            age: Math.round(performance.now() - j.userData.t0),
+          }));
+          const loading = [];
+          for (const level of Object.values(state.item.tilesMatrix || {}))
+            for (const col of Object.values(level)) for (const t of Object.values(col)) if (t.loading) loading.push(t.getUrl().replace(/^.*\/tiles\//, ''));
+          return JSON.stringify({ jobs, loading, inProgress: viewer.imageLoader.jobsInProgress, fullyLoaded: state.item.getFullyLoaded() });
+        };
+        const timer = setTimeout(() => reject(new Error(`view not drawn in 30 s: ${JSON.stringify(view)}; ${stuck()}`)), 30_000);
         // update-viewport follows every draw; the first one after which the image is fully
         // loaded and needs no further draw is the frame that completed the view.
         const check = () => {
@@ -113,7 +131,7 @@ function showView(page, view) {
             viewer.removeHandler('update-viewport', check);
             clearTimeout(timer);
             const t1 = performance.now();
-            resolve({ ms: t1 - t0, t0, t1, tiles: stats.requested - requested0 });
+            resolve({ ms: t1 - t0, t0, t1, tiles: stats.requested - requested0, requests: stats.batches - batches0 });
           }
         };
         viewer.addHandler('update-viewport', check);
@@ -132,6 +150,7 @@ function showView(page, view) {
 async function measureViews(page, views, shots, tag, { back = false } = {}) {
   const times = [];
   const tiles = [];
+  const requests = [];
   const breakdowns = [];
   if (args.trace) await page.evaluate(installTracer);
   for (let i = back ? 1 : 0; i < views.length; i++) {
@@ -140,6 +159,7 @@ async function measureViews(page, views, shots, tag, { back = false } = {}) {
     const r = await showView(page, back ? views[i - 1] : views[i]);
     times.push(r.ms);
     tiles.push(r.tiles);
+    requests.push(r.requests);
     if (args.trace) {
       const trace = await page.evaluate(collectTrace, { t0: r.t0, t1: r.t1 });
       breakdowns.push(viewBreakdown({ ...trace, t0: r.t0, t1: r.t1 }));
@@ -147,7 +167,8 @@ async function measureViews(page, views, shots, tag, { back = false } = {}) {
     if (shots && i % 15 === 0) await page.screenshot(`${shots}/${tag}-${i}.png`);
   }
   if (!times.length) return null;
-  return { ...summary(times), tilesPerView: tiles.reduce((a, b) => a + b, 0) / tiles.length, breakdowns };
+  const perView = (v) => v.reduce((a, b) => a + (b || 0), 0) / v.length;
+  return { ...summary(times), tilesPerView: perView(tiles), requestsPerView: perView(requests), breakdowns };
 }
 
 /**
@@ -310,7 +331,7 @@ try {
   results.texture = { name: big.name, model: big.model, width: big.width, height: big.height };
   const views = session(big, STEPS);
   const panStart = { zoom: 1, x: 20_000, y: 60_000 };
-  const url = `${server.url}/?texture=${big.id}&zoom=0.01&x=50000&y=50000`;
+  const url = `${server.url}/?texture=${big.id}&zoom=0.01&x=50000&y=50000${args.format ? `&format=${args.format}` : ''}`;
   results.server = {};
 
   // Cold: fresh server, fresh browser.
@@ -347,9 +368,9 @@ try {
 }
 
 const f = (v) => v.toFixed(1);
-console.log(`texture ${results.texture.name} (${results.texture.model}), ${results.viewport.width}×${results.viewport.height} browser viewport, ${STEPS} view changes${args.osd ? `, OSD options ${args.osd}` : ''}, server ${serverArgs.join(' ')}, driven by ${results.driver}`);
-console.log('| view change → every visible tile drawn | p50 ms | p95 ms | max ms | tiles/view |');
-console.log('|---|---|---|---|---|');
+console.log(`texture ${results.texture.name} (${results.texture.model}), ${results.viewport.width}×${results.viewport.height} browser viewport, ${STEPS} view changes${args.format ? `, ${args.format} tiles` : ''}${args.osd ? `, OSD options ${args.osd}` : ''}, server ${serverArgs.join(' ')}, driven by ${results.driver}`);
+console.log('| view change → every visible tile drawn | p50 ms | p95 ms | max ms | tiles/view | requests/view |');
+console.log('|---|---|---|---|---|---|');
 for (const [k, label] of [
   ['cold', 'cold (empty server cache, fresh browser)'],
   ['warmServer', 'warm server cache, fresh browser'],
@@ -357,7 +378,7 @@ for (const [k, label] of [
   ['warmViewer', 'warm viewer: back to the previous view (tiles in memory)'],
 ]) {
   const r = results[k];
-  console.log(`| ${label} | ${f(r.p50)} | ${f(r.p95)} | ${f(r.max)} | ${r.tilesPerView.toFixed(1)} |`);
+  console.log(`| ${label} | ${f(r.p50)} | ${f(r.p95)} | ${f(r.max)} | ${r.tilesPerView.toFixed(1)} | ${r.requestsPerView.toFixed(1)} |`);
 }
 console.log(`\n| continuous pan, ${PAN_SPEED} px/frame for ${PAN_SECONDS} s at level 0 | frames | p50 ms | p95 ms | max ms | > 33 ms | > 50 ms | tiles |`);
 console.log('|---|---|---|---|---|---|---|---|');

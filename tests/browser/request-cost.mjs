@@ -4,9 +4,10 @@
 //   node tests/browser/request-cost.mjs [--tiles 128] [--rounds 2]
 //
 // Compares raw RGBA (256 KiB) with JPEG tiles (~10 KiB), `cache: 'no-store'` with the default
-// (the response is also written to the HTTP disk cache), and the bare DevTools driver of the
-// bench with Playwright (which reports every request to its driver). curl fetching the same
-// tiles over 6 connections is the server-side reference.
+// (the response is also written to the HTTP disk cache), one request per tile with all N in
+// one batched request (what the viewer sends, read with its FrameReader), and the bare
+// DevTools driver of the bench with Playwright (which reports every request to its driver).
+// curl fetching the same tiles over 6 connections is the server-side reference.
 import { execFileSync } from 'node:child_process';
 import { readFileSync, readdirSync } from 'node:fs';
 import { parseArgs } from 'node:util';
@@ -63,6 +64,33 @@ function fetchAll({ urls, format, noStore }) {
   ).then(() => performance.now() - t0);
 }
 
+/** In the page: the same tiles as one batched request, read frame by frame as the viewer does. */
+async function fetchBatch({ urls }) {
+  const { FrameReader } = await import('/batch.js');
+  const t0 = performance.now();
+  const m = urls[0].match(/^(.*)\/tiles\/\d+\/\d+\/\d+\.(\w+)$/);
+  const list = urls.map((u) => u.match(/\/tiles\/(\d+\/\d+\/\d+)\./)[1]).join(',');
+  const r = await fetch(`${m[1]}/tiles?format=${m[2]}&tiles=${list}`);
+  if (!r.ok) throw new Error(`HTTP ${r.status} for the batch`);
+  let n = 0;
+  const reader = new FrameReader((f) => {
+    const c = document.createElement('canvas');
+    c.width = f.width;
+    c.height = f.height;
+    const px = new Uint8ClampedArray(f.body.buffer, f.body.byteOffset, f.body.length);
+    c.getContext('2d').putImageData(new ImageData(px, f.width, f.height), 0, 0);
+    n++;
+  });
+  const body = r.body.getReader();
+  for (;;) {
+    const { done, value } = await body.read();
+    if (done) break;
+    reader.push(value);
+  }
+  if (n !== urls.length) throw new Error(`the batch carried ${n} of ${urls.length} tiles`);
+  return performance.now() - t0;
+}
+
 const server = await startServer({ extraArgs: ['--cache-mb', '2048'] });
 try {
   const textures = (await (await fetch(`${server.url}/api/v1/textures`)).json()).textures;
@@ -78,6 +106,7 @@ try {
   for (let round = 0; round < Number(args.rounds); round++) {
     for (const driver of ['cdp', 'playwright']) {
       for (const [format, noStore] of [['rgba', true], ['jpg', true], ['rgba', false]]) cases.push({ driver, format, noStore });
+      cases.push({ driver, format: 'rgba', noStore: true, batch: true });
     }
   }
   // Warm the server's cache for every block first, so only the browser is measured.
@@ -94,18 +123,20 @@ try {
   await new Promise((r) => setTimeout(r, 1000));
 
   console.log(`${N} concurrent tile fetches from the idle viewer page; Chromium CPU per tile (ms) by process`);
-  console.log('| driver | tiles | cache | wall ms | CPU ms/tile | renderer | network | browser | other |');
-  console.log('|---|---|---|---|---|---|---|---|---|');
+  console.log('| driver | tiles | requests | cache | wall ms | CPU ms/tile | renderer | network | browser | other |');
+  console.log('|---|---|---|---|---|---|---|---|---|---|');
   for (const c of plan) {
     const before = chromiumCpu();
-    const wall = await pages[c.driver].evaluate(fetchAll, { urls: c.urls, format: c.format, noStore: c.noStore });
+    const wall = c.batch
+      ? await pages[c.driver].evaluate(fetchBatch, { urls: c.urls })
+      : await pages[c.driver].evaluate(fetchAll, { urls: c.urls, format: c.format, noStore: c.noStore });
     const after = chromiumCpu();
     const d = {};
     for (const k of Object.keys(after)) d[k] = (after[k] - (before[k] || 0)) / N;
     const total = Object.values(d).reduce((a, b) => a + b, 0);
     const other = total - (d.renderer || 0) - (d.network || 0) - (d.browser || 0);
     const f = (v) => (v || 0).toFixed(2);
-    console.log(`| ${c.driver} | ${c.format} | ${c.noStore ? 'no-store' : 'HTTP cache'} | ${wall.toFixed(0)} | ${f(total)} | ${f(d.renderer)} | ${f(d.network)} | ${f(d.browser)} | ${f(other)} |`);
+    console.log(`| ${c.driver} | ${c.format} | ${c.batch ? '1 batch' : `${N}`} | ${c.batch ? 'no-store (batch)' : c.noStore ? 'no-store' : 'HTTP cache'} | ${wall.toFixed(0)} | ${f(total)} | ${f(d.renderer)} | ${f(d.network)} | ${f(d.browser)} | ${f(other)} |`);
   }
   await pages.cdp.close();
   await pw.close();

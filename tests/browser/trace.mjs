@@ -1,12 +1,15 @@
 // Per-stage timing of view changes for the measured session (`bench.mjs --trace`).
 //
 // In the page, `installTracer` wraps the viewer's loading path from outside (the viewer itself
-// carries no tracing code) and records for every tile URL, in performance.now() time:
+// carries no tracing code) and records for every tile (keyed by its single-tile URL, which
+// OpenSeadragon uses as its name), in performance.now() time:
 //   want     OpenSeadragon first asked its image loader for the tile (ImageLoader.addJob)
-//   start    the request really started (TileSource.downloadTileStart)
-//   rt       Resource Timing of the fetch: requestStart, responseStart, responseEnd
-//   headers  fetch() resolved (the renderer has the response headers), X-Vtex-Cache
-//   ready    the tile's bitmap was handed to OpenSeadragon (job.finish)
+//   start    the tile source took the job (TileSource.downloadTileStart)
+//   rt       Resource Timing of the batched request that carried it: requestStart,
+//            responseStart (the batch's first byte), responseEnd
+//   arrived  its frame was complete in JS (what the tile source notes in job.userData, with
+//            the batch's URL and the server's hit or miss)
+//   ready    the tile's pixels were handed to OpenSeadragon (job.finish)
 //   drawn    the first frame that drew it (tile-drawn)
 // and for every frame the time spent in OpenSeadragon's update and draw.
 // In Node, `viewBreakdown` turns one view's records into stage durations.
@@ -47,7 +50,11 @@ export function installTracer() {
       r.starts = (r.starts || 0) + 1;
       const finish = job.finish.bind(job);
       job.finish = (data, request, error) => {
-        if (data) r.ready = now();
+        if (data) {
+          r.ready = now();
+          const u = job.userData;
+          Object.assign(r, { batch: u.batchUrl, arrived: u.arrived, cache: u.cache });
+        }
         return finish(data, request, error);
       };
       return start(job);
@@ -62,27 +69,6 @@ export function installTracer() {
   };
   hookSource(state.item && state.item.source);
   viewer.world.addHandler('add-item', (e) => hookSource(e.item.source));
-
-  const fetch0 = window.fetch.bind(window);
-  window.fetch = async (input, init) => {
-    const response = await fetch0(input, init);
-    const url = typeof input === 'string' ? input : input.url;
-    if (url.includes('/tiles/')) {
-      const r = rec(url);
-      r.headers = now();
-      r.cache = response.headers.get('X-Vtex-Cache');
-    }
-    return response;
-  };
-
-  for (const method of ['arrayBuffer', 'blob']) {
-    const read = Response.prototype[method];
-    Response.prototype[method] = async function () {
-      const out = await read.call(this);
-      if (this.url.includes('/tiles/')) rec(this.url.slice(location.origin.length)).body = now();
-      return out;
-    };
-  }
 
   viewer.addHandler('tile-drawn', (e) => {
     const r = tiles.get(e.tile.getUrl());
@@ -135,7 +121,7 @@ export function collectTrace({ t0, t1 }) {
   const tiles = [];
   for (const [src, r] of T.tiles) {
     if (r.want === undefined || r.want < t0 || r.want > t1) continue;
-    const e = performance.getEntriesByName(new URL(src, origin).href).at(-1);
+    const e = r.batch ? performance.getEntriesByName(new URL(r.batch, origin).href).at(-1) : null;
     tiles.push({
       ...r,
       rt: e ? { fetchStart: e.fetchStart, requestStart: e.requestStart, responseStart: e.responseStart, responseEnd: e.responseEnd, transferSize: e.transferSize } : null,
@@ -154,13 +140,12 @@ export function collectTrace({ t0, t1 }) {
 
 const STAGES = [
   // [name, description, from, to] — per tile, each a difference of two recorded times
-  ['queue', 'asked by OSD → request started', (r) => r.want, (r) => r.start],
-  ['connect', 'request started → sent (browser queue, connection)', (r) => r.start, (r) => r.rt && r.rt.requestStart],
-  ['server', 'sent → first byte (server time + loopback)', (r) => r.rt && r.rt.requestStart, (r) => r.rt && r.rt.responseStart],
-  ['body', 'first byte → last byte', (r) => r.rt && r.rt.responseStart, (r) => r.rt && r.rt.responseEnd],
-  ['read', 'last byte → body in JS (arrayBuffer/blob resolved)', (r) => r.rt && r.rt.responseEnd, (r) => r.body],
-  ['decode', 'body in JS → pixels handed to OSD', (r) => r.body, (r) => r.ready],
-  ['draw', 'bitmap ready → first frame drawing it', (r) => r.ready, (r) => r.drawn],
+  ['queue', 'asked by OSD → taken by the tile source', (r) => r.want, (r) => r.start],
+  ['connect', 'taken → its batch sent (microtask flush, browser queue, connection)', (r) => r.start, (r) => r.rt && r.rt.requestStart],
+  ['server', "sent → the batch's first byte (server time + loopback)", (r) => r.rt && r.rt.requestStart, (r) => r.rt && r.rt.responseStart],
+  ['stream', "batch's first byte → this tile's frame complete in JS (frames before it, syntheses)", (r) => r.rt && r.rt.responseStart, (r) => r.arrived],
+  ['decode', 'frame in JS → pixels handed to OSD', (r) => r.arrived, (r) => r.ready],
+  ['draw', 'pixels ready → first frame drawing it', (r) => r.ready, (r) => r.drawn],
 ];
 
 /** Stage durations of one view: per tile, and along the tile that was drawn last. */
@@ -177,6 +162,8 @@ export function viewBreakdown(view) {
     critical = { wait: last.want - t0 };
     for (const [name, , from, to] of STAGES) critical[name] = to(last) - from(last);
     critical.after = t1 - last.drawn;
+    // The network's view of the same batch: its first to its last byte received.
+    critical.net = last.rt.responseEnd > 0 ? last.rt.responseEnd - last.rt.responseStart : NaN;
   }
   const firstWant = tiles.length ? Math.min(...tiles.map((r) => r.want)) - t0 : NaN;
   const levels = {};
@@ -188,6 +175,7 @@ export function viewBreakdown(view) {
     total: t1 - t0,
     // tiles whose request started (OSD may ask for more; the viewer's scheduler drops some)
     tiles: tiles.filter((r) => r.start !== undefined).length,
+    requests: new Set(tiles.map((r) => r.batch).filter(Boolean)).size,
     levels,
     completed: done.length,
     abandoned: tiles.filter((r) => r.ready === undefined).length,
@@ -234,11 +222,11 @@ export function formatBreakdown(label, breakdowns) {
   const top = [...byWhat].sort((a, b) => b[1] - a[1]).slice(0, 6);
   out.push(`${label}: scripts in long frames, ms per view: ${top.map(([w, d]) => `${w}: ${f(d / breakdowns.length)}`).join('; ') || '–'}`);
   out.push(`\n${label}: per view, along the tile drawn last (mean over views; p95 view time ${f(q(breakdowns.map((b) => b.total), 0.95))} ms)`);
-  out.push('| view total | → first ask | → last tile asked | queue | connect | server | body | read | decode | draw | → detected | frames | JS in OSD update+draw | of it draw | tiles | misses |');
-  out.push('|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|');
+  out.push('| view total | → first ask | → last tile asked | queue | connect | server | stream | (of it network first → last byte) | decode | draw | → detected | frames | JS in OSD update+draw | of it draw | tiles | requests | misses |');
+  out.push('|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|');
   const m = (k) => f(mean(crit.map((b) => b.critical[k])));
   out.push(
-    `| ${f(mean(breakdowns.map((b) => b.total)))} | ${f(mean(breakdowns.map((b) => b.firstWant).filter(Number.isFinite)))} | ${m('wait')} | ${m('queue')} | ${m('connect')} | ${m('server')} | ${m('body')} | ${m('read')} | ${m('decode')} | ${m('draw')} | ${m('after')} | ${f(mean(breakdowns.map((b) => b.frames)))} | ${f(mean(breakdowns.map((b) => b.jsMs)))} | ${f(mean(breakdowns.map((b) => b.drawMs)))} | ${f(mean(breakdowns.map((b) => b.tiles)))} | ${f(mean(breakdowns.map((b) => b.misses)))} |`,
+    `| ${f(mean(breakdowns.map((b) => b.total)))} | ${f(mean(breakdowns.map((b) => b.firstWant).filter(Number.isFinite)))} | ${m('wait')} | ${m('queue')} | ${m('connect')} | ${m('server')} | ${m('stream')} | ${m('net')} | ${m('decode')} | ${m('draw')} | ${m('after')} | ${f(mean(breakdowns.map((b) => b.frames)))} | ${f(mean(breakdowns.map((b) => b.jsMs)))} | ${f(mean(breakdowns.map((b) => b.drawMs)))} | ${f(mean(breakdowns.map((b) => b.tiles)))} | ${f(mean(breakdowns.map((b) => b.requests)))} | ${f(mean(breakdowns.map((b) => b.misses)))} |`,
   );
   return out.join('\n');
 }

@@ -1,5 +1,6 @@
 //! The HTTP API v1 (DESIGN §4, CONTRACT), the static viewer, and the middleware around them.
 
+pub mod batch;
 pub mod error;
 mod front;
 pub mod params;
@@ -54,8 +55,17 @@ impl AppState {
 
     /// Renders `region` of `entry` and encodes it, on the blocking pool, holding a permit.
     /// Returns the encoded bytes. Bad regions are 400s; a panicking model is a 500.
-    pub async fn synthesize(&self, entry: Arc<Entry>, region: Region, format: Format) -> Result<Vec<u8>, ApiError> {
-        let _permit = self.synth_permits.acquire().await.expect("the semaphore is never closed");
+    pub async fn synthesize(
+        self: &Arc<Self>,
+        entry: Arc<Entry>,
+        region: Region,
+        format: Format,
+    ) -> Result<Vec<u8>, ApiError> {
+        // The permit belongs to the blocking work, not to this future: a request dropped while
+        // its tile renders (a client gone, a batch the viewer aborted) must not free the slot
+        // while the render still runs, or more syntheses than permits would run at once.
+        self.synth_permits.acquire().await.expect("the semaphore is never closed").forget();
+        let app = self.clone();
         let (synth_s, encode_s, in_flight, count) = (
             self.metrics.synthesis_seconds.clone(),
             self.metrics.encode_seconds.with_label_values(&[format.ext()]),
@@ -76,6 +86,7 @@ impl AppState {
             };
             let result = std::panic::catch_unwind(std::panic::AssertUnwindSafe(work));
             in_flight.dec();
+            app.synth_permits.add_permits(1);
             result.unwrap_or_else(|_| {
                 Err(ApiError::internal("synthesis failed inside the model; the texture cannot render this region"))
             })
@@ -96,6 +107,7 @@ fn router(app: App) -> Router {
         .route("/api/v1/textures", get(textures::list).post(textures::upload))
         .route("/api/v1/textures/{id}", get(textures::info).patch(textures::patch))
         .route("/api/v1/textures/{id}/encoding", get(textures::encoding))
+        .route("/api/v1/textures/{id}/tiles", get(batch::batch))
         .route("/api/v1/textures/{id}/tiles/{level}/{x}/{file}", get(tiles::tile_route))
         .route("/api/v1/textures/{id}/region", get(tiles::region))
         .route("/healthz", get(healthz))

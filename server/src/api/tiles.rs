@@ -15,6 +15,7 @@ use axum::extract::{Path, RawQuery, State};
 use axum::http::{header, HeaderMap, HeaderValue};
 use axum::response::Response;
 use bytes::Bytes;
+use std::sync::Arc;
 use vtex_synth::texture::{level_count, level_size};
 use vtex_synth::Region;
 
@@ -26,7 +27,7 @@ const ETAG_SCHEME: &[u8] = b"vtex-tile/1";
 
 /// The frame a request renders: animated textures reduce it modulo their period (frames
 /// one period apart are identical), still textures ignore it.
-fn frame_for(entry: &Entry, raw: Option<&str>) -> Result<u32, ApiError> {
+pub(super) fn frame_for(entry: &Entry, raw: Option<&str>) -> Result<u32, ApiError> {
     let frame = raw.map(|s| parse_u32("frame", s)).transpose()?.unwrap_or(0);
     Ok(match entry.texture.animation() {
         None => 0,
@@ -60,7 +61,7 @@ fn image_response(body: Bytes, format: Format, etag: HeaderValue, width: u32, he
     resp
 }
 
-fn parse_format(s: &str) -> Result<Format, ApiError> {
+pub(super) fn parse_format(s: &str) -> Result<Format, ApiError> {
     Format::parse(s).ok_or_else(|| ApiError::bad_request(format!("unknown format `{}`; {}", echo(s), Format::EXPECTED)))
 }
 
@@ -141,17 +142,41 @@ pub async fn tile(
     let cached = app.cache.get(&key);
     let tag = match &cached {
         Some(tile) => tile.etag.clone(),
-        None => etag(&entry.key, &[level as u64, x as u64, y as u64, frame as u64, entry.tile_size as u64], format),
+        None => tile_etag(&entry, &key),
     };
     if not_modified(headers, tag.to_str().unwrap_or_default()) {
         return Ok(not_modified_response(tag));
     }
+    let (tile, source) = obtain(app, &entry, key, cached, tag).await?;
+    let mut resp = image_response(tile.body.clone(), format, tile.etag.clone(), tile.width, tile.height);
+    let cache_state = if source == Source::Hit { "hit" } else { "miss" };
+    resp.headers_mut().insert(X_VTEX_CACHE.clone(), HeaderValue::from_static(cache_state));
+    Ok(resp)
+}
 
+/// The strong ETag of tile `key` of `entry`.
+pub(super) fn tile_etag(entry: &Entry, key: &TileKey) -> HeaderValue {
+    let what = [key.level as u64, key.x as u64, key.y as u64, key.frame as u64, entry.tile_size as u64];
+    etag(&entry.key, &what, key.format)
+}
+
+/// Tile `key` (inside `entry`'s pyramid): `cached` when the caller found it in the cache, else
+/// from the cache or synthesized, one computation shared by every concurrent request for it,
+/// holding a synthesis permit. Counted as a hit or a miss. Single tiles and batches
+/// (`batch.rs`) both come through here, so they share the cache, coalescing and bounds.
+pub(super) async fn obtain(
+    app: &App,
+    entry: &Arc<Entry>,
+    key: TileKey,
+    cached: Option<Arc<Tile>>,
+    tag: HeaderValue,
+) -> Result<(Arc<Tile>, Source), ApiError> {
     let (tile, source) = match cached {
         Some(tile) => (tile, Source::Hit),
         None => {
             app.cache
                 .get_or_compute(key, || async {
+                    let TileKey { level, x, y, frame, format, .. } = key;
                     let ts = entry.tile_size as u64;
                     let (lw, lh) = level_size(entry.texture.width(), entry.texture.height(), level);
                     let (px, py) = (x as u64 * ts, y as u64 * ts);
@@ -164,13 +189,10 @@ pub async fn tile(
         }
     };
     match source {
-        Source::Hit => app.metrics.cache_hit(level),
-        Source::Miss => app.metrics.cache_miss(level),
+        Source::Hit => app.metrics.cache_hit(key.level),
+        Source::Miss => app.metrics.cache_miss(key.level),
     }
-    let mut resp = image_response(tile.body.clone(), format, tile.etag.clone(), tile.width, tile.height);
-    let cache_state = if source == Source::Hit { "hit" } else { "miss" };
-    resp.headers_mut().insert(X_VTEX_CACHE.clone(), HeaderValue::from_static(cache_state));
-    Ok(resp)
+    Ok((tile, source))
 }
 
 /// `GET /api/v1/textures/{id}/region?level=&x=&y=&w=&h=[&format=png][&frame=]`

@@ -1,0 +1,123 @@
+// The batched tile endpoint: one request for many tiles, answered as a stream of frames
+// (server/src/api/batch.rs). Pure functions, tested in Node.
+
+/** First bytes of every frame: "vtb" and the format version. */
+export const MAGIC = [0x76, 0x74, 0x62, 0x01];
+export const HEADER_LEN = 32;
+/** Most tiles the server accepts in one request. */
+export const MAX_BATCH = 256;
+
+/**
+ * URL of a batch of `tiles` ([{ level, x, y }], vtex levels) of texture `info`. `frame` is sent
+ * only for animated textures, as for single tiles.
+ */
+export function batchUrl(info, tiles, frame = 0, format = 'rgba') {
+  const list = tiles.map((t) => `${t.level}/${t.x}/${t.y}`).join(',');
+  const base = `/api/v1/textures/${encodeURIComponent(info.id)}/tiles?format=${format}&tiles=${list}`;
+  return info.animated ? `${base}&frame=${frame >>> 0}` : base;
+}
+
+/** The key of a tile in a batch: "level/x/y". */
+export function tileKey(level, x, y) {
+  return `${level}/${x}/${y}`;
+}
+
+/**
+ * Splits a batch body into frames as its chunks arrive, whatever their boundaries. Each frame
+ * is handed to `onFrame` as { level, x, y, status, cache: 'hit' | 'miss' | null, width,
+ * height, length, body: Uint8Array } the moment its last byte is pushed. A frame that lies
+ * wholly inside one chunk is a view of it; one split across chunks is copied once, into a
+ * buffer of its own.
+ */
+export class FrameReader {
+  constructor(onFrame) {
+    this.onFrame = onFrame;
+    this.header = new Uint8Array(HEADER_LEN);
+    this.headerFill = 0;
+    this.frame = null; // the frame whose body is being filled
+    this.bodyFill = 0;
+    this.frames = 0;
+  }
+
+  /** Consumes one chunk (a Uint8Array). Throws on a frame that is not a batch frame. */
+  push(chunk) {
+    let i = 0;
+    while (i < chunk.length) {
+      // A whole frame inside this chunk (most of them: chunks run to ~1 MB) is handed over
+      // as a view of the chunk, not copied.
+      if (!this.frame && this.headerFill === 0 && chunk.length - i >= HEADER_LEN) {
+        const frame = parseHeader(chunk.subarray(i, i + HEADER_LEN), false);
+        const end = i + HEADER_LEN + frame.length;
+        if (end <= chunk.length) {
+          frame.body = chunk.subarray(i + HEADER_LEN, end);
+          i = end;
+          this.frames++;
+          this.onFrame(frame);
+          continue;
+        }
+      }
+      if (!this.frame) {
+        const n = Math.min(HEADER_LEN - this.headerFill, chunk.length - i);
+        this.header.set(chunk.subarray(i, i + n), this.headerFill);
+        this.headerFill += n;
+        i += n;
+        if (this.headerFill < HEADER_LEN) return;
+        this.headerFill = 0;
+        this.frame = parseHeader(this.header);
+        this.bodyFill = 0;
+      }
+      const body = this.frame.body;
+      const n = Math.min(body.length - this.bodyFill, chunk.length - i);
+      body.set(chunk.subarray(i, i + n), this.bodyFill);
+      this.bodyFill += n;
+      i += n;
+      if (this.bodyFill === body.length) {
+        const frame = this.frame;
+        this.frame = null;
+        this.frames++;
+        this.onFrame(frame);
+      }
+    }
+  }
+
+  /** True when the stream ended between frames (not inside one). */
+  get complete() {
+    return !this.frame && this.headerFill === 0;
+  }
+}
+
+/** The header in `h` (32 bytes); with `allocate`, a buffer of its body's length to fill. */
+function parseHeader(h, allocate = true) {
+  for (let i = 0; i < MAGIC.length; i++) {
+    if (h[i] !== MAGIC[i]) throw new Error(`not a vtex tile batch frame (header bytes ${[...h.subarray(0, 4)]})`);
+  }
+  const v = new DataView(h.buffer, h.byteOffset, HEADER_LEN);
+  const cache = h[18];
+  return {
+    level: v.getUint32(4, true),
+    x: v.getUint32(8, true),
+    y: v.getUint32(12, true),
+    status: v.getUint16(16, true),
+    cache: cache === 1 ? 'hit' : cache === 2 ? 'miss' : null,
+    width: v.getUint32(20, true),
+    height: v.getUint32(24, true),
+    length: v.getUint32(28, true),
+    body: allocate ? new Uint8Array(v.getUint32(28, true)) : null,
+  };
+}
+
+/** A frame header for tests and tools: the inverse of what FrameReader parses. */
+export function encodeHeader({ level, x, y, status = 200, cache = 'hit', width, height, length }) {
+  const h = new Uint8Array(HEADER_LEN);
+  h.set(MAGIC);
+  const v = new DataView(h.buffer);
+  v.setUint32(4, level, true);
+  v.setUint32(8, x, true);
+  v.setUint32(12, y, true);
+  v.setUint16(16, status, true);
+  h[18] = cache === 'hit' ? 1 : cache === 'miss' ? 2 : 0;
+  v.setUint32(20, width, true);
+  v.setUint32(24, height, true);
+  v.setUint32(28, length, true);
+  return h;
+}

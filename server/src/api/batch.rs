@@ -1,0 +1,343 @@
+//! Many tiles in one response: `GET /api/v1/textures/{id}/tiles?tiles=L/x/y,…&format=F[&frame=N]`.
+//!
+//! Why: a browser spends ~3 ms of CPU on every request, whatever its size (BENCHMARKS.md,
+//! "Viewer"), so a view of ~27 tiles cost ~100 ms before a pixel was drawn. One request for the
+//! whole view costs that once.
+//!
+//! The body is a stream of frames sent in completion order: tiles found in the cache at once,
+//! the others as each synthesis finishes. Each frame is a [`HEADER_LEN`]-byte little-endian
+//! header followed by exactly the bytes the single-tile endpoint returns for that tile (the
+//! same cache, the same coalescing of concurrent misses, the same synthesis permits:
+//! [`tiles::obtain`]). Header, by byte offset:
+//!
+//! | bytes  | field                                                             |
+//! |--------|-------------------------------------------------------------------|
+//! | 0..4   | magic `b"vtb"` then the format version, 1                          |
+//! | 4..16  | level, x, y (u32 each)                                             |
+//! | 16..18 | status (u16): 200, or the HTTP status of this tile's error         |
+//! | 18     | cache: 1 hit, 2 miss (as `X-Vtex-Cache`), 0 for an error           |
+//! | 19     | reserved, 0                                                        |
+//! | 20..28 | width, height of the tile in pixels (u32 each; 0 for an error)     |
+//! | 28..32 | length of what follows (u32): the tile's bytes, or `{"error": …}`  |
+//!
+//! The whole request is validated before anything is sent: a malformed or empty list, a
+//! repeated tile, more than [`MAX_TILES`] tiles, a query over [`MAX_QUERY_BYTES`], an unknown
+//! format or parameter are 400s, a level the texture does not serve a 400 and a tile outside
+//! its level a 404, as for single tiles, each naming the problem. Errors after that (a model
+//! failing to render) come as error frames. Dropping the response (a client that went away)
+//! aborts the tiles not yet done, so a synthesis that has not started never starts; a body
+//! not finished within the request deadline is cut off (the client sees a truncated stream).
+
+use super::error::{echo, ApiError};
+use super::params::{parse_u32, query_pairs};
+use super::tiles::{self, frame_for, parse_format};
+use super::{lookup, App};
+use crate::cache::{Source, Tile, TileKey};
+use crate::encode::Format;
+use crate::store::Entry;
+use axum::body::Body;
+use axum::extract::rejection::PathRejection;
+use axum::extract::{Path, RawQuery, State};
+use axum::http::{header, HeaderValue};
+use axum::response::Response;
+use bytes::{BufMut, Bytes, BytesMut};
+use http_body::Frame;
+use std::collections::{HashSet, VecDeque};
+use std::future::Future;
+use std::pin::Pin;
+use std::sync::Arc;
+use std::task::{Context, Poll};
+use tokio::task::JoinSet;
+
+/// Most tiles one request may ask for (a 4K screen of 256-px tiles needs ~150).
+pub const MAX_TILES: usize = 256;
+/// Longest query accepted: 256 tiles of the largest coordinates fit with room to spare.
+pub const MAX_QUERY_BYTES: usize = 8192;
+/// First bytes of every frame: `vtb` and the format version.
+pub const MAGIC: [u8; 4] = *b"vtb\x01";
+pub const HEADER_LEN: usize = 32;
+/// The media type of a batch body.
+pub const CONTENT_TYPE: &str = "application/x-vtex-tile-batch";
+
+/// One tile as the query names it.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub struct TileRef {
+    pub level: u32,
+    pub x: u32,
+    pub y: u32,
+}
+
+/// A frame header (the table in the module docs).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct FrameHeader {
+    pub tile: TileRef,
+    pub status: u16,
+    /// 1 hit, 2 miss, 0 error.
+    pub cache: u8,
+    pub width: u32,
+    pub height: u32,
+    pub len: u32,
+}
+
+impl FrameHeader {
+    pub fn encode(&self) -> [u8; HEADER_LEN] {
+        let mut b = [0u8; HEADER_LEN];
+        b[0..4].copy_from_slice(&MAGIC);
+        b[4..8].copy_from_slice(&self.tile.level.to_le_bytes());
+        b[8..12].copy_from_slice(&self.tile.x.to_le_bytes());
+        b[12..16].copy_from_slice(&self.tile.y.to_le_bytes());
+        b[16..18].copy_from_slice(&self.status.to_le_bytes());
+        b[18] = self.cache;
+        b[20..24].copy_from_slice(&self.width.to_le_bytes());
+        b[24..28].copy_from_slice(&self.height.to_le_bytes());
+        b[28..32].copy_from_slice(&self.len.to_le_bytes());
+        b
+    }
+
+    /// The header at the start of `b`, or `None` when `b` is short or the magic is wrong.
+    pub fn decode(b: &[u8]) -> Option<FrameHeader> {
+        if b.len() < HEADER_LEN || b[0..4] != MAGIC {
+            return None;
+        }
+        let u32_at = |i: usize| u32::from_le_bytes(b[i..i + 4].try_into().expect("4 bytes"));
+        Some(FrameHeader {
+            tile: TileRef { level: u32_at(4), x: u32_at(8), y: u32_at(12) },
+            status: u16::from_le_bytes([b[16], b[17]]),
+            cache: b[18],
+            width: u32_at(20),
+            height: u32_at(24),
+            len: u32_at(28),
+        })
+    }
+}
+
+/// The `tiles` list: `L/x/y` items separated by commas, at most [`MAX_TILES`], none repeated.
+pub fn parse_tiles(list: &str) -> Result<Vec<TileRef>, ApiError> {
+    if list.is_empty() {
+        return Err(ApiError::bad_request("`tiles` is empty; expected a comma-separated list of level/x/y"));
+    }
+    let n = list.split(',').count();
+    if n > MAX_TILES {
+        return Err(ApiError::bad_request(format!("`tiles` lists {n} tiles; at most {MAX_TILES} per request")));
+    }
+    let mut seen = HashSet::with_capacity(n);
+    let mut out = Vec::with_capacity(n);
+    for (i, item) in list.split(',').enumerate() {
+        let parts: Vec<&str> = item.split('/').collect();
+        let [level, x, y] = parts[..] else {
+            return Err(ApiError::bad_request(format!(
+                "tile {} of `tiles` is `{}`; expected level/x/y",
+                i + 1,
+                echo(item)
+            )));
+        };
+        let tile = TileRef { level: parse_u32("level", level)?, x: parse_u32("x", x)?, y: parse_u32("y", y)? };
+        if !seen.insert(tile) {
+            return Err(ApiError::bad_request(format!(
+                "tile {}/{}/{} is listed twice in `tiles`",
+                tile.level, tile.x, tile.y
+            )));
+        }
+        out.push(tile);
+    }
+    Ok(out)
+}
+
+/// What a batch request asks for, validated against the texture.
+struct BatchQuery {
+    tiles: Vec<TileRef>,
+    format: Format,
+    frame: u32,
+}
+
+fn parse_query(entry: &Entry, query: Option<&str>) -> Result<BatchQuery, ApiError> {
+    let raw = query.unwrap_or("");
+    if raw.len() > MAX_QUERY_BYTES {
+        return Err(ApiError::bad_request(format!(
+            "query of {} bytes is longer than the limit of {MAX_QUERY_BYTES}",
+            raw.len()
+        )));
+    }
+    let (mut tiles, mut format, mut frame) = (None, None, None);
+    for (k, v) in query_pairs(query)? {
+        match k.as_str() {
+            "tiles" => tiles = Some(parse_tiles(&v)?),
+            "format" => format = Some(parse_format(&v)?),
+            "frame" => frame = Some(v),
+            other => {
+                return Err(ApiError::bad_request(format!(
+                    "unknown query parameter `{}`; expected tiles, format, frame",
+                    echo(other)
+                )))
+            }
+        }
+    }
+    let tiles = tiles.ok_or_else(|| ApiError::bad_request("missing query parameter `tiles` (level/x/y,…)"))?;
+    let format = format
+        .ok_or_else(|| ApiError::bad_request(format!("missing query parameter `format`; {}", Format::EXPECTED)))?;
+    for t in &tiles {
+        if t.level >= entry.levels {
+            return Err(ApiError::bad_request(format!(
+                "tile {}/{}/{}: level {} does not exist; this texture serves levels 0..={}",
+                t.level,
+                t.x,
+                t.y,
+                t.level,
+                entry.levels - 1
+            )));
+        }
+        let (cols, rows) = entry.tiles_at(t.level);
+        if t.x as u64 >= cols || t.y as u64 >= rows {
+            return Err(ApiError::not_found(format!(
+                "tile {}/{}/{} is outside level {}, which has {cols}×{rows} tiles",
+                t.level, t.x, t.y, t.level
+            )));
+        }
+    }
+    Ok(BatchQuery { tiles, format, frame: frame_for(entry, frame.as_deref())? })
+}
+
+/// The handler. Tiles in the cache are framed at once; each other tile is a task of its own
+/// (they wait for synthesis permits like single tiles do), framed as it finishes.
+pub async fn batch(
+    State(app): State<App>,
+    path: Result<Path<String>, PathRejection>,
+    RawQuery(query): RawQuery,
+) -> Result<Response, ApiError> {
+    let Path(id) = path.map_err(|e| ApiError::bad_request(e.body_text()))?;
+    let entry = lookup(&app, &id)?;
+    let BatchQuery { tiles, format, frame } = parse_query(&entry, query.as_deref())?;
+    let mut ready = VecDeque::new();
+    let mut pending = JoinSet::new();
+    for tile in tiles {
+        let key = TileKey { texture: entry.key, level: tile.level, x: tile.x, y: tile.y, frame, format };
+        match app.cache.get(&key) {
+            Some(hit) => {
+                app.metrics.cache_hit(tile.level);
+                push_tile(&mut ready, tile, &hit, Source::Hit);
+            }
+            None => {
+                let (app, entry) = (app.clone(), entry.clone());
+                pending.spawn(async move {
+                    let tag = tiles::tile_etag(&entry, &key);
+                    (tile, tiles::obtain(&app, &entry, key, None, tag).await)
+                });
+            }
+        }
+    }
+    let deadline = Box::pin(tokio::time::sleep(app.cfg.request_timeout()));
+    let body = BatchBody { ready, pending, deadline, app: app.clone() };
+    let mut resp = Response::new(Body::new(body));
+    let h = resp.headers_mut();
+    h.insert(header::CONTENT_TYPE, HeaderValue::from_static(CONTENT_TYPE));
+    // The frames' order (and hit or miss) differs from one response to the next.
+    h.insert(header::CACHE_CONTROL, HeaderValue::from_static("no-store"));
+    Ok(resp)
+}
+
+fn push_tile(out: &mut VecDeque<Bytes>, tile: TileRef, t: &Tile, source: Source) {
+    let cache = if source == Source::Hit { 1 } else { 2 };
+    let header = FrameHeader { tile, status: 200, cache, width: t.width, height: t.height, len: t.body.len() as u32 };
+    out.push_back(Bytes::copy_from_slice(&header.encode()));
+    // The cached bytes themselves (sealed tiles keep their zero-copy send).
+    out.push_back(t.body.clone());
+}
+
+fn push_error(out: &mut VecDeque<Bytes>, tile: TileRef, e: &ApiError) {
+    let json = serde_json::json!({ "error": e.message }).to_string();
+    let header = FrameHeader { tile, status: e.status.as_u16(), cache: 0, width: 0, height: 0, len: json.len() as u32 };
+    let mut b = BytesMut::with_capacity(HEADER_LEN + json.len());
+    b.put_slice(&header.encode());
+    b.put_slice(json.as_bytes());
+    out.push_back(b.freeze());
+}
+
+/// A tile as [`tiles::obtain`] answers it.
+type Obtained = Result<(Arc<Tile>, Source), ApiError>;
+
+/// The response body: queued chunks first, then tiles as their tasks finish. Dropping it
+/// drops the [`JoinSet`], which aborts the tasks still running.
+struct BatchBody {
+    ready: VecDeque<Bytes>,
+    pending: JoinSet<(TileRef, Obtained)>,
+    deadline: Pin<Box<tokio::time::Sleep>>,
+    app: App,
+}
+
+impl http_body::Body for BatchBody {
+    type Data = Bytes;
+    type Error = std::io::Error;
+
+    fn poll_frame(self: Pin<&mut Self>, cx: &mut Context<'_>) -> Poll<Option<Result<Frame<Bytes>, Self::Error>>> {
+        let this = self.get_mut();
+        loop {
+            if let Some(chunk) = this.ready.pop_front() {
+                this.app.metrics.bytes_out.inc_by(chunk.len() as u64);
+                return Poll::Ready(Some(Ok(Frame::data(chunk))));
+            }
+            match this.pending.poll_join_next(cx) {
+                Poll::Ready(None) => return Poll::Ready(None),
+                Poll::Ready(Some(Ok((tile, Ok((t, source)))))) => push_tile(&mut this.ready, tile, &t, source),
+                Poll::Ready(Some(Ok((tile, Err(e))))) => push_error(&mut this.ready, tile, &e),
+                Poll::Ready(Some(Err(join))) => {
+                    // Tasks are only aborted by dropping the body; a panic is a bug, logged.
+                    tracing::error!(error = %join, "tile batch task failed");
+                    return Poll::Ready(Some(Err(std::io::Error::other("a tile of the batch failed"))));
+                }
+                Poll::Pending => {
+                    if this.deadline.as_mut().poll(cx).is_ready() {
+                        return Poll::Ready(Some(Err(std::io::Error::other("tile batch not completed in time"))));
+                    }
+                    return Poll::Pending;
+                }
+            }
+        }
+    }
+
+    fn is_end_stream(&self) -> bool {
+        self.ready.is_empty() && self.pending.is_empty()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn headers_round_trip() {
+        let h = FrameHeader {
+            tile: TileRef { level: 3, x: 70_000, y: u32::MAX },
+            status: 404,
+            cache: 2,
+            width: 256,
+            height: 17,
+            len: 262_144,
+        };
+        let b = h.encode();
+        assert_eq!(&b[..4], b"vtb\x01");
+        assert_eq!(FrameHeader::decode(&b), Some(h));
+        assert_eq!(FrameHeader::decode(&b[..31]), None);
+        let mut bad = b;
+        bad[3] = 2;
+        assert_eq!(FrameHeader::decode(&bad), None, "another version is refused");
+    }
+
+    #[test]
+    fn tile_lists_and_their_errors() {
+        let t = |level, x, y| TileRef { level, x, y };
+        assert_eq!(parse_tiles("0/1/2,3/4/5").unwrap(), vec![t(0, 1, 2), t(3, 4, 5)]);
+        let msg = |s: &str| parse_tiles(s).unwrap_err().message;
+        assert!(msg("").contains("empty"));
+        assert!(msg("1/2").contains("tile 1 of `tiles` is `1/2`"));
+        assert!(msg("1/2/3,4/5/6/7").contains("tile 2"));
+        assert!(msg("1/2/3,").contains("tile 2"));
+        assert!(msg("1/x/3").contains("`x` must be an integer"));
+        assert!(msg("1/-2/3").contains("negative"));
+        assert!(msg("1/2/3,0/0/0,1/2/3").contains("1/2/3 is listed twice"));
+        let many = (0..=MAX_TILES).map(|i| format!("0/{i}/0")).collect::<Vec<_>>().join(",");
+        assert!(msg(&many).contains("at most 256"));
+        let most = (0..MAX_TILES).map(|i| format!("0/{i}/0")).collect::<Vec<_>>().join(",");
+        assert_eq!(parse_tiles(&most).unwrap().len(), MAX_TILES);
+        assert!(msg(&format!("{},0/0/0", "9".repeat(500))).len() < 300, "long input is not echoed");
+    }
+}
