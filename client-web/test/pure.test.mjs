@@ -184,6 +184,35 @@ test('scheduling keeps the queue until the next update and drops unwanted coarse
   assert.equal(f.cleared(), 3, 'closing empties the queue at once');
 });
 
+test('a view set at once is evaluated in the same task, at most once a frame', async () => {
+  const f = fakeViewer([[['a', 9]], [['b', 9]], [['c', 9]]]);
+  f.items.push({ source: {}, getTilesToDraw: () => [] });
+  scheduleTiles(f.viewer);
+  const frames = [];
+  globalThis.requestAnimationFrame = (cb) => frames.push(cb);
+  try {
+    const tick = () => new Promise((resolve) => setTimeout(resolve, 0));
+    f.handlers.pan({ immediately: false });
+    await tick();
+    assert.deepEqual(f.started, [], 'an animated change waits for the next frame');
+    // setView: a zoom and a pan in one task make one early update.
+    f.handlers.zoom({ immediately: true });
+    f.handlers.pan({ immediately: true });
+    assert.deepEqual(f.started, [], 'the update runs after the task that changed the view');
+    await tick();
+    assert.deepEqual(f.started, ['a']);
+    f.handlers.pan({ immediately: true });
+    await tick();
+    assert.deepEqual(f.started, ['a'], 'no second early update before the next frame');
+    frames.splice(0).forEach((cb) => cb());
+    f.handlers.pan({ immediately: true });
+    await tick();
+    assert.deepEqual(f.started, ['a', 'b'], 'a frame later, one more');
+  } finally {
+    delete globalThis.requestAnimationFrame;
+  }
+});
+
 /** A started job as OpenSeadragon's ImageJob has it after start(): abort wrapped, a timeout set. */
 function startedJob(name, lastTouchTime, log, inFlight, x = 0) {
   const job = {
