@@ -105,19 +105,3 @@ function parseHeader(h, allocate = true) {
     body: allocate ? new Uint8Array(v.getUint32(28, true)) : null,
   };
 }
-
-/** A frame header for tests and tools: the inverse of what FrameReader parses. */
-export function encodeHeader({ level, x, y, status = 200, cache = 'hit', width, height, length }) {
-  const h = new Uint8Array(HEADER_LEN);
-  h.set(MAGIC);
-  const v = new DataView(h.buffer);
-  v.setUint32(4, level, true);
-  v.setUint32(8, x, true);
-  v.setUint32(12, y, true);
-  v.setUint16(16, status, true);
-  h[18] = cache === 'hit' ? 1 : cache === 'miss' ? 2 : 0;
-  v.setUint32(20, width, true);
-  v.setUint32(24, height, true);
-  v.setUint32(28, length, true);
-  return h;
-}

@@ -6,7 +6,7 @@ import { inPyramid, levelSize, osdLevel, tileCount, tileUrl, vtexLevel, drawLeve
 import { formatView, parseView } from '../src/view-url.js';
 import { TileStats, formatBytes, formatRatio, percentile } from '../src/stats.js';
 import { PREVIEW_STEPS, scheduleTiles, wantedLevel } from '../src/loader.js';
-import { FrameReader, HEADER_LEN, MAX_BATCH, batchUrl, encodeHeader, tileKey } from '../src/batch.js';
+import { FrameReader, HEADER_LEN, MAGIC, MAX_BATCH, batchUrl, tileKey } from '../src/batch.js';
 
 const big = { id: 'ab'.repeat(32), width: 100_000, height: 100_000, levels: 10, tile_size: 256, animated: false };
 const odd = { id: 'cd'.repeat(32), width: 3000, height: 700, levels: 5, tile_size: 256, animated: true };
@@ -296,3 +296,19 @@ test('batch frames are read whatever the chunk boundaries', () => {
   bad[3] = 2;
   assert.throws(() => new FrameReader(() => {}).push(bad), /not a vtex tile batch frame/);
 });
+
+/** A frame header as the server writes it (server/src/api/batch.rs): what FrameReader parses. */
+function encodeHeader({ level, x, y, status = 200, cache = 'hit', width, height, length }) {
+  const h = new Uint8Array(HEADER_LEN);
+  h.set(MAGIC);
+  const v = new DataView(h.buffer);
+  v.setUint32(4, level, true);
+  v.setUint32(8, x, true);
+  v.setUint32(12, y, true);
+  v.setUint16(16, status, true);
+  h[18] = cache === 'hit' ? 1 : cache === 'miss' ? 2 : 0;
+  v.setUint32(20, width, true);
+  v.setUint32(24, height, true);
+  v.setUint32(28, length, true);
+  return h;
+}

@@ -58,6 +58,15 @@ wait_ns() {
   for p in "$@"; do for f in /proc/"$p"/task/*/schedstat; do read -r _ w _ < "$f"; t=$((t + w)); done; done
   echo "$t"
 }
+# Times the given processes' threads went to sleep (voluntary context switches): each is a
+# wake-up someone pays for later — on loopback, often the client, in its kernel time.
+sleeps() {
+  local t=0 f v
+  for p in "$@"; do for f in /proc/"$p"/task/*/status; do
+    v=$(awk '/^voluntary_ctxt_switches/ {print $2}' "$f" 2>/dev/null); t=$((t + ${v:-0}))
+  done; done
+  echo "$t"
+}
 # "TID NS" for every thread of the given processes.
 thread_ns() {
   local p f a _
@@ -65,7 +74,7 @@ thread_ns() {
 }
 
 # wrk: $1 = connections, $2 = lua script, $3 = base URL, $4 = wrk threads, $5.. = server PIDs
-# → "req/s p50 p99 server-CPU-µs/req wrk-CPU-µs/req split wait-µs/req" (the server figures "-" without
+# → "req/s p50 p99 server-CPU-µs/req wrk-CPU-µs/req split wait-µs/req sleeps/1000-req" (the server figures "-" without
 # PIDs). wrk's own CPU per request (user + system, from bash's `time`) is as much part of the
 # result as the server's: both share the 2 cores. "split" is the share of the server's CPU
 # each of its busy threads or worker processes took, largest first (e.g. 51/49): a lopsided
@@ -73,11 +82,11 @@ thread_ns() {
 run_wrk() {
   local threads=${4:-2}; [ "$1" -lt "$threads" ] && threads=$1
   local c0 c1 pids=("${@:5}")
-  [ ${#pids[@]} -gt 0 ] && { c0=$(cpu_ns "${pids[@]}"); w0=$(wait_ns "${pids[@]}"); thread_ns "${pids[@]}" > "$WORK/threads0"; }
+  [ ${#pids[@]} -gt 0 ] && { c0=$(cpu_ns "${pids[@]}"); w0=$(wait_ns "${pids[@]}"); s0=$(sleeps "${pids[@]}"); thread_ns "${pids[@]}" > "$WORK/threads0"; }
   local TIMEFORMAT='%U %S'
   { time wrk -t"$threads" -c"$1" -d"${DUR}s" --latency -s "$2" "$3" > "$WORK/wrk.txt"; } 2> "$WORK/wrk.time"
-  [ ${#pids[@]} -gt 0 ] && { c1=$(cpu_ns "${pids[@]}"); w1=$(wait_ns "${pids[@]}"); thread_ns "${pids[@]}" > "$WORK/threads1"; }
-  local rps p50 p99 non2xx n cpu=- wcpu split=- wait=-
+  [ ${#pids[@]} -gt 0 ] && { c1=$(cpu_ns "${pids[@]}"); w1=$(wait_ns "${pids[@]}"); s1=$(sleeps "${pids[@]}"); thread_ns "${pids[@]}" > "$WORK/threads1"; }
+  local rps p50 p99 non2xx n cpu=- wcpu split=- wait=- slept=-
   rps=$(awk '/^Requests\/sec/ {print $2}' "$WORK/wrk.txt")
   p50=$(awk '$1=="50%" {print $2}' "$WORK/wrk.txt")
   p99=$(awk '$1=="99%" {print $2}' "$WORK/wrk.txt")
@@ -88,10 +97,11 @@ run_wrk() {
   if [ ${#pids[@]} -gt 0 ]; then
     cpu=$(awk -v d=$((c1 - c0)) -v n="$n" 'BEGIN {printf "%.1f", d / 1000 / n}')
     wait=$(awk -v d=$((w1 - w0)) -v n="$n" 'BEGIN {printf "%.1f", d / 1000 / n}')
+    slept=$(awk -v d=$((s1 - s0)) -v n="$n" 'BEGIN {printf "%.0f", d * 1000 / n}')
     split=$(awk 'NR == FNR {a[$1] = $2; next} $2 > a[$1] {printf "%d\n", $2 - a[$1]}' "$WORK/threads0" "$WORK/threads1" |
       sort -rn | awk '{v[NR] = $1; t += $1} END {for (i = 1; i <= NR; i++) if (v[i] * 50 > t) s = s (i > 1 ? "/" : "") sprintf("%d", v[i] * 100 / t + 0.5); print s}')
   fi
-  echo "$rps $p50 $p99 $cpu $wcpu ${split:--} $wait"
+  echo "$rps $p50 $p99 $cpu $wcpu ${split:--} $wait $slept"
 }
 
 echo "# vtex server benchmarks — $(date -u +%FT%TZ), $(nproc) CPUs, loopback, ${DUR}s per run"
@@ -148,16 +158,17 @@ echo "throughput and is less noisy than tiles/s. Split: the server's CPU per bus
 echo "runtimes) or worker process (nginx), in %, largest first (above 2 % each). Server wait: µs"
 echo "per tile the server's threads were runnable but waiting for a core — high when something"
 echo "else competes for the CPUs (then tiles/s says more about the scheduler than the server)."
+echo "Server sleeps: times per 1000 tiles a server thread went idle and had to be woken again."
 echo
-echo "| server | connections | tiles/s | p50 | p99 | server CPU µs/tile | wrk CPU µs/tile | split % | server wait µs/tile |"
-echo "|---|---|---|---|---|---|---|---|---|"
+echo "| server | connections | tiles/s | p50 | p99 | server CPU µs/tile | wrk CPU µs/tile | split % | server wait µs/tile | server sleeps /1000 tiles |"
+echo "|---|---|---|---|---|---|---|---|---|---|"
 NGINX_WORKERS=$(pgrep -P "$NGINX_PID" | tr '\n' ' ')
 for _ in $(seq 1 "$ROUNDS"); do for c in 8 64; do
   # shellcheck disable=SC2086 # one PID per word
-  read -r rps p50 p99 cpu wcpu split wait < <(run_wrk "$c" "$WORK/warm.lua" "http://127.0.0.1:18089" 2 $NGINX_WORKERS)
-  echo "| nginx (static files) | $c | $rps | $p50 | $p99 | $cpu | $wcpu | $split | $wait |"
-  read -r rps p50 p99 cpu wcpu split wait < <(run_wrk "$c" "$WORK/warm.lua" "$VTEX" 2 "$VTEX_PID")
-  echo "| vtex (tile cache) | $c | $rps | $p50 | $p99 | $cpu | $wcpu | $split | $wait |"
+  read -r rps p50 p99 cpu wcpu split wait slept < <(run_wrk "$c" "$WORK/warm.lua" "http://127.0.0.1:18089" 2 $NGINX_WORKERS)
+  echo "| nginx (static files) | $c | $rps | $p50 | $p99 | $cpu | $wcpu | $split | $wait | $slept |"
+  read -r rps p50 p99 cpu wcpu split wait slept < <(run_wrk "$c" "$WORK/warm.lua" "$VTEX" 2 "$VTEX_PID")
+  echo "| vtex (tile cache) | $c | $rps | $p50 | $p99 | $cpu | $wcpu | $split | $wait | $slept |"
 done; done
 kill "$NGINX_PID"; wait "$NGINX_PID" 2>/dev/null || true; NGINX_PID=""
 fi

@@ -39,7 +39,7 @@ pub struct AppState {
     pub cache: TileCache,
     pub metrics: Metrics,
     /// Permits for syntheses; a miss waits for one (back-pressure), never runs unbounded.
-    pub synth_permits: Semaphore,
+    pub synth_permits: Arc<Semaphore>,
     pub cfg: ServeConfig,
 }
 
@@ -50,22 +50,16 @@ impl AppState {
         let metrics = Metrics::new();
         let cache = TileCache::new(cfg.cache_bytes());
         metrics.cache_budget_bytes.set(cache.budget() as i64);
-        Arc::new(AppState { store, cache, metrics, synth_permits: Semaphore::new(cfg.syntheses()), cfg })
+        Arc::new(AppState { store, cache, metrics, synth_permits: Arc::new(Semaphore::new(cfg.syntheses())), cfg })
     }
 
     /// Renders `region` of `entry` and encodes it, on the blocking pool, holding a permit.
     /// Returns the encoded bytes. Bad regions are 400s; a panicking model is a 500.
-    pub async fn synthesize(
-        self: &Arc<Self>,
-        entry: Arc<Entry>,
-        region: Region,
-        format: Format,
-    ) -> Result<Vec<u8>, ApiError> {
-        // The permit belongs to the blocking work, not to this future: a request dropped while
+    pub async fn synthesize(&self, entry: Arc<Entry>, region: Region, format: Format) -> Result<Vec<u8>, ApiError> {
+        // The permit moves into the blocking work, not this future: a request dropped while
         // its tile renders (a client gone, a batch the viewer aborted) must not free the slot
         // while the render still runs, or more syntheses than permits would run at once.
-        self.synth_permits.acquire().await.expect("the semaphore is never closed").forget();
-        let app = self.clone();
+        let permit = self.synth_permits.clone().acquire_owned().await.expect("the semaphore is never closed");
         let (synth_s, encode_s, in_flight, count) = (
             self.metrics.synthesis_seconds.clone(),
             self.metrics.encode_seconds.with_label_values(&[format.ext()]),
@@ -86,7 +80,7 @@ impl AppState {
             };
             let result = std::panic::catch_unwind(std::panic::AssertUnwindSafe(work));
             in_flight.dec();
-            app.synth_permits.add_permits(1);
+            drop(permit);
             result.unwrap_or_else(|_| {
                 Err(ApiError::internal("synthesis failed inside the model; the texture cannot render this region"))
             })
