@@ -105,6 +105,8 @@ pub struct Metrics {
     pub syntheses: IntCounter,
     pub synthesis_seconds: Histogram,
     pub encode_seconds: HistogramVec,
+    /// Whole tile batches, from the request to the body's end, by how the body ended.
+    pub batch_seconds: HistogramVec,
     pub syntheses_in_flight: IntGauge,
     pub cache_bytes: IntGauge,
     pub cache_budget_bytes: IntGauge,
@@ -129,8 +131,11 @@ impl Metrics {
             &["route", "method", "status"],
         ));
         let request_seconds = must(HistogramVec::new(
-            HistogramOpts::new("vtex_http_request_duration_seconds", "HTTP request latency by route")
-                .buckets(fast.clone()),
+            HistogramOpts::new(
+                "vtex_http_request_duration_seconds",
+                "HTTP request latency by route, to the response headers (a streamed batch ends later)",
+            )
+            .buckets(fast.clone()),
             &["route"],
         ));
         let bytes_out = must(IntCounter::new("vtex_http_response_bytes_total", "Response body bytes sent"));
@@ -151,6 +156,15 @@ impl Metrics {
             HistogramOpts::new("vtex_encode_seconds", "Time to encode one tile or region, by format").buckets(fast),
             &["format"],
         ));
+        let batch_seconds = must(HistogramVec::new(
+            HistogramOpts::new(
+                "vtex_tile_batch_seconds",
+                "Tile batches from the request to the end of the body, by outcome: complete, dropped \
+                 (the client went away) or timeout",
+            )
+            .buckets(vec![0.001, 0.0025, 0.005, 0.01, 0.025, 0.05, 0.1, 0.25, 0.5, 1.0, 2.5, 5.0, 10.0, 30.0]),
+            &["outcome"],
+        ));
         let syntheses_in_flight = must(IntGauge::new("vtex_syntheses_in_flight", "Syntheses running now"));
         let cache_bytes = must(IntGauge::new("vtex_tile_cache_bytes", "Bytes held by the tile cache"));
         let cache_budget_bytes = must(IntGauge::new("vtex_tile_cache_budget_bytes", "Byte budget of the tile cache"));
@@ -170,6 +184,7 @@ impl Metrics {
             Box::new(syntheses.clone()),
             Box::new(synthesis_seconds.clone()),
             Box::new(encode_seconds.clone()),
+            Box::new(batch_seconds.clone()),
             Box::new(syntheses_in_flight.clone()),
             Box::new(cache_bytes.clone()),
             Box::new(cache_budget_bytes.clone()),
@@ -196,6 +211,7 @@ impl Metrics {
             syntheses,
             synthesis_seconds,
             encode_seconds,
+            batch_seconds,
             syntheses_in_flight,
             cache_bytes,
             cache_budget_bytes,

@@ -48,6 +48,20 @@ fn batch_url(s: &Server, id: &str, query: &str) -> String {
     s.url(&format!("/api/v1/textures/{id}/tiles?{query}"))
 }
 
+/// Batches timed to their end with this `outcome`, once the count reaches `want` (a body is
+/// timed when the connection drops it, just after its last bytes went out) or 5 s passed.
+async fn batches_timed(c: &reqwest::Client, s: &Server, outcome: &str, want: f64) -> f64 {
+    let mut seen = 0.0;
+    for _ in 0..50 {
+        seen = metric(&metrics(c, s).await, "vtex_tile_batch_seconds_count", &[("outcome", outcome)]);
+        if seen >= want {
+            break;
+        }
+        tokio::time::sleep(Duration::from_millis(100)).await;
+    }
+    seen
+}
+
 #[tokio::test]
 async fn frames_equal_single_tiles_hits_first() {
     let dir = tempdir();
@@ -108,6 +122,7 @@ async fn frames_equal_single_tiles_hits_first() {
         metric(&m, "vtex_http_requests_total", &[("route", "/api/v1/textures/{id}/tiles?tiles="), ("status", "200")]),
         4.0
     );
+    assert_eq!(batches_timed(&c, &s, "complete", 4.0).await, 4.0, "each batch timed to its end");
     // 7 tiles × 2 formats × 2 batches + 2 warming + 14 single checks + 2 more per format (= 7 checks each)
     let hits = metric(&m, "vtex_tile_cache_hits_total", &[]);
     let misses = metric(&m, "vtex_tile_cache_misses_total", &[]);
@@ -192,6 +207,8 @@ async fn a_client_going_away_stops_the_batch() {
     assert_eq!(a, b, "syntheses stopped");
     assert!(a < 64.0, "{a} of 256 tiles were made after the client left");
     assert_eq!(metric(&metrics(&c, &s).await, "vtex_syntheses_in_flight", &[]), 0.0);
+    assert_eq!(batches_timed(&c, &s, "dropped", 1.0).await, 1.0, "the batch is timed as dropped");
+    assert_eq!(batches_timed(&c, &s, "complete", 0.0).await, 0.0);
 }
 
 /// Batches dropped while their tiles render never let more syntheses run than permits: a
@@ -225,4 +242,21 @@ async fn aborted_batches_keep_the_synthesis_bound() {
     // (Before permits were held by the render, this saw 4 with one permit.)
     let most = most.load(std::sync::atomic::Ordering::SeqCst);
     assert!(most <= 1, "{most} renders at once with --max-syntheses 1");
+}
+
+/// A batch not finished by the request deadline is cut off: the client sees a truncated body
+/// (never a complete-looking one), the metrics time it as a timeout, and the server serves on.
+#[tokio::test]
+async fn a_batch_past_the_deadline_is_cut_off() {
+    let dir = tempdir();
+    let s = Server::start(dir.path(), &["--max-syntheses", "1", "--request-timeout-secs", "0.1"]);
+    let c = client();
+    let id = put(&c, &s, &mosaic(64, 100, 5)).await; // 6400²: 25×25 tiles at level 0
+    let list = (0..256).map(|i| format!("0/{}/{}", i % 25, i / 25)).collect::<Vec<_>>().join(",");
+    let resp = c.get(batch_url(&s, &id, &format!("tiles={list}&format=png"))).send().await.unwrap();
+    assert_eq!(resp.status(), 200);
+    assert!(resp.bytes().await.is_err(), "the body ends in an error, not a short but well-formed stream");
+    assert_eq!(batches_timed(&c, &s, "timeout", 1.0).await, 1.0);
+    let (st, _, body) = get_bytes(&c, &batch_url(&s, &id, "tiles=0/0/0&format=rgba")).await;
+    assert_eq!((st, frames(&body).len()), (200, 1), "the server serves on");
 }

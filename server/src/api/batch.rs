@@ -47,6 +47,7 @@ use std::future::Future;
 use std::pin::Pin;
 use std::sync::Arc;
 use std::task::{Context, Poll};
+use std::time::Instant;
 use tokio::task::JoinSet;
 
 /// Most tiles one request may ask for (a 4K screen of 256-px tiles needs ~150).
@@ -204,6 +205,7 @@ pub async fn batch(
     path: Result<Path<String>, PathRejection>,
     RawQuery(query): RawQuery,
 ) -> Result<Response, ApiError> {
+    let started = Instant::now();
     let Path(id) = path.map_err(|e| ApiError::bad_request(e.body_text()))?;
     let entry = lookup(&app, &id)?;
     let BatchQuery { tiles, format, frame } = parse_query(&entry, query.as_deref())?;
@@ -226,7 +228,7 @@ pub async fn batch(
         }
     }
     let deadline = Box::pin(tokio::time::sleep(app.cfg.request_timeout()));
-    let body = BatchBody { ready, pending, deadline, app: app.clone() };
+    let body = BatchBody { ready, pending, deadline, app: app.clone(), started, timed_out: false };
     let mut resp = Response::new(Body::new(body));
     let h = resp.headers_mut();
     h.insert(header::CONTENT_TYPE, HeaderValue::from_static(CONTENT_TYPE));
@@ -256,12 +258,30 @@ fn push_error(out: &mut VecDeque<Bytes>, tile: TileRef, e: &ApiError) {
 type Obtained = Result<(Arc<Tile>, Source), ApiError>;
 
 /// The response body: queued chunks first, then tiles as their tasks finish. Dropping it
-/// drops the [`JoinSet`], which aborts the tasks still running.
+/// drops the [`JoinSet`], which aborts the tasks still running, and times the whole batch
+/// (the request histogram only sees the headers go out).
 struct BatchBody {
     ready: VecDeque<Bytes>,
     pending: JoinSet<(TileRef, Obtained)>,
     deadline: Pin<Box<tokio::time::Sleep>>,
     app: App,
+    started: Instant,
+    timed_out: bool,
+}
+
+impl Drop for BatchBody {
+    fn drop(&mut self) {
+        // `outcome`: every frame handed to the connection, cut off at the deadline, or dropped
+        // before its end (the client went away).
+        let outcome = if self.timed_out {
+            "timeout"
+        } else if http_body::Body::is_end_stream(self) {
+            "complete"
+        } else {
+            "dropped"
+        };
+        self.app.metrics.batch_seconds.with_label_values(&[outcome]).observe(self.started.elapsed().as_secs_f64());
+    }
 }
 
 impl http_body::Body for BatchBody {
@@ -286,6 +306,7 @@ impl http_body::Body for BatchBody {
                 }
                 Poll::Pending => {
                     if this.deadline.as_mut().poll(cx).is_ready() {
+                        this.timed_out = true;
                         return Poll::Ready(Some(Err(std::io::Error::other("tile batch not completed in time"))));
                     }
                     return Poll::Pending;
