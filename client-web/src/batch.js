@@ -27,11 +27,15 @@ export function tileKey(level, x, y) {
  * is handed to `onFrame` as { level, x, y, status, cache: 'hit' | 'miss' | null, width,
  * height, length, body: Uint8Array } the moment its last byte is pushed. A frame that lies
  * wholly inside one chunk is a view of it; one split across chunks is copied once, into a
- * buffer of its own.
+ * buffer of its own — or, with `reuse`, into one buffer the reader keeps for every split frame
+ * (`body` is then valid only during `onFrame`, which must copy what it keeps): a fresh 256 KiB
+ * buffer costs the browser ~0.2 ms to allocate and fill, as much as the copy
+ * (tests/browser/ingest.mjs).
  */
 export class FrameReader {
-  constructor(onFrame) {
+  constructor(onFrame, { reuse = false } = {}) {
     this.onFrame = onFrame;
+    this.scratch = reuse ? new Uint8Array(0) : null;
     this.header = new Uint8Array(HEADER_LEN);
     this.headerFill = 0;
     this.frame = null; // the frame whose body is being filled
@@ -63,7 +67,11 @@ export class FrameReader {
         i += n;
         if (this.headerFill < HEADER_LEN) return;
         this.headerFill = 0;
-        this.frame = parseHeader(this.header);
+        this.frame = parseHeader(this.header, !this.scratch);
+        if (this.scratch) {
+          if (this.scratch.length < this.frame.length) this.scratch = new Uint8Array(this.frame.length);
+          this.frame.body = this.scratch.subarray(0, this.frame.length);
+        }
         this.bodyFill = 0;
       }
       const body = this.frame.body;

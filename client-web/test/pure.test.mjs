@@ -289,6 +289,22 @@ test('batch frames are read whatever the chunk boundaries', () => {
     assert.deepEqual(got, frames.map((f) => ({ ...f, length: undefined })), `chunks of ${size}`);
     assert.ok(reader.complete);
   }
+  // With `reuse`, split frames share one buffer: each body is right while onFrame runs.
+  for (const size of [1, 5, 33, all.length]) {
+    const got = [];
+    const bodies = new Set();
+    const reader = new FrameReader(
+      (f) => {
+        got.push({ ...f, body: [...f.body], length: undefined });
+        bodies.add(f.body.buffer);
+      },
+      { reuse: true },
+    );
+    for (let i = 0; i < all.length; i += size) reader.push(all.subarray(i, i + size));
+    assert.deepEqual(got, frames.map((f) => ({ ...f, length: undefined })), `reused buffer, chunks of ${size}`);
+    assert.ok(reader.complete);
+    if (size < all.length) assert.equal(bodies.size, 2, 'split frames share one buffer (it grew once, for the 14-byte body)');
+  }
   const cut = new FrameReader(() => {});
   cut.push(all.subarray(0, 36));
   assert.ok(!cut.complete, 'a stream cut inside a frame is noticed');
