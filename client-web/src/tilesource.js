@@ -5,7 +5,10 @@
 // smallest) and rgba (raw: no decoding, the fastest on a fast link).
 
 import { inPyramid, tileUrl, vtexLevel } from './pyramid.js';
-import { FrameReader, MAX_BATCH, batchUrl, tileKey } from './batch.js';
+import { FrameReader, MAX_BATCH, batchUrl, readChunks, tileKey } from './batch.js';
+
+/** Read buffers of the batches that finished, for the next ones (batch.js readChunks). */
+const readBuffers = [];
 
 /**
  * Makes the tile source for texture `info` (the server's info JSON) at animation `frame`.
@@ -208,13 +211,10 @@ function loadBatch(info, jobs, { frame, format, stats }) {
       if (!response.ok) {
         throw new Error(`HTTP ${response.status} for ${url.slice(0, 120)}: ${errorText(new Uint8Array(await response.arrayBuffer()))}`);
       }
+      // Chunks and split frames live in buffers that are reused: each tile takes its bytes
+      // while its frame is handed over (rgbaTile, encodedTile, errorText all copy at once).
       const reader = new FrameReader(deliver, { reuse: true });
-      const body = response.body.getReader();
-      for (;;) {
-        const { done, value } = await body.read();
-        if (done) break;
-        reader.push(value);
-      }
+      await readChunks(response.body, (chunk) => reader.push(chunk), readBuffers);
       if (!reader.complete) throw new Error('the tile batch ended inside a frame');
       for (const job of [...byKey.values()].flat()) fail(job, `the tile batch ended without tile ${job.src}`);
     })

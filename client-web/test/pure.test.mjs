@@ -6,7 +6,7 @@ import { inPyramid, levelSize, osdLevel, tileCount, tileUrl, vtexLevel, drawLeve
 import { formatView, parseView } from '../src/view-url.js';
 import { TileStats, formatBytes, formatRatio, percentile } from '../src/stats.js';
 import { PREVIEW_STEPS, scheduleTiles, wantedLevel } from '../src/loader.js';
-import { FrameReader, HEADER_LEN, MAGIC, MAX_BATCH, batchUrl, tileKey } from '../src/batch.js';
+import { FrameReader, HEADER_LEN, MAGIC, MAX_BATCH, READ_BUFFER_BYTES, batchUrl, readChunks, tileKey } from '../src/batch.js';
 
 const big = { id: 'ab'.repeat(32), width: 100_000, height: 100_000, levels: 10, tile_size: 256, animated: false };
 const odd = { id: 'cd'.repeat(32), width: 3000, height: 700, levels: 5, tile_size: 256, animated: true };
@@ -311,6 +311,58 @@ test('batch frames are read whatever the chunk boundaries', () => {
   const bad = Uint8Array.from(all);
   bad[3] = 2;
   assert.throws(() => new FrameReader(() => {}).push(bad), /not a vtex tile batch frame/);
+});
+
+test('a body is read through one reused buffer where the stream allows it, else chunk by chunk', async () => {
+  const parts = [Uint8Array.of(1, 2, 3), Uint8Array.of(4), new Uint8Array(5000).fill(7)];
+  const expected = [1, 2, 3, 4, ...new Array(5000).fill(7)];
+  // A byte stream (as fetch bodies are in Chromium): chunks land in the pool's buffer.
+  const bytes = () => {
+    let i = 0;
+    return new ReadableStream({
+      type: 'bytes',
+      pull(c) {
+        if (i < parts.length) c.enqueue(Uint8Array.from(parts[i++]));
+        else {
+          c.close();
+          if (c.byobRequest) c.byobRequest.respond(0); // a pending BYOB read ends with the stream
+        }
+      },
+    });
+  };
+  const pool = [];
+  const seen = [];
+  const buffers = new Set();
+  await readChunks(bytes(), (chunk) => {
+    seen.push(...chunk);
+    buffers.add(chunk.byteLength && chunk.buffer.byteLength);
+  }, pool);
+  assert.deepEqual(seen, expected);
+  assert.deepEqual([...buffers], [READ_BUFFER_BYTES], 'every chunk is a view of the one buffer');
+  assert.equal(pool.length, 1, 'the buffer went back to the pool');
+  const again = [];
+  await readChunks(bytes(), (chunk) => again.push(...chunk), pool);
+  assert.deepEqual(again, expected);
+  assert.equal(pool.length, 1, 'the second body reused it');
+  // A plain stream: its chunks as they come.
+  let j = 0;
+  const plain = new ReadableStream({
+    pull(c) {
+      if (j < parts.length) c.enqueue(parts[j++]);
+      else c.close();
+    },
+  });
+  const got = [];
+  await readChunks(plain, (chunk) => got.push(chunk), []);
+  assert.deepEqual(got, parts);
+  // An error in the stream reaches the caller.
+  const broken = new ReadableStream({
+    type: 'bytes',
+    pull(c) {
+      c.error(new Error('cut'));
+    },
+  });
+  await assert.rejects(readChunks(broken, () => {}, []), /cut/);
 });
 
 /** A frame header as the server writes it (server/src/api/batch.rs): what FrameReader parses. */

@@ -152,7 +152,7 @@ async function runCase({ url, kind }) {
       const reader = new FrameReader((f) => {
         n++;
         if (kind === 'frames') return;
-        if (kind.startsWith('bitmap')) {
+        if (kind.includes('bitmap')) {
           const i = n;
           const px = new Uint8ClampedArray(f.body.buffer, f.body.byteOffset, f.body.length);
           bitmaps.push(
@@ -171,14 +171,29 @@ async function runCase({ url, kind }) {
         if (kind !== 'put') target.drawImage(c, ...place(n, f.width, f.height));
         tiles.push(c);
       });
-      const body = r.body.getReader();
-      for (;;) {
-        const { done, value } = await body.read();
-        if (done) break;
-        const s = performance.now();
-        chunks.push(value.length);
-        if (kind !== 'read') reader.push(value);
-        mainMs += performance.now() - s;
+      if (kind.startsWith('byob')) {
+        // One buffer for the whole body, handed back and forth: no fresh memory per chunk.
+        const body = r.body.getReader({ mode: 'byob' });
+        let buffer = new ArrayBuffer(4 << 20);
+        for (;;) {
+          const { done, value } = await body.read(new Uint8Array(buffer));
+          if (done) break;
+          const s = performance.now();
+          chunks.push(value.length);
+          if (kind !== 'byob') reader.push(value);
+          mainMs += performance.now() - s;
+          buffer = value.buffer;
+        }
+      } else {
+        const body = r.body.getReader();
+        for (;;) {
+          const { done, value } = await body.read();
+          if (done) break;
+          const s = performance.now();
+          chunks.push(value.length);
+          if (kind !== 'read') reader.push(value);
+          mainMs += performance.now() - s;
+        }
       }
       await Promise.all(bitmaps);
       for (const c of tiles) c.width = 0;
@@ -190,7 +205,7 @@ async function runCase({ url, kind }) {
   return { wall, mainMs, n, chunks, net: e ? e.responseEnd - e.responseStart : workerNet };
 }
 
-const KINDS = ['read', 'arrayBuffer', 'frames', 'put', 'put+draw', 'put(opaque)+draw', 'bitmap(none)+draw', 'w:read', 'w:bitmap', 'w:bitmap+draw', 'w:bitmap(none)+draw'];
+const KINDS = ['read', 'arrayBuffer', 'frames', 'put', 'put+draw', 'put(opaque)+draw', 'bitmap(none)+draw', 'byob', 'byob+bitmap(none)+draw', 'w:read', 'w:bitmap', 'w:bitmap+draw', 'w:bitmap(none)+draw'];
 const server = await startServer({ extraArgs: ['--cache-mb', '2048'] });
 try {
   const textures = (await (await fetch(`${server.url}/api/v1/textures`)).json()).textures;
