@@ -6,6 +6,7 @@ import { TileStats, formatBytes, formatRatio } from './stats.js';
 import { FORMATS, parseView, formatView } from './view-url.js';
 import { drawLevel, MIN_PIXEL_RATIO, vtexLevel } from './pyramid.js';
 import { scheduleTiles } from './loader.js';
+import { drawIncrementally } from './drawing.js';
 
 const OSD = window.OpenSeadragon;
 const $ = (id) => document.getElementById(id);
@@ -71,6 +72,7 @@ const viewer = OSD({
   crossOriginPolicy: false,
 });
 scheduleTiles(viewer);
+drawIncrementally(viewer);
 
 // ---------------------------------------------------------------------------------------
 // Texture list, picker and opening

@@ -6,6 +6,7 @@ import { inPyramid, levelSize, osdLevel, tileCount, tileUrl, vtexLevel, drawLeve
 import { formatView, parseView } from '../src/view-url.js';
 import { TileStats, formatBytes, formatRatio, percentile } from '../src/stats.js';
 import { PREVIEW_STEPS, scheduleTiles, wantedLevel } from '../src/loader.js';
+import { drawIncrementally, tilesToAdd, viewKey } from '../src/drawing.js';
 import { FrameReader, HEADER_LEN, MAGIC, MAX_BATCH, READ_BUFFER_BYTES, batchUrl, readChunks, tileKey } from '../src/batch.js';
 
 const big = { id: 'ab'.repeat(32), width: 100_000, height: 100_000, levels: 10, tile_size: 256, animated: false };
@@ -363,6 +364,96 @@ test('a body is read through one reused buffer where the stream allows it, else 
     },
   });
   await assert.rejects(readChunks(broken, () => {}, []), /cut/);
+});
+
+test('only tiles at least as fine as every drawn tile are drawn on top; anything else redraws', () => {
+  const whole = { level: 0 };
+  const preview = { level: 5 };
+  const a = { level: 8 };
+  const b = { level: 8 };
+  const c = { level: 8 };
+  assert.deepEqual(tilesToAdd([], [whole, preview]), [whole, preview]);
+  assert.deepEqual(tilesToAdd([whole, preview], [whole, preview, a, b]), [a, b], 'finest tiles over the preview');
+  assert.deepEqual(tilesToAdd([whole, preview, a], [whole, preview, a, b, c]), [b, c]);
+  assert.deepEqual(tilesToAdd([whole, a], [whole, a]), [], 'nothing new: nothing drawn');
+  assert.equal(tilesToAdd([whole, a], [whole, preview, a]), null, 'a coarser tile after a finer one would cover it');
+  assert.equal(tilesToAdd([whole, preview, a], [whole, a, b]), null, 'a tile no longer drawn must be painted over');
+});
+
+/** A stand-in OpenSeadragon viewer: one tiled image, a view, and a canvas drawer that logs. */
+function standInViewer() {
+  const log = [];
+  const events = [];
+  let bounds = { x: 0, y: 0, width: 1, height: 0.75 };
+  const item = {
+    opacity: 1,
+    tiles: [],
+    smoothTileEdgesMinZoom: 1.1,
+    zoom: 0.5,
+    getRotation: () => 0,
+    viewportToImageZoom() {
+      return this.zoom;
+    },
+    getTilesToDraw() {
+      this._lastDrawn = this.tiles.map((tile) => ({ tile }));
+      return this._lastDrawn;
+    },
+  };
+  const viewer = {
+    viewport: {
+      getRotation: () => 0,
+      getFlip: () => false,
+      getZoom: () => 1,
+      getBoundsNoRotate: () => bounds,
+      getContainerSize: () => ({ x: 960, y: 760 }),
+    },
+    drawer: {
+      _imageSmoothingEnabled: true,
+      draw(items) {
+        log.push(['full', ...items.flatMap((i) => (i.opacity ? i.getTilesToDraw().map((d) => d.tile.name) : []))]);
+      },
+      _drawTile(tile) {
+        log.push(['add', tile.name]);
+      },
+    },
+    raiseEvent: (name, e) => events.push([name, e.tile.name]),
+  };
+  return { viewer, item, log, events, pan: () => (bounds = { ...bounds, x: bounds.x + 0.1 }) };
+}
+
+test('a frame of the same view draws only the tiles that arrived; a moved view redraws all', () => {
+  const { viewer, item, log, events, pan } = standInViewer();
+  drawIncrementally(viewer);
+  const t = (name, level) => ({ name, level });
+  const whole = t('whole', 0);
+  const a = t('a', 8);
+  const b = t('b', 8);
+  const draw = () => viewer.drawer.draw([item]);
+  item.tiles = [whole];
+  draw();
+  item.tiles = [whole, a];
+  draw();
+  item.tiles = [whole, a, b];
+  draw();
+  assert.deepEqual(log, [['full', 'whole'], ['add', 'a'], ['add', 'b']]);
+  assert.deepEqual(events, [['tile-drawn', 'a'], ['tile-drawn', 'b']]);
+  pan();
+  draw();
+  assert.deepEqual(log.at(-1), ['full', 'whole', 'a', 'b'], 'the view moved');
+  item.tiles = [whole, t('p', 5), a, b];
+  draw();
+  assert.deepEqual(log.at(-1), ['full', 'whole', 'p', 'a', 'b'], 'a coarser tile arrived');
+  // Beyond smoothTileEdgesMinZoom OpenSeadragon draws through its sketch canvas: always full.
+  item.zoom = 2;
+  assert.equal(viewKey(viewer, [item]), null);
+  item.tiles = [whole, t('p', 5), a, b, t('c', 8)];
+  draw();
+  assert.equal(log.at(-1)[0], 'full');
+  item.zoom = 0.5;
+  // Two visible images (or none): full frames.
+  assert.equal(viewKey(viewer, [item, { ...item }]), null);
+  assert.equal(viewKey(viewer, [{ ...item, opacity: 0 }]), null);
+  assert.notEqual(viewKey(viewer, [item, { ...item, opacity: 0 }]), null, 'an invisible image (a frame loading behind) is not drawn');
 });
 
 /** A frame header as the server writes it (server/src/api/batch.rs): what FrameReader parses. */
