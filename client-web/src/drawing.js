@@ -64,11 +64,14 @@ export function viewKey(viewer, items) {
  * Makes `viewer`'s canvas drawer draw only the newly arrived tiles when that gives the same
  * frame as a full redraw (`tilesToAdd`, `viewKey`). Draws a new tile with the drawer's own
  * tile drawing (`_drawTile`, OpenSeadragon 5's canvas drawer) and raises `tile-drawn` for it, as
- * a full redraw does for every tile. Does nothing for a drawer without `_drawTile`.
+ * a full redraw does for every tile. Does nothing for a drawer without `_drawTile`. Returns
+ * the counts of full and incremental frames, live.
  */
 export function drawIncrementally(viewer) {
   const drawer = viewer.drawer;
-  if (!drawer || typeof drawer._drawTile !== 'function') return;
+  // Frames drawn in full and frames that only added tiles (for tests and the curious).
+  const counts = { full: 0, incremental: 0 };
+  if (!drawer || typeof drawer._drawTile !== 'function') return counts;
   const fullDraw = drawer.draw.bind(drawer);
   let last = null; // { key, item, tiles }: what the canvas shows
   drawer.draw = (items) => {
@@ -83,12 +86,22 @@ export function drawIncrementally(viewer) {
           viewer.raiseEvent('tile-drawn', { tiledImage: item, tile });
         }
         last.tiles = next;
+        counts.incremental++;
         return;
       }
     }
     fullDraw(items);
+    counts.full++;
     // getTilesToDraw() marks tiles as drawn and refreshes their coverage; the full draw just did
     // that, so its list (`_lastDrawn`) is read rather than computed again.
     last = key === null ? null : { key, item, tiles: (item._lastDrawn || []).map((info) => info.tile) };
   };
+  // A forced redraw (OpenSeadragon's own, e.g. after the smoothing changed, or the page's) is a
+  // full one.
+  const forceRedraw = viewer.forceRedraw.bind(viewer);
+  viewer.forceRedraw = () => {
+    last = null;
+    return forceRedraw();
+  };
+  return counts;
 }

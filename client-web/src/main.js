@@ -72,7 +72,7 @@ const viewer = OSD({
   crossOriginPolicy: false,
 });
 scheduleTiles(viewer);
-drawIncrementally(viewer);
+const frames = drawIncrementally(viewer);
 
 // ---------------------------------------------------------------------------------------
 // Texture list, picker and opening
@@ -437,7 +437,7 @@ performance.addEventListener('resourcetimingbufferfull', () => performance.clear
 setInterval(renderStats, 250);
 
 // Hooks for the end-to-end tests and the measured session in tests/browser/.
-window.vtexViewer = { viewer, stats, state, getView, setView, drawnLevels, openTexture, findTexture, showFrame };
+window.vtexViewer = { viewer, stats, state, frames, getView, setView, drawnLevels, openTexture, findTexture, showFrame };
 
 async function start() {
   renderStats();

@@ -417,13 +417,14 @@ function standInViewer() {
       },
     },
     raiseEvent: (name, e) => events.push([name, e.tile.name]),
+    forceRedraw: () => log.push(['forced']),
   };
   return { viewer, item, log, events, pan: () => (bounds = { ...bounds, x: bounds.x + 0.1 }) };
 }
 
 test('a frame of the same view draws only the tiles that arrived; a moved view redraws all', () => {
   const { viewer, item, log, events, pan } = standInViewer();
-  drawIncrementally(viewer);
+  const counts = drawIncrementally(viewer);
   const t = (name, level) => ({ name, level });
   const whole = t('whole', 0);
   const a = t('a', 8);
@@ -437,9 +438,13 @@ test('a frame of the same view draws only the tiles that arrived; a moved view r
   draw();
   assert.deepEqual(log, [['full', 'whole'], ['add', 'a'], ['add', 'b']]);
   assert.deepEqual(events, [['tile-drawn', 'a'], ['tile-drawn', 'b']]);
+  assert.deepEqual(counts, { full: 1, incremental: 2 });
   pan();
   draw();
   assert.deepEqual(log.at(-1), ['full', 'whole', 'a', 'b'], 'the view moved');
+  viewer.forceRedraw();
+  draw();
+  assert.deepEqual(log.slice(-2), [['forced'], ['full', 'whole', 'a', 'b']], 'a forced redraw is a full one');
   item.tiles = [whole, t('p', 5), a, b];
   draw();
   assert.deepEqual(log.at(-1), ['full', 'whole', 'p', 'a', 'b'], 'a coarser tile arrived');
