@@ -1,30 +1,35 @@
 // How fast the viewer's page can take in a batch of raw RGBA tiles, stage by stage: the same
 // headless Chromium as the bench (bare DevTools pipe), tiles already in the server's cache.
 //
-//   node tests/browser/ingest.mjs [--tiles 56] [--rounds 3]
+//   node tests/browser/ingest.mjs [--tiles 56] [--rounds 5]
 //
-// Each case fetches a fresh block of level-2 tiles (never fetched before: batches are
-// `no-store` anyway) as one batch (`…/tiles?format=rgba&tiles=…`, what the viewer sends for a
-// view) and does a little more with it than the case before:
-//   read        stream reader, chunks dropped                  (main thread)
-//   arrayBuffer the whole body at once                          (main thread)
-//   frames      stream reader + FrameReader                     (main thread)
-//   put         + a canvas per tile, putImageData               (main thread; the viewer today)
-//   put+draw    + every tile drawn at half size into a 960×760 canvas, as a zoomed-out view
-//   w:read      a dedicated Worker fetches and reads, chunks dropped
-//   w:bitmap    a Worker fetches, splits frames, createImageBitmap(ImageData) per tile and
-//               transfers the bitmaps; the main thread receives them
-//   w:bitmap+draw  + the main thread draws the bitmaps at half size
-// and reports the wall time from fetch() to the last tile handled, the batch's first → last
-// byte (Resource Timing), and the CPU of Chromium's renderer threads and other processes
-// (/proc, 10 ms ticks; summed over rounds).
+// Each case fetches a fresh block of level-2 tiles (batches are `no-store`) as one batch
+// (`…/tiles?format=rgba&tiles=…`, what the viewer sends for a view; 56 tiles = 14.7 MB, the
+// largest views of the bench) and does something with it:
+//   read              default stream reader, chunks dropped          (main thread)
+//   arrayBuffer       the whole body at once
+//   frames            default reader + FrameReader
+//   put               + a canvas per tile, putImageData              (the viewer before session 4)
+//   put+draw          + every tile drawn at half size into a 960×760 canvas, as a zoomed-out view
+//   put(opaque)+draw  the same with `{ alpha: false }` canvases
+//   bitmap(none)+draw default reader + createImageBitmap(ImageData, premultiplyAlpha 'none')
+//   byob              a BYOB reader into one reused 2 MiB buffer, chunks dropped
+//   byob+bitmap(none)+draw   the viewer now (batch.js readChunks, tilesource.js rgbaTile)
+//   w:read            a dedicated Worker fetches and reads (default reader), chunks dropped
+//   w:bitmap[(none)][+draw]  a Worker reads, splits frames, makes an ImageBitmap per tile and
+//                     transfers it; the main thread receives (and draws) them
+// and reports the median wall time from fetch() to the last tile handled, the batch's first →
+// last byte (Resource Timing), the synchronous JS time of the main thread's handlers, and the
+// CPU of Chromium's renderer threads and other processes (/proc, 10 ms ticks; mean per batch).
+// Then the cost of rastering one frame of such a view (56 tiles at 0.52 scale, smoothing on,
+// flushed with getImageData) from canvases and from unpremultiplied ImageBitmaps.
 import { readFileSync, readdirSync } from 'node:fs';
 import { parseArgs } from 'node:util';
 import { startServer } from './lib.mjs';
 import { launchBare } from './cdp.mjs';
 
 const { values: args } = parseArgs({
-  options: { tiles: { type: 'string', default: '56' }, rounds: { type: 'string', default: '3' } },
+  options: { tiles: { type: 'string', default: '56' }, rounds: { type: 'string', default: '5' } },
 });
 const N = Number(args.tiles);
 const ROUNDS = Number(args.rounds);
@@ -205,6 +210,52 @@ async function runCase({ url, kind }) {
   return { wall, mainMs, n, chunks, net: e ? e.responseEnd - e.responseStart : workerNet };
 }
 
+/** Runs in the page: median ms to raster one frame of 56 tiles at 0.52 scale, by tile kind. */
+async function rasterCase() {
+  const N = 56;
+  const W = 256;
+  const R = 9;
+  const src = [];
+  for (let i = 0; i < N; i++) {
+    const a = new Uint8ClampedArray(W * W * 4);
+    for (let j = 0; j < a.length; j++) a[j] = (j & 3) === 3 ? 255 : (Math.imul(j, 2654435761) + i) >>> 24;
+    src.push(a);
+  }
+  const target = document.createElement('canvas');
+  target.width = 960;
+  target.height = 760;
+  document.body.appendChild(target);
+  const t = target.getContext('2d');
+  const kinds = {
+    'canvas (putImageData)': src.map((a) => {
+      const c = document.createElement('canvas');
+      c.width = W;
+      c.height = W;
+      c.getContext('2d').putImageData(new ImageData(a, W, W), 0, 0);
+      return c;
+    }),
+    'ImageBitmap, premultiplyAlpha none': await Promise.all(src.map((a) => createImageBitmap(new ImageData(a, W, W), { premultiplyAlpha: 'none' }))),
+    'ImageBitmap, premultiplied': await Promise.all(src.map((a) => createImageBitmap(new ImageData(a, W, W), { premultiplyAlpha: 'premultiply' }))),
+  };
+  const out = {};
+  const s = 0.52;
+  for (const [name, imgs] of Object.entries(kinds)) {
+    const ts = [];
+    for (let r = 0; r < R; r++) {
+      t.imageSmoothingEnabled = true;
+      const t0 = performance.now();
+      t.clearRect(0, 0, 960, 760);
+      imgs.forEach((c, i) => t.drawImage(c, 0, 0, W, W, (i % 8) * W * s + 0.3, Math.floor(i / 8) * W * s + 0.3, W * s, W * s));
+      t.getImageData(0, 0, 1, 1); // raster now
+      ts.push(performance.now() - t0);
+      await new Promise((res) => requestAnimationFrame(res));
+    }
+    out[name] = ts.sort((a, b) => a - b)[R >> 1];
+  }
+  target.remove();
+  return out;
+}
+
 const KINDS = ['read', 'arrayBuffer', 'frames', 'put', 'put+draw', 'put(opaque)+draw', 'bitmap(none)+draw', 'byob', 'byob+bitmap(none)+draw', 'w:read', 'w:bitmap', 'w:bitmap+draw', 'w:bitmap(none)+draw'];
 const server = await startServer({ extraArgs: ['--cache-mb', '2048'] });
 try {
@@ -239,7 +290,6 @@ try {
     for (const k of Object.keys(after)) a.cpu[k] = (a.cpu[k] || 0) + (after[k] - (before[k] || 0));
     await new Promise((res) => setTimeout(res, 100));
   }
-  await page.close();
   const mb = (N * 256 * 256 * 4) / 1e6;
   const f = (v) => (Number.isFinite(v) ? v.toFixed(1) : '–');
   const med = (v) => [...v].sort((x, y) => x - y)[Math.floor(v.length / 2)];
@@ -247,7 +297,6 @@ try {
   const keys = ['r:main', 'r:DedicatedWorker', 'r:Compositor', 'r:ThreadPoolForeg', 'network', 'browser', 'gpu-process'];
   const ch = Object.values(acc).flatMap((a) => a.chunks);
   if (ch.length) console.log(`stream chunks: ${ch.length}, median ${med(ch)} bytes, mean ${Math.round(ch.reduce((x, y) => x + y, 0) / ch.length)}, max ${Math.max(...ch)}`);
-  console.log(`cpu keys: ${[...new Set(Object.values(acc).flatMap((a) => Object.keys(a.cpu)))].join(", ")}`);
   console.log(`| case | wall ms | MB/s | network first → last byte | main-thread JS in handlers | ${keys.join(' | ')} | other |`);
   console.log(`|---|---|---|---|---|${keys.map(() => '---').join('|')}|---|`);
   for (const kind of KINDS) {
@@ -257,6 +306,10 @@ try {
     const other = total - keys.reduce((s, k) => s + cpu(k), 0);
     console.log(`| ${kind} | ${f(med(a.wall))} | ${f(mb / (med(a.wall) / 1000))} | ${f(med(a.net))} | ${f(med(a.main))} | ${keys.map((k) => f(cpu(k))).join(' | ')} | ${f(other)} |`);
   }
+  const raster = await page.evaluate(rasterCase);
+  await page.close();
+  console.log('\none frame of a zoomed-out view, 56 tiles at 0.52 scale, smoothing on (median ms to raster):');
+  for (const [k, v] of Object.entries(raster)) console.log(`  ${k}: ${f(v)}`);
 } finally {
   await server.stop();
 }
