@@ -247,6 +247,14 @@ function renderStats() {
   fillDl($('stats'), rows);
 }
 
+/**
+ * Sets an element's text only when it changes: this runs after every frame, and a changed
+ * text makes the next frame lay the page out again (OpenSeadragon reads its container's size).
+ */
+function setText(element, text) {
+  if (element.textContent !== text) element.textContent = text;
+}
+
 let pointer = null;
 function updateReadouts() {
   const item = state.item;
@@ -255,7 +263,7 @@ function updateReadouts() {
   const zoom = item.viewportToImageZoom(viewer.viewport.getZoom(true));
   const levels = drawnLevels();
   const shown = levels.length ? `level ${levels[0]}` : 'loading';
-  $('zoom-readout').textContent = `zoom ${zoom >= 1 ? zoom.toFixed(2) : `1/${(1 / zoom).toFixed(1)}`} · ${shown}`;
+  setText($('zoom-readout'), `zoom ${zoom >= 1 ? zoom.toFixed(2) : `1/${(1 / zoom).toFixed(1)}`} · ${shown}`);
   if (pointer) {
     const p = item.viewerElementToImageCoordinates(new OSD.Point(pointer.x, pointer.y));
     const x = Math.floor(p.x);
