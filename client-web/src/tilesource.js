@@ -83,8 +83,8 @@ export function createTileSource(OSD, info, { frame = 0, format = 'png', stats }
       if (batch && !data.settled && --batch.live === 0) batch.controller.abort();
     },
 
-    // A tile arrives as a TileImage (an ImageBitmap, see below): the canvas drawer draws it as
-    // it would draw a tile's canvas.
+    // A tile arrives as `{ canvas: ImageBitmap }` (tileImage below): the canvas drawer draws
+    // the bitmap as it would draw a tile's canvas.
     createTileCache(cache, image) {
       cache._data = image;
     },
