@@ -6,6 +6,7 @@ import { TileStats, formatBytes, formatRatio } from './stats.js';
 import { FORMATS, parseView, formatView } from './view-url.js';
 import { drawLevel, MIN_PIXEL_RATIO, vtexLevel } from './pyramid.js';
 import { scheduleTiles } from './loader.js';
+import { drawIncrementally } from './drawing.js';
 
 const OSD = window.OpenSeadragon;
 const $ = (id) => document.getElementById(id);
@@ -71,6 +72,7 @@ const viewer = OSD({
   crossOriginPolicy: false,
 });
 scheduleTiles(viewer);
+const frames = drawIncrementally(viewer);
 
 // ---------------------------------------------------------------------------------------
 // Texture list, picker and opening
@@ -245,6 +247,14 @@ function renderStats() {
   fillDl($('stats'), rows);
 }
 
+/**
+ * Sets an element's text only when it changes: this runs after every frame, and a changed
+ * text makes the next frame lay the page out again (OpenSeadragon reads its container's size).
+ */
+function setText(element, text) {
+  if (element.textContent !== text) element.textContent = text;
+}
+
 let pointer = null;
 function updateReadouts() {
   const item = state.item;
@@ -253,7 +263,7 @@ function updateReadouts() {
   const zoom = item.viewportToImageZoom(viewer.viewport.getZoom(true));
   const levels = drawnLevels();
   const shown = levels.length ? `level ${levels[0]}` : 'loading';
-  $('zoom-readout').textContent = `zoom ${zoom >= 1 ? zoom.toFixed(2) : `1/${(1 / zoom).toFixed(1)}`} · ${shown}`;
+  setText($('zoom-readout'), `zoom ${zoom >= 1 ? zoom.toFixed(2) : `1/${(1 / zoom).toFixed(1)}`} · ${shown}`);
   if (pointer) {
     const p = item.viewerElementToImageCoordinates(new OSD.Point(pointer.x, pointer.y));
     const x = Math.floor(p.x);
@@ -435,7 +445,7 @@ performance.addEventListener('resourcetimingbufferfull', () => performance.clear
 setInterval(renderStats, 250);
 
 // Hooks for the end-to-end tests and the measured session in tests/browser/.
-window.vtexViewer = { viewer, stats, state, getView, setView, drawnLevels, openTexture, findTexture, showFrame };
+window.vtexViewer = { viewer, stats, state, frames, getView, setView, drawnLevels, openTexture, findTexture, showFrame };
 
 async function start() {
   renderStats();

@@ -5,7 +5,10 @@
 // smallest) and rgba (raw: no decoding, the fastest on a fast link).
 
 import { inPyramid, tileUrl, vtexLevel } from './pyramid.js';
-import { FrameReader, MAX_BATCH, batchUrl, tileKey } from './batch.js';
+import { FrameReader, MAX_BATCH, batchUrl, readChunks, tileKey } from './batch.js';
+
+/** Read buffers of the batches that finished, for the next ones (batch.js readChunks). */
+const readBuffers = [];
 
 /**
  * Makes the tile source for texture `info` (the server's info JSON) at animation `frame`.
@@ -80,14 +83,14 @@ export function createTileSource(OSD, info, { frame = 0, format = 'png', stats }
       if (batch && !data.settled && --batch.live === 0) batch.controller.abort();
     },
 
-    // A tile arrives as the 2D context the canvas drawer draws from (see tileContext below), so
-    // nothing is converted while a frame is drawn.
-    createTileCache(cache, context) {
-      cache._data = context;
+    // A tile arrives as `{ canvas: ImageBitmap }` (tileImage below): the canvas drawer draws
+    // the bitmap as it would draw a tile's canvas.
+    createTileCache(cache, image) {
+      cache._data = image;
     },
 
     destroyTileCache(cache) {
-      if (cache._data) releaseContext(cache._data);
+      if (cache._data) releaseImage(cache._data);
       cache._data = null;
     },
 
@@ -109,20 +112,23 @@ export function createTileSource(OSD, info, { frame = 0, format = 'png', stats }
 }
 
 /**
- * A canvas of w × h and its 2D context: a tile's pixels, ready for the drawer. Filled when the
- * tile arrives (in the fetch's task, between frames) rather than on first draw (inside a frame).
+ * A tile's pixels as the canvas drawer takes them: OpenSeadragon asks the tile source for a 2D
+ * context and draws its `canvas` (`drawImage(ctx.canvas, …)`, sized by its width and height),
+ * so an object whose `canvas` is the tile's ImageBitmap is drawn as is. An ImageBitmap, not a
+ * canvas filled with `putImageData`: a new canvas costs the main thread ~0.3 ms a 256 px tile
+ * to allocate and premultiply, the bitmap ~0.1 ms (BENCHMARKS.md "Viewer", ingest.mjs).
  */
-function tileContext(w, h) {
-  const canvas = document.createElement('canvas');
-  canvas.width = w;
-  canvas.height = h;
-  return canvas.getContext('2d');
+function tileImage(bitmap) {
+  return { canvas: bitmap };
 }
 
-/** Frees a tile's pixels now rather than at the next garbage collection. */
-function releaseContext(context) {
-  context.canvas.width = 0;
-  context.canvas.height = 0;
+/**
+ * Frees a tile's pixels now rather than at the next garbage collection. OpenSeadragon then sets
+ * the "canvas" to 0 × 0 (its way of freeing a canvas): it gets a plain stand-in instead.
+ */
+function releaseImage(image) {
+  if (typeof image.canvas.close === 'function') image.canvas.close();
+  image.canvas = { width: 0, height: 0 };
 }
 
 /**
@@ -184,34 +190,31 @@ function loadBatch(info, jobs, { frame, format, stats }) {
     const data = job.userData;
     data.arrived = performance.now();
     data.cache = f.cache;
-    const done = (context) => {
-      stats.loadedTile(performance.now() - data.t0, f.body.length, f.cache);
-      if (data.done) releaseContext(context);
-      else job.finish(context, null);
+    const length = f.body.length;
+    const done = (bitmap) => {
+      const image = tileImage(bitmap);
+      stats.loadedTile(performance.now() - data.t0, length, f.cache);
+      if (data.done) releaseImage(image);
+      else job.finish(image, null);
     };
-    if (format === 'rgba') {
-      let context;
-      try {
-        context = rgbaTile(f);
-      } catch (e) {
-        fail(job, `tile ${f.level}/${f.x}/${f.y}: ${e.message}`);
-        return;
-      }
-      done(context);
-    } else encodedTile(f, format).then(done, (e) => fail(job, `tile ${f.level}/${f.x}/${f.y}: ${e.message}`));
+    // Both take their bytes now (the body is only valid during this call, FrameReader `reuse`).
+    let bitmap;
+    try {
+      bitmap = format === 'rgba' ? rgbaTile(f) : encodedTile(f, format);
+    } catch (e) {
+      bitmap = Promise.reject(e);
+    }
+    bitmap.then(done, (e) => fail(job, `tile ${f.level}/${f.x}/${f.y}: ${e.message}`));
   };
   fetch(url, { signal: controller.signal, credentials: 'same-origin' })
     .then(async (response) => {
       if (!response.ok) {
         throw new Error(`HTTP ${response.status} for ${url.slice(0, 120)}: ${errorText(new Uint8Array(await response.arrayBuffer()))}`);
       }
-      const reader = new FrameReader(deliver);
-      const body = response.body.getReader();
-      for (;;) {
-        const { done, value } = await body.read();
-        if (done) break;
-        reader.push(value);
-      }
+      // Chunks and split frames live in buffers that are reused: each tile takes its bytes
+      // while its frame is handed over (rgbaTile, encodedTile, errorText all copy at once).
+      const reader = new FrameReader(deliver, { reuse: true });
+      await readChunks(response.body, (chunk) => reader.push(chunk), readBuffers);
       if (!reader.complete) throw new Error('the tile batch ended inside a frame');
       for (const job of [...byKey.values()].flat()) fail(job, `the tile batch ended without tile ${job.src}`);
     })
@@ -234,25 +237,23 @@ function errorText(bytes) {
 
 const MIME = { png: 'image/png', webp: 'image/webp', jpg: 'image/jpeg' };
 
-/** An encoded tile (PNG, WebP, JPEG), decoded off the main thread, then copied into a canvas. */
-async function encodedTile(f, format) {
-  const bitmap = await createImageBitmap(new Blob([f.body], { type: MIME[format] }));
-  const context = tileContext(bitmap.width, bitmap.height);
-  context.drawImage(bitmap, 0, 0);
-  bitmap.close();
-  return context;
+/** An encoded tile (PNG, WebP, JPEG) as an ImageBitmap, decoded off the main thread. */
+function encodedTile(f, format) {
+  return createImageBitmap(new Blob([f.body], { type: MIME[format] })); // the Blob copies the bytes
 }
 
 /**
- * A raw RGBA tile: no decoding at all, its size from the frame header; the bytes go straight
- * into the tile's canvas (one copy, no ImageBitmap round trip through another thread).
+ * A raw RGBA tile as an ImageBitmap: no decoding, its size from the frame header, its bytes
+ * copied at the call. `premultiplyAlpha: 'none'` keeps them as they are, marked
+ * unpremultiplied, instead of converting every pixel here; drawing premultiplies, which for
+ * these opaque tiles changes nothing, so the screen shows the server's pixels exactly (the
+ * browser tests compare them).
  */
 function rgbaTile(f) {
   const { width: w, height: h, body } = f;
   if (!(w > 0 && h > 0) || body.length !== w * h * 4) {
     throw new Error(`raw tile of ${body.length} bytes does not match ${w} × ${h} RGBA`);
   }
-  const context = tileContext(w, h);
-  context.putImageData(new ImageData(new Uint8ClampedArray(body.buffer, body.byteOffset, body.length), w, h), 0, 0);
-  return context;
+  const pixels = new ImageData(new Uint8ClampedArray(body.buffer, body.byteOffset, body.length), w, h);
+  return createImageBitmap(pixels, { premultiplyAlpha: 'none' });
 }

@@ -6,7 +6,8 @@ import { inPyramid, levelSize, osdLevel, tileCount, tileUrl, vtexLevel, drawLeve
 import { formatView, parseView } from '../src/view-url.js';
 import { TileStats, formatBytes, formatRatio, percentile } from '../src/stats.js';
 import { PREVIEW_STEPS, scheduleTiles, wantedLevel } from '../src/loader.js';
-import { FrameReader, HEADER_LEN, MAGIC, MAX_BATCH, batchUrl, tileKey } from '../src/batch.js';
+import { drawIncrementally, tilesToAdd, viewKey } from '../src/drawing.js';
+import { FrameReader, HEADER_LEN, MAGIC, MAX_BATCH, READ_BUFFER_BYTES, batchUrl, readChunks, tileKey } from '../src/batch.js';
 
 const big = { id: 'ab'.repeat(32), width: 100_000, height: 100_000, levels: 10, tile_size: 256, animated: false };
 const odd = { id: 'cd'.repeat(32), width: 3000, height: 700, levels: 5, tile_size: 256, animated: true };
@@ -289,12 +290,175 @@ test('batch frames are read whatever the chunk boundaries', () => {
     assert.deepEqual(got, frames.map((f) => ({ ...f, length: undefined })), `chunks of ${size}`);
     assert.ok(reader.complete);
   }
+  // With `reuse`, split frames share one buffer: each body is right while onFrame runs.
+  for (const size of [1, 5, 33, all.length]) {
+    const got = [];
+    const bodies = new Set();
+    const reader = new FrameReader(
+      (f) => {
+        got.push({ ...f, body: [...f.body], length: undefined });
+        bodies.add(f.body.buffer);
+      },
+      { reuse: true },
+    );
+    for (let i = 0; i < all.length; i += size) reader.push(all.subarray(i, i + size));
+    assert.deepEqual(got, frames.map((f) => ({ ...f, length: undefined })), `reused buffer, chunks of ${size}`);
+    assert.ok(reader.complete);
+    if (size < all.length) assert.equal(bodies.size, 2, 'split frames share one buffer (it grew once, for the 14-byte body)');
+  }
   const cut = new FrameReader(() => {});
   cut.push(all.subarray(0, 36));
   assert.ok(!cut.complete, 'a stream cut inside a frame is noticed');
   const bad = Uint8Array.from(all);
   bad[3] = 2;
   assert.throws(() => new FrameReader(() => {}).push(bad), /not a vtex tile batch frame/);
+});
+
+test('a body is read through one reused buffer where the stream allows it, else chunk by chunk', async () => {
+  const parts = [Uint8Array.of(1, 2, 3), Uint8Array.of(4), new Uint8Array(5000).fill(7)];
+  const expected = [1, 2, 3, 4, ...new Array(5000).fill(7)];
+  // A byte stream (as fetch bodies are in Chromium): chunks land in the pool's buffer.
+  const bytes = () => {
+    let i = 0;
+    return new ReadableStream({
+      type: 'bytes',
+      pull(c) {
+        if (i < parts.length) c.enqueue(Uint8Array.from(parts[i++]));
+        else {
+          c.close();
+          if (c.byobRequest) c.byobRequest.respond(0); // a pending BYOB read ends with the stream
+        }
+      },
+    });
+  };
+  const pool = [];
+  const seen = [];
+  const buffers = new Set();
+  await readChunks(bytes(), (chunk) => {
+    seen.push(...chunk);
+    buffers.add(chunk.byteLength && chunk.buffer.byteLength);
+  }, pool);
+  assert.deepEqual(seen, expected);
+  assert.deepEqual([...buffers], [READ_BUFFER_BYTES], 'every chunk is a view of the one buffer');
+  assert.equal(pool.length, 1, 'the buffer went back to the pool');
+  const again = [];
+  await readChunks(bytes(), (chunk) => again.push(...chunk), pool);
+  assert.deepEqual(again, expected);
+  assert.equal(pool.length, 1, 'the second body reused it');
+  // A plain stream: its chunks as they come.
+  let j = 0;
+  const plain = new ReadableStream({
+    pull(c) {
+      if (j < parts.length) c.enqueue(parts[j++]);
+      else c.close();
+    },
+  });
+  const got = [];
+  await readChunks(plain, (chunk) => got.push(chunk), []);
+  assert.deepEqual(got, parts);
+  // An error in the stream reaches the caller.
+  const broken = new ReadableStream({
+    type: 'bytes',
+    pull(c) {
+      c.error(new Error('cut'));
+    },
+  });
+  await assert.rejects(readChunks(broken, () => {}, []), /cut/);
+});
+
+test('only tiles at least as fine as every drawn tile are drawn on top; anything else redraws', () => {
+  const whole = { level: 0 };
+  const preview = { level: 5 };
+  const a = { level: 8 };
+  const b = { level: 8 };
+  const c = { level: 8 };
+  assert.deepEqual(tilesToAdd([], [whole, preview]), [whole, preview]);
+  assert.deepEqual(tilesToAdd([whole, preview], [whole, preview, a, b]), [a, b], 'finest tiles over the preview');
+  assert.deepEqual(tilesToAdd([whole, preview, a], [whole, preview, a, b, c]), [b, c]);
+  assert.deepEqual(tilesToAdd([whole, a], [whole, a]), [], 'nothing new: nothing drawn');
+  assert.equal(tilesToAdd([whole, a], [whole, preview, a]), null, 'a coarser tile after a finer one would cover it');
+  assert.equal(tilesToAdd([whole, preview, a], [whole, a, b]), null, 'a tile no longer drawn must be painted over');
+});
+
+/** A stand-in OpenSeadragon viewer: one tiled image, a view, and a canvas drawer that logs. */
+function standInViewer() {
+  const log = [];
+  const events = [];
+  let bounds = { x: 0, y: 0, width: 1, height: 0.75 };
+  const item = {
+    opacity: 1,
+    tiles: [],
+    smoothTileEdgesMinZoom: 1.1,
+    zoom: 0.5,
+    getRotation: () => 0,
+    viewportToImageZoom() {
+      return this.zoom;
+    },
+    getTilesToDraw() {
+      this._lastDrawn = this.tiles.map((tile) => ({ tile }));
+      return this._lastDrawn;
+    },
+  };
+  const viewer = {
+    viewport: {
+      getRotation: () => 0,
+      getFlip: () => false,
+      getZoom: () => 1,
+      getBoundsNoRotate: () => bounds,
+      getContainerSize: () => ({ x: 960, y: 760 }),
+    },
+    drawer: {
+      _imageSmoothingEnabled: true,
+      draw(items) {
+        log.push(['full', ...items.flatMap((i) => (i.opacity ? i.getTilesToDraw().map((d) => d.tile.name) : []))]);
+      },
+      _drawTile(tile) {
+        log.push(['add', tile.name]);
+      },
+    },
+    raiseEvent: (name, e) => events.push([name, e.tile.name]),
+    forceRedraw: () => log.push(['forced']),
+  };
+  return { viewer, item, log, events, pan: () => (bounds = { ...bounds, x: bounds.x + 0.1 }) };
+}
+
+test('a frame of the same view draws only the tiles that arrived; a moved view redraws all', () => {
+  const { viewer, item, log, events, pan } = standInViewer();
+  const counts = drawIncrementally(viewer);
+  const t = (name, level) => ({ name, level });
+  const whole = t('whole', 0);
+  const a = t('a', 8);
+  const b = t('b', 8);
+  const draw = () => viewer.drawer.draw([item]);
+  item.tiles = [whole];
+  draw();
+  item.tiles = [whole, a];
+  draw();
+  item.tiles = [whole, a, b];
+  draw();
+  assert.deepEqual(log, [['full', 'whole'], ['add', 'a'], ['add', 'b']]);
+  assert.deepEqual(events, [['tile-drawn', 'a'], ['tile-drawn', 'b']]);
+  assert.deepEqual(counts, { full: 1, incremental: 2 });
+  pan();
+  draw();
+  assert.deepEqual(log.at(-1), ['full', 'whole', 'a', 'b'], 'the view moved');
+  viewer.forceRedraw();
+  draw();
+  assert.deepEqual(log.slice(-2), [['forced'], ['full', 'whole', 'a', 'b']], 'a forced redraw is a full one');
+  item.tiles = [whole, t('p', 5), a, b];
+  draw();
+  assert.deepEqual(log.at(-1), ['full', 'whole', 'p', 'a', 'b'], 'a coarser tile arrived');
+  // Beyond smoothTileEdgesMinZoom OpenSeadragon draws through its sketch canvas: always full.
+  item.zoom = 2;
+  assert.equal(viewKey(viewer, [item]), null);
+  item.tiles = [whole, t('p', 5), a, b, t('c', 8)];
+  draw();
+  assert.equal(log.at(-1)[0], 'full');
+  item.zoom = 0.5;
+  // Two visible images (or none): full frames.
+  assert.equal(viewKey(viewer, [item, { ...item }]), null);
+  assert.equal(viewKey(viewer, [{ ...item, opacity: 0 }]), null);
+  assert.notEqual(viewKey(viewer, [item, { ...item, opacity: 0 }]), null, 'an invisible image (a frame loading behind) is not drawn');
 });
 
 /** A frame header as the server writes it (server/src/api/batch.rs): what FrameReader parses. */

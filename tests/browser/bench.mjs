@@ -2,7 +2,7 @@
 //
 //   node tests/browser/bench.mjs [--steps 60] [--pan-seconds 5] [--shots DIR] [--json FILE]
 //        [--trace] [--texture NAME] [--server-args="--tile-size 512"] [--osd JSON] [--playwright]
-//        [--format rgba|png|webp|jpg]
+//        [--format rgba|png|webp|jpg] [--profile FILE.cpuprofile]
 //
 // The texture is the 100k × 100k chaos mosaic (the flagship demo, as server/bench/run.sh picks
 // it) unless --texture names another. Chromium is driven over a bare DevTools pipe (cdp.mjs):
@@ -37,6 +37,9 @@ const { values: args } = parseArgs({
     height: { type: 'string', default: '800' },
     // Per-stage timing of every view change (tests/browser/trace.mjs); adds a little overhead.
     trace: { type: 'boolean', default: false },
+    // DevTools CPU profile of the page's main thread during the warm-server pass, written to
+    // FILE (.cpuprofile, opens in DevTools) and summarised per view (bare DevTools driver only).
+    profile: { type: 'string' },
     // Extra OpenSeadragon options as JSON, merged over the viewer's (A/B experiments only).
     osd: { type: 'string' },
     // Server flags, e.g. --server-args "--max-syntheses 4".
@@ -315,6 +318,38 @@ async function openPage(url) {
   return page;
 }
 
+/**
+ * Main-thread time of a DevTools CPU profile per view: idle, garbage collection, "(program)"
+ * (the browser's own work outside JS: painting, rastering, IPC) and JS, with the functions that
+ * took the most self time.
+ */
+function profileSummary(profile, views) {
+  const self = new Map();
+  const byId = new Map(profile.nodes.map((n) => [n.id, n]));
+  for (let i = 0; i < profile.samples.length; i++) {
+    const n = byId.get(profile.samples[i]);
+    const f = n.callFrame;
+    const key = f.url ? `${f.functionName || '(anonymous)'} ${f.url.replace(/^.*\//, '')}:${f.lineNumber + 1}` : f.functionName;
+    self.set(key, (self.get(key) || 0) + profile.timeDeltas[i] / 1000);
+  }
+  const total = (profile.endTime - profile.startTime) / 1000;
+  const pick = (k) => self.get(k) || 0;
+  const special = ['(idle)', '(program)', '(garbage collector)', '(root)'];
+  const js = [...self].filter(([k]) => !special.includes(k));
+  const per = (ms) => ms / views;
+  return {
+    msPerView: per(total),
+    idle: per(pick('(idle)')),
+    program: per(pick('(program)')),
+    gc: per(pick('(garbage collector)')),
+    js: per(js.reduce((a, [, v]) => a + v, 0)),
+    top: js
+      .sort((a, b) => b[1] - a[1])
+      .slice(0, 12)
+      .map(([k, v]) => [k, +per(v).toFixed(2)]),
+  };
+}
+
 /** Resolves when every tile the current view needs is loaded and drawn (lib.mjs waitForIdle). */
 async function idle(page) {
   await page.evaluate(() => new Promise((r) => requestAnimationFrame(() => requestAnimationFrame(r))));
@@ -356,7 +391,17 @@ try {
   page = await openPage(url);
   await idle(page);
   c0 = await serverCounters(server.url);
+  if (args.profile) {
+    await page.send('Profiler.enable');
+    await page.send('Profiler.setSamplingInterval', { interval: 100 });
+    await page.send('Profiler.start');
+  }
   results.warmServer = await measureViews(page, views, args.shots, 'warm-server');
+  if (args.profile) {
+    const { profile } = await page.send('Profiler.stop');
+    writeFileSync(args.profile, JSON.stringify(profile));
+    results.profile = profileSummary(profile, STEPS);
+  }
   c1 = await serverCounters(server.url);
   results.server.warmServer = serverDelta(c0, c1);
   // Warm viewer: back to the view before (its tiles still in OpenSeadragon's memory).
@@ -406,5 +451,10 @@ if (args.trace) {
   ]) {
     console.log(formatBreakdown(label, results[k].breakdowns));
   }
+}
+if (results.profile) {
+  const p = results.profile;
+  console.log(`\nwarm-server pass, main thread per view (DevTools CPU profile ${args.profile}): ${f(p.msPerView)} ms, of it idle ${f(p.idle)}, JS ${f(p.js)}, garbage collection ${f(p.gc)}, browser work outside JS "(program)" ${f(p.program)}`);
+  console.log(`top JS self time, ms per view: ${p.top.map(([k, v]) => `${k} ${v}`).join('; ')}`);
 }
 if (args.json) writeFileSync(args.json, JSON.stringify(results, null, 2));

@@ -107,6 +107,8 @@ export async function launchBare(url, { width = 1280, height = 800, initScript }
       await page('Page.reload', {});
       await waitFor(() => !window.__vtexOldDocument && document.readyState !== 'loading');
     },
+    /** Sends a DevTools command to the page's session (e.g. the Profiler domain). */
+    send: page,
     async screenshot(path) {
       const { data } = await page('Page.captureScreenshot', { format: 'png' });
       writeFileSync(path, Buffer.from(data, 'base64'));

@@ -223,6 +223,48 @@ for (const format of ['rgba', 'png', 'webp']) {
   });
 }
 
+test('a view drawn tile by tile as its tiles arrive equals the same view redrawn in full', async () => {
+  const { page, log } = await openViewer(browser.context, `${server.url}/?texture=${big.id}&zoom=0.02&x=50000&y=50000`);
+  await waitForIdle(page);
+  // The canvas's pixels after the view settled, then after a forced full redraw.
+  const canvasPixels = () =>
+    page.evaluate(() => {
+      const c = window.vtexViewer.viewer.drawer.canvas;
+      return Array.from(c.getContext('2d').getImageData(0, 0, c.width, c.height).data);
+    });
+  const redrawn = () =>
+    page.evaluate(
+      () =>
+        new Promise((resolve) => {
+          const { viewer, frames } = window.vtexViewer;
+          const full = frames.full;
+          viewer.forceRedraw();
+          const check = () => (frames.full > full ? resolve() : requestAnimationFrame(check));
+          requestAnimationFrame(check);
+        }),
+    );
+  // Minified (smoothing on, tiles enlarged by a pixel) and at 1:1, each into texture never seen.
+  for (const [zoom, x, y] of [
+    [0.37, 21_000, 64_000],
+    [1, 61_000 + 0.5, 12_000 + 0.5],
+  ]) {
+    const before = await page.evaluate(() => ({ ...window.vtexViewer.frames }));
+    await page.evaluate((v) => window.vtexViewer.setView(v, true), { zoom, x, y });
+    await waitForIdle(page);
+    const after = await page.evaluate(() => ({ ...window.vtexViewer.frames }));
+    assert.ok(after.incremental > before.incremental, `tiles were added to frames without a full redraw (zoom ${zoom}): ${JSON.stringify([before, after])}`);
+    const drawn = await canvasPixels();
+    await redrawn();
+    const full = await canvasPixels();
+    assert.equal(drawn.length, full.length);
+    let differing = 0;
+    for (let i = 0; i < full.length; i++) if (drawn[i] !== full[i]) differing++;
+    assert.equal(differing, 0, `canvas bytes that differ from a full redraw at zoom ${zoom}`);
+  }
+  assertClean(log);
+  await page.close();
+});
+
 test('drag, wheel, keys, double-click and pinch move the view; the navigator box follows', async () => {
   const { page, log } = await openViewer(browser.context, `${server.url}/?texture=${big.id}&zoom=0.02&x=50000&y=50000`);
   await waitForIdle(page);
