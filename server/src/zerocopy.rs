@@ -5,8 +5,8 @@
 //! BENCHMARKS.md). nginx avoids that copy for static files with `sendfile`: the socket
 //! references page-cache pages. This module gives the tile cache the same property:
 //!
-//! * [`seal`] copies an encoded tile into whole pages of an anonymous mapping, makes them
-//!   read-only and records their address range. Tiles share 2 MiB arenas backed by
+//! * [`seal`] copies an encoded tile into whole pages of an anonymous mapping (read-only once
+//!   nothing more is written into it) and records their address range. Tiles share 2 MiB arenas backed by
 //!   transparent huge pages where the kernel allows: the receiver then frees one huge page's
 //!   references instead of ~38 pages' (see `Arenas`). An arena is unmapped when the last
 //!   `Bytes` handle of its last tile drops.
@@ -17,9 +17,9 @@
 //!   hyper flushes the response, so it leaves in full-sized segments (see `SpliceIo::cork`).
 //!
 //! Why this is safe: the kernel keeps its own references to the pages it was handed, and a
-//! sealed page is never written after sealing (it is read-only, then unmapped, never reused
-//! by an allocator; an arena hands each page to one body only), so bytes in flight cannot
-//! change. Memory that is not sealed (headers,
+//! sealed page is never written after sealing (an arena hands each page to one body only,
+//! which is copied in before it is shared; the arena is made read-only when full, unmapped
+//! with its last body, never reused by an allocator), so bytes in flight cannot change. Memory that is not sealed (headers,
 //! JSON, HTTP/2 frames, anything from the heap) is never spliced, because the heap reuses
 //! freed memory while the kernel might still hold it.
 //!
@@ -133,8 +133,7 @@ mod linux {
     /// client's kernel time, one cache-line transfer per page: ~38 per 150 KB tile. In a huge
     /// page all of them share the huge page's count (BENCHMARKS.md, "Warm tiles": wrk spent
     /// 2–3 µs more kernel time per tile against bodies in 4 KiB pages; nginx's files sit in
-    /// the page cache partly in large folios). Each body takes whole pages, so its pages are
-    /// its own and are made read-only as before.
+    /// the page cache partly in large folios). Each body takes whole pages of its own.
     pub(super) struct Arenas {
         /// The arena new bodies go into, and the offset of its first free page.
         current: Mutex<Option<(Arc<Arena>, usize)>>,
@@ -154,28 +153,42 @@ mod linux {
             (self.mapped.load(Ordering::Relaxed), self.live.load(Ordering::Relaxed))
         }
 
-        /// A page-aligned range of `len` bytes never handed out before: the next free pages of
-        /// the current arena, of a new one, or a mapping of its own.
-        fn reserve(&'static self, len: usize) -> Option<(Arc<Arena>, usize)> {
+        /// Copies `data` into whole pages never handed out before — the next free pages of the
+        /// current arena, of a new one, or a mapping of its own — and returns where.
+        ///
+        /// Bodies in an arena are copied under the lock, and an arena is made read-only as a
+        /// whole once it is full (also under the lock, so no copy into it is under way):
+        /// making each body's pages read-only would split the huge page's single page-table
+        /// entry into 512, and vmsplice's page-table walk cost 0.8 µs more per tile with them.
+        /// Until then the bodies' bytes rest on this function: each page goes to one body,
+        /// written once before the body is shared, and only read as `&[u8]` after.
+        fn place(&'static self, data: &[u8]) -> Option<(Arc<Arena>, usize)> {
+            let len = data.len().div_ceil(PAGE) * PAGE;
             if len <= ARENA_MAX_BODY {
                 let mut current = self.current.lock().unwrap_or_else(|e| e.into_inner());
-                if let Some((arena, next)) = current.as_mut() {
-                    if *next + len <= arena.size {
-                        let at = *next;
-                        *next += len;
-                        return Some((arena.clone(), at));
+                let room = current.as_ref().is_some_and(|(arena, next)| next + len <= arena.size);
+                if !room {
+                    let (mapped, live) = self.usage();
+                    let fresh = if may_map_arena(mapped, live, len) { Arena::map(self, ARENA, true) } else { None };
+                    if let Some(fresh) = fresh {
+                        if let Some((full, _)) = current.replace((Arc::new(fresh), 0)) {
+                            full.protect();
+                        }
                     }
                 }
-                let (mapped, live) = self.usage();
-                if may_map_arena(mapped, live, len) {
-                    if let Some(arena) = Arena::map(self, ARENA, true) {
-                        let arena = Arc::new(arena);
-                        *current = Some((arena.clone(), len));
-                        return Some((arena, 0));
-                    }
+                if let Some((arena, next)) = current.as_mut().filter(|(arena, next)| *next + len <= arena.size) {
+                    let at = *next;
+                    *next += len;
+                    // SAFETY: [at, at + len) lies inside the arena and was never handed out.
+                    unsafe { std::ptr::copy_nonoverlapping(data.as_ptr(), arena.base.add(at), data.len()) };
+                    return Some((arena.clone(), at));
                 }
             }
-            Some((Arc::new(Arena::map(self, len, false)?), 0))
+            let own = Arena::map(self, len, false)?;
+            // SAFETY: a fresh mapping of `len >= data.len()` bytes, ours alone.
+            unsafe { std::ptr::copy_nonoverlapping(data.as_ptr(), own.base, data.len()) };
+            own.protect();
+            Some((Arc::new(own), 0))
         }
     }
 
@@ -186,8 +199,8 @@ mod linux {
         owner: &'static Arenas,
     }
 
-    // SAFETY: the mapping is owned by this value alone; a body in it is written only by the
-    // `Sealed::new` that reserved its range, before the body is shared.
+    // SAFETY: the mapping is owned by this value alone; a body in it is written only by
+    // `Arenas::place`, under its lock, before the body is shared.
     unsafe impl Send for Arena {}
     unsafe impl Sync for Arena {}
 
@@ -228,6 +241,15 @@ mod linux {
         }
     }
 
+    impl Arena {
+        /// Makes the whole mapping read-only: nothing is written into it any more. (Failure
+        /// only loses that protection; the bytes stay as they are.)
+        fn protect(&self) {
+            // SAFETY: changes the protection of exactly this mapping.
+            unsafe { libc::mprotect(self.base as *mut libc::c_void, self.size, libc::PROT_READ) };
+        }
+    }
+
     impl Drop for Arena {
         fn drop(&mut self) {
             // SAFETY: unmaps exactly the mapping made in `map`; its bodies are all dropped.
@@ -236,7 +258,7 @@ mod linux {
         }
     }
 
-    /// One body: whole pages of an arena (or of its own mapping), read-only once written.
+    /// One body: whole pages of an arena (or of its own mapping), never written again.
     pub(super) struct Sealed {
         arena: Arc<Arena>,
         ptr: *mut u8,
@@ -255,19 +277,12 @@ mod linux {
 
         pub(super) fn new_in(arenas: &'static Arenas, data: &[u8]) -> Option<Sealed> {
             let pages = data.len().div_ceil(PAGE) * PAGE;
-            let (arena, offset) = arenas.reserve(pages)?;
-            // SAFETY: [ptr, ptr + pages) lies inside the arena and was reserved for this body
-            // alone; nothing else writes it, and it is read-only before it is shared.
-            unsafe {
-                let ptr = arena.base.add(offset);
-                std::ptr::copy_nonoverlapping(data.as_ptr(), ptr, data.len());
-                if libc::mprotect(ptr as *mut libc::c_void, pages, libc::PROT_READ) != 0 {
-                    return None; // the range is never handed out again; the arena frees it
-                }
-                arenas.live.fetch_add(pages, Ordering::Relaxed);
-                SEALED.write().unwrap_or_else(|e| e.into_inner()).insert(ptr as usize, data.len());
-                Some(Sealed { arena, ptr, len: data.len(), pages })
-            }
+            let (arena, offset) = arenas.place(data)?;
+            // SAFETY: `place` put `data` at this offset, inside the arena.
+            let ptr = unsafe { arena.base.add(offset) };
+            arenas.live.fetch_add(pages, Ordering::Relaxed);
+            SEALED.write().unwrap_or_else(|e| e.into_inner()).insert(ptr as usize, data.len());
+            Some(Sealed { arena, ptr, len: data.len(), pages })
         }
     }
 
@@ -573,6 +588,22 @@ mod tests {
         }
     }
 
+    /// The permissions of the mapping holding `addr`, from /proc/self/maps.
+    #[cfg(target_os = "linux")]
+    fn protection(addr: usize) -> String {
+        let maps = std::fs::read_to_string("/proc/self/maps").unwrap();
+        for line in maps.lines() {
+            let mut f = line.split_whitespace();
+            let (range, perms) = (f.next().unwrap(), f.next().unwrap());
+            let (a, b) = range.split_once('-').unwrap();
+            let (a, b) = (usize::from_str_radix(a, 16).unwrap(), usize::from_str_radix(b, 16).unwrap());
+            if (a..b).contains(&addr) {
+                return perms.to_string();
+            }
+        }
+        panic!("{addr:#x} is not mapped")
+    }
+
     /// Bodies fill whole pages of one 2 MiB-aligned arena in turn; the arena outlives any of
     /// its bodies and is unmapped with the last one; big bodies get mappings of their own.
     #[cfg(target_os = "linux")]
@@ -604,6 +635,8 @@ mod tests {
             rest.push(Sealed::new_in(arenas, &body(3 + rest.len())).unwrap());
         }
         assert_eq!(arenas.usage().0, 2 * ARENA);
+        assert_eq!(protection(base), "r--p", "a full arena is read-only");
+        assert_eq!(protection(base + ARENA - 1), "r--p", "as a whole");
         let last = rest.pop().unwrap();
         drop((a, c, rest));
         assert_eq!(arenas.usage(), (ARENA, footprint(last.as_ref().len())), "the first arena is unmapped");
