@@ -118,11 +118,11 @@ mod linux {
 
     /// Whether a new arena may be mapped for a body of `need` bytes while `mapped` bytes are
     /// mapped for `live` bytes of bodies. An arena stays mapped while any of its bodies lives,
-    /// so one long-lived tile can keep an arena's other pages: mappings are held to 1.5 × the
+    /// so one long-lived tile can keep an arena's other pages: mappings are held to 1.25 × the
     /// live bodies plus four arenas; beyond that, bodies get mappings of their own (4 KiB
     /// pages, the slower send) until old arenas are freed.
     pub(super) fn may_map_arena(mapped: usize, live: usize, need: usize) -> bool {
-        mapped + ARENA <= (live + need) / 2 * 3 + 4 * ARENA
+        mapped + ARENA <= (live + need) / 4 * 5 + 4 * ARENA
     }
 
     /// Sealed bodies packed into 2 MiB arenas, each advised to be one transparent huge page.
@@ -650,14 +650,14 @@ mod tests {
     }
 
     /// When long-lived bodies keep mostly empty arenas alive, new bodies stop opening arenas:
-    /// mapped memory stays within 1.5 × the live bodies plus a few arenas.
+    /// mapped memory stays within 1.25 × the live bodies plus a few arenas.
     #[cfg(target_os = "linux")]
     #[test]
     fn arenas_held_by_few_bodies_stop_new_arenas() {
         use linux::{may_map_arena, Arenas, Sealed, ARENA};
         assert!(may_map_arena(0, 0, 150_000));
-        assert!(may_map_arena(21 << 20, 10 << 20, 150_000));
-        assert!(!may_map_arena(22 << 20, 10 << 20, 150_000));
+        assert!(may_map_arena(18 << 20, 10 << 20, 150_000));
+        assert!(!may_map_arena(19 << 20, 10 << 20, 150_000));
 
         let arenas: &'static Arenas = Box::leak(Box::new(Arenas::new()));
         let mut kept: Vec<Sealed> = Vec::new();
@@ -669,7 +669,7 @@ mod tests {
                 kept.push(s);
             }
             let (mapped, live) = arenas.usage();
-            assert!(mapped <= live / 2 * 3 + 5 * ARENA + 2 * footprint(150_000), "{mapped} for {live} live");
+            assert!(mapped <= live / 4 * 5 + 5 * ARENA + 2 * footprint(150_000), "{mapped} for {live} live");
         }
         assert!(kept.iter().all(|k| k.as_ref() == &pattern(150_000)[..]));
     }
