@@ -88,7 +88,7 @@ mod linux {
     use std::os::fd::{AsRawFd, FromRawFd, OwnedFd};
     use std::pin::Pin;
     use std::sync::atomic::{AtomicUsize, Ordering};
-    use std::sync::{Arc, Mutex, RwLock};
+    use std::sync::{Arc, Mutex, OnceLock, RwLock};
     use std::task::{ready, Context, Poll};
     use tokio::io::Interest;
     use tokio::net::TcpStream;
@@ -104,8 +104,18 @@ mod linux {
     /// Bodies above this get a mapping of their own (an arena would hold too few of them).
     pub(super) const ARENA_MAX_BODY: usize = ARENA / 4;
 
-    /// Where [`super::seal`] puts bodies.
-    static ARENAS: Arenas = Arenas::new();
+    /// Where [`super::seal`] puts bodies: packed into arenas only where the kernel gives
+    /// huge pages, since arenas cost memory (see [`may_map_arena`]) and help only as one folio.
+    static ARENAS: Arenas = Arenas::new(None);
+    static HUGE_PAGES: OnceLock<bool> = OnceLock::new();
+
+    /// Whether `madvise(MADV_HUGEPAGE)` gets transparent huge pages on this system.
+    fn huge_pages() -> bool {
+        *HUGE_PAGES.get_or_init(|| {
+            std::fs::read_to_string("/sys/kernel/mm/transparent_hugepage/enabled")
+                .is_ok_and(|s| s.contains("[always]") || s.contains("[madvise]"))
+        })
+    }
 
     pub(super) fn registered(bytes: &[u8]) -> bool {
         registered_range(bytes.as_ptr() as usize, bytes.len())
@@ -135,6 +145,8 @@ mod linux {
     /// 2–3 µs more kernel time per tile against bodies in 4 KiB pages; nginx's files sit in
     /// the page cache partly in large folios). Each body takes whole pages of its own.
     pub(super) struct Arenas {
+        /// Pack bodies into arenas: `None` = where the system has huge pages.
+        pack: Option<bool>,
         /// The arena new bodies go into, and the offset of its first free page.
         current: Mutex<Option<(Arc<Arena>, usize)>>,
         /// Bytes of every mapping alive (arenas and bodies with a mapping of their own).
@@ -144,8 +156,8 @@ mod linux {
     }
 
     impl Arenas {
-        pub(super) const fn new() -> Arenas {
-            Arenas { current: Mutex::new(None), mapped: AtomicUsize::new(0), live: AtomicUsize::new(0) }
+        pub(super) const fn new(pack: Option<bool>) -> Arenas {
+            Arenas { pack, current: Mutex::new(None), mapped: AtomicUsize::new(0), live: AtomicUsize::new(0) }
         }
 
         /// (bytes mapped, bytes of live bodies).
@@ -164,7 +176,7 @@ mod linux {
         /// written once before the body is shared, and only read as `&[u8]` after.
         fn place(&'static self, data: &[u8]) -> Option<(Arc<Arena>, usize)> {
             let len = data.len().div_ceil(PAGE) * PAGE;
-            if len <= ARENA_MAX_BODY {
+            if len <= ARENA_MAX_BODY && self.pack.unwrap_or_else(huge_pages) {
                 let mut current = self.current.lock().unwrap_or_else(|e| e.into_inner());
                 let room = current.as_ref().is_some_and(|(arena, next)| next + len <= arena.size);
                 if !room {
@@ -610,7 +622,7 @@ mod tests {
     #[test]
     fn bodies_share_arenas_until_the_last_one_drops() {
         use linux::{Arenas, Sealed, ARENA, ARENA_MAX_BODY};
-        let arenas: &'static Arenas = Box::leak(Box::new(Arenas::new()));
+        let arenas: &'static Arenas = Box::leak(Box::new(Arenas::new(Some(true))));
         let body = |i: usize| pattern(150_000 + i);
         let addr = |s: &Sealed| s.as_ref().as_ptr() as usize;
 
@@ -649,6 +661,22 @@ mod tests {
         assert_eq!(arenas.usage(), (ARENA, 0), "the current arena waits for the next body");
     }
 
+    /// Without packing (systems without transparent huge pages) every body gets its own
+    /// mapping, freed with it.
+    #[cfg(target_os = "linux")]
+    #[test]
+    fn without_packing_each_body_has_its_own_mapping() {
+        use linux::{Arenas, Sealed};
+        let arenas: &'static Arenas = Box::leak(Box::new(Arenas::new(Some(false))));
+        let a = Sealed::new_in(arenas, &pattern(150_000)).unwrap();
+        let b = Sealed::new_in(arenas, &pattern(150_001)).unwrap();
+        assert_eq!(arenas.usage(), (footprint(150_000) + footprint(150_001), footprint(150_000) + footprint(150_001)));
+        assert_eq!(protection(b.as_ref().as_ptr() as usize), "r--p");
+        drop(a);
+        assert_eq!(arenas.usage(), (footprint(150_001), footprint(150_001)));
+        assert!(b.as_ref() == &pattern(150_001)[..]);
+    }
+
     /// When long-lived bodies keep mostly empty arenas alive, new bodies stop opening arenas:
     /// mapped memory stays within 1.25 × the live bodies plus a few arenas.
     #[cfg(target_os = "linux")]
@@ -659,7 +687,7 @@ mod tests {
         assert!(may_map_arena(18 << 20, 10 << 20, 150_000));
         assert!(!may_map_arena(19 << 20, 10 << 20, 150_000));
 
-        let arenas: &'static Arenas = Box::leak(Box::new(Arenas::new()));
+        let arenas: &'static Arenas = Box::leak(Box::new(Arenas::new(Some(true))));
         let mut kept: Vec<Sealed> = Vec::new();
         for i in 0..400 {
             let s = Sealed::new_in(arenas, &pattern(150_000)).unwrap();
