@@ -5,17 +5,21 @@
 #   2. cold 256² tiles per format over HTTP (every request a tile never seen before);
 #   3. resident memory after a long pan with a 256 MB cache.
 # Needs: wrk, nginx, curl, python3 (apt-get install wrk nginx curl python3).
-# Usage: server/bench/run.sh [--only warm|cold|memory] [--rounds N] [seconds per run, default 10]
+# Usage: server/bench/run.sh [--only warm|cold|memory] [--rounds N] [--tmpfs] [seconds per run, default 10]
 #   (--only runs one section, for quick comparisons; the default runs all three. --rounds
 #   repeats the warm comparison N times, nginx and vtex interleaved, since single runs on a
-#   small machine swing by ±15 %)
+#   small machine swing by ±15 %. --tmpfs adds a third warm row: the same nginx serving a copy
+#   of the tiles from /dev/shm, whose pages are all 4 KiB — the control for what page size
+#   costs the client, BENCHMARKS.md "Warm tiles")
 set -euo pipefail
 ONLY=all
 ROUNDS=1
+TMPFS=""
 while [ $# -gt 1 ]; do
   case "$1" in
     --only) ONLY=$2; shift 2;;
     --rounds) ROUNDS=$2; shift 2;;
+    --tmpfs) TMPFS=$(mktemp -d /dev/shm/vtex-bench.XXXXXX); shift;;
     *) break;;
   esac
 done
@@ -30,6 +34,7 @@ cleanup() {
   [ -n "$VTEX_PID" ] && kill "$VTEX_PID" 2>/dev/null || true
   [ -n "$NGINX_PID" ] && kill "$NGINX_PID" 2>/dev/null || true
   rm -rf "$WORK"
+  [ -z "$TMPFS" ] || rm -rf "$TMPFS"
 }
 trap cleanup EXIT
 
@@ -74,7 +79,7 @@ thread_ns() {
 }
 
 # wrk: $1 = connections, $2 = lua script, $3 = base URL, $4 = wrk threads, $5.. = server PIDs
-# → "req/s p50 p99 server-CPU-µs/req wrk-CPU-µs/req split wait-µs/req sleeps/1000-req" (the server figures "-" without
+# → "req/s p50 p99 server-CPU-µs/req wrk-CPU-µs/req/wrk-system-µs/req split wait-µs/req sleeps/1000-req" (the server figures "-" without
 # PIDs). wrk's own CPU per request (user + system, from bash's `time`) is as much part of the
 # result as the server's: both share the 2 cores. "split" is the share of the server's CPU
 # each of its busy threads or worker processes took, largest first (e.g. 51/49): a lopsided
@@ -86,7 +91,7 @@ run_wrk() {
   local TIMEFORMAT='%U %S'
   { time wrk -t"$threads" -c"$1" -d"${DUR}s" --latency -s "$2" "$3" > "$WORK/wrk.txt"; } 2> "$WORK/wrk.time"
   [ ${#pids[@]} -gt 0 ] && { c1=$(cpu_ns "${pids[@]}"); w1=$(wait_ns "${pids[@]}"); s1=$(sleeps "${pids[@]}"); thread_ns "${pids[@]}" > "$WORK/threads1"; }
-  local rps p50 p99 non2xx n cpu=- wcpu split=- wait=- slept=-
+  local rps p50 p99 non2xx n cpu=- wcpu wsys split=- wait=- slept=-
   rps=$(awk '/^Requests\/sec/ {print $2}' "$WORK/wrk.txt")
   p50=$(awk '$1=="50%" {print $2}' "$WORK/wrk.txt")
   p99=$(awk '$1=="99%" {print $2}' "$WORK/wrk.txt")
@@ -94,6 +99,7 @@ run_wrk() {
   non2xx=$(awk '/Non-2xx/ {print $NF}' "$WORK/wrk.txt")
   [ -n "$non2xx" ] && { echo "wrk saw $non2xx non-2xx responses" >&2; cat "$WORK/wrk.txt" >&2; exit 1; }
   wcpu=$(awk -v n="$n" '{printf "%.1f", ($1 + $2) * 1e6 / n}' "$WORK/wrk.time")
+  wsys=$(awk -v n="$n" '{printf "%.1f", $2 * 1e6 / n}' "$WORK/wrk.time")
   if [ ${#pids[@]} -gt 0 ]; then
     cpu=$(awk -v d=$((c1 - c0)) -v n="$n" 'BEGIN {printf "%.1f", d / 1000 / n}')
     wait=$(awk -v d=$((w1 - w0)) -v n="$n" 'BEGIN {printf "%.1f", d / 1000 / n}')
@@ -101,7 +107,7 @@ run_wrk() {
     split=$(awk 'NR == FNR {a[$1] = $2; next} $2 > a[$1] {printf "%d\n", $2 - a[$1]}' "$WORK/threads0" "$WORK/threads1" |
       sort -rn | awk '{v[NR] = $1; t += $1} END {for (i = 1; i <= NR; i++) if (v[i] * 50 > t) s = s (i > 1 ? "/" : "") sprintf("%d", v[i] * 100 / t + 0.5); print s}')
   fi
-  echo "$rps $p50 $p99 $cpu $wcpu ${split:--} $wait $slept"
+  echo "$rps $p50 $p99 $cpu $wcpu/$wsys ${split:--} $wait $slept"
 }
 
 echo "# vtex server benchmarks — $(date -u +%FT%TZ), $(nproc) CPUs, loopback, ${DUR}s per run"
@@ -131,6 +137,12 @@ done; done
   echo 'request = function() i = i + 1; return wrk.format("GET", paths[(i % #paths) + 1]) end'
 } > "$WORK/warm.lua"
 chmod -R a+rX "$WORK/www"
+TMPFS_SERVER=""
+if [ -n "$TMPFS" ]; then
+  chmod 755 "$TMPFS"; cp -r "$WORK/www" "$TMPFS/www"
+  TMPFS_SERVER="server { listen 127.0.0.1:18090; root $TMPFS/www; etag on;
+           add_header Cache-Control \"public, max-age=31536000, immutable\"; }"
+fi
 cat > "$WORK/nginx.conf" <<NGINX
 worker_processes auto;
 pid $WORK/nginx.pid;
@@ -144,6 +156,7 @@ http {
   types { image/png png; }
   server { listen 127.0.0.1:18089; root $WORK/www; etag on;
            add_header Cache-Control "public, max-age=31536000, immutable"; }
+  $TMPFS_SERVER
 }
 NGINX
 nginx -c "$WORK/nginx.conf" -g 'daemon off;' & NGINX_PID=$!
@@ -153,20 +166,25 @@ echo
 echo "## Warm tiles (64 distinct 256² PNG tiles, $((TILE_BYTES / 64)) bytes each on average)"
 echo
 echo "Server CPU: µs of CPU time the server (all its threads or worker processes) spent per tile;"
-echo "wrk CPU: the same for wrk (user + system). Both share the 2 cores, so their sum decides"
+echo "wrk CPU: the same for wrk (user + system / system alone). Both share the 2 cores, so their sum decides"
 echo "throughput and is less noisy than tiles/s. Split: the server's CPU per busy thread (vtex's"
 echo "runtimes) or worker process (nginx), in %, largest first (above 2 % each). Server wait: µs"
 echo "per tile the server's threads were runnable but waiting for a core — high when something"
 echo "else competes for the CPUs (then tiles/s says more about the scheduler than the server)."
 echo "Server sleeps: times per 1000 tiles a server thread went idle and had to be woken again."
 echo
-echo "| server | connections | tiles/s | p50 | p99 | server CPU µs/tile | wrk CPU µs/tile | split % | server wait µs/tile | server sleeps /1000 tiles |"
+echo "| server | connections | tiles/s | p50 | p99 | server CPU µs/tile | wrk CPU / sys µs/tile | split % | server wait µs/tile | server sleeps /1000 tiles |"
 echo "|---|---|---|---|---|---|---|---|---|---|"
 NGINX_WORKERS=$(pgrep -P "$NGINX_PID" | tr '\n' ' ')
 for _ in $(seq 1 "$ROUNDS"); do for c in 8 64; do
   # shellcheck disable=SC2086 # one PID per word
   read -r rps p50 p99 cpu wcpu split wait slept < <(run_wrk "$c" "$WORK/warm.lua" "http://127.0.0.1:18089" 2 $NGINX_WORKERS)
   echo "| nginx (static files) | $c | $rps | $p50 | $p99 | $cpu | $wcpu | $split | $wait | $slept |"
+  if [ -n "$TMPFS" ]; then
+    # shellcheck disable=SC2086 # one PID per word
+    read -r rps p50 p99 cpu wcpu split wait slept < <(run_wrk "$c" "$WORK/warm.lua" "http://127.0.0.1:18090" 2 $NGINX_WORKERS)
+    echo "| nginx (tmpfs files) | $c | $rps | $p50 | $p99 | $cpu | $wcpu | $split | $wait | $slept |"
+  fi
   read -r rps p50 p99 cpu wcpu split wait slept < <(run_wrk "$c" "$WORK/warm.lua" "$VTEX" 2 "$VTEX_PID")
   echo "| vtex (tile cache) | $c | $rps | $p50 | $p99 | $cpu | $wcpu | $split | $wait | $slept |"
 done; done

@@ -17,7 +17,7 @@ use std::sync::{Arc, Mutex};
 use tokio::sync::OnceCell;
 
 /// Bookkeeping charged per entry on top of the tile bytes (key, LRU links, map slot, the
-/// `Arc<Tile>` with its ETag, the sealed mapping's owner and registry entry).
+/// `Arc<Tile>` with its ETag, the sealed body's arena handle and registry entry).
 pub const ENTRY_OVERHEAD: u64 = 320;
 /// Shards are at least this large, so tiny budgets still hold whole tiles.
 const MIN_SHARD_BYTES: u64 = 8 << 20;

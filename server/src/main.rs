@@ -5,8 +5,8 @@ use clap::Parser;
 use tracing_subscriber::EnvFilter;
 use vtex_server::cli::{self, Cli, Command};
 
-/// Encoding makes 64 KiB–1 MiB buffers (pixels, the encoded tile before it is sealed into its
-/// own mapping by `zerocopy::seal`). Taken from glibc's heap, buffers of this size fragment
+/// Encoding makes 64 KiB–1 MiB buffers (pixels, the encoded tile before `zerocopy::seal`
+/// copies it into an arena). Taken from glibc's heap, buffers of this size fragment
 /// it: after a long pan with a 256 MiB cache the process once held 605 MiB resident
 /// (BENCHMARKS.md). Served by mmap instead, each returns to the OS when freed: ~300 MiB
 /// resident for 255 MiB cached. (mimalloc was tried for the warm path: no measurable gain

@@ -5,8 +5,11 @@
 //! BENCHMARKS.md). nginx avoids that copy for static files with `sendfile`: the socket
 //! references page-cache pages. This module gives the tile cache the same property:
 //!
-//! * [`seal`] moves an encoded tile into its own anonymous mapping, made read-only, and
-//!   records its address range. The mapping is unmapped when the last `Bytes` handle drops.
+//! * [`seal`] copies an encoded tile into whole pages of an anonymous mapping (read-only once
+//!   nothing more is written into it) and records their address range. Tiles share 2 MiB arenas backed by
+//!   transparent huge pages where the kernel allows: the receiver then frees one huge page's
+//!   references instead of ~38 pages' (see `Arenas`). An arena is unmapped when the last
+//!   `Bytes` handle of its last tile drops.
 //! * [`SpliceIo`] wraps a connection's `TcpStream` for hyper. When hyper writes a slice that
 //!   lies inside a sealed range, the slice's pages are handed to the socket by reference
 //!   (`vmsplice` into a per-connection pipe, then `splice` into the socket); every other
@@ -14,8 +17,9 @@
 //!   hyper flushes the response, so it leaves in full-sized segments (see `SpliceIo::cork`).
 //!
 //! Why this is safe: the kernel keeps its own references to the pages it was handed, and a
-//! sealed page is never written after sealing (it is read-only, then unmapped, never reused
-//! by an allocator), so bytes in flight cannot change. Memory that is not sealed (headers,
+//! sealed page is never written after sealing (an arena hands each page to one body only,
+//! which is copied in before it is shared; the arena is made read-only when full, unmapped
+//! with its last body, never reused by an allocator), so bytes in flight cannot change. Memory that is not sealed (headers,
 //! JSON, HTTP/2 frames, anything from the heap) is never spliced, because the heap reuses
 //! freed memory while the kernel might still hold it.
 //!
@@ -83,16 +87,35 @@ mod linux {
     use std::io::{self, IoSlice};
     use std::os::fd::{AsRawFd, FromRawFd, OwnedFd};
     use std::pin::Pin;
-    use std::sync::RwLock;
+    use std::sync::atomic::{AtomicUsize, Ordering};
+    use std::sync::{Arc, Mutex, OnceLock, RwLock};
     use std::task::{ready, Context, Poll};
     use tokio::io::Interest;
     use tokio::net::TcpStream;
 
-    /// Start address → length of every live sealed mapping.
+    /// Start address → length of every live sealed body.
     static SEALED: RwLock<BTreeMap<usize, usize>> = RwLock::new(BTreeMap::new());
 
     /// Pipe capacity asked for: one 256² PNG tile (60–250 KB) in one or two rounds.
     const PIPE_BYTES: libc::c_int = 256 * 1024;
+
+    /// Size and alignment of a shared arena: one transparent huge page on x86-64 and arm64.
+    pub(super) const ARENA: usize = 2 << 20;
+    /// Bodies above this get a mapping of their own (an arena would hold too few of them).
+    pub(super) const ARENA_MAX_BODY: usize = ARENA / 4;
+
+    /// Where [`super::seal`] puts bodies: packed into arenas only where the kernel gives
+    /// huge pages, since arenas cost memory (see [`may_map_arena`]) and help only as one folio.
+    static ARENAS: Arenas = Arenas::new(None);
+    static HUGE_PAGES: OnceLock<bool> = OnceLock::new();
+
+    /// Whether `madvise(MADV_HUGEPAGE)` gets transparent huge pages on this system.
+    fn huge_pages() -> bool {
+        *HUGE_PAGES.get_or_init(|| {
+            std::fs::read_to_string("/sys/kernel/mm/transparent_hugepage/enabled")
+                .is_ok_and(|s| s.contains("[always]") || s.contains("[madvise]"))
+        })
+    }
 
     pub(super) fn registered(bytes: &[u8]) -> bool {
         registered_range(bytes.as_ptr() as usize, bytes.len())
@@ -103,26 +126,107 @@ mod linux {
         map.range(..=start).next_back().is_some_and(|(&s, &l)| start + len <= s + l)
     }
 
-    /// A read-only private anonymous mapping holding one body; unmapped on drop.
-    pub(super) struct Sealed {
-        ptr: *mut u8,
-        len: usize,
-        mapped: usize,
+    /// Whether a new arena may be mapped for a body of `need` bytes while `mapped` bytes are
+    /// mapped for `live` bytes of bodies. An arena stays mapped while any of its bodies lives,
+    /// so one long-lived tile can keep an arena's other pages: mappings are held to 1.25 × the
+    /// live bodies plus four arenas; beyond that, bodies get mappings of their own (4 KiB
+    /// pages, the slower send) until old arenas are freed.
+    pub(super) fn may_map_arena(mapped: usize, live: usize, need: usize) -> bool {
+        mapped + ARENA <= (live + need) / 4 * 5 + 4 * ARENA
     }
 
-    // SAFETY: the mapping is immutable after construction and owned by this value alone.
-    unsafe impl Send for Sealed {}
-    unsafe impl Sync for Sealed {}
+    /// Sealed bodies packed into 2 MiB arenas, each advised to be one transparent huge page.
+    ///
+    /// Why: every 4 KiB page handed to a socket has its own `struct page`, whose reference
+    /// count the server's core writes (vmsplice, the socket's fragment, the pipe) and the
+    /// receiver's core writes again when it frees the received data — on loopback, in the
+    /// client's kernel time, one cache-line transfer per page: ~38 per 150 KB tile. In a huge
+    /// page all of them share the huge page's count (BENCHMARKS.md, "Warm tiles": wrk spent
+    /// 2–3 µs more kernel time per tile against bodies in 4 KiB pages; nginx's files sit in
+    /// the page cache partly in large folios). Each body takes whole pages of its own.
+    pub(super) struct Arenas {
+        /// Pack bodies into arenas: `None` = where the system has huge pages.
+        pack: Option<bool>,
+        /// The arena new bodies go into, and the offset of its first free page.
+        current: Mutex<Option<(Arc<Arena>, usize)>>,
+        /// Bytes of every mapping alive (arenas and bodies with a mapping of their own).
+        mapped: AtomicUsize,
+        /// Bytes of live bodies, in whole pages.
+        live: AtomicUsize,
+    }
 
-    impl Sealed {
-        pub(super) fn new(data: &[u8]) -> Option<Sealed> {
-            let mapped = data.len().div_ceil(PAGE) * PAGE;
-            // SAFETY: a fresh private anonymous mapping; we write only inside it, then
-            // make it read-only. Failure is reported as MAP_FAILED and handled.
+    impl Arenas {
+        pub(super) const fn new(pack: Option<bool>) -> Arenas {
+            Arenas { pack, current: Mutex::new(None), mapped: AtomicUsize::new(0), live: AtomicUsize::new(0) }
+        }
+
+        /// (bytes mapped, bytes of live bodies).
+        pub(super) fn usage(&self) -> (usize, usize) {
+            (self.mapped.load(Ordering::Relaxed), self.live.load(Ordering::Relaxed))
+        }
+
+        /// Copies `data` into whole pages never handed out before — the next free pages of the
+        /// current arena, of a new one, or a mapping of its own — and returns where.
+        ///
+        /// Bodies in an arena are copied under the lock, and an arena is made read-only as a
+        /// whole once it is full (also under the lock, so no copy into it is under way):
+        /// making each body's pages read-only would split the huge page's single page-table
+        /// entry into 512, and vmsplice's page-table walk cost 0.8 µs more per tile with them.
+        /// Until then the bodies' bytes rest on this function: each page goes to one body,
+        /// written once before the body is shared, and only read as `&[u8]` after.
+        fn place(&'static self, data: &[u8]) -> Option<(Arc<Arena>, usize)> {
+            let len = data.len().div_ceil(PAGE) * PAGE;
+            if len <= ARENA_MAX_BODY && self.pack.unwrap_or_else(huge_pages) {
+                let mut current = self.current.lock().unwrap_or_else(|e| e.into_inner());
+                let room = current.as_ref().is_some_and(|(arena, next)| next + len <= arena.size);
+                if !room {
+                    let (mapped, live) = self.usage();
+                    let fresh = if may_map_arena(mapped, live, len) { Arena::map(self, ARENA, true) } else { None };
+                    if let Some(fresh) = fresh {
+                        if let Some((full, _)) = current.replace((Arc::new(fresh), 0)) {
+                            full.protect();
+                        }
+                    }
+                }
+                if let Some((arena, next)) = current.as_mut().filter(|(arena, next)| *next + len <= arena.size) {
+                    let at = *next;
+                    *next += len;
+                    // SAFETY: [at, at + len) lies inside the arena and was never handed out.
+                    unsafe { std::ptr::copy_nonoverlapping(data.as_ptr(), arena.base.add(at), data.len()) };
+                    return Some((arena.clone(), at));
+                }
+            }
+            let own = Arena::map(self, len, false)?;
+            // SAFETY: a fresh mapping of `len >= data.len()` bytes, ours alone.
+            unsafe { std::ptr::copy_nonoverlapping(data.as_ptr(), own.base, data.len()) };
+            own.protect();
+            Some((Arc::new(own), 0))
+        }
+    }
+
+    /// An anonymous mapping holding sealed bodies; unmapped when the last one is dropped.
+    struct Arena {
+        base: *mut u8,
+        size: usize,
+        owner: &'static Arenas,
+    }
+
+    // SAFETY: the mapping is owned by this value alone; a body in it is written only by
+    // `Arenas::place`, under its lock, before the body is shared.
+    unsafe impl Send for Arena {}
+    unsafe impl Sync for Arena {}
+
+    impl Arena {
+        /// A fresh read-write mapping of `size` bytes; with `huge`, aligned to `ARENA` and
+        /// advised to be backed by huge pages (kernels without them ignore the advice).
+        fn map(owner: &'static Arenas, size: usize, huge: bool) -> Option<Arena> {
+            let span = if huge { size + ARENA } else { size };
+            // SAFETY: a fresh private anonymous mapping; failure is MAP_FAILED and handled.
+            // The trimming unmaps only parts of this mapping outside [base, base + size).
             unsafe {
                 let ptr = libc::mmap(
                     std::ptr::null_mut(),
-                    mapped,
+                    span,
                     libc::PROT_READ | libc::PROT_WRITE,
                     libc::MAP_PRIVATE | libc::MAP_ANONYMOUS,
                     -1,
@@ -131,34 +235,83 @@ mod linux {
                 if ptr == libc::MAP_FAILED {
                     return None;
                 }
-                std::ptr::copy_nonoverlapping(data.as_ptr(), ptr as *mut u8, data.len());
-                if libc::mprotect(ptr, mapped, libc::PROT_READ) != 0 {
-                    libc::munmap(ptr, mapped);
-                    return None;
+                let start = ptr as usize;
+                let base = if huge { start.next_multiple_of(ARENA) } else { start };
+                if base > start {
+                    libc::munmap(ptr, base - start);
                 }
-                let sealed = Sealed { ptr: ptr as *mut u8, len: data.len(), mapped };
-                SEALED.write().unwrap_or_else(|e| e.into_inner()).insert(ptr as usize, data.len());
-                Some(sealed)
+                let tail = start + span - (base + size);
+                if tail > 0 {
+                    libc::munmap((base + size) as *mut libc::c_void, tail);
+                }
+                if huge {
+                    libc::madvise(base as *mut libc::c_void, size, libc::MADV_HUGEPAGE);
+                }
+                owner.mapped.fetch_add(size, Ordering::Relaxed);
+                Some(Arena { base: base as *mut u8, size, owner })
             }
+        }
+    }
+
+    impl Arena {
+        /// Makes the whole mapping read-only: nothing is written into it any more. (Failure
+        /// only loses that protection; the bytes stay as they are.)
+        fn protect(&self) {
+            // SAFETY: changes the protection of exactly this mapping.
+            unsafe { libc::mprotect(self.base as *mut libc::c_void, self.size, libc::PROT_READ) };
+        }
+    }
+
+    impl Drop for Arena {
+        fn drop(&mut self) {
+            // SAFETY: unmaps exactly the mapping made in `map`; its bodies are all dropped.
+            unsafe { libc::munmap(self.base as *mut libc::c_void, self.size) };
+            self.owner.mapped.fetch_sub(self.size, Ordering::Relaxed);
+        }
+    }
+
+    /// One body: whole pages of an arena (or of its own mapping), never written again.
+    pub(super) struct Sealed {
+        arena: Arc<Arena>,
+        ptr: *mut u8,
+        len: usize,
+        pages: usize,
+    }
+
+    // SAFETY: the body's pages are immutable after construction.
+    unsafe impl Send for Sealed {}
+    unsafe impl Sync for Sealed {}
+
+    impl Sealed {
+        pub(super) fn new(data: &[u8]) -> Option<Sealed> {
+            Self::new_in(&ARENAS, data)
+        }
+
+        pub(super) fn new_in(arenas: &'static Arenas, data: &[u8]) -> Option<Sealed> {
+            let pages = data.len().div_ceil(PAGE) * PAGE;
+            let (arena, offset) = arenas.place(data)?;
+            // SAFETY: `place` put `data` at this offset, inside the arena.
+            let ptr = unsafe { arena.base.add(offset) };
+            arenas.live.fetch_add(pages, Ordering::Relaxed);
+            SEALED.write().unwrap_or_else(|e| e.into_inner()).insert(ptr as usize, data.len());
+            Some(Sealed { arena, ptr, len: data.len(), pages })
         }
     }
 
     impl AsRef<[u8]> for Sealed {
         fn as_ref(&self) -> &[u8] {
-            // SAFETY: `ptr` maps `mapped >= len` readable bytes until drop.
+            // SAFETY: `ptr` has `pages >= len` readable bytes while `arena` is held.
             unsafe { std::slice::from_raw_parts(self.ptr, self.len) }
         }
     }
 
     impl Drop for Sealed {
         fn drop(&mut self) {
-            // Unregister first: no new splice may start from this range once it is unmapped.
-            // Splices already done hold their own page references.
+            // Unregister first: no new splice may start from this range once it can be
+            // unmapped. Splices already done hold their own page references. The pages are
+            // never written again; the arena is unmapped with its last body.
             SEALED.write().unwrap_or_else(|e| e.into_inner()).remove(&(self.ptr as usize));
-            // SAFETY: unmaps exactly the mapping created in `new`; no slice outlives `self`.
-            unsafe {
-                libc::munmap(self.ptr as *mut libc::c_void, self.mapped);
-            }
+            self.arena.owner.live.fetch_sub(self.pages, Ordering::Relaxed);
         }
     }
 
@@ -447,6 +600,108 @@ mod tests {
         }
     }
 
+    /// The permissions of the mapping holding `addr`, from /proc/self/maps.
+    #[cfg(target_os = "linux")]
+    fn protection(addr: usize) -> String {
+        let maps = std::fs::read_to_string("/proc/self/maps").unwrap();
+        for line in maps.lines() {
+            let mut f = line.split_whitespace();
+            let (range, perms) = (f.next().unwrap(), f.next().unwrap());
+            let (a, b) = range.split_once('-').unwrap();
+            let (a, b) = (usize::from_str_radix(a, 16).unwrap(), usize::from_str_radix(b, 16).unwrap());
+            if (a..b).contains(&addr) {
+                return perms.to_string();
+            }
+        }
+        panic!("{addr:#x} is not mapped")
+    }
+
+    /// Bodies fill whole pages of one 2 MiB-aligned arena in turn; the arena outlives any of
+    /// its bodies and is unmapped with the last one; big bodies get mappings of their own.
+    #[cfg(target_os = "linux")]
+    #[test]
+    fn bodies_share_arenas_until_the_last_one_drops() {
+        use linux::{Arenas, Sealed, ARENA, ARENA_MAX_BODY};
+        let arenas: &'static Arenas = Box::leak(Box::new(Arenas::new(Some(true))));
+        let body = |i: usize| pattern(150_000 + i);
+        let addr = |s: &Sealed| s.as_ref().as_ptr() as usize;
+
+        let a = Sealed::new_in(arenas, &body(0)).unwrap();
+        let b = Sealed::new_in(arenas, &body(1)).unwrap();
+        let c = Sealed::new_in(arenas, &body(2)).unwrap();
+        let base = addr(&a);
+        assert_eq!(base % ARENA, 0, "an arena starts on a huge-page boundary");
+        assert_eq!(addr(&b), base + footprint(150_000));
+        assert_eq!(addr(&c), addr(&b) + footprint(150_001));
+        let held = footprint(150_000) + footprint(150_001) + footprint(150_002);
+        assert_eq!(arenas.usage(), (ARENA, held));
+        assert!(is_sealed(a.as_ref()) && is_sealed(c.as_ref()));
+
+        drop(b);
+        assert_eq!(arenas.usage(), (ARENA, held - footprint(150_001)), "the arena stays");
+        assert!(a.as_ref() == &body(0)[..] && c.as_ref() == &body(2)[..], "neighbours intact");
+
+        // Fill the first arena; the next body opens a second one.
+        let mut rest = Vec::new();
+        while rest.last().is_none_or(|s: &Sealed| addr(s) / ARENA == base / ARENA) {
+            rest.push(Sealed::new_in(arenas, &body(3 + rest.len())).unwrap());
+        }
+        assert_eq!(arenas.usage().0, 2 * ARENA);
+        assert_eq!(protection(base), "r--p", "a full arena is read-only");
+        assert_eq!(protection(base + ARENA - 1), "r--p", "as a whole");
+        let last = rest.pop().unwrap();
+        drop((a, c, rest));
+        assert_eq!(arenas.usage(), (ARENA, footprint(last.as_ref().len())), "the first arena is unmapped");
+        assert!(!linux::registered_range(base, 1));
+
+        let big = Sealed::new_in(arenas, &pattern(ARENA_MAX_BODY + 1)).unwrap();
+        assert_eq!(arenas.usage().0, ARENA + footprint(ARENA_MAX_BODY + 1), "a mapping of its own");
+        assert!(big.as_ref() == &pattern(ARENA_MAX_BODY + 1)[..]);
+        drop((big, last));
+        assert_eq!(arenas.usage(), (ARENA, 0), "the current arena waits for the next body");
+    }
+
+    /// Without packing (systems without transparent huge pages) every body gets its own
+    /// mapping, freed with it.
+    #[cfg(target_os = "linux")]
+    #[test]
+    fn without_packing_each_body_has_its_own_mapping() {
+        use linux::{Arenas, Sealed};
+        let arenas: &'static Arenas = Box::leak(Box::new(Arenas::new(Some(false))));
+        let a = Sealed::new_in(arenas, &pattern(150_000)).unwrap();
+        let b = Sealed::new_in(arenas, &pattern(150_001)).unwrap();
+        assert_eq!(arenas.usage(), (footprint(150_000) + footprint(150_001), footprint(150_000) + footprint(150_001)));
+        assert_eq!(protection(b.as_ref().as_ptr() as usize), "r--p");
+        drop(a);
+        assert_eq!(arenas.usage(), (footprint(150_001), footprint(150_001)));
+        assert!(b.as_ref() == &pattern(150_001)[..]);
+    }
+
+    /// When long-lived bodies keep mostly empty arenas alive, new bodies stop opening arenas:
+    /// mapped memory stays within 1.25 × the live bodies plus a few arenas.
+    #[cfg(target_os = "linux")]
+    #[test]
+    fn arenas_held_by_few_bodies_stop_new_arenas() {
+        use linux::{may_map_arena, Arenas, Sealed, ARENA};
+        assert!(may_map_arena(0, 0, 150_000));
+        assert!(may_map_arena(18 << 20, 10 << 20, 150_000));
+        assert!(!may_map_arena(19 << 20, 10 << 20, 150_000));
+
+        let arenas: &'static Arenas = Box::leak(Box::new(Arenas::new(Some(true))));
+        let mut kept: Vec<Sealed> = Vec::new();
+        for i in 0..400 {
+            let s = Sealed::new_in(arenas, &pattern(150_000)).unwrap();
+            // Keep one body per 2 MiB block: the worst case for the arenas' other pages.
+            let block = s.as_ref().as_ptr() as usize / ARENA;
+            if kept.iter().all(|k| k.as_ref().as_ptr() as usize / ARENA != block) || i % 50 == 0 {
+                kept.push(s);
+            }
+            let (mapped, live) = arenas.usage();
+            assert!(mapped <= live / 4 * 5 + 5 * ARENA + 2 * footprint(150_000), "{mapped} for {live} live");
+        }
+        assert!(kept.iter().all(|k| k.as_ref() == &pattern(150_000)[..]));
+    }
+
     /// Headers before a sealed body cork the socket; hyper's flush uncorks it, so nothing is
     /// held back once a response is written. The reader gets the response without the
     /// connection closing.
@@ -521,26 +776,29 @@ mod tests {
         });
         let stream = tokio::net::TcpStream::connect(addr).await.unwrap();
         let mut io = SpliceIo::new(stream);
-        let head = b"HTTP/1.1 200 OK\r\ncontent-length: 3000000\r\n\r\n".to_vec();
-        let body = seal(pattern(3_000_000));
+        let head = b"HTTP/1.1 200 OK\r\ncontent-length: 3150000\r\n\r\n".to_vec();
+        let small = seal(pattern(150_000)); // in an arena
+        let body = seal(pattern(3_000_000)); // a mapping of its own
         let tail = pattern(50_000);
         let mut expected = head.clone();
+        expected.extend_from_slice(&small);
         expected.extend_from_slice(&body);
         expected.extend_from_slice(&tail);
 
-        let (mut h, mut b, mut t) = (&head[..], &body[..], &tail[..]);
-        while !(h.is_empty() && b.is_empty() && t.is_empty()) {
-            let bufs: Vec<IoSlice<'_>> = [h, b, t].iter().filter(|s| !s.is_empty()).map(|s| IoSlice::new(s)).collect();
+        let (mut h, mut m, mut b, mut t) = (&head[..], &small[..], &body[..], &tail[..]);
+        while !(h.is_empty() && m.is_empty() && b.is_empty() && t.is_empty()) {
+            let bufs: Vec<IoSlice<'_>> =
+                [h, m, b, t].iter().filter(|s| !s.is_empty()).map(|s| IoSlice::new(s)).collect();
             let mut n = poll_fn(|cx| Pin::new(&mut io).poll_write_vectored(cx, &bufs)).await.unwrap();
             assert!(n > 0);
-            for s in [&mut h, &mut b, &mut t] {
+            for s in [&mut h, &mut m, &mut b, &mut t] {
                 let k = n.min(s.len());
                 *s = &s[k..];
                 n -= k;
             }
         }
         poll_fn(|cx| Pin::new(&mut io).poll_shutdown(cx)).await.unwrap();
-        drop(body); // unmapped while the reader may still be receiving: pages stay intact
+        drop((small, body)); // unmapped while the reader may still be receiving: pages stay intact
         let got = reader.await.unwrap();
         assert_eq!(got.len(), expected.len());
         assert!(got == expected, "bytes differ");

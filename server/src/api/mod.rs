@@ -56,6 +56,19 @@ impl AppState {
     /// Renders `region` of `entry` and encodes it, on the blocking pool, holding a permit.
     /// Returns the encoded bytes. Bad regions are 400s; a panicking model is a 500.
     pub async fn synthesize(&self, entry: Arc<Entry>, region: Region, format: Format) -> Result<Vec<u8>, ApiError> {
+        self.synthesize_then(entry, region, format, |bytes| bytes).await
+    }
+
+    /// [`Self::synthesize`], then `finish` on the encoded bytes in the same blocking task — for
+    /// tiles, `zerocopy::seal`, whose copy (and the first touch of a fresh huge-page arena,
+    /// which may wait for the kernel to compact memory) then stays off the I/O runtimes.
+    pub async fn synthesize_then<T: Send + 'static>(
+        &self,
+        entry: Arc<Entry>,
+        region: Region,
+        format: Format,
+        finish: fn(Vec<u8>) -> T,
+    ) -> Result<T, ApiError> {
         // The permit moves into the blocking work, not this future: a request dropped while
         // its tile renders (a client gone, a batch the viewer aborted) must not free the slot
         // while the render still runs, or more syntheses than permits would run at once.
@@ -76,7 +89,7 @@ impl AppState {
                 let t1 = Instant::now();
                 let bytes = encode::encode(&img, format).map_err(ApiError::internal)?;
                 encode_s.observe(t1.elapsed().as_secs_f64());
-                Ok(bytes)
+                Ok(finish(bytes))
             };
             let result = std::panic::catch_unwind(std::panic::AssertUnwindSafe(work));
             in_flight.dec();
