@@ -237,14 +237,15 @@ HWM=$(awk '/VmHWM/ {print $2}' "/proc/$VTEX_PID/status")
 M=$(curl -s "$VTEX/metrics")
 CACHE=$(echo "$M" | awk '/^vtex_tile_cache_bytes / {print $2}')
 BUDGET=$(echo "$M" | awk '/^vtex_tile_cache_budget_bytes / {print $2}')
+MAPPED=$(echo "$M" | awk '/^vtex_tile_cache_mapped_bytes / {print $2}')
 SENT=$(echo "$M" | awk '/^vtex_http_response_bytes_total / {print $2}')
 REQS=$(awk '/requests in/ {print $1}' "$WORK/pan.txt")
 echo
 echo "## Resident memory after a ${PAN_DUR}s pan (8 connections, $REQS new PNG tiles, $((${SENT%.*} / 1048576)) MiB sent)"
 echo
-echo "| cache budget | cache bytes held | RSS at start | RSS after pan | peak RSS |"
-echo "|---|---|---|---|---|"
-echo "| $((${BUDGET%.*} / 1048576)) MiB | $((${CACHE%.*} / 1048576)) MiB | $((RSS0 / 1024)) MiB | $((RSS1 / 1024)) MiB | $((HWM / 1024)) MiB |"
+echo "| cache budget | cache bytes held | mapped for them | RSS at start | RSS after pan | peak RSS |"
+echo "|---|---|---|---|---|---|"
+echo "| $((${BUDGET%.*} / 1048576)) MiB | $((${CACHE%.*} / 1048576)) MiB | $((${MAPPED%.*} / 1048576)) MiB | $((RSS0 / 1024)) MiB | $((RSS1 / 1024)) MiB | $((HWM / 1024)) MiB |"
 stop_vtex
 fi
 echo

@@ -110,6 +110,8 @@ pub struct Metrics {
     pub syntheses_in_flight: IntGauge,
     pub cache_bytes: IntGauge,
     pub cache_budget_bytes: IntGauge,
+    /// Memory mapped for cached tile bodies (their whole pages, and arena pages between them).
+    pub cache_mapped_bytes: IntGauge,
     pub cache_entries: IntGauge,
     pub cache_evictions: IntGauge,
     pub textures: IntGauge,
@@ -168,6 +170,10 @@ impl Metrics {
         let syntheses_in_flight = must(IntGauge::new("vtex_syntheses_in_flight", "Syntheses running now"));
         let cache_bytes = must(IntGauge::new("vtex_tile_cache_bytes", "Bytes held by the tile cache"));
         let cache_budget_bytes = must(IntGauge::new("vtex_tile_cache_budget_bytes", "Byte budget of the tile cache"));
+        let cache_mapped_bytes = must(IntGauge::new(
+            "vtex_tile_cache_mapped_bytes",
+            "Memory mapped for tile bodies (whole pages; huge-page arenas with their free pages)",
+        ));
         let cache_entries = must(IntGauge::new("vtex_tile_cache_entries", "Tiles held by the tile cache"));
         let cache_evictions = must(IntGauge::new("vtex_tile_cache_evictions", "Tiles evicted since start"));
         let textures = must(IntGauge::new("vtex_textures", "Textures in the store"));
@@ -188,6 +194,7 @@ impl Metrics {
             Box::new(syntheses_in_flight.clone()),
             Box::new(cache_bytes.clone()),
             Box::new(cache_budget_bytes.clone()),
+            Box::new(cache_mapped_bytes.clone()),
             Box::new(cache_entries.clone()),
             Box::new(cache_evictions.clone()),
             Box::new(textures.clone()),
@@ -215,6 +222,7 @@ impl Metrics {
             syntheses_in_flight,
             cache_bytes,
             cache_budget_bytes,
+            cache_mapped_bytes,
             cache_entries,
             cache_evictions,
             textures,

@@ -58,6 +58,19 @@ pub fn seal(body: Vec<u8>) -> Bytes {
     Bytes::from(body)
 }
 
+/// Bytes of memory mapped for sealed bodies now: their pages and the arenas' pages not (or no
+/// longer) holding one (the memory behind the tile cache's budget; see `may_map_arena`).
+pub fn mapped_bytes() -> usize {
+    #[cfg(target_os = "linux")]
+    {
+        linux::mapped_bytes()
+    }
+    #[cfg(not(target_os = "linux"))]
+    {
+        0
+    }
+}
+
 /// True when `bytes` lies wholly inside one sealed mapping (for tests and assertions).
 pub fn is_sealed(bytes: &[u8]) -> bool {
     #[cfg(target_os = "linux")]
@@ -117,6 +130,10 @@ mod linux {
         })
     }
 
+    pub(super) fn mapped_bytes() -> usize {
+        ARENAS.usage().0
+    }
+
     pub(super) fn registered(bytes: &[u8]) -> bool {
         registered_range(bytes.as_ptr() as usize, bytes.len())
     }
@@ -128,12 +145,17 @@ mod linux {
 
     /// Whether a new arena may be mapped for a body of `need` bytes while `mapped` bytes are
     /// mapped for `live` bytes of bodies. An arena stays mapped while any of its bodies lives,
-    /// so one long-lived tile can keep an arena's other pages: mappings are held to 1.25 × the
-    /// live bodies plus four arenas; beyond that, bodies get mappings of their own (4 KiB
-    /// pages, the slower send) until old arenas are freed.
+    /// so one long-lived tile can keep an arena's other pages: mappings are held to the live
+    /// bodies plus 1/[`SLACK`] of them plus four arenas (the tile cache's byte budget then
+    /// holds for the memory behind it within that); beyond that, bodies get mappings of their
+    /// own (4 KiB pages, the slower send) until old arenas are freed.
     pub(super) fn may_map_arena(mapped: usize, live: usize, need: usize) -> bool {
-        mapped + ARENA <= (live + need) / 4 * 5 + 4 * ARENA
+        let bodies = live + need;
+        mapped + ARENA <= bodies + bodies / SLACK + 4 * ARENA
     }
+
+    /// Arenas' pages not holding live bodies are kept below 1/`SLACK` of the live bodies.
+    pub(super) const SLACK: usize = 8;
 
     /// Sealed bodies packed into 2 MiB arenas, each advised to be one transparent huge page.
     ///
@@ -678,14 +700,14 @@ mod tests {
     }
 
     /// When long-lived bodies keep mostly empty arenas alive, new bodies stop opening arenas:
-    /// mapped memory stays within 1.25 × the live bodies plus a few arenas.
+    /// mapped memory stays within 1.125 × the live bodies plus a few arenas.
     #[cfg(target_os = "linux")]
     #[test]
     fn arenas_held_by_few_bodies_stop_new_arenas() {
-        use linux::{may_map_arena, Arenas, Sealed, ARENA};
+        use linux::{may_map_arena, Arenas, Sealed, ARENA, SLACK};
         assert!(may_map_arena(0, 0, 150_000));
-        assert!(may_map_arena(18 << 20, 10 << 20, 150_000));
-        assert!(!may_map_arena(19 << 20, 10 << 20, 150_000));
+        assert!(may_map_arena(17 << 20, 10 << 20, 150_000));
+        assert!(!may_map_arena(18 << 20, 10 << 20, 150_000));
 
         let arenas: &'static Arenas = Box::leak(Box::new(Arenas::new(Some(true))));
         let mut kept: Vec<Sealed> = Vec::new();
@@ -697,7 +719,7 @@ mod tests {
                 kept.push(s);
             }
             let (mapped, live) = arenas.usage();
-            assert!(mapped <= live / 4 * 5 + 5 * ARENA + 2 * footprint(150_000), "{mapped} for {live} live");
+            assert!(mapped <= live + live / SLACK + 5 * ARENA + 2 * footprint(150_000), "{mapped} for {live} live");
         }
         assert!(kept.iter().all(|k| k.as_ref() == &pattern(150_000)[..]));
     }

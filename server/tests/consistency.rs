@@ -155,4 +155,9 @@ async fn cache_budget_holds_after_filling_it_many_times_over() {
     assert!(peak <= budget, "cache held {peak} bytes over a budget of {budget}");
     assert!(held > budget / 2.0, "the cache is in use: {held}");
     assert!(metric(&m, "vtex_tile_cache_evictions", &[]) >= 240.0);
+    // The memory behind it: tiles take whole pages, packed into 2 MiB huge-page arenas that
+    // may keep up to 1/8 of the live tiles' size free, plus the four arenas being filled.
+    let mapped = metric(&m, "vtex_tile_cache_mapped_bytes", &[]);
+    assert!(mapped >= held, "every held tile is in mapped pages: {mapped} < {held}");
+    assert!(mapped <= budget * 1.125 + 5.0 * 2.0 * 1024.0 * 1024.0, "{mapped} bytes mapped for {held} held");
 }

@@ -135,6 +135,7 @@ async fn healthz() -> Response {
 async fn metrics(State(app): State<App>) -> Response {
     let m = &app.metrics;
     m.cache_bytes.set(app.cache.bytes() as i64);
+    m.cache_mapped_bytes.set(crate::zerocopy::mapped_bytes() as i64);
     m.cache_entries.set(app.cache.len() as i64);
     m.cache_evictions.set(app.cache.evictions() as i64);
     m.textures.set(app.store.len() as i64);
