@@ -413,6 +413,8 @@ impl ChaosMosaic {
         };
         let cx: Vec<u32> = cols.iter().map(|c| c.0.rem_euclid(sw) as u32).collect();
         let cy: Vec<u32> = rows.iter().map(|c| c.0.rem_euclid(sh) as u32).collect();
+        // Only the last column can be a partial pixel (at the texture's right edge).
+        let full_cols = (0..nx).take_while(|&i| span(i as i64, lx, tw).1 - span(i as i64, lx, tw).0 == f).count();
 
         // The cells' layers are made a band of pixel rows at a time, about 256 KiB of them, so
         // that they are still in cache when summed.
@@ -440,11 +442,31 @@ impl ChaosMosaic {
             }
             for j in j0..j1 {
                 let (fy0, fy1) = span(j as i64, ly, th);
-                for i in 0..nx {
+                let cj = j * cells;
+                let (state, out) = (&state[j * nx..][..nx], &mut out[j * nx..][..nx]);
+                // Full pixels of a full row with tables: a look-up or a merged sum, and a shift.
+                let fast = match (fy1 - fy0 == f, whole, &merged) {
+                    (true, Some(whole), Some(tables)) => {
+                        let rows = &layer[(cj - r0) * gw..];
+                        let (cy0, half) = (cy[cj], 1u64 << (2 * level) >> 1);
+                        for (i, (o, &k)) in out[..full_cols].iter_mut().zip(state).enumerate() {
+                            let ci = i * cells;
+                            let sum = match k {
+                                DIRTY => merged_sum(&rows[ci..], gw, cells, tables, &cx[ci..], &cy[cj..]),
+                                BACKGROUND => whole.at(cx[ci], cy0, 0),
+                                k => whole.at(cx[ci], cy0, offsets[k as usize + 1]),
+                            };
+                            *o = sum.map(|s| ((s as u64 + half) >> (2 * level)) as u8);
+                        }
+                        full_cols
+                    }
+                    _ => 0,
+                };
+                for i in fast..nx {
                     let (fx0, fx1) = span(i as i64, lx, tw);
                     let full = fx1 - fx0 == f && fy1 - fy0 == f;
-                    let (ci, cj) = (i * cells, j * cells);
-                    let sum = match (state[j * nx + i], &merged) {
+                    let ci = i * cells;
+                    let sum = match (state[i], &merged) {
                         (DIRTY, Some(tables)) if full => {
                             merged_sum(&layer[(cj - r0) * gw + ci..], gw, cells, tables, &cx[ci..], &cy[cj..])
                                 .map(u64::from)
@@ -473,7 +495,7 @@ impl ChaosMosaic {
                         }
                     };
                     let area = ((fx1 - fx0) * (fy1 - fy0)) as u64;
-                    out[j * nx + i] = sum.map(|s| match full {
+                    out[i] = sum.map(|s| match full {
                         // area = 4^level: the rounded division is a shift.
                         true => ((s + area / 2) >> (2 * level)) as u8,
                         false => ((s + area / 2) / area) as u8,
@@ -523,26 +545,48 @@ impl ChaosMosaic {
 /// `tables[log2 of the merge]`, the same sum, as the merged cells tile a box of that layer.
 #[inline]
 fn merged_sum(layer: &[u32], gw: usize, n: usize, tables: &[&BoxTable], cx: &[u32], cy: &[u32]) -> [u32; 4] {
-    let at = |t: usize, a: usize, b: usize| tables[t].at(cx[a], cy[b], layer[b * gw + a]);
-    let uniform = |a: usize, b: usize, n: usize| {
-        let o = layer[b * gw + a];
-        (b..b + n).all(|r| layer[r * gw + a..r * gw + a + n].iter().all(|&l| l == o))
-    };
-    if uniform(0, 0, n) {
-        return at(n.trailing_zeros() as usize, 0, 0);
+    match n {
+        4 => merged_sum4(layer, gw, tables, cx, cy),
+        2 => {
+            let q = [layer[0], layer[1], layer[gw], layer[gw + 1]];
+            quad_sum(q, &tables[..2], [cx[0], cx[1]], [cy[0], cy[1]])
+        }
+        _ => tables[0].at(cx[0], cy[0], layer[0]),
     }
+}
+
+/// [`merged_sum`] of 4 × 4 cells: their layers are read once, compared without a branch a
+/// cell, and the four 2 × 2 quads summed when the footprint holds more than one layer.
+#[inline]
+fn merged_sum4(layer: &[u32], gw: usize, tables: &[&BoxTable], cx: &[u32], cy: &[u32]) -> [u32; 4] {
+    let row = |b: usize| -> [u32; 4] { layer[b * gw..b * gw + 4].try_into().unwrap() };
+    let l = [row(0), row(1), row(2), row(3)];
+    let o = l[0][0];
+    if l.iter().flatten().fold(0, |d, &v| d | (v ^ o)) == 0 {
+        return tables[2].at(cx[0], cy[0], o);
+    }
+    let (cx, cy): ([u32; 4], [u32; 4]) = (cx[..4].try_into().unwrap(), cy[..4].try_into().unwrap());
     let mut acc = [0u32; 4];
-    let mut add = |s: [u32; 4]| acc.iter_mut().zip(s).for_each(|(a, s)| *a += s);
-    for b in (0..n).step_by(2) {
-        for a in (0..n).step_by(2) {
-            if n == 4 && uniform(a, b, 2) {
-                add(at(1, a, b));
-            } else {
-                [(a, b), (a + 1, b), (a, b + 1), (a + 1, b + 1)].into_iter().for_each(|(a, b)| add(at(0, a, b)));
-            }
+    for b in [0, 2] {
+        for a in [0, 2] {
+            let q = [l[b][a], l[b][a + 1], l[b + 1][a], l[b + 1][a + 1]];
+            let s = quad_sum(q, &tables[..2], [cx[a], cx[a + 1]], [cy[b], cy[b + 1]]);
+            acc.iter_mut().zip(s).for_each(|(a, s)| *a += s);
         }
     }
     acc
+}
+
+/// The sum of 2 × 2 cells with layers `q` (row by row): one look-up in `tables[1]` when they
+/// share a layer, else one a cell in `tables[0]`.
+#[inline]
+fn quad_sum(q: [u32; 4], tables: &[&BoxTable], cx: [u32; 2], cy: [u32; 2]) -> [u32; 4] {
+    if q[1] == q[0] && q[2] == q[0] && q[3] == q[0] {
+        return tables[1].at(cx[0], cy[0], q[0]);
+    }
+    let t = tables[0];
+    let s = [t.at(cx[0], cy[0], q[0]), t.at(cx[1], cy[0], q[1]), t.at(cx[0], cy[1], q[2]), t.at(cx[1], cy[1], q[3])];
+    std::array::from_fn(|c| s[0][c] + s[1][c] + s[2][c] + s[3][c])
 }
 
 /// Splits `count` pixels starting at `start` on a torus of `period` into runs that do not
