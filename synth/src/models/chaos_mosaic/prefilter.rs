@@ -87,6 +87,9 @@ pub(super) struct BoxTable {
     w: u32,
     h: u32,
     sums: Lanes,
+    /// For a power-of-two side, each box's rounded mean, RGBA8 packed little-endian: what a
+    /// footprint of that side inside one layer evaluates to, in one look-up.
+    means: Vec<u32>,
 }
 
 /// A table's entries, in 16 bits a channel where every box sum fits (sides ≤ 16), halving the
@@ -123,11 +126,15 @@ impl BoxTable {
                 sums[y * w + x] = s;
             }
         }
+        let means = match side.is_power_of_two() {
+            true => sums.iter().map(|s| u32::from_le_bytes(s.map(|v| mean_of_pow2_box(v, side)))).collect(),
+            false => Vec::new(),
+        };
         let sums = match side * side * 255 <= u16::MAX as usize {
             true => Lanes::Narrow(sums.iter().map(|s| s.map(|v| v as u16)).collect()),
             false => Lanes::Wide(sums),
         };
-        Some(Self { w: w as u32, h: h as u32, sums })
+        Some(Self { w: w as u32, h: h as u32, sums, means })
     }
 
     /// The sum of the box with corner (x, y) of the plane.
@@ -139,14 +146,25 @@ impl BoxTable {
     /// (x, y) and an offset packed by [`pack`] — two additions and no division.
     #[inline]
     fn at(&self, x: u32, y: u32, offset: u32) -> [u32; 4] {
-        let (mut u, mut v) = (x + (offset & 0xffff), y + (offset >> 16));
-        u -= self.w * (u >= self.w) as u32;
-        v -= self.h * (v >= self.h) as u32;
-        let i = (v * self.w + u) as usize;
+        let i = self.index(x, y, offset);
         match &self.sums {
             Lanes::Narrow(s) => s[i].map(u32::from),
             Lanes::Wide(s) => s[i],
         }
+    }
+
+    /// The rounded mean (RGBA8) of the box that [`Self::at`] sums; power-of-two sides only.
+    #[inline]
+    fn mean_at(&self, x: u32, y: u32, offset: u32) -> [u8; 4] {
+        self.means[self.index(x, y, offset)].to_le_bytes()
+    }
+
+    #[inline]
+    fn index(&self, x: u32, y: u32, offset: u32) -> usize {
+        let (mut u, mut v) = (x + (offset & 0xffff), y + (offset >> 16));
+        u -= self.w * (u >= self.w) as u32;
+        v -= self.h * (v >= self.h) as u32;
+        (v * self.w + u) as usize
     }
 }
 
@@ -166,6 +184,14 @@ impl BoxTables {
         }
         self.0[k].get_or_init(|| BoxTable::new(sample, side as usize)).as_ref()
     }
+}
+
+/// The rounded mean of a box of `side²` pixels (side a power of two) from its sum `s`: the
+/// division is a shift, as in [`ChaosMosaic::integrate`] for full footprints.
+#[inline]
+fn mean_of_pow2_box(s: u32, side: usize) -> u8 {
+    let area = (side * side) as u64;
+    ((s as u64 + area / 2) >> area.trailing_zeros()) as u8
 }
 
 /// A layer's translation (dx, dy) from texture to sample coordinates, reduced modulo the sample
@@ -448,15 +474,14 @@ impl ChaosMosaic {
                 let fast = match (fy1 - fy0 == f, whole, &merged) {
                     (true, Some(whole), Some(tables)) => {
                         let rows = &layer[(cj - r0) * gw..];
-                        let (cy0, half) = (cy[cj], 1u64 << (2 * level) >> 1);
+                        let cy0 = cy[cj];
                         for (i, (o, &k)) in out[..full_cols].iter_mut().zip(state).enumerate() {
                             let ci = i * cells;
-                            let sum = match k {
-                                DIRTY => merged_sum(&rows[ci..], gw, cells, tables, &cx[ci..], &cy[cj..]),
-                                BACKGROUND => whole.at(cx[ci], cy0, 0),
-                                k => whole.at(cx[ci], cy0, offsets[k as usize + 1]),
+                            *o = match k {
+                                DIRTY => merged_mean(&rows[ci..], gw, cells, tables, &cx[ci..], &cy[cj..], f),
+                                BACKGROUND => whole.mean_at(cx[ci], cy0, 0),
+                                k => whole.mean_at(cx[ci], cy0, offsets[k as usize + 1]),
                             };
-                            *o = sum.map(|s| ((s as u64 + half) >> (2 * level)) as u8);
                         }
                         full_cols
                     }
@@ -466,12 +491,8 @@ impl ChaosMosaic {
                     let (fx0, fx1) = span(i as i64, lx, tw);
                     let full = fx1 - fx0 == f && fy1 - fy0 == f;
                     let ci = i * cells;
-                    let sum = match (state[i], &merged) {
-                        (DIRTY, Some(tables)) if full => {
-                            merged_sum(&layer[(cj - r0) * gw + ci..], gw, cells, tables, &cx[ci..], &cy[cj..])
-                                .map(u64::from)
-                        }
-                        (DIRTY, _) => {
+                    let sum = match state[i] {
+                        DIRTY => {
                             let mut acc = [0u64; 4];
                             for (cj, &(y0, y1, _)) in rows.iter().enumerate().skip(cj).take(cells) {
                                 for (ci, &(c0, c1, _)) in cols.iter().enumerate().skip(ci).take(cells) {
@@ -483,7 +504,7 @@ impl ChaosMosaic {
                             }
                             acc
                         }
-                        (k, _) => {
+                        k => {
                             let o = if k == BACKGROUND { 0 } else { offsets[k as usize + 1] };
                             match whole {
                                 Some(t) if full => t.at(cx[ci], cy[cj], o).map(u64::from),
@@ -539,42 +560,44 @@ impl ChaosMosaic {
     }
 }
 
-/// The sum of the `n` × `n` cells (n = 1, 2 or 4) of one footprint whose packed layers are
-/// `layer` (rows `gw` apart) and whose corners modulo the sample are `cx`, `cy`: cells of one
-/// layer are merged — the whole footprint, else 2 × 2 cells — into one look-up in
-/// `tables[log2 of the merge]`, the same sum, as the merged cells tile a box of that layer.
+/// The rounded mean of a full footprint of side `f` split into `n` × `n` cells (n = 1, 2 or
+/// 4) whose packed layers are `layer` (rows `gw` apart) and whose corners modulo the sample are
+/// `cx`, `cy`. Cells of one layer are merged — the whole footprint, else 2 × 2 cells — into
+/// one look-up in `tables[log2 of the merge]`, the same sum, as the merged cells tile a box of
+/// that layer; a footprint of one layer reads its mean directly.
 #[inline]
-fn merged_sum(layer: &[u32], gw: usize, n: usize, tables: &[&BoxTable], cx: &[u32], cy: &[u32]) -> [u32; 4] {
+fn merged_mean(layer: &[u32], gw: usize, n: usize, tables: &[&BoxTable], cx: &[u32], cy: &[u32], f: i64) -> [u8; 4] {
+    let area = (f * f) as u64;
+    let round = |s: [u32; 4]| s.map(|v| ((v as u64 + area / 2) >> area.trailing_zeros()) as u8);
     match n {
-        4 => merged_sum4(layer, gw, tables, cx, cy),
+        4 => {
+            let row = |b: usize| -> [u32; 4] { layer[b * gw..b * gw + 4].try_into().unwrap() };
+            let l = [row(0), row(1), row(2), row(3)];
+            let o = l[0][0];
+            // One layer: compared without a branch a cell.
+            if l.iter().flatten().fold(0, |d, &v| d | (v ^ o)) == 0 {
+                return tables[2].mean_at(cx[0], cy[0], o);
+            }
+            let (cx, cy): ([u32; 4], [u32; 4]) = (cx[..4].try_into().unwrap(), cy[..4].try_into().unwrap());
+            let mut acc = [0u32; 4];
+            for b in [0, 2] {
+                for a in [0, 2] {
+                    let q = [l[b][a], l[b][a + 1], l[b + 1][a], l[b + 1][a + 1]];
+                    let s = quad_sum(q, &tables[..2], [cx[a], cx[a + 1]], [cy[b], cy[b + 1]]);
+                    acc.iter_mut().zip(s).for_each(|(a, s)| *a += s);
+                }
+            }
+            round(acc)
+        }
         2 => {
             let q = [layer[0], layer[1], layer[gw], layer[gw + 1]];
-            quad_sum(q, &tables[..2], [cx[0], cx[1]], [cy[0], cy[1]])
+            match q.iter().all(|&v| v == q[0]) {
+                true => tables[1].mean_at(cx[0], cy[0], q[0]),
+                false => round(quad_sum(q, &tables[..2], [cx[0], cx[1]], [cy[0], cy[1]])),
+            }
         }
-        _ => tables[0].at(cx[0], cy[0], layer[0]),
+        _ => tables[0].mean_at(cx[0], cy[0], layer[0]),
     }
-}
-
-/// [`merged_sum`] of 4 × 4 cells: their layers are read once, compared without a branch a
-/// cell, and the four 2 × 2 quads summed when the footprint holds more than one layer.
-#[inline]
-fn merged_sum4(layer: &[u32], gw: usize, tables: &[&BoxTable], cx: &[u32], cy: &[u32]) -> [u32; 4] {
-    let row = |b: usize| -> [u32; 4] { layer[b * gw..b * gw + 4].try_into().unwrap() };
-    let l = [row(0), row(1), row(2), row(3)];
-    let o = l[0][0];
-    if l.iter().flatten().fold(0, |d, &v| d | (v ^ o)) == 0 {
-        return tables[2].at(cx[0], cy[0], o);
-    }
-    let (cx, cy): ([u32; 4], [u32; 4]) = (cx[..4].try_into().unwrap(), cy[..4].try_into().unwrap());
-    let mut acc = [0u32; 4];
-    for b in [0, 2] {
-        for a in [0, 2] {
-            let q = [l[b][a], l[b][a + 1], l[b + 1][a], l[b + 1][a + 1]];
-            let s = quad_sum(q, &tables[..2], [cx[a], cx[a + 1]], [cy[b], cy[b + 1]]);
-            acc.iter_mut().zip(s).for_each(|(a, s)| *a += s);
-        }
-    }
-    acc
 }
 
 /// The sum of 2 × 2 cells with layers `q` (row by row): one look-up in `tables[1]` when they
