@@ -361,18 +361,27 @@ impl ChaosMosaic {
             let meets = |a: i64, b: i64, lo: i64, n: usize| {
                 (((a - reach).div_euclid(f) - lo).max(0), ((b + reach - 1).div_euclid(f) - lo).min(n as i64 - 1))
             };
+            // Per placement, the columns whose grown footprint lies inside it, then row by row.
+            let mut cols_in = Vec::new();
             for (k, p) in placed.iter().enumerate() {
                 let b = &self.blocks[p.pos as usize];
                 let (bx1, by1) = (p.x + b.w as i64, p.y + b.h as i64);
                 let (i0, i1) = meets(p.x, bx1, lx, nx);
                 let (j0, j1) = meets(p.y, by1, ly, ny);
+                if i0 > i1 {
+                    continue;
+                }
+                cols_in.clear();
+                cols_in.extend((i0..=i1).map(|i| {
+                    let (fx0, fx1) = span(i, lx, tw);
+                    fx0 - reach >= p.x && fx1 + reach <= bx1
+                }));
                 for j in j0..=j1 {
                     let (fy0, fy1) = span(j, ly, th);
-                    let rows_in = fy0 - reach >= p.y && fy1 + reach <= by1;
-                    for i in i0..=i1 {
-                        let (fx0, fx1) = span(i, lx, tw);
-                        let inside = rows_in && fx0 - reach >= p.x && fx1 + reach <= bx1;
-                        state[j as usize * nx + i as usize] = if inside { k as u32 } else { DIRTY };
+                    let row = &mut state[j as usize * nx..][i0 as usize..=i1 as usize];
+                    match fy0 - reach >= p.y && fy1 + reach <= by1 {
+                        true => row.iter_mut().zip(&cols_in).for_each(|(s, &c)| *s = if c { k as u32 } else { DIRTY }),
+                        false => row.fill(DIRTY),
                     }
                 }
             }
