@@ -451,9 +451,30 @@ impl ChaosMosaic {
         // Only the last column can be a partial pixel (at the texture's right edge).
         let full_cols = (0..nx).take_while(|&i| span(i as i64, lx, tw).1 - span(i as i64, lx, tw).0 == f).count();
 
-        // The cells' layers are made a band of pixel rows at a time, about 256 KiB of them, so
-        // that they are still in cache when summed.
-        let band = (65536 / (gw * cells)).max(1);
+        // The cells' layers are made a band of pixel rows at a time, about 64 KiB of them, so
+        // that they are still in cache when summed; each band paints only its placements.
+        let band = (16384 / (gw * cells)).max(1);
+        // Each band's placements (those with cell rows in it), in sequence order.
+        let band_rows = band * cells;
+        let mut in_band = vec![0u32; ny.div_ceil(band) + 1];
+        let bands_of = |cj: &std::ops::Range<usize>| match cj.is_empty() {
+            true => 0..0,
+            false => cj.start / band_rows..(cj.end - 1) / band_rows + 1,
+        };
+        for (_, cj) in &painted {
+            bands_of(cj).for_each(|k| in_band[k + 1] += 1);
+        }
+        for k in 1..in_band.len() {
+            in_band[k] += in_band[k - 1];
+        }
+        let mut by_band = vec![0u32; in_band[in_band.len() - 1] as usize];
+        let mut fill = in_band.clone();
+        for (n, (_, cj)) in painted.iter().enumerate() {
+            for k in bands_of(cj) {
+                by_band[fill[k] as usize] = n as u32;
+                fill[k] += 1;
+            }
+        }
         let mut layer = vec![0u32; if coarse { 0 } else { gw * cells * band.min(ny) }];
         let mut out = vec![[0u8; 4]; nx * ny];
         for j0 in (0..ny).step_by(band) {
@@ -461,7 +482,9 @@ impl ChaosMosaic {
             let r1 = j1 * cells;
             if rasterize {
                 layer.fill(0);
-                for ((ci, cj), &o) in painted.iter().zip(&offsets[1..]) {
+                let k = j0 / band;
+                for &n in &by_band[in_band[k] as usize..in_band[k + 1] as usize] {
+                    let ((ci, cj), o) = (&painted[n as usize], offsets[n as usize + 1]);
                     for j in cj.start.max(r0)..cj.end.min(r1) {
                         layer[(j - r0) * gw + ci.start..(j - r0) * gw + ci.end].fill(o);
                     }
