@@ -83,9 +83,17 @@ fn lanes(terms: impl Fn(usize) -> [i64; 4]) -> [i64; 4] {
 
 /// The sums of every `side` × `side` box of the periodic sample, by the box's corner in the
 /// sample: a cell of a mip footprint then costs one look-up, whatever its layer's offset.
+///
+/// Entries are stored with columns (and rows) ordered by their remainder modulo the side,
+/// then by quotient: the corners a layer's cells take, `side` apart, are then neighbours in
+/// memory, so the cells of a footprint and consecutive footprints share cache lines instead of
+/// taking one each.
 pub(super) struct BoxTable {
     w: u32,
     h: u32,
+    /// Where column u is stored in a row, and where row v starts.
+    col: Vec<u32>,
+    row: Vec<u32>,
     sums: Lanes,
     /// For a power-of-two side, each box's rounded mean, RGBA8 packed little-endian: what a
     /// footprint of that side inside one layer evaluates to, in one look-up.
@@ -126,6 +134,14 @@ impl BoxTable {
                 sums[y * w + x] = s;
             }
         }
+        let (col, row) = (by_remainder(w, side), by_remainder(h, side));
+        let mut stored = vec![[0; 4]; w * h];
+        for (y, line) in sums.chunks_exact(w).enumerate() {
+            for (x, s) in line.iter().enumerate() {
+                stored[(row[y] * w as u32 + col[x]) as usize] = *s;
+            }
+        }
+        let (row, sums): (Vec<u32>, _) = (row.iter().map(|r| r * w as u32).collect(), stored);
         let means = match side.is_power_of_two() {
             true => sums.iter().map(|s| u32::from_le_bytes(s.map(|v| mean_of_pow2_box(v, side)))).collect(),
             false => Vec::new(),
@@ -134,7 +150,7 @@ impl BoxTable {
             true => Lanes::Narrow(sums.iter().map(|s| s.map(|v| v as u16)).collect()),
             false => Lanes::Wide(sums),
         };
-        Some(Self { w: w as u32, h: h as u32, sums, means })
+        Some(Self { w: w as u32, h: h as u32, col, row, sums, means })
     }
 
     /// The sum of the box with corner (x, y) of the plane.
@@ -164,8 +180,20 @@ impl BoxTable {
         let (mut u, mut v) = (x + (offset & 0xffff), y + (offset >> 16));
         u -= self.w * (u >= self.w) as u32;
         v -= self.h * (v >= self.h) as u32;
-        (v * self.w + u) as usize
+        (self.row[v as usize] + self.col[u as usize]) as usize
     }
+}
+
+/// For each of `n` positions, its place when ordered by remainder modulo `side`, then by
+/// quotient.
+fn by_remainder(n: usize, side: usize) -> Vec<u32> {
+    let mut order: Vec<usize> = (0..n).collect();
+    order.sort_by_key(|&u| (u % side, u / side));
+    let mut place = vec![0u32; n];
+    for (k, &u) in order.iter().enumerate() {
+        place[u] = k as u32;
+    }
+    place
 }
 
 /// The box tables of one sample, one a power-of-two side, each built on first use and kept:
