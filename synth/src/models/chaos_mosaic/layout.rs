@@ -71,10 +71,11 @@ impl ChaosMosaic {
         let (tiles_x, tiles_y) = (self.params.tiles_x as i64, self.params.tiles_y as i64);
         let (x1, y1) = (x0 + w as i64, y0 + h as i64);
         let mut out = Vec::new();
-        for ty in y0.div_euclid(sh) - 1..=(y1 - 1).div_euclid(sh) {
-            let wty = ty.rem_euclid(tiles_y);
-            for tx in x0.div_euclid(sw) - 1..=(x1 - 1).div_euclid(sw) {
-                let wtx = tx.rem_euclid(tiles_x);
+        let (tx0, ty0) = (x0.div_euclid(sw) - 1, y0.div_euclid(sh) - 1);
+        let mut wty = ty0.rem_euclid(tiles_y);
+        for ty in ty0..=(y1 - 1).div_euclid(sh) {
+            let mut wtx = tx0.rem_euclid(tiles_x);
+            for tx in tx0..=(x1 - 1).div_euclid(sw) {
                 // The home tile's blocks lie in it: the unrolled corner is the tile's plus the
                 // corner's place in the tile.
                 let (dx, dy) = ((tx - wtx) * sw, (ty - wty) * sh);
@@ -85,7 +86,9 @@ impl ChaosMosaic {
                         out.push(Placed { id: self.seq[pos], x: px, y: py, pos: pos as u32 });
                     }
                 }
+                wtx = if wtx + 1 == tiles_x { 0 } else { wtx + 1 };
             }
+            wty = if wty + 1 == tiles_y { 0 } else { wty + 1 };
         }
         sort_in_sequence(&mut out);
         out

@@ -224,8 +224,14 @@ fn mean_of_pow2_box(s: u32, side: usize) -> u8 {
 
 /// A layer's translation (dx, dy) from texture to sample coordinates, reduced modulo the sample
 /// (sides ≤ 4096) and packed as `dy << 16 | dx`: equal packed offsets give equal box sums.
+/// Translations within one period either way reduce without dividing.
 fn pack(dx: i64, dy: i64, sw: i64, sh: i64) -> u32 {
-    (dy.rem_euclid(sh) as u32) << 16 | dx.rem_euclid(sw) as u32
+    let reduce = |v: i64, n: i64| match v {
+        v if (0..n).contains(&v) => v,
+        v if (-n..0).contains(&v) => v + n,
+        v => v.rem_euclid(n),
+    };
+    (reduce(dy, sh) as u32) << 16 | reduce(dx, sw) as u32
 }
 
 /// For each i of a periodic `line`, the sum of its `side` values from i on. Sums wrap in u32
@@ -387,7 +393,8 @@ impl ChaosMosaic {
             }
             // Pixels i whose grown footprint [(lo+i)·f − reach, (lo+i+1)·f + reach) meets [a, b).
             let meets = |a: i64, b: i64, lo: i64, n: usize| {
-                (((a - reach).div_euclid(f) - lo).max(0), ((b + reach - 1).div_euclid(f) - lo).min(n as i64 - 1))
+                // f = 2^level: the floor division is a shift.
+                ((((a - reach) >> level) - lo).max(0), (((b + reach - 1) >> level) - lo).min(n as i64 - 1))
             };
             // Per placement, the columns whose grown footprint lies inside it, then row by row.
             let mut cols_in = Vec::new();
@@ -422,7 +429,9 @@ impl ChaosMosaic {
                 .flat_map(|i| {
                     let (a, b) = span(i, lo, extent);
                     (0..cells as i64).map(move |c| {
-                        let (c0, c1) = (a + (b - a) * c / cells as i64, a + (b - a) * (c + 1) / cells as i64);
+                        // (b − a)·c ≥ 0 over a power of two: a shift.
+                        let k = cells.trailing_zeros();
+                        let (c0, c1) = (a + ((b - a) * c >> k), a + ((b - a) * (c + 1) >> k));
                         (c0, c1, (c0 + c1) / 2)
                     })
                 })
@@ -433,8 +442,10 @@ impl ChaosMosaic {
         // Each label's layer, then each cell's, as packed offsets (0 is the tiling).
         let offsets: Vec<u32> = std::iter::once(0)
             .chain(placed.iter().map(|p| {
+                // The placement's corner reduced by a multiplication, then within one period.
                 let b = &self.blocks[p.pos as usize];
-                pack(b.x as i64 - p.x, b.y as i64 - p.y, sw, sh)
+                let (rx, ry) = (self.sums.w.div_rem(p.x).1, self.sums.h.div_rem(p.y).1);
+                pack(b.x as i64 - rx, b.y as i64 - ry, sw, sh)
             }))
             .collect();
         // Each placement's cells (the columns and rows whose centres it covers); for the tile
@@ -474,8 +485,8 @@ impl ChaosMosaic {
             true => None,
             false => (0..=merges).map(|t| self.tables.get(&self.sample, side << t)).collect(),
         };
-        let cx: Vec<u32> = cols.iter().map(|c| c.0.rem_euclid(sw) as u32).collect();
-        let cy: Vec<u32> = rows.iter().map(|c| c.0.rem_euclid(sh) as u32).collect();
+        let cx: Vec<u32> = cols.iter().map(|c| self.sums.w.div_rem(c.0).1 as u32).collect();
+        let cy: Vec<u32> = rows.iter().map(|c| self.sums.h.div_rem(c.0).1 as u32).collect();
         // Only the last column can be a partial pixel (at the texture's right edge).
         let full_cols = (0..nx).take_while(|&i| span(i as i64, lx, tw).1 - span(i as i64, lx, tw).0 == f).count();
 
