@@ -541,10 +541,14 @@ impl ChaosMosaic {
                 let (fy0, fy1) = span(j as i64, ly, th);
                 let cj = j * cells;
                 let (state, out) = (&state[j * nx..][..nx], &mut out[j * nx..][..nx]);
-                // Full pixels of a full row with tables: a look-up or a merged sum, and a shift.
-                let fast = match (fy1 - fy0 == f, whole, &merged) {
-                    (true, Some(whole), Some(tables)) => {
-                        let rows = &layer[(cj - r0) * gw..];
+                // Full pixels of a full row with tables: a look-up of the mean, or a merged sum
+                // and a shift. Coarse regions have neither dirty pixels nor layers.
+                let fast = match (fy1 - fy0 == f, whole) {
+                    (true, Some(whole)) if merged.is_some() || coarse => {
+                        let (rows, tables) = match &merged {
+                            Some(tables) => (&layer[(cj - r0) * gw..], tables.as_slice()),
+                            None => (&layer[..0], &[][..]),
+                        };
                         let cy0 = cy[cj];
                         for (i, (o, &k)) in out[..full_cols].iter_mut().zip(state).enumerate() {
                             let ci = i * cells;
@@ -786,6 +790,8 @@ mod tests {
                 let got = cached.at(x as u32, y as u32, pack(dx, dy, 24, 24));
                 assert_eq!(got.map(i64::from), want, "side {side} at ({x}, {y}) + ({dx}, {dy})");
                 assert_eq!(fresh.at(x as u32, y as u32, pack(dx, dy, 24, 24)), got);
+                let mean = want.map(|v| ((v + side * side / 2) / (side * side)) as u8);
+                assert_eq!(cached.mean_at(x as u32, y as u32, pack(dx, dy, 24, 24)), mean, "mean, side {side}");
             }
         }
         assert!(tables.get(&s, 3).is_none() && tables.get(&s, 8192).is_none() && tables.get(&s, 0).is_none());
