@@ -431,7 +431,7 @@ impl ChaosMosaic {
                     (0..cells as i64).map(move |c| {
                         // (b − a)·c ≥ 0 over a power of two: a shift.
                         let k = cells.trailing_zeros();
-                        let (c0, c1) = (a + ((b - a) * c >> k), a + ((b - a) * (c + 1) >> k));
+                        let (c0, c1) = (a + (((b - a) * c) >> k), a + (((b - a) * (c + 1)) >> k));
                         (c0, c1, (c0 + c1) / 2)
                     })
                 })
