@@ -108,7 +108,7 @@ enum Lanes {
 }
 
 impl BoxTable {
-    /// Samples up to this many pixels get tables (4 MiB each); larger ones sum each box instead.
+    /// Samples up to this many pixels get tables (5 MiB each with their means); larger ones sum each box instead.
     const MAX_SAMPLE_PIXELS: usize = 1 << 18;
 
     /// Sliding sums along rows, then along columns of those. `None` for samples too large and
@@ -197,7 +197,7 @@ fn by_remainder(n: usize, side: usize) -> Vec<u32> {
 }
 
 /// The box tables of one sample, one a power-of-two side, each built on first use and kept:
-/// at most 13 tables of at most 4 MiB (a 160² sample's tables take 200–400 KiB each). A
+/// at most 13 tables of at most 5 MiB with their means (a 160² sample's take 300–500 KiB each). A
 /// cached table is the table built afresh, so the cache never changes a result.
 #[derive(Default)]
 pub(super) struct BoxTables([OnceLock<Option<BoxTable>>; 13]);
