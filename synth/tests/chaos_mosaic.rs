@@ -100,6 +100,164 @@ fn output_is_pinned_across_parameter_kinds() {
     }
 }
 
+/// Per level 2–9, the hash of the regions `regions(level)` of `tex`, each rendered alone.
+fn mid_level_hashes(tex: &dyn Texture, regions: impl Fn(u32) -> Vec<(i64, i64, u32, u32)>) -> Vec<String> {
+    (2..=9)
+        .map(|level| {
+            let data: Vec<u8> =
+                regions(level).into_iter().flat_map(|(x, y, w, h)| render(tex, level, x, y, w, h).data).collect();
+            vtex_synth::bundle::id_of(&data)[..12].to_string()
+        })
+        .collect()
+}
+
+#[test]
+fn mid_levels_are_pinned_across_parameter_kinds() {
+    // Hashes written by the build of c7db1bd (session 3's mid levels): bundles already served
+    // must keep their tiles, so every later speed-up must reproduce them bit for bit. Regions
+    // wrap the torus and reach the partial last pixels of odd-sized levels.
+    let cases = [
+        (
+            (64, 64, true, 3, 1, 10),
+            [
+                "99b7a264ac96",
+                "52c8f3b113c1",
+                "54c4a58ce6e3",
+                "04255e3ec4e4",
+                "8c66b80bb339",
+                "8c66b80bb339",
+                "8c66b80bb339",
+                "8c66b80bb339",
+            ],
+        ),
+        (
+            (64, 64, false, 3, 1, 10),
+            [
+                "acc34c5f1a4c",
+                "dc96b7d7c5d5",
+                "2deca6d98e45",
+                "34dce99c5391",
+                "7fb6b7eba209",
+                "7fb6b7eba209",
+                "7fb6b7eba209",
+                "7fb6b7eba209",
+            ],
+        ),
+        (
+            (48, 80, false, 5, 2, 10),
+            [
+                "77feefe6cf36",
+                "6c8228556368",
+                "72d2f4150e82",
+                "f23c53bcaefe",
+                "c65a6f1b87d5",
+                "4e05af93e898",
+                "6c28cd02e9ae",
+                "743d4c939ae8",
+            ],
+        ),
+        (
+            (64, 64, false, 8, 1, 3),
+            [
+                "c326cca70440",
+                "a0ca3dc6367c",
+                "22e3a1992abf",
+                "6d78df6612ae",
+                "7fb6b7eba209",
+                "7fb6b7eba209",
+                "7fb6b7eba209",
+                "7fb6b7eba209",
+            ],
+        ),
+        (
+            (64, 64, true, 0, 1, 10),
+            [
+                "e2bd62bb6270",
+                "2f7ab8bcd358",
+                "e12a4e126c12",
+                "1f0c18d4ce14",
+                "8c66b80bb339",
+                "8c66b80bb339",
+                "8c66b80bb339",
+                "8c66b80bb339",
+            ],
+        ),
+        (
+            (33, 47, false, 1, 2, 10),
+            [
+                "87a1b2c5e4d9",
+                "f7afeba7c9bc",
+                "ea366f35306e",
+                "d407d2012af9",
+                "35e0e176b237",
+                "8fabcdbe6fd7",
+                "43aa8a2ed1a7",
+                "43aa8a2ed1a7",
+            ],
+        ),
+        (
+            (100, 60, true, 4, 2, 7),
+            [
+                "91c9caefcd43",
+                "1f01041b5a62",
+                "f1a49ef02042",
+                "4de41a63c22c",
+                "8900d279895c",
+                "921717d29305",
+                "efe309878855",
+                "5d5bbbcb2401",
+            ],
+        ),
+    ];
+    for (k, ((sw, sh, seamless, filter_width, blocks_per_tile, iterations), want)) in cases.into_iter().enumerate() {
+        let sample = samples::pebbles(sw.max(sh), 8, 1, seamless).crop(0, 0, sw, sh);
+        let params = json!({"tiles_x": 7, "tiles_y": 9, "seed": k, "filter_width": filter_width,
+            "blocks_per_tile": blocks_per_tile, "iterations": iterations, "seamless": seamless});
+        let tex = mosaic(&sample, params);
+        let got = mid_level_hashes(&tex, |level| {
+            let (lw, lh) = level_size(tex.width(), tex.height(), level);
+            vec![(-3, 5, 40, 37), (lw as i64 - 7, lh as i64 - 5, 13, 11), (11, 2, 1, 1)]
+        });
+        assert_eq!(got, want, "case {k}");
+    }
+}
+
+#[test]
+fn mid_levels_of_the_100k_mosaics_are_pinned() {
+    // The bench's mosaic (one block a tile) and the served demo (two): 256² tiles mid-level and
+    // across the wrap, where the fast paths (merged cells, rasterized and indexed layers) run.
+    const BENCH: [&str; 8] = [
+        "265597ea9b3a",
+        "67fd435c4d8d",
+        "7a6ee24e544a",
+        "f1405c61fe18",
+        "5c4e20d22f59",
+        "b23b6b4e8326",
+        "2ecea3b21730",
+        "565c4c604823",
+    ];
+    const DEMO: [&str; 8] = [
+        "27b3b93e4b35",
+        "e52d4c99d36c",
+        "307b5c8cb46d",
+        "90cd54ae4c89",
+        "57f7c72bddb2",
+        "80b9f508bdaf",
+        "32c67a8b37d6",
+        "565c4c604823",
+    ];
+    let bench = bundle(&samples::pebbles(160, 24, 11, true), json!({"tiles_x": 625, "tiles_y": 625, "seed": 1}));
+    for (name, b, want) in [("bench", bench, BENCH), ("demo", chaos_mosaic::demos().swap_remove(0), DEMO)] {
+        let tex = chaos_mosaic::load(&b).unwrap();
+        let got = mid_level_hashes(&tex, |level| {
+            let (lw, _) = level_size(tex.width(), tex.height(), level);
+            let at = (lw as i64 / 2 / 256) * 256;
+            vec![(at, at, 256, 256), (-128, -77, 256, 256), (at + 256, 768, 256, 256)]
+        });
+        assert_eq!(got, want, "{name}");
+    }
+}
+
 #[test]
 fn same_bytes_on_any_thread_count_and_order() {
     let tex = Arc::new(mosaic(&pebbles64(), json!({"tiles_x": 16, "tiles_y": 16, "seed": 9})));

@@ -10,6 +10,9 @@ pub struct TileIndex {
     tiles_x: u32,
     starts: Vec<u32>,
     ids: Vec<u32>,
+    /// The blocks whose corner lies in tile `i` are positions `home[i]..home[i + 1]` (the
+    /// list is grouped by [`by_home_tile`]): each block once, for listing a region's blocks.
+    home: Vec<u32>,
 }
 
 /// The blocks reordered by the tile that holds their corner (row-major), in sequence order
@@ -42,11 +45,18 @@ pub fn by_home_tile(
 }
 
 impl TileIndex {
-    /// Indexes `blocks` (listed by position, `seq` their sequence numbers): each tile's list
-    /// holds positions in ascending sequence order. Blocks are never larger than a tile, so each
-    /// touches at most 2 × 2 tiles of the torus.
+    /// Indexes `blocks` (listed by position, `seq` their sequence numbers, grouped by home
+    /// tile): each tile's list holds positions in ascending sequence order. Blocks are never
+    /// larger than a tile, so each touches at most 2 × 2 tiles of the torus.
     pub fn build(blocks: &[Block], seq: &[u32], tiles_x: u32, tiles_y: u32, tile_w: u32, tile_h: u32) -> Self {
         let tiles = tiles_x as usize * tiles_y as usize;
+        let mut home = vec![0u32; tiles + 1];
+        for b in blocks {
+            home[(b.t / tile_h) as usize * tiles_x as usize + (b.s / tile_w) as usize + 1] += 1;
+        }
+        for i in 1..=tiles {
+            home[i] += home[i - 1];
+        }
         let touched = |b: &Block| {
             let cols = tile_span(b.s, b.w, tile_w, tiles_x);
             let rows = tile_span(b.t, b.h, tile_h, tiles_y);
@@ -74,7 +84,7 @@ impl TileIndex {
                 fill[t as usize] += 1;
             }
         }
-        Self { tiles_x, starts, ids }
+        Self { tiles_x, starts, ids, home }
     }
 
     /// Positions of the blocks touching tile (tx, ty), in sequence order.
@@ -84,6 +94,13 @@ impl TileIndex {
         &self.ids[self.starts[i] as usize..self.starts[i + 1] as usize]
     }
 
+    /// Positions of the blocks whose corner lies in tile (tx, ty), in sequence order.
+    #[inline]
+    pub fn homed(&self, tx: u32, ty: u32) -> std::ops::Range<usize> {
+        let i = (ty * self.tiles_x + tx) as usize;
+        self.home[i] as usize..self.home[i + 1] as usize
+    }
+
     /// The mean number of blocks listed a tile, as a fraction `(entries, tiles)`.
     pub fn blocks_per_tile(&self) -> (u64, u64) {
         (self.ids.len() as u64, self.starts.len() as u64 - 1)
@@ -91,7 +108,7 @@ impl TileIndex {
 
     /// Heap bytes held by the index.
     pub fn heap_bytes(&self) -> usize {
-        (self.starts.capacity() + self.ids.capacity()) * 4
+        (self.starts.capacity() + self.ids.capacity() + self.home.capacity()) * 4
     }
 }
 
@@ -132,5 +149,7 @@ mod tests {
         // Tile (1, 1) meets blocks 0 and 2 (its own) and 3 (from tile (0, 0)): sequence order.
         assert_eq!(idx.blocks(1, 1), &[3, 4, 1]);
         assert_eq!(idx.blocks(0, 0).iter().map(|&p| seq[p as usize]).collect::<Vec<_>>(), [0, 1, 3]);
+        // Homes: tile (0, 0) holds the corners of blocks 1 and 3, (1, 0) of 4, (1, 1) of 0 and 2.
+        assert_eq!([idx.homed(0, 0), idx.homed(1, 0), idx.homed(0, 1), idx.homed(1, 1)], [0..2, 2..3, 3..3, 3..5]);
     }
 }

@@ -63,41 +63,34 @@ impl Layout {
 
 impl ChaosMosaic {
     /// Every placement of a block whose rectangle meets `[x0, x0+w) × [y0, y0+h)`, in
-    /// sequence order, found through the tile index.
+    /// sequence order: the blocks whose corner lies in the tiles under the rectangle or one
+    /// tile left of or above it (a block is never larger than a tile), each once per unrolled
+    /// copy of its home tile, in a few runs of the block list.
     pub(super) fn placements(&self, x0: i64, y0: i64, w: u64, h: u64) -> Vec<Placed> {
         let (sw, sh) = (self.sample.width as i64, self.sample.height as i64);
-        let (tw, th) = (self.width as i64, self.height as i64);
+        let (tiles_x, tiles_y) = (self.params.tiles_x as i64, self.params.tiles_y as i64);
+        let (x1, y1) = (x0 + w as i64, y0 + h as i64);
         let mut out = Vec::new();
-        let (tx0, ty0) = (x0.div_euclid(sw), y0.div_euclid(sh));
-        // Whether tile t is the first of the scan (from t0) that [p, …) meets, one that meets t:
-        // max(p div side, t0) = t, without dividing.
-        let first = |p: i64, t: i64, t0: i64, side: i64| (p >= t * side || t == t0) && p < (t + 1) * side;
-        for ty in ty0..=(y0 + h as i64 - 1).div_euclid(sh) {
-            let wty = ty.rem_euclid(self.params.tiles_y as i64);
-            for tx in tx0..=(x0 + w as i64 - 1).div_euclid(sw) {
-                let wtx = tx.rem_euclid(self.params.tiles_x as i64);
-                for &pos in self.index.blocks(wtx as u32, wty as u32) {
-                    let b = &self.blocks[pos as usize];
-                    // A block touching this tile starts at most one torus period before it
-                    // (both corners lie on the torus: the wrapped difference needs no division).
-                    let (dx, dy) = (b.s as i64 - wtx * sw, b.t as i64 - wty * sh);
-                    let (dx, dy) = (dx + tw * (dx < 0) as i64, dy + th * (dy < 0) as i64);
-                    for px in [tx * sw + dx, tx * sw + dx - tw] {
-                        for py in [ty * sh + dy, ty * sh + dy - th] {
-                            let meets = px < x0 + w as i64
-                                && px + b.w as i64 > x0
-                                && py < y0 + h as i64
-                                && py + b.h as i64 > y0;
-                            // Listed once: in the first tile of the scan that it touches.
-                            if meets && first(px, tx, tx0, sw) && first(py, ty, ty0, sh) {
-                                out.push(Placed { id: self.seq[pos as usize], x: px, y: py, pos });
-                            }
-                        }
+        let (tx0, ty0) = (x0.div_euclid(sw) - 1, y0.div_euclid(sh) - 1);
+        let mut wty = ty0.rem_euclid(tiles_y);
+        for ty in ty0..=(y1 - 1).div_euclid(sh) {
+            let mut wtx = tx0.rem_euclid(tiles_x);
+            for tx in tx0..=(x1 - 1).div_euclid(sw) {
+                // The home tile's blocks lie in it: the unrolled corner is the tile's plus the
+                // corner's place in the tile.
+                let (dx, dy) = ((tx - wtx) * sw, (ty - wty) * sh);
+                for pos in self.index.homed(wtx as u32, wty as u32) {
+                    let b = &self.blocks[pos];
+                    let (px, py) = (b.s as i64 + dx, b.t as i64 + dy);
+                    if px < x1 && px + b.w as i64 > x0 && py < y1 && py + b.h as i64 > y0 {
+                        out.push(Placed { id: self.seq[pos], x: px, y: py, pos: pos as u32 });
                     }
                 }
+                wtx = if wtx + 1 == tiles_x { 0 } else { wtx + 1 };
             }
+            wty = if wty + 1 == tiles_y { 0 } else { wty + 1 };
         }
-        out.sort_unstable();
+        sort_in_sequence(&mut out);
         out
     }
 
@@ -204,6 +197,37 @@ impl ChaosMosaic {
     }
 }
 
+/// Sorts placements as `sort_unstable` does (by sequence number, then position), by a radix
+/// sort of the sequence numbers: placements of one block (a region wider than the torus) are
+/// then put in order among themselves.
+fn sort_in_sequence(v: &mut Vec<Placed>) {
+    const BITS: u32 = 11;
+    if v.len() < 256 {
+        v.sort_unstable();
+        return;
+    }
+    let max = v.iter().map(|p| p.id).max().unwrap_or(0);
+    let mut scratch = v.clone();
+    let mut shift = 0;
+    while shift == 0 || (shift < u32::BITS && max >> shift != 0) {
+        let mut at = [0usize; 1 << BITS];
+        let digit = |p: &Placed| (p.id >> shift) as usize & ((1 << BITS) - 1);
+        v.iter().for_each(|p| at[digit(p)] += 1);
+        let mut sum = 0;
+        for a in at.iter_mut() {
+            (*a, sum) = (sum, sum + *a);
+        }
+        for p in v.iter() {
+            let d = digit(p);
+            scratch[at[d]] = *p;
+            at[d] += 1;
+        }
+        std::mem::swap(v, &mut scratch);
+        shift += BITS;
+    }
+    v.chunk_by_mut(|a, b| a.id == b.id).filter(|run| run.len() > 1).for_each(|run| run.sort_unstable());
+}
+
 /// A sample coordinate packed as `sy << 16 | sx`.
 fn pack(sx: u32, sy: u32) -> u32 {
     sy << 16 | sx
@@ -230,4 +254,31 @@ fn paint(spans: &mut Vec<Span>, new: Span, scratch: &mut Vec<Span>) {
         scratch.push(new);
     }
     std::mem::swap(spans, scratch);
+}
+
+#[cfg(test)]
+mod tests {
+    use super::{sort_in_sequence, Placed};
+
+    #[test]
+    fn the_radix_sort_orders_placements_like_a_full_sort() {
+        for n in [0u32, 5, 300, 5000] {
+            // Sequence numbers up to 2^22 with repeats (one block placed several times).
+            let mut v: Vec<Placed> = (0..n)
+                .map(|i| {
+                    let h = crate::hash::hash4(7, i as u64, n as i64, 0);
+                    Placed {
+                        id: (h % (1 << 22)) as u32 / (1 + (i % 3) * 1000),
+                        x: (h >> 40) as i64 % 7 - 3,
+                        y: i as i64 % 5,
+                        pos: i,
+                    }
+                })
+                .collect();
+            let mut want = v.clone();
+            want.sort_unstable();
+            sort_in_sequence(&mut v);
+            assert_eq!(v, want, "n {n}");
+        }
+    }
 }

@@ -83,10 +83,21 @@ fn lanes(terms: impl Fn(usize) -> [i64; 4]) -> [i64; 4] {
 
 /// The sums of every `side` × `side` box of the periodic sample, by the box's corner in the
 /// sample: a cell of a mip footprint then costs one look-up, whatever its layer's offset.
+///
+/// Entries are stored with columns (and rows) ordered by their remainder modulo the side,
+/// then by quotient: the corners a layer's cells take, `side` apart, are then neighbours in
+/// memory, so the cells of a footprint and consecutive footprints share cache lines instead of
+/// taking one each.
 pub(super) struct BoxTable {
     w: u32,
     h: u32,
+    /// Where column u is stored in a row, and where row v starts.
+    col: Vec<u32>,
+    row: Vec<u32>,
     sums: Lanes,
+    /// For a power-of-two side, each box's rounded mean, RGBA8 packed little-endian: what a
+    /// footprint of that side inside one layer evaluates to, in one look-up.
+    means: Vec<u32>,
 }
 
 /// A table's entries, in 16 bits a channel where every box sum fits (sides ≤ 16), halving the
@@ -97,7 +108,7 @@ enum Lanes {
 }
 
 impl BoxTable {
-    /// Samples up to this many pixels get tables (4 MiB each); larger ones sum each box instead.
+    /// Samples up to this many pixels get tables (5 MiB each with their means); larger ones sum each box instead.
     const MAX_SAMPLE_PIXELS: usize = 1 << 18;
 
     /// Sliding sums along rows, then along columns of those. `None` for samples too large and
@@ -123,11 +134,23 @@ impl BoxTable {
                 sums[y * w + x] = s;
             }
         }
+        let (col, row) = (by_remainder(w, side), by_remainder(h, side));
+        let mut stored = vec![[0; 4]; w * h];
+        for (y, line) in sums.chunks_exact(w).enumerate() {
+            for (x, s) in line.iter().enumerate() {
+                stored[(row[y] * w as u32 + col[x]) as usize] = *s;
+            }
+        }
+        let (row, sums): (Vec<u32>, _) = (row.iter().map(|r| r * w as u32).collect(), stored);
+        let means = match side.is_power_of_two() {
+            true => sums.iter().map(|s| u32::from_le_bytes(s.map(|v| mean_of_pow2_box(v, side)))).collect(),
+            false => Vec::new(),
+        };
         let sums = match side * side * 255 <= u16::MAX as usize {
             true => Lanes::Narrow(sums.iter().map(|s| s.map(|v| v as u16)).collect()),
             false => Lanes::Wide(sums),
         };
-        Some(Self { w: w as u32, h: h as u32, sums })
+        Some(Self { w: w as u32, h: h as u32, col, row, sums, means })
     }
 
     /// The sum of the box with corner (x, y) of the plane.
@@ -139,19 +162,42 @@ impl BoxTable {
     /// (x, y) and an offset packed by [`pack`] — two additions and no division.
     #[inline]
     fn at(&self, x: u32, y: u32, offset: u32) -> [u32; 4] {
-        let (mut u, mut v) = (x + (offset & 0xffff), y + (offset >> 16));
-        u -= self.w * (u >= self.w) as u32;
-        v -= self.h * (v >= self.h) as u32;
-        let i = (v * self.w + u) as usize;
+        let i = self.index(x, y, offset);
         match &self.sums {
             Lanes::Narrow(s) => s[i].map(u32::from),
             Lanes::Wide(s) => s[i],
         }
     }
+
+    /// The rounded mean (RGBA8) of the box that [`Self::at`] sums; power-of-two sides only.
+    #[inline]
+    fn mean_at(&self, x: u32, y: u32, offset: u32) -> [u8; 4] {
+        self.means[self.index(x, y, offset)].to_le_bytes()
+    }
+
+    #[inline]
+    fn index(&self, x: u32, y: u32, offset: u32) -> usize {
+        let (mut u, mut v) = (x + (offset & 0xffff), y + (offset >> 16));
+        u -= self.w * (u >= self.w) as u32;
+        v -= self.h * (v >= self.h) as u32;
+        (self.row[v as usize] + self.col[u as usize]) as usize
+    }
+}
+
+/// For each of `n` positions, its place when ordered by remainder modulo `side`, then by
+/// quotient.
+fn by_remainder(n: usize, side: usize) -> Vec<u32> {
+    let mut order: Vec<usize> = (0..n).collect();
+    order.sort_by_key(|&u| (u % side, u / side));
+    let mut place = vec![0u32; n];
+    for (k, &u) in order.iter().enumerate() {
+        place[u] = k as u32;
+    }
+    place
 }
 
 /// The box tables of one sample, one a power-of-two side, each built on first use and kept:
-/// at most 13 tables of at most 4 MiB (a 160² sample's tables take 200–400 KiB each). A
+/// at most 13 tables of at most 5 MiB with their means (a 160² sample's take 300–500 KiB each). A
 /// cached table is the table built afresh, so the cache never changes a result.
 #[derive(Default)]
 pub(super) struct BoxTables([OnceLock<Option<BoxTable>>; 13]);
@@ -168,10 +214,24 @@ impl BoxTables {
     }
 }
 
+/// The rounded mean of a box of `side²` pixels (side a power of two) from its sum `s`: the
+/// division is a shift, as in [`ChaosMosaic::integrate`] for full footprints.
+#[inline]
+fn mean_of_pow2_box(s: u32, side: usize) -> u8 {
+    let area = (side * side) as u64;
+    ((s as u64 + area / 2) >> area.trailing_zeros()) as u8
+}
+
 /// A layer's translation (dx, dy) from texture to sample coordinates, reduced modulo the sample
 /// (sides ≤ 4096) and packed as `dy << 16 | dx`: equal packed offsets give equal box sums.
+/// Translations within one period either way reduce without dividing.
 fn pack(dx: i64, dy: i64, sw: i64, sh: i64) -> u32 {
-    (dy.rem_euclid(sh) as u32) << 16 | dx.rem_euclid(sw) as u32
+    let reduce = |v: i64, n: i64| match v {
+        v if (0..n).contains(&v) => v,
+        v if (-n..0).contains(&v) => v + n,
+        v => v.rem_euclid(n),
+    };
+    (reduce(dy, sh) as u32) << 16 | reduce(dx, sw) as u32
 }
 
 /// For each i of a periodic `line`, the sum of its `side` values from i on. Sums wrap in u32
@@ -333,20 +393,30 @@ impl ChaosMosaic {
             }
             // Pixels i whose grown footprint [(lo+i)·f − reach, (lo+i+1)·f + reach) meets [a, b).
             let meets = |a: i64, b: i64, lo: i64, n: usize| {
-                (((a - reach).div_euclid(f) - lo).max(0), ((b + reach - 1).div_euclid(f) - lo).min(n as i64 - 1))
+                // f = 2^level: the floor division is a shift.
+                ((((a - reach) >> level) - lo).max(0), (((b + reach - 1) >> level) - lo).min(n as i64 - 1))
             };
+            // Per placement, the columns whose grown footprint lies inside it, then row by row.
+            let mut cols_in = Vec::new();
             for (k, p) in placed.iter().enumerate() {
                 let b = &self.blocks[p.pos as usize];
                 let (bx1, by1) = (p.x + b.w as i64, p.y + b.h as i64);
                 let (i0, i1) = meets(p.x, bx1, lx, nx);
                 let (j0, j1) = meets(p.y, by1, ly, ny);
+                if i0 > i1 {
+                    continue;
+                }
+                cols_in.clear();
+                cols_in.extend((i0..=i1).map(|i| {
+                    let (fx0, fx1) = span(i, lx, tw);
+                    fx0 - reach >= p.x && fx1 + reach <= bx1
+                }));
                 for j in j0..=j1 {
                     let (fy0, fy1) = span(j, ly, th);
-                    let rows_in = fy0 - reach >= p.y && fy1 + reach <= by1;
-                    for i in i0..=i1 {
-                        let (fx0, fx1) = span(i, lx, tw);
-                        let inside = rows_in && fx0 - reach >= p.x && fx1 + reach <= bx1;
-                        state[j as usize * nx + i as usize] = if inside { k as u32 } else { DIRTY };
+                    let row = &mut state[j as usize * nx..][i0 as usize..=i1 as usize];
+                    match fy0 - reach >= p.y && fy1 + reach <= by1 {
+                        true => row.iter_mut().zip(&cols_in).for_each(|(s, &c)| *s = if c { k as u32 } else { DIRTY }),
+                        false => row.fill(DIRTY),
                     }
                 }
             }
@@ -359,7 +429,9 @@ impl ChaosMosaic {
                 .flat_map(|i| {
                     let (a, b) = span(i, lo, extent);
                     (0..cells as i64).map(move |c| {
-                        let (c0, c1) = (a + (b - a) * c / cells as i64, a + (b - a) * (c + 1) / cells as i64);
+                        // (b − a)·c ≥ 0 over a power of two: a shift.
+                        let k = cells.trailing_zeros();
+                        let (c0, c1) = (a + (((b - a) * c) >> k), a + (((b - a) * (c + 1)) >> k));
                         (c0, c1, (c0 + c1) / 2)
                     })
                 })
@@ -370,8 +442,10 @@ impl ChaosMosaic {
         // Each label's layer, then each cell's, as packed offsets (0 is the tiling).
         let offsets: Vec<u32> = std::iter::once(0)
             .chain(placed.iter().map(|p| {
+                // The placement's corner reduced by a multiplication, then within one period.
                 let b = &self.blocks[p.pos as usize];
-                pack(b.x as i64 - p.x, b.y as i64 - p.y, sw, sh)
+                let (rx, ry) = (self.sums.w.div_rem(p.x).1, self.sums.h.div_rem(p.y).1);
+                pack(b.x as i64 - rx, b.y as i64 - ry, sw, sh)
             }))
             .collect();
         // Each placement's cells (the columns and rows whose centres it covers); for the tile
@@ -411,12 +485,35 @@ impl ChaosMosaic {
             true => None,
             false => (0..=merges).map(|t| self.tables.get(&self.sample, side << t)).collect(),
         };
-        let cx: Vec<u32> = cols.iter().map(|c| c.0.rem_euclid(sw) as u32).collect();
-        let cy: Vec<u32> = rows.iter().map(|c| c.0.rem_euclid(sh) as u32).collect();
+        let cx: Vec<u32> = cols.iter().map(|c| self.sums.w.div_rem(c.0).1 as u32).collect();
+        let cy: Vec<u32> = rows.iter().map(|c| self.sums.h.div_rem(c.0).1 as u32).collect();
+        // Only the last column can be a partial pixel (at the texture's right edge).
+        let full_cols = (0..nx).take_while(|&i| span(i as i64, lx, tw).1 - span(i as i64, lx, tw).0 == f).count();
 
-        // The cells' layers are made a band of pixel rows at a time, about 256 KiB of them, so
-        // that they are still in cache when summed.
-        let band = (65536 / (gw * cells)).max(1);
+        // The cells' layers are made a band of pixel rows at a time, about 64 KiB of them, so
+        // that they are still in cache when summed; each band paints only its placements.
+        let band = (16384 / (gw * cells)).max(1);
+        // Each band's placements (those with cell rows in it), in sequence order.
+        let band_rows = band * cells;
+        let mut in_band = vec![0u32; ny.div_ceil(band) + 1];
+        let bands_of = |cj: &std::ops::Range<usize>| match cj.is_empty() {
+            true => 0..0,
+            false => cj.start / band_rows..(cj.end - 1) / band_rows + 1,
+        };
+        for (_, cj) in &painted {
+            bands_of(cj).for_each(|k| in_band[k + 1] += 1);
+        }
+        for k in 1..in_band.len() {
+            in_band[k] += in_band[k - 1];
+        }
+        let mut by_band = vec![0u32; in_band[in_band.len() - 1] as usize];
+        let mut fill = in_band.clone();
+        for (n, (_, cj)) in painted.iter().enumerate() {
+            for k in bands_of(cj) {
+                by_band[fill[k] as usize] = n as u32;
+                fill[k] += 1;
+            }
+        }
         let mut layer = vec![0u32; if coarse { 0 } else { gw * cells * band.min(ny) }];
         let mut out = vec![[0u8; 4]; nx * ny];
         for j0 in (0..ny).step_by(band) {
@@ -424,7 +521,9 @@ impl ChaosMosaic {
             let r1 = j1 * cells;
             if rasterize {
                 layer.fill(0);
-                for ((ci, cj), &o) in painted.iter().zip(&offsets[1..]) {
+                let k = j0 / band;
+                for &n in &by_band[in_band[k] as usize..in_band[k + 1] as usize] {
+                    let ((ci, cj), o) = (&painted[n as usize], offsets[n as usize + 1]);
                     for j in cj.start.max(r0)..cj.end.min(r1) {
                         layer[(j - r0) * gw + ci.start..(j - r0) * gw + ci.end].fill(o);
                     }
@@ -440,16 +539,35 @@ impl ChaosMosaic {
             }
             for j in j0..j1 {
                 let (fy0, fy1) = span(j as i64, ly, th);
-                for i in 0..nx {
+                let cj = j * cells;
+                let (state, out) = (&state[j * nx..][..nx], &mut out[j * nx..][..nx]);
+                // Full pixels of a full row with tables: a look-up of the mean, or a merged sum
+                // and a shift. Coarse regions have neither dirty pixels nor layers.
+                let fast = match (fy1 - fy0 == f, whole) {
+                    (true, Some(whole)) if merged.is_some() || coarse => {
+                        let (rows, tables) = match &merged {
+                            Some(tables) => (&layer[(cj - r0) * gw..], tables.as_slice()),
+                            None => (&layer[..0], &[][..]),
+                        };
+                        let cy0 = cy[cj];
+                        for (i, (o, &k)) in out[..full_cols].iter_mut().zip(state).enumerate() {
+                            let ci = i * cells;
+                            *o = match k {
+                                DIRTY => merged_mean(&rows[ci..], gw, cells, tables, &cx[ci..], &cy[cj..], f),
+                                BACKGROUND => whole.mean_at(cx[ci], cy0, 0),
+                                k => whole.mean_at(cx[ci], cy0, offsets[k as usize + 1]),
+                            };
+                        }
+                        full_cols
+                    }
+                    _ => 0,
+                };
+                for i in fast..nx {
                     let (fx0, fx1) = span(i as i64, lx, tw);
                     let full = fx1 - fx0 == f && fy1 - fy0 == f;
-                    let (ci, cj) = (i * cells, j * cells);
-                    let sum = match (state[j * nx + i], &merged) {
-                        (DIRTY, Some(tables)) if full => {
-                            merged_sum(&layer[(cj - r0) * gw + ci..], gw, cells, tables, &cx[ci..], &cy[cj..])
-                                .map(u64::from)
-                        }
-                        (DIRTY, _) => {
+                    let ci = i * cells;
+                    let sum = match state[i] {
+                        DIRTY => {
                             let mut acc = [0u64; 4];
                             for (cj, &(y0, y1, _)) in rows.iter().enumerate().skip(cj).take(cells) {
                                 for (ci, &(c0, c1, _)) in cols.iter().enumerate().skip(ci).take(cells) {
@@ -461,7 +579,7 @@ impl ChaosMosaic {
                             }
                             acc
                         }
-                        (k, _) => {
+                        k => {
                             let o = if k == BACKGROUND { 0 } else { offsets[k as usize + 1] };
                             match whole {
                                 Some(t) if full => t.at(cx[ci], cy[cj], o).map(u64::from),
@@ -473,7 +591,7 @@ impl ChaosMosaic {
                         }
                     };
                     let area = ((fx1 - fx0) * (fy1 - fy0)) as u64;
-                    out[j * nx + i] = sum.map(|s| match full {
+                    out[i] = sum.map(|s| match full {
                         // area = 4^level: the rounded division is a shift.
                         true => ((s + area / 2) >> (2 * level)) as u8,
                         false => ((s + area / 2) / area) as u8,
@@ -517,32 +635,56 @@ impl ChaosMosaic {
     }
 }
 
-/// The sum of the `n` × `n` cells (n = 1, 2 or 4) of one footprint whose packed layers are
-/// `layer` (rows `gw` apart) and whose corners modulo the sample are `cx`, `cy`: cells of one
-/// layer are merged — the whole footprint, else 2 × 2 cells — into one look-up in
-/// `tables[log2 of the merge]`, the same sum, as the merged cells tile a box of that layer.
+/// The rounded mean of a full footprint of side `f` split into `n` × `n` cells (n = 1, 2 or
+/// 4) whose packed layers are `layer` (rows `gw` apart) and whose corners modulo the sample are
+/// `cx`, `cy`. Cells of one layer are merged — the whole footprint, else 2 × 2 cells — into
+/// one look-up in `tables[log2 of the merge]`, the same sum, as the merged cells tile a box of
+/// that layer; a footprint of one layer reads its mean directly.
 #[inline]
-fn merged_sum(layer: &[u32], gw: usize, n: usize, tables: &[&BoxTable], cx: &[u32], cy: &[u32]) -> [u32; 4] {
-    let at = |t: usize, a: usize, b: usize| tables[t].at(cx[a], cy[b], layer[b * gw + a]);
-    let uniform = |a: usize, b: usize, n: usize| {
-        let o = layer[b * gw + a];
-        (b..b + n).all(|r| layer[r * gw + a..r * gw + a + n].iter().all(|&l| l == o))
-    };
-    if uniform(0, 0, n) {
-        return at(n.trailing_zeros() as usize, 0, 0);
-    }
-    let mut acc = [0u32; 4];
-    let mut add = |s: [u32; 4]| acc.iter_mut().zip(s).for_each(|(a, s)| *a += s);
-    for b in (0..n).step_by(2) {
-        for a in (0..n).step_by(2) {
-            if n == 4 && uniform(a, b, 2) {
-                add(at(1, a, b));
-            } else {
-                [(a, b), (a + 1, b), (a, b + 1), (a + 1, b + 1)].into_iter().for_each(|(a, b)| add(at(0, a, b)));
+fn merged_mean(layer: &[u32], gw: usize, n: usize, tables: &[&BoxTable], cx: &[u32], cy: &[u32], f: i64) -> [u8; 4] {
+    let area = (f * f) as u64;
+    let round = |s: [u32; 4]| s.map(|v| ((v as u64 + area / 2) >> area.trailing_zeros()) as u8);
+    match n {
+        4 => {
+            let row = |b: usize| -> [u32; 4] { layer[b * gw..b * gw + 4].try_into().unwrap() };
+            let l = [row(0), row(1), row(2), row(3)];
+            let o = l[0][0];
+            // One layer: compared without a branch a cell.
+            if l.iter().flatten().fold(0, |d, &v| d | (v ^ o)) == 0 {
+                return tables[2].mean_at(cx[0], cy[0], o);
+            }
+            let (cx, cy): ([u32; 4], [u32; 4]) = (cx[..4].try_into().unwrap(), cy[..4].try_into().unwrap());
+            let mut acc = [0u32; 4];
+            for b in [0, 2] {
+                for a in [0, 2] {
+                    let q = [l[b][a], l[b][a + 1], l[b + 1][a], l[b + 1][a + 1]];
+                    let s = quad_sum(q, &tables[..2], [cx[a], cx[a + 1]], [cy[b], cy[b + 1]]);
+                    acc.iter_mut().zip(s).for_each(|(a, s)| *a += s);
+                }
+            }
+            round(acc)
+        }
+        2 => {
+            let q = [layer[0], layer[1], layer[gw], layer[gw + 1]];
+            match q.iter().all(|&v| v == q[0]) {
+                true => tables[1].mean_at(cx[0], cy[0], q[0]),
+                false => round(quad_sum(q, &tables[..2], [cx[0], cx[1]], [cy[0], cy[1]])),
             }
         }
+        _ => tables[0].mean_at(cx[0], cy[0], layer[0]),
     }
-    acc
+}
+
+/// The sum of 2 × 2 cells with layers `q` (row by row): one look-up in `tables[1]` when they
+/// share a layer, else one a cell in `tables[0]`.
+#[inline]
+fn quad_sum(q: [u32; 4], tables: &[&BoxTable], cx: [u32; 2], cy: [u32; 2]) -> [u32; 4] {
+    if q[1] == q[0] && q[2] == q[0] && q[3] == q[0] {
+        return tables[1].at(cx[0], cy[0], q[0]);
+    }
+    let t = tables[0];
+    let s = [t.at(cx[0], cy[0], q[0]), t.at(cx[1], cy[0], q[1]), t.at(cx[0], cy[1], q[2]), t.at(cx[1], cy[1], q[3])];
+    std::array::from_fn(|c| s[0][c] + s[1][c] + s[2][c] + s[3][c])
 }
 
 /// Splits `count` pixels starting at `start` on a torus of `period` into runs that do not
@@ -648,6 +790,8 @@ mod tests {
                 let got = cached.at(x as u32, y as u32, pack(dx, dy, 24, 24));
                 assert_eq!(got.map(i64::from), want, "side {side} at ({x}, {y}) + ({dx}, {dy})");
                 assert_eq!(fresh.at(x as u32, y as u32, pack(dx, dy, 24, 24)), got);
+                let mean = want.map(|v| ((v + side * side / 2) / (side * side)) as u8);
+                assert_eq!(cached.mean_at(x as u32, y as u32, pack(dx, dy, 24, 24)), mean, "mean, side {side}");
             }
         }
         assert!(tables.get(&s, 3).is_none() && tables.get(&s, 8192).is_none() && tables.get(&s, 0).is_none());
