@@ -5,21 +5,26 @@
 #   2. cold 256² tiles per format over HTTP (every request a tile never seen before);
 #   3. resident memory after a long pan with a 256 MB cache.
 # Needs: wrk, nginx, curl, python3 (apt-get install wrk nginx curl python3).
-# Usage: server/bench/run.sh [--only warm|cold|memory] [--rounds N] [--tmpfs] [seconds per run, default 10]
+# Usage: server/bench/run.sh [--only warm|cold|memory] [--rounds N] [--tmpfs] [--reuseport]
+#                            [seconds per run, default 10]
 #   (--only runs one section, for quick comparisons; the default runs all three. --rounds
 #   repeats the warm comparison N times, nginx and vtex interleaved, since single runs on a
 #   small machine swing by ±15 %. --tmpfs adds a third warm row: the same nginx serving a copy
 #   of the tiles from /dev/shm, whose pages are all 4 KiB — the control for what page size
-#   costs the client, BENCHMARKS.md "Warm tiles")
+#   costs the client, BENCHMARKS.md "Warm tiles". --reuseport adds nginx listening with
+#   `reuseport`: one socket per worker, so the kernel spreads connections over both workers
+#   — the stronger baseline when the default's accept leaves one worker doing everything)
 set -euo pipefail
 ONLY=all
 ROUNDS=1
 TMPFS=""
+REUSEPORT=""
 while [ $# -gt 1 ]; do
   case "$1" in
     --only) ONLY=$2; shift 2;;
     --rounds) ROUNDS=$2; shift 2;;
     --tmpfs) TMPFS=$(mktemp -d /dev/shm/vtex-bench.XXXXXX); shift;;
+    --reuseport) REUSEPORT=1; shift;;
     *) break;;
   esac
 done
@@ -143,6 +148,11 @@ if [ -n "$TMPFS" ]; then
   TMPFS_SERVER="server { listen 127.0.0.1:18090; root $TMPFS/www; etag on;
            add_header Cache-Control \"public, max-age=31536000, immutable\"; }"
 fi
+REUSEPORT_SERVER=""
+if [ -n "$REUSEPORT" ]; then
+  REUSEPORT_SERVER="server { listen 127.0.0.1:18091 reuseport; root $WORK/www; etag on;
+           add_header Cache-Control \"public, max-age=31536000, immutable\"; }"
+fi
 cat > "$WORK/nginx.conf" <<NGINX
 worker_processes auto;
 pid $WORK/nginx.pid;
@@ -157,6 +167,7 @@ http {
   server { listen 127.0.0.1:18089; root $WORK/www; etag on;
            add_header Cache-Control "public, max-age=31536000, immutable"; }
   $TMPFS_SERVER
+  $REUSEPORT_SERVER
 }
 NGINX
 nginx -c "$WORK/nginx.conf" -g 'daemon off;' & NGINX_PID=$!
@@ -184,6 +195,11 @@ for _ in $(seq 1 "$ROUNDS"); do for c in 8 64; do
     # shellcheck disable=SC2086 # one PID per word
     read -r rps p50 p99 cpu wcpu split wait slept < <(run_wrk "$c" "$WORK/warm.lua" "http://127.0.0.1:18090" 2 $NGINX_WORKERS)
     echo "| nginx (tmpfs files) | $c | $rps | $p50 | $p99 | $cpu | $wcpu | $split | $wait | $slept |"
+  fi
+  if [ -n "$REUSEPORT" ]; then
+    # shellcheck disable=SC2086 # one PID per word
+    read -r rps p50 p99 cpu wcpu split wait slept < <(run_wrk "$c" "$WORK/warm.lua" "http://127.0.0.1:18091" 2 $NGINX_WORKERS)
+    echo "| nginx (reuseport) | $c | $rps | $p50 | $p99 | $cpu | $wcpu | $split | $wait | $slept |"
   fi
   read -r rps p50 p99 cpu wcpu split wait slept < <(run_wrk "$c" "$WORK/warm.lua" "$VTEX" 2 "$VTEX_PID")
   echo "| vtex (tile cache) | $c | $rps | $p50 | $p99 | $cpu | $wcpu | $split | $wait | $slept |"
