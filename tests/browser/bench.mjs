@@ -21,7 +21,7 @@
 // 2. A continuous pan at level 0 (a steady drag across fresh texture), recording every
 //    animation-frame interval, cold and then warm (the same path again).
 import { parseArgs } from 'node:util';
-import { writeFileSync } from 'node:fs';
+import { mkdirSync, writeFileSync } from 'node:fs';
 import { launchBrowser, openViewer, startServer, viewerIdle } from './lib.mjs';
 import { launchBare } from './cdp.mjs';
 import { collectTrace, formatBreakdown, installTracer, viewBreakdown } from './trace.mjs';
@@ -357,6 +357,7 @@ async function idle(page) {
 }
 
 // The session's raw tiles (~500 MB) must fit the server's cache for "warm server" to be warm.
+if (args.shots) mkdirSync(args.shots, { recursive: true });
 const serverArgs = ['--cache-mb', '2048', ...args['server-args'].split(/\s+/).filter(Boolean)];
 const server = await startServer({ extraArgs: serverArgs });
 const results = { when: new Date().toISOString(), viewport: SIZE, steps: STEPS, serverArgs, osd: args.osd || null, driver: args.playwright ? 'playwright' : 'cdp' };
