@@ -152,11 +152,9 @@ function loadBatch(info, jobs, { frame, format, stats }) {
     }
   }
   const url = batchUrl(info, tiles, frame, format);
-  const sent = performance.now();
   for (const job of jobs) {
     job.userData.batch = batch;
-    job.userData.batchUrl = url;
-    job.userData.sent = sent;
+    job.userData.batchUrl = url; // for tests/browser/trace.mjs
   }
   stats.batchStarted();
   // A job is settled once its frame came (or the batch failed): it no longer counts as live.

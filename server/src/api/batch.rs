@@ -177,23 +177,7 @@ fn parse_query(entry: &Entry, query: Option<&str>) -> Result<BatchQuery, ApiErro
     let format = format
         .ok_or_else(|| ApiError::bad_request(format!("missing query parameter `format`; {}", Format::EXPECTED)))?;
     for t in &tiles {
-        if t.level >= entry.levels {
-            return Err(ApiError::bad_request(format!(
-                "tile {}/{}/{}: level {} does not exist; this texture serves levels 0..={}",
-                t.level,
-                t.x,
-                t.y,
-                t.level,
-                entry.levels - 1
-            )));
-        }
-        let (cols, rows) = entry.tiles_at(t.level);
-        if t.x as u64 >= cols || t.y as u64 >= rows {
-            return Err(ApiError::not_found(format!(
-                "tile {}/{}/{} is outside level {}, which has {cols}×{rows} tiles",
-                t.level, t.x, t.y, t.level
-            )));
-        }
+        tiles::check_tile(entry, t.level, t.x, t.y)?;
     }
     Ok(BatchQuery { tiles, format, frame: frame_for(entry, frame.as_deref())? })
 }

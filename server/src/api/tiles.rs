@@ -102,6 +102,24 @@ impl<'a> TilePath<'a> {
     }
 }
 
+/// Whether `entry` serves tile (`level`, `x`, `y`): a level it does not serve is a 400, a tile
+/// outside its level a 404 (a client may probe the pyramid's edge).
+pub(super) fn check_tile(entry: &Entry, level: u32, x: u32, y: u32) -> Result<(), ApiError> {
+    if level >= entry.levels {
+        return Err(ApiError::bad_request(format!(
+            "tile {level}/{x}/{y}: level {level} does not exist; this texture serves levels 0..={}",
+            entry.levels - 1
+        )));
+    }
+    let (cols, rows) = entry.tiles_at(level);
+    if x as u64 >= cols || y as u64 >= rows {
+        return Err(ApiError::not_found(format!(
+            "tile {level}/{x}/{y} is outside level {level}, which has {cols}×{rows} tiles"
+        )));
+    }
+    Ok(())
+}
+
 /// A tile: validation, 304, the cache, synthesis on a miss.
 pub async fn tile(
     app: &App,
@@ -118,18 +136,7 @@ pub async fn tile(
     })?;
     let format = parse_format(ext)?;
     let y = parse_u32("y", y)?;
-    if level >= entry.levels {
-        return Err(ApiError::bad_request(format!(
-            "level {level} does not exist; this texture serves levels 0..={}",
-            entry.levels - 1
-        )));
-    }
-    let (cols, rows) = entry.tiles_at(level);
-    if x as u64 >= cols || y as u64 >= rows {
-        return Err(ApiError::not_found(format!(
-            "tile ({x}, {y}) is outside level {level}, which has {cols}×{rows} tiles"
-        )));
-    }
+    check_tile(&entry, level, x, y)?;
     let mut frame = None;
     for (k, v) in query_pairs(query)? {
         if k == "frame" {

@@ -26,14 +26,8 @@ pub fn by_home_tile(
     tile_w: u32,
     tile_h: u32,
 ) -> (Vec<Block>, Vec<u32>) {
-    let home = |b: &Block| (b.t / tile_h) as usize * tiles_x as usize + (b.s / tile_w) as usize;
-    let mut at = vec![0u32; tiles_x as usize * tiles_y as usize + 1];
-    for b in &blocks {
-        at[home(b) + 1] += 1;
-    }
-    for i in 1..at.len() {
-        at[i] += at[i - 1];
-    }
+    let home = |b: &Block| home_tile(b, tiles_x, tile_w, tile_h);
+    let mut at = home_starts(&blocks, tiles_x, tiles_y, tile_w, tile_h);
     let mut seq = vec![0u32; blocks.len()];
     let mut local = blocks.clone();
     for (id, b) in blocks.iter().enumerate() {
@@ -44,19 +38,31 @@ pub fn by_home_tile(
     (local, seq)
 }
 
+/// The tile (row-major) holding a block's corner: its home tile.
+fn home_tile(b: &Block, tiles_x: u32, tile_w: u32, tile_h: u32) -> usize {
+    (b.t / tile_h) as usize * tiles_x as usize + (b.s / tile_w) as usize
+}
+
+/// Where each home tile's blocks start in a list grouped by home tile (one entry per tile, and
+/// the total at the end).
+fn home_starts(blocks: &[Block], tiles_x: u32, tiles_y: u32, tile_w: u32, tile_h: u32) -> Vec<u32> {
+    let mut at = vec![0u32; tiles_x as usize * tiles_y as usize + 1];
+    for b in blocks {
+        at[home_tile(b, tiles_x, tile_w, tile_h) + 1] += 1;
+    }
+    for i in 1..at.len() {
+        at[i] += at[i - 1];
+    }
+    at
+}
+
 impl TileIndex {
     /// Indexes `blocks` (listed by position, `seq` their sequence numbers, grouped by home
     /// tile): each tile's list holds positions in ascending sequence order. Blocks are never
     /// larger than a tile, so each touches at most 2 × 2 tiles of the torus.
     pub fn build(blocks: &[Block], seq: &[u32], tiles_x: u32, tiles_y: u32, tile_w: u32, tile_h: u32) -> Self {
         let tiles = tiles_x as usize * tiles_y as usize;
-        let mut home = vec![0u32; tiles + 1];
-        for b in blocks {
-            home[(b.t / tile_h) as usize * tiles_x as usize + (b.s / tile_w) as usize + 1] += 1;
-        }
-        for i in 1..=tiles {
-            home[i] += home[i - 1];
-        }
+        let home = home_starts(blocks, tiles_x, tiles_y, tile_w, tile_h);
         let touched = |b: &Block| {
             let cols = tile_span(b.s, b.w, tile_w, tiles_x);
             let rows = tile_span(b.t, b.h, tile_h, tiles_y);
