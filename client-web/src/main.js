@@ -4,7 +4,7 @@
 import { createTileSource } from './tilesource.js';
 import { TileStats, formatBytes, formatRatio } from './stats.js';
 import { FORMATS, parseView, formatView } from './view-url.js';
-import { drawLevel, MIN_PIXEL_RATIO, vtexLevel } from './pyramid.js';
+import { DEFAULT_DETAIL, DETAIL, drawLevel, vtexLevel } from './pyramid.js';
 import { scheduleTiles } from './loader.js';
 import { drawIncrementally } from './drawing.js';
 
@@ -28,6 +28,8 @@ const state = {
   item: null,
   /** Tile format requested (png, webp, jpg, rgba). */
   format: DEFAULT_FORMAT,
+  /** How fine a level is drawn (pyramid.js DETAIL). */
+  detail: DEFAULT_DETAIL,
   /** A frame being loaded behind the visible one (invisible until fully loaded). */
   pending: null,
   playing: false,
@@ -55,9 +57,8 @@ const viewer = OSD({
   visibilityRatio: 0.25,
   animationTime: 0.5,
   blendTime: 0,
-  // Draw the coarsest level that is not magnified: at exactly 1/2^L, level L at 1:1 (OSD's
-  // default of 0.5 would fetch level L-1, four times the tiles, to draw it at half size).
-  minPixelRatio: MIN_PIXEL_RATIO,
+  // The level drawn: pyramid.js DETAIL, set per texture opened (openTexture).
+  minPixelRatio: DETAIL[DEFAULT_DETAIL],
   immediateRender: false, // coarsest first: the preview of loader.js, then the finest level
   // Ask for every tile the view needs in its first frame (OSD's default of one a frame makes
   // a view crawl in), all at once: the tile source sends the jobs started in one update as
@@ -128,6 +129,9 @@ function openTexture(info, view = {}) {
   setupAnimationPanel(info);
   if (view.format) state.format = view.format;
   $('format').value = state.format;
+  if (view.detail) state.detail = view.detail;
+  $('detail').value = state.detail;
+  viewer.minPixelRatio = DETAIL[state.detail]; // read by every tiled image added from now on
   const source = createTileSource(OSD, info, { frame: state.frame, format: state.format, stats });
   state.opening = { source, view, seq };
   state.item = null;
@@ -162,6 +166,7 @@ function getView() {
     y: centre.y,
     frame: state.frame,
     format: state.format === DEFAULT_FORMAT ? undefined : state.format,
+    detail: state.detail === DEFAULT_DETAIL ? undefined : state.detail,
   };
 }
 
@@ -390,8 +395,9 @@ $('frame-slider').addEventListener('input', (e) => {
 
 viewer.addHandler('animation-finish', updateUrl);
 viewer.addHandler('update-viewport', updateReadouts);
-// Smooth only when the drawn level is minified: at 1:1 tile pixels land on screen pixels
-// exactly, and magnified past 1:1 texels show as crisp squares rather than blurred.
+// Smooth unless tile pixels land on screen pixels one to one, or level-0 pixels are magnified:
+// past 1:1 at level 0 texels show as crisp squares, for inspection; a coarser level magnified
+// (up to 1.41 × with the `map` detail) is filtered, as a GPU filters a magnified mip level.
 // The canvas drawer normally enlarges every tile by one screen pixel to hide seams that
 // smoothing leaves at fractional tile edges; that stretch would shift texels, so it is only
 // asked for while smoothing is on.
@@ -399,8 +405,9 @@ let smoothing = true;
 function updateSmoothing() {
   if (!state.item || !state.info) return;
   const zoom = state.item.viewportToImageZoom(viewer.viewport.getZoom(true));
-  const ratio = zoom * 2 ** drawLevel(state.info, zoom);
-  smoothing = ratio < 0.999;
+  const level = drawLevel(state.info, zoom, DETAIL[state.detail]);
+  const ratio = zoom * 2 ** level;
+  smoothing = Math.abs(ratio - 1) > 0.001 && !(level === 0 && ratio > 1);
   viewer.drawer.setImageSmoothingEnabled(smoothing);
 }
 viewer.drawer.minimumOverlapRequired = () => smoothing;
@@ -411,6 +418,12 @@ $('format').addEventListener('change', (e) => {
   if (!FORMATS.includes(e.target.value) || !state.info) return;
   const view = getView() || {};
   openTexture(state.info, { ...view, format: e.target.value });
+});
+
+$('detail').addEventListener('change', (e) => {
+  if (!Object.hasOwn(DETAIL, e.target.value) || !state.info) return;
+  const view = getView() || {};
+  openTexture(state.info, { ...view, detail: e.target.value });
 });
 
 $('texture-picker').addEventListener('change', (e) => {

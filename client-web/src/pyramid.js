@@ -47,17 +47,26 @@ export function tileUrl(info, level, x, y, frame = 0, format = 'png') {
 }
 
 /**
- * OpenSeadragon's `minPixelRatio`: the smallest on-screen size of a tile pixel before the next
- * finer level is fetched. Just above one half, so at exactly 1/2^L level L is drawn at 1:1
- * (OSD's default of 0.5 fetches level L-1, four times the tiles, to draw it at half size) and
- * no level is ever drawn magnified by more than 2 %.
+ * How fine a level the viewer draws, as OpenSeadragon's `minPixelRatio`: the smallest on-screen
+ * size of a tile pixel before the next finer level is fetched.
+ * - `map`: the level nearest the screen's resolution, as a GPU picks a mip level and as map
+ *   viewers pick a zoom level: tile pixels show at 0.71–1.41 screen pixels, so a view fetches
+ *   0.5–2 × its own pixels (1.1 × on average over zooms).
+ * - `sharp`: never magnified (by more than 2 %): tile pixels show at 0.51–1.02 screen pixels,
+ *   0.96–3.8 × the view's pixels (2.1 × on average), twice the tiles of `map`. Just above
+ *   OpenSeadragon's default of one half, so at exactly 1/2^L level L is drawn at 1:1.
+ * Both draw level L at 1:1 at a zoom of exactly 1/2^L.
  */
-export const MIN_PIXEL_RATIO = 0.51;
+export const DETAIL = { map: Math.SQRT1_2, sharp: 0.51 };
+export const DEFAULT_DETAIL = 'map';
 
-/** The finest vtex level OpenSeadragon draws at `zoom` screen pixels per level-0 pixel. */
-export function drawLevel(info, zoom) {
+/**
+ * The finest vtex level OpenSeadragon draws at `zoom` screen pixels per level-0 pixel, with
+ * `minPixelRatio` (a DETAIL value).
+ */
+export function drawLevel(info, zoom, minPixelRatio = DETAIL[DEFAULT_DETAIL]) {
   if (!(zoom > 0)) return info.levels - 1;
   // OSD: highest level = floor(log2(zoom × 2^(levels-1) / minPixelRatio)), capped at maxLevel.
-  const osd = Math.floor(Math.log2((zoom * 2 ** (info.levels - 1)) / MIN_PIXEL_RATIO));
+  const osd = Math.floor(Math.log2((zoom * 2 ** (info.levels - 1)) / minPixelRatio));
   return vtexLevel(info, Math.min(info.levels - 1, Math.max(0, osd)));
 }

@@ -1,5 +1,7 @@
-// The view in the URL: `?texture=<id or name>&zoom=<screen px per level-0 px>&x=<cx>&y=<cy>[&frame=N][&format=F]`.
+// The view in the URL: `?texture=<id or name>&zoom=<screen px per level-0 px>&x=<cx>&y=<cy>[&frame=N][&format=F][&detail=D]`.
 // x and y are the view centre in level-0 pixels, so a link means the same place at any window size.
+
+import { DETAIL } from './pyramid.js';
 
 /** Tile formats the server offers. */
 export const FORMATS = ['png', 'webp', 'jpg', 'rgba'];
@@ -28,6 +30,8 @@ export function parseView(search) {
   if (frame !== undefined && Number.isInteger(frame) && frame >= 0 && frame < 2 ** 32) view.frame = frame;
   const format = q.get('format');
   if (FORMATS.includes(format)) view.format = format;
+  const detail = q.get('detail');
+  if (Object.hasOwn(DETAIL, detail)) view.detail = detail;
   return view;
 }
 
@@ -43,5 +47,6 @@ export function formatView(view) {
   }
   if (view.frame > 0) q.set('frame', String(view.frame));
   if (view.format) q.set('format', view.format);
+  if (view.detail) q.set('detail', view.detail);
   return `?${q}`;
 }

@@ -2,7 +2,7 @@
 // tile scheduling (against a stand-in for OpenSeadragon's loader and world).
 import test from 'node:test';
 import assert from 'node:assert/strict';
-import { inPyramid, levelSize, osdLevel, tileCount, tileUrl, vtexLevel, drawLevel } from '../src/pyramid.js';
+import { DETAIL, inPyramid, levelSize, osdLevel, tileCount, tileUrl, vtexLevel, drawLevel } from '../src/pyramid.js';
 import { formatView, parseView } from '../src/view-url.js';
 import { TileStats, formatBytes, formatRatio, percentile } from '../src/stats.js';
 import { PREVIEW_STEPS, scheduleTiles, wantedLevel } from '../src/loader.js';
@@ -53,18 +53,31 @@ test('nothing outside the pyramid has a URL', () => {
   assert.equal(tileUrl(odd, 0, 2, 1, 7), `/api/v1/textures/${odd.id}/tiles/0/2/1.png?frame=7`);
 });
 
-test('drawLevel picks the level drawn at 1:1 or minified, never magnified', () => {
-  assert.equal(drawLevel(big, 1), 0);
-  assert.equal(drawLevel(big, 4), 0);
-  assert.equal(drawLevel(big, 0.99), 0);
-  assert.equal(drawLevel(big, 0.5), 1);
-  assert.equal(drawLevel(big, 1 / 8), 3);
-  assert.equal(drawLevel(big, 0.3), 1);
-  assert.equal(drawLevel(big, 1e-9), 9);
-  for (let z = 0.002; z < 1; z *= 1.07) {
-    const ratio = z * 2 ** drawLevel(big, z);
-    assert.ok(ratio >= 0.5 && ratio < 1.02, `zoom ${z}: tile pixels drawn at ${ratio}`);
+test('drawLevel: `map` draws the level nearest the screen resolution, `sharp` never magnifies', () => {
+  for (const detail of ['map', 'sharp']) {
+    const at = (zoom) => drawLevel(big, zoom, DETAIL[detail]);
+    // At exactly 1/2^L both draw level L at 1:1; deeper than 1:1, level 0.
+    for (let l = 0; l < 10; l++) assert.equal(at(2 ** -l), l, `${detail} at 1/2^${l}`);
+    assert.equal(at(4), 0);
+    assert.equal(at(1e-9), 9);
   }
+  assert.equal(drawLevel(big, 0.99, DETAIL.sharp), 0);
+  assert.equal(drawLevel(big, 0.3, DETAIL.sharp), 1);
+  assert.equal(drawLevel(big, 0.72), 0); // `map` is the default
+  assert.equal(drawLevel(big, 0.7, DETAIL.map), 1);
+  assert.equal(drawLevel(big, 0.3, DETAIL.map), 2);
+  const range = (detail) => {
+    let [lo, hi] = [Infinity, 0];
+    for (let z = 0.002; z < 1; z *= 1.01) {
+      const ratio = z * 2 ** drawLevel(big, z, DETAIL[detail]);
+      [lo, hi] = [Math.min(lo, ratio), Math.max(hi, ratio)];
+    }
+    return [lo, hi];
+  };
+  const [mapLo, mapHi] = range('map');
+  assert.ok(mapLo >= Math.SQRT1_2 && mapLo < 0.72 && mapHi < Math.SQRT2 && mapHi > 1.39, `map: ${mapLo}–${mapHi}`);
+  const [sharpLo, sharpHi] = range('sharp');
+  assert.ok(sharpLo >= 0.51 && sharpLo < 0.52 && sharpHi < 1.02 && sharpHi > 1.0, `sharp: ${sharpLo}–${sharpHi}`);
 });
 
 test('a view survives the URL round trip; malformed fields are dropped', () => {
@@ -76,6 +89,9 @@ test('a view survives the URL round trip; malformed fields are dropped', () => {
   assert.deepEqual(parseView('?format=rgba'), { format: 'rgba' });
   assert.deepEqual(parseView('?format=gif'), {});
   assert.equal(formatView({ texture: 't', format: 'webp' }), '?texture=t&format=webp');
+  assert.deepEqual(parseView('?detail=sharp'), { detail: 'sharp' });
+  assert.deepEqual(parseView('?detail=toString'), {});
+  assert.equal(formatView({ texture: 't', detail: 'sharp' }), '?texture=t&detail=sharp');
   assert.equal(formatView({ zoom: 0.123456789012, x: 1.23456, y: 2 }), '?zoom=0.123456789&x=1.235&y=2');
   assert.equal(formatView({ texture: 'a b', zoom: 1, x: 1, y: 2, frame: 0 }), '?texture=a+b&zoom=1&x=1&y=2');
 });

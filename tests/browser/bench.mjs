@@ -2,7 +2,7 @@
 //
 //   node tests/browser/bench.mjs [--steps 60] [--pan-seconds 5] [--shots DIR] [--json FILE]
 //        [--trace] [--texture NAME] [--server-args="--tile-size 512"] [--osd JSON] [--playwright]
-//        [--format rgba|png|webp|jpg] [--profile FILE.cpuprofile]
+//        [--format rgba|png|webp|jpg] [--detail map|sharp] [--profile FILE.cpuprofile] [--chrome-trace FILE.json]
 //
 // The texture is the 100k × 100k chaos mosaic (the flagship demo, as server/bench/run.sh picks
 // it) unless --texture names another. Chromium is driven over a bare DevTools pipe (cdp.mjs):
@@ -40,6 +40,9 @@ const { values: args } = parseArgs({
     // DevTools CPU profile of the page's main thread during the warm-server pass, written to
     // FILE (.cpuprofile, opens in DevTools) and summarised per view (bare DevTools driver only).
     profile: { type: 'string' },
+    // Chromium trace of every process (renderer, network service, viz) during the warm-server
+    // pass, written to FILE (JSON; opens in Perfetto or chrome://tracing; bare driver only).
+    'chrome-trace': { type: 'string' },
     // Extra OpenSeadragon options as JSON, merged over the viewer's (A/B experiments only).
     osd: { type: 'string' },
     // Server flags, e.g. --server-args "--max-syntheses 4".
@@ -51,6 +54,9 @@ const { values: args } = parseArgs({
     texture: { type: 'string' },
     // Tile format the viewer asks for (its `format` URL parameter); default: the viewer's (rgba on loopback).
     format: { type: 'string' },
+    // Level choice (the viewer's `detail` URL parameter, client-web/src/pyramid.js DETAIL);
+    // default: the viewer's (map).
+    detail: { type: 'string' },
   },
 });
 const STEPS = Number(args.steps);
@@ -96,6 +102,21 @@ function session(info, steps) {
   }
   return views;
 }
+
+/** What --chrome-trace records: tasks, frames, canvas and compositing, network and IPC. */
+const CHROME_TRACE_CATEGORIES = [
+  'toplevel',
+  'devtools.timeline',
+  'disabled-by-default-devtools.timeline',
+  'blink',
+  'cc',
+  'viz',
+  'gpu',
+  'netlog',
+  'mojom',
+  'loading',
+  'v8',
+];
 
 function summary(ms) {
   const s = [...ms].sort((a, b) => a - b);
@@ -171,7 +192,7 @@ async function measureViews(page, views, shots, tag, { back = false } = {}) {
   }
   if (!times.length) return null;
   const perView = (v) => v.reduce((a, b) => a + (b || 0), 0) / v.length;
-  return { ...summary(times), tilesPerView: perView(tiles), requestsPerView: perView(requests), breakdowns };
+  return { ...summary(times), tilesPerView: perView(tiles), requestsPerView: perView(requests), times, tiles, breakdowns };
 }
 
 /**
@@ -360,14 +381,14 @@ async function idle(page) {
 if (args.shots) mkdirSync(args.shots, { recursive: true });
 const serverArgs = ['--cache-mb', '2048', ...args['server-args'].split(/\s+/).filter(Boolean)];
 const server = await startServer({ extraArgs: serverArgs });
-const results = { when: new Date().toISOString(), viewport: SIZE, steps: STEPS, serverArgs, osd: args.osd || null, driver: args.playwright ? 'playwright' : 'cdp' };
+const results = { when: new Date().toISOString(), viewport: SIZE, steps: STEPS, serverArgs, osd: args.osd || null, format: args.format || null, detail: args.detail || null, driver: args.playwright ? 'playwright' : 'cdp' };
 try {
   const textures = (await (await fetch(`${server.url}/api/v1/textures`)).json()).textures;
   const big = pickTexture(textures, args.texture);
   results.texture = { name: big.name, model: big.model, width: big.width, height: big.height };
   const views = session(big, STEPS);
   const panStart = { zoom: 1, x: 20_000, y: 60_000 };
-  const url = `${server.url}/?texture=${big.id}&zoom=0.01&x=50000&y=50000${args.format ? `&format=${args.format}` : ''}`;
+  const url = `${server.url}/?texture=${big.id}&zoom=0.01&x=50000&y=50000${args.format ? `&format=${args.format}` : ''}${args.detail ? `&detail=${args.detail}` : ''}`;
   results.server = {};
 
   // Cold: fresh server, fresh browser.
@@ -397,7 +418,9 @@ try {
     await page.send('Profiler.setSamplingInterval', { interval: 100 });
     await page.send('Profiler.start');
   }
+  const endTrace = args['chrome-trace'] && (await page.startTrace(CHROME_TRACE_CATEGORIES));
   results.warmServer = await measureViews(page, views, args.shots, 'warm-server');
+  if (endTrace) writeFileSync(args['chrome-trace'], await endTrace());
   if (args.profile) {
     const { profile } = await page.send('Profiler.stop');
     writeFileSync(args.profile, JSON.stringify(profile));
@@ -414,7 +437,7 @@ try {
 }
 
 const f = (v) => v.toFixed(1);
-console.log(`texture ${results.texture.name} (${results.texture.model}), ${results.viewport.width}×${results.viewport.height} browser viewport, ${STEPS} view changes${args.format ? `, ${args.format} tiles` : ''}${args.osd ? `, OSD options ${args.osd}` : ''}, server ${serverArgs.join(' ')}, driven by ${results.driver}`);
+console.log(`texture ${results.texture.name} (${results.texture.model}), ${results.viewport.width}×${results.viewport.height} browser viewport, ${STEPS} view changes${args.format ? `, ${args.format} tiles` : ''}${args.detail ? `, detail ${args.detail}` : ''}${args.osd ? `, OSD options ${args.osd}` : ''}, server ${serverArgs.join(' ')}, driven by ${results.driver}`);
 console.log('| view change → every visible tile drawn | p50 ms | p95 ms | max ms | tiles/view | requests/view |');
 console.log('|---|---|---|---|---|---|');
 for (const [k, label] of [

@@ -36,6 +36,7 @@ export async function launchBare(url, { width = 1280, height = 800, initScript }
   const fromChrome = proc.stdio[4];
   let id = 0;
   const pending = new Map();
+  const listeners = new Map(); // event method → [fn]
   let buffer = '';
   fromChrome.on('data', (chunk) => {
     buffer += chunk.toString('utf8');
@@ -43,6 +44,7 @@ export async function launchBare(url, { width = 1280, height = 800, initScript }
     while ((end = buffer.indexOf('\0')) >= 0) {
       const message = JSON.parse(buffer.slice(0, end));
       buffer = buffer.slice(end + 1);
+      if (message.method) for (const fn of listeners.get(message.method) || []) fn(message.params);
       const p = message.id !== undefined && pending.get(message.id);
       if (p) {
         pending.delete(message.id);
@@ -109,6 +111,26 @@ export async function launchBare(url, { width = 1280, height = 800, initScript }
     },
     /** Sends a DevTools command to the page's session (e.g. the Profiler domain). */
     send: page,
+    /**
+     * Starts a Chromium trace of every process (Tracing domain, browser session) with
+     * `categories`; the returned function ends it and resolves to its JSON text.
+     */
+    async startTrace(categories) {
+      await send('Tracing.start', { categories: categories.join(','), transferMode: 'ReturnAsStream' });
+      return async () => {
+        const complete = new Promise((resolve) => listeners.set('Tracing.tracingComplete', [resolve]));
+        await send('Tracing.end');
+        const { stream } = await complete;
+        let text = '';
+        for (;;) {
+          const { data, eof, base64Encoded } = await send('IO.read', { handle: stream, size: 1 << 20 });
+          text += base64Encoded ? Buffer.from(data, 'base64').toString('utf8') : data;
+          if (eof) break;
+        }
+        await send('IO.close', { handle: stream });
+        return text;
+      };
+    },
     async screenshot(path) {
       const { data } = await page('Page.captureScreenshot', { format: 'png' });
       writeFileSync(path, Buffer.from(data, 'base64'));

@@ -243,9 +243,11 @@ test('a view drawn tile by tile as its tiles arrive equals the same view redrawn
           requestAnimationFrame(check);
         }),
     );
-  // Minified (smoothing on, tiles enlarged by a pixel) and at 1:1, each into texture never seen.
+  // Minified and magnified (smoothing on, tiles enlarged by a pixel) and at 1:1, each into
+  // texture never seen.
   for (const [zoom, x, y] of [
     [0.37, 21_000, 64_000],
+    [0.6, 33_000, 81_000],
     [1, 61_000 + 0.5, 12_000 + 0.5],
   ]) {
     const before = await page.evaluate(() => ({ ...window.vtexViewer.frames }));
@@ -381,6 +383,30 @@ test('switching textures with the picker shows the other texture', async () => {
   assert.equal(await page.evaluate(() => window.vtexViewer.getView().texture), big.id);
   assertClean(log);
   await page.close();
+});
+
+test('the detail setting picks the level drawn, and a link keeps it', async () => {
+  // At zoom 0.6 `map` (the default) draws level 1 magnified 1.2 ×, `sharp` level 0 at 0.6.
+  const { page, log } = await openViewer(browser.context, `${server.url}/?texture=${big.id}&zoom=0.6&x=40000&y=40000`);
+  const finest = async () => {
+    await waitForIdle(page);
+    return (await page.evaluate(() => window.vtexViewer.drawnLevels()))[0];
+  };
+  assert.equal(await finest(), 1, 'map');
+  assert.equal(Math.min(...tileRequests(log.requests).map((t) => t.level)), 1, 'map: the finest level fetched');
+  await page.locator('#detail').selectOption('sharp');
+  assert.equal(await finest(), 0, 'sharp');
+  await page.waitForTimeout(400); // the URL is written 150 ms after the view settles
+  const link = page.url();
+  assert.match(link, /detail=sharp/);
+  const again = await openViewer(browser.context, link);
+  await waitForIdle(again.page);
+  assert.deepEqual(await again.page.evaluate(() => window.vtexViewer.drawnLevels()), [0], 'sharp, from the link');
+  assert.equal(await again.page.locator('#detail').inputValue(), 'sharp');
+  assertClean(log);
+  assertClean(again.log);
+  await page.close();
+  await again.page.close();
 });
 
 test('a permalink restores the view', async () => {
