@@ -450,11 +450,6 @@ $('reset-stats').addEventListener('click', () => {
   renderStats();
 });
 
-// Bytes on the wire of tile requests (batches), from Resource Timing (fetch responses too).
-new PerformanceObserver((list) => {
-  for (const entry of list.getEntries()) if (entry.name.includes('/tiles')) stats.resource(entry);
-}).observe({ type: 'resource', buffered: false });
-performance.addEventListener('resourcetimingbufferfull', () => performance.clearResourceTimings());
 setInterval(renderStats, 250);
 
 // Hooks for the end-to-end tests and the measured session in tests/browser/.

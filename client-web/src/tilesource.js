@@ -1,20 +1,19 @@
 // An OpenSeadragon tile source over the vtex tile API. Tiles are loaded in batches, one
 // request for all the tiles a view needs (batch.js; a browser spends ~3 ms of CPU on every
-// request, BENCHMARKS.md "Viewer"), and each tile reports what the server says about it
-// (cache hit or miss) and how long it took. Formats: png / webp (lossless), jpg (lossy,
-// smallest) and rgba (raw: no decoding, the fastest on a fast link).
+// request, BENCHMARKS.md "Viewer"), fetched and turned into bitmaps by a Worker
+// (tile-worker.js), and each tile reports what the server says about it (cache hit or miss)
+// and how long it took. Formats: png / webp (lossless), jpg (lossy, smallest) and rgba (raw:
+// no decoding, the fastest on a fast link).
 
 import { inPyramid, tileUrl, vtexLevel } from './pyramid.js';
-import { FrameReader, MAX_BATCH, batchUrl, readChunks, tileKey } from './batch.js';
-
-/** Read buffers of the batches that finished, for the next ones (batch.js readChunks). */
-const readBuffers = [];
+import { MAX_BATCH, batchUrl, tileKey } from './batch.js';
 
 /**
  * Makes the tile source for texture `info` (the server's info JSON) at animation `frame`.
  * `stats` is a TileStats that every download reports to.
  */
 export function createTileSource(OSD, info, { frame = 0, format = 'png', stats }) {
+  const loader = tileLoader(stats);
   const maxLevel = info.levels - 1;
   const inFlight = new Set();
   let pending = [];
@@ -23,7 +22,7 @@ export function createTileSource(OSD, info, { frame = 0, format = 'png', stats }
     pending = [];
     const live = jobs.filter((job) => !job.userData.done);
     for (let i = 0; i < live.length; i += MAX_BATCH) {
-      loadBatch(info, live.slice(i, i + MAX_BATCH), { frame, format, stats });
+      loadBatch(loader, info, live.slice(i, i + MAX_BATCH), { frame, format, stats });
     }
   };
   const source = new OSD.TileSource({
@@ -108,6 +107,8 @@ export function createTileSource(OSD, info, { frame = 0, format = 'png', stats }
   });
   // Jobs started and neither finished nor aborted (loader.js drops those a view left).
   source.vtexInFlight = inFlight;
+  // Resource Timing of the batches by URL (the Worker's; tests/browser/trace.mjs).
+  source.vtexTimings = loader.timings;
   return source;
 }
 
@@ -132,12 +133,62 @@ function releaseImage(image) {
 }
 
 /**
- * Fetches the tiles of `jobs` in one request and finishes each job as its frame arrives (in the
- * server's completion order). Jobs aborted meanwhile are skipped; a batch with none left is
- * aborted. A tile the response does not carry (error, cut-off stream) fails its job.
+ * The page's end of the tile Worker (tile-worker.js), one for every tile source: batches by
+ * id, each { onTile, onEnd }. Resource Timing entries of the batches (which the page does not
+ * see: the Worker fetches them) go to `stats` and to `timings` (by URL, for
+ * tests/browser/trace.mjs), shifted to the page's clock.
  */
-function loadBatch(info, jobs, { frame, format, stats }) {
-  const controller = new AbortController();
+let shared = null;
+function tileLoader(stats) {
+  if (shared) {
+    shared.stats = stats;
+    return shared;
+  }
+  const worker = new Worker(new URL('./tile-worker.js', import.meta.url), { type: 'module' });
+  const loader = { worker, stats, batches: new Map(), nextId: 1, timings: new Map() };
+  worker.onmessage = ({ data }) => {
+    if (data.type === 'timing') {
+      const e = data.entry;
+      for (const k of ['fetchStart', 'requestStart', 'responseStart', 'responseEnd']) e[k] = pageTime(e[k]);
+      loader.stats.resource(e);
+      loader.timings.set(e.name, e);
+      if (loader.timings.size > 256) loader.timings.delete(loader.timings.keys().next().value);
+      return;
+    }
+    const batch = loader.batches.get(data.id);
+    if (data.type === 'tiles') {
+      for (const t of data.tiles) {
+        if (batch) batch.onTile(t);
+        else if (t.bitmap) t.bitmap.close(); // a batch already given up
+      }
+    } else if (data.type === 'end' && batch) {
+      loader.batches.delete(data.id);
+      batch.onEnd(data.error);
+    }
+  };
+  worker.onerror = (e) => {
+    const message = `the tile worker failed: ${e.message || 'could not start'}`;
+    for (const batch of loader.batches.values()) batch.onEnd(message);
+    loader.batches.clear();
+  };
+  shared = loader;
+  return loader;
+}
+
+/** An epoch time from the Worker (performance.timeOrigin + now there) on the page's clock. */
+function pageTime(t) {
+  return t - performance.timeOrigin;
+}
+
+/**
+ * Fetches the tiles of `jobs` in one request (through `loader`'s Worker) and finishes each job
+ * as its tile arrives (in the server's completion order). Jobs aborted meanwhile are skipped; a
+ * batch with none left is aborted. A tile the response does not carry (error, cut-off stream)
+ * fails its job.
+ */
+function loadBatch(loader, info, jobs, { frame, format, stats }) {
+  const id = loader.nextId++;
+  const controller = { abort: () => loader.worker.postMessage({ type: 'abort', id }) };
   // Jobs by tile: the navigator shows this tile source too, so two jobs may want one tile.
   const byKey = new Map();
   const batch = { controller, live: jobs.length };
@@ -157,7 +208,7 @@ function loadBatch(info, jobs, { frame, format, stats }) {
     job.userData.batchUrl = url; // for tests/browser/trace.mjs
   }
   stats.batchStarted();
-  // A job is settled once its frame came (or the batch failed): it no longer counts as live.
+  // A job is settled once its tile came (or the batch failed): it no longer counts as live.
   const settle = (job) => {
     if (job.userData.settled) return;
     job.userData.settled = true;
@@ -173,85 +224,46 @@ function loadBatch(info, jobs, { frame, format, stats }) {
     stats.failedTile(message);
     job.finish(null, null, message);
   };
-  const deliver = (f) => {
-    const waiting = byKey.get(tileKey(f.level, f.x, f.y));
-    if (!waiting) throw new Error(`the batch answered tile ${f.level}/${f.x}/${f.y}, which it did not ask for`);
-    for (const job of waiting) deliverTo(job, f);
+  const onTile = (t) => {
+    const waiting = byKey.get(tileKey(t.level, t.x, t.y));
+    if (!waiting) {
+      if (t.bitmap) t.bitmap.close();
+      onEnd(`the batch answered tile ${t.level}/${t.x}/${t.y}, which it did not ask for`);
+      return;
+    }
+    // The navigator's job and the viewer's may share one tile: each gets a bitmap of its own
+    // (copies of the same pixels, taken before any job could close the first).
+    const copies = waiting.slice(1).map(() => (t.bitmap ? createImageBitmap(t.bitmap) : null));
+    waiting.forEach((job, i) => deliverTo(job, t, i === 0 ? t.bitmap : copies[i - 1]));
   };
-  const deliverTo = (job, f) => {
-    if (f.status !== 200) {
-      fail(job, `HTTP ${f.status} for tile ${f.level}/${f.x}/${f.y}: ${errorText(f.body)}`);
+  const deliverTo = (job, t, bitmap) => {
+    if (t.error) {
+      fail(job, t.error);
       return;
     }
     settle(job);
-    if (job.userData.done) return;
     const data = job.userData;
-    data.arrived = performance.now();
-    data.cache = f.cache;
-    const length = f.body.length;
-    const done = (bitmap) => {
-      const image = tileImage(bitmap);
-      stats.loadedTile(performance.now() - data.t0, length, f.cache);
-      if (data.done) releaseImage(image);
-      else job.finish(image, null);
-    };
-    // Both take their bytes now (the body is only valid during this call, FrameReader `reuse`).
-    let bitmap;
-    try {
-      bitmap = format === 'rgba' ? rgbaTile(f) : encodedTile(f, format);
-    } catch (e) {
-      bitmap = Promise.reject(e);
-    }
-    bitmap.then(done, (e) => fail(job, `tile ${f.level}/${f.x}/${f.y}: ${e.message}`));
+    data.arrived = pageTime(t.arrived);
+    data.cache = t.cache;
+    Promise.resolve(bitmap).then(
+      (b) => {
+        const image = tileImage(b);
+        if (data.done) {
+          releaseImage(image);
+          return;
+        }
+        stats.loadedTile(performance.now() - data.t0, t.length, t.cache);
+        job.finish(image, null);
+      },
+      (e) => fail(job, `tile ${t.level}/${t.x}/${t.y}: ${e.message}`),
+    );
   };
-  fetch(url, { signal: controller.signal, credentials: 'same-origin' })
-    .then(async (response) => {
-      if (!response.ok) {
-        throw new Error(`HTTP ${response.status} for ${url.slice(0, 120)}: ${errorText(new Uint8Array(await response.arrayBuffer()))}`);
-      }
-      // Chunks and split frames live in buffers that are reused: each tile takes its bytes
-      // while its frame is handed over (rgbaTile, encodedTile, errorText all copy at once).
-      const reader = new FrameReader(deliver, { reuse: true });
-      await readChunks(response.body, (chunk) => reader.push(chunk), readBuffers);
-      if (!reader.complete) throw new Error('the tile batch ended inside a frame');
-      for (const job of [...byKey.values()].flat()) fail(job, `the tile batch ended without tile ${job.src}`);
-    })
-    .catch((error) => {
-      if (error && error.name === 'AbortError') return; // every tile left was aborted
-      const message = String(error && error.message ? error.message : error);
-      for (const job of [...byKey.values()].flat()) fail(job, message);
-    });
-}
-
-/** The message of a JSON error body (`{"error": …}`), else its start as text. */
-function errorText(bytes) {
-  const text = new TextDecoder().decode(bytes);
-  try {
-    return JSON.parse(text).error || text.slice(0, 200);
-  } catch {
-    return text.slice(0, 200);
-  }
-}
-
-const MIME = { png: 'image/png', webp: 'image/webp', jpg: 'image/jpeg' };
-
-/** An encoded tile (PNG, WebP, JPEG) as an ImageBitmap, decoded off the main thread. */
-function encodedTile(f, format) {
-  return createImageBitmap(new Blob([f.body], { type: MIME[format] })); // the Blob copies the bytes
-}
-
-/**
- * A raw RGBA tile as an ImageBitmap: no decoding, its size from the frame header, its bytes
- * copied at the call. `premultiplyAlpha: 'none'` keeps them as they are, marked
- * unpremultiplied, instead of converting every pixel here; drawing premultiplies, which for
- * these opaque tiles changes nothing, so the screen shows the server's pixels exactly (the
- * browser tests compare them).
- */
-function rgbaTile(f) {
-  const { width: w, height: h, body } = f;
-  if (!(w > 0 && h > 0) || body.length !== w * h * 4) {
-    throw new Error(`raw tile of ${body.length} bytes does not match ${w} × ${h} RGBA`);
-  }
-  const pixels = new ImageData(new Uint8ClampedArray(body.buffer, body.byteOffset, body.length), w, h);
-  return createImageBitmap(pixels, { premultiplyAlpha: 'none' });
+  const onEnd = (error) => {
+    loader.batches.delete(id);
+    if (error === 'aborted') return; // every tile left was aborted
+    const message = error || 'the tile batch ended without this tile';
+    for (const job of [...byKey.values()].flat()) fail(job, `${message} (${job.src})`);
+  };
+  loader.batches.set(id, { onTile, onEnd });
+  loader.worker.postMessage({ type: 'load', id, url, format });
 }

@@ -118,10 +118,13 @@ export function installTracer() {
 export function collectTrace({ t0, t1 }) {
   const T = window.__vtexTrace;
   const origin = location.origin;
+  // The tile Worker fetches the batches: the tile source keeps their timing (tilesource.js).
+  const { state } = window.vtexViewer;
+  const timings = state.item && state.item.source.vtexTimings;
   const tiles = [];
   for (const [src, r] of T.tiles) {
     if (r.want === undefined || r.want < t0 || r.want > t1) continue;
-    const e = r.batch ? performance.getEntriesByName(new URL(r.batch, origin).href).at(-1) : null;
+    const e = r.batch && timings ? timings.get(new URL(r.batch, origin).href) : null;
     tiles.push({
       ...r,
       rt: e ? { fetchStart: e.fetchStart, requestStart: e.requestStart, responseStart: e.responseStart, responseEnd: e.responseEnd, transferSize: e.transferSize } : null,
@@ -132,7 +135,6 @@ export function collectTrace({ t0, t1 }) {
   T.loaf = T.loaf.filter((e) => e.t > t1);
   T.tiles.clear();
   T.frames.length = 0;
-  performance.clearResourceTimings();
   const contextMs = T.contextMs || 0;
   T.contextMs = 0;
   return { tiles, frames, contextMs, loaf };
