@@ -92,8 +92,9 @@ export async function launchBare(url, { width = 1280, height = 800, initScript }
       try {
         if (await evaluate(fn, arg, { truthy: true })) return;
       } catch (e) {
-        // the page may be between documents (navigation, reload)
-        if (!/Execution context|Cannot find context|in page/.test(String(e))) throw e;
+        // the page may be between documents (navigation, reload: a pending promise is then
+        // "collected")
+        if (!/Execution context|Cannot find context|Promise was collected|in page/.test(String(e))) throw e;
       }
       if (Date.now() - t0 > timeout) throw new Error(`timed out after ${timeout} ms waiting for ${fn}`);
       await new Promise((r) => setTimeout(r, interval));
