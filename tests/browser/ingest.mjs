@@ -21,8 +21,9 @@
 // and reports the median wall time from fetch() to the last tile handled, the batch's first →
 // last byte (Resource Timing), the synchronous JS time of the main thread's handlers, and the
 // CPU of Chromium's renderer threads and other processes (/proc, 10 ms ticks; mean per batch).
-// Then the cost of rastering one frame of such a view (56 tiles at 0.52 scale, smoothing on,
-// flushed with getImageData) from canvases and from unpremultiplied ImageBitmaps.
+// Then the cost of rastering one frame that covers a 960 × 760 view with tiles drawn at 0.52,
+// 0.75, 1 and 1.3 × (smoothing on except at 1:1, flushed with getImageData) from canvases and
+// from unpremultiplied and premultiplied ImageBitmaps.
 import { readFileSync, readdirSync } from 'node:fs';
 import { parseArgs } from 'node:util';
 import { startServer } from './lib.mjs';
@@ -210,8 +211,12 @@ async function runCase({ url, kind }) {
   return { wall, mainMs, n, chunks, net: e ? e.responseEnd - e.responseStart : workerNet };
 }
 
-/** Runs in the page: median ms to raster one frame of 56 tiles at 0.52 scale, by tile kind. */
+/**
+ * Runs in the page: median ms to raster one frame covering a 960 × 760 view with tiles at each
+ * scale, by tile kind: { scales, kinds: { kind: [ms at each scale] } }.
+ */
 async function rasterCase() {
+  const SCALES = [0.52, 0.75, 1, 1.3];
   const N = 56;
   const W = 256;
   const R = 9;
@@ -238,22 +243,28 @@ async function rasterCase() {
     'ImageBitmap, premultiplied': await Promise.all(src.map((a) => createImageBitmap(new ImageData(a, W, W), { premultiplyAlpha: 'premultiply' }))),
   };
   const out = {};
-  const s = 0.52;
   for (const [name, imgs] of Object.entries(kinds)) {
-    const ts = [];
-    for (let r = 0; r < R; r++) {
-      t.imageSmoothingEnabled = true;
-      const t0 = performance.now();
-      t.clearRect(0, 0, 960, 760);
-      imgs.forEach((c, i) => t.drawImage(c, 0, 0, W, W, (i % 8) * W * s + 0.3, Math.floor(i / 8) * W * s + 0.3, W * s, W * s));
-      t.getImageData(0, 0, 1, 1); // raster now
-      ts.push(performance.now() - t0);
-      await new Promise((res) => requestAnimationFrame(res));
+    out[name] = [];
+    for (const s of SCALES) {
+      const cols = Math.ceil(960 / (W * s));
+      const rows = Math.ceil(760 / (W * s));
+      const ts = [];
+      for (let r = 0; r < R; r++) {
+        t.imageSmoothingEnabled = s !== 1;
+        const t0 = performance.now();
+        t.clearRect(0, 0, 960, 760);
+        for (let i = 0; i < cols * rows; i++) {
+          t.drawImage(imgs[i % N], 0, 0, W, W, (i % cols) * W * s + (s === 1 ? 0 : 0.3), Math.floor(i / cols) * W * s + (s === 1 ? 0 : 0.3), W * s, W * s);
+        }
+        t.getImageData(0, 0, 1, 1); // raster now
+        ts.push(performance.now() - t0);
+        await new Promise((res) => requestAnimationFrame(res));
+      }
+      out[name].push(ts.sort((a, b) => a - b)[R >> 1]);
     }
-    out[name] = ts.sort((a, b) => a - b)[R >> 1];
   }
   target.remove();
-  return out;
+  return { scales: SCALES, kinds: out };
 }
 
 const KINDS = ['read', 'arrayBuffer', 'frames', 'put', 'put+draw', 'put(opaque)+draw', 'bitmap(none)+draw', 'byob', 'byob+bitmap(none)+draw', 'w:read', 'w:bitmap', 'w:bitmap+draw', 'w:bitmap(none)+draw'];
@@ -308,8 +319,11 @@ try {
   }
   const raster = await page.evaluate(rasterCase);
   await page.close();
-  console.log('\none frame of a zoomed-out view, 56 tiles at 0.52 scale, smoothing on (median ms to raster):');
-  for (const [k, v] of Object.entries(raster)) console.log(`  ${k}: ${f(v)}`);
+  const { scales, kinds } = raster;
+  console.log('\none frame covering a 960 × 760 view, tiles drawn at each scale (smoothing on except at 1:1), median ms to raster:');
+  console.log(`| tiles | ${scales.map((s) => `${s} ×`).join(' | ')} |`);
+  console.log(`|---|${scales.map(() => '---').join('|')}|`);
+  for (const [k, v] of Object.entries(kinds)) console.log(`| ${k} | ${v.map(f).join(' | ')} |`);
 } finally {
   await server.stop();
 }
