@@ -133,10 +133,11 @@ function releaseImage(image) {
 }
 
 /**
- * The page's end of the tile Worker (tile-worker.js), one for every tile source: batches by
- * id, each { onTile, onEnd }. Resource Timing entries of the batches (which the page does not
- * see: the Worker fetches them) go to `stats` and to `timings` (by URL, for
- * tests/browser/trace.mjs), shifted to the page's clock.
+ * The page's end of the tile Worker (tile-worker.js), one Worker for all tile sources (a texture
+ * switched, an animation frame loaded behind the visible one): batches by id, each { onTile,
+ * onEnd }. Resource Timing entries of the batches (which the page does not see: the Worker
+ * fetches them) go to `stats` (the latest tile source's; the page has one) and to `timings`
+ * (by URL, for tests/browser/trace.mjs), shifted to the page's clock.
  */
 let shared = null;
 function tileLoader(stats) {
