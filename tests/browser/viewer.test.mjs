@@ -409,6 +409,33 @@ test('the detail setting picks the level drawn, and a link keeps it', async () =
   await again.page.close();
 });
 
+test("a tile the server refuses fails with the server's message, and the viewer serves on", async () => {
+  const { page, log } = await openViewer(browser.context, `${server.url}/?texture=${big.id}&zoom=0.02&x=50000&y=50000`);
+  await waitForIdle(page);
+  // A job for a tile outside level 0, handed straight to the tile source (OpenSeadragon never
+  // asks for one: tileExists), goes out as a batch the server refuses as a whole.
+  const failure = await page.evaluate(
+    () =>
+      new Promise((resolve) => {
+        const source = window.vtexViewer.state.item.source;
+        const tile = { level: source.maxLevel, x: 1_000_000, y: 0 };
+        source.downloadTileStart({ src: 'out of range', tile, userData: {}, finish: (data, request, error) => resolve({ data: Boolean(data), error }) });
+      }),
+  );
+  assert.equal(failure.data, false);
+  assert.match(failure.error, /HTTP 404 .*tile 0\/1000000\/0 is outside level 0/);
+  const stats = await page.evaluate(() => window.vtexViewer.stats.snapshot());
+  assert.equal(stats.failed, 1);
+  assert.match(stats.lastError, /outside level 0/);
+  // The viewer goes on: a new view loads and draws.
+  await page.evaluate(() => window.vtexViewer.setView({ zoom: 0.5, x: 12_000, y: 80_000 }, true));
+  await waitForIdle(page);
+  assert.deepEqual(await page.evaluate(() => window.vtexViewer.drawnLevels()), [1]);
+  assert.deepEqual(log.errors, [], 'console errors');
+  assert.equal(log.badResponses.length, 1, `the refused batch only: ${log.badResponses}`);
+  await page.close();
+});
+
 test('a permalink restores the view', async () => {
   const { page, log } = await openViewer(browser.context, `${server.url}/?texture=${big.id}&zoom=0.3&x=31000&y=62000`);
   await waitForIdle(page);
