@@ -9,6 +9,11 @@
 // every tile already drawn, drawing just those on top of the canvas gives the frame a full
 // redraw would (tiles are opaque, and a full redraw draws them after the coarser ones too);
 // otherwise the frame is a full redraw, as before.
+//
+// In either kind of frame, tiles that opaque tiles drawn after them in the same frame paint over
+// entirely are not drawn at all (occlusion.js): the frame's pixels stay the same.
+
+import { hiddenTiles, rasterModel } from './occlusion.js';
 
 /**
  * The tiles to draw on top of a canvas showing `prev` (in the order they were drawn) so that it
@@ -62,38 +67,61 @@ export function viewKey(viewer, items) {
 
 /**
  * Makes `viewer`'s canvas drawer draw only the newly arrived tiles when that gives the same
- * frame as a full redraw (`tilesToAdd`, `viewKey`). Draws a new tile with the drawer's own
- * tile drawing (`_drawTile`, OpenSeadragon 5's canvas drawer) and raises `tile-drawn` for it, as
- * a full redraw does for every tile. Does nothing for a drawer without `_drawTile`. Returns
- * the counts of full and incremental frames, live.
+ * frame as a full redraw (`tilesToAdd`, `viewKey`), and in every such plain frame leave out
+ * the tiles that tiles drawn later in it hide (`hiddenTiles`). Draws a new tile with the
+ * drawer's own tile drawing (`_drawTile`, OpenSeadragon 5's canvas drawer) and raises
+ * `tile-drawn` for it, as a full redraw does for every tile it draws. Does nothing for a
+ * drawer without `_drawTile`. Returns the frame counts, live: full and incremental frames,
+ * tiles drawn and hidden, canvas pixels they touch (drawn and hidden); `prune` switches the
+ * hiding (tests compare frames with and without it) and `centres` tells the raster model.
  */
 export function drawIncrementally(viewer) {
   const drawer = viewer.drawer;
-  // Frames drawn in full and frames that only added tiles (for tests and the curious).
-  const counts = { full: 0, incremental: 0 };
-  if (!drawer || typeof drawer._drawTile !== 'function') return counts;
+  const frames = { full: 0, incremental: 0, tiles: 0, hidden: 0, pixels: 0, hiddenPixels: 0, prune: true, centres: false };
+  if (!drawer || typeof drawer._drawTile !== 'function') return frames;
+  frames.centres = rasterModel();
   const fullDraw = drawer.draw.bind(drawer);
-  let last = null; // { key, item, tiles }: what the canvas shows
+  /** The tiles of `tiles` (drawn in that order) to leave out, counted. */
+  const hide = (tiles) => {
+    const canvas = drawer.canvas || {};
+    const osd = globalThis.OpenSeadragon;
+    const h = hiddenTiles(tiles, {
+      width: canvas.width ?? Infinity,
+      height: canvas.height ?? Infinity,
+      ratio: (osd && osd.pixelDensityRatio) || 1,
+      centres: frames.centres,
+    });
+    frames.tiles += tiles.length - h.hidden.size;
+    frames.hidden += h.hidden.size;
+    frames.pixels += h.area - h.hiddenArea;
+    frames.hiddenPixels += h.hiddenArea;
+    return h.hidden;
+  };
+  let last = null; // { key, item, tiles }: what the canvas shows (as if every tile were drawn)
   drawer.draw = (items) => {
-    const key = viewKey(viewer, items);
+    const view = viewKey(viewer, items);
+    const key = view === null ? null : `${view} ${frames.prune}`;
     const item = key === null ? null : items.find((i) => i.opacity !== 0);
     if (last && key !== null && key === last.key && item === last.item) {
       const next = item.getTilesToDraw().map((info) => info.tile);
       const add = tilesToAdd(last.tiles, next);
       if (add) {
+        const hidden = frames.prune ? hide(add) : new Set();
         for (const tile of add) {
+          if (hidden.has(tile)) continue;
           drawer._drawTile(tile, item, false, 1, undefined, false, item.source);
           viewer.raiseEvent('tile-drawn', { tiledImage: item, tile });
         }
         last.tiles = next;
-        counts.incremental++;
+        frames.incremental++;
         return;
       }
     }
-    fullDraw(items);
-    counts.full++;
+    if (item && frames.prune) withoutHidden(item, hide, () => fullDraw(items));
+    else fullDraw(items);
+    frames.full++;
     // getTilesToDraw() marks tiles as drawn and refreshes their coverage; the full draw just did
-    // that, so its list (`_lastDrawn`) is read rather than computed again.
+    // that, so its list (`_lastDrawn`, every tile, hidden ones too) is read rather than computed again.
     last = key === null ? null : { key, item, tiles: (item._lastDrawn || []).map((info) => info.tile) };
   };
   // A forced redraw (OpenSeadragon's own, e.g. after the smoothing changed, or the page's) is a
@@ -103,5 +131,26 @@ export function drawIncrementally(viewer) {
     last = null;
     return forceRedraw();
   };
-  return counts;
+  return frames;
+}
+
+/**
+ * Runs `draw` (a full frame of OpenSeadragon's drawer) with `item` handing the drawer its tiles
+ * to draw minus those `hide` names: the drawer asks the tiled image for them once per frame
+ * (`getTilesToDraw`, which also records them all as the frame's tiles, `_lastDrawn`).
+ */
+function withoutHidden(item, hide, draw) {
+  const own = Object.getOwnPropertyDescriptor(item, 'getTilesToDraw');
+  const all = item.getTilesToDraw;
+  item.getTilesToDraw = function () {
+    const infos = all.call(this);
+    const hidden = hide(infos.map((info) => info.tile));
+    return hidden.size ? infos.filter((info) => !hidden.has(info.tile)) : infos;
+  };
+  try {
+    draw();
+  } finally {
+    if (own) Object.defineProperty(item, 'getTilesToDraw', own);
+    else delete item.getTilesToDraw;
+  }
 }

@@ -176,6 +176,9 @@ async function measureViews(page, views, shots, tag, { back = false } = {}) {
   const tiles = [];
   const requests = [];
   const breakdowns = [];
+  // The viewer's canvas frame counts (client-web/src/drawing.js), where its build keeps them.
+  const canvasCounts = () => page.evaluate(() => ({ ...window.vtexViewer.frames }));
+  const canvas0 = await canvasCounts();
   if (args.trace) await page.evaluate(installTracer);
   for (let i = back ? 1 : 0; i < views.length; i++) {
     if (back) await showView(page, views[i]);
@@ -191,8 +194,11 @@ async function measureViews(page, views, shots, tag, { back = false } = {}) {
     if (shots && i % 15 === 0) await page.screenshot(`${shots}/${tag}-${i}.png`);
   }
   if (!times.length) return null;
+  const canvas1 = await canvasCounts();
+  const canvas = {};
+  for (const k of ['full', 'incremental', 'tiles', 'hidden', 'pixels', 'hiddenPixels']) canvas[k] = canvas1[k] === undefined ? null : (canvas1[k] - canvas0[k]) / times.length;
   const perView = (v) => v.reduce((a, b) => a + (b || 0), 0) / v.length;
-  return { ...summary(times), tilesPerView: perView(tiles), requestsPerView: perView(requests), times, tiles, breakdowns };
+  return { ...summary(times), tilesPerView: perView(tiles), requestsPerView: perView(requests), canvasPerView: canvas, times, tiles, breakdowns };
 }
 
 /**
@@ -457,6 +463,18 @@ for (const [k, label] of [
 ]) {
   const r = results[k];
   console.log(`| ${label} | ${r.n} | ${f(r.p50)} | ${f(r.p95)} | ${f(r.max)} | ${r.over33} | ${r.over50} | ${r.tiles} |`);
+}
+console.log('\n| canvas per view change | full frames | incremental frames | tiles drawn | tiles left out | Mpx rastered | Mpx left out |');
+console.log('|---|---|---|---|---|---|---|');
+for (const [k, label] of [
+  ['cold', 'cold'],
+  ['warmServer', 'warm server'],
+  ['warmBrowser', 'warm browser'],
+  ['warmViewer', 'warm viewer'],
+]) {
+  const c = results[k].canvasPerView;
+  const n = (v, scale = 1) => (v === null ? '–' : (v / scale).toFixed(scale === 1 ? 1 : 2));
+  console.log(`| ${label} | ${n(c.full)} | ${n(c.incremental)} | ${n(c.tiles)} | ${n(c.hidden)} | ${n(c.pixels, 1e6)} | ${n(c.hiddenPixels, 1e6)} |`);
 }
 for (const [k, label] of [
   ['cold', 'server, cold pass'],

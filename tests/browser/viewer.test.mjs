@@ -267,6 +267,75 @@ test('a view drawn tile by tile as its tiles arrive equals the same view redrawn
   await page.close();
 });
 
+test('tiles hidden under finer ones are not drawn, and every frame equals the frame drawn without that', async () => {
+  const { page, log } = await openViewer(browser.context, `${server.url}/?texture=${big.id}&zoom=0.02&x=50000&y=50000`);
+  await waitForIdle(page);
+  assert.equal(await page.evaluate(() => window.vtexViewer.frames.centres), true, 'Chromium draws axis-aligned images by pixel centres');
+  // After every frame that left tiles out, the canvas's bytes, then the same frame drawn again
+  // in full by OpenSeadragon with every tile (pruning off), and the bytes that differ.
+  await page.evaluate(() => {
+    const { viewer, frames } = window.vtexViewer;
+    const drawer = viewer.drawer;
+    const draw = drawer.draw;
+    window.pruneChecks = [];
+    drawer.draw = (items) => {
+      const hidden = frames.hidden;
+      draw(items);
+      if (frames.hidden === hidden) return;
+      const pixels = () => drawer.context.getImageData(0, 0, drawer.canvas.width, drawer.canvas.height).data;
+      const pruned = pixels();
+      frames.prune = false; // a new key: the next draw is a full one
+      try {
+        draw(items);
+      } finally {
+        frames.prune = true;
+      }
+      const full = pixels();
+      let differing = 0;
+      for (let i = 0; i < full.length; i++) if (pruned[i] !== full[i]) differing++;
+      const levels = items.find((i) => i.opacity !== 0)._lastDrawn.map((d) => d.tile.level);
+      window.pruneChecks.push({ hidden: frames.hidden - hidden, differing, levels: [...new Set(levels)] });
+    };
+  });
+  // Minified, magnified 1.2 × (level 1 at zoom 0.6, smoothing on, tiles enlarged by a pixel) and
+  // 1:1 at a fractional offset (no smoothing, tile edges between pixel centres). Each view is
+  // reached by half-screen pans from a loaded neighbour, so that frames mix the tiles still on
+  // screen (finer and coarser) with the whole-texture tile and the new preview.
+  const size = await page.evaluate(() => window.vtexViewer.viewer.viewport.getContainerSize());
+  for (const [zoom, x, y, pruned] of [
+    [0.37, 21_000, 64_000, true],
+    [0.6, 33_000, 81_000, true],
+    [1, 61_000 + 0.3, 12_000 + 0.7, true],
+    [1, 71_000 + 0.5, 18_000 + 0.5, false],
+  ]) {
+    const before = await page.evaluate(() => ({ ...window.vtexViewer.frames }));
+    for (const [dx, dy] of [
+      [-0.5, 0],
+      [0, 0],
+      [0, 0.5],
+      [0.5, 0.5],
+    ]) {
+      await page.evaluate((v) => window.vtexViewer.setView(v, true), { zoom, x: x + (dx * size.x) / zoom, y: y + (dy * size.y) / zoom });
+      await waitForIdle(page);
+    }
+    const after = await page.evaluate(() => ({ ...window.vtexViewer.frames }));
+    const checks = await page.evaluate(() => window.pruneChecks.splice(0));
+    const what = `zoom ${zoom} at (${x}, ${y}): ${JSON.stringify(checks)}`;
+    for (const c of checks) assert.equal(c.differing, 0, `canvas bytes that differ from the frame drawn with every tile, ${what}`);
+    assert.equal(checks.reduce((n, c) => n + c.hidden, 0), after.hidden - before.hidden, 'every frame that left tiles out was checked');
+    if (pruned) {
+      assert.ok(after.hidden > before.hidden, `tiles were left out, ${what}`);
+      assert.ok(after.hiddenPixels > before.hiddenPixels, 'canvas pixels were not rastered');
+    } else {
+      // Tile edges exactly between pixel centres: which tile a pixel column goes to is the
+      // rasterizer's rounding, so nothing under them counts as covered.
+      assert.equal(after.hidden, before.hidden, `nothing is known to be hidden with edges on pixel centres, ${what}`);
+    }
+  }
+  assertClean(log);
+  await page.close();
+});
+
 test('drag, wheel, keys, double-click and pinch move the view; the navigator box follows', async () => {
   const { page, log } = await openViewer(browser.context, `${server.url}/?texture=${big.id}&zoom=0.02&x=50000&y=50000`);
   await waitForIdle(page);

@@ -1,0 +1,153 @@
+// Tiles a canvas frame need not draw: those that opaque tiles drawn after them in the same
+// frame paint over entirely.
+//
+// While a view loads, OpenSeadragon draws every loaded tile of every level down to one that
+// covers the view, coarsest first: the whole-texture tile magnified across the whole view, then
+// the preview level, then the finest tiles on top (loader.js fetches those three). On the
+// software canvas every drawn pixel is rastered (bilinear) on the page's main thread, and the
+// finest tiles paint over most of what the coarser ones drew. Skipping a tile changes nothing
+// on screen when every pixel it would touch is afterwards overwritten whole by an opaque tile:
+// the last full overwrite of a pixel decides its value, whatever was under it.
+//
+// Which pixels a drawImage touches and which it overwrites whole depends on the rasterizer: with
+// anti-aliased edges a tile's fractional edge blends into the pixel's previous value, so a
+// pixel split between two tiles still shows what was under both; without (Chromium draws
+// axis-aligned images without anti-aliasing) a pixel takes the tile's colour iff its centre
+// lies inside the tile. `rasterModel` probes which one this browser does.
+
+/** Doubt (device px) about where a rasterizer puts a tile edge: it computes edges in 32-bit
+ * floats from the drawer's transform (centre plus or minus half the size), a few float ulps of
+ * the tile's coordinates away from the doubles here (FLOAT_SLACK per unit of magnitude); and
+ * without anti-aliasing a pixel centre this close to an edge may fall on either side
+ * (CENTRE_SLACK). With anti-aliasing, a sliver of a pixel up to INVISIBLE wide changes no byte
+ * (coverage is resolved in 1/256ths at best), which absorbs the float noise of ordinary tiles. */
+const CENTRE_SLACK = 1 / 64;
+const INVISIBLE = 1 / 1024;
+const FLOAT_SLACK = 2 ** -20; // 8 × float32 epsilon
+
+/**
+ * The pixels `[from, to)` that a tile spanning device px `[a, b)` on one axis may touch
+ * (`touch`) and surely overwrites whole (`cover`), with `slack` px of doubt about its edges.
+ * `centres`: a pixel belongs to the tile iff its centre does (no anti-aliasing); else a pixel
+ * is touched when the tile may span any of it, overwritten whole only when it surely spans all
+ * of it (a negative `slack`: slivers that change no byte are ignored).
+ */
+export function pixelSpan(a, b, centres, slack = centres ? CENTRE_SLACK : -INVISIBLE) {
+  const span = (from, to) => [from + 0, to + 0]; // + 0: no -0
+  if (centres) {
+    return {
+      touch: span(Math.ceil(a - slack - 0.5), Math.floor(b + slack - 0.5) + 1),
+      cover: span(Math.ceil(a + slack - 0.5), Math.floor(b - slack - 0.5) + 1),
+    };
+  }
+  return {
+    touch: span(Math.floor(a - slack), Math.ceil(b + slack)),
+    cover: span(Math.ceil(a + slack), Math.floor(b - slack)),
+  };
+}
+
+/**
+ * A tile's pixel boxes `[x0, y0, x1, y1]` on the canvas: where drawing it may change pixels
+ * (`touch`, clipped to the canvas) and where it replaces them whole (`cover`, null unless the
+ * tile is loaded, opaque and drawn opaque). Null for a tile without a place on the canvas.
+ * OpenSeadragon's canvas drawer draws a tile at `position` with `size` (CSS px, already one
+ * pixel larger while smoothing is on) times the device pixel ratio. Chromium anti-aliases an
+ * image less than a pixel wide or high even when it draws larger ones by pixel centres.
+ */
+export function tileBoxes(tile, { width, height, ratio = 1, centres = false }) {
+  const p = tile.position;
+  const s = tile.size;
+  if (!p || !s || !(s.x > 0 && s.y > 0)) return null;
+  const [x0, y0, w, h] = [p.x * ratio, p.y * ratio, s.x * ratio, s.y * ratio];
+  const byCentres = centres && w >= 1 && h >= 1;
+  const axis = (a, size) => {
+    const noise = (Math.abs(a + size / 2) + size / 2) * FLOAT_SLACK;
+    return pixelSpan(a, a + size, byCentres, byCentres ? CENTRE_SLACK + noise : noise - INVISIBLE);
+  };
+  const x = axis(x0, w);
+  const y = axis(y0, h);
+  const touch = [Math.max(0, x.touch[0]), Math.max(0, y.touch[0]), Math.min(width, x.touch[1]), Math.min(height, y.touch[1])];
+  const opaque = tile.loaded !== false && !tile.hasTransparency && !(tile.opacity < 1);
+  const cover = opaque && x.cover[1] > x.cover[0] && y.cover[1] > y.cover[0] ? [x.cover[0], y.cover[0], x.cover[1], y.cover[1]] : null;
+  return { touch, cover };
+}
+
+const empty = (r) => r[2] <= r[0] || r[3] <= r[1];
+
+/** `rects` (disjoint boxes) minus box `c`, as disjoint boxes. */
+function subtract(rects, c) {
+  const out = [];
+  for (const r of rects) {
+    if (c[0] >= r[2] || c[2] <= r[0] || c[1] >= r[3] || c[3] <= r[1]) {
+      out.push(r);
+      continue;
+    }
+    if (r[1] < c[1]) out.push([r[0], r[1], r[2], c[1]]);
+    if (c[3] < r[3]) out.push([r[0], c[3], r[2], r[3]]);
+    const y0 = Math.max(r[1], c[1]);
+    const y1 = Math.min(r[3], c[3]);
+    if (r[0] < c[0]) out.push([r[0], y0, c[0], y1]);
+    if (c[2] < r[2]) out.push([c[2], y0, r[2], y1]);
+  }
+  return out;
+}
+
+/**
+ * The tiles of `tiles` (in drawing order) that drawing would not show: every canvas pixel the
+ * tile may touch is overwritten whole by an opaque tile drawn after it (or it touches none).
+ * `canvas`: { width, height } in device px, `ratio` (device px per CSS px), `centres` (see
+ * `rasterModel`). Tiles without a position are always drawn. Also returns the pixel areas the
+ * tiles touch, all and hidden, for the curious.
+ */
+export function hiddenTiles(tiles, canvas) {
+  const boxes = tiles.map((t) => tileBoxes(t, canvas));
+  const hidden = new Set();
+  let area = 0;
+  let hiddenArea = 0;
+  for (let i = 0; i < tiles.length; i++) {
+    if (!boxes[i]) continue;
+    const touch = boxes[i].touch;
+    const size = empty(touch) ? 0 : (touch[2] - touch[0]) * (touch[3] - touch[1]);
+    area += size;
+    let rest = size ? [touch] : [];
+    for (let j = i + 1; j < tiles.length && rest.length; j++) {
+      const cover = boxes[j] && boxes[j].cover;
+      if (cover) rest = subtract(rest, cover);
+    }
+    if (rest.length === 0) {
+      hidden.add(tiles[i]);
+      hiddenArea += size;
+    }
+  }
+  return { hidden, area, hiddenArea };
+}
+
+/**
+ * Whether this browser's 2D canvas draws an axis-aligned image without anti-aliasing, so that
+ * a pixel takes the image's colour iff its centre lies inside the destination rectangle (true
+ * in Chromium), judged by drawing a white image at fractional bounds onto black. False when
+ * unsure: then only pixels a tile spans whole count as covered.
+ */
+export function rasterModel(doc = globalThis.document) {
+  try {
+    const canvas = doc.createElement('canvas');
+    canvas.width = 4;
+    canvas.height = 4;
+    const g = canvas.getContext('2d', { willReadFrequently: true });
+    const white = doc.createElement('canvas');
+    white.width = 2;
+    white.height = 2;
+    const w = white.getContext('2d');
+    w.fillStyle = '#fff';
+    w.fillRect(0, 0, 2, 2);
+    g.fillStyle = '#000';
+    g.fillRect(0, 0, 4, 4);
+    // Spans 0.3 … 2.7 on both axes: centres 0.5, 1.5, 2.5 inside, 3.5 outside.
+    g.drawImage(white, 0, 0, 2, 2, 0.3, 0.3, 2.4, 2.4);
+    const d = g.getImageData(0, 0, 4, 4).data;
+    const at = (x, y) => d[(y * 4 + x) * 4];
+    return at(0, 0) === 255 && at(2, 2) === 255 && at(1, 0) === 255 && at(3, 3) === 0 && at(3, 0) === 0 && at(0, 3) === 0;
+  } catch {
+    return false;
+  }
+}
