@@ -13,24 +13,40 @@
 // In either kind of frame, tiles that opaque tiles drawn after them in the same frame paint over
 // entirely are not drawn at all (occlusion.js): the frame's pixels stay the same.
 
-import { hiddenTiles, rasterModel } from './occlusion.js';
+import { hiddenTiles, rasterModel, tileBoxes } from './occlusion.js';
 
 /**
  * The tiles to draw on top of a canvas showing `prev` (in the order they were drawn) so that it
  * shows `next`, the tiles of the same view now: those of `next` not in `prev`, in `next`'s
- * order — or null when only a full redraw will do: a tile of `prev` is no longer drawn (it
- * would have to be painted over), or a new tile is coarser than one already drawn (it would
- * cover it). Tiles are compared by identity and carry their OpenSeadragon `level` (higher is
- * finer).
+ * order — or null when only a full redraw will do:
+ * - a new tile is coarser than one already drawn (it would cover it);
+ * - a new tile comes before an old one in `next` and `overlap(new, old)` (given: whether they
+ *   touch a pixel in common): a full redraw paints the old one over it there. While smoothing,
+ *   OpenSeadragon enlarges every tile by a pixel, so neighbours of one level overlap, and
+ *   tiles arrive centre first while `next` lists them column by column;
+ * - a tile of `prev` is no longer drawn (it would have to be painted over) — unless `hidden`
+ *   (given a drawing order, the set of its tiles that tiles drawn later hide, occlusion.js)
+ *   finds every such tile hidden by the time the new tiles are drawn: then the canvas will not
+ *   show it either. That is the frame in which a finer level completes the view and
+ *   OpenSeadragon stops listing the coarser tiles under it.
+ * Tiles are compared by identity and carry their OpenSeadragon `level` (higher is finer).
  */
-export function tilesToAdd(prev, next) {
-  const now = new Set(next);
-  if (prev.some((t) => !now.has(t))) return null;
+export function tilesToAdd(prev, next, { overlap = null, hidden = null } = {}) {
   const had = new Set(prev);
   let finest = -Infinity;
   for (const t of prev) finest = Math.max(finest, t.level);
   const add = next.filter((t) => !had.has(t));
-  return add.every((t) => t.level >= finest) ? add : null;
+  if (!add.every((t) => t.level >= finest)) return null;
+  if (overlap && add.length) {
+    const index = new Map(next.map((t, i) => [t, i]));
+    for (const t of add) for (const u of prev) if (index.get(u) > index.get(t) && overlap(t, u)) return null;
+  }
+  const now = new Set(next);
+  const gone = prev.filter((t) => !now.has(t));
+  if (gone.length === 0) return add;
+  if (!hidden) return null;
+  const h = hidden([...prev, ...add]);
+  return gone.every((t) => h.has(t)) ? add : null;
 }
 
 /**
@@ -81,21 +97,29 @@ export function drawIncrementally(viewer) {
   if (!drawer || typeof drawer._drawTile !== 'function') return frames;
   frames.centres = rasterModel();
   const fullDraw = drawer.draw.bind(drawer);
-  /** The tiles of `tiles` (drawn in that order) to leave out, counted. */
-  const hide = (tiles) => {
+  /** The canvas, as occlusion.js measures it. */
+  const canvasOf = () => {
     const canvas = drawer.canvas || {};
     const osd = globalThis.OpenSeadragon;
-    const h = hiddenTiles(tiles, {
-      width: canvas.width ?? Infinity,
-      height: canvas.height ?? Infinity,
-      ratio: (osd && osd.pixelDensityRatio) || 1,
-      centres: frames.centres,
-    });
+    return { width: canvas.width ?? Infinity, height: canvas.height ?? Infinity, ratio: (osd && osd.pixelDensityRatio) || 1, centres: frames.centres };
+  };
+  /** The tiles of `tiles` (drawn in that order) to leave out, counted. */
+  const hide = (tiles) => {
+    const h = hiddenTiles(tiles, canvasOf());
     frames.tiles += tiles.length - h.hidden.size;
     frames.hidden += h.hidden.size;
     frames.pixels += h.area - h.hiddenArea;
     frames.hiddenPixels += h.hiddenArea;
     return h.hidden;
+  };
+  /** Counts tiles a frame did not draw again because they are hidden (full frames draw them). */
+  const countHidden = (tiles) => {
+    const canvas = canvasOf();
+    for (const t of tiles) {
+      const b = tileBoxes(t, canvas);
+      if (b) frames.hiddenPixels += Math.max(0, b.touch[2] - b.touch[0]) * Math.max(0, b.touch[3] - b.touch[1]);
+    }
+    frames.hidden += tiles.length;
   };
   let last = null; // { key, item, tiles }: what the canvas shows (as if every tile were drawn)
   drawer.draw = (items) => {
@@ -104,8 +128,14 @@ export function drawIncrementally(viewer) {
     const item = key === null ? null : items.find((i) => i.opacity !== 0);
     if (last && key !== null && key === last.key && item === last.item) {
       const next = item.getTilesToDraw().map((info) => info.tile);
-      const add = tilesToAdd(last.tiles, next);
+      const canvas = canvasOf();
+      const add = tilesToAdd(last.tiles, next, {
+        overlap: (t, u) => overlapping(tileBoxes(t, canvas), tileBoxes(u, canvas)),
+        hidden: frames.prune ? (tiles) => hiddenTiles(tiles, canvas).hidden : null,
+      });
       if (add) {
+        const now = new Set(next);
+        countHidden(last.tiles.filter((t) => !now.has(t)));
         const hidden = frames.prune ? hide(add) : new Set();
         for (const tile of add) {
           if (hidden.has(tile)) continue;
@@ -132,6 +162,13 @@ export function drawIncrementally(viewer) {
     return forceRedraw();
   };
   return frames;
+}
+
+/** Whether two tiles' pixel boxes (occlusion.js `tileBoxes`) may touch a pixel in common. */
+function overlapping(a, b) {
+  if (!a || !b) return true;
+  const [p, q] = [a.touch, b.touch];
+  return Math.max(p[0], q[0]) < Math.min(p[2], q[2]) && Math.max(p[1], q[1]) < Math.min(p[3], q[3]);
 }
 
 /**

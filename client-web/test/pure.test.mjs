@@ -395,6 +395,18 @@ test('only tiles at least as fine as every drawn tile are drawn on top; anything
   assert.deepEqual(tilesToAdd([whole, a], [whole, a]), [], 'nothing new: nothing drawn');
   assert.equal(tilesToAdd([whole, a], [whole, preview, a]), null, 'a coarser tile after a finer one would cover it');
   assert.equal(tilesToAdd([whole, preview, a], [whole, a, b]), null, 'a tile no longer drawn must be painted over');
+  // ... unless the tiles drawn after it hide it.
+  const seen = [];
+  const under = (set) => ({ hidden: (order) => (seen.push(order.map((t) => t.level)), new Set(set)) });
+  assert.deepEqual(tilesToAdd([whole, preview, a], [a, b], under([whole, preview])), [b]);
+  assert.deepEqual(seen, [[0, 5, 8, 8]], 'judged in the order drawn: the canvas, then the new tiles');
+  assert.equal(tilesToAdd([whole, preview, a], [a, b], under([whole])), null, 'the preview still shows');
+  assert.equal(tilesToAdd([whole, a], [whole, preview, a], under([whole, preview])), null, 'a coarser tile after a finer one');
+  // A new tile listed before an old one it overlaps: a full redraw would draw the old one over it.
+  const overlap = (pairs) => ({ overlap: (t, u) => pairs.some(([x, y]) => x === t && y === u) });
+  assert.equal(tilesToAdd([whole, b], [whole, a, b], overlap([[a, b]])), null);
+  assert.deepEqual(tilesToAdd([whole, a], [whole, a, b], overlap([[b, a]])), [b], 'listed after it: drawn after it in a full redraw too');
+  assert.deepEqual(tilesToAdd([whole, c], [whole, a, c], overlap([[b, c]])), [a], 'no overlap');
 });
 
 /** A stand-in OpenSeadragon viewer: one tiled image, a view, and a canvas drawer that logs. */
@@ -573,6 +585,21 @@ test('full and incremental frames leave out hidden tiles; without pruning every 
   frames.prune = true;
   draw();
   assert.deepEqual(log.at(-1), ['full', 'a', 'b', 'd']);
+  // The finest level completes: OpenSeadragon drops the coarser tiles under it from the list,
+  // and the frame only adds the new tile.
+  const e = placed('e', 7, 30, 30, 20, 20);
+  const hidden = frames.hidden;
+  item.tiles = [a, b, c, d, e];
+  draw();
+  assert.deepEqual(log.at(-1), ['add', 'e']);
+  assert.equal(frames.hidden, hidden + 2, 'whole and p were not drawn again');
+  // A dropped tile that would still show makes a full frame.
+  const [f, g] = [placed('f', 7, 0, 0, 10, 10), placed('g', 7, 0, 0, 10, 10)];
+  item.tiles = [p, a, f];
+  draw();
+  item.tiles = [a, g];
+  draw();
+  assert.deepEqual(log.at(-1), ['full', 'a', 'g'], 'p showed right of a');
 });
 
 /** A frame header as the server writes it (server/src/api/batch.rs): what FrameReader parses. */
