@@ -88,8 +88,9 @@ export function viewKey(viewer, items) {
  * drawer's own tile drawing (`_drawTile`, OpenSeadragon 5's canvas drawer) and raises
  * `tile-drawn` for it, as a full redraw does for every tile it draws. Does nothing for a
  * drawer without `_drawTile`. Returns the frame counts, live: full and incremental frames,
- * tiles drawn and hidden, canvas pixels they touch (drawn and hidden); `prune` switches the
- * hiding (tests compare frames with and without it) and `centres` tells the raster model.
+ * tiles drawn and left out, canvas pixels they touch (drawn and left out; in plain frames);
+ * `prune` switches the hiding (tests and the bench compare frames with and without it) and
+ * `centres` tells the raster model.
  */
 export function drawIncrementally(viewer) {
   const drawer = viewer.drawer;
@@ -103,14 +104,16 @@ export function drawIncrementally(viewer) {
     const osd = globalThis.OpenSeadragon;
     return { width: canvas.width ?? Infinity, height: canvas.height ?? Infinity, ratio: (osd && osd.pixelDensityRatio) || 1, centres: frames.centres };
   };
-  /** The tiles of `tiles` (drawn in that order) to leave out, counted. */
+  /** The tiles of `tiles` (drawn in that order) to leave out, counted: none unless pruning. */
   const hide = (tiles) => {
     const h = hiddenTiles(tiles, canvasOf());
-    frames.tiles += tiles.length - h.hidden.size;
-    frames.hidden += h.hidden.size;
-    frames.pixels += h.area - h.hiddenArea;
-    frames.hiddenPixels += h.hiddenArea;
-    return h.hidden;
+    const hidden = frames.prune ? h.hidden : new Set();
+    const hiddenArea = frames.prune ? h.hiddenArea : 0;
+    frames.tiles += tiles.length - hidden.size;
+    frames.hidden += hidden.size;
+    frames.pixels += h.area - hiddenArea;
+    frames.hiddenPixels += hiddenArea;
+    return hidden;
   };
   /** Counts tiles a frame did not draw again because they are hidden (full frames draw them). */
   const countHidden = (tiles) => {
@@ -136,7 +139,7 @@ export function drawIncrementally(viewer) {
       if (add) {
         const now = new Set(next);
         countHidden(last.tiles.filter((t) => !now.has(t)));
-        const hidden = frames.prune ? hide(add) : new Set();
+        const hidden = hide(add);
         for (const tile of add) {
           if (hidden.has(tile)) continue;
           drawer._drawTile(tile, item, false, 1, undefined, false, item.source);
@@ -147,7 +150,7 @@ export function drawIncrementally(viewer) {
         return;
       }
     }
-    if (item && frames.prune) withoutHidden(item, hide, () => fullDraw(items));
+    if (item) withoutHidden(item, hide, () => fullDraw(items));
     else fullDraw(items);
     frames.full++;
     // getTilesToDraw() marks tiles as drawn and refreshes their coverage; the full draw just did

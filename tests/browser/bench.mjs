@@ -3,6 +3,7 @@
 //   node tests/browser/bench.mjs [--steps 60] [--pan-seconds 5] [--shots DIR] [--json FILE]
 //        [--trace] [--texture NAME] [--server-args="--tile-size 512"] [--osd JSON] [--playwright]
 //        [--format rgba|png|webp|jpg] [--detail map|sharp] [--profile FILE.cpuprofile] [--chrome-trace FILE.json]
+//        [--no-prune]
 //
 // The texture is the 100k × 100k chaos mosaic (the flagship demo, as server/bench/run.sh picks
 // it) unless --texture names another. Chromium is driven over a bare DevTools pipe (cdp.mjs):
@@ -57,6 +58,9 @@ const { values: args } = parseArgs({
     // Level choice (the viewer's `detail` URL parameter, client-web/src/pyramid.js DETAIL);
     // default: the viewer's (map).
     detail: { type: 'string' },
+    // Draw every tile in the measured passes, also those finer tiles hide (A/B of the viewer's
+    // pruning, client-web/src/occlusion.js).
+    'no-prune': { type: 'boolean', default: false },
   },
 });
 const STEPS = Number(args.steps);
@@ -178,6 +182,7 @@ async function measureViews(page, views, shots, tag, { back = false } = {}) {
   const breakdowns = [];
   // The viewer's canvas frame counts (client-web/src/drawing.js), where its build keeps them.
   const canvasCounts = () => page.evaluate(() => ({ ...window.vtexViewer.frames }));
+  if (args['no-prune']) await page.evaluate(() => window.vtexViewer.frames && (window.vtexViewer.frames.prune = false));
   const canvas0 = await canvasCounts();
   if (args.trace) await page.evaluate(installTracer);
   for (let i = back ? 1 : 0; i < views.length; i++) {
@@ -443,7 +448,7 @@ try {
 }
 
 const f = (v) => v.toFixed(1);
-console.log(`texture ${results.texture.name} (${results.texture.model}), ${results.viewport.width}×${results.viewport.height} browser viewport, ${STEPS} view changes${args.format ? `, ${args.format} tiles` : ''}${args.detail ? `, detail ${args.detail}` : ''}${args.osd ? `, OSD options ${args.osd}` : ''}, server ${serverArgs.join(' ')}, driven by ${results.driver}`);
+console.log(`texture ${results.texture.name} (${results.texture.model}), ${results.viewport.width}×${results.viewport.height} browser viewport, ${STEPS} view changes${args['no-prune'] ? ', no pruning' : ''}${args.format ? `, ${args.format} tiles` : ''}${args.detail ? `, detail ${args.detail}` : ''}${args.osd ? `, OSD options ${args.osd}` : ''}, server ${serverArgs.join(' ')}, driven by ${results.driver}`);
 console.log('| view change → every visible tile drawn | p50 ms | p95 ms | max ms | tiles/view | requests/view |');
 console.log('|---|---|---|---|---|---|');
 for (const [k, label] of [
