@@ -13,17 +13,15 @@
 // In either kind of frame, tiles that opaque tiles drawn after them in the same frame paint over
 // entirely are not drawn at all (occlusion.js): the frame's pixels stay the same.
 
-import { hiddenTiles, rasterModel, tileBoxes } from './occlusion.js';
+import { addClips, hiddenTiles, rasterModel, tileBoxes } from './occlusion.js';
 
 /**
  * The tiles to draw on top of a canvas showing `prev` (in the order they were drawn) so that it
  * shows `next`, the tiles of the same view now: those of `next` not in `prev`, in `next`'s
  * order — or null when only a full redraw will do:
  * - a new tile is coarser than one already drawn (it would cover it);
- * - a new tile comes before an old one in `next` and `overlap(new, old)` (given: whether they
- *   touch a pixel in common): a full redraw paints the old one over it there. While smoothing,
- *   OpenSeadragon enlarges every tile by a pixel, so neighbours of one level overlap, and
- *   tiles arrive centre first while `next` lists them column by column;
+ * - `clip` (given the new tiles: whether they can be drawn so that old tiles `next` lists
+ *   after them stay on top, occlusion.js `addClips`) says no;
  * - a tile of `prev` is no longer drawn (it would have to be painted over) — unless `hidden`
  *   (given a drawing order, the set of its tiles that tiles drawn later hide, occlusion.js)
  *   finds every such tile hidden by the time the new tiles are drawn: then the canvas will not
@@ -31,16 +29,13 @@ import { hiddenTiles, rasterModel, tileBoxes } from './occlusion.js';
  *   OpenSeadragon stops listing the coarser tiles under it.
  * Tiles are compared by identity and carry their OpenSeadragon `level` (higher is finer).
  */
-export function tilesToAdd(prev, next, { overlap = null, hidden = null } = {}) {
+export function tilesToAdd(prev, next, { clip = null, hidden = null } = {}) {
   const had = new Set(prev);
   let finest = -Infinity;
   for (const t of prev) finest = Math.max(finest, t.level);
   const add = next.filter((t) => !had.has(t));
   if (!add.every((t) => t.level >= finest)) return null;
-  if (overlap && add.length) {
-    const index = new Map(next.map((t, i) => [t, i]));
-    for (const t of add) for (const u of prev) if (index.get(u) > index.get(t) && overlap(t, u)) return null;
-  }
+  if (clip && !clip(add)) return null;
   const now = new Set(next);
   const gone = prev.filter((t) => !now.has(t));
   if (gone.length === 0) return add;
@@ -88,13 +83,14 @@ export function viewKey(viewer, items) {
  * drawer's own tile drawing (`_drawTile`, OpenSeadragon 5's canvas drawer) and raises
  * `tile-drawn` for it, as a full redraw does for every tile it draws. Does nothing for a
  * drawer without `_drawTile`. Returns the frame counts, live: full and incremental frames,
- * tiles drawn and left out, canvas pixels they touch (drawn and left out; in plain frames);
+ * tiles drawn and left out, canvas pixels they touch (drawn and left out; in plain frames),
+ * new tiles drawn clipped under old ones (`addClips`);
  * `prune` switches the hiding (tests and the bench compare frames with and without it) and
  * `centres` tells the raster model.
  */
 export function drawIncrementally(viewer) {
   const drawer = viewer.drawer;
-  const frames = { full: 0, incremental: 0, tiles: 0, hidden: 0, pixels: 0, hiddenPixels: 0, prune: true, centres: false };
+  const frames = { full: 0, incremental: 0, tiles: 0, hidden: 0, pixels: 0, hiddenPixels: 0, clipped: 0, prune: true, centres: false };
   if (!drawer || typeof drawer._drawTile !== 'function') return frames;
   frames.centres = rasterModel();
   const fullDraw = drawer.draw.bind(drawer);
@@ -105,8 +101,8 @@ export function drawIncrementally(viewer) {
     return { width: canvas.width ?? Infinity, height: canvas.height ?? Infinity, ratio: (osd && osd.pixelDensityRatio) || 1, centres: frames.centres };
   };
   /** The tiles of `tiles` (drawn in that order) to leave out, counted: none unless pruning. */
-  const hide = (tiles) => {
-    const h = hiddenTiles(tiles, canvasOf());
+  const hide = (tiles, clips = null) => {
+    const h = hiddenTiles(tiles, canvasOf(), clips);
     const hidden = frames.prune ? h.hidden : new Set();
     const hiddenArea = frames.prune ? h.hiddenArea : 0;
     frames.tiles += tiles.length - hidden.size;
@@ -132,17 +128,26 @@ export function drawIncrementally(viewer) {
     if (last && key !== null && key === last.key && item === last.item) {
       const next = item.getTilesToDraw().map((info) => info.tile);
       const canvas = canvasOf();
+      let clips = null;
       const add = tilesToAdd(last.tiles, next, {
-        overlap: (t, u) => overlapping(tileBoxes(t, canvas), tileBoxes(u, canvas)),
-        hidden: frames.prune ? (tiles) => hiddenTiles(tiles, canvas).hidden : null,
+        clip: (tiles) => (clips = addClips(last.tiles, tiles, next, canvas)) !== null,
+        hidden: frames.prune ? (tiles) => hiddenTiles(tiles, canvas, clips).hidden : null,
       });
       if (add) {
         const now = new Set(next);
         countHidden(last.tiles.filter((t) => !now.has(t)));
-        const hidden = hide(add);
+        const hidden = hide(add, clips);
         for (const tile of add) {
           if (hidden.has(tile)) continue;
-          drawer._drawTile(tile, item, false, 1, undefined, false, item.source);
+          const clip = clips.get(tile);
+          const drawTile = () => drawer._drawTile(tile, item, false, 1, undefined, false, item.source);
+          if (clip && clip.length === 0) continue; // wholly under old tiles listed after it
+          if (clip) {
+            frames.clipped++;
+            drawClipped(drawer.context, clip, drawTile);
+          } else {
+            drawTile();
+          }
           viewer.raiseEvent('tile-drawn', { tiledImage: item, tile });
         }
         last.tiles = next;
@@ -167,11 +172,17 @@ export function drawIncrementally(viewer) {
   return frames;
 }
 
-/** Whether two tiles' pixel boxes (occlusion.js `tileBoxes`) may touch a pixel in common. */
-function overlapping(a, b) {
-  if (!a || !b) return true;
-  const [p, q] = [a.touch, b.touch];
-  return Math.max(p[0], q[0]) < Math.min(p[2], q[2]) && Math.max(p[1], q[1]) < Math.min(p[3], q[3]);
+/** Runs `draw` with `context` clipped to `boxes` (device px, whole pixels: an exact clip). */
+function drawClipped(context, boxes, draw) {
+  context.save();
+  try {
+    context.beginPath();
+    for (const [x0, y0, x1, y1] of boxes) context.rect(x0, y0, x1 - x0, y1 - y0);
+    context.clip();
+    draw();
+  } finally {
+    context.restore();
+  }
 }
 
 /**

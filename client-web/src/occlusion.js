@@ -52,7 +52,8 @@ export function pixelSpan(a, b, centres, slack = centres ? CENTRE_SLACK : -INVIS
  * tile is loaded, opaque and drawn opaque). Null for a tile without a place on the canvas.
  * OpenSeadragon's canvas drawer draws a tile at `position` with `size` (CSS px, already one
  * pixel larger while smoothing is on) times the device pixel ratio. Chromium anti-aliases an
- * image less than a pixel wide or high even when it draws larger ones by pixel centres.
+ * image less than a pixel wide or high even when it draws larger ones by pixel centres
+ * (`centres` tells which applies).
  */
 export function tileBoxes(tile, { width, height, ratio = 1, centres = false }) {
   const p = tile.position;
@@ -69,10 +70,14 @@ export function tileBoxes(tile, { width, height, ratio = 1, centres = false }) {
   const touch = [Math.max(0, x.touch[0]), Math.max(0, y.touch[0]), Math.min(width, x.touch[1]), Math.min(height, y.touch[1])];
   const opaque = tile.loaded !== false && !tile.hasTransparency && !(tile.opacity < 1);
   const cover = opaque && x.cover[1] > x.cover[0] && y.cover[1] > y.cover[0] ? [x.cover[0], y.cover[0], x.cover[1], y.cover[1]] : null;
-  return { touch, cover };
+  return { touch, cover, centres: byCentres };
 }
 
 const empty = (r) => r[2] <= r[0] || r[3] <= r[1];
+const area = (rects) => rects.reduce((a, r) => a + (r[2] - r[0]) * (r[3] - r[1]), 0);
+const intersection = (a, b) => [Math.max(a[0], b[0]), Math.max(a[1], b[1]), Math.min(a[2], b[2]), Math.min(a[3], b[3])];
+/** The non-empty parts of `rects` inside box `b`. */
+const within = (rects, b) => rects.map((r) => intersection(r, b)).filter((r) => !empty(r));
 
 /** `rects` (disjoint boxes) minus box `c`, as disjoint boxes. */
 function subtract(rects, c) {
@@ -96,30 +101,71 @@ function subtract(rects, c) {
  * The tiles of `tiles` (in drawing order) that drawing would not show: every canvas pixel the
  * tile may touch is overwritten whole by an opaque tile drawn after it (or it touches none).
  * `canvas`: { width, height } in device px, `ratio` (device px per CSS px), `centres` (see
- * `rasterModel`). Tiles without a position are always drawn. Also returns the pixel areas the
+ * `rasterModel`). `clips` (optional) maps tiles drawn clipped to the boxes they are drawn in
+ * (`addClips`). Tiles without a position are always drawn. Also returns the pixel areas the
  * tiles touch, all and hidden, for the curious.
  */
-export function hiddenTiles(tiles, canvas) {
-  const boxes = tiles.map((t) => tileBoxes(t, canvas));
+export function hiddenTiles(tiles, canvas, clips = null) {
+  const parts = tiles.map((t) => {
+    const b = tileBoxes(t, canvas);
+    if (!b) return null;
+    const clip = clips && clips.get(t);
+    const touch = empty(b.touch) ? [] : [b.touch];
+    const cover = b.cover ? [b.cover] : [];
+    return clip ? { touch: clip.flatMap((c) => within(touch, c)), cover: clip.flatMap((c) => within(cover, c)) } : { touch, cover };
+  });
   const hidden = new Set();
-  let area = 0;
+  let total = 0;
   let hiddenArea = 0;
   for (let i = 0; i < tiles.length; i++) {
-    if (!boxes[i]) continue;
-    const touch = boxes[i].touch;
-    const size = empty(touch) ? 0 : (touch[2] - touch[0]) * (touch[3] - touch[1]);
-    area += size;
-    let rest = size ? [touch] : [];
+    if (!parts[i]) continue;
+    const size = area(parts[i].touch);
+    total += size;
+    let rest = parts[i].touch;
     for (let j = i + 1; j < tiles.length && rest.length; j++) {
-      const cover = boxes[j] && boxes[j].cover;
-      if (cover) rest = subtract(rest, cover);
+      if (parts[j]) for (const c of parts[j].cover) rest = subtract(rest, c);
     }
     if (rest.length === 0) {
       hidden.add(tiles[i]);
       hiddenArea += size;
     }
   }
-  return { hidden, area, hiddenArea };
+  return { hidden, area: total, hiddenArea };
+}
+
+/**
+ * Where to draw each tile of `add` on top of a canvas showing `prev` so that the canvas then
+ * shows what drawing all of `next` would: a full redraw draws an old tile that `next` lists
+ * after a new one over it where they overlap (while smoothing, OpenSeadragon enlarges every
+ * tile by a pixel, so neighbours of one level overlap, and tiles arrive centre first while
+ * `next` lists them column by column). Such a new tile is drawn outside the pixels the old
+ * one overwrites. Returns a Map from the clipped tiles to the boxes they may be drawn in (the
+ * others are drawn whole), or null when no clip is exact: without drawing by pixel centres
+ * (`canvas.centres`; a shared pixel blends both tiles), for a tile less than a pixel wide or
+ * high, or where the old tile's edge lies too close to pixel centres to know which pixels it
+ * overwrites.
+ */
+export function addClips(prev, add, next, canvas) {
+  const index = new Map(next.map((t, i) => [t, i]));
+  const clips = new Map();
+  for (const t of add) {
+    const later = prev.filter((u) => index.get(u) > index.get(t));
+    if (later.length === 0) continue;
+    const bt = tileBoxes(t, canvas);
+    if (!bt) return null;
+    if (empty(bt.touch)) continue;
+    let rects = [bt.touch];
+    for (const u of later) {
+      const bu = tileBoxes(u, canvas);
+      if (!bu) return null;
+      const shared = intersection(bt.touch, bu.touch);
+      if (empty(shared)) continue;
+      if (!bt.centres || !bu.centres || !bu.cover || subtract([shared], bu.cover).length) return null;
+      rects = subtract(rects, bu.cover);
+    }
+    if (rects.length !== 1 || rects[0] !== bt.touch) clips.set(t, rects);
+  }
+  return clips;
 }
 
 /**

@@ -7,7 +7,7 @@ import { formatView, parseView } from '../src/view-url.js';
 import { TileStats, formatBytes, formatRatio, percentile } from '../src/stats.js';
 import { PREVIEW_STEPS, scheduleTiles, wantedLevel } from '../src/loader.js';
 import { drawIncrementally, tilesToAdd, viewKey } from '../src/drawing.js';
-import { hiddenTiles, pixelSpan, tileBoxes } from '../src/occlusion.js';
+import { addClips, hiddenTiles, pixelSpan, tileBoxes } from '../src/occlusion.js';
 import { FrameReader, HEADER_LEN, MAGIC, MAX_BATCH, READ_BUFFER_BYTES, batchUrl, readChunks, tileKey } from '../src/batch.js';
 
 const big = { id: 'ab'.repeat(32), width: 100_000, height: 100_000, levels: 10, tile_size: 256, animated: false };
@@ -402,11 +402,11 @@ test('only tiles at least as fine as every drawn tile are drawn on top; anything
   assert.deepEqual(seen, [[0, 5, 8, 8]], 'judged in the order drawn: the canvas, then the new tiles');
   assert.equal(tilesToAdd([whole, preview, a], [a, b], under([whole])), null, 'the preview still shows');
   assert.equal(tilesToAdd([whole, a], [whole, preview, a], under([whole, preview])), null, 'a coarser tile after a finer one');
-  // A new tile listed before an old one it overlaps: a full redraw would draw the old one over it.
-  const overlap = (pairs) => ({ overlap: (t, u) => pairs.some(([x, y]) => x === t && y === u) });
-  assert.equal(tilesToAdd([whole, b], [whole, a, b], overlap([[a, b]])), null);
-  assert.deepEqual(tilesToAdd([whole, a], [whole, a, b], overlap([[b, a]])), [b], 'listed after it: drawn after it in a full redraw too');
-  assert.deepEqual(tilesToAdd([whole, c], [whole, a, c], overlap([[b, c]])), [a], 'no overlap');
+  // The new tiles must be drawable so that old tiles listed after them stay on top.
+  assert.equal(tilesToAdd([whole, b], [whole, a, b], { clip: () => false }), null);
+  const asked = [];
+  assert.deepEqual(tilesToAdd([whole, b], [whole, a, b], { clip: (add) => asked.push(add) > 0 }), [a]);
+  assert.deepEqual(asked, [[a]]);
 });
 
 /** A stand-in OpenSeadragon viewer: one tiled image, a view, and a canvas drawer that logs. */
@@ -503,7 +503,7 @@ test('a tile covers the pixels it spans whole; without anti-aliasing, those whos
   assert.deepEqual(pixelSpan(0.3, 2.7, true), { touch: [0, 3], cover: [0, 3] });
   assert.deepEqual(pixelSpan(0.5, 2.5, true), { touch: [0, 3], cover: [1, 2] });
   const boxes = tileBoxes(placed('t', 1, -10.5, 4.25, 20, 10), { width: 8, height: 100 });
-  assert.deepEqual(boxes, { touch: [0, 4, 8, 15], cover: [-10, 5, 9, 14] }, 'touch is clipped to the canvas');
+  assert.deepEqual(boxes, { touch: [0, 4, 8, 15], cover: [-10, 5, 9, 14], centres: false }, 'touch is clipped to the canvas');
   assert.equal(tileBoxes(placed('t', 1, 0, 0, 20, 10, { hasTransparency: true }), { width: 8, height: 8 }).cover, null, 'a transparent tile covers nothing');
   assert.equal(tileBoxes({ level: 1 }, { width: 8, height: 8 }), null, 'a tile without a place');
   // Less than a pixel wide, Chromium anti-aliases the image: it covers no pixel whole.
@@ -552,6 +552,30 @@ test('a tile is hidden only where opaque tiles drawn after it cover every pixel 
   assert.deepEqual(names(r.hidden), ['whole']);
   assert.equal(r.area, 200 * 100 + 51 * 100 + 150 * 100 + 100 * 50);
   assert.equal(r.hiddenArea, 200 * 100);
+});
+
+test('a new tile listed before an old one it overlaps is drawn outside the pixels the old one overwrites', () => {
+  const canvas = { width: 200, height: 100, centres: true };
+  // One level, enlarged by a pixel: a (column 0) overlaps b (column 1) by a pixel column.
+  const a = placed('a', 5, -3.3, -3.2, 104, 54);
+  const b = placed('b', 5, 99.7, -3.2, 104, 54);
+  const c = placed('c', 5, -3.3, 49.8, 104, 54);
+  // b and c on the canvas, a arrives: next lists a before b and c, which a full redraw draws over it.
+  const clips = addClips([b, c], [a], [a, b, c], canvas);
+  assert.deepEqual(clips.get(a), [[0, 0, 100, 50]], 'a is drawn outside b (x ≥ 100) and c (y ≥ 50)');
+  assert.equal(addClips([a], [b], [a, b], canvas).size, 0, 'listed after the old tile: drawn whole');
+  assert.equal(addClips([b, c], [a], [a, b, c], { ...canvas, centres: false }), null, 'anti-aliased, the shared pixels blend');
+  // b's edge on a pixel centre: which pixels it overwrites is not known.
+  const bHalf = placed('b', 5, 99.5, -3.2, 104, 54);
+  assert.equal(addClips([bHalf], [a], [a, bHalf], canvas), null);
+  // Wholly under old tiles listed after it: drawn nowhere.
+  const under = placed('under', 5, 110, 10, 20, 20);
+  assert.deepEqual(addClips([b], [under], [under, b], canvas).get(under), []);
+  // A clipped tile hides only where it is drawn.
+  const whole = placed('whole', 0, -50, -30, 400, 300);
+  const clipMap = new Map([[a, [[0, 0, 50, 50]]]]);
+  assert.deepEqual(names(hiddenTiles([whole, placed('p', 2, 0, 0, 40, 40), a], canvas, clipMap).hidden), ['p']);
+  assert.deepEqual(names(hiddenTiles([placed('q', 2, 45, 0, 10, 10), a], canvas, clipMap).hidden), [], 'q reaches x 55, where a is not drawn');
 });
 
 test('full and incremental frames leave out hidden tiles; without pruning every tile is drawn', () => {
