@@ -7,11 +7,15 @@
 // needs to take in the tiles' bytes (BENCHMARKS.md "Viewer", `bench.mjs --profile`). When the
 // view has not moved since the last frame and the tiles that arrived are at least as fine as
 // every tile already drawn, drawing just those on top of the canvas gives the frame a full
-// redraw would (tiles are opaque, and a full redraw draws them after the coarser ones too);
-// otherwise the frame is a full redraw, as before.
+// redraw would (tiles are opaque, and a full redraw draws them after the coarser ones too) —
+// clipped where a full redraw would draw an old neighbour over one; otherwise the frame is a
+// full redraw, as before.
 //
 // In either kind of frame, tiles that opaque tiles drawn after them in the same frame paint over
-// entirely are not drawn at all (occlusion.js): the frame's pixels stay the same.
+// entirely are not drawn at all (occlusion.js), and the frame in which a finer level completes
+// the view (OpenSeadragon then stops listing the coarser tiles under it) only adds its new
+// tiles: the frame's pixels stay those of OpenSeadragon's full redraw, byte for byte
+// (tests/browser/viewer.test.mjs), with fewer pixels rastered (`bench.mjs`, canvas table).
 
 import { addClips, hiddenTiles, rasterModel, tileBoxes } from './occlusion.js';
 
@@ -84,9 +88,8 @@ export function viewKey(viewer, items) {
  * `tile-drawn` for it, as a full redraw does for every tile it draws. Does nothing for a
  * drawer without `_drawTile`. Returns the frame counts, live: full and incremental frames,
  * tiles drawn and left out, canvas pixels they touch (drawn and left out; in plain frames),
- * new tiles drawn clipped under old ones (`addClips`);
- * `prune` switches the hiding (tests and the bench compare frames with and without it) and
- * `centres` tells the raster model.
+ * new tiles drawn clipped under old ones (`addClips`); `prune` switches the hiding (tests and
+ * the bench compare frames with and without it) and `centres` tells the raster model.
  */
 export function drawIncrementally(viewer) {
   const drawer = viewer.drawer;
