@@ -103,16 +103,15 @@ export function drawIncrementally(viewer) {
     const osd = globalThis.OpenSeadragon;
     return { width: canvas.width ?? Infinity, height: canvas.height ?? Infinity, ratio: (osd && osd.pixelDensityRatio) || 1, centres: frames.centres };
   };
-  /** The tiles of `tiles` (drawn in that order) to leave out, counted: none unless pruning. */
-  const hide = (tiles, clips = null) => {
+  /** What of `tiles` (drawn in that order) to leave out, counted: nothing unless pruning. */
+  const plan = (tiles, clips = null) => {
     const h = hiddenTiles(tiles, canvasOf(), clips);
-    const hidden = frames.prune ? h.hidden : new Set();
-    const hiddenArea = frames.prune ? h.hiddenArea : 0;
-    frames.tiles += tiles.length - hidden.size;
-    frames.hidden += hidden.size;
-    frames.pixels += h.area - hiddenArea;
-    frames.hiddenPixels += hiddenArea;
-    return hidden;
+    const p = frames.prune ? h : { hidden: new Set(), trims: new Map(), hiddenArea: 0, trimmedArea: 0 };
+    frames.tiles += tiles.length - p.hidden.size;
+    frames.hidden += p.hidden.size;
+    frames.pixels += h.area - p.hiddenArea - p.trimmedArea;
+    frames.hiddenPixels += p.hiddenArea + p.trimmedArea;
+    return p;
   };
   /** Counts tiles a frame did not draw again because they are hidden (full frames draw them). */
   const countHidden = (tiles) => {
@@ -139,10 +138,10 @@ export function drawIncrementally(viewer) {
       if (add) {
         const now = new Set(next);
         countHidden(last.tiles.filter((t) => !now.has(t)));
-        const hidden = hide(add, clips);
+        const { hidden, trims } = plan(add, clips);
         for (const tile of add) {
           if (hidden.has(tile)) continue;
-          const clip = clips.get(tile);
+          const clip = trims.get(tile) || clips.get(tile);
           const drawTile = () => drawer._drawTile(tile, item, false, 1, undefined, false, item.source);
           if (clip && clip.length === 0) continue; // wholly under old tiles listed after it
           if (clip) {
@@ -158,7 +157,7 @@ export function drawIncrementally(viewer) {
         return;
       }
     }
-    if (item) withoutHidden(item, hide, () => fullDraw(items));
+    if (item) drawPruned(drawer, item, plan, () => fullDraw(items));
     else fullDraw(items);
     frames.full++;
     // getTilesToDraw() marks tiles as drawn and refreshes their coverage; the full draw just did
@@ -190,21 +189,38 @@ function drawClipped(context, boxes, draw) {
 
 /**
  * Runs `draw` (a full frame of OpenSeadragon's drawer) with `item` handing the drawer its tiles
- * to draw minus those `hide` names: the drawer asks the tiled image for them once per frame
- * (`getTilesToDraw`, which also records them all as the frame's tiles, `_lastDrawn`).
+ * to draw minus those `plan` hides, and the drawer drawing those `plan` trims clipped: the
+ * drawer asks the tiled image for its tiles once per frame (`getTilesToDraw`, which also
+ * records them all as the frame's tiles, `_lastDrawn`) and draws each with `_drawTile`.
  */
-function withoutHidden(item, hide, draw) {
-  const own = Object.getOwnPropertyDescriptor(item, 'getTilesToDraw');
-  const all = item.getTilesToDraw;
+function drawPruned(drawer, item, plan, draw) {
+  let trims = new Map();
+  const restore = [shadow(item, 'getTilesToDraw'), shadow(drawer, '_drawTile')];
+  const tilesToDraw = item.getTilesToDraw;
   item.getTilesToDraw = function () {
-    const infos = all.call(this);
-    const hidden = hide(infos.map((info) => info.tile));
-    return hidden.size ? infos.filter((info) => !hidden.has(info.tile)) : infos;
+    const infos = tilesToDraw.call(this);
+    const p = plan(infos.map((info) => info.tile));
+    trims = p.trims;
+    return p.hidden.size ? infos.filter((info) => !p.hidden.has(info.tile)) : infos;
+  };
+  const drawTile = drawer._drawTile;
+  drawer._drawTile = function (tile, ...rest) {
+    const clip = trims.get(tile);
+    if (!clip) return drawTile.call(this, tile, ...rest);
+    drawClipped(this.context, clip, () => drawTile.call(this, tile, ...rest));
   };
   try {
     draw();
   } finally {
-    if (own) Object.defineProperty(item, 'getTilesToDraw', own);
-    else delete item.getTilesToDraw;
+    for (const r of restore) r();
   }
+}
+
+/** Undoes a later assignment to `object[name]`: back to its own property or its prototype's. */
+function shadow(object, name) {
+  const own = Object.getOwnPropertyDescriptor(object, name);
+  return () => {
+    if (own) Object.defineProperty(object, name, own);
+    else delete object[name];
+  };
 }

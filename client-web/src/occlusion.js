@@ -97,13 +97,21 @@ function subtract(rects, c) {
   return out;
 }
 
+/** A partly hidden tile is drawn clipped to what shows of it when that spares at least this
+ * share of its pixels and this many, in at most MAX_TRIM_BOXES boxes. */
+const TRIM_SHARE = 1 / 4;
+const TRIM_PIXELS = 4096;
+const MAX_TRIM_BOXES = 16;
+
 /**
  * The tiles of `tiles` (in drawing order) that drawing would not show: every canvas pixel the
  * tile may touch is overwritten whole by an opaque tile drawn after it (or it touches none).
- * `canvas`: { width, height } in device px, `ratio` (device px per CSS px), `centres` (see
- * `rasterModel`). `clips` (optional) maps tiles drawn clipped to the boxes they are drawn in
- * (`addClips`). Tiles without a position are always drawn. Also returns the pixel areas the
- * tiles touch, all and hidden, for the curious.
+ * And `trims`: partly hidden tiles, mapped to the boxes of what shows of them — drawing a tile
+ * clipped to those changes no pixel of the frame either. `canvas`: { width, height } in device
+ * px, `ratio` (device px per CSS px), `centres` (see `rasterModel`). `clips` (optional) maps
+ * tiles drawn clipped to the boxes they are drawn in (`addClips`). Tiles without a position
+ * are always drawn whole. Also returns the pixel areas the tiles touch: all, hidden, and
+ * trimmed off.
  */
 export function hiddenTiles(tiles, canvas, clips = null) {
   const parts = tiles.map((t) => {
@@ -115,8 +123,10 @@ export function hiddenTiles(tiles, canvas, clips = null) {
     return clip ? { touch: clip.flatMap((c) => within(touch, c)), cover: clip.flatMap((c) => within(cover, c)) } : { touch, cover };
   });
   const hidden = new Set();
+  const trims = new Map();
   let total = 0;
   let hiddenArea = 0;
+  let trimmedArea = 0;
   for (let i = 0; i < tiles.length; i++) {
     if (!parts[i]) continue;
     const size = area(parts[i].touch);
@@ -128,9 +138,15 @@ export function hiddenTiles(tiles, canvas, clips = null) {
     if (rest.length === 0) {
       hidden.add(tiles[i]);
       hiddenArea += size;
+      continue;
+    }
+    const spared = size - area(rest);
+    if (spared >= TRIM_PIXELS && spared >= TRIM_SHARE * size && rest.length <= MAX_TRIM_BOXES) {
+      trims.set(tiles[i], rest);
+      trimmedArea += spared;
     }
   }
-  return { hidden, area: total, hiddenArea };
+  return { hidden, trims, area: total, hiddenArea, trimmedArea };
 }
 
 /**

@@ -552,6 +552,14 @@ test('a tile is hidden only where opaque tiles drawn after it cover every pixel 
   assert.deepEqual(names(r.hidden), ['whole']);
   assert.equal(r.area, 200 * 100 + 51 * 100 + 150 * 100 + 100 * 50);
   assert.equal(r.hiddenArea, 200 * 100);
+  assert.equal(r.trims.size, 0, 'mid: 50 × 50 pixels under a are too few to clip it for');
+  // A partly hidden tile is drawn clipped to what shows of it when that spares at least a
+  // quarter of it and 4096 pixels.
+  const w = placed('w', 0, 0, 0, 200, 100);
+  const trimmed = hiddenTiles([w, placed('x', 5, 0, 0, 80, 80)], canvas);
+  assert.deepEqual([...trimmed.trims], [[w, [[0, 80, 200, 100], [80, 0, 200, 80]]]]);
+  assert.equal(trimmed.trimmedArea, 80 * 80);
+  assert.equal(hiddenTiles([w, placed('x', 5, 0, 0, 60, 60)], canvas).trims.size, 0, 'too little to spare');
 });
 
 test('a new tile listed before an old one it overlaps is drawn outside the pixels the old one overwrites', () => {
@@ -592,7 +600,8 @@ test('full and incremental frames leave out hidden tiles; without pruning every 
   draw(); // p is coarser than a: a full frame, in which p and whole are hidden
   assert.deepEqual(log, [['full', 'whole', 'a'], ['full', 'a', 'b']]);
   assert.deepEqual(item._lastDrawn.map((d) => d.tile.name), ['whole', 'p', 'a', 'b'], 'the frame still lists every tile');
-  assert.deepEqual([frames.hidden, frames.tiles, frames.hiddenPixels], [2, 4, 2 * 200 * 100]);
+  // Left out: whole and p here, and in the first frame the right half of whole (trimmed off: a hid its left half).
+  assert.deepEqual([frames.hidden, frames.tiles, frames.hiddenPixels], [2, 4, 2 * 200 * 100 + 100 * 100]);
   // An incremental frame: of the tiles that arrived, the coarse one under the fine one is left out.
   const c = placed('c', 6, 12, 12, 5, 5);
   const d = placed('d', 7, 10, 10, 20, 20);

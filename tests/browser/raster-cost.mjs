@@ -1,11 +1,12 @@
 // Raster cost of one canvas frame drawn in full with and without the viewer's pruning of hidden
-// tiles (client-web/src/occlusion.js), in the states view loads pass through.
+// tiles and hidden parts of tiles (client-web/src/occlusion.js), in the states view loads pass
+// through.
 //
 //   node tests/browser/raster-cost.mjs      (needs target/release/vtex and client-web/dist)
 //
 // 60 seeded view changes (jumps at zooms 1/128 … 2, half-to-one-screen pans, zooms × 2 or ÷ 2)
 // over the 100k × 100k chaos mosaic, twice: the first pass warms the server's cache, the second
-// (fresh browser) measures. After each frame whose tiles include hidden ones, the page draws
+// (fresh browser) measures. After each frame with tiles hidden whole or in part, the page draws
 // that frame again in full three times each way, alternating, each followed by a 1-px
 // getImageData, which makes Chromium raster the recorded drawing — the work its canvas flush
 // (Canvas2DResourceProviderSharedImage::ProduceCanvasResource) does for a frame — before it
@@ -44,21 +45,26 @@ async function pass(measure) {
         const h0 = frames.hidden;
         const p0 = frames.pixels;
         busy = true;
-        const t = { on: [], off: [], hidden: 0, pxOn: 0, pxOff: 0, tiles: item._lastDrawn.length };
+        const t = { on: [], off: [], hidden: 0, spared: 0, pxOn: 0, pxOff: 0, tiles: item._lastDrawn.length };
         for (let r = 0; r < 3; r++) {
           for (const prune of [false, true]) {
             frames.prune = prune;
             const hb = frames.hidden;
+            const sb = frames.hiddenPixels;
             const pb = frames.pixels;
             const s = performance.now();
             draw(items);
             drawer.context.getImageData(0, 0, 1, 1);
             (prune ? t.on : t.off).push(performance.now() - s);
-            if (prune) { t.hidden = frames.hidden - hb; t.pxOn = frames.pixels - pb; } else t.pxOff = frames.pixels - pb;
+            if (prune) {
+              t.hidden = frames.hidden - hb;
+              t.spared = frames.hiddenPixels - sb;
+              t.pxOn = frames.pixels - pb;
+            } else t.pxOff = frames.pixels - pb;
           }
         }
         busy = false;
-        if (t.hidden > 0) window.costs.push(t);
+        if (t.spared > 0) window.costs.push(t);
       };
     });
   for (const view of views) {
@@ -77,6 +83,6 @@ const sum = (a) => a.reduce((x, y) => x + y, 0);
 const on = costs.map((c) => med(c.on));
 const off = costs.map((c) => med(c.off));
 const q = (a, p) => [...a].sort((x, y) => x - y)[Math.min(a.length - 1, Math.ceil(p * a.length) - 1)];
-console.log(`frames with hidden tiles: ${costs.length} over ${views.length} views; tiles listed per frame mean ${(sum(costs.map((c) => c.tiles)) / costs.length).toFixed(1)}, hidden mean ${(sum(costs.map((c) => c.hidden)) / costs.length).toFixed(1)}`);
+console.log(`frames with hidden tiles or parts of tiles: ${costs.length} over ${views.length} views; tiles listed per frame mean ${(sum(costs.map((c) => c.tiles)) / costs.length).toFixed(1)}, hidden mean ${(sum(costs.map((c) => c.hidden)) / costs.length).toFixed(1)}`);
 console.log(`Mpx rastered per such frame: without pruning ${(sum(costs.map((c) => c.pxOff)) / costs.length / 1e6).toFixed(2)}, with ${(sum(costs.map((c) => c.pxOn)) / costs.length / 1e6).toFixed(2)}`);
 console.log(`full redraw + raster, ms per frame (median of 3 each): without pruning mean ${(sum(off) / off.length).toFixed(2)} p50 ${q(off, 0.5).toFixed(2)} p95 ${q(off, 0.95).toFixed(2)}; with pruning mean ${(sum(on) / on.length).toFixed(2)} p50 ${q(on, 0.5).toFixed(2)} p95 ${q(on, 0.95).toFixed(2)}`);

@@ -271,7 +271,7 @@ test('tiles hidden under finer ones are not drawn, and every frame equals the fr
   const { page, log } = await openViewer(browser.context, `${server.url}/?texture=${big.id}&zoom=0.02&x=50000&y=50000`);
   await waitForIdle(page);
   assert.equal(await page.evaluate(() => window.vtexViewer.frames.centres), true, 'Chromium draws axis-aligned images by pixel centres');
-  // After every frame that left tiles out or drew new tiles clipped under old ones, the
+  // After every frame that left tiles or parts of tiles out or drew new tiles clipped under old ones, the
   // canvas's bytes, then the same frame drawn again in full by OpenSeadragon with every tile
   // (pruning off), and the bytes that differ.
   await page.evaluate(() => {
@@ -281,9 +281,10 @@ test('tiles hidden under finer ones are not drawn, and every frame equals the fr
     window.pruneChecks = [];
     drawer.draw = (items) => {
       const hidden = frames.hidden;
+      const spared = frames.hiddenPixels; // hidden tiles' pixels and those trimmed off partly hidden ones
       const clipped = frames.clipped;
       draw(items);
-      if (frames.hidden === hidden && frames.clipped === clipped) return;
+      if (frames.hiddenPixels === spared && frames.clipped === clipped) return;
       const pixels = () => drawer.context.getImageData(0, 0, drawer.canvas.width, drawer.canvas.height).data;
       const pruned = pixels();
       frames.prune = false; // a new key: the next draw is a full one
@@ -296,7 +297,7 @@ test('tiles hidden under finer ones are not drawn, and every frame equals the fr
       let differing = 0;
       for (let i = 0; i < full.length; i++) if (pruned[i] !== full[i]) differing++;
       const levels = items.find((i) => i.opacity !== 0)._lastDrawn.map((d) => d.tile.level);
-      window.pruneChecks.push({ hidden: frames.hidden - hidden, clipped: frames.clipped - clipped, differing, levels: [...new Set(levels)] });
+      window.pruneChecks.push({ hidden: frames.hidden - hidden, spared: frames.hiddenPixels - spared, clipped: frames.clipped - clipped, differing, levels: [...new Set(levels)] });
     };
   });
   // Minified, magnified 1.2 × (level 1 at zoom 0.6, smoothing on, tiles enlarged by a pixel),
