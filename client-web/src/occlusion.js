@@ -1,5 +1,5 @@
 // Tiles a canvas frame need not draw: those that opaque tiles drawn after them in the same
-// frame paint over entirely.
+// frame paint over entirely — and the parts of tiles they paint over.
 //
 // While a view loads, OpenSeadragon draws every loaded tile of every level down to one that
 // covers the view, coarsest first: the whole-texture tile magnified across the whole view, then
@@ -7,7 +7,10 @@
 // software canvas every drawn pixel is rastered (bilinear) on the page's main thread, and the
 // finest tiles paint over most of what the coarser ones drew. Skipping a tile changes nothing
 // on screen when every pixel it would touch is afterwards overwritten whole by an opaque tile:
-// the last full overwrite of a pixel decides its value, whatever was under it.
+// the last full overwrite of a pixel decides its value, whatever was under it; so does drawing
+// a tile clipped to the pixels nothing overwrites later. In the frames of 60 view loads where
+// this applies, it rasters 0.67 instead of 1.32 Mpx (a 960 × 760 view is 0.73) and the frame's
+// draw and raster take 5.0 instead of 8.8 ms (`node tests/browser/raster-cost.mjs`).
 //
 // Which pixels a drawImage touches and which it overwrites whole depends on the rasterizer: with
 // anti-aliased edges a tile's fractional edge blends into the pixel's previous value, so a
