@@ -3,6 +3,7 @@
 //   node tests/browser/bench.mjs [--steps 60] [--pan-seconds 5] [--shots DIR] [--json FILE]
 //        [--trace] [--texture NAME] [--server-args="--tile-size 512"] [--osd JSON] [--playwright]
 //        [--format rgba|png|webp|jpg] [--detail map|sharp] [--profile FILE.cpuprofile] [--chrome-trace FILE.json]
+//        [--no-prune]
 //
 // The texture is the 100k × 100k chaos mosaic (the flagship demo, as server/bench/run.sh picks
 // it) unless --texture names another. Chromium is driven over a bare DevTools pipe (cdp.mjs):
@@ -57,6 +58,9 @@ const { values: args } = parseArgs({
     // Level choice (the viewer's `detail` URL parameter, client-web/src/pyramid.js DETAIL);
     // default: the viewer's (map).
     detail: { type: 'string' },
+    // Draw every tile in the measured passes, also those finer tiles hide (A/B of the viewer's
+    // pruning, client-web/src/occlusion.js).
+    'no-prune': { type: 'boolean', default: false },
   },
 });
 const STEPS = Number(args.steps);
@@ -176,6 +180,28 @@ async function measureViews(page, views, shots, tag, { back = false } = {}) {
   const tiles = [];
   const requests = [];
   const breakdowns = [];
+  // The viewer's canvas frame counts (client-web/src/drawing.js), where its build keeps them,
+  // and the tiles the canvas drawer draws, with the canvas pixels they cover (any build).
+  const canvasCounts = () =>
+    page.evaluate(() => {
+      const drawer = window.vtexViewer.viewer.drawer;
+      if (!drawer.vtexDrawn && typeof drawer._drawTile === 'function') {
+        drawer.vtexDrawn = { tiles: 0, pixels: 0 };
+        const drawTile = drawer._drawTile.bind(drawer);
+        drawer._drawTile = (tile, ...rest) => {
+          const r = OpenSeadragon.pixelDensityRatio;
+          const w = Math.min(drawer.canvas.width, (tile.position.x + tile.size.x) * r) - Math.max(0, tile.position.x * r);
+          const h = Math.min(drawer.canvas.height, (tile.position.y + tile.size.y) * r) - Math.max(0, tile.position.y * r);
+          drawer.vtexDrawn.tiles++;
+          drawer.vtexDrawn.pixels += Math.max(0, w) * Math.max(0, h);
+          return drawTile(tile, ...rest);
+        };
+      }
+      const d = drawer.vtexDrawn || {};
+      return { ...window.vtexViewer.frames, drawnTiles: d.tiles, drawnPixels: d.pixels };
+    });
+  if (args['no-prune']) await page.evaluate(() => window.vtexViewer.frames && (window.vtexViewer.frames.prune = false));
+  const canvas0 = await canvasCounts();
   if (args.trace) await page.evaluate(installTracer);
   for (let i = back ? 1 : 0; i < views.length; i++) {
     if (back) await showView(page, views[i]);
@@ -191,8 +217,11 @@ async function measureViews(page, views, shots, tag, { back = false } = {}) {
     if (shots && i % 15 === 0) await page.screenshot(`${shots}/${tag}-${i}.png`);
   }
   if (!times.length) return null;
+  const canvas1 = await canvasCounts();
+  const canvas = {};
+  for (const k of ['full', 'incremental', 'drawnTiles', 'drawnPixels', 'pixels', 'hidden', 'hiddenPixels']) canvas[k] = canvas1[k] === undefined ? null : (canvas1[k] - canvas0[k]) / times.length;
   const perView = (v) => v.reduce((a, b) => a + (b || 0), 0) / v.length;
-  return { ...summary(times), tilesPerView: perView(tiles), requestsPerView: perView(requests), times, tiles, breakdowns };
+  return { ...summary(times), tilesPerView: perView(tiles), requestsPerView: perView(requests), canvasPerView: canvas, times, tiles, breakdowns };
 }
 
 /**
@@ -437,7 +466,7 @@ try {
 }
 
 const f = (v) => v.toFixed(1);
-console.log(`texture ${results.texture.name} (${results.texture.model}), ${results.viewport.width}×${results.viewport.height} browser viewport, ${STEPS} view changes${args.format ? `, ${args.format} tiles` : ''}${args.detail ? `, detail ${args.detail}` : ''}${args.osd ? `, OSD options ${args.osd}` : ''}, server ${serverArgs.join(' ')}, driven by ${results.driver}`);
+console.log(`texture ${results.texture.name} (${results.texture.model}), ${results.viewport.width}×${results.viewport.height} browser viewport, ${STEPS} view changes${args['no-prune'] ? ', no pruning' : ''}${args.format ? `, ${args.format} tiles` : ''}${args.detail ? `, detail ${args.detail}` : ''}${args.osd ? `, OSD options ${args.osd}` : ''}, server ${serverArgs.join(' ')}, driven by ${results.driver}`);
 console.log('| view change → every visible tile drawn | p50 ms | p95 ms | max ms | tiles/view | requests/view |');
 console.log('|---|---|---|---|---|---|');
 for (const [k, label] of [
@@ -457,6 +486,20 @@ for (const [k, label] of [
 ]) {
   const r = results[k];
   console.log(`| ${label} | ${r.n} | ${f(r.p50)} | ${f(r.p95)} | ${f(r.max)} | ${r.over33} | ${r.over50} | ${r.tiles} |`);
+}
+// Mpx drawn: the drawn tiles' rectangles on the canvas (any build); Mpx rastered: the viewer's
+// own count, without what it clips off partly hidden tiles (builds with pruning).
+console.log('\n| canvas per view change | full frames | incremental frames | tiles drawn | Mpx drawn | Mpx rastered | tiles left out | Mpx left out |');
+console.log('|---|---|---|---|---|---|---|---|');
+for (const [k, label] of [
+  ['cold', 'cold'],
+  ['warmServer', 'warm server'],
+  ['warmBrowser', 'warm browser'],
+  ['warmViewer', 'warm viewer'],
+]) {
+  const c = results[k].canvasPerView;
+  const n = (v, scale = 1) => (v === null ? '–' : (v / scale).toFixed(scale === 1 ? 1 : 2));
+  console.log(`| ${label} | ${n(c.full)} | ${n(c.incremental)} | ${n(c.drawnTiles)} | ${n(c.drawnPixels, 1e6)} | ${n(c.pixels, 1e6)} | ${n(c.hidden)} | ${n(c.hiddenPixels, 1e6)} |`);
 }
 for (const [k, label] of [
   ['cold', 'server, cold pass'],
