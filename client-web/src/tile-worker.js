@@ -120,18 +120,31 @@ function encodedTile(f, format) {
   return createImageBitmap(new Blob([f.body], { type: MIME[format] })); // the Blob copies the bytes
 }
 
+/** The canvas raw tiles pass through on their way to a bitmap (rgbaTile), reused. */
+let opaqueCanvas = null;
+
 /**
- * A raw RGBA tile as an ImageBitmap: no decoding, its size from the frame header, its bytes
- * copied at the call. Premultiplied (the default), which for these opaque tiles changes no
- * pixel, so the screen shows the server's pixels exactly (the browser tests compare them):
- * converting here, off the main thread, costs ~0.2 ms a 256 px tile, and the canvas draws a
- * premultiplied bitmap 15–70 % faster than one marked unpremultiplied, which it converts at
- * every draw (BENCHMARKS.md "Viewer").
+ * A raw RGBA tile as an ImageBitmap, its size from the frame header, its bytes copied at the
+ * call: put into an opaque canvas (`alpha: false`) and taken out as its bitmap. The page's
+ * canvas draws an opaque (or premultiplied) bitmap as fast as it can: a bitmap marked
+ * unpremultiplied is converted at every draw, which makes a view drawn at 1:1 about twice as
+ * dear (3.1 against 1.3 ms here) and other scales up to ~20 %; and the opaque bitmap costs
+ * the Worker ~0.2 ms a 256 px tile to make, a premultiplied `createImageBitmap` ~0.3 ms
+ * (`tests/browser/ingest.mjs`, last two tables). The viewer treats tiles as opaque anyway
+ * (tilesource.js `hasTransparency`); these opaque pixels reach the screen exactly (the
+ * browser tests compare them), a pixel with alpha would show over black.
  */
 function rgbaTile(f) {
   const { width: w, height: h, body } = f;
   if (!(w > 0 && h > 0) || body.length !== w * h * 4) {
     throw new Error(`raw tile of ${body.length} bytes does not match ${w} × ${h} RGBA`);
   }
-  return createImageBitmap(new ImageData(new Uint8ClampedArray(body.buffer, body.byteOffset, body.length), w, h));
+  opaqueCanvas = opaqueCanvas || new OffscreenCanvas(w, h);
+  if (opaqueCanvas.width !== w || opaqueCanvas.height !== h) {
+    opaqueCanvas.width = w;
+    opaqueCanvas.height = h;
+  }
+  const pixels = new ImageData(new Uint8ClampedArray(body.buffer, body.byteOffset, body.length), w, h);
+  opaqueCanvas.getContext('2d', { alpha: false }).putImageData(pixels, 0, 0);
+  return Promise.resolve(opaqueCanvas.transferToImageBitmap());
 }

@@ -77,7 +77,13 @@ export async function launchBare(url, { width = 1280, height = 800, initScript }
   async function evaluate(fn, arg, { truthy = false } = {}) {
     let expression = `(${fn.toString()})(${arg === undefined ? '' : JSON.stringify(arg)})`;
     if (truthy) expression = `Promise.resolve(${expression}).then((v) => !!v)`;
-    const r = await page('Runtime.evaluate', { expression, awaitPromise: true, returnByValue: true });
+    let r;
+    try {
+      r = await page('Runtime.evaluate', { expression, awaitPromise: true, returnByValue: true });
+    } catch (e) {
+      e.message += ` (evaluating ${fn.toString().slice(0, 160).replace(/\s+/g, ' ')})`;
+      throw e;
+    }
     if (r.exceptionDetails) {
       const e = r.exceptionDetails;
       throw new Error(`in page: ${e.exception ? e.exception.description || e.exception.value : e.text}`);

@@ -23,7 +23,8 @@
 // CPU of Chromium's renderer threads and other processes (/proc, 10 ms ticks; mean per batch).
 // Then the cost of rastering one frame that covers a 960 × 760 view with tiles drawn at 0.52,
 // 0.75, 1 and 1.3 × (smoothing on except at 1:1, flushed with getImageData) from canvases and
-// from unpremultiplied and premultiplied ImageBitmaps.
+// from unpremultiplied, premultiplied and opaque ImageBitmaps made in a Worker (as the viewer
+// makes them), and what making each kind costs the Worker.
 import { readFileSync, readdirSync } from 'node:fs';
 import { parseArgs } from 'node:util';
 import { startServer } from './lib.mjs';
@@ -212,39 +213,72 @@ async function runCase({ url, kind }) {
 }
 
 /**
- * Runs in the page: median ms to raster one frame covering a 960 × 760 view with tiles at each
- * scale, by tile kind: { scales, kinds: { kind: [ms at each scale] } }.
+ * Runs in the page: the bitmaps of 56 random opaque 256 px tiles, made in a Worker as the
+ * viewer's tile Worker would, each kind timed there (ms a tile, best of 3 rounds, each bitmap
+ * awaited) and transferred here; then the median ms to raster one frame covering a 960 × 760
+ * view with tiles at each scale, by tile kind (canvases filled here with putImageData too).
+ * { scales, make: { kind: ms }, raster: { kind: [ms at each scale] } }.
  */
 async function rasterCase() {
   const SCALES = [0.52, 0.75, 1, 1.3];
   const N = 56;
   const W = 256;
   const R = 9;
-  const src = [];
-  for (let i = 0; i < N; i++) {
-    const a = new Uint8ClampedArray(W * W * 4);
-    for (let j = 0; j < a.length; j++) a[j] = (j & 3) === 3 ? 255 : (Math.imul(j, 2654435761) + i) >>> 24;
-    src.push(a);
-  }
+  const src = `
+    const reused = new OffscreenCanvas(${W}, ${W});
+    self.onmessage = async () => {
+      const tiles = [];
+      for (let i = 0; i < ${N}; i++) {
+        const a = new Uint8ClampedArray(${W * W * 4});
+        for (let j = 0; j < a.length; j++) a[j] = (j & 3) === 3 ? 255 : (Math.imul(j, 2654435761) + i) >>> 24;
+        tiles.push(a);
+      }
+      const kinds = {
+        'ImageBitmap, premultiplyAlpha none': (a) => createImageBitmap(new ImageData(a, ${W}, ${W}), { premultiplyAlpha: 'none' }),
+        'ImageBitmap, premultiplied': (a) => createImageBitmap(new ImageData(a, ${W}, ${W})),
+        'ImageBitmap, opaque: one alpha: false canvas, transferToImageBitmap (the viewer now)': (a) => {
+          reused.getContext('2d', { alpha: false }).putImageData(new ImageData(a, ${W}, ${W}), 0, 0);
+          return reused.transferToImageBitmap();
+        },
+      };
+      const make = {};
+      const bitmaps = {};
+      for (let round = 0; round < 3; round++) {
+        for (const [k, f] of Object.entries(kinds)) {
+          const t0 = performance.now();
+          const made = [];
+          for (const a of tiles) made.push(await f(a));
+          make[k] = Math.min(make[k] ?? Infinity, (performance.now() - t0) / tiles.length);
+          if (round < 2) made.forEach((b) => b.close());
+          else bitmaps[k] = made;
+        }
+      }
+      self.postMessage({ make, bitmaps, tiles }, Object.values(bitmaps).flat());
+    };`;
+  const worker = new Worker(URL.createObjectURL(new Blob([src], { type: 'text/javascript' })));
+  const { make, bitmaps, tiles } = await new Promise((resolve) => {
+    worker.onmessage = (e) => resolve(e.data);
+    worker.postMessage(0);
+  });
+  worker.terminate();
   const target = document.createElement('canvas');
   target.width = 960;
   target.height = 760;
   document.body.appendChild(target);
   const t = target.getContext('2d');
   const kinds = {
-    'canvas (putImageData)': src.map((a) => {
+    'canvas (putImageData)': tiles.map((a) => {
       const c = document.createElement('canvas');
       c.width = W;
       c.height = W;
       c.getContext('2d').putImageData(new ImageData(a, W, W), 0, 0);
       return c;
     }),
-    'ImageBitmap, premultiplyAlpha none': await Promise.all(src.map((a) => createImageBitmap(new ImageData(a, W, W), { premultiplyAlpha: 'none' }))),
-    'ImageBitmap, premultiplied': await Promise.all(src.map((a) => createImageBitmap(new ImageData(a, W, W), { premultiplyAlpha: 'premultiply' }))),
+    ...bitmaps,
   };
-  const out = {};
+  const raster = {};
   for (const [name, imgs] of Object.entries(kinds)) {
-    out[name] = [];
+    raster[name] = [];
     for (const s of SCALES) {
       const cols = Math.ceil(960 / (W * s));
       const rows = Math.ceil(760 / (W * s));
@@ -260,11 +294,11 @@ async function rasterCase() {
         ts.push(performance.now() - t0);
         await new Promise((res) => requestAnimationFrame(res));
       }
-      out[name].push(ts.sort((a, b) => a - b)[R >> 1]);
+      raster[name].push(ts.sort((a, b) => a - b)[R >> 1]);
     }
   }
   target.remove();
-  return { scales: SCALES, kinds: out };
+  return { scales: SCALES, make, raster };
 }
 
 const KINDS = ['read', 'arrayBuffer', 'frames', 'put', 'put+draw', 'put(opaque)+draw', 'bitmap(none)+draw', 'byob', 'byob+bitmap(none)+draw', 'w:read', 'w:bitmap', 'w:bitmap+draw', 'w:bitmap(none)+draw'];
@@ -317,13 +351,14 @@ try {
     const other = total - keys.reduce((s, k) => s + cpu(k), 0);
     console.log(`| ${kind} | ${f(med(a.wall))} | ${f(mb / (med(a.wall) / 1000))} | ${f(med(a.net))} | ${f(med(a.main))} | ${keys.map((k) => f(cpu(k))).join(' | ')} | ${f(other)} |`);
   }
-  const raster = await page.evaluate(rasterCase);
+  const { scales, make, raster } = await page.evaluate(rasterCase);
   await page.close();
-  const { scales, kinds } = raster;
   console.log('\none frame covering a 960 × 760 view, tiles drawn at each scale (smoothing on except at 1:1), median ms to raster:');
   console.log(`| tiles | ${scales.map((s) => `${s} ×`).join(' | ')} |`);
   console.log(`|---|${scales.map(() => '---').join('|')}|`);
-  for (const [k, v] of Object.entries(kinds)) console.log(`| ${k} | ${v.map(f).join(' | ')} |`);
+  for (const [k, v] of Object.entries(raster)) console.log(`| ${k} | ${v.map(f).join(' | ')} |`);
+  console.log('\none 256 px tile made into an ImageBitmap in a Worker, ms (best of 3 rounds of 56):');
+  for (const [k, v] of Object.entries(make)) console.log(`  ${k}: ${v.toFixed(3)}`);
 } finally {
   await server.stop();
 }
