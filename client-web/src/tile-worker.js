@@ -25,9 +25,11 @@ self.onmessage = ({ data }) => {
   else if (data.type === 'abort') inFlight.get(data.id)?.abort();
 };
 
-// Bytes on the wire of every batch (the page's statistics and tests/browser/trace.mjs).
+// Bytes on the wire of every batch (the page's statistics and tests/browser/trace.mjs): the
+// Worker's fetches only, whatever else its timeline may hold (its module imports).
 new PerformanceObserver((list) => {
   for (const e of list.getEntries()) {
+    if (e.initiatorType !== 'fetch') continue;
     const shift = (t) => performance.timeOrigin + t;
     self.postMessage({
       type: 'timing',

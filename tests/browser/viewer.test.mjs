@@ -199,6 +199,10 @@ test('the page loads cleanly, requests tiles and draws them', async () => {
   assert.equal(stats.failed, 0);
   assert.equal(stats.loaded + stats.aborted, tiles.length, 'every tile asked for was loaded or aborted');
   assert.equal(stats.serverHits + stats.serverMisses, stats.loaded, 'the cache state read on every tile');
+  // Bytes on the wire, forwarded from the Worker's Resource Timing: the tile bodies plus the
+  // frame and HTTP headers of the batches.
+  const overhead = stats.wireBytes - stats.bodyBytes;
+  assert.ok(stats.aborted > 0 || (overhead > 0 && overhead < 64 * stats.requested + 1024 * stats.batches), `wire ${stats.wireBytes} B against bodies ${stats.bodyBytes} B`);
   assertClean(log);
   await page.close();
 });

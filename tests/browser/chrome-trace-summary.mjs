@@ -1,0 +1,98 @@
+// Summarises a Chromium trace written by `bench.mjs --chrome-trace FILE` (the warm-server pass):
+// where each process's threads spent their time, what the page's main thread did (time by
+// trace event, not counting events nested in it), and the canvas flushes (the software raster
+// of OpenSeadragon's drawing).
+//
+//   node tests/browser/chrome-trace-summary.mjs FILE [--views 60] [--top 15]
+//
+// --views divides the totals by the number of view changes the trace covers (bench: --steps).
+import { readFileSync } from 'node:fs';
+import { parseArgs } from 'node:util';
+
+const { values: args, positionals } = parseArgs({
+  allowPositionals: true,
+  options: { views: { type: 'string', default: '60' }, top: { type: 'string', default: '15' } },
+});
+if (positionals.length !== 1) {
+  console.error('usage: node tests/browser/chrome-trace-summary.mjs FILE [--views N] [--top N]');
+  process.exit(2);
+}
+const VIEWS = Number(args.views);
+const TOP = Number(args.top);
+const trace = JSON.parse(readFileSync(positionals[0], 'utf8'));
+const events = Array.isArray(trace) ? trace : trace.traceEvents;
+
+const processes = new Map();
+const threads = new Map();
+for (const e of events) {
+  if (e.ph !== 'M') continue;
+  if (e.name === 'process_name') processes.set(e.pid, e.args.name);
+  if (e.name === 'thread_name') threads.set(`${e.pid}/${e.tid}`, e.args.name);
+}
+const threadName = (key) => `${processes.get(Number(key.split('/')[0])) || '?'} · ${threads.get(key) || '?'}`;
+
+// Complete events ('X') by thread, in start order (an enclosing event before what it encloses).
+const byThread = new Map();
+for (const e of events) {
+  if (e.ph !== 'X' || e.dur === undefined) continue;
+  const key = `${e.pid}/${e.tid}`;
+  if (!byThread.has(key)) byThread.set(key, []);
+  byThread.get(key).push(e);
+}
+for (const list of byThread.values()) list.sort((a, b) => a.ts - b.ts || b.dur - a.dur);
+
+/** ms a thread ran tasks: the events no other event of the thread encloses. */
+function busy(list) {
+  let total = 0;
+  let end = -Infinity;
+  for (const e of list) {
+    if (e.ts >= end) {
+      total += e.dur;
+      end = e.ts + e.dur;
+    } else if (e.ts + e.dur > end) {
+      total += e.ts + e.dur - end;
+      end = e.ts + e.dur;
+    }
+  }
+  return total / 1000;
+}
+
+/** ms by event name, each event's time minus the events nested in it. */
+function selfTimes(list) {
+  const self = new Map();
+  const stack = [];
+  for (const e of list) {
+    while (stack.length && stack.at(-1).ts + stack.at(-1).dur <= e.ts) stack.pop();
+    if (stack.length) self.set(stack.at(-1).name, self.get(stack.at(-1).name) - e.dur / 1000);
+    self.set(e.name, (self.get(e.name) || 0) + e.dur / 1000);
+    stack.push(e);
+  }
+  return self;
+}
+
+const f = (v) => v.toFixed(1);
+const rows = [...byThread].map(([key, list]) => [threadName(key), busy(list)]).sort((a, b) => b[1] - a[1]);
+console.log(`| thread | busy ms | per view (${VIEWS}) |`);
+console.log('|---|---|---|');
+for (const [name, ms] of rows.slice(0, TOP)) console.log(`| ${name} | ${f(ms)} | ${f(ms / VIEWS)} |`);
+
+const main = [...byThread].filter(([key]) => threads.get(key) === 'CrRendererMain').sort((a, b) => busy(b[1]) - busy(a[1]))[0];
+if (main) {
+  const self = [...selfTimes(main[1])].sort((a, b) => b[1] - a[1]);
+  console.log(`\nthe page's main thread (${threadName(main[0])}), time by event, nested events not counted:`);
+  console.log(`| event | ms | per view |`);
+  console.log('|---|---|---|');
+  for (const [name, ms] of self.slice(0, TOP)) console.log(`| ${name} | ${f(ms)} | ${f(ms / VIEWS)} |`);
+}
+
+const flushes = events
+  .filter((e) => e.ph === 'X' && e.name === 'Canvas2DResourceProviderSharedImage::ProduceCanvasResource')
+  .map((e) => e.dur / 1000)
+  .sort((a, b) => a - b);
+if (flushes.length) {
+  const sum = flushes.reduce((a, b) => a + b, 0);
+  const q = (p) => flushes[Math.min(flushes.length - 1, Math.ceil(p * flushes.length) - 1)];
+  console.log(
+    `\ncanvas flushes: ${flushes.length}, ${f(sum)} ms (${f(sum / VIEWS)} a view); per flush p50 ${f(q(0.5))}, p95 ${f(q(0.95))}, max ${f(flushes.at(-1))} ms`,
+  );
+}
