@@ -37,11 +37,25 @@ const state = {
   frameTimes: [],
 };
 
+/**
+ * OpenSeadragon's canvas drawer on an opaque canvas (`alpha: false`). Tiles are opaque
+ * (tilesource.js `hasTransparency`) and the view's background is black, which is what an
+ * opaque canvas shows where nothing is drawn; the compositor then copies the canvas to the
+ * screen instead of blending it over the page.
+ */
+class OpaqueCanvasDrawer extends OSD.CanvasDrawer {
+  _createDrawingElement() {
+    const canvas = super._createDrawingElement();
+    canvas.getContext('2d', { alpha: false }); // the drawer's own getContext('2d') returns this one
+    return canvas;
+  }
+}
+
 const viewer = OSD({
   element: $('osd'),
   prefixUrl: 'osd/images/',
   // The 2D canvas drawer: exact pixels at 1:1 and no dependence on a GPU.
-  drawer: 'canvas',
+  drawer: OpaqueCanvasDrawer,
   showNavigator: true,
   navigatorPosition: 'BOTTOM_RIGHT',
   navigatorAutoFade: false,
@@ -394,7 +408,10 @@ $('frame-slider').addEventListener('input', (e) => {
 // Wiring
 
 viewer.addHandler('animation-finish', updateUrl);
-viewer.addHandler('update-viewport', updateReadouts);
+// After the frame's OpenSeadragon work, not inside it: the navigator reads the viewer's size
+// right after this event, and a readout changed before that read makes it lay the page out
+// there and then, a second layout in the frame.
+viewer.addHandler('update-viewport', () => queueMicrotask(updateReadouts));
 // Smooth unless tile pixels land on screen pixels one to one, or level-0 pixels are magnified:
 // past 1:1 at level 0 texels show as crisp squares, for inspection; a coarser level magnified
 // (up to 1.41 × with the `map` detail) is filtered, as a GPU filters a magnified mip level.

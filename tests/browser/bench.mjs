@@ -3,7 +3,7 @@
 //   node tests/browser/bench.mjs [--steps 60] [--pan-seconds 5] [--shots DIR] [--json FILE]
 //        [--trace] [--texture NAME] [--server-args="--tile-size 512"] [--osd JSON] [--playwright]
 //        [--format rgba|png|webp|jpg] [--detail map|sharp] [--profile FILE.cpuprofile] [--chrome-trace FILE.json]
-//        [--no-prune]
+//        [--no-prune] [--phase random|after]
 //
 // The texture is the 100k × 100k chaos mosaic (the flagship demo, as server/bench/run.sh picks
 // it) unless --texture names another. Chromium is driven over a bare DevTools pipe (cdp.mjs):
@@ -11,7 +11,12 @@
 //
 // 1. View changes: a fixed, seeded sequence of jumps, pans and zooms over the texture. For
 //    each, the time from the change (applied at once, no animation) to the end of the first
-//    OpenSeadragon frame that has drawn every tile the new view needs. Four passes:
+//    OpenSeadragon frame that has drawn every tile the new view needs. A view is done in an
+//    animation frame, so where in the frame clock the change lands counts: by default each is
+//    applied at a seeded random point of a frame, as a click, a key or a link arrives
+//    (--phase random); --phase after applies it as soon as the previous view was drawn, which
+//    locks the whole pass to one phase that depends on how long the viewer's frames take (the
+//    harness before session 6). Four passes:
 //      cold         fresh server (empty tile cache) and fresh browser profile;
 //      warm-browser same browser after a reload (tiles from its HTTP cache, OSD's memory empty);
 //      warm-server  fresh browser profile; every tile comes from the server's cache (2 GiB, so
@@ -61,12 +66,18 @@ const { values: args } = parseArgs({
     // Draw every tile in the measured passes, also those finer tiles hide (A/B of the viewer's
     // pruning, client-web/src/occlusion.js).
     'no-prune': { type: 'boolean', default: false },
+    // When each view change is applied: at a seeded random point of an animation frame
+    // (random), or right after the previous view was drawn (after).
+    phase: { type: 'string', default: 'random' },
   },
 });
 const STEPS = Number(args.steps);
 const PAN_SECONDS = Number(args['pan-seconds']);
 const PAN_SPEED = Number(args['pan-speed']); // screen pixels per frame
 const SIZE = { width: Number(args.width), height: Number(args.height) };
+if (!['random', 'after'].includes(args.phase)) throw new Error(`--phase ${args.phase}: expected random or after`);
+/** A 60 Hz display's frame interval: the range of the random phase. */
+const FRAME_MS = 1000 / 60;
 
 /** Small seeded PRNG (mulberry32) so every run replays the same session. */
 function rng(seed) {
@@ -78,6 +89,40 @@ function rng(seed) {
     t ^= t + Math.imul(t ^ (t >>> 7), t | 61);
     return ((t ^ (t >>> 14)) >>> 0) / 4294967296;
   };
+}
+
+/** A fixed piece of integer work (five million mulberry32 steps) for `cpuReference`. */
+function referenceWork(seed) {
+  let a = seed >>> 0;
+  let sum = 0;
+  for (let i = 0; i < 5_000_000; i++) {
+    a = (a + 0x6d2b79f5) >>> 0;
+    let t = Math.imul(a ^ (a >>> 15), a | 1);
+    t ^= t + Math.imul(t ^ (t >>> 7), t | 61);
+    sum += (t ^ (t >>> 14)) >>> 0;
+  }
+  return sum;
+}
+
+/**
+ * ms this machine takes for `referenceWork` (median of 5 rounds), taken before each pass: the
+ * test machine's speed swings by ±30 % within minutes and by 2× over a day (BENCHMARKS.md
+ * "Session 6"), so passes are only comparable beside it. The first call also waits until V8
+ * has optimised the work (a round takes ~4× less then), so every figure is of the same code.
+ */
+function cpuReference() {
+  const round = (seed) => {
+    const t = performance.now();
+    if (!(referenceWork(seed) > 0)) throw new Error('the reference work gave nothing');
+    return performance.now() - t;
+  };
+  if (!cpuReference.warm) {
+    const first = round(0);
+    for (let i = 1; i < 40 && round(i) > first / 2; i++);
+    cpuReference.warm = true;
+  }
+  const times = [1, 2, 3, 4, 5].map(round).sort((a, b) => a - b);
+  return times[2];
 }
 
 /** The session: views (zoom in screen px per level-0 px, centre in level-0 px). */
@@ -128,16 +173,23 @@ function summary(ms) {
   return { n: s.length, p50: q(0.5), p95: q(0.95), max: s[s.length - 1], mean: s.reduce((a, b) => a + b, 0) / s.length };
 }
 
-/** Applies `view` at once and resolves once every tile it needs is drawn. */
-function showView(page, view) {
+/**
+ * Applies `view` at once and resolves once every tile it needs is drawn. With a `delay`
+ * (ms), the change is applied that long after the start of the next animation frame;
+ * without, at once.
+ */
+function showView(page, view, delay = null) {
   return page.evaluate(
-    (view) =>
+    ({ view, delay }) =>
       // Kept on `window` until it settles: DevTools reports an awaited promise it sees
       // collected ("Promise was collected", 3 runs in ~60), and only the handlers below held it.
-      (window.__vtexShowView = new Promise((resolve, reject) => {
+      (window.__vtexShowView = (
+        delay === null ? Promise.resolve() : new Promise((r) => requestAnimationFrame(() => setTimeout(r, delay)))
+      ).then(() => new Promise((resolve, reject) => {
         const { viewer, state, setView, stats } = window.vtexViewer;
         const requested0 = stats.requested;
         const batches0 = stats.batches;
+        console.timeStamp('vtex view change'); // marks the change in a --chrome-trace
         const t0 = performance.now();
         // What is still loading, for the error: the tile source's started jobs and OSD's tiles.
         const stuck = () => {
@@ -167,8 +219,8 @@ function showView(page, view) {
         viewer.addHandler('update-viewport', check);
         setView(view, true);
         viewer.forceRedraw();
-      }).finally(() => delete window.__vtexShowView)),
-    view,
+      })).finally(() => delete window.__vtexShowView)),
+    { view, delay },
   );
 }
 
@@ -178,6 +230,10 @@ function showView(page, view) {
  * then views[i-1] is measured — its tiles are still in OpenSeadragon's memory.
  */
 async function measureViews(page, views, shots, tag, { back = false } = {}) {
+  const cpuReferenceMs = cpuReference();
+  // The same phases in every pass and run (--phase random).
+  const phase = rng(2);
+  const delay = () => (args.phase === 'random' ? phase() * FRAME_MS : null);
   const times = [];
   const tiles = [];
   const requests = [];
@@ -208,7 +264,7 @@ async function measureViews(page, views, shots, tag, { back = false } = {}) {
   for (let i = back ? 1 : 0; i < views.length; i++) {
     if (back) await showView(page, views[i]);
     if (args.trace) await page.evaluate(collectTrace, { t0: 0, t1: -1 }); // forget the unmeasured view
-    const r = await showView(page, back ? views[i - 1] : views[i]);
+    const r = await showView(page, back ? views[i - 1] : views[i], delay());
     times.push(r.ms);
     tiles.push(r.tiles);
     requests.push(r.requests);
@@ -223,7 +279,7 @@ async function measureViews(page, views, shots, tag, { back = false } = {}) {
   const canvas = {};
   for (const k of ['full', 'incremental', 'drawnTiles', 'drawnPixels', 'pixels', 'hidden', 'hiddenPixels']) canvas[k] = canvas1[k] === undefined ? null : (canvas1[k] - canvas0[k]) / times.length;
   const perView = (v) => v.reduce((a, b) => a + (b || 0), 0) / v.length;
-  return { ...summary(times), tilesPerView: perView(tiles), requestsPerView: perView(requests), canvasPerView: canvas, times, tiles, breakdowns };
+  return { ...summary(times), tilesPerView: perView(tiles), requestsPerView: perView(requests), canvasPerView: canvas, cpuReferenceMs, times, tiles, breakdowns };
 }
 
 /**
@@ -412,7 +468,7 @@ async function idle(page) {
 if (args.shots) mkdirSync(args.shots, { recursive: true });
 const serverArgs = ['--cache-mb', '2048', ...args['server-args'].split(/\s+/).filter(Boolean)];
 const server = await startServer({ extraArgs: serverArgs });
-const results = { when: new Date().toISOString(), viewport: SIZE, steps: STEPS, serverArgs, osd: args.osd || null, format: args.format || null, detail: args.detail || null, driver: args.playwright ? 'playwright' : 'cdp' };
+const results = { when: new Date().toISOString(), viewport: SIZE, steps: STEPS, phase: args.phase, serverArgs, osd: args.osd || null, format: args.format || null, detail: args.detail || null, driver: args.playwright ? 'playwright' : 'cdp' };
 try {
   const textures = (await (await fetch(`${server.url}/api/v1/textures`)).json()).textures;
   const big = pickTexture(textures, args.texture);
@@ -468,9 +524,9 @@ try {
 }
 
 const f = (v) => v.toFixed(1);
-console.log(`texture ${results.texture.name} (${results.texture.model}), ${results.viewport.width}×${results.viewport.height} browser viewport, ${STEPS} view changes${args['no-prune'] ? ', no pruning' : ''}${args.format ? `, ${args.format} tiles` : ''}${args.detail ? `, detail ${args.detail}` : ''}${args.osd ? `, OSD options ${args.osd}` : ''}, server ${serverArgs.join(' ')}, driven by ${results.driver}`);
-console.log('| view change → every visible tile drawn | p50 ms | p95 ms | max ms | tiles/view | requests/view |');
-console.log('|---|---|---|---|---|---|');
+console.log(`texture ${results.texture.name} (${results.texture.model}), ${results.viewport.width}×${results.viewport.height} browser viewport, ${STEPS} view changes (phase ${args.phase})${args['no-prune'] ? ', no pruning' : ''}${args.format ? `, ${args.format} tiles` : ''}${args.detail ? `, detail ${args.detail}` : ''}${args.osd ? `, OSD options ${args.osd}` : ''}, server ${serverArgs.join(' ')}, driven by ${results.driver}`);
+console.log('| view change → every visible tile drawn | p50 ms | p95 ms | max ms | tiles/view | requests/view | machine reference ms |');
+console.log('|---|---|---|---|---|---|---|');
 for (const [k, label] of [
   ['cold', 'cold (empty server cache, fresh browser)'],
   ['warmServer', 'warm server cache, fresh browser'],
@@ -478,8 +534,9 @@ for (const [k, label] of [
   ['warmViewer', 'warm viewer: back to the previous view (tiles in memory)'],
 ]) {
   const r = results[k];
-  console.log(`| ${label} | ${f(r.p50)} | ${f(r.p95)} | ${f(r.max)} | ${r.tilesPerView.toFixed(1)} | ${r.requestsPerView.toFixed(1)} |`);
+  console.log(`| ${label} | ${f(r.p50)} | ${f(r.p95)} | ${f(r.max)} | ${r.tilesPerView.toFixed(1)} | ${r.requestsPerView.toFixed(1)} | ${f(r.cpuReferenceMs)} |`);
 }
+console.log('(machine reference: a fixed piece of JS timed in this process before the pass; lower is a faster machine)');
 console.log(`\n| continuous pan, ${PAN_SPEED} px/frame for ${PAN_SECONDS} s at level 0 | frames | p50 ms | p95 ms | max ms | > 33 ms | > 50 ms | tiles |`);
 console.log('|---|---|---|---|---|---|---|---|');
 for (const [k, label] of [

@@ -3,18 +3,22 @@
 // trace event, not counting events nested in it), and the canvas flushes (the software raster
 // of OpenSeadragon's drawing).
 //
-//   node tests/browser/chrome-trace-summary.mjs FILE [--views 60] [--top 15]
+//   node tests/browser/chrome-trace-summary.mjs FILE [--views 60] [--top 15] [--view N]
 //
 // --views divides the totals by the number of view changes the trace covers (bench: --steps).
+// --view N prints the timeline of view change N (from 0) instead: every thread's tasks of
+// 0.15 ms and more from the change (bench.mjs marks it with console.timeStamp) to the next,
+// in ms after the change, with the events that took most of each: where a view's time went,
+// frame by frame.
 import { readFileSync } from 'node:fs';
 import { parseArgs } from 'node:util';
 
 const { values: args, positionals } = parseArgs({
   allowPositionals: true,
-  options: { views: { type: 'string', default: '60' }, top: { type: 'string', default: '15' } },
+  options: { views: { type: 'string', default: '60' }, top: { type: 'string', default: '15' }, view: { type: 'string' } },
 });
 if (positionals.length !== 1) {
-  console.error('usage: node tests/browser/chrome-trace-summary.mjs FILE [--views N] [--top N]');
+  console.error('usage: node tests/browser/chrome-trace-summary.mjs FILE [--views N] [--top N] [--view N]');
   process.exit(2);
 }
 const VIEWS = Number(args.views);
@@ -71,6 +75,10 @@ function selfTimes(list) {
 }
 
 const f = (v) => v.toFixed(1);
+if (args.view !== undefined) {
+  printView(Number(args.view));
+  process.exit(0);
+}
 const rows = [...byThread].map(([key, list]) => [threadName(key), busy(list)]).sort((a, b) => b[1] - a[1]);
 console.log(`| thread | busy ms | per view (${VIEWS}) |`);
 console.log('|---|---|---|');
@@ -95,4 +103,45 @@ if (flushes.length) {
   console.log(
     `\ncanvas flushes: ${flushes.length}, ${f(sum)} ms (${f(sum / VIEWS)} a view); per flush p50 ${f(q(0.5))}, p95 ${f(q(0.95))}, max ${f(flushes.at(-1))} ms`,
   );
+}
+
+/** The events of `list` that no other event of it encloses, in order. */
+function topLevel(list) {
+  const out = [];
+  let end = -Infinity;
+  for (const e of list) {
+    if (e.ts >= end) {
+      out.push(e);
+      end = e.ts + e.dur;
+    }
+  }
+  return out;
+}
+
+/** Timeline of view change `n`: each thread's tasks from its change to the next change. */
+function printView(n) {
+  const marks = events
+    .filter((e) => e.name === 'TimeStamp' && JSON.stringify(e.args || {}).includes('vtex view change'))
+    .map((e) => e.ts)
+    .sort((a, b) => a - b);
+  if (n < 0 || n >= marks.length) {
+    console.error(`--view ${n}: the trace marks ${marks.length} view changes (bench.mjs --chrome-trace)`);
+    process.exit(2);
+  }
+  const t0 = marks[n];
+  const t1 = n + 1 < marks.length ? marks[n + 1] : Infinity;
+  const at = (ts) => f((ts - t0) / 1000);
+  console.log(`view change ${n}: ms after the change, tasks of 0.15 ms and more, until the next change${Number.isFinite(t1) ? ` (${at(t1)} ms)` : ''}`);
+  for (const [key, list] of byThread) {
+    const tasks = topLevel(list).filter((e) => e.ts + e.dur > t0 && e.ts < t1);
+    const shown = tasks.filter((e) => e.dur >= 150);
+    if (!shown.length) continue;
+    const ms = tasks.reduce((a, e) => a + Math.min(e.ts + e.dur, t1) - Math.max(e.ts, t0), 0) / 1000;
+    console.log(`\n${threadName(key)}: busy ${f(ms)} ms`);
+    for (const e of shown) {
+      const inside = list.filter((c) => c !== e && c.ts >= e.ts && c.ts + c.dur <= e.ts + e.dur).sort((a, b) => b.dur - a.dur);
+      const what = inside.slice(0, 3).map((c) => `${c.name} ${f(c.dur / 1000)}`).join(', ');
+      console.log(`  ${at(e.ts).padStart(6)} +${f(e.dur / 1000).padStart(5)}  ${e.name}${what ? `  [${what}]` : ''}`);
+    }
+  }
 }

@@ -168,6 +168,20 @@ export function viewBreakdown(view) {
     critical.net = last.rt.responseEnd > 0 ? last.rt.responseEnd - last.rt.responseStart : NaN;
   }
   const firstWant = tiles.length ? Math.min(...tiles.map((r) => r.want)) - t0 : NaN;
+  // When the view's last tile reached each stage (ms after the change), and when its frames ran:
+  // a view is drawn in the first frame after `ready`.
+  const last = (f) => {
+    const v = done.map(f).filter(Number.isFinite);
+    return v.length ? Math.max(...v) - t0 : NaN;
+  };
+  const milestones = {
+    lastByte: last((r) => r.rt.responseEnd),
+    arrived: last((r) => r.arrived),
+    ready: last((r) => r.ready),
+    frames: frames.map((f) => f.t - t0),
+    // OpenSeadragon's update and draw in each of those frames (ms)
+    frameJs: frames.map((f) => [f.update, f.draw]),
+  };
   const levels = {};
   for (const r of tiles) {
     const m = r.src.match(/\/tiles\/(\d+)\//);
@@ -192,6 +206,7 @@ export function viewBreakdown(view) {
     loafRenderMs: (view.loaf || []).reduce((a, e) => a + e.render, 0),
     loafScripts: (view.loaf || []).flatMap((e) => e.scripts),
     gaps: frames.slice(1).map((f, i) => f.t - frames[i].t),
+    milestones,
     perTile,
     critical,
   };
@@ -223,6 +238,10 @@ export function formatBreakdown(label, breakdowns) {
   for (const s of breakdowns.flatMap((b) => b.loafScripts)) byWhat.set(s.what, (byWhat.get(s.what) || 0) + s.d);
   const top = [...byWhat].sort((a, b) => b[1] - a[1]).slice(0, 6);
   out.push(`${label}: scripts in long frames, ms per view: ${top.map(([w, d]) => `${w}: ${f(d / breakdowns.length)}`).join('; ') || '–'}`);
+  const ms = (k) => breakdowns.map((b) => b.milestones[k]).filter(Number.isFinite);
+  out.push(
+    `${label}: a view's last tile, ms after the change, p50 / p95: last byte ${f(q(ms('lastByte'), 0.5))} / ${f(q(ms('lastByte'), 0.95))}, frame complete in the Worker ${f(q(ms('arrived'), 0.5))} / ${f(q(ms('arrived'), 0.95))}, handed to OpenSeadragon ${f(q(ms('ready'), 0.5))} / ${f(q(ms('ready'), 0.95))}`,
+  );
   out.push(`\n${label}: per view, along the tile drawn last (mean over views; p95 view time ${f(q(breakdowns.map((b) => b.total), 0.95))} ms)`);
   out.push('| view total | → first ask | → last tile asked | queue | connect | server | stream | (of it network first → last byte) | decode | draw | → detected | frames | JS in OSD update+draw | of it draw | tiles | requests | misses |');
   out.push('|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|');
