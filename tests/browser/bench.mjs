@@ -91,38 +91,39 @@ function rng(seed) {
   };
 }
 
-/** A fixed piece of integer work (five million mulberry32 steps) for `cpuReference`. */
-function referenceWork(seed) {
-  let a = seed >>> 0;
+/** A fixed piece of integer work for `cpuReference`: `n` mulberry32 steps, summed in int32. */
+function referenceWork(seed, n) {
+  let a = seed | 0;
   let sum = 0;
-  for (let i = 0; i < 5_000_000; i++) {
-    a = (a + 0x6d2b79f5) >>> 0;
+  for (let i = 0; i < n; i++) {
+    a = (a + 0x6d2b79f5) | 0;
     let t = Math.imul(a ^ (a >>> 15), a | 1);
     t ^= t + Math.imul(t ^ (t >>> 7), t | 61);
-    sum += (t ^ (t >>> 14)) >>> 0;
+    sum = (sum + (t ^ (t >>> 14))) | 0;
   }
   return sum;
 }
 
 /**
- * ms this machine takes for `referenceWork` (median of 5 rounds), taken before each pass: the
- * test machine's speed swings by ±30 % within minutes and by 2× over a day (BENCHMARKS.md
- * "Session 6"), so passes are only comparable beside it. The first call also waits until V8
- * has optimised the work (a round takes ~4× less then), so every figure is of the same code.
+ * ms this machine takes for five million steps of `referenceWork` (median of 5 rounds), taken
+ * before and after each pass: the test machine's speed swings by 2× within minutes
+ * (BENCHMARKS.md "Session 6"), so passes are only comparable beside it. The first call warms
+ * V8 up first (type feedback, then one optimised round), so every figure is of the same code.
  */
 function cpuReference() {
   const round = (seed) => {
     const t = performance.now();
-    if (!(referenceWork(seed) > 0)) throw new Error('the reference work gave nothing');
-    return performance.now() - t;
+    const sum = referenceWork(seed, 5_000_000);
+    return [performance.now() - t, sum];
   };
   if (!cpuReference.warm) {
-    const first = round(0);
-    for (let i = 1; i < 40 && round(i) > first / 2; i++);
+    for (let i = 0; i < 100; i++) referenceWork(i, 1000);
+    round(0);
     cpuReference.warm = true;
   }
-  const times = [1, 2, 3, 4, 5].map(round).sort((a, b) => a - b);
-  return times[2];
+  const rounds = [1, 2, 3, 4, 5].map(round);
+  if (rounds.every(([, sum]) => sum === 0)) throw new Error('the reference work gave nothing');
+  return rounds.map(([ms]) => ms).sort((a, b) => a - b)[2];
 }
 
 /** The session: views (zoom in screen px per level-0 px, centre in level-0 px). */
@@ -230,7 +231,7 @@ function showView(page, view, delay = null) {
  * then views[i-1] is measured — its tiles are still in OpenSeadragon's memory.
  */
 async function measureViews(page, views, shots, tag, { back = false } = {}) {
-  const cpuReferenceMs = cpuReference();
+  const referenceBefore = cpuReference();
   // The same phases in every pass and run (--phase random).
   const phase = rng(2);
   const delay = () => (args.phase === 'random' ? phase() * FRAME_MS : null);
@@ -279,6 +280,7 @@ async function measureViews(page, views, shots, tag, { back = false } = {}) {
   const canvas = {};
   for (const k of ['full', 'incremental', 'drawnTiles', 'drawnPixels', 'pixels', 'hidden', 'hiddenPixels']) canvas[k] = canvas1[k] === undefined ? null : (canvas1[k] - canvas0[k]) / times.length;
   const perView = (v) => v.reduce((a, b) => a + (b || 0), 0) / v.length;
+  const cpuReferenceMs = [referenceBefore, cpuReference()];
   return { ...summary(times), tilesPerView: perView(tiles), requestsPerView: perView(requests), canvasPerView: canvas, cpuReferenceMs, times, tiles, breakdowns };
 }
 
@@ -525,7 +527,7 @@ try {
 
 const f = (v) => v.toFixed(1);
 console.log(`texture ${results.texture.name} (${results.texture.model}), ${results.viewport.width}×${results.viewport.height} browser viewport, ${STEPS} view changes (phase ${args.phase})${args['no-prune'] ? ', no pruning' : ''}${args.format ? `, ${args.format} tiles` : ''}${args.detail ? `, detail ${args.detail}` : ''}${args.osd ? `, OSD options ${args.osd}` : ''}, server ${serverArgs.join(' ')}, driven by ${results.driver}`);
-console.log('| view change → every visible tile drawn | p50 ms | p95 ms | max ms | tiles/view | requests/view | machine reference ms |');
+console.log('| view change → every visible tile drawn | p50 ms | p95 ms | max ms | tiles/view | requests/view | machine reference ms, before / after |');
 console.log('|---|---|---|---|---|---|---|');
 for (const [k, label] of [
   ['cold', 'cold (empty server cache, fresh browser)'],
@@ -534,9 +536,9 @@ for (const [k, label] of [
   ['warmViewer', 'warm viewer: back to the previous view (tiles in memory)'],
 ]) {
   const r = results[k];
-  console.log(`| ${label} | ${f(r.p50)} | ${f(r.p95)} | ${f(r.max)} | ${r.tilesPerView.toFixed(1)} | ${r.requestsPerView.toFixed(1)} | ${f(r.cpuReferenceMs)} |`);
+  console.log(`| ${label} | ${f(r.p50)} | ${f(r.p95)} | ${f(r.max)} | ${r.tilesPerView.toFixed(1)} | ${r.requestsPerView.toFixed(1)} | ${r.cpuReferenceMs.map(f).join(' / ')} |`);
 }
-console.log('(machine reference: a fixed piece of JS timed in this process before the pass; lower is a faster machine)');
+console.log('(machine reference: a fixed piece of JS timed in this process before and after the pass; lower is a faster machine)');
 console.log(`\n| continuous pan, ${PAN_SPEED} px/frame for ${PAN_SECONDS} s at level 0 | frames | p50 ms | p95 ms | max ms | > 33 ms | > 50 ms | tiles |`);
 console.log('|---|---|---|---|---|---|---|---|');
 for (const [k, label] of [
