@@ -40,8 +40,8 @@ const state = {
 /**
  * OpenSeadragon's canvas drawer on an opaque canvas (`alpha: false`). Tiles are opaque
  * (tilesource.js `hasTransparency`) and the view's background is black, which is what an
- * opaque canvas shows where nothing is drawn; the compositor then copies the canvas to the
- * screen instead of blending it over the page.
+ * opaque canvas shows where nothing is drawn; the compositor then leaves out what lies under
+ * the canvas instead of drawing it and blending the canvas over it.
  */
 class OpaqueCanvasDrawer extends OSD.CanvasDrawer {
   _createDrawingElement() {

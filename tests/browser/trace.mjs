@@ -179,8 +179,6 @@ export function viewBreakdown(view) {
     arrived: last((r) => r.arrived),
     ready: last((r) => r.ready),
     frames: frames.map((f) => f.t - t0),
-    // OpenSeadragon's update and draw in each of those frames (ms)
-    frameJs: frames.map((f) => [f.update, f.draw]),
   };
   const levels = {};
   for (const r of tiles) {
