@@ -1,7 +1,8 @@
 // Summarises a Chromium trace written by `bench.mjs --chrome-trace FILE` (the warm-server pass):
-// where each process's threads spent their time, what the page's main thread did (time by
-// trace event, not counting events nested in it), and the canvas flushes (the software raster
-// of OpenSeadragon's drawing).
+// where each process's threads spent their time, what the page's main thread and the display
+// compositor did (time and count by trace event, not counting events nested in it; the
+// compositor's `SoftwareRenderer::DoDrawQuad` are the quads it drew), and the canvas flushes
+// (the software raster of OpenSeadragon's drawing).
 //
 //   node tests/browser/chrome-trace-summary.mjs FILE [--views 60] [--top 15] [--view N]
 //
@@ -61,14 +62,17 @@ function busy(list) {
   return total / 1000;
 }
 
-/** ms by event name, each event's time minus the events nested in it. */
+/** By event name: { ms, count }, each event's time minus the events nested in it. */
 function selfTimes(list) {
   const self = new Map();
+  const entry = (name) => self.get(name) || self.set(name, { ms: 0, count: 0 }).get(name);
   const stack = [];
   for (const e of list) {
     while (stack.length && stack.at(-1).ts + stack.at(-1).dur <= e.ts) stack.pop();
-    if (stack.length) self.set(stack.at(-1).name, self.get(stack.at(-1).name) - e.dur / 1000);
-    self.set(e.name, (self.get(e.name) || 0) + e.dur / 1000);
+    if (stack.length) entry(stack.at(-1).name).ms -= e.dur / 1000;
+    const own = entry(e.name);
+    own.ms += e.dur / 1000;
+    own.count++;
     stack.push(e);
   }
   return self;
@@ -84,13 +88,18 @@ console.log(`| thread | busy ms | per view (${VIEWS}) |`);
 console.log('|---|---|---|');
 for (const [name, ms] of rows.slice(0, TOP)) console.log(`| ${name} | ${f(ms)} | ${f(ms / VIEWS)} |`);
 
-const main = [...byThread].filter(([key]) => threads.get(key) === 'CrRendererMain').sort((a, b) => busy(b[1]) - busy(a[1]))[0];
-if (main) {
-  const self = [...selfTimes(main[1])].sort((a, b) => b[1] - a[1]);
-  console.log(`\nthe page's main thread (${threadName(main[0])}), time by event, nested events not counted:`);
-  console.log(`| event | ms | per view |`);
-  console.log('|---|---|---|');
-  for (const [name, ms] of self.slice(0, TOP)) console.log(`| ${name} | ${f(ms)} | ${f(ms / VIEWS)} |`);
+for (const [thread, label] of [
+  ['CrRendererMain', "the page's main thread"],
+  ['VizCompositorThread', 'the display compositor'],
+]) {
+  // The busiest of the threads so named (the page's renderer, not the about:blank one).
+  const found = [...byThread].filter(([key]) => threads.get(key) === thread).sort((a, b) => busy(b[1]) - busy(a[1]))[0];
+  if (!found) continue;
+  const self = [...selfTimes(found[1])].sort((a, b) => b[1].ms - a[1].ms);
+  console.log(`\n${label} (${threadName(found[0])}), time by event, nested events not counted:`);
+  console.log(`| event | ms | per view | count |`);
+  console.log('|---|---|---|---|');
+  for (const [name, { ms, count }] of self.slice(0, TOP)) console.log(`| ${name} | ${f(ms)} | ${f(ms / VIEWS)} | ${count} |`);
 }
 
 const flushes = events
