@@ -233,45 +233,56 @@ for (const format of ['rgba', 'png', 'webp']) {
 test('a view drawn tile by tile as its tiles arrive equals the same view redrawn in full', async () => {
   const { page, log } = await openViewer(browser.context, `${server.url}/?texture=${big.id}&zoom=0.02&x=50000&y=50000`);
   await waitForIdle(page);
-  // The canvas's pixels after the view settled, then after a forced full redraw.
-  const canvasPixels = () =>
-    page.evaluate(() => {
-      const c = window.vtexViewer.viewer.drawer.canvas;
-      return Array.from(c.getContext('2d').getImageData(0, 0, c.width, c.height).data);
-    });
-  const redrawn = () =>
+  // Canvas bytes that change when the settled view is redrawn in full (forced), counted in the
+  // page: the canvas's ~3 MB cross to the test only as that count.
+  const changedByFullRedraw = () =>
     page.evaluate(
       () =>
         new Promise((resolve) => {
           const { viewer, frames } = window.vtexViewer;
+          const c = viewer.drawer.canvas;
+          const pixels = () => c.getContext('2d').getImageData(0, 0, c.width, c.height).data;
+          const drawn = pixels();
           const full = frames.full;
           viewer.forceRedraw();
-          const check = () => (frames.full > full ? resolve() : requestAnimationFrame(check));
+          const check = () => {
+            if (frames.full === full) return requestAnimationFrame(check);
+            const now = pixels();
+            let differing = now.length === drawn.length ? 0 : Infinity;
+            for (let i = 0; i < now.length; i++) if (drawn[i] !== now[i]) differing++;
+            resolve(differing);
+          };
           requestAnimationFrame(check);
         }),
     );
   // Minified and magnified (smoothing on, tiles enlarged by a pixel) and at 1:1, each into
-  // texture never seen.
-  for (const [zoom, x, y] of [
-    [0.37, 21_000, 64_000],
-    [0.6, 33_000, 81_000],
-    [1, 61_000 + 0.5, 12_000 + 0.5],
+  // texture never seen. Whether a view gets incremental frames depends on the order its tiles
+  // arrive in: a coarser tile after finer ones (the preview is slower to make than level 0), or
+  // one that could only be drawn clipped where the drawer cannot clip exactly, makes the frame
+  // a full one (drawing.js `tilesToAdd`). So each zoom has places to try, in turn, until one of
+  // them was drawn incrementally (the minified and magnified views always are; at 1:1 about one
+  // place in five is not); every place's canvas is compared with its full redraw.
+  for (const [zoom, places] of [
+    [0.37, [[21_000, 64_000]]],
+    [0.6, [[33_000, 81_000]]],
+    [1, [[61_000.5, 12_000.5], [71_000.5, 22_000.5], [81_000.5, 32_000.5], [91_000.5, 42_000.5]]],
   ]) {
-    const before = await page.evaluate(() => ({ ...window.vtexViewer.frames }));
-    await page.evaluate((v) => window.vtexViewer.setView(v, true), { zoom, x, y });
-    await waitForIdle(page);
-    const after = await page.evaluate(() => ({ ...window.vtexViewer.frames }));
-    assert.ok(after.incremental > before.incremental, `tiles were added to frames without a full redraw (zoom ${zoom}): ${JSON.stringify([before, after])}`);
-    const drawn = await canvasPixels();
-    await redrawn();
-    const full = await canvasPixels();
-    assert.equal(drawn.length, full.length);
-    let differing = 0;
-    for (let i = 0; i < full.length; i++) if (drawn[i] !== full[i]) differing++;
-    assert.equal(differing, 0, `canvas bytes that differ from a full redraw at zoom ${zoom}`);
+    const counts = [];
+    for (const [x, y] of places) {
+      const before = await page.evaluate(() => ({ ...window.vtexViewer.frames }));
+      await page.evaluate((v) => window.vtexViewer.setView(v, true), { zoom, x, y });
+      await waitForIdle(page);
+      const after = await page.evaluate(() => ({ ...window.vtexViewer.frames }));
+      counts.push([before, after]);
+      assert.equal(await changedByFullRedraw(), 0, `canvas bytes that differ from a full redraw at zoom ${zoom}, (${x}, ${y})`);
+      if (after.incremental > before.incremental) break;
+    }
+    const [before, after] = counts.at(-1);
+    assert.ok(after.incremental > before.incremental, `tiles were added to frames without a full redraw (zoom ${zoom}): ${JSON.stringify(counts)}`);
   }
   assertClean(log);
   await page.close();
+
 });
 
 test('tiles hidden under finer ones are not drawn, and every frame equals the frame drawn without that', async (t) => {
