@@ -70,7 +70,12 @@ export async function launchBare(url, { width = 1280, height = 800, initScript }
   const page = (method, params) => send(method, params, sessionId);
   // The page's viewport exactly width × height (as Playwright's `viewport`), whatever the window.
   await page('Emulation.setDeviceMetricsOverride', { width, height, deviceScaleFactor: 1, mobile: false });
-  if (initScript) await page('Page.addScriptToEvaluateOnNewDocument', { source: initScript });
+  if (initScript) {
+    // Without the Page domain enabled Chromium takes the script and never runs it (until
+    // session 7, `bench.mjs --osd` changed nothing over this driver).
+    await page('Page.enable');
+    await page('Page.addScriptToEvaluateOnNewDocument', { source: initScript });
+  }
   await page('Page.navigate', { url });
 
   /** Runs `fn(arg)` in the page (awaiting a returned promise) and returns its JSON value. */

@@ -2,7 +2,8 @@
 // where each process's threads spent their time, what the page's main thread and the display
 // compositor did (time and count by trace event, not counting events nested in it; the
 // compositor's `SoftwareRenderer::DoDrawQuad` are the quads it drew), and the canvas flushes
-// (the software raster of OpenSeadragon's drawing).
+// (the software raster of OpenSeadragon's drawing), and the JavaScript V8 sampled on the page's
+// main thread and the tile Worker's thread, by function.
 //
 //   node tests/browser/chrome-trace-summary.mjs FILE [--views 60] [--top 15] [--view N]
 //
@@ -112,6 +113,55 @@ if (flushes.length) {
   console.log(
     `\ncanvas flushes: ${flushes.length}, ${f(sum)} ms (${f(sum / VIEWS)} a view); per flush p50 ${f(q(0.5))}, p95 ${f(q(0.95))}, max ${f(flushes.at(-1))} ms`,
   );
+}
+
+// JavaScript as V8's sampler saw it (the trace's `disabled-by-default-v8.cpu_profiler` category):
+// self time by function on the page's main thread and on the tile Worker's thread, where the
+// trace events above show only "RunTask" for the Worker's script.
+const samples = sampledJs();
+for (const [thread, label] of [
+  ['CrRendererMain', "the page's main thread"],
+  ['DedicatedWorker thread', "the tile Worker's thread"],
+]) {
+  const found = [...samples].filter(([key]) => threads.get(key) === thread).sort((a, b) => b[1].busy - a[1].busy)[0];
+  if (!found) continue;
+  const [key, { self, busy: ms }] = found;
+  console.log(`\n${label} (${threadName(key)}), JS sampled by V8: ${f(ms)} ms not idle (${f(ms / VIEWS)} a view), self time by function:`);
+  console.log(`| function | ms | per view |`);
+  console.log('|---|---|---|');
+  for (const [name, t] of [...self].sort((a, b) => b[1] - a[1]).slice(0, TOP)) console.log(`| ${name} | ${f(t)} | ${f(t / VIEWS)} |`);
+}
+
+/** Per thread key: { self: Map(function → ms), busy: ms } from the trace's V8 sample chunks. */
+function sampledJs() {
+  const profiles = new Map(); // pid/profile id → { key, nodes, samples, deltas }
+  for (const e of events) {
+    if (e.name === 'Profile') profiles.set(`${e.pid}/${e.id}`, { key: `${e.pid}/${e.tid}`, nodes: new Map(), samples: [], deltas: [] });
+    if (e.name !== 'ProfileChunk') continue;
+    const p = profiles.get(`${e.pid}/${e.id}`);
+    const data = e.args && e.args.data;
+    if (!p || !data) continue;
+    for (const n of (data.cpuProfile && data.cpuProfile.nodes) || []) p.nodes.set(n.id, n);
+    p.samples.push(...((data.cpuProfile && data.cpuProfile.samples) || []));
+    p.deltas.push(...(data.timeDeltas || []));
+  }
+  const out = new Map();
+  for (const p of profiles.values()) {
+    const self = new Map();
+    let total = 0;
+    // A sample's time is the interval to the next one.
+    for (let i = 0; i + 1 < p.samples.length; i++) {
+      const frame = (p.nodes.get(p.samples[i]) || {}).callFrame || {};
+      if (frame.functionName === '(idle)') continue;
+      const where = frame.url ? ` ${frame.url.replace(/^.*\//, '')}:${frame.lineNumber + 1}` : '';
+      const name = `${frame.functionName || '(anonymous)'}${where}`;
+      const ms = p.deltas[i + 1] / 1000;
+      self.set(name, (self.get(name) || 0) + ms);
+      total += ms;
+    }
+    if (total > 0) out.set(p.key, { self, busy: total });
+  }
+  return out;
 }
 
 /** The events of `list` that no other event of it encloses, in order. */
