@@ -7,7 +7,6 @@ import { FORMATS, parseView, formatView } from './view-url.js';
 import { DEFAULT_DETAIL, DETAIL, drawLevel, vtexLevel } from './pyramid.js';
 import { scheduleTiles } from './loader.js';
 import { drawIncrementally } from './drawing.js';
-import { holdPaint } from './hold.js';
 
 const OSD = window.OpenSeadragon;
 const $ = (id) => document.getElementById(id);
@@ -89,7 +88,6 @@ const viewer = OSD({
 });
 scheduleTiles(viewer);
 const frames = drawIncrementally(viewer);
-const hold = holdPaint(viewer);
 
 // ---------------------------------------------------------------------------------------
 // Texture list, picker and opening
@@ -472,7 +470,7 @@ $('reset-stats').addEventListener('click', () => {
 setInterval(renderStats, 250);
 
 // Hooks for the end-to-end tests and the measured session in tests/browser/.
-window.vtexViewer = { viewer, stats, state, frames, hold, getView, setView, drawnLevels, openTexture, findTexture, showFrame };
+window.vtexViewer = { viewer, stats, state, frames, getView, setView, drawnLevels, openTexture, findTexture, showFrame };
 
 async function start() {
   renderStats();

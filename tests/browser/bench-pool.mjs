@@ -2,8 +2,11 @@
 // its three slowest views of 60, and from run to run it moves by more than most changes do
 // (BENCHMARKS.md "Viewer"). Groups of runs (an A/B comparison) are separated by `--`.
 //
-//   node tests/browser/bench-pool.mjs A1.json A2.json … [-- B1.json B2.json …] [--views N] [--fast MS]
+//   node tests/browser/bench-pool.mjs A1.json A2.json … [-- B1.json B2.json …] [--views N] [--fast MS] [--drawn]
 //
+// Times are to the end of the main-thread work of the frame that completed each view, raster
+// included (bench.mjs `rasterTimes`); with --drawn, to its draw calls (`times`: the figure up to
+// session 6, and the only one of runs before session 7).
 // For each group and pass: views pooled, mean, p50 / p75 / p90 / p95, views over the warm
 // target (30 ms), each run's p95, and the machine reference (bench.mjs cpuReference: mean of
 // the before and after figures of every run's pass; lower is a faster machine). With
@@ -17,15 +20,17 @@ import { readFileSync } from 'node:fs';
 const argv = process.argv.slice(2);
 let views = 0;
 let fast = null;
+let field = 'rasterTimes';
 const groups = [[]];
 for (let i = 0; i < argv.length; i++) {
   if (argv[i] === '--views') views = Number(argv[++i]);
+  else if (argv[i] === '--drawn') field = 'times';
   else if (argv[i] === '--fast') fast = Number(argv[++i]);
   else if (argv[i] === '--') groups.push([]);
   else groups.at(-1).push(argv[i]);
 }
 if (groups.some((g) => g.length === 0) || !Number.isInteger(views) || views < 0 || (fast !== null && !(fast > 0))) {
-  console.error('usage: node tests/browser/bench-pool.mjs RUN.json … [-- RUN.json …] [--views N] [--fast MS]');
+  console.error('usage: node tests/browser/bench-pool.mjs RUN.json … [-- RUN.json …] [--views N] [--fast MS] [--drawn]');
   process.exit(2);
 }
 
@@ -40,9 +45,20 @@ const quantile = (sorted, p) => sorted[Math.min(sorted.length - 1, Math.max(0, M
 const f = (v) => (Number.isFinite(v) ? v.toFixed(1) : '–');
 const mean = (v) => v.reduce((a, b) => a + b, 0) / v.length;
 
+const loaded = groups.map((files) =>
+  files.map((file) => {
+    const run = JSON.parse(readFileSync(file, 'utf8'));
+    if (!run.warmServer || !run.warmServer[field]) {
+      console.error(`${file}: no ${field} (a run before session 7? try --drawn)`);
+      process.exit(2);
+    }
+    return run;
+  }),
+);
+/** A pass's view times at the chosen end point. */
+const timesOf = (pass) => pass[field];
 console.log('| group | pass | runs | views | mean | p50 | p75 | p90 | p95 | > 30 ms | per-run p95 | machine reference ms |');
 console.log('|---|---|---|---|---|---|---|---|---|---|---|---|');
-const loaded = groups.map((files) => files.map((file) => JSON.parse(readFileSync(file, 'utf8'))));
 /** Whether a pass ran with the machine at its fast speed throughout (--fast). */
 const isFast = (pass) => (pass.cpuReferenceMs || []).length === 2 && pass.cpuReferenceMs.every((ms) => ms < fast);
 loaded.forEach((runs, g) => {
@@ -64,10 +80,10 @@ loaded.forEach((runs, g) => {
 function row(g, label, passes) {
   if (!passes.length) return;
   {
-    const t = passes.flatMap((p) => p.times).sort((a, b) => a - b);
+    const t = passes.flatMap(timesOf).sort((a, b) => a - b);
     const over = t.filter((x) => x > WARM_TARGET_MS).length;
     const reference = passes.flatMap((p) => p.cpuReferenceMs || []);
-    const perRun = passes.map((p) => f(p.p95)).join(', ');
+    const perRun = passes.map((p) => f(quantile([...timesOf(p)].sort((a, b) => a - b), 0.95))).join(', ');
     console.log(
       `| ${String.fromCharCode(65 + g)} | ${label} | ${passes.length} | ${t.length} | ${f(mean(t))} | ${f(quantile(t, 0.5))} | ${f(quantile(t, 0.75))} | ${f(quantile(t, 0.9))} | **${f(quantile(t, 0.95))}** | ${over} | ${perRun} | ${reference.length ? f(mean(reference)) : '–'} |`,
     );
@@ -78,9 +94,9 @@ if (views > 0) {
   loaded.forEach((runs, g) => {
     const passes = runs.map((r) => r.warmServer).filter(Boolean);
     if (!passes.length) return;
-    const n = Math.min(...passes.map((p) => p.times.length));
+    const n = Math.min(...passes.map((p) => timesOf(p).length));
     const rows = Array.from({ length: n }, (_, i) => {
-      const t = passes.map((p) => p.times[i]);
+      const t = passes.map((p) => timesOf(p)[i]);
       return { i, tiles: passes[0].tiles[i], mean: mean(t), t };
     }).sort((a, b) => b.mean - a.mean);
     console.log(`\ngroup ${String.fromCharCode(65 + g)}, warm server: the ${views} views slowest on average (view index from 0, tiles, mean ms, ms in each run)`);

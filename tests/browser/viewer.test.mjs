@@ -233,8 +233,6 @@ for (const format of ['rgba', 'png', 'webp']) {
 test('a view drawn tile by tile as its tiles arrive equals the same view redrawn in full', async () => {
   const { page, log } = await openViewer(browser.context, `${server.url}/?texture=${big.id}&zoom=0.02&x=50000&y=50000`);
   await waitForIdle(page);
-  // The frames drawn while tiles arrive are the subject: no paint holding (hold.js).
-  await page.evaluate(() => (window.vtexViewer.hold.ms = 0));
   // Canvas bytes that change when the settled view is redrawn in full (forced), counted in the
   // page: the canvas's ~3 MB cross to the test only as that count.
   const changedByFullRedraw = () =>
@@ -290,7 +288,6 @@ test('a view drawn tile by tile as its tiles arrive equals the same view redrawn
 test('tiles hidden under finer ones are not drawn, and every frame equals the frame drawn without that', async (t) => {
   const { page, log } = await openViewer(browser.context, `${server.url}/?texture=${big.id}&zoom=0.02&x=50000&y=50000`);
   await waitForIdle(page);
-  await page.evaluate(() => (window.vtexViewer.hold.ms = 0)); // every frame while tiles arrive
   assert.equal(await page.evaluate(() => window.vtexViewer.frames.centres), true, 'Chromium draws axis-aligned images by pixel centres');
   // After every frame that left tiles or parts of tiles out or drew new tiles clipped under old ones, the
   // canvas's bytes, then the same frame drawn again in full by OpenSeadragon with every tile
@@ -530,51 +527,6 @@ test("a tile the server refuses fails with the server's message, and the viewer 
   assert.deepEqual(await page.evaluate(() => window.vtexViewer.drawnLevels()), [1]);
   assert.deepEqual(log.errors, [], 'console errors');
   assert.equal(log.badResponses.length, 1, `the refused batch only: ${log.badResponses}`);
-  await page.close();
-});
-
-test('a view set at once keeps the complete view on screen until its own tiles are in', async () => {
-  const { page, log } = await openViewer(browser.context, `${server.url}/?texture=${big.id}&zoom=0.3&x=31000&y=62000`);
-  await waitForIdle(page);
-  /**
-   * Jumps to `view` with the tile batches held back `delayMs` on their way, and counts the
-   * frames drawn and the hold's counts until the view is complete.
-   */
-  const jump = async (view, delayMs) => {
-    const slow = (route) => new Promise((resolve) => setTimeout(resolve, delayMs)).then(() => route.continue());
-    await page.route(/\/tiles\?/, slow);
-    const counts = await page.evaluate(
-      (view) =>
-        new Promise((resolve) => {
-          const { viewer, frames, hold, state, setView } = window.vtexViewer;
-          const drawn = () => frames.full + frames.incremental;
-          const before = { drawn: drawn(), holds: hold.holds, held: hold.held, expired: hold.expired };
-          const check = () => {
-            if (!state.item.getFullyLoaded() || viewer.world.needsDraw()) return;
-            viewer.removeHandler('update-viewport', check);
-            resolve({ drawn: drawn() - before.drawn, holds: hold.holds - before.holds, held: hold.held - before.held, expired: hold.expired - before.expired });
-          };
-          viewer.addHandler('update-viewport', check);
-          setView(view, true);
-        }),
-      view,
-    );
-    await page.unroute(/\/tiles\?/, slow);
-    return counts;
-  };
-  // Tiles within the hold (5 s here, so that no machine is too slow for it): no frame until the
-  // view is complete, then the whole view in one frame, no stand-ins first.
-  await page.evaluate(() => (window.vtexViewer.hold.ms = 5000));
-  const held = await jump({ zoom: 0.3, x: 36_000, y: 62_000 }, 150);
-  assert.deepEqual({ holds: held.holds, expired: held.expired, drawn: held.drawn }, { holds: 1, expired: 0, drawn: 1 }, JSON.stringify(held));
-  assert.ok(held.held >= 1, `frames held while the tiles came: ${JSON.stringify(held)}`);
-  // Tiles slower than the default hold: at its deadline the view is drawn from what there is
-  // (coarser tiles enlarged), then completed.
-  await page.evaluate(() => (window.vtexViewer.hold.ms = 50));
-  const late = await jump({ zoom: 0.3, x: 41_000, y: 62_000 }, 300);
-  assert.equal(late.expired, 1, JSON.stringify(late));
-  assert.ok(late.drawn >= 2, `stand-ins at the deadline, then the view: ${JSON.stringify(late)}`);
-  assertClean(log);
   await page.close();
 });
 
