@@ -7,6 +7,7 @@
 // Times are to the end of the main-thread work of the frame that completed each view, raster
 // included (bench.mjs `rasterTimes`); with --drawn, to its draw calls (`times`: the figure up to
 // session 6, and the only one of runs before session 7).
+//
 // For each group and pass: views pooled, mean, p50 / p75 / p90 / p95, views over the warm
 // target (30 ms), each run's p95, and the machine reference (bench.mjs cpuReference: mean of
 // the before and after figures of every run's pass; lower is a faster machine). With
@@ -79,15 +80,13 @@ loaded.forEach((runs, g) => {
 /** One line of the table: the passes `passes` of group `g`, pooled. */
 function row(g, label, passes) {
   if (!passes.length) return;
-  {
-    const t = passes.flatMap(timesOf).sort((a, b) => a - b);
-    const over = t.filter((x) => x > WARM_TARGET_MS).length;
-    const reference = passes.flatMap((p) => p.cpuReferenceMs || []);
-    const perRun = passes.map((p) => f(quantile([...timesOf(p)].sort((a, b) => a - b), 0.95))).join(', ');
-    console.log(
-      `| ${String.fromCharCode(65 + g)} | ${label} | ${passes.length} | ${t.length} | ${f(mean(t))} | ${f(quantile(t, 0.5))} | ${f(quantile(t, 0.75))} | ${f(quantile(t, 0.9))} | **${f(quantile(t, 0.95))}** | ${over} | ${perRun} | ${reference.length ? f(mean(reference)) : '–'} |`,
-    );
-  }
+  const t = passes.flatMap(timesOf).sort((a, b) => a - b);
+  const over = t.filter((x) => x > WARM_TARGET_MS).length;
+  const reference = passes.flatMap((p) => p.cpuReferenceMs || []);
+  const perRun = passes.map((p) => f(quantile([...timesOf(p)].sort((a, b) => a - b), 0.95))).join(', ');
+  console.log(
+    `| ${String.fromCharCode(65 + g)} | ${label} | ${passes.length} | ${t.length} | ${f(mean(t))} | ${f(quantile(t, 0.5))} | ${f(quantile(t, 0.75))} | ${f(quantile(t, 0.9))} | **${f(quantile(t, 0.95))}** | ${over} | ${perRun} | ${reference.length ? f(mean(reference)) : '–'} |`,
+  );
 }
 
 if (views > 0) {
