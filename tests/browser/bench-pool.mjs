@@ -17,6 +17,7 @@
 // also split in two: the passes whose machine references, before and after, were both under
 // MS (the machine at its fast speed throughout), and the rest.
 import { readFileSync } from 'node:fs';
+import { percentile } from '../../client-web/src/stats.js';
 
 const argv = process.argv.slice(2);
 let views = 0;
@@ -42,7 +43,6 @@ const PASSES = [
   ['warmViewer', 'warm viewer'],
 ];
 const WARM_TARGET_MS = 30;
-const quantile = (sorted, p) => sorted[Math.min(sorted.length - 1, Math.max(0, Math.ceil(p * sorted.length) - 1))];
 const f = (v) => (Number.isFinite(v) ? v.toFixed(1) : '–');
 const mean = (v) => v.reduce((a, b) => a + b, 0) / v.length;
 
@@ -80,12 +80,12 @@ loaded.forEach((runs, g) => {
 /** One line of the table: the passes `passes` of group `g`, pooled. */
 function row(g, label, passes) {
   if (!passes.length) return;
-  const t = passes.flatMap(timesOf).sort((a, b) => a - b);
+  const t = passes.flatMap(timesOf);
   const over = t.filter((x) => x > WARM_TARGET_MS).length;
   const reference = passes.flatMap((p) => p.cpuReferenceMs || []);
-  const perRun = passes.map((p) => f(quantile([...timesOf(p)].sort((a, b) => a - b), 0.95))).join(', ');
+  const perRun = passes.map((p) => f(percentile(timesOf(p), 0.95))).join(', ');
   console.log(
-    `| ${String.fromCharCode(65 + g)} | ${label} | ${passes.length} | ${t.length} | ${f(mean(t))} | ${f(quantile(t, 0.5))} | ${f(quantile(t, 0.75))} | ${f(quantile(t, 0.9))} | **${f(quantile(t, 0.95))}** | ${over} | ${perRun} | ${reference.length ? f(mean(reference)) : '–'} |`,
+    `| ${String.fromCharCode(65 + g)} | ${label} | ${passes.length} | ${t.length} | ${f(mean(t))} | ${f(percentile(t, 0.5))} | ${f(percentile(t, 0.75))} | ${f(percentile(t, 0.9))} | **${f(percentile(t, 0.95))}** | ${over} | ${perRun} | ${reference.length ? f(mean(reference)) : '–'} |`,
   );
 }
 
