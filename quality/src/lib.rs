@@ -1,4 +1,4 @@
-//! vtex-quality: network-free texture metrics that every vtex model is judged with (DESIGN §5).
+//! vtex-quality: network-free texture metrics that every vtex model is judged with.
 //!
 //! Each metric compares a synthesized output with the sample it was made from, or inspects the
 //! output alone, without any learned model or network:

@@ -5,7 +5,7 @@
 //        [--format rgba|png|webp|jpg] [--detail map|sharp] [--profile FILE.cpuprofile] [--chrome-trace FILE.json]
 //        [--no-prune] [--phase random|after]
 //
-// The texture is the 100k × 100k chaos mosaic (the flagship demo, as server/bench/run.sh picks
+// The texture is the 100k × 100k chaos mosaic (the flagship demo, as bench/server/run.sh picks
 // it) unless --texture names another. Chromium is driven over a bare DevTools pipe (cdp.mjs):
 // Playwright's network instrumentation would add ~2 ms of CPU to every tile request.
 //
@@ -391,7 +391,7 @@ function serverDelta(a, b) {
 
 /**
  * The texture to measure: by default the 100k × 100k chaos mosaic, the flagship demo (as
- * server/bench/run.sh picks it); `--texture` names another (name, id or model).
+ * bench/server/run.sh picks it); `--texture` names another (name, id or model).
  */
 function pickTexture(textures, key) {
   const big = (t) => t.width >= 100_000 && t.height >= 100_000;

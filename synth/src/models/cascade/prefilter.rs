@@ -1,4 +1,5 @@
-//! Coarse mip levels without brute force (DESIGN §3.3).
+//! Coarse mip levels without brute force: each level approximates the 2×2-box downsample of
+//! the level below, which a 100k texture cannot afford to compute.
 //!
 //! Level L must approximate the 2×2-box chain of level 0, i.e. the mean colour of each
 //! 2^L × 2^L block. Levels up to `exact_levels` are computed exactly (render level 0,

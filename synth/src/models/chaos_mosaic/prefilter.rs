@@ -1,4 +1,5 @@
-//! Mip levels without brute force (DESIGN §3.3).
+//! Mip levels without brute force: each level approximates the 2×2-box downsample of the
+//! level below, which a 100k texture cannot afford to compute.
 //!
 //! Levels 1..=[`EXACT_LEVELS`] are computed exactly: the level-0 footprint is rendered and
 //! box-filtered 2×2 at a time, the reference filter itself (cost 4^L a pixel).
@@ -197,7 +198,7 @@ fn by_remainder(n: usize, side: usize) -> Vec<u32> {
 }
 
 /// The box tables of one sample, one a power-of-two side, each built on first use and kept:
-/// at most 13 tables of at most 5 MiB with their means (a 160² sample's take 300–500 KiB each). A
+/// at most 13 tables of at most 5 MiB with their means. A
 /// cached table is the table built afresh, so the cache never changes a result.
 #[derive(Default)]
 pub(super) struct BoxTables([OnceLock<Option<BoxTable>>; 13]);
@@ -365,7 +366,7 @@ impl ChaosMosaic {
         let fine = f + 2 * reach <= sw.min(sh) / 2;
         let coarse = f >= 2 * sw.max(sh);
         // One cell from half a sample on: 4× fewer layer look-ups through the tile index, for
-        // 1.6–2.0 dB at levels 7–8 of the 100k demo (docs/models/chaos-mosaic.md).
+        // a small loss of accuracy at the levels where a footprint spans half a sample.
         let cells = if 2 * f >= sw.min(sh) { 1 } else { CELLS.min(f / 2) } as usize;
         let tiles_met = ((x1 - x0 + 2 * reach) / sw + 2) as u64 * ((y1 - y0 + 2 * reach) / sh + 2) as u64;
         let (entries, tiles) = self.index.blocks_per_tile();

@@ -2,16 +2,18 @@
 # Load benchmarks of `vtex serve` on loopback, each beside a baseline in the same run:
 #   1. warm tiles/s and p50/p99 at 8 and 64 connections, vtex vs nginx serving the same
 #      tile bytes as static files;
-#   2. cold 256² tiles per format over HTTP (every request a tile never seen before);
-#   3. resident memory after a long pan with a 256 MB cache.
+#   2. cold 256² tiles per format over HTTP (every request a tile never seen before), beside
+#      raw RGBA (synthesis + HTTP with no encoder);
+#   3. resident memory after a long pan with a 256 MB cache, beside the bytes the cache holds;
+#   4. start-up: opening an empty data directory (writing the demos) and reopening it.
 # Needs: wrk, nginx, curl, python3 (apt-get install wrk nginx curl python3).
-# Usage: server/bench/run.sh [--only warm|cold|memory] [--rounds N] [--tmpfs] [--reuseport]
+# Usage: bench/server/run.sh [--only warm|cold|memory|startup] [--rounds N] [--tmpfs] [--reuseport]
 #                            [seconds per run, default 10]
-#   (--only runs one section, for quick comparisons; the default runs all three. --rounds
+#   (--only runs one section, for quick comparisons; the default runs all four. --rounds
 #   repeats the warm comparison N times, nginx and vtex interleaved, since single runs on a
-#   small machine swing by ±15 %. --tmpfs adds a third warm row: the same nginx serving a copy
-#   of the tiles from /dev/shm, whose pages are all 4 KiB — the control for what page size
-#   costs the client, BENCHMARKS.md "Warm tiles". --reuseport adds nginx listening with
+#   shared machine swing widely. --tmpfs adds a third warm row: the same nginx serving a copy
+#   of the tiles from /dev/shm, whose pages are all 4 KiB — the control for what the page size
+#   of the tile bytes costs the client. --reuseport adds nginx listening with
 #   `reuseport`: one socket per worker, so the kernel spreads connections over both workers
 #   — the stronger baseline when the default's accept leaves one worker doing everything)
 set -euo pipefail
@@ -28,7 +30,7 @@ while [ $# -gt 1 ]; do
     *) break;;
   esac
 done
-case "$ONLY" in all|warm|cold|memory) ;; *) echo "--only takes warm, cold or memory" >&2; exit 2;; esac
+case "$ONLY" in all|warm|cold|memory|startup) ;; *) echo "--only takes warm, cold, memory or startup" >&2; exit 2;; esac
 section() { [ "$ONLY" = all ] || [ "$ONLY" = "$1" ]; }
 DUR=${1:-10}
 ROOT=$(cd "$(dirname "$0")/../.." && pwd)
@@ -46,8 +48,8 @@ trap cleanup EXIT
 cargo build --release -q -p vtex-server --manifest-path "$ROOT/Cargo.toml"
 BIN="${CARGO_TARGET_DIR:-$ROOT/target}/release/vtex"
 
-start_vtex() { # $1 = cache MB
-  VTEX_LOG=warn "$BIN" serve --bind 127.0.0.1:0 --data-dir "$WORK/data" --cache-mb "$1" \
+start_vtex() { # $1 = cache MB, $2 = data directory (default $WORK/data)
+  VTEX_LOG=${LOG:-warn} "$BIN" serve --bind 127.0.0.1:0 --data-dir "${2:-$WORK/data}" --cache-mb "$1" \
     --web-dir "$WORK/none" > "$WORK/vtex.out" 2> "$WORK/vtex.err" &
   VTEX_PID=$!
   for _ in $(seq 1 600); do grep -q listening "$WORK/vtex.out" 2>/dev/null && break; sleep 0.1; done
@@ -118,10 +120,12 @@ run_wrk() {
 echo "# vtex server benchmarks — $(date -u +%FT%TZ), $(nproc) CPUs, loopback, ${DUR}s per run"
 echo
 echo "load average before: $(cut -d' ' -f1-3 /proc/loadavg)"
+if [ "$ONLY" != startup ]; then
 start_vtex 256
 ID=$(curl -s "$VTEX/api/v1/textures" | python3 -c '
 import json, sys
 print(next(t["id"] for t in json.load(sys.stdin)["textures"] if t["width"] == 100000 and t["model"] == "chaos-mosaic"))')
+fi
 
 if section warm; then
 # 1. Warm tiles: 64 PNG tiles of the 100k mosaic, fetched once into vtex's cache and
@@ -232,7 +236,7 @@ LUA
   done
 done
 fi
-stop_vtex
+[ -z "$VTEX_PID" ] || stop_vtex
 
 if section memory; then
 # 3. Memory: a long pan over level 0 (every request a new PNG tile) with a 256 MB cache.
@@ -263,6 +267,20 @@ echo "| cache budget | cache bytes held | mapped for them | RSS at start | RSS a
 echo "|---|---|---|---|---|---|"
 echo "| $((${BUDGET%.*} / 1048576)) MiB | $((${CACHE%.*} / 1048576)) MiB | $((${MAPPED%.*} / 1048576)) MiB | $((RSS0 / 1024)) MiB | $((RSS1 / 1024)) MiB | $((HWM / 1024)) MiB |"
 stop_vtex
+fi
+if section startup; then
+# 4. Start-up: the store's own timing of opening the data directory, from its log line
+#    ("store opened … ms=N"): first with an empty directory (the demos are written, then
+#    loaded), then the same directory again (loaded and validated).
+startup_ms() { sed 's/\x1b\[[0-9;]*m//g' "$WORK/vtex.err" | sed -n 's/.*store opened.* ms=\([0-9]*\).*/\1/p'; }
+LOG=info start_vtex 256 "$WORK/data-startup"; FIRST=$(startup_ms); stop_vtex
+LOG=info start_vtex 256 "$WORK/data-startup"; AGAIN=$(startup_ms); stop_vtex
+echo
+echo "## Start-up (the store opened, ms)"
+echo
+echo "| empty data directory (demos written and loaded) | same directory again (loaded and validated) |"
+echo "|---|---|"
+echo "| $FIRST | $AGAIN |"
 fi
 echo
 echo "load average after: $(cut -d' ' -f1-3 /proc/loadavg)"
