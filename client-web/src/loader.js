@@ -15,7 +15,7 @@ export function wantedLevel(level, finest) {
 
 /**
  * Two changes to how OpenSeadragon 5 feeds its image loader, both measured with
- * `node tests/browser/bench.mjs --trace` (BENCHMARKS.md, "Viewer"):
+ * `node bench/viewer/bench.mjs --trace` (BENCHMARKS.md, "Viewer"):
  *
  * 1. It empties the loader's queue after every draw (`drawWorld` in viewer.js), so a request
  *    slot freed between two frames stays idle until the next frame. Here the queue is kept

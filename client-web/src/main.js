@@ -469,7 +469,7 @@ $('reset-stats').addEventListener('click', () => {
 
 setInterval(renderStats, 250);
 
-// Hooks for the end-to-end tests and the measured session in tests/browser/.
+// Hooks for the end-to-end tests (tests/browser/) and the viewer bench (bench/viewer/).
 window.vtexViewer = { viewer, stats, state, frames, getView, setView, drawnLevels, openTexture, findTexture, showFrame };
 
 async function start() {

@@ -10,7 +10,7 @@
 // the last full overwrite of a pixel decides its value, whatever was under it; so does drawing
 // a tile clipped to the pixels nothing overwrites later. In the frames of 60 view loads where
 // this applies, it rasters 0.67 instead of 1.32 Mpx (a 960 × 760 view is 0.73) and the frame's
-// draw and raster take 5.0 instead of 8.8 ms (`node tests/browser/raster-cost.mjs`).
+// draw and raster take 5.0 instead of 8.8 ms (`node bench/viewer/raster-cost.mjs`).
 //
 // Which pixels a drawImage touches and which it overwrites whole depends on the rasterizer: with
 // anti-aliased edges a tile's fractional edge blends into the pixel's previous value, so a

@@ -107,7 +107,7 @@ export function createTileSource(OSD, info, { frame = 0, format = 'png', stats }
   });
   // Jobs started and neither finished nor aborted (loader.js drops those a view left).
   source.vtexInFlight = inFlight;
-  // Resource Timing of the batches by URL (the Worker's; tests/browser/trace.mjs).
+  // Resource Timing of the batches by URL (the Worker's; bench/viewer/trace.mjs).
   source.vtexTimings = loader.timings;
   return source;
 }
@@ -137,7 +137,7 @@ function releaseImage(image) {
  * switched, an animation frame loaded behind the visible one): batches by id, each { onTile,
  * onEnd }. Resource Timing entries of the batches (which the page does not see: the Worker
  * fetches them) go to `stats` (the latest tile source's; the page has one) and to `timings`
- * (by URL, for tests/browser/trace.mjs), shifted to the page's clock.
+ * (by URL, for bench/viewer/trace.mjs), shifted to the page's clock.
  */
 let shared = null;
 function tileLoader(stats) {
@@ -206,7 +206,7 @@ function loadBatch(loader, info, jobs, { frame, format, stats }) {
   const url = batchUrl(info, tiles, frame, format);
   for (const job of jobs) {
     job.userData.batch = batch;
-    job.userData.batchUrl = url; // for tests/browser/trace.mjs
+    job.userData.batchUrl = url; // for bench/viewer/trace.mjs
   }
   stats.batchStarted();
   // A job is settled once its tile came (or the batch failed): it no longer counts as live.

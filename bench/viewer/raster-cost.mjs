@@ -2,7 +2,7 @@
 // tiles and hidden parts of tiles (client-web/src/occlusion.js), in the states view loads pass
 // through.
 //
-//   node tests/browser/raster-cost.mjs      (needs target/release/vtex and client-web/dist)
+//   node bench/viewer/raster-cost.mjs      (needs target/release/vtex and client-web/dist)
 //
 // 60 seeded view changes (jumps at zooms 1/128 … 2, half-to-one-screen pans, zooms × 2 or ÷ 2)
 // over the 100k × 100k chaos mosaic, twice: the first pass warms the server's cache, the second
@@ -11,7 +11,7 @@
 // getImageData, which makes Chromium raster the recorded drawing — the work its canvas flush
 // (Canvas2DResourceProviderSharedImage::ProduceCanvasResource) does for a frame — before it
 // returns. Reports the median per frame, summarised over the frames.
-import { launchBrowser, openViewer, startServer, waitForIdle } from './lib.mjs';
+import { launchBrowser, openViewer, startServer, waitForIdle } from '../../tests/browser/lib.mjs';
 const server = await startServer({ extraArgs: ['--cache-mb', '2048'] });
 const textures = (await (await fetch(`${server.url}/api/v1/textures`)).json()).textures;
 const big = textures.find((t) => t.model === 'chaos-mosaic' && t.width >= 100_000);

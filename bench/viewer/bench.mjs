@@ -1,6 +1,6 @@
 // A measured pan-and-zoom session in headless Chromium against a real `vtex serve` (loopback).
 //
-//   node tests/browser/bench.mjs [--steps 60] [--pan-seconds 5] [--shots DIR] [--json FILE]
+//   node bench/viewer/bench.mjs [--steps 60] [--pan-seconds 5] [--shots DIR] [--json FILE]
 //        [--trace] [--texture NAME] [--server-args="--tile-size 512"] [--osd JSON] [--playwright]
 //        [--format rgba|png|webp|jpg] [--detail map|sharp] [--profile FILE.cpuprofile] [--chrome-trace FILE.json]
 //        [--no-prune] [--phase random|after]
@@ -32,7 +32,7 @@
 //    animation-frame interval, cold and then warm (the same path again).
 import { parseArgs } from 'node:util';
 import { mkdirSync, writeFileSync } from 'node:fs';
-import { launchBrowser, openViewer, startServer, viewerIdle } from './lib.mjs';
+import { launchBrowser, openViewer, startServer, viewerIdle } from '../../tests/browser/lib.mjs';
 import { launchBare } from './cdp.mjs';
 import { collectTrace, formatBreakdown, installTracer, viewBreakdown } from './trace.mjs';
 
@@ -45,7 +45,7 @@ const { values: args } = parseArgs({
     json: { type: 'string' },
     width: { type: 'string', default: '1280' },
     height: { type: 'string', default: '800' },
-    // Per-stage timing of every view change (tests/browser/trace.mjs); adds a little overhead.
+    // Per-stage timing of every view change (bench/viewer/trace.mjs); adds a little overhead.
     trace: { type: 'boolean', default: false },
     // DevTools CPU profile of the page's main thread during the warm-server pass, written to
     // FILE (.cpuprofile, opens in DevTools) and summarised per view (bare DevTools driver only).
@@ -58,7 +58,7 @@ const { values: args } = parseArgs({
     // Server flags, e.g. --server-args "--max-syntheses 4".
     'server-args': { type: 'string', default: '' },
     // Drive Chromium with Playwright (its network instrumentation costs ~2 ms CPU per request)
-    // instead of the bare DevTools pipe (tests/browser/cdp.mjs).
+    // instead of the bare DevTools pipe (bench/viewer/cdp.mjs).
     playwright: { type: 'boolean', default: false },
     // Texture to measure (name, id or model); default: the 100k × 100k chaos mosaic.
     texture: { type: 'string' },
@@ -476,7 +476,7 @@ function profileSummary(profile, views) {
   };
 }
 
-/** Resolves when every tile the current view needs is loaded and drawn (lib.mjs waitForIdle). */
+/** Resolves when every tile the current view needs is loaded and drawn (tests/browser/lib.mjs waitForIdle). */
 async function idle(page) {
   await page.evaluate(() => new Promise((r) => requestAnimationFrame(() => requestAnimationFrame(r))));
   await page.waitFor(viewerIdle);
