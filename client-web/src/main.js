@@ -6,7 +6,7 @@ import { TileStats, formatBytes, formatRatio } from './stats.js';
 import { FORMATS, parseView, formatView } from './view-url.js';
 import { DEFAULT_DETAIL, DETAIL, drawLevel, vtexLevel } from './pyramid.js';
 import { updateEarly } from './loader.js';
-import { keepBatchesOnDraw, vtexDrawer } from './osd-adapter.js';
+import { fetchWantedLevels, keepBatchesOnDraw, vtexDrawer } from './osd-adapter.js';
 
 const OSD = window.OpenSeadragon;
 const $ = (id) => document.getElementById(id);
@@ -67,7 +67,7 @@ const viewer = OSD({
   blendTime: 0,
   // The level drawn: pyramid.js DETAIL, set per texture opened (openTexture).
   minPixelRatio: DETAIL[DEFAULT_DETAIL],
-  immediateRender: false, // coarsest first: a preview, then the finest level
+  immediateRender: false, // coarsest first: a preview (osd-adapter.js fetchWantedLevels), then the finest level
   // Ask for every tile the view needs in its first frame (OSD's default of one a frame makes
   // a view crawl in), all at once: the tile source sends the jobs of one update as one
   // batched request (tilesource.js), so the loader sets no limit (0) — a limit would split a
@@ -81,6 +81,7 @@ const viewer = OSD({
   crossOriginPolicy: false,
 });
 keepBatchesOnDraw(viewer);
+fetchWantedLevels(viewer);
 updateEarly(viewer);
 
 // ---------------------------------------------------------------------------------------

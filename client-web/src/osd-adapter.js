@@ -28,6 +28,8 @@ export const PRIVATE_MEMBERS = [
   { path: 'viewer.imageLoader.clear', type: 'function' },
   { path: 'viewer.imageLoader.jobLimit', type: 'number' },
   { path: 'viewer.navigator.imageLoader.clear', type: 'function' },
+  // Wrapped: the jobs of one update, filtered by level before they reach the batch.
+  { path: 'viewer.imageLoader.addJob', type: 'function' },
 ];
 
 /** Throws unless `OSD` is the release this module was written against. */
@@ -107,4 +109,54 @@ export function keepBatchesOnDraw(viewer) {
     };
     viewer.addHandler('close', clear);
   }
+}
+
+/** Levels coarser than the finest at which a view's preview is loaded (≤ 2 × 2 tiles). */
+export const PREVIEW_STEPS = 3;
+
+/**
+ * Whether a tile of OpenSeadragon level `level` is worth fetching while the finest level a view
+ * asks for is `finest` (OSD levels count up from the single-tile level 0): the finest level, one
+ * preview level PREVIEW_STEPS coarser, and the single whole-texture tile, the fallback under
+ * everything (OSD never evicts it).
+ */
+export function wantedLevel(level, finest) {
+  return level === finest || level === finest - PREVIEW_STEPS || level === 0;
+}
+
+/**
+ * Fetches only `wantedLevel` levels of what the viewer's own tiled images ask for. While tiles of
+ * the finest level are missing OpenSeadragon asks for every coarser level under them too, for a
+ * progressive preview: a third of a view's tiles, and the mid levels are the dearest to
+ * synthesize. The jobs OpenSeadragon adds in one task (one update: every tile the view needs)
+ * are collected and, in a microtask, handed on in its order when wanted; the others are given
+ * back (`abort`: the tile is not loading after all, and a later view may ask for it again).
+ * They reach the tile source's batch either way before it is flushed. Coarser tiles already in
+ * memory are still drawn under missing ones.
+ */
+export function fetchWantedLevels(viewer) {
+  const loader = viewer.imageLoader;
+  const addJob = loader.addJob.bind(loader);
+  let pending = null;
+  const flush = () => {
+    const jobs = pending;
+    pending = null;
+    const finest = Math.max(...jobs.map((o) => (o.tile && Number.isInteger(o.tile.level) ? o.tile.level : -Infinity)));
+    for (const options of jobs) {
+      const level = options.tile && options.tile.level;
+      if (Number.isInteger(level) && !wantedLevel(level, finest)) {
+        if (typeof options.abort === 'function') options.abort();
+      } else {
+        addJob(options);
+      }
+    }
+  };
+  loader.addJob = (options) => {
+    if (!pending) {
+      pending = [];
+      queueMicrotask(flush);
+    }
+    pending.push(options);
+    return false; // not started at once: the batch starts it
+  };
 }

@@ -6,6 +6,7 @@ import { DETAIL, inPyramid, levelSize, osdLevel, tileCount, tileUrl, vtexLevel, 
 import { formatView, parseView } from '../src/view-url.js';
 import { TileStats, formatBytes, formatRatio, percentile } from '../src/stats.js';
 import { updateEarly } from '../src/loader.js';
+import { PREVIEW_STEPS, fetchWantedLevels, wantedLevel } from '../src/osd-adapter.js';
 import { FrameReader, HEADER_LEN, MAGIC, MAX_BATCH, READ_BUFFER_BYTES, batchUrl, readChunks, tileKey } from '../src/batch.js';
 
 const big = { id: 'ab'.repeat(32), width: 100_000, height: 100_000, levels: 10, tile_size: 256, animated: false };
@@ -128,6 +129,35 @@ test('byte counts and ratios read well', () => {
   assert.equal(formatRatio(30_000_000_000, 12_345), '2,430,134 : 1');
   assert.equal(formatRatio(30, 4), '7.50 : 1');
   assert.equal(formatRatio(1, 0), '–');
+});
+
+test('only the finest level, one preview level and the whole-texture tile are fetched', () => {
+  assert.equal(PREVIEW_STEPS, 3);
+  assert.ok(wantedLevel(9, 9) && wantedLevel(6, 9) && wantedLevel(0, 9));
+  for (const level of [8, 7, 5, 4, 1]) assert.ok(!wantedLevel(level, 9), `level ${level}`);
+  assert.ok(wantedLevel(2, 2) && wantedLevel(0, 2) && !wantedLevel(1, 2));
+});
+
+test("the jobs of one task reach the loader in OpenSeadragon's order, unwanted levels given back", async () => {
+  const added = [];
+  const aborted = [];
+  const viewer = { imageLoader: { addJob: (o) => added.push(o.src) } };
+  fetchWantedLevels(viewer);
+  const job = (src, level) => ({ src, tile: { level }, abort: () => aborted.push(src) });
+  for (const [src, level] of [['top', 0], ['mid', 5], ['preview', 6], ['coarse', 8], ['a', 9], ['b', 9]]) {
+    viewer.imageLoader.addJob(job(src, level));
+  }
+  assert.deepEqual(added, [], 'held until the task that added them is over');
+  await Promise.resolve();
+  assert.deepEqual(added, ['top', 'preview', 'a', 'b']);
+  assert.deepEqual(aborted, ['mid', 'coarse'], 'dropped tiles are marked as not loading');
+  // The next task's jobs are judged on their own: its finest level is 6.
+  viewer.imageLoader.addJob(job('c', 6));
+  viewer.imageLoader.addJob(job('d', 3));
+  viewer.imageLoader.addJob(job('e', 5));
+  await Promise.resolve();
+  assert.deepEqual(added.slice(4), ['c', 'd']);
+  assert.deepEqual(aborted.slice(2), ['e']);
 });
 
 /** A stand-in for OpenSeadragon's viewer: handlers by event, a world counting its updates. */
