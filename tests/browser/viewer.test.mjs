@@ -203,7 +203,7 @@ test('the page loads cleanly, requests tiles and draws them', async () => {
   // frame and HTTP headers of the batches.
   const overhead = stats.wireBytes - stats.bodyBytes;
   assert.ok(stats.aborted > 0 || (overhead > 0 && overhead < 64 * stats.requested + 1024 * stats.batches), `wire ${stats.wireBytes} B against bodies ${stats.bodyBytes} B`);
-  // The view's canvas is opaque (main.js OpaqueCanvasDrawer).
+  // The view's canvas is opaque (osd-adapter.js vtexDrawer).
   const alpha = await page.evaluate(() => window.vtexViewer.viewer.drawer.context.getContextAttributes().alpha);
   assert.equal(alpha, false, "the view's canvas has no alpha channel");
   assertClean(log);
