@@ -30,7 +30,7 @@ export function tileKey(level, x, y) {
  * buffer of its own — or, with `reuse`, into one buffer the reader keeps for every split frame
  * (`body` is then valid only during `onFrame`, which must copy what it keeps): a fresh 256 KiB
  * buffer costs the browser ~0.2 ms to allocate and fill, as much as the copy
- * (tests/browser/ingest.mjs).
+ * (bench/viewer/ingest.mjs).
  */
 export class FrameReader {
   constructor(onFrame, { reuse = false } = {}) {
@@ -103,7 +103,7 @@ export const READ_BUFFER_BYTES = 2 << 20;
  * chunk is read into one buffer that goes back and forth between the stream and `push`,
  * taken from and returned to `buffers` (a pool shared by the batches): a default reader
  * allocates a fresh ArrayBuffer for every chunk, which costs the page's main thread ~1 ms of
- * CPU a MB (tests/browser/ingest.mjs: 15 MB read with 16 ms of main-thread CPU, 6 ms here).
+ * CPU a MB (bench/viewer/ingest.mjs: 15 MB read with 16 ms of main-thread CPU, 6 ms here).
  */
 export async function readChunks(body, push, buffers = []) {
   let reader;

@@ -5,8 +5,8 @@ import { createTileSource } from './tilesource.js';
 import { TileStats, formatBytes, formatRatio } from './stats.js';
 import { FORMATS, parseView, formatView } from './view-url.js';
 import { DEFAULT_DETAIL, DETAIL, drawLevel, vtexLevel } from './pyramid.js';
-import { scheduleTiles } from './loader.js';
-import { drawIncrementally } from './drawing.js';
+import { updateEarly } from './loader.js';
+import { fetchWantedLevels, keepBatchesOnDraw, vtexDrawer } from './osd-adapter.js';
 
 const OSD = window.OpenSeadragon;
 const $ = (id) => document.getElementById(id);
@@ -37,25 +37,15 @@ const state = {
   frameTimes: [],
 };
 
-/**
- * OpenSeadragon's canvas drawer on an opaque canvas (`alpha: false`). Tiles are opaque
- * (tilesource.js `hasTransparency`) and the view's background is black, which is what an
- * opaque canvas shows where nothing is drawn; the compositor then leaves out what lies under
- * the canvas instead of drawing it and blending the canvas over it.
- */
-class OpaqueCanvasDrawer extends OSD.CanvasDrawer {
-  _createDrawingElement() {
-    const canvas = super._createDrawingElement();
-    canvas.getContext('2d', { alpha: false }); // the drawer's own getContext('2d') returns this one
-    return canvas;
-  }
-}
+// A tile's ImageBitmap is freed when OpenSeadragon drops it from its cache, not at the next
+// garbage collection.
+OSD.converter.learnDestroy('imageBitmap', (bitmap) => bitmap.close());
 
 const viewer = OSD({
   element: $('osd'),
   prefixUrl: 'osd/images/',
-  // The 2D canvas drawer: exact pixels at 1:1 and no dependence on a GPU.
-  drawer: OpaqueCanvasDrawer,
+  // The 2D canvas drawer (exact pixels at 1:1, no dependence on a GPU), also for the navigator.
+  drawer: vtexDrawer(OSD),
   showNavigator: true,
   navigatorPosition: 'BOTTOM_RIGHT',
   navigatorAutoFade: false,
@@ -67,17 +57,21 @@ const viewer = OSD({
   autoHideControls: false,
   // Deep zoom down past 1:1 so single texels can be inspected; out to the whole texture.
   maxZoomPixelRatio: 16,
+  // Tiles drawn straight onto the canvas at every zoom: composing them on a sketch canvas first
+  // (OSD's default past 1.1 × image zoom) moves magnified texels by a fraction of a pixel.
+  // Seams between smoothed tiles are hidden by the drawer's one-pixel overlap instead.
+  smoothTileEdgesMinZoom: Infinity,
   minZoomImageRatio: 0.5,
   visibilityRatio: 0.25,
   animationTime: 0.5,
   blendTime: 0,
   // The level drawn: pyramid.js DETAIL, set per texture opened (openTexture).
   minPixelRatio: DETAIL[DEFAULT_DETAIL],
-  immediateRender: false, // coarsest first: the preview of loader.js, then the finest level
+  immediateRender: false, // coarsest first: a preview (osd-adapter.js fetchWantedLevels), then the finest level
   // Ask for every tile the view needs in its first frame (OSD's default of one a frame makes
-  // a view crawl in), all at once: the tile source sends the jobs started in one update as
-  // one batched request (tilesource.js), so the loader sets no limit (0) — a limit would
-  // split a view into several requests. Tiles a view has left are aborted (loader.js).
+  // a view crawl in), all at once: the tile source sends the jobs of one update as one
+  // batched request (tilesource.js), so the loader sets no limit (0) — a limit would split a
+  // view into several requests.
   maxTilesPerFrame: 64,
   imageLoaderLimit: 0,
   maxImageCacheCount: 400,
@@ -86,8 +80,9 @@ const viewer = OSD({
   gestureSettingsTouch: { pinchToZoom: true, dblClickToZoom: true, flickEnabled: true },
   crossOriginPolicy: false,
 });
-scheduleTiles(viewer);
-const frames = drawIncrementally(viewer);
+keepBatchesOnDraw(viewer);
+fetchWantedLevels(viewer);
+updateEarly(viewer);
 
 // ---------------------------------------------------------------------------------------
 // Texture list, picker and opening
@@ -415,19 +410,13 @@ viewer.addHandler('update-viewport', () => queueMicrotask(updateReadouts));
 // Smooth unless tile pixels land on screen pixels one to one, or level-0 pixels are magnified:
 // past 1:1 at level 0 texels show as crisp squares, for inspection; a coarser level magnified
 // (up to 1.41 × with the `map` detail) is filtered, as a GPU filters a magnified mip level.
-// The canvas drawer normally enlarges every tile by one screen pixel to hide seams that
-// smoothing leaves at fractional tile edges; that stretch would shift texels, so it is only
-// asked for while smoothing is on.
-let smoothing = true;
 function updateSmoothing() {
   if (!state.item || !state.info) return;
   const zoom = state.item.viewportToImageZoom(viewer.viewport.getZoom(true));
   const level = drawLevel(state.info, zoom, DETAIL[state.detail]);
   const ratio = zoom * 2 ** level;
-  smoothing = Math.abs(ratio - 1) > 0.001 && !(level === 0 && ratio > 1);
-  viewer.drawer.setImageSmoothingEnabled(smoothing);
+  viewer.drawer.setImageSmoothingEnabled(Math.abs(ratio - 1) > 0.001 && !(level === 0 && ratio > 1));
 }
-viewer.drawer.minimumOverlapRequired = () => smoothing;
 viewer.addHandler('zoom', updateSmoothing);
 viewer.addHandler('open-failed', (e) => showError(`Could not open the texture: ${e.message}`));
 
@@ -469,8 +458,8 @@ $('reset-stats').addEventListener('click', () => {
 
 setInterval(renderStats, 250);
 
-// Hooks for the end-to-end tests and the measured session in tests/browser/.
-window.vtexViewer = { viewer, stats, state, frames, getView, setView, drawnLevels, openTexture, findTexture, showFrame };
+// Hooks for the end-to-end tests (tests/browser/) and the viewer bench (bench/viewer/).
+window.vtexViewer = { viewer, stats, state, getView, setView, drawnLevels, openTexture, findTexture, showFrame };
 
 async function start() {
   renderStats();

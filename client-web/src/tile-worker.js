@@ -25,7 +25,7 @@ self.onmessage = ({ data }) => {
   else if (data.type === 'abort') inFlight.get(data.id)?.abort();
 };
 
-// Bytes on the wire of every batch (the page's statistics and tests/browser/trace.mjs): the
+// Bytes on the wire of every batch (the page's statistics and bench/viewer/trace.mjs): the
 // Worker's fetches only, whatever else its timeline may hold (its module imports).
 new PerformanceObserver((list) => {
   for (const e of list.getEntries()) {
@@ -132,7 +132,7 @@ let opaqueCanvas = null;
  * unpremultiplied is converted at every draw, which makes a view drawn at 1:1 about twice as
  * dear (3.1 against 1.3 ms here) and other scales up to ~20 %; and the opaque bitmap costs
  * the Worker ~0.2 ms a 256 px tile to make, a premultiplied `createImageBitmap` ~0.3 ms
- * (`tests/browser/ingest.mjs`, last two tables). The viewer treats tiles as opaque anyway
+ * (`bench/viewer/ingest.mjs`, last two tables). The viewer treats tiles as opaque anyway
  * (tilesource.js `hasTransparency`); these opaque pixels reach the screen exactly (the
  * browser tests compare them), a pixel with alpha would show over black.
  */

@@ -1,13 +1,12 @@
 // Unit tests of the viewer's pure modules (no browser): pyramid mapping, view URLs, statistics,
-// tile scheduling (against a stand-in for OpenSeadragon's loader and world).
+// the early view update (against a stand-in for OpenSeadragon's viewer), batch frames.
 import test from 'node:test';
 import assert from 'node:assert/strict';
 import { DETAIL, inPyramid, levelSize, osdLevel, tileCount, tileUrl, vtexLevel, drawLevel } from '../src/pyramid.js';
 import { formatView, parseView } from '../src/view-url.js';
 import { TileStats, formatBytes, formatRatio, percentile } from '../src/stats.js';
-import { PREVIEW_STEPS, scheduleTiles, wantedLevel } from '../src/loader.js';
-import { drawIncrementally, tilesToAdd, viewKey } from '../src/drawing.js';
-import { addClips, hiddenTiles, pixelSpan, tileBoxes } from '../src/occlusion.js';
+import { updateEarly } from '../src/loader.js';
+import { PREVIEW_STEPS, fetchWantedLevels, wantedLevel } from '../src/osd-adapter.js';
 import { FrameReader, HEADER_LEN, MAGIC, MAX_BATCH, READ_BUFFER_BYTES, batchUrl, readChunks, tileKey } from '../src/batch.js';
 
 const big = { id: 'ab'.repeat(32), width: 100_000, height: 100_000, levels: 10, tile_size: 256, animated: false };
@@ -139,142 +138,61 @@ test('only the finest level, one preview level and the whole-texture tile are fe
   assert.ok(wantedLevel(2, 2) && wantedLevel(0, 2) && !wantedLevel(1, 2));
 });
 
-/** A stand-in for OpenSeadragon's viewer: a loader with a queue, a world whose update adds jobs. */
-function fakeViewer(jobsPerUpdate) {
-  const started = [];
+test("the jobs of one task reach the loader in OpenSeadragon's order, unwanted levels given back", async () => {
+  const added = [];
   const aborted = [];
-  let cleared = 0;
-  const handlers = {};
-  const loader = {
-    jobQueue: [],
-    addJob(o) {
-      started.push(o.src);
-    },
-    clear() {
-      cleared++;
-      this.jobQueue = [];
-    },
-  };
-  let n = 0;
-  const items = [];
-  const worldHandlers = {};
-  const viewer = {
-    imageLoader: loader,
-    addHandler: (name, f) => (handlers[name] = f),
-    world: {
-      update() {
-        for (const [src, level] of jobsPerUpdate[n++] || []) {
-          loader.addJob({ src, tile: { level }, abort: () => aborted.push(src) });
-        }
-        return true;
-      },
-      getItemCount: () => items.length,
-      getItemAt: (i) => items[i],
-      addHandler: (name, f) => (worldHandlers[name] = f),
-    },
-  };
-  return { viewer, loader, started, aborted, cleared: () => cleared, handlers, items, worldHandlers };
-}
-
-test('scheduling keeps the queue until the next update and drops unwanted coarse levels', () => {
-  const f = fakeViewer([
-    [
-      ['top', 0],
-      ['mid', 5],
-      ['preview', 6],
-      ['coarse', 8],
-      ['a', 9],
-      ['b', 9],
-    ],
-    [['c', 9]],
-  ]);
-  scheduleTiles(f.viewer);
-  // OpenSeadragon empties the queue after each draw: now that waits for the next update.
-  f.loader.clear();
-  assert.equal(f.cleared(), 0);
-  f.viewer.world.update(true);
-  assert.equal(f.cleared(), 1, 'an update starts from an empty queue');
-  assert.deepEqual(f.started, ['top', 'preview', 'a', 'b'], "OpenSeadragon's order, unwanted levels left out");
-  assert.deepEqual(f.aborted, ['mid', 'coarse'], 'dropped tiles are marked as not loading');
-  f.viewer.world.update(true);
-  assert.deepEqual(f.started.at(-1), 'c');
-  f.handlers.close();
-  assert.equal(f.cleared(), 3, 'closing empties the queue at once');
+  const viewer = { imageLoader: { addJob: (o) => added.push(o.src) } };
+  fetchWantedLevels(viewer);
+  const job = (src, level) => ({ src, tile: { level }, abort: () => aborted.push(src) });
+  for (const [src, level] of [['top', 0], ['mid', 5], ['preview', 6], ['coarse', 8], ['a', 9], ['b', 9]]) {
+    viewer.imageLoader.addJob(job(src, level));
+  }
+  assert.deepEqual(added, [], 'held until the task that added them is over');
+  await Promise.resolve();
+  assert.deepEqual(added, ['top', 'preview', 'a', 'b']);
+  assert.deepEqual(aborted, ['mid', 'coarse'], 'dropped tiles are marked as not loading');
+  // The next task's jobs are judged on their own: its finest level is 6.
+  viewer.imageLoader.addJob(job('c', 6));
+  viewer.imageLoader.addJob(job('d', 3));
+  viewer.imageLoader.addJob(job('e', 5));
+  await Promise.resolve();
+  assert.deepEqual(added.slice(4), ['c', 'd']);
+  assert.deepEqual(aborted.slice(2), ['e']);
 });
 
+/** A stand-in for OpenSeadragon's viewer: handlers by event, a world counting its updates. */
+function fakeViewer() {
+  const handlers = {};
+  const world = { updates: 0, update: () => world.updates++, getItemCount: () => 1 };
+  return { viewer: { world, addHandler: (name, f) => (handlers[name] = f) }, handlers, world };
+}
+
 test('a view set at once is evaluated in the same task, at most once a frame', async () => {
-  const f = fakeViewer([[['a', 9]], [['b', 9]], [['c', 9]]]);
-  f.items.push({ source: {}, getTilesToDraw: () => [] });
-  scheduleTiles(f.viewer);
+  const f = fakeViewer();
+  updateEarly(f.viewer);
   const frames = [];
   globalThis.requestAnimationFrame = (cb) => frames.push(cb);
   try {
     const tick = () => new Promise((resolve) => setTimeout(resolve, 0));
     f.handlers.pan({ immediately: false });
     await tick();
-    assert.deepEqual(f.started, [], 'an animated change waits for the next frame');
+    assert.equal(f.world.updates, 0, 'an animated change waits for the next frame');
     // setView: a zoom and a pan in one task make one early update.
     f.handlers.zoom({ immediately: true });
     f.handlers.pan({ immediately: true });
-    assert.deepEqual(f.started, [], 'the update runs after the task that changed the view');
+    assert.equal(f.world.updates, 0, 'the update runs after the task that changed the view');
     await tick();
-    assert.deepEqual(f.started, ['a']);
+    assert.equal(f.world.updates, 1);
     f.handlers.pan({ immediately: true });
     await tick();
-    assert.deepEqual(f.started, ['a'], 'no second early update before the next frame');
+    assert.equal(f.world.updates, 1, 'no second early update before the next frame');
     frames.splice(0).forEach((cb) => cb());
     f.handlers.pan({ immediately: true });
     await tick();
-    assert.deepEqual(f.started, ['a', 'b'], 'a frame later, one more');
+    assert.equal(f.world.updates, 2, 'a frame later, one more');
   } finally {
     delete globalThis.requestAnimationFrame;
   }
-});
-
-/** A started job as OpenSeadragon's ImageJob has it after start(): abort wrapped, a timeout set. */
-function startedJob(name, lastTouchTime, log, inFlight, x = 0) {
-  const job = {
-    name,
-    tile: { level: 3, x, y: 0, lastTouchTime },
-    jobId: 0,
-    abort: () => {
-      inFlight.delete(job); // the tile source's downloadTileAbort
-      log.push(name);
-    },
-  };
-  inFlight.add(job);
-  return job;
-}
-
-test('started tiles the view no longer touches are aborted after an update that evaluated it', () => {
-  const f = fakeViewer([[], [], []]);
-  scheduleTiles(f.viewer);
-  const log = [];
-  const old = Date.now() - 1000;
-  const inFlight = new Set();
-  const keep = startedJob('keep', old, log, inFlight, 0);
-  const left = startedJob('left', old, log, inFlight, 1);
-  // The navigator's tiled image shares the tile source, with tiles of its own.
-  const nav = startedJob('navigator', old, log, inFlight, 0);
-  let drawn = [];
-  const tilesMatrix = { 3: { 0: { 0: keep.tile }, 1: { 0: left.tile } } };
-  const item = { source: { vtexInFlight: inFlight }, getTilesToDraw: () => drawn, tilesMatrix };
-  f.items.push(item);
-  f.loader.jobsInProgress = 2;
-  // An update that evaluated nothing (OSD skipped the item): nothing is stale.
-  f.viewer.world.update(true);
-  assert.deepEqual(log, []);
-  // An update that drew tiles and touched `keep` only (OSD stamps every tile the view needs).
-  drawn = [{ currentTime: Date.now() + 10 }];
-  keep.tile.lastTouchTime = Date.now() + 10;
-  f.viewer.world.update(true);
-  assert.deepEqual(log, ['left'], "the tile the view left is aborted, not the navigator's");
-  assert.equal(f.loader.jobsInProgress, 1);
-  // Removing the tiled image aborts the rest.
-  f.worldHandlers['remove-item']({ item });
-  assert.deepEqual(log, ['left', 'keep']);
-  assert.equal(f.loader.jobsInProgress, 0);
-  assert.deepEqual([...inFlight], [nav], "the navigator's job is its own viewer's business");
 });
 
 test('batch URLs list level/x/y and send the frame only for animated textures', () => {
@@ -382,259 +300,6 @@ test('a body is read through one reused buffer where the stream allows it, else 
   });
   await assert.rejects(readChunks(broken, () => {}, []), /cut/);
 });
-
-test('only tiles at least as fine as every drawn tile are drawn on top; anything else redraws', () => {
-  const whole = { level: 0 };
-  const preview = { level: 5 };
-  const a = { level: 8 };
-  const b = { level: 8 };
-  const c = { level: 8 };
-  assert.deepEqual(tilesToAdd([], [whole, preview]), [whole, preview]);
-  assert.deepEqual(tilesToAdd([whole, preview], [whole, preview, a, b]), [a, b], 'finest tiles over the preview');
-  assert.deepEqual(tilesToAdd([whole, preview, a], [whole, preview, a, b, c]), [b, c]);
-  assert.deepEqual(tilesToAdd([whole, a], [whole, a]), [], 'nothing new: nothing drawn');
-  assert.equal(tilesToAdd([whole, a], [whole, preview, a]), null, 'a coarser tile after a finer one would cover it');
-  assert.equal(tilesToAdd([whole, preview, a], [whole, a, b]), null, 'a tile no longer drawn must be painted over');
-  // ... unless the tiles drawn after it hide it.
-  const seen = [];
-  const under = (set) => ({ hidden: (order) => (seen.push(order.map((t) => t.level)), new Set(set)) });
-  assert.deepEqual(tilesToAdd([whole, preview, a], [a, b], under([whole, preview])), [b]);
-  assert.deepEqual(seen, [[0, 5, 8, 8]], 'judged in the order drawn: the canvas, then the new tiles');
-  assert.equal(tilesToAdd([whole, preview, a], [a, b], under([whole])), null, 'the preview still shows');
-  assert.equal(tilesToAdd([whole, a], [whole, preview, a], under([whole, preview])), null, 'a coarser tile after a finer one');
-  // The new tiles must be drawable so that old tiles listed after them stay on top.
-  assert.equal(tilesToAdd([whole, b], [whole, a, b], { clip: () => false }), null);
-  const asked = [];
-  assert.deepEqual(tilesToAdd([whole, b], [whole, a, b], { clip: (add) => asked.push(add) > 0 }), [a]);
-  assert.deepEqual(asked, [[a]]);
-});
-
-/** A stand-in OpenSeadragon viewer: one tiled image, a view, and a canvas drawer that logs. */
-function standInViewer() {
-  const log = [];
-  const events = [];
-  let bounds = { x: 0, y: 0, width: 1, height: 0.75 };
-  const item = {
-    opacity: 1,
-    tiles: [],
-    smoothTileEdgesMinZoom: 1.1,
-    zoom: 0.5,
-    getRotation: () => 0,
-    viewportToImageZoom() {
-      return this.zoom;
-    },
-    getTilesToDraw() {
-      this._lastDrawn = this.tiles.map((tile) => ({ tile }));
-      return this._lastDrawn;
-    },
-  };
-  const viewer = {
-    viewport: {
-      getRotation: () => 0,
-      getFlip: () => false,
-      getZoom: () => 1,
-      getBoundsNoRotate: () => bounds,
-      getContainerSize: () => ({ x: 960, y: 760 }),
-    },
-    drawer: {
-      _imageSmoothingEnabled: true,
-      draw(items) {
-        log.push(['full', ...items.flatMap((i) => (i.opacity ? i.getTilesToDraw().map((d) => d.tile.name) : []))]);
-      },
-      _drawTile(tile) {
-        log.push(['add', tile.name]);
-      },
-    },
-    raiseEvent: (name, e) => events.push([name, e.tile.name]),
-    forceRedraw: () => log.push(['forced']),
-  };
-  return { viewer, item, log, events, pan: () => (bounds = { ...bounds, x: bounds.x + 0.1 }) };
-}
-
-test('a frame of the same view draws only the tiles that arrived; a moved view redraws all', () => {
-  const { viewer, item, log, events, pan } = standInViewer();
-  const counts = drawIncrementally(viewer);
-  const t = (name, level) => ({ name, level });
-  const whole = t('whole', 0);
-  const a = t('a', 8);
-  const b = t('b', 8);
-  const draw = () => viewer.drawer.draw([item]);
-  item.tiles = [whole];
-  draw();
-  item.tiles = [whole, a];
-  draw();
-  item.tiles = [whole, a, b];
-  draw();
-  assert.deepEqual(log, [['full', 'whole'], ['add', 'a'], ['add', 'b']]);
-  assert.deepEqual(events, [['tile-drawn', 'a'], ['tile-drawn', 'b']]);
-  assert.deepEqual([counts.full, counts.incremental], [1, 2]);
-  pan();
-  draw();
-  assert.deepEqual(log.at(-1), ['full', 'whole', 'a', 'b'], 'the view moved');
-  viewer.forceRedraw();
-  draw();
-  assert.deepEqual(log.slice(-2), [['forced'], ['full', 'whole', 'a', 'b']], 'a forced redraw is a full one');
-  item.tiles = [whole, t('p', 5), a, b];
-  draw();
-  assert.deepEqual(log.at(-1), ['full', 'whole', 'p', 'a', 'b'], 'a coarser tile arrived');
-  // Beyond smoothTileEdgesMinZoom OpenSeadragon draws through its sketch canvas: always full.
-  item.zoom = 2;
-  assert.equal(viewKey(viewer, [item]), null);
-  item.tiles = [whole, t('p', 5), a, b, t('c', 8)];
-  draw();
-  assert.equal(log.at(-1)[0], 'full');
-  item.zoom = 0.5;
-  // Two visible images (or none): full frames.
-  assert.equal(viewKey(viewer, [item, { ...item }]), null);
-  assert.equal(viewKey(viewer, [{ ...item, opacity: 0 }]), null);
-  assert.notEqual(viewKey(viewer, [item, { ...item, opacity: 0 }]), null, 'an invisible image (a frame loading behind) is not drawn');
-});
-
-/** A tile drawn at CSS px (x, y) with size (w, h), as OpenSeadragon positions it. */
-const placed = (name, level, x, y, w, h, more = {}) => ({ name, level, position: { x, y }, size: { x: w, y: h }, loaded: true, ...more });
-const names = (set) => [...set].map((t) => t.name).sort();
-
-test('a tile covers the pixels it spans whole; without anti-aliasing, those whose centres it holds', () => {
-  // Anti-aliased: [0.3, 2.7) touches pixels 0–2 and covers only pixel 1.
-  assert.deepEqual(pixelSpan(0.3, 2.7, false), { touch: [0, 3], cover: [1, 2] });
-  // Whole pixels, up to floating-point noise.
-  assert.deepEqual(pixelSpan(2 - 1e-9, 5 + 1e-9, false), { touch: [2, 5], cover: [2, 5] });
-  // Centres: 0.5, 1.5 and 2.5 lie inside [0.3, 2.7); a centre on an edge may go either way.
-  assert.deepEqual(pixelSpan(0.3, 2.7, true), { touch: [0, 3], cover: [0, 3] });
-  assert.deepEqual(pixelSpan(0.5, 2.5, true), { touch: [0, 3], cover: [1, 2] });
-  const boxes = tileBoxes(placed('t', 1, -10.5, 4.25, 20, 10), { width: 8, height: 100 });
-  assert.deepEqual(boxes, { touch: [0, 4, 8, 15], cover: [-10, 5, 9, 14], centres: false }, 'touch is clipped to the canvas');
-  assert.equal(tileBoxes(placed('t', 1, 0, 0, 20, 10, { hasTransparency: true }), { width: 8, height: 8 }).cover, null, 'a transparent tile covers nothing');
-  assert.equal(tileBoxes({ level: 1 }, { width: 8, height: 8 }), null, 'a tile without a place');
-  // Less than a pixel wide, Chromium anti-aliases the image: it covers no pixel whole.
-  assert.equal(tileBoxes(placed('sliver', 1, 10.2, 0, 0.9, 10), { width: 99, height: 99, centres: true }).cover, null);
-  assert.deepEqual(tileBoxes(placed('thin', 1, 10.2, 0, 1.1, 10), { width: 99, height: 99, centres: true }).cover, [10, 0, 11, 10]);
-  // An edge far from the tile's centre is only known to float32 precision: a centre within
-  // 0.1 px of it counts as on it.
-  const huge = tileBoxes(placed('huge', 0, -100_000, 0, 100_099.55, 10), { width: 200, height: 99, centres: true });
-  assert.deepEqual([huge.touch[2], huge.cover[2]], [100, 99]);
-  assert.deepEqual(tileBoxes(placed('small', 0, -100, 0, 199.55, 10), { width: 200, height: 99, centres: true }).cover[2], 100);
-});
-
-test('a tile is hidden only where opaque tiles drawn after it cover every pixel it touches', () => {
-  const canvas = { width: 200, height: 100 };
-  const whole = placed('whole', 0, -50.2, -30.7, 400.4, 300.3);
-  // Four finer tiles over the canvas with whole-pixel edges.
-  const grid = (dx = 0, gap = 0) => [
-    placed('a', 5, -3, -3, 103 + dx, 53),
-    placed('b', 5, 100 + dx + gap, -3, 103, 53),
-    placed('c', 5, -3, 50, 103 + dx, 53),
-    placed('d', 5, 100 + dx + gap, 50, 103, 53),
-  ];
-  assert.deepEqual(names(hiddenTiles([whole, ...grid()], canvas).hidden), ['whole']);
-  assert.deepEqual(names(hiddenTiles([...grid(), whole], canvas).hidden), ['a', 'b', 'c', 'd'], 'what is drawn later covers what was drawn before');
-  // Abutting at a fractional edge: the pixel column across x = 100.4 is split between a and b.
-  // Anti-aliased, the coarse tile shows through it; by pixel centres it does not.
-  assert.deepEqual(names(hiddenTiles([whole, ...grid(0.4)], canvas).hidden), []);
-  assert.deepEqual(names(hiddenTiles([whole, ...grid(0.4)], { ...canvas, centres: true }).hidden), ['whole']);
-  // Enlarged by a pixel (OpenSeadragon's overlap while smoothing): every pixel lies whole in one tile.
-  const enlarged = grid(0.4).map((t, i) => (i % 2 === 0 ? { ...t, size: { x: t.size.x + 1, y: t.size.y } } : t));
-  assert.deepEqual(names(hiddenTiles([whole, ...enlarged], canvas).hidden), ['whole']);
-  // A gap between finer tiles, even a tenth of a pixel, keeps the coarse tile.
-  assert.deepEqual(names(hiddenTiles([whole, ...grid(0, 0.1)], canvas).hidden), []);
-  assert.deepEqual(names(hiddenTiles([whole, ...grid(0, 1)], { ...canvas, centres: true }).hidden), []);
-  // A missing finer tile keeps the coarse one; a transparent one does not cover.
-  assert.deepEqual(names(hiddenTiles([whole, ...grid().slice(1)], canvas).hidden), []);
-  const glass = grid().map((t) => (t.name === 'c' ? { ...t, hasTransparency: true } : t));
-  assert.deepEqual(names(hiddenTiles([whole, ...glass], canvas).hidden), []);
-  // Only what lies on the canvas counts; a tile off the canvas is hidden.
-  const left = grid().filter((t) => t.name === 'a' || t.name === 'c');
-  const halfCanvas = { width: 100, height: 100 };
-  assert.deepEqual(names(hiddenTiles([whole, ...left, placed('off', 5, 300, 0, 50, 50)], halfCanvas).hidden), ['off', 'whole']);
-  // A mid-level tile partly under the finest tiles stays; the whole tile under both goes.
-  const mid = placed('mid', 2, 50, -10, 300, 200);
-  const r = hiddenTiles([whole, placed('left', 2, -20, -10, 71, 200), mid, ...grid().slice(0, 1)], canvas);
-  assert.deepEqual(names(r.hidden), ['whole']);
-  assert.equal(r.area, 200 * 100 + 51 * 100 + 150 * 100 + 100 * 50);
-  assert.equal(r.hiddenArea, 200 * 100);
-  assert.equal(r.trims.size, 0, 'mid: 50 × 50 pixels under a are too few to clip it for');
-  // A partly hidden tile is drawn clipped to what shows of it when that spares at least a
-  // quarter of it and 4096 pixels.
-  const w = placed('w', 0, 0, 0, 200, 100);
-  const trimmed = hiddenTiles([w, placed('x', 5, 0, 0, 80, 80)], canvas);
-  assert.deepEqual([...trimmed.trims], [[w, [[0, 80, 200, 100], [80, 0, 200, 80]]]]);
-  assert.equal(trimmed.trimmedArea, 80 * 80);
-  assert.equal(hiddenTiles([w, placed('x', 5, 0, 0, 60, 60)], canvas).trims.size, 0, 'too little to spare');
-});
-
-test('a new tile listed before an old one it overlaps is drawn outside the pixels the old one overwrites', () => {
-  const canvas = { width: 200, height: 100, centres: true };
-  // One level, enlarged by a pixel: a (column 0) overlaps b (column 1) by a pixel column.
-  const a = placed('a', 5, -3.3, -3.2, 104, 54);
-  const b = placed('b', 5, 99.7, -3.2, 104, 54);
-  const c = placed('c', 5, -3.3, 49.8, 104, 54);
-  // b and c on the canvas, a arrives: next lists a before b and c, which a full redraw draws over it.
-  const clips = addClips([b, c], [a], [a, b, c], canvas);
-  assert.deepEqual(clips.get(a), [[0, 0, 100, 50]], 'a is drawn outside b (x ≥ 100) and c (y ≥ 50)');
-  assert.equal(addClips([a], [b], [a, b], canvas).size, 0, 'listed after the old tile: drawn whole');
-  assert.equal(addClips([b, c], [a], [a, b, c], { ...canvas, centres: false }), null, 'anti-aliased, the shared pixels blend');
-  // b's edge on a pixel centre: which pixels it overwrites is not known.
-  const bHalf = placed('b', 5, 99.5, -3.2, 104, 54);
-  assert.equal(addClips([bHalf], [a], [a, bHalf], canvas), null);
-  // Wholly under old tiles listed after it: drawn nowhere.
-  const under = placed('under', 5, 110, 10, 20, 20);
-  assert.deepEqual(addClips([b], [under], [under, b], canvas).get(under), []);
-  // A clipped tile hides only where it is drawn.
-  const whole = placed('whole', 0, -50, -30, 400, 300);
-  const clipMap = new Map([[a, [[0, 0, 50, 50]]]]);
-  assert.deepEqual(names(hiddenTiles([whole, placed('p', 2, 0, 0, 40, 40), a], canvas, clipMap).hidden), ['p']);
-  assert.deepEqual(names(hiddenTiles([placed('q', 2, 45, 0, 10, 10), a], canvas, clipMap).hidden), [], 'q reaches x 55, where a is not drawn');
-});
-
-test('full and incremental frames leave out hidden tiles; without pruning every tile is drawn', () => {
-  const { viewer, item, log, events } = standInViewer();
-  viewer.drawer.canvas = { width: 200, height: 100 };
-  const frames = drawIncrementally(viewer);
-  const whole = placed('whole', 0, -50, -30, 400, 300);
-  const p = placed('p', 2, -10, -10, 300, 200);
-  const [a, b] = [placed('a', 5, -3, -3, 103, 106), placed('b', 5, 99, -3, 103, 106)];
-  const draw = () => viewer.drawer.draw([item]);
-  item.tiles = [whole, a];
-  draw();
-  item.tiles = [whole, p, a, b];
-  draw(); // p is coarser than a: a full frame, in which p and whole are hidden
-  assert.deepEqual(log, [['full', 'whole', 'a'], ['full', 'a', 'b']]);
-  assert.deepEqual(item._lastDrawn.map((d) => d.tile.name), ['whole', 'p', 'a', 'b'], 'the frame still lists every tile');
-  // Left out: whole and p here, and in the first frame the right half of whole (trimmed off: a hid its left half).
-  assert.deepEqual([frames.hidden, frames.tiles, frames.hiddenPixels], [2, 4, 2 * 200 * 100 + 100 * 100]);
-  // An incremental frame: of the tiles that arrived, the coarse one under the fine one is left out.
-  const c = placed('c', 6, 12, 12, 5, 5);
-  const d = placed('d', 7, 10, 10, 20, 20);
-  item.tiles = [whole, p, a, b, c, d];
-  draw();
-  assert.deepEqual(log.at(-1), ['add', 'd']);
-  assert.deepEqual(events.at(-1), ['tile-drawn', 'd']);
-  assert.equal(log.filter((l) => l[0] === 'add').length, 1, 'only d was added: c lies under it');
-  assert.deepEqual([frames.full, frames.incremental, frames.hidden], [2, 1, 3]);
-  // Switching pruning off redraws in full, every tile.
-  frames.prune = false;
-  draw();
-  assert.deepEqual(log.at(-1), ['full', 'whole', 'p', 'a', 'b', 'c', 'd']);
-  frames.prune = true;
-  draw();
-  assert.deepEqual(log.at(-1), ['full', 'a', 'b', 'd']);
-  // The finest level completes: OpenSeadragon drops the coarser tiles under it from the list,
-  // and the frame only adds the new tile.
-  const e = placed('e', 7, 30, 30, 20, 20);
-  const hidden = frames.hidden;
-  item.tiles = [a, b, c, d, e];
-  draw();
-  assert.deepEqual(log.at(-1), ['add', 'e']);
-  assert.equal(frames.hidden, hidden + 2, 'whole and p were not drawn again');
-  // A dropped tile that would still show makes a full frame.
-  const [f, g] = [placed('f', 7, 0, 0, 10, 10), placed('g', 7, 0, 0, 10, 10)];
-  item.tiles = [p, a, f];
-  draw();
-  item.tiles = [a, g];
-  draw();
-  assert.deepEqual(log.at(-1), ['full', 'a', 'g'], 'p showed right of a');
-});
-
 /** A frame header as the server writes it (server/src/api/batch.rs): what FrameReader parses. */
 function encodeHeader({ level, x, y, status = 200, cache = 'hit', width, height, length }) {
   const h = new Uint8Array(HEADER_LEN);

@@ -1,7 +1,7 @@
 // What one tile request costs Chromium: CPU time of its processes (from /proc, Linux) around
 // N concurrent fetches of tiles already in the server's cache, made from the idle viewer page.
 //
-//   node tests/browser/request-cost.mjs [--tiles 128] [--rounds 2]
+//   node bench/viewer/request-cost.mjs [--tiles 128] [--rounds 2]
 //
 // Compares raw RGBA (256 KiB) with JPEG tiles (~10 KiB), `cache: 'no-store'` with the default
 // (the response is also written to the HTTP disk cache), one request per tile with all N in
@@ -11,7 +11,7 @@
 import { execFileSync } from 'node:child_process';
 import { readFileSync, readdirSync } from 'node:fs';
 import { parseArgs } from 'node:util';
-import { launchBrowser, openViewer, startServer } from './lib.mjs';
+import { launchBrowser, openViewer, startServer } from '../../tests/browser/lib.mjs';
 import { launchBare } from './cdp.mjs';
 
 const { values: args } = parseArgs({

@@ -4,7 +4,7 @@
 // carries no tracing code) and records for every tile (keyed by its single-tile URL, which
 // OpenSeadragon uses as its name), in performance.now() time:
 //   want     OpenSeadragon first asked its image loader for the tile (ImageLoader.addJob)
-//   start    the tile source took the job (TileSource.downloadTileStart)
+//   start    the tile source took the job (TileSource.downloadTileBatchStart)
 //   rt       Resource Timing of the batched request that carried it: requestStart,
 //            responseStart (the batch's first byte), responseEnd
 //   arrived  its frame was complete in JS (what the tile source notes in job.userData, with
@@ -40,31 +40,25 @@ export function installTracer() {
     return addJob(options);
   };
 
+  // OpenSeadragon starts a view's jobs together, as one batch (tilesource.js).
   const hookSource = (source) => {
     if (!source || source.__traced) return;
     source.__traced = true;
-    const start = source.downloadTileStart.bind(source);
-    source.downloadTileStart = (job) => {
-      const r = rec(job.src);
-      r.start = now();
-      r.starts = (r.starts || 0) + 1;
-      const finish = job.finish.bind(job);
-      job.finish = (data, request, error) => {
-        if (data) {
+    const startBatch = source.downloadTileBatchStart.bind(source);
+    source.downloadTileBatchStart = (batchJob) => {
+      for (const job of batchJob.jobs) {
+        const r = rec(job.src);
+        r.start = now();
+        r.starts = (r.starts || 0) + 1;
+        const finish = job.finish.bind(job);
+        job.finish = (data, request, dataType) => {
           r.ready = now();
           const u = job.userData;
           Object.assign(r, { batch: u.batchUrl, arrived: u.arrived, cache: u.cache });
-        }
-        return finish(data, request, error);
-      };
-      return start(job);
-    };
-    const toContext = source.getTileCacheDataAsContext2D.bind(source);
-    source.getTileCacheDataAsContext2D = (cache) => {
-      const t = now();
-      const out = toContext(cache);
-      T.contextMs = (T.contextMs || 0) + (now() - t);
-      return out;
+          return finish(data, request, dataType);
+        };
+      }
+      return startBatch(batchJob);
     };
   };
   hookSource(state.item && state.item.source);
@@ -135,9 +129,7 @@ export function collectTrace({ t0, t1 }) {
   T.loaf = T.loaf.filter((e) => e.t > t1);
   T.tiles.clear();
   T.frames.length = 0;
-  const contextMs = T.contextMs || 0;
-  T.contextMs = 0;
-  return { tiles, frames, contextMs, loaf };
+  return { tiles, frames, loaf };
 }
 
 const STAGES = [
@@ -199,7 +191,6 @@ export function viewBreakdown(view) {
     jsMs: frames.reduce((a, f) => a + f.update + f.draw, 0),
     drawMs: frames.reduce((a, f) => a + f.draw, 0),
     maxFrameJs: frames.reduce((a, f) => Math.max(a, f.update + f.draw), 0),
-    contextMs: view.contextMs,
     loafMs: (view.loaf || []).reduce((a, e) => a + e.duration, 0),
     loafRenderMs: (view.loaf || []).reduce((a, e) => a + e.render, 0),
     loafScripts: (view.loaf || []).flatMap((e) => e.scripts),

@@ -2,7 +2,7 @@
 // its three slowest views of 60, and from run to run it moves by more than most changes do
 // (BENCHMARKS.md "Viewer"). Groups of runs (an A/B comparison) are separated by `--`.
 //
-//   node tests/browser/bench-pool.mjs A1.json A2.json … [-- B1.json B2.json …] [--views N] [--fast MS] [--drawn]
+//   node bench/viewer/bench-pool.mjs A1.json A2.json … [-- B1.json B2.json …] [--views N] [--fast MS] [--drawn]
 //
 // Times are to the end of the main-thread work of the frame that completed each view, raster
 // included (bench.mjs `rasterTimes`); with --drawn, to its draw calls (`times`: the figure up to
@@ -32,7 +32,7 @@ for (let i = 0; i < argv.length; i++) {
   else groups.at(-1).push(argv[i]);
 }
 if (groups.some((g) => g.length === 0) || !Number.isInteger(views) || views < 0 || (fast !== null && !(fast > 0))) {
-  console.error('usage: node tests/browser/bench-pool.mjs RUN.json … [-- RUN.json …] [--views N] [--fast MS] [--drawn]');
+  console.error('usage: node bench/viewer/bench-pool.mjs RUN.json … [-- RUN.json …] [--views N] [--fast MS] [--drawn]');
   process.exit(2);
 }
 

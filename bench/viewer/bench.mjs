@@ -1,9 +1,9 @@
 // A measured pan-and-zoom session in headless Chromium against a real `vtex serve` (loopback).
 //
-//   node tests/browser/bench.mjs [--steps 60] [--pan-seconds 5] [--shots DIR] [--json FILE]
+//   node bench/viewer/bench.mjs [--steps 60] [--pan-seconds 5] [--shots DIR] [--json FILE]
 //        [--trace] [--texture NAME] [--server-args="--tile-size 512"] [--osd JSON] [--playwright]
 //        [--format rgba|png|webp|jpg] [--detail map|sharp] [--profile FILE.cpuprofile] [--chrome-trace FILE.json]
-//        [--no-prune] [--phase random|after]
+//        [--phase random|after]
 //
 // The texture is the 100k × 100k chaos mosaic (the flagship demo, as bench/server/run.sh picks
 // it) unless --texture names another. Chromium is driven over a bare DevTools pipe (cdp.mjs):
@@ -32,7 +32,7 @@
 //    animation-frame interval, cold and then warm (the same path again).
 import { parseArgs } from 'node:util';
 import { mkdirSync, writeFileSync } from 'node:fs';
-import { launchBrowser, openViewer, startServer, viewerIdle } from './lib.mjs';
+import { launchBrowser, openViewer, startServer, viewerIdle } from '../../tests/browser/lib.mjs';
 import { launchBare } from './cdp.mjs';
 import { collectTrace, formatBreakdown, installTracer, viewBreakdown } from './trace.mjs';
 
@@ -45,7 +45,7 @@ const { values: args } = parseArgs({
     json: { type: 'string' },
     width: { type: 'string', default: '1280' },
     height: { type: 'string', default: '800' },
-    // Per-stage timing of every view change (tests/browser/trace.mjs); adds a little overhead.
+    // Per-stage timing of every view change (bench/viewer/trace.mjs); adds a little overhead.
     trace: { type: 'boolean', default: false },
     // DevTools CPU profile of the page's main thread during the warm-server pass, written to
     // FILE (.cpuprofile, opens in DevTools) and summarised per view (bare DevTools driver only).
@@ -58,7 +58,7 @@ const { values: args } = parseArgs({
     // Server flags, e.g. --server-args "--max-syntheses 4".
     'server-args': { type: 'string', default: '' },
     // Drive Chromium with Playwright (its network instrumentation costs ~2 ms CPU per request)
-    // instead of the bare DevTools pipe (tests/browser/cdp.mjs).
+    // instead of the bare DevTools pipe (bench/viewer/cdp.mjs).
     playwright: { type: 'boolean', default: false },
     // Texture to measure (name, id or model); default: the 100k × 100k chaos mosaic.
     texture: { type: 'string' },
@@ -67,9 +67,6 @@ const { values: args } = parseArgs({
     // Level choice (the viewer's `detail` URL parameter, client-web/src/pyramid.js DETAIL);
     // default: the viewer's (map).
     detail: { type: 'string' },
-    // Draw every tile in the measured passes, also those finer tiles hide (A/B of the viewer's
-    // pruning, client-web/src/occlusion.js).
-    'no-prune': { type: 'boolean', default: false },
     // When each view change is applied: at a seeded random point of an animation frame
     // (random), or right after the previous view was drawn (after).
     phase: { type: 'string', default: 'random' },
@@ -254,8 +251,7 @@ async function measureViews(page, views, shots, tag, { back = false } = {}) {
   const tiles = [];
   const requests = [];
   const breakdowns = [];
-  // The viewer's canvas frame counts (client-web/src/drawing.js), where its build keeps them,
-  // and the tiles the canvas drawer draws, with the canvas pixels they cover (any build).
+  // The tiles the canvas drawer draws, with the canvas pixels they cover.
   const canvasCounts = () =>
     page.evaluate(() => {
       const drawer = window.vtexViewer.viewer.drawer;
@@ -272,9 +268,8 @@ async function measureViews(page, views, shots, tag, { back = false } = {}) {
         };
       }
       const d = drawer.vtexDrawn || {};
-      return { ...window.vtexViewer.frames, drawnTiles: d.tiles, drawnPixels: d.pixels };
+      return { drawnTiles: d.tiles, drawnPixels: d.pixels };
     });
-  if (args['no-prune']) await page.evaluate(() => window.vtexViewer.frames && (window.vtexViewer.frames.prune = false));
   const canvas0 = await canvasCounts();
   if (args.trace) await page.evaluate(installTracer);
   for (let i = back ? 1 : 0; i < views.length; i++) {
@@ -294,7 +289,7 @@ async function measureViews(page, views, shots, tag, { back = false } = {}) {
   if (!times.length) return null;
   const canvas1 = await canvasCounts();
   const canvas = {};
-  for (const k of ['full', 'incremental', 'drawnTiles', 'drawnPixels', 'pixels', 'hidden', 'hiddenPixels']) canvas[k] = canvas1[k] === undefined ? null : (canvas1[k] - canvas0[k]) / times.length;
+  for (const k of ['drawnTiles', 'drawnPixels']) canvas[k] = canvas1[k] === undefined ? null : (canvas1[k] - canvas0[k]) / times.length;
   const perView = (v) => v.reduce((a, b) => a + (b || 0), 0) / v.length;
   const cpuReferenceMs = [referenceBefore, cpuReference()];
   return { ...summary(times), raster: summary(rasterTimes), tilesPerView: perView(tiles), requestsPerView: perView(requests), canvasPerView: canvas, cpuReferenceMs, times, rasterTimes, tiles, breakdowns };
@@ -476,7 +471,7 @@ function profileSummary(profile, views) {
   };
 }
 
-/** Resolves when every tile the current view needs is loaded and drawn (lib.mjs waitForIdle). */
+/** Resolves when every tile the current view needs is loaded and drawn (tests/browser/lib.mjs waitForIdle). */
 async function idle(page) {
   await page.evaluate(() => new Promise((r) => requestAnimationFrame(() => requestAnimationFrame(r))));
   await page.waitFor(viewerIdle);
@@ -542,7 +537,7 @@ try {
 }
 
 const f = (v) => v.toFixed(1);
-console.log(`texture ${results.texture.name} (${results.texture.model}), ${results.viewport.width}×${results.viewport.height} browser viewport, ${STEPS} view changes (phase ${args.phase})${args['no-prune'] ? ', no pruning' : ''}${args.format ? `, ${args.format} tiles` : ''}${args.detail ? `, detail ${args.detail}` : ''}${args.osd ? `, OSD options ${args.osd}` : ''}, server ${serverArgs.join(' ')}, driven by ${results.driver}`);
+console.log(`texture ${results.texture.name} (${results.texture.model}), ${results.viewport.width}×${results.viewport.height} browser viewport, ${STEPS} view changes (phase ${args.phase})${args.format ? `, ${args.format} tiles` : ''}${args.detail ? `, detail ${args.detail}` : ''}${args.osd ? `, OSD options ${args.osd}` : ''}, server ${serverArgs.join(' ')}, driven by ${results.driver}`);
 console.log('| view change → every visible tile drawn: draw calls issued, p50 / p95 / max ms | rastered (the frame\'s main-thread work done), p50 / p95 / max ms | tiles/view | requests/view | machine reference ms, before / after |');
 console.log('|---|---|---|---|---|---|');
 for (const [k, label] of [
@@ -564,10 +559,9 @@ for (const [k, label] of [
   const r = results[k];
   console.log(`| ${label} | ${r.n} | ${f(r.p50)} | ${f(r.p95)} | ${f(r.max)} | ${r.over33} | ${r.over50} | ${r.tiles} |`);
 }
-// Mpx drawn: the drawn tiles' rectangles on the canvas (any build); Mpx rastered: the viewer's
-// own count, without what it clips off partly hidden tiles (builds with pruning).
-console.log('\n| canvas per view change | full frames | incremental frames | tiles drawn | Mpx drawn | Mpx rastered | tiles left out | Mpx left out |');
-console.log('|---|---|---|---|---|---|---|---|');
+// Mpx drawn: the drawn tiles' rectangles on the canvas.
+console.log('\n| canvas per view change | tiles drawn | Mpx drawn |');
+console.log('|---|---|---|');
 for (const [k, label] of [
   ['cold', 'cold'],
   ['warmServer', 'warm server'],
@@ -576,7 +570,7 @@ for (const [k, label] of [
 ]) {
   const c = results[k].canvasPerView;
   const n = (v, scale = 1) => (v === null ? '–' : (v / scale).toFixed(scale === 1 ? 1 : 2));
-  console.log(`| ${label} | ${n(c.full)} | ${n(c.incremental)} | ${n(c.drawnTiles)} | ${n(c.drawnPixels, 1e6)} | ${n(c.pixels, 1e6)} | ${n(c.hidden)} | ${n(c.hiddenPixels, 1e6)} |`);
+  console.log(`| ${label} | ${n(c.drawnTiles)} | ${n(c.drawnPixels, 1e6)} |`);
 }
 for (const [k, label] of [
   ['cold', 'server, cold pass'],

@@ -5,7 +5,7 @@
 // (the software raster of OpenSeadragon's drawing), and the JavaScript V8 sampled on the page's
 // main thread and the tile Worker's thread, by function.
 //
-//   node tests/browser/chrome-trace-summary.mjs FILE [--views 60] [--top 15] [--view N]
+//   node bench/viewer/chrome-trace-summary.mjs FILE [--views 60] [--top 15] [--view N]
 //
 // --views divides the totals by the number of view changes the trace covers (bench: --steps).
 // --view N prints the timeline of view change N (from 0) instead: every thread's tasks of
@@ -20,7 +20,7 @@ const { values: args, positionals } = parseArgs({
   options: { views: { type: 'string', default: '60' }, top: { type: 'string', default: '15' }, view: { type: 'string' } },
 });
 if (positionals.length !== 1) {
-  console.error('usage: node tests/browser/chrome-trace-summary.mjs FILE [--views N] [--top N] [--view N]');
+  console.error('usage: node bench/viewer/chrome-trace-summary.mjs FILE [--views N] [--top N] [--view N]');
   process.exit(2);
 }
 const VIEWS = Number(args.views);

@@ -1,7 +1,7 @@
 // How fast the viewer's page can take in a batch of raw RGBA tiles, stage by stage: the same
 // headless Chromium as the bench (bare DevTools pipe), tiles already in the server's cache.
 //
-//   node tests/browser/ingest.mjs [--tiles 56] [--rounds 5]
+//   node bench/viewer/ingest.mjs [--tiles 56] [--rounds 5]
 //
 // Each case fetches a fresh block of level-2 tiles (batches are `no-store`) as one batch
 // (`…/tiles?format=rgba&tiles=…`, what the viewer sends for a view; 56 tiles = 14.7 MB, the
@@ -28,7 +28,7 @@
 // VideoFrames, and what making each kind costs the Worker.
 import { readFileSync, readdirSync } from 'node:fs';
 import { parseArgs } from 'node:util';
-import { startServer } from './lib.mjs';
+import { startServer } from '../../tests/browser/lib.mjs';
 import { launchBare } from './cdp.mjs';
 
 const { values: args } = parseArgs({

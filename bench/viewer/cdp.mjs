@@ -10,10 +10,10 @@ import { spawn } from 'node:child_process';
 import { mkdtempSync, rmSync, writeFileSync } from 'node:fs';
 import { tmpdir } from 'node:os';
 import { join } from 'node:path';
-import { CHROMIUM, CHROMIUM_ARGS, exited } from './lib.mjs';
+import { CHROMIUM, CHROMIUM_ARGS, exited } from '../../tests/browser/lib.mjs';
 
 /**
- * Launches headless Chromium (fresh profile, same flags as lib.mjs) with `url` open;
+ * Launches headless Chromium (fresh profile, same flags as tests/browser/lib.mjs) with `url` open;
  * `initScript` (source text) runs in every document before the page's own scripts.
  */
 export async function launchBare(url, { width = 1280, height = 800, initScript } = {}) {
