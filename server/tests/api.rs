@@ -156,9 +156,9 @@ async fn tiles_in_every_format_with_headers() {
     let _ = expect_error(&c, &s.tile_url(&id, 4, 0, 0, "png"), 400).await;
 }
 
-/// A tile answers alike whether its path is plain or percent-encoded and whether it is a GET
-/// or a HEAD: same bytes, same headers (CORS included, as on every other route), counted
-/// under the one tile route.
+/// Plain tile GETs take the fast path (`Front` answers them without the router); HEAD and
+/// percent-encoded paths take the router. All must answer alike: same bytes, same headers
+/// (CORS included, as on every other route), counted under the one tile route.
 #[tokio::test]
 async fn plain_encoded_and_head_tiles_answer_alike() {
     let dir = tempdir();

@@ -33,7 +33,7 @@ impl<S: Send + Sync, T: DeserializeOwned> FromRequestParts<S> for Path<T> {
                 ApiError::internal("the route has no path parameters", e)
             }
         })?;
-        deserialize(MapDeserializer::new(raw.iter()), Place::Path).map(Path)
+        path_params(raw.iter()).map(Path)
     }
 }
 
@@ -41,9 +41,18 @@ impl<S: Send + Sync, T: DeserializeOwned> FromRequestParts<S> for Query<T> {
     type Rejection = ApiError;
 
     async fn from_request_parts(parts: &mut Parts, _: &S) -> Result<Self, ApiError> {
-        let pairs = form_urlencoded::parse(parts.uri.query().unwrap_or_default().as_bytes());
-        deserialize(MapDeserializer::new(pairs), Place::Query).map(Query)
+        query_params(parts.uri.query()).map(Query)
     }
+}
+
+/// What [`Path`] makes of the (decoded) segments a route template matched.
+pub fn path_params<'a, T: Deserialize<'a>>(pairs: impl Iterator<Item = (&'a str, &'a str)>) -> Result<T, ApiError> {
+    deserialize(MapDeserializer::new(pairs), Place::Path)
+}
+
+/// What [`Query`] makes of a query string.
+pub fn query_params<T: DeserializeOwned>(query: Option<&str>) -> Result<T, ApiError> {
+    deserialize(MapDeserializer::new(form_urlencoded::parse(query.unwrap_or_default().as_bytes())), Place::Query)
 }
 
 #[derive(Clone, Copy)]
@@ -135,8 +144,7 @@ mod tests {
     }
 
     fn query<T: DeserializeOwned>(q: &str) -> Result<T, String> {
-        let pairs = form_urlencoded::parse(q.as_bytes());
-        deserialize(MapDeserializer::new(pairs), Place::Query).map_err(|e| e.to_string())
+        query_params(Some(q)).map_err(|e| e.to_string())
     }
 
     #[test]

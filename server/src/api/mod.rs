@@ -4,6 +4,7 @@
 pub mod batch;
 pub mod error;
 pub mod extract;
+mod front;
 pub mod params;
 mod textures;
 mod tiles;
@@ -23,10 +24,7 @@ use axum::{BoxError, Router};
 use error::ApiError;
 use extract::{NoQuery, Query};
 use http_body_util::BodyExt;
-use hyper::body::Incoming;
-use hyper_util::service::TowerToHyperService;
 use serde::Deserialize;
-use std::convert::Infallible;
 use std::sync::Arc;
 use std::time::Instant;
 use tokio::sync::Semaphore;
@@ -38,6 +36,11 @@ use tower_http::LatencyUnit;
 use vtex_synth::Region;
 
 pub use error::ApiError as Error;
+pub use front::Front;
+
+/// The route of a single tile: [`router`] serves it, and [`Front`] answers plain GETs of it
+/// directly, matching paths against this same template.
+pub const TILE: &str = "/api/v1/textures/{id}/tiles/{level}/{x}/{file}";
 
 pub const CACHE_IMMUTABLE: HeaderValue = HeaderValue::from_static("public, max-age=31536000, immutable");
 pub static X_VTEX_CACHE: HeaderName = HeaderName::from_static("x-vtex-cache");
@@ -154,7 +157,7 @@ pub fn router(app: App) -> Router {
         .route("/api/v1/textures/{id}", get(textures::info).patch(textures::patch))
         .route("/api/v1/textures/{id}/encoding", get(textures::encoding))
         .route("/api/v1/textures/{id}/tiles", get(batch::batch))
-        .route("/api/v1/textures/{id}/tiles/{level}/{x}/{file}", get(tiles::tile))
+        .route(TILE, get(tiles::tile))
         .route("/api/v1/textures/{id}/region", get(tiles::region))
         .route("/healthz", get(healthz))
         .route("/metrics", get(metrics))
@@ -164,6 +167,11 @@ pub fn router(app: App) -> Router {
         .fallback_service(web)
         .layer(layers)
         .with_state(app)
+}
+
+/// The answer to a request not done within the deadline `limit`.
+fn timed_out(limit: std::time::Duration) -> ApiError {
+    ApiError::Timeout(format!("request not completed within {} s (slow client or overload)", limit.as_secs_f64()))
 }
 
 /// The CORS policy: any origin, the API's methods, any request header, and the response
@@ -183,30 +191,15 @@ async fn observe(State(app): State<App>, req: Request, next: Next) -> Response {
     let route = req.extensions().get::<MatchedPath>().cloned();
     let method = req.method().clone();
     let resp = next.run(req).await;
-    let bytes = http_body::Body::size_hint(resp.body()).exact().unwrap_or(0);
     let route = route.as_ref().map_or(crate::metrics::STATIC, MatchedPath::as_str);
-    app.metrics.request_done(route, &method, resp.status(), start.elapsed().as_secs_f64(), bytes);
+    count(&app, route, &method, start, &resp);
     resp
 }
 
-/// The service hyper calls for every request: [`router`].
-#[derive(Clone)]
-pub struct Front(TowerToHyperService<Router>);
-
-impl Front {
-    pub fn new(app: App) -> Front {
-        Front(TowerToHyperService::new(router(app)))
-    }
-}
-
-impl hyper::service::Service<axum::http::Request<Incoming>> for Front {
-    type Response = Response;
-    type Error = Infallible;
-    type Future = <TowerToHyperService<Router> as hyper::service::Service<axum::http::Request<Incoming>>>::Future;
-
-    fn call(&self, req: axum::http::Request<Incoming>) -> Self::Future {
-        self.0.call(req)
-    }
+/// Counts one answered request under `route`.
+fn count(app: &AppState, route: &str, method: &Method, start: Instant, resp: &Response) {
+    let bytes = http_body::Body::size_hint(resp.body()).exact().unwrap_or(0);
+    app.metrics.request_done(route, method, resp.status(), start.elapsed().as_secs_f64(), bytes);
 }
 
 async fn healthz(_: Query<NoQuery>) -> Response {

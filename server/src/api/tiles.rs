@@ -102,15 +102,26 @@ pub(super) fn check_tile(entry: &Entry, level: u32, x: u32, y: u32) -> Result<()
     Ok(())
 }
 
-/// `GET /api/v1/textures/{id}/tiles/{level}/{x}/{y}.{format}[?frame=N]`: validation, 304,
-/// the cache, synthesis on a miss.
+/// `GET /api/v1/textures/{id}/tiles/{level}/{x}/{y}.{format}[?frame=N]` (the route
+/// [`TILE`](super::TILE)).
 pub async fn tile(
     State(app): State<App>,
-    Path(TilePath { id, level, x, file }): Path<TilePath>,
-    Query(TileQuery { frame }): Query<TileQuery>,
+    Path(path): Path<TilePath>,
+    Query(query): Query<TileQuery>,
     headers: HeaderMap,
 ) -> Result<Response, ApiError> {
-    let entry = lookup(&app, &id)?;
+    answer(&app, path, query, &headers).await
+}
+
+/// A tile: validation, 304, the cache, synthesis on a miss — for the router and for the
+/// fast path of [`Front`](super::Front) alike.
+pub(super) async fn answer(
+    app: &App,
+    TilePath { id, level, x, file }: TilePath,
+    TileQuery { frame }: TileQuery,
+    headers: &HeaderMap,
+) -> Result<Response, ApiError> {
+    let entry = lookup(app, &id)?;
     let (y, ext) = file.rsplit_once('.').ok_or_else(|| {
         ApiError::bad_request(format!("tile `{}` has no format extension; {}", echo(&file), Format::EXPECTED))
     })?;
@@ -125,10 +136,10 @@ pub async fn tile(
         Some(tile) => tile.etag.clone(),
         None => tile_etag(&entry, &key),
     };
-    if not_modified(&headers, tag.to_str().unwrap_or_default()) {
+    if not_modified(headers, tag.to_str().unwrap_or_default()) {
         return Ok(not_modified_response(tag));
     }
-    let (tile, source) = obtain(&app, &entry, key, cached, tag).await?;
+    let (tile, source) = obtain(app, &entry, key, cached, tag).await?;
     let mut resp = image_response(tile.body.clone(), format, tile.etag.clone(), tile.width, tile.height);
     let cache_state = if source == Source::Hit { "hit" } else { "miss" };
     resp.headers_mut().insert(X_VTEX_CACHE.clone(), HeaderValue::from_static(cache_state));
