@@ -3,7 +3,6 @@
 
 use axum::http::{header, HeaderValue, StatusCode};
 use axum::response::{IntoResponse, Response};
-use std::borrow::Cow;
 
 /// The cause of an internal error: kept for the log, never sent.
 pub type Cause = Box<dyn std::error::Error + Send + Sync>;
@@ -56,13 +55,13 @@ impl ApiError {
 
     /// The status and the message the client receives. An internal error is logged here with
     /// its cause, once per answer it becomes, and answered with its static description only.
-    pub fn to_client(&self) -> (StatusCode, Cow<'_, str>) {
+    pub fn to_client(&self) -> (StatusCode, String) {
         let message = match self {
             ApiError::Internal { what, cause } => {
                 tracing::error!(cause = %cause, "{what}");
-                Cow::Owned(format!("internal server error: {what}"))
+                format!("internal server error: {what}")
             }
-            other => Cow::Owned(other.to_string()),
+            other => other.to_string(),
         };
         (self.status(), message)
     }

@@ -138,9 +138,7 @@ pub struct TextureId {
 pub fn router(app: App) -> Router {
     let web = ServeDir::new(&app.cfg.web_dir).append_index_html_on_directories(true);
     let limit = app.cfg.request_timeout();
-    let timed_out = move |_: BoxError| async move {
-        ApiError::Timeout(format!("request not completed within {} s (slow client or overload)", limit.as_secs_f64()))
-    };
+    let on_timeout = move |_: BoxError| async move { timed_out(limit) };
     let layers = ServiceBuilder::new()
         .layer(
             TraceLayer::new_for_http()
@@ -149,7 +147,7 @@ pub fn router(app: App) -> Router {
         )
         .layer(middleware::from_fn_with_state(app.clone(), observe))
         .layer(cors_layer())
-        .layer(HandleErrorLayer::new(timed_out))
+        .layer(HandleErrorLayer::new(on_timeout))
         .timeout(limit)
         .layer(DefaultBodyLimit::max(app.cfg.max_upload_bytes()));
     Router::new()
