@@ -5,87 +5,10 @@ use prometheus::{
     Encoder, Histogram, HistogramOpts, HistogramVec, IntCounter, IntCounterVec, IntGauge, IntGaugeVec, Opts, Registry,
     TextEncoder,
 };
-use std::sync::OnceLock;
 
-/// The `route` label of request metrics: the route pattern, never the raw path (bounded
-/// cardinality). An enum so the hot path indexes pre-resolved series instead of hashing labels.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum Route {
-    Textures,
-    Texture,
-    Encoding,
-    Region,
-    Tiles,
-    TileBatch,
-    Healthz,
-    Metrics,
-    OtherApi,
-    Static,
-}
-
-impl Route {
-    const ALL: [Route; 10] = [
-        Route::Textures,
-        Route::Texture,
-        Route::Encoding,
-        Route::Region,
-        Route::Tiles,
-        Route::TileBatch,
-        Route::Healthz,
-        Route::Metrics,
-        Route::OtherApi,
-        Route::Static,
-    ];
-
-    pub fn label(self) -> &'static str {
-        match self {
-            Route::Textures => "/api/v1/textures",
-            Route::Texture => "/api/v1/textures/{id}",
-            Route::Encoding => "/api/v1/textures/{id}/encoding",
-            Route::Region => "/api/v1/textures/{id}/region",
-            Route::Tiles => "/api/v1/textures/{id}/tiles",
-            Route::TileBatch => "/api/v1/textures/{id}/tiles?tiles=",
-            Route::Healthz => "/healthz",
-            Route::Metrics => "/metrics",
-            Route::OtherApi => "/api/other",
-            Route::Static => "static",
-        }
-    }
-
-    /// The route of a request path.
-    pub fn of(path: &str) -> Route {
-        let Some(rest) = path.strip_prefix("/api/v1/textures") else {
-            return match path {
-                "/healthz" => Route::Healthz,
-                "/metrics" => Route::Metrics,
-                p if p.starts_with("/api") => Route::OtherApi,
-                _ => Route::Static,
-            };
-        };
-        let mut parts = rest.split('/');
-        let mut next = [""; 6];
-        let mut n = 0;
-        for p in parts.by_ref().take(6) {
-            next[n] = p;
-            n += 1;
-        }
-        if parts.next().is_some() {
-            return Route::OtherApi;
-        }
-        match &next[..n] {
-            [""] | ["", ""] => Route::Textures,
-            ["", _] => Route::Texture,
-            ["", _, "encoding"] => Route::Encoding,
-            ["", _, "region"] => Route::Region,
-            ["", _, "tiles", _, _, _] => Route::Tiles,
-            ["", _, "tiles"] => Route::TileBatch,
-            _ => Route::OtherApi,
-        }
-    }
-}
-
-/// Statuses of GET requests whose request counters are resolved once (the hot path).
-const HOT_STATUSES: [StatusCode; 2] = [StatusCode::OK, StatusCode::NOT_MODIFIED];
+/// The `route` label of the requests no route matched, which the static viewer's files
+/// answer: one fixed label, so paths that do not exist cannot add series.
+pub const STATIC: &str = "static";
 
 /// Levels with their own hit/miss series; deeper levels share the last one.
 const LEVEL_SERIES: usize = 64;
@@ -93,12 +16,7 @@ const LEVEL_SERIES: usize = 64;
 pub struct Metrics {
     registry: Registry,
     requests: IntCounterVec,
-    /// `requests` for (route, GET, hot status), indexed by route then status; each series is
-    /// resolved on first use, so /metrics lists exactly the series that were counted.
-    hot_requests: [[OnceLock<IntCounter>; 2]; Route::ALL.len()],
     request_seconds: HistogramVec,
-    /// `request_seconds` by route, resolved on first use.
-    route_seconds: [OnceLock<Histogram>; Route::ALL.len()],
     pub bytes_out: IntCounter,
     hits: Vec<IntCounter>,
     misses: Vec<IntCounter>,
@@ -209,9 +127,7 @@ impl Metrics {
         Metrics {
             registry,
             requests,
-            hot_requests: Default::default(),
             request_seconds,
-            route_seconds: Default::default(),
             bytes_out,
             hits,
             misses,
@@ -230,16 +146,11 @@ impl Metrics {
         }
     }
 
-    /// Counts one finished request: by route, method and status; its latency; its body bytes.
-    pub fn request_done(&self, route: Route, method: &Method, status: StatusCode, seconds: f64, bytes: u64) {
-        let series = || self.requests.with_label_values(&[route.label(), method.as_str(), status.as_str()]);
-        match (*method == Method::GET).then(|| HOT_STATUSES.iter().position(|s| *s == status)).flatten() {
-            Some(i) => self.hot_requests[route as usize][i].get_or_init(series).inc(),
-            None => series().inc(),
-        }
-        self.route_seconds[route as usize]
-            .get_or_init(|| self.request_seconds.with_label_values(&[route.label()]))
-            .observe(seconds);
+    /// Counts one finished request: by route (its template, or [`STATIC`]), method and
+    /// status; its latency; its body bytes.
+    pub fn request_done(&self, route: &str, method: &Method, status: StatusCode, seconds: f64, bytes: u64) {
+        self.requests.with_label_values(&[route, method.as_str(), status.as_str()]).inc();
+        self.request_seconds.with_label_values(&[route]).observe(seconds);
         self.bytes_out.inc_by(bytes);
     }
 
@@ -270,32 +181,15 @@ mod tests {
     use super::*;
 
     #[test]
-    fn routes_have_bounded_labels() {
-        let id = "ab".repeat(32);
-        assert_eq!(Route::of("/api/v1/textures"), Route::Textures);
-        assert_eq!(Route::of("/api/v1/textures/"), Route::Textures);
-        assert_eq!(Route::of(&format!("/api/v1/textures/{id}")), Route::Texture);
-        assert_eq!(Route::of(&format!("/api/v1/textures/{id}/encoding")), Route::Encoding);
-        assert_eq!(Route::of(&format!("/api/v1/textures/{id}/tiles/1/2/3.png")), Route::Tiles);
-        assert_eq!(Route::of(&format!("/api/v1/textures/{id}/tiles/1/2/3.png/x")), Route::OtherApi);
-        assert_eq!(Route::of(&format!("/api/v1/textures/{id}/region")), Route::Region);
-        assert_eq!(Route::of(&format!("/api/v1/textures/{id}/tiles")), Route::TileBatch);
-        assert_eq!(Route::of("/api/v1/texturesX/9"), Route::OtherApi);
-        assert_eq!(Route::of("/api/v2"), Route::OtherApi);
-        assert_eq!(Route::of("/healthz"), Route::Healthz);
-        assert_eq!(Route::of("/index.html"), Route::Static);
-        assert_eq!(Route::Tiles.label(), "/api/v1/textures/{id}/tiles");
-    }
-
-    #[test]
-    fn hot_and_other_series_count_alike() {
+    fn requests_are_counted_by_route_method_and_status() {
         let m = Metrics::new();
-        m.request_done(Route::Tiles, &Method::GET, StatusCode::OK, 0.001, 10);
-        m.request_done(Route::Tiles, &Method::GET, StatusCode::OK, 0.001, 10);
-        m.request_done(Route::Tiles, &Method::HEAD, StatusCode::OK, 0.001, 0);
-        m.request_done(Route::Tiles, &Method::GET, StatusCode::NOT_FOUND, 0.001, 5);
+        let tile = "/api/v1/textures/{id}/tiles/{level}/{x}/{file}";
+        m.request_done(tile, &Method::GET, StatusCode::OK, 0.001, 10);
+        m.request_done(tile, &Method::GET, StatusCode::OK, 0.001, 10);
+        m.request_done(tile, &Method::HEAD, StatusCode::OK, 0.001, 0);
+        m.request_done(tile, &Method::GET, StatusCode::NOT_FOUND, 0.001, 5);
         let text = m.render();
-        let tiles = r#"route="/api/v1/textures/{id}/tiles""#;
+        let tiles = format!(r#"route="{tile}""#);
         let line = |method: &str, status: &str| {
             let want = format!(r#"vtex_http_requests_total{{method="{method}",{tiles},status="{status}"}}"#);
             text.lines().find(|l| l.starts_with(&want)).map(|l| l.rsplit(' ').next().unwrap().to_string())

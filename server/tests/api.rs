@@ -156,25 +156,25 @@ async fn tiles_in_every_format_with_headers() {
     let _ = expect_error(&c, &s.tile_url(&id, 4, 0, 0, "png"), 400).await;
 }
 
-/// Plain tile GETs are answered without the router (the hot path); HEAD and percent-encoded
-/// paths take the router. Both must answer alike: same bytes, same headers (CORS included,
-/// as on every other route), same metrics.
+/// Plain tile GETs take the fast path (`Front` answers them without the router); HEAD and
+/// percent-encoded paths take the router. All must answer alike: same bytes, same headers
+/// (CORS included, as on every other route), counted under the one tile route.
 #[tokio::test]
-async fn direct_and_routed_tiles_answer_alike() {
+async fn plain_encoded_and_head_tiles_answer_alike() {
     let dir = tempdir();
     let s = Server::start(dir.path(), &[]);
     let c = client();
     let id = put(&c, &s, &mosaic(64, 16, 9)).await;
-    let direct = s.tile_url(&id, 0, 2, 3, "png");
-    let routed = s.url(&format!("/api/v1/textures/{id}/tiles/%30/%32/3.png"));
-    let (st1, h1, b1) = get_bytes(&c, &direct).await;
-    let (st2, h2, b2) = get_bytes(&c, &routed).await;
+    let plain = s.tile_url(&id, 0, 2, 3, "png");
+    let encoded = s.url(&format!("/api/v1/textures/{id}/tiles/%30/%32/3.png"));
+    let (st1, h1, b1) = get_bytes(&c, &plain).await;
+    let (st2, h2, b2) = get_bytes(&c, &encoded).await;
     assert_eq!((st1, st2), (200, 200));
     assert_eq!(b1, b2);
     assert!(!b1.is_empty());
     assert_eq!((h1["x-vtex-cache"].to_str().unwrap(), h2["x-vtex-cache"].to_str().unwrap()), ("miss", "hit"));
     let info = c.get(s.url(&format!("/api/v1/textures/{id}"))).send().await.unwrap();
-    let head = c.head(&direct).send().await.unwrap();
+    let head = c.head(&plain).send().await.unwrap();
     assert_eq!(head.status(), 200);
     let names = |h: &reqwest::header::HeaderMap| {
         let mut v: Vec<String> = h.keys().map(|k| k.to_string()).filter(|k| k != "date").collect();
@@ -194,16 +194,16 @@ async fn direct_and_routed_tiles_answer_alike() {
         assert_eq!(all(&h1), all(head.headers()), "{name}");
         assert_eq!(all(&h1), all(info.headers()), "{name}: tiles carry the CORS headers of every route");
     }
-    // Errors on the direct path: JSON, with CORS.
+    // Errors: JSON, with CORS.
     let r = c.get(s.tile_url(&id, 0, 99, 0, "png")).send().await.unwrap();
     assert_eq!(r.status(), 404);
     assert_eq!(r.headers()["access-control-allow-origin"], "*");
     assert!(r.text().await.unwrap().contains("outside level 0"));
     // Methods other than GET and HEAD still get the router's 405.
-    assert_eq!(c.delete(&direct).send().await.unwrap().status(), 405);
-    // Both paths are counted under the tile route.
+    assert_eq!(c.delete(&plain).send().await.unwrap().status(), 405);
+    // All are counted under the tile route.
     let m = metrics(&c, &s).await;
-    let tiles = ("route", "/api/v1/textures/{id}/tiles");
+    let tiles = ("route", "/api/v1/textures/{id}/tiles/{level}/{x}/{file}");
     assert_eq!(metric(&m, "vtex_http_requests_total", &[tiles, ("method", "GET"), ("status", "200")]), 2.0);
     assert_eq!(metric(&m, "vtex_http_requests_total", &[tiles, ("method", "HEAD"), ("status", "200")]), 1.0);
     assert_eq!(metric(&m, "vtex_http_requests_total", &[tiles, ("method", "GET"), ("status", "404")]), 1.0);
@@ -464,4 +464,94 @@ async fn connections_are_spread_over_the_runtimes() {
     assert_eq!(v.iter().sum::<f64>(), 13.0, "{v:?}");
     assert!(spread(&v) <= 1.0, "{v:?}");
     drop(open);
+}
+
+/// Every route refuses a query parameter it does not know with the same 400 naming it — the
+/// single tile included — while the same request without it succeeds.
+#[tokio::test]
+async fn unknown_query_parameters_are_refused_on_every_route() {
+    let dir = tempdir();
+    let s = Server::start(dir.path(), &[]);
+    let c = client();
+    let b = mosaic(32, 8, 3);
+    let id = put(&c, &s, &b).await;
+    let t = format!("/api/v1/textures/{id}");
+    let routes: Vec<(reqwest::Method, String, &str)> = vec![
+        (reqwest::Method::GET, "/api/v1/textures".into(), ""),
+        (reqwest::Method::POST, "/api/v1/textures".into(), ""),
+        (reqwest::Method::GET, t.clone(), ""),
+        (reqwest::Method::PATCH, t.clone(), ""),
+        (reqwest::Method::GET, format!("{t}/encoding"), ""),
+        (reqwest::Method::GET, format!("{t}/tiles"), "tiles=0/0/0&format=png&"),
+        (reqwest::Method::GET, format!("{t}/tiles/0/0/0.png"), "frame=1&"),
+        (reqwest::Method::GET, format!("{t}/region"), "level=0&x=0&y=0&w=8&h=8&"),
+        (reqwest::Method::GET, "/healthz".into(), ""),
+        (reqwest::Method::GET, "/metrics".into(), ""),
+    ];
+    let send = |method: &reqwest::Method, url: String| {
+        let req = c.request(method.clone(), url);
+        match *method {
+            reqwest::Method::POST => req.header("content-type", "application/octet-stream").body(b.to_bytes()),
+            reqwest::Method::PATCH => req.json(&json!({"name": "renamed"})),
+            _ => req,
+        }
+        .send()
+    };
+    for (method, path, known) in &routes {
+        let r = send(method, s.url(&format!("{path}?{known}border=4"))).await.unwrap();
+        assert_eq!(r.status(), 400, "{method} {path}");
+        assert_eq!(r.headers()["content-type"], "application/json", "{method} {path}");
+        let msg = r.json::<Value>().await.unwrap()["error"].as_str().unwrap().to_string();
+        assert!(msg.starts_with("unknown query parameter `border`"), "{method} {path}: {msg}");
+        let ok = send(method, s.url(&format!("{path}?{}", known.trim_end_matches('&')))).await.unwrap();
+        assert!(ok.status().is_success(), "{method} {path} without the parameter: {}", ok.status());
+    }
+}
+
+/// Requests are counted under the template of the route that matched; paths no route matches
+/// share fixed labels, so a garbage path adds no series.
+#[tokio::test]
+async fn metrics_are_labelled_by_route_template() {
+    let dir = tempdir();
+    let s = Server::start(dir.path(), &[]);
+    let c = client();
+    let id = put(&c, &s, &mosaic(32, 8, 2)).await;
+    let routes = |text: &str| {
+        let mut set: Vec<String> = text
+            .lines()
+            .filter(|l| l.starts_with("vtex_http_requests_total{"))
+            .filter_map(|l| l.split("route=\"").nth(1)?.split('"').next().map(str::to_string))
+            .collect();
+        set.sort();
+        set.dedup();
+        set
+    };
+    get_bytes(&c, &s.tile_url(&id, 0, 0, 0, "png")).await;
+    get_bytes(&c, &s.url(&format!("/api/v1/textures/{id}"))).await;
+    get_bytes(&c, &s.url(&format!("/api/v1/textures/{id}/tiles?tiles=0/0/0&format=png"))).await;
+    get_bytes(&c, &s.url("/no/such/file")).await;
+    get_bytes(&c, &s.url("/api/v1/textures/a/b/c/d/e/f/g")).await;
+    let before = metrics(&c, &s).await;
+    assert_eq!(
+        routes(&before),
+        [
+            "/api/v1/textures",
+            "/api/v1/textures/{id}",
+            "/api/v1/textures/{id}/tiles",
+            "/api/v1/textures/{id}/tiles/{level}/{x}/{file}",
+            "/api/{*rest}",
+            "static",
+        ]
+    );
+    let tile = ("route", "/api/v1/textures/{id}/tiles/{level}/{x}/{file}");
+    assert_eq!(metric(&before, "vtex_http_requests_total", &[tile, ("status", "200")]), 1.0);
+    assert_eq!(metric(&before, "vtex_http_request_duration_seconds_count", &[tile]), 1.0);
+    for garbage in ["/other/garbage", "/api/v1/textures/x/y/z/1/2/3/4", "/api/v9", "/%ff%fe"] {
+        get_bytes(&c, &s.url(garbage)).await;
+    }
+    let after = metrics(&c, &s).await;
+    let mut want = routes(&before);
+    want.push("/metrics".into());
+    want.sort();
+    assert_eq!(routes(&after), want, "garbage paths added no label");
 }

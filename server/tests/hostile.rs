@@ -372,3 +372,23 @@ async fn sigterm_drains_requests_in_flight() {
     assert_eq!((img.width(), img.height()), (4096, 4096));
     assert_eq!(status.code(), Some(0), "clean exit after SIGTERM");
 }
+
+/// A storage failure is the server's fault: a 500 whose message says what failed and nothing
+/// of the cause (no path, no OS error), while the log keeps the cause.
+#[tokio::test]
+async fn storage_failures_answer_a_generic_500() {
+    let root = tempdir();
+    let dir = root.path().join("data");
+    std::fs::create_dir(&dir).unwrap();
+    let s = Server::start(&dir, &[]);
+    // The data directory vanishes under the server (it runs as root in CI, where permissions
+    // would not stop it): storing a bundle now fails in the file system.
+    std::fs::remove_dir_all(&dir).unwrap();
+    let (status, body) = upload(&client(), &s, mosaic(32, 8, 9).to_bytes()).await;
+    assert_eq!(status, 500, "{body}");
+    let msg = body["error"].as_str().unwrap();
+    assert_eq!(msg, "internal server error: storing the bundle failed");
+    let log = s.log_text();
+    assert!(log.contains("storing the bundle failed") && log.contains("os error"), "the cause is logged: {log}");
+    assert_eq!(client().get(s.url("/healthz")).send().await.unwrap().status(), 200);
+}

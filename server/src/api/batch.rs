@@ -1,8 +1,8 @@
 //! Many tiles in one response: `GET /api/v1/textures/{id}/tiles?tiles=L/x/y,…&format=F[&frame=N]`.
 //!
-//! Why: a browser spends ~3 ms of CPU on every request, whatever its size (BENCHMARKS.md,
-//! "Viewer"), so a view of ~27 tiles cost ~100 ms before a pixel was drawn. One request for the
-//! whole view costs that once.
+//! Why: a browser spends a fixed amount of CPU on every request, whatever its size, so a view
+//! of a few dozen tiles paid it a few dozen times before a pixel was drawn. One request for the
+//! whole view pays it once.
 //!
 //! The body is a stream of frames sent in completion order: tiles found in the cache at once,
 //! the others as each synthesis finishes. Each frame is a [`HEADER_LEN`]-byte little-endian
@@ -21,7 +21,7 @@
 //! | 28..32 | length of what follows (u32): the tile's bytes, or `{"error": …}`  |
 //!
 //! The whole request is validated before anything is sent: a malformed or empty list, a
-//! repeated tile, more than [`MAX_TILES`] tiles, a query over [`MAX_QUERY_BYTES`], an unknown
+//! repeated tile, more than [`MAX_TILES`] tiles, a list over [`MAX_LIST_BYTES`], an unknown
 //! format or parameter are 400s, a level the texture does not serve a 400 and a tile outside
 //! its level a 404, as for single tiles, each naming the problem. Errors after that (a model
 //! failing to render) come as error frames. Dropping the response (a client that went away)
@@ -29,19 +29,19 @@
 //! not finished within the request deadline is cut off (the client sees a truncated stream).
 
 use super::error::{echo, ApiError};
-use super::params::{parse_u32, query_pairs};
-use super::tiles::{self, frame_for, parse_format};
-use super::{lookup, App};
+use super::extract::{Path, Query};
+use super::params::{de, u32_value};
+use super::tiles::{self, frame_for};
+use super::{lookup, App, TextureId};
 use crate::cache::{Source, Tile, TileKey};
 use crate::encode::Format;
-use crate::store::Entry;
 use axum::body::Body;
-use axum::extract::rejection::PathRejection;
-use axum::extract::{Path, RawQuery, State};
+use axum::extract::State;
 use axum::http::{header, HeaderValue};
 use axum::response::Response;
 use bytes::{BufMut, Bytes, BytesMut};
 use http_body::Frame;
+use serde::{Deserialize, Deserializer};
 use std::collections::{HashSet, VecDeque};
 use std::future::Future;
 use std::pin::Pin;
@@ -52,8 +52,8 @@ use tokio::task::JoinSet;
 
 /// Most tiles one request may ask for (a 4K screen of 256-px tiles needs ~150).
 pub const MAX_TILES: usize = 256;
-/// Longest query accepted: 256 tiles of the largest coordinates fit with room to spare.
-pub const MAX_QUERY_BYTES: usize = 8192;
+/// Longest `tiles` list accepted: 256 tiles of the largest coordinates fit with room to spare.
+pub const MAX_LIST_BYTES: usize = 8192;
 /// First bytes of every frame: `vtb` and the format version.
 pub const MAGIC: [u8; 4] = *b"vtb\x01";
 pub const HEADER_LEN: usize = 32;
@@ -112,87 +112,65 @@ impl FrameHeader {
     }
 }
 
-/// The `tiles` list: `L/x/y` items separated by commas, at most [`MAX_TILES`], none repeated.
-pub fn parse_tiles(list: &str) -> Result<Vec<TileRef>, ApiError> {
+/// The `tiles` list: `L/x/y` items separated by commas, at most [`MAX_TILES`] in at most
+/// [`MAX_LIST_BYTES`], none repeated. Errors are worded to follow the parameter's name.
+pub fn parse_tiles(list: &str) -> Result<Vec<TileRef>, String> {
     if list.is_empty() {
-        return Err(ApiError::bad_request("`tiles` is empty; expected a comma-separated list of level/x/y"));
+        return Err("is empty; expected a comma-separated list of level/x/y".into());
+    }
+    if list.len() > MAX_LIST_BYTES {
+        return Err(format!("is {} bytes long, longer than the limit of {MAX_LIST_BYTES}", list.len()));
     }
     let n = list.split(',').count();
     if n > MAX_TILES {
-        return Err(ApiError::bad_request(format!("`tiles` lists {n} tiles; at most {MAX_TILES} per request")));
+        return Err(format!("lists {n} tiles; at most {MAX_TILES} per request"));
     }
     let mut seen = HashSet::with_capacity(n);
     let mut out = Vec::with_capacity(n);
     for (i, item) in list.split(',').enumerate() {
         let parts: Vec<&str> = item.split('/').collect();
         let [level, x, y] = parts[..] else {
-            return Err(ApiError::bad_request(format!(
-                "tile {} of `tiles` is `{}`; expected level/x/y",
-                i + 1,
-                echo(item)
-            )));
+            return Err(format!("item {} is `{}`; expected level/x/y", i + 1, echo(item)));
         };
-        let tile = TileRef { level: parse_u32("level", level)?, x: parse_u32("x", x)?, y: parse_u32("y", y)? };
+        let coord = |name: &str, s: &str| u32_value(s).map_err(|why| format!("item {}: `{name}` {why}", i + 1));
+        let tile = TileRef { level: coord("level", level)?, x: coord("x", x)?, y: coord("y", y)? };
         if !seen.insert(tile) {
-            return Err(ApiError::bad_request(format!(
-                "tile {}/{}/{} is listed twice in `tiles`",
-                tile.level, tile.x, tile.y
-            )));
+            return Err(format!("lists tile {}/{}/{} twice", tile.level, tile.x, tile.y));
         }
         out.push(tile);
     }
     Ok(out)
 }
 
-/// What a batch request asks for, validated against the texture.
-struct BatchQuery {
-    tiles: Vec<TileRef>,
-    format: Format,
-    frame: u32,
+fn de_tiles<'de, D: Deserializer<'de>>(d: D) -> Result<Vec<TileRef>, D::Error> {
+    parse_tiles(&String::deserialize(d)?).map_err(serde::de::Error::custom)
 }
 
-fn parse_query(entry: &Entry, query: Option<&str>) -> Result<BatchQuery, ApiError> {
-    let raw = query.unwrap_or("");
-    if raw.len() > MAX_QUERY_BYTES {
-        return Err(ApiError::bad_request(format!(
-            "query of {} bytes is longer than the limit of {MAX_QUERY_BYTES}",
-            raw.len()
-        )));
-    }
-    let (mut tiles, mut format, mut frame) = (None, None, None);
-    for (k, v) in query_pairs(query)? {
-        match k.as_str() {
-            "tiles" => tiles = Some(parse_tiles(&v)?),
-            "format" => format = Some(parse_format(&v)?),
-            "frame" => frame = Some(v),
-            other => {
-                return Err(ApiError::bad_request(format!(
-                    "unknown query parameter `{}`; expected tiles, format, frame",
-                    echo(other)
-                )))
-            }
-        }
-    }
-    let tiles = tiles.ok_or_else(|| ApiError::bad_request("missing query parameter `tiles` (level/x/y,…)"))?;
-    let format = format
-        .ok_or_else(|| ApiError::bad_request(format!("missing query parameter `format`; {}", Format::EXPECTED)))?;
-    for t in &tiles {
-        tiles::check_tile(entry, t.level, t.x, t.y)?;
-    }
-    Ok(BatchQuery { tiles, format, frame: frame_for(entry, frame.as_deref())? })
+/// The query of a batch.
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct BatchQuery {
+    #[serde(deserialize_with = "de_tiles")]
+    pub tiles: Vec<TileRef>,
+    #[serde(deserialize_with = "de::format")]
+    pub format: Format,
+    #[serde(default, deserialize_with = "de::opt_u32")]
+    pub frame: Option<u32>,
 }
 
 /// The handler. Tiles in the cache are framed at once; each other tile is a task of its own
 /// (they wait for synthesis permits like single tiles do), framed as it finishes.
 pub async fn batch(
     State(app): State<App>,
-    path: Result<Path<String>, PathRejection>,
-    RawQuery(query): RawQuery,
+    Path(TextureId { id }): Path<TextureId>,
+    Query(BatchQuery { tiles, format, frame }): Query<BatchQuery>,
 ) -> Result<Response, ApiError> {
     let started = Instant::now();
-    let Path(id) = path.map_err(|e| ApiError::bad_request(e.body_text()))?;
     let entry = lookup(&app, &id)?;
-    let BatchQuery { tiles, format, frame } = parse_query(&entry, query.as_deref())?;
+    for t in &tiles {
+        tiles::check_tile(&entry, t.level, t.x, t.y)?;
+    }
+    let frame = frame_for(&entry, frame);
     let mut ready = VecDeque::new();
     let mut pending = JoinSet::new();
     for tile in tiles {
@@ -230,8 +208,8 @@ fn push_tile(out: &mut VecDeque<Bytes>, tile: TileRef, t: &Tile, source: Source)
 }
 
 fn push_error(out: &mut VecDeque<Bytes>, tile: TileRef, e: &ApiError) {
-    let json = serde_json::json!({ "error": e.message }).to_string();
-    let header = FrameHeader { tile, status: e.status.as_u16(), cache: 0, width: 0, height: 0, len: json.len() as u32 };
+    let (status, json) = e.to_json();
+    let header = FrameHeader { tile, status: status.as_u16(), cache: 0, width: 0, height: 0, len: json.len() as u32 };
     let mut b = BytesMut::with_capacity(HEADER_LEN + json.len());
     b.put_slice(&header.encode());
     b.put_slice(json.as_bytes());
@@ -331,14 +309,15 @@ mod tests {
     fn tile_lists_and_their_errors() {
         let t = |level, x, y| TileRef { level, x, y };
         assert_eq!(parse_tiles("0/1/2,3/4/5").unwrap(), vec![t(0, 1, 2), t(3, 4, 5)]);
-        let msg = |s: &str| parse_tiles(s).unwrap_err().message;
+        let msg = |s: &str| parse_tiles(s).unwrap_err();
         assert!(msg("").contains("empty"));
-        assert!(msg("1/2").contains("tile 1 of `tiles` is `1/2`"));
-        assert!(msg("1/2/3,4/5/6/7").contains("tile 2"));
-        assert!(msg("1/2/3,").contains("tile 2"));
-        assert!(msg("1/x/3").contains("`x` must be an integer"));
+        assert!(msg("1/2").contains("item 1 is `1/2`"));
+        assert!(msg("1/2/3,4/5/6/7").contains("item 2"));
+        assert!(msg("1/2/3,").contains("item 2"));
+        assert!(msg("1/x/3").contains("item 1: `x` must be an integer"));
         assert!(msg("1/-2/3").contains("negative"));
-        assert!(msg("1/2/3,0/0/0,1/2/3").contains("1/2/3 is listed twice"));
+        assert!(msg("1/2/3,0/0/0,1/2/3").contains("lists tile 1/2/3 twice"));
+        assert!(msg(&"0/0/0,".repeat(2000)).contains("longer than the limit of 8192"));
         let many = (0..=MAX_TILES).map(|i| format!("0/{i}/0")).collect::<Vec<_>>().join(",");
         assert!(msg(&many).contains("at most 256"));
         let most = (0..MAX_TILES).map(|i| format!("0/{i}/0")).collect::<Vec<_>>().join(",");

@@ -1,29 +1,75 @@
-//! Errors as HTTP responses: a status and `{"error": "message naming the problem"}`.
+//! The API's one error type: every failure a handler, extractor or layer can answer with,
+//! sent as a status and `{"error": "message"}`.
 
 use axum::http::{header, HeaderValue, StatusCode};
 use axum::response::{IntoResponse, Response};
 
-#[derive(Debug, Clone, PartialEq, Eq)]
-pub struct ApiError {
-    pub status: StatusCode,
-    pub message: String,
+/// The cause of an internal error: kept for the log, never sent.
+pub type Cause = Box<dyn std::error::Error + Send + Sync>;
+
+#[derive(Debug, thiserror::Error)]
+pub enum ApiError {
+    #[error("{0}")]
+    BadRequest(String),
+    #[error("{0}")]
+    NotFound(String),
+    #[error("{0}")]
+    MethodNotAllowed(String),
+    #[error("{0}")]
+    Timeout(String),
+    #[error("{0}")]
+    PayloadTooLarge(String),
+    #[error("{0}")]
+    UnsupportedMediaType(String),
+    /// The server failed. `what` (static text, so it cannot carry a path or an OS message) is
+    /// all the client learns; `cause` goes to the log.
+    #[error("{what}: {cause}")]
+    Internal { what: &'static str, cause: Cause },
 }
 
 impl ApiError {
-    pub fn new(status: StatusCode, message: impl Into<String>) -> Self {
-        ApiError { status, message: message.into() }
-    }
-
     pub fn bad_request(message: impl Into<String>) -> Self {
-        Self::new(StatusCode::BAD_REQUEST, message)
+        ApiError::BadRequest(message.into())
     }
 
     pub fn not_found(message: impl Into<String>) -> Self {
-        Self::new(StatusCode::NOT_FOUND, message)
+        ApiError::NotFound(message.into())
     }
 
-    pub fn internal(message: impl Into<String>) -> Self {
-        Self::new(StatusCode::INTERNAL_SERVER_ERROR, message)
+    /// A server-side failure: `what` the server was doing, `cause` why it failed.
+    pub fn internal(what: &'static str, cause: impl Into<Cause>) -> Self {
+        ApiError::Internal { what, cause: cause.into() }
+    }
+
+    pub fn status(&self) -> StatusCode {
+        match self {
+            ApiError::BadRequest(_) => StatusCode::BAD_REQUEST,
+            ApiError::NotFound(_) => StatusCode::NOT_FOUND,
+            ApiError::MethodNotAllowed(_) => StatusCode::METHOD_NOT_ALLOWED,
+            ApiError::Timeout(_) => StatusCode::REQUEST_TIMEOUT,
+            ApiError::PayloadTooLarge(_) => StatusCode::PAYLOAD_TOO_LARGE,
+            ApiError::UnsupportedMediaType(_) => StatusCode::UNSUPPORTED_MEDIA_TYPE,
+            ApiError::Internal { .. } => StatusCode::INTERNAL_SERVER_ERROR,
+        }
+    }
+
+    /// The status and the message the client receives. An internal error is logged here with
+    /// its cause, once per answer it becomes, and answered with its static description only.
+    pub fn to_client(&self) -> (StatusCode, String) {
+        let message = match self {
+            ApiError::Internal { what, cause } => {
+                tracing::error!(cause = %cause, "{what}");
+                format!("internal server error: {what}")
+            }
+            other => other.to_string(),
+        };
+        (self.status(), message)
+    }
+
+    /// The JSON body of the answer, `{"error": "…"}`.
+    pub fn to_json(&self) -> (StatusCode, String) {
+        let (status, message) = self.to_client();
+        (status, serde_json::json!({ "error": message }).to_string())
     }
 }
 
@@ -45,9 +91,25 @@ impl From<vtex_synth::Error> for ApiError {
 
 impl IntoResponse for ApiError {
     fn into_response(self) -> Response {
-        let body = serde_json::json!({ "error": self.message }).to_string();
-        let mut resp = (self.status, body).into_response();
+        let (status, body) = self.to_json();
+        let mut resp = (status, body).into_response();
         resp.headers_mut().insert(header::CONTENT_TYPE, HeaderValue::from_static("application/json"));
         resp
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn internal_errors_answer_without_their_cause() {
+        let cause = std::io::Error::new(std::io::ErrorKind::PermissionDenied, "/secret/dir: permission denied");
+        let e = ApiError::internal("storing the bundle failed", cause);
+        let (status, body) = e.to_json();
+        assert_eq!(status, StatusCode::INTERNAL_SERVER_ERROR);
+        assert!(body.contains("storing the bundle failed"), "{body}");
+        assert!(!body.contains("secret") && !body.contains("permission"), "{body}");
+        assert!(e.to_string().contains("/secret/dir"), "the cause stays available for the log");
     }
 }

@@ -1,20 +1,18 @@
-//! The service hyper calls for every request: it counts, times and logs each request, bounds
-//! it with the request deadline, and hands tile GETs straight to the tile handler; everything
-//! else goes through the axum router.
+//! The service hyper calls for every request: the [`router`], except for plain GETs of a
+//! single tile, which it answers itself.
 //!
-//! Why tiles skip the router: a warm tile is a cache lookup, yet through axum's router and
-//! three `from_fn`/CORS layers it cost ~54,000 instructions, mostly boxed futures, service
-//! clones, header-map copies and percent-decoding (callgrind, BENCHMARKS.md). The direct path
-//! runs the same handler ([`tiles::tile`]) with the same CORS headers; anything it does not
-//! recognise exactly (HEAD, other methods, percent-encoded or malformed paths) still takes the
-//! router, so answers are the same either way (tests compare both paths).
+//! Why: a warm tile is a cache lookup, and the router's per-request machinery (the route's
+//! boxed services, its layers, the request extensions) costs more than the rest of such a
+//! request. The fast path matches the path against the router's own template ([`TILE`]) with
+//! the router's matcher (`matchit`), fills the same extractor types, runs the same handler
+//! ([`tiles::answer`]) and gives the answer the same CORS headers, metrics label, log line
+//! and deadline. Anything else (HEAD, other methods, percent-encoded paths, other routes)
+//! takes the router, so answers are the same either way (tests compare both).
 
-use super::error::ApiError;
-use super::tiles::{self, TilePath};
-use super::{router, App, X_VTEX_CACHE, X_VTEX_HEIGHT, X_VTEX_WIDTH};
-use crate::metrics::Route;
+use super::extract::{path_params, query_params};
+use super::{cors_layer, count, router, tiles, timed_out, App, TILE};
 use axum::body::Body;
-use axum::http::{header, HeaderMap, HeaderValue, Method, Request, StatusCode};
+use axum::http::{header, HeaderMap, HeaderValue, Method, Request};
 use axum::response::{IntoResponse, Response};
 use axum::Router;
 use hyper::body::Incoming;
@@ -22,9 +20,9 @@ use std::convert::Infallible;
 use std::future::Future;
 use std::pin::Pin;
 use std::sync::Arc;
-use std::time::{Duration, Instant};
+use std::time::Instant;
 use tower::ServiceExt;
-use tower_http::cors::{Any, CorsLayer};
+use tower_http::cors::CorsLayer;
 
 /// Cloned per connection and per request (one reference count); the state is shared.
 #[derive(Clone)]
@@ -33,17 +31,59 @@ pub struct Front(Arc<Inner>);
 struct Inner {
     app: App,
     router: Router,
+    /// [`TILE`] alone, in the matcher the router uses.
+    tile: matchit::Router<()>,
     cors: CorsHeaders,
 }
 
-/// The CORS policy: any origin, the API's methods, any request header, and the response
-/// headers the viewer reads exposed.
-pub fn cors_layer() -> CorsLayer {
-    CorsLayer::new()
-        .allow_origin(Any)
-        .allow_methods([Method::GET, Method::HEAD, Method::POST, Method::PATCH, Method::OPTIONS])
-        .allow_headers(Any)
-        .expose_headers([header::ETAG, X_VTEX_CACHE.clone(), X_VTEX_WIDTH.clone(), X_VTEX_HEIGHT.clone()])
+impl Front {
+    pub fn new(app: App) -> Front {
+        let mut tile = matchit::Router::new();
+        tile.insert(TILE, ()).expect("the tile route is a valid template");
+        let cors = CorsHeaders::from_layer(cors_layer());
+        Front(Arc::new(Inner { router: router(app.clone()), app, tile, cors }))
+    }
+}
+
+impl hyper::service::Service<Request<Incoming>> for Front {
+    type Response = Response;
+    type Error = Infallible;
+    type Future = Pin<Box<dyn Future<Output = Result<Response, Infallible>> + Send>>;
+
+    fn call(&self, req: Request<Incoming>) -> Self::Future {
+        let this = self.0.clone();
+        Box::pin(async move {
+            // Percent-encoded segments need decoding, which the router's extractor does.
+            let plain = req.method() == Method::GET && !req.uri().path().contains('%');
+            if let Some(m) = plain.then(|| this.tile.at(req.uri().path()).ok()).flatten() {
+                let start = Instant::now();
+                let limit = this.app.cfg.request_timeout();
+                let work = async {
+                    let (path, query) = (path_params(m.params.iter())?, query_params(req.uri().query())?);
+                    tiles::answer(&this.app, path, query, req.headers()).await
+                };
+                let mut resp = match tokio::time::timeout(limit, work).await {
+                    Ok(answer) => answer.into_response(),
+                    Err(_) => timed_out(limit).into_response(),
+                };
+                this.cors.apply(resp.headers_mut());
+                count(&this.app, TILE, &Method::GET, start, &resp);
+                tracing::info!(
+                    target: "vtex::http",
+                    method = "GET",
+                    uri = %req.uri(),
+                    status = resp.status().as_u16(),
+                    latency_us = start.elapsed().as_micros() as u64,
+                    "finished processing request"
+                );
+                return Ok(resp);
+            }
+            match this.router.clone().oneshot(req.map(Body::new)).await {
+                Ok(resp) => Ok(resp),
+                Err(never) => match never {},
+            }
+        })
+    }
 }
 
 /// The headers [`cors_layer`] puts on a response to a request that is not a preflight
@@ -57,7 +97,7 @@ impl CorsHeaders {
             .layer(layer)
             .service_fn(|_: Request<Body>| async { Ok::<_, Infallible>(Response::new(Body::empty())) });
         let req = Request::get("/").body(Body::empty()).expect("a static request");
-        let resp = futures_ready(svc.oneshot(req)).expect("the CORS layer answers at once");
+        let resp = ready(svc.oneshot(req)).expect("the CORS layer answers at once");
         let leak = |v: &HeaderValue| {
             let text: &'static str = v.to_str().expect("CORS header values are ASCII").to_owned().leak();
             HeaderValue::from_static(text)
@@ -78,7 +118,7 @@ impl CorsHeaders {
 }
 
 /// Polls a future that needs no waking (the CORS layer over an immediate service) once.
-fn futures_ready<F: Future>(f: F) -> F::Output {
+fn ready<F: Future>(f: F) -> F::Output {
     let mut f = std::pin::pin!(f);
     match f.as_mut().poll(&mut std::task::Context::from_waker(std::task::Waker::noop())) {
         std::task::Poll::Ready(v) => v,
@@ -86,103 +126,9 @@ fn futures_ready<F: Future>(f: F) -> F::Output {
     }
 }
 
-impl Front {
-    pub fn new(app: App) -> Front {
-        let cors = CorsHeaders::from_layer(cors_layer());
-        Front(Arc::new(Inner { router: router(app.clone()), app, cors }))
-    }
-}
-
-impl hyper::service::Service<Request<Incoming>> for Front {
-    type Response = Response;
-    type Error = Infallible;
-    type Future = Pin<Box<dyn Future<Output = Result<Response, Infallible>> + Send>>;
-
-    fn call(&self, req: Request<Incoming>) -> Self::Future {
-        let start = Instant::now();
-        let this = self.0.clone();
-        Box::pin(async move {
-            let method = req.method().clone();
-            let path = tracing::enabled!(tracing::Level::INFO).then(|| req.uri().path().to_owned());
-            let limit = this.app.cfg.request_timeout();
-            let direct = if method == Method::GET { TilePath::plain(req.uri().path()) } else { None };
-            let (route, answer) = match direct {
-                Some(tile) => (Route::Tiles, tokio::time::timeout(limit, this.tile(tile, &req)).await),
-                None => (Route::of(req.uri().path()), tokio::time::timeout(limit, this.route(req)).await),
-            };
-            let resp = answer.unwrap_or_else(|_| {
-                let mut resp = ApiError::new(
-                    StatusCode::REQUEST_TIMEOUT,
-                    format!("request not completed within {} s (slow client or overload)", limit.as_secs_f64()),
-                )
-                .into_response();
-                this.cors.apply(resp.headers_mut());
-                resp
-            });
-            observe(&this.app, route, &method, path, start.elapsed(), &resp);
-            Ok(resp)
-        })
-    }
-}
-
-impl Inner {
-    /// A plain tile GET, answered directly, with the CORS headers the router would add.
-    async fn tile(&self, path: TilePath<'_>, req: &Request<Incoming>) -> Response {
-        let mut resp = tiles::tile(&self.app, path, req.uri().query(), req.headers()).await.into_response();
-        self.cors.apply(resp.headers_mut());
-        resp
-    }
-
-    /// Everything else, through the router.
-    async fn route(&self, req: Request<Incoming>) -> Response {
-        match self.router.clone().oneshot(req.map(Body::new)).await {
-            Ok(resp) => resp,
-            Err(never) => match never {},
-        }
-    }
-}
-
-/// Counts, times and logs one request.
-fn observe(app: &App, route: Route, method: &Method, path: Option<String>, elapsed: Duration, resp: &Response) {
-    let status = resp.status();
-    let bytes = http_body::Body::size_hint(resp.body()).exact().unwrap_or(0);
-    app.metrics.request_done(route, method, status, elapsed.as_secs_f64(), bytes);
-    if let Some(path) = path {
-        tracing::info!(
-            target: "vtex::http",
-            method = %method,
-            path,
-            status = status.as_u16(),
-            latency_us = elapsed.as_micros() as u64,
-            bytes,
-            "request"
-        );
-    }
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    #[test]
-    fn tile_paths_taken_directly() {
-        let id = "ab".repeat(32);
-        let path = format!("/api/v1/textures/{id}/tiles/3/4/5.png");
-        let p = TilePath::plain(&path).unwrap();
-        assert_eq!((p.id, p.level, p.x, p.file), (id.as_str(), "3", "4", "5.png"));
-        for other in [
-            format!("/api/v1/textures/{id}/tiles/3/4/5.png/"),
-            format!("/api/v1/textures/{id}/tiles/3/4"),
-            format!("/api/v1/textures/{id}/tiles/3//5.png"),
-            format!("/api/v1/textures/{id}/tile/3/4/5.png"),
-            format!("/api/v1/textures/{id}/tiles/%33/4/5.png"),
-            "/api/v1/textures//tiles/3/4/5.png".to_string(),
-            format!("/api/v1/textures/{id}"),
-            "/healthz".to_string(),
-        ] {
-            assert!(TilePath::plain(&other).is_none(), "{other}");
-        }
-    }
 
     #[test]
     fn cors_headers_are_the_layers() {

@@ -1,7 +1,9 @@
-//! The HTTP API v1 (DESIGN §4, CONTRACT), the static viewer, and the middleware around them.
+//! The HTTP API v1, the static viewer, and the layers around them. [`router`] is the one
+//! table of routes: requests are matched there and nowhere else.
 
 pub mod batch;
 pub mod error;
+pub mod extract;
 mod front;
 pub mod params;
 mod textures;
@@ -12,26 +14,48 @@ use crate::config::ServeConfig;
 use crate::encode::{self, Format};
 use crate::metrics::Metrics;
 use crate::store::{Entry, Store};
-use axum::extract::{DefaultBodyLimit, Request, State};
-use axum::http::{header, HeaderMap, HeaderName, HeaderValue, StatusCode};
+use axum::error_handling::HandleErrorLayer;
+use axum::extract::{DefaultBodyLimit, MatchedPath, Request, State};
+use axum::http::{header, HeaderMap, HeaderName, HeaderValue, Method, StatusCode};
+use axum::middleware::{self, Next};
 use axum::response::{IntoResponse, Response};
 use axum::routing::{any, get};
-use axum::Router;
+use axum::{BoxError, Router};
 use error::ApiError;
+use extract::{NoQuery, Query};
 use http_body_util::BodyExt;
+use serde::Deserialize;
 use std::sync::Arc;
 use std::time::Instant;
 use tokio::sync::Semaphore;
+use tower::ServiceBuilder;
+use tower_http::cors::{Any, CorsLayer};
 use tower_http::services::ServeDir;
+use tower_http::trace::{DefaultMakeSpan, DefaultOnResponse, TraceLayer};
+use tower_http::LatencyUnit;
 use vtex_synth::Region;
 
 pub use error::ApiError as Error;
 pub use front::Front;
 
+/// The route of a single tile: [`router`] serves it, and [`Front`] answers plain GETs of it
+/// directly, matching paths against this same template.
+pub const TILE: &str = "/api/v1/textures/{id}/tiles/{level}/{x}/{file}";
+
 pub const CACHE_IMMUTABLE: HeaderValue = HeaderValue::from_static("public, max-age=31536000, immutable");
 pub static X_VTEX_CACHE: HeaderName = HeaderName::from_static("x-vtex-cache");
 pub static X_VTEX_WIDTH: HeaderName = HeaderName::from_static("x-vtex-width");
 pub static X_VTEX_HEIGHT: HeaderName = HeaderName::from_static("x-vtex-height");
+
+const SYNTHESIS_FAILED: &str = "synthesis failed inside the model; the texture cannot render this region";
+
+/// What a caught panic says, for the log.
+fn panic_message(panic: Box<dyn std::any::Any + Send>) -> String {
+    match panic.downcast::<String>() {
+        Ok(s) => format!("panic: {s}"),
+        Err(p) => format!("panic: {}", p.downcast_ref::<&str>().unwrap_or(&"(no message)")),
+    }
+}
 
 /// Everything a request handler needs.
 pub struct AppState {
@@ -87,35 +111,51 @@ impl AppState {
                 let img = vtex_synth::texture::render_image(&*entry.texture, &region)?;
                 synth_s.observe(t0.elapsed().as_secs_f64());
                 let t1 = Instant::now();
-                let bytes = encode::encode(&img, format).map_err(ApiError::internal)?;
+                let bytes = encode::encode(&img, format).map_err(|e| ApiError::internal("encoding failed", e))?;
                 encode_s.observe(t1.elapsed().as_secs_f64());
                 Ok(finish(bytes))
             };
             let result = std::panic::catch_unwind(std::panic::AssertUnwindSafe(work));
             in_flight.dec();
             drop(permit);
-            result.unwrap_or_else(|_| {
-                Err(ApiError::internal("synthesis failed inside the model; the texture cannot render this region"))
-            })
+            result.unwrap_or_else(|panic| Err(ApiError::internal(SYNTHESIS_FAILED, panic_message(panic))))
         })
         .await
-        .map_err(|e| {
-            tracing::error!(error = %e, "synthesis task failed");
-            ApiError::internal("synthesis failed inside the model; the texture cannot render this region")
-        })?
+        .map_err(|e| ApiError::internal(SYNTHESIS_FAILED, e))?
     }
 }
 
-/// API routes, the static viewer, CORS and the body limit. [`Front`] wraps it with metrics,
-/// logs and the request deadline, and answers plain tile GETs itself.
-fn router(app: App) -> Router {
+/// The path of the routes of one texture, `/api/v1/textures/{id}…`.
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct TextureId {
+    pub id: String,
+}
+
+/// The routes, the static viewer as the fallback, and the layers every request passes:
+/// metrics and the log outermost (so they see every answer, a timeout's too), then CORS, then
+/// the request deadline, then the body limit.
+pub fn router(app: App) -> Router {
     let web = ServeDir::new(&app.cfg.web_dir).append_index_html_on_directories(true);
+    let limit = app.cfg.request_timeout();
+    let on_timeout = move |_: BoxError| async move { timed_out(limit) };
+    let layers = ServiceBuilder::new()
+        .layer(
+            TraceLayer::new_for_http()
+                .make_span_with(DefaultMakeSpan::new().level(tracing::Level::INFO))
+                .on_response(DefaultOnResponse::new().level(tracing::Level::INFO).latency_unit(LatencyUnit::Micros)),
+        )
+        .layer(middleware::from_fn_with_state(app.clone(), observe))
+        .layer(cors_layer())
+        .layer(HandleErrorLayer::new(on_timeout))
+        .timeout(limit)
+        .layer(DefaultBodyLimit::max(app.cfg.max_upload_bytes()));
     Router::new()
         .route("/api/v1/textures", get(textures::list).post(textures::upload))
         .route("/api/v1/textures/{id}", get(textures::info).patch(textures::patch))
         .route("/api/v1/textures/{id}/encoding", get(textures::encoding))
         .route("/api/v1/textures/{id}/tiles", get(batch::batch))
-        .route("/api/v1/textures/{id}/tiles/{level}/{x}/{file}", get(tiles::tile_route))
+        .route(TILE, get(tiles::tile))
         .route("/api/v1/textures/{id}/region", get(tiles::region))
         .route("/healthz", get(healthz))
         .route("/metrics", get(metrics))
@@ -123,16 +163,48 @@ fn router(app: App) -> Router {
         .route("/api/{*rest}", any(api_not_found))
         .method_not_allowed_fallback(method_not_allowed)
         .fallback_service(web)
-        .layer(DefaultBodyLimit::max(app.cfg.max_upload_bytes()))
-        .layer(front::cors_layer())
+        .layer(layers)
         .with_state(app)
 }
 
-async fn healthz() -> Response {
+/// The answer to a request not done within the deadline `limit`.
+fn timed_out(limit: std::time::Duration) -> ApiError {
+    ApiError::Timeout(format!("request not completed within {} s (slow client or overload)", limit.as_secs_f64()))
+}
+
+/// The CORS policy: any origin, the API's methods, any request header, and the response
+/// headers the viewer reads exposed.
+fn cors_layer() -> CorsLayer {
+    CorsLayer::new()
+        .allow_origin(Any)
+        .allow_methods([Method::GET, Method::HEAD, Method::POST, Method::PATCH, Method::OPTIONS])
+        .allow_headers(Any)
+        .expose_headers([header::ETAG, X_VTEX_CACHE.clone(), X_VTEX_WIDTH.clone(), X_VTEX_HEIGHT.clone()])
+}
+
+/// Counts and times every request under the template of the route that matched it, so the
+/// metrics name the same routes as the router, with a bounded set of labels.
+async fn observe(State(app): State<App>, req: Request, next: Next) -> Response {
+    let start = Instant::now();
+    let route = req.extensions().get::<MatchedPath>().cloned();
+    let method = req.method().clone();
+    let resp = next.run(req).await;
+    let route = route.as_ref().map_or(crate::metrics::STATIC, MatchedPath::as_str);
+    count(&app, route, &method, start, &resp);
+    resp
+}
+
+/// Counts one answered request under `route`.
+fn count(app: &AppState, route: &str, method: &Method, start: Instant, resp: &Response) {
+    let bytes = http_body::Body::size_hint(resp.body()).exact().unwrap_or(0);
+    app.metrics.request_done(route, method, resp.status(), start.elapsed().as_secs_f64(), bytes);
+}
+
+async fn healthz(_: Query<NoQuery>) -> Response {
     ([(header::CONTENT_TYPE, "application/json")], r#"{"status":"ok"}"#).into_response()
 }
 
-async fn metrics(State(app): State<App>) -> Response {
+async fn metrics(State(app): State<App>, _: Query<NoQuery>) -> Response {
     let m = &app.metrics;
     m.cache_bytes.set(app.cache.bytes() as i64);
     m.cache_mapped_bytes.set(crate::zerocopy::mapped_bytes() as i64);
@@ -147,10 +219,7 @@ async fn api_not_found(req: Request) -> ApiError {
 }
 
 async fn method_not_allowed(req: Request) -> ApiError {
-    ApiError::new(
-        StatusCode::METHOD_NOT_ALLOWED,
-        format!("method {} is not allowed on {}", req.method(), error::echo(req.uri().path())),
-    )
+    ApiError::MethodNotAllowed(format!("method {} is not allowed on {}", req.method(), error::echo(req.uri().path())))
 }
 
 /// True when `If-None-Match` names `etag` (weak comparison, as RFC 9110 requires) or is `*`.
@@ -222,7 +291,7 @@ pub async fn refuse_oversized(req: Request, limit: usize) -> ApiError {
     if !waits_to_send {
         let _ = tokio::time::timeout(DRAIN_TIME, drain).await;
     }
-    ApiError::new(StatusCode::PAYLOAD_TOO_LARGE, format!("request body larger than the limit of {limit} bytes"))
+    ApiError::PayloadTooLarge(format!("request body larger than the limit of {limit} bytes"))
 }
 
 /// A texture id from the path: checked before it can reach a file name.

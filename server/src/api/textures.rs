@@ -1,12 +1,13 @@
 //! Texture resources: list, info, upload, merge-patch, encoding download.
 
 use super::error::{echo, ApiError};
+use super::extract::{NoQuery, Path, Query};
 use super::{
-    declared_length, lookup, not_modified, not_modified_response, read_body, refuse_oversized, App, CACHE_IMMUTABLE,
+    declared_length, lookup, not_modified, not_modified_response, read_body, refuse_oversized, App, TextureId,
+    CACHE_IMMUTABLE,
 };
 use crate::store::{StoreError, TextureInfo};
-use axum::extract::rejection::PathRejection;
-use axum::extract::{FromRequest, Multipart, Path, Request, State};
+use axum::extract::{FromRequest, Multipart, Request, State};
 use axum::http::{header, HeaderMap, HeaderValue, StatusCode};
 use axum::response::{IntoResponse, Response};
 use axum::Json;
@@ -19,36 +20,34 @@ const MAX_FIELDS: usize = 16;
 /// Largest PATCH body: a merge patch of names and parameters.
 const MAX_PATCH_BYTES: usize = 1 << 20;
 
-fn path_id(path: Result<Path<String>, PathRejection>) -> Result<String, ApiError> {
-    path.map(|Path(id)| id).map_err(|e| ApiError::bad_request(e.body_text()))
-}
-
-pub async fn list(State(app): State<App>) -> Json<Value> {
+pub async fn list(State(app): State<App>, _: Query<NoQuery>) -> Json<Value> {
     let textures: Vec<TextureInfo> = app.store.list().iter().map(|e| e.info()).collect();
     Json(serde_json::json!({ "textures": textures }))
 }
 
 pub async fn info(
     State(app): State<App>,
-    path: Result<Path<String>, PathRejection>,
+    Path(TextureId { id }): Path<TextureId>,
+    _: Query<NoQuery>,
 ) -> Result<Json<TextureInfo>, ApiError> {
-    Ok(Json(lookup(&app, &path_id(path)?)?.info()))
+    Ok(Json(lookup(&app, &id)?.info()))
 }
 
 /// The bundle bytes exactly as stored. The id is the content hash: a perfect strong ETag.
 pub async fn encoding(
     State(app): State<App>,
-    path: Result<Path<String>, PathRejection>,
+    Path(TextureId { id }): Path<TextureId>,
+    _: Query<NoQuery>,
     headers: HeaderMap,
 ) -> Result<Response, ApiError> {
-    let entry = lookup(&app, &path_id(path)?)?;
+    let entry = lookup(&app, &id)?;
     let tag = HeaderValue::from_str(&format!("\"{}\"", entry.id)).expect("hex id");
     if not_modified(&headers, tag.to_str().unwrap_or_default()) {
         return Ok(not_modified_response(tag));
     }
     let bytes = tokio::fs::read(app.store.path_of(&entry.id))
         .await
-        .map_err(|e| ApiError::internal(format!("reading the stored bundle failed: {e}")))?;
+        .map_err(|e| ApiError::internal("reading the stored bundle failed", e))?;
     let disposition = format!("attachment; filename=\"{}.vtex\"", entry.id);
     Ok((
         [
@@ -67,13 +66,10 @@ async fn store_bundle(app: &App, bytes: Vec<u8>) -> Result<(StatusCode, Json<Tex
     let store = app.store.clone();
     let (entry, created) = tokio::task::spawn_blocking(move || store.put(bytes))
         .await
-        .map_err(|_| ApiError::internal("validating the bundle failed inside the model"))?
+        .map_err(|e| ApiError::internal("validating the bundle failed inside the model", e))?
         .map_err(|e| match e {
             StoreError::Invalid(e) => ApiError::from(e),
-            StoreError::Io(e) => {
-                tracing::error!(error = %e, "storing a bundle failed");
-                ApiError::internal(format!("storage failure: {e}"))
-            }
+            StoreError::Io(e) => ApiError::internal("storing the bundle failed", e),
         })?;
     if created {
         tracing::info!(id = %entry.id, name = %entry.manifest.name, model = %entry.manifest.model, "texture stored");
@@ -82,7 +78,11 @@ async fn store_bundle(app: &App, bytes: Vec<u8>) -> Result<(StatusCode, Json<Tex
 }
 
 /// `POST /api/v1/textures`: a raw bundle, or multipart `model`, `name`, `params` + input images.
-pub async fn upload(State(app): State<App>, req: Request) -> Result<(StatusCode, Json<TextureInfo>), ApiError> {
+pub async fn upload(
+    State(app): State<App>,
+    _: Query<NoQuery>,
+    req: Request,
+) -> Result<(StatusCode, Json<TextureInfo>), ApiError> {
     let content_type = req
         .headers()
         .get(header::CONTENT_TYPE)
@@ -100,22 +100,19 @@ pub async fn upload(State(app): State<App>, req: Request) -> Result<(StatusCode,
         let bytes = read_body(req, limit).await?;
         store_bundle(&app, bytes.to_vec()).await
     } else {
-        Err(ApiError::new(
-            StatusCode::UNSUPPORTED_MEDIA_TYPE,
-            format!(
-                "content type `{}`; expected application/octet-stream (a bundle) or multipart/form-data",
-                echo(&content_type)
-            ),
-        ))
+        Err(ApiError::UnsupportedMediaType(format!(
+            "content type `{}`; expected application/octet-stream (a bundle) or multipart/form-data",
+            echo(&content_type)
+        )))
     }
 }
 
 async fn bundle_from_multipart(req: Request, limit: usize) -> Result<Vec<u8>, ApiError> {
     let multipart_error = |status: StatusCode, text: String| {
         if status == StatusCode::PAYLOAD_TOO_LARGE {
-            ApiError::new(status, format!("request body larger than the limit of {limit} bytes"))
+            ApiError::PayloadTooLarge(format!("request body larger than the limit of {limit} bytes"))
         } else {
-            ApiError::new(status, format!("malformed multipart body: {text}"))
+            ApiError::bad_request(format!("malformed multipart body: {text}"))
         }
     };
     let mut form = Multipart::from_request(req, &()).await.map_err(|e| multipart_error(e.status(), e.body_text()))?;
@@ -152,7 +149,7 @@ async fn bundle_from_multipart(req: Request, limit: usize) -> Result<Vec<u8>, Ap
     let params = params.unwrap_or_else(|| serde_json::json!({}));
     let bundle = tokio::task::spawn_blocking(move || models::create(&model, &name, &params, &inputs))
         .await
-        .map_err(|_| ApiError::internal("creating the encoding failed inside the model"))??;
+        .map_err(|e| ApiError::internal("creating the encoding failed inside the model", e))??;
     Ok(bundle.to_bytes())
 }
 
@@ -179,10 +176,11 @@ pub fn merge_patch(target: &mut Value, patch: &Value) {
 /// result is validated and stored as a new texture (bundles are immutable).
 pub async fn patch(
     State(app): State<App>,
-    path: Result<Path<String>, PathRejection>,
+    Path(TextureId { id }): Path<TextureId>,
+    _: Query<NoQuery>,
     req: Request,
 ) -> Result<(StatusCode, Json<TextureInfo>), ApiError> {
-    let entry = lookup(&app, &path_id(path)?)?;
+    let entry = lookup(&app, &id)?;
     let body = read_body(req, MAX_PATCH_BYTES).await?;
     let patch: Value =
         serde_json::from_slice(&body).map_err(|e| ApiError::bad_request(format!("patch is not JSON: {e}")))?;
@@ -201,7 +199,7 @@ pub async fn patch(
     let params = doc.get("params").cloned().unwrap_or(Value::Null);
     let bytes = tokio::fs::read(app.store.path_of(&entry.id))
         .await
-        .map_err(|e| ApiError::internal(format!("reading the stored bundle failed: {e}")))?;
+        .map_err(|e| ApiError::internal("reading the stored bundle failed", e))?;
     let old = Bundle::from_bytes(&bytes)?;
     let new = Bundle { manifest: Manifest { name, params, ..old.manifest }, sections: old.sections };
     store_bundle(&app, new.to_bytes()).await

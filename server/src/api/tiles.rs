@@ -1,20 +1,22 @@
 //! Tiles and regions: validation, ETags, the cache, synthesis.
 
 use super::error::{echo, ApiError};
-use super::params::{parse_i64, parse_u32, query_pairs};
+use super::extract::{Path, Query};
+use super::params::{de, format_value, named, u32_value};
 use super::{
-    lookup, not_modified, not_modified_response, App, CACHE_IMMUTABLE, X_VTEX_CACHE, X_VTEX_HEIGHT, X_VTEX_WIDTH,
+    lookup, not_modified, not_modified_response, App, TextureId, CACHE_IMMUTABLE, X_VTEX_CACHE, X_VTEX_HEIGHT,
+    X_VTEX_WIDTH,
 };
 use crate::cache::{Source, Tile, TileKey};
 use crate::config::MAX_REGION_SIDE;
 use crate::encode::Format;
 use crate::store::Entry;
 use axum::body::Body;
-use axum::extract::rejection::PathRejection;
-use axum::extract::{Path, RawQuery, State};
+use axum::extract::State;
 use axum::http::{header, HeaderMap, HeaderValue};
 use axum::response::Response;
 use bytes::Bytes;
+use serde::Deserialize;
 use std::sync::Arc;
 use vtex_synth::texture::{level_count, level_size};
 use vtex_synth::Region;
@@ -27,13 +29,13 @@ const ETAG_SCHEME: &[u8] = b"vtex-tile/1";
 
 /// The frame a request renders: animated textures reduce it modulo their period (frames
 /// one period apart are identical), still textures ignore it.
-pub(super) fn frame_for(entry: &Entry, raw: Option<&str>) -> Result<u32, ApiError> {
-    let frame = raw.map(|s| parse_u32("frame", s)).transpose()?.unwrap_or(0);
-    Ok(match entry.texture.animation() {
+pub(super) fn frame_for(entry: &Entry, frame: Option<u32>) -> u32 {
+    let frame = frame.unwrap_or(0);
+    match entry.texture.animation() {
         None => 0,
         Some(a) if a.period_frames > 0 => frame % a.period_frames,
         Some(_) => frame,
-    })
+    }
 }
 
 /// A strong validator: the bytes are a pure function of everything hashed here.
@@ -61,45 +63,25 @@ fn image_response(body: Bytes, format: Format, etag: HeaderValue, width: u32, he
     resp
 }
 
-pub(super) fn parse_format(s: &str) -> Result<Format, ApiError> {
-    Format::parse(s).ok_or_else(|| ApiError::bad_request(format!("unknown format `{}`; {}", echo(s), Format::EXPECTED)))
+/// The path of a tile: `/api/v1/textures/{id}/tiles/{level}/{x}/{file}`, `file` being
+/// `{y}.{format}`.
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct TilePath {
+    pub id: String,
+    #[serde(deserialize_with = "de::u32")]
+    pub level: u32,
+    #[serde(deserialize_with = "de::u32")]
+    pub x: u32,
+    pub file: String,
 }
 
-/// `GET /api/v1/textures/{id}/tiles/{level}/{x}/{y}.{format}[?frame=N]` through the router
-/// (HEAD, percent-encoded paths); plain GETs take [`tile`] directly (`front`).
-pub async fn tile_route(
-    State(app): State<App>,
-    path: Result<Path<(String, String, String, String)>, PathRejection>,
-    RawQuery(query): RawQuery,
-    headers: HeaderMap,
-) -> Result<Response, ApiError> {
-    let Path((id, level, x, file)) = path.map_err(|e| ApiError::bad_request(e.body_text()))?;
-    tile(&app, TilePath { id: &id, level: &level, x: &x, file: &file }, query.as_deref(), &headers).await
-}
-
-/// The path segments of a tile request, percent-decoded.
-#[derive(Clone, Copy, Debug)]
-pub struct TilePath<'a> {
-    pub id: &'a str,
-    pub level: &'a str,
-    pub x: &'a str,
-    /// `{y}.{format}`
-    pub file: &'a str,
-}
-
-impl<'a> TilePath<'a> {
-    /// The segments of `/api/v1/textures/{id}/tiles/{level}/{x}/{file}` when no segment is
-    /// empty or percent-encoded (then they need no decoding); `None` for anything else.
-    pub fn plain(path: &'a str) -> Option<TilePath<'a>> {
-        let rest = path.strip_prefix("/api/v1/textures/")?;
-        if rest.contains('%') {
-            return None;
-        }
-        let mut it = rest.split('/');
-        let (id, tiles, level, x, file) = (it.next()?, it.next()?, it.next()?, it.next()?, it.next()?);
-        let plain = tiles == "tiles" && it.next().is_none() && [id, level, x, file].iter().all(|s| !s.is_empty());
-        plain.then_some(TilePath { id, level, x, file })
-    }
+/// The query of a tile: `[?frame=N]`.
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct TileQuery {
+    #[serde(default, deserialize_with = "de::opt_u32")]
+    pub frame: Option<u32>,
 }
 
 /// Whether `entry` serves tile (`level`, `x`, `y`): a level it does not serve is a 400, a tile
@@ -120,30 +102,33 @@ pub(super) fn check_tile(entry: &Entry, level: u32, x: u32, y: u32) -> Result<()
     Ok(())
 }
 
-/// A tile: validation, 304, the cache, synthesis on a miss.
+/// `GET /api/v1/textures/{id}/tiles/{level}/{x}/{y}.{format}[?frame=N]` (the route
+/// [`TILE`](super::TILE)).
 pub async fn tile(
+    State(app): State<App>,
+    Path(path): Path<TilePath>,
+    Query(query): Query<TileQuery>,
+    headers: HeaderMap,
+) -> Result<Response, ApiError> {
+    answer(&app, path, query, &headers).await
+}
+
+/// A tile: validation, 304, the cache, synthesis on a miss — for the router and for the
+/// fast path of [`Front`](super::Front) alike.
+pub(super) async fn answer(
     app: &App,
-    path: TilePath<'_>,
-    query: Option<&str>,
+    TilePath { id, level, x, file }: TilePath,
+    TileQuery { frame }: TileQuery,
     headers: &HeaderMap,
 ) -> Result<Response, ApiError> {
-    let TilePath { id, level, x, file } = path;
-    let entry = lookup(app, id)?;
-    let level = parse_u32("level", level)?;
-    let x = parse_u32("x", x)?;
+    let entry = lookup(app, &id)?;
     let (y, ext) = file.rsplit_once('.').ok_or_else(|| {
-        ApiError::bad_request(format!("tile `{}` has no format extension; {}", echo(file), Format::EXPECTED))
+        ApiError::bad_request(format!("tile `{}` has no format extension; {}", echo(&file), Format::EXPECTED))
     })?;
-    let format = parse_format(ext)?;
-    let y = parse_u32("y", y)?;
+    let format = named("format", ext, format_value)?;
+    let y = named("y", y, u32_value)?;
     check_tile(&entry, level, x, y)?;
-    let mut frame = None;
-    for (k, v) in query_pairs(query)? {
-        if k == "frame" {
-            frame = Some(v);
-        }
-    }
-    let frame = frame_for(&entry, frame.as_deref())?;
+    let frame = frame_for(&entry, frame);
     let key = TileKey { texture: entry.key, level, x, y, frame, format };
     // A cached tile carries its ETag; only a tile not in the cache needs it hashed.
     let cached = app.cache.get(&key);
@@ -202,42 +187,40 @@ pub(super) async fn obtain(
     Ok((tile, source))
 }
 
+/// The query of a region.
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct RegionQuery {
+    #[serde(deserialize_with = "de::u32")]
+    pub level: u32,
+    #[serde(deserialize_with = "de::i64")]
+    pub x: i64,
+    #[serde(deserialize_with = "de::i64")]
+    pub y: i64,
+    #[serde(deserialize_with = "de::u32")]
+    pub w: u32,
+    #[serde(deserialize_with = "de::u32")]
+    pub h: u32,
+    #[serde(default, deserialize_with = "de::opt_format")]
+    pub format: Option<Format>,
+    #[serde(default, deserialize_with = "de::opt_u32")]
+    pub frame: Option<u32>,
+}
+
 /// `GET /api/v1/textures/{id}/region?level=&x=&y=&w=&h=[&format=png][&frame=]`
 ///
 /// Any integer coordinates are allowed (a torus wraps, a plane is defined everywhere);
 /// the area is bounded by `--max-region-pixels`. Regions are rendered, not cached.
 pub async fn region(
     State(app): State<App>,
-    path: Result<Path<String>, PathRejection>,
-    RawQuery(query): RawQuery,
+    Path(TextureId { id }): Path<TextureId>,
+    Query(q): Query<RegionQuery>,
     headers: HeaderMap,
 ) -> Result<Response, ApiError> {
-    let Path(id) = path.map_err(|e| ApiError::bad_request(e.body_text()))?;
     let entry = lookup(&app, &id)?;
-    let (mut level, mut x, mut y, mut w, mut h, mut format, mut frame) = (None, None, None, None, None, None, None);
-    for (k, v) in query_pairs(query.as_deref())? {
-        match k.as_str() {
-            "level" => level = Some(parse_u32("level", &v)?),
-            "x" => x = Some(parse_i64("x", &v)?),
-            "y" => y = Some(parse_i64("y", &v)?),
-            "w" => w = Some(parse_u32("w", &v)?),
-            "h" => h = Some(parse_u32("h", &v)?),
-            "format" => format = Some(parse_format(&v)?),
-            "frame" => frame = Some(v),
-            other => {
-                return Err(ApiError::bad_request(format!(
-                    "unknown query parameter `{}`; expected level, x, y, w, h, format, frame",
-                    echo(other)
-                )))
-            }
-        }
-    }
-    fn need<T>(v: Option<T>, name: &str) -> Result<T, ApiError> {
-        v.ok_or_else(|| ApiError::bad_request(format!("missing query parameter `{name}`")))
-    }
-    let (level, x, y, w, h) = (need(level, "level")?, need(x, "x")?, need(y, "y")?, need(w, "w")?, need(h, "h")?);
+    let RegionQuery { level, x, y, w, h, format, frame } = q;
     let format = format.unwrap_or(Format::Png);
-    let frame = frame_for(&entry, frame.as_deref())?;
+    let frame = frame_for(&entry, frame);
     let levels = level_count(entry.texture.width(), entry.texture.height());
     if level >= levels {
         return Err(ApiError::bad_request(format!("level {level} does not exist; levels are 0..={}", levels - 1)));
