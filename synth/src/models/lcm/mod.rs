@@ -14,14 +14,17 @@
 //! * [`render`] — the texture: layers, order, background, colour; operation counting.
 //! * [`period`] — the period that LCM sizes give the texture.
 //! * [`colour`] — palette or per-channel planes.
-//! * [`encoding`] — parameters, sections, `create` and `load`.
+//! * [`params`] — the creation parameters; [`encoding`] — the stored parameters, sections,
+//!   `create` and `load`.
 //! * [`elements`], [`demos`] — project-made base elements and the paper's §3 examples.
 
-pub mod colour;
 pub mod demos;
+pub mod encoding;
+pub mod params;
+
+pub mod colour;
 pub mod element;
 pub mod elements;
-pub mod encoding;
 pub mod event;
 pub mod haar;
 pub mod layer;
@@ -30,8 +33,54 @@ pub mod render;
 pub mod table;
 
 pub use demos::demos;
-pub use encoding::{create, load, CreateParams, Params};
+pub use encoding::{create, load, StoredParams};
+pub use params::Params;
+
+/// Earlier name of [`Params`], kept for existing callers.
+pub type CreateParams = Params;
 pub use render::{LcmTexture, OpCount};
+
+use super::{InputInfo, Inputs, MipGuarantee, Model, ModelInfo};
+use crate::{bundle::Bundle, Result, Texture};
+use std::sync::Arc;
 
 /// The model id.
 pub const MODEL: &str = "lcm";
+
+/// The `lcm` registry entry.
+pub struct LcmModel;
+pub static LCM: LcmModel = LcmModel;
+
+impl Model for LcmModel {
+    fn id(&self) -> &'static str {
+        MODEL
+    }
+    fn describe(&self) -> ModelInfo {
+        ModelInfo {
+            id: MODEL,
+            title: "Layer Control Masks",
+            paper: "A multi-scaled model for stochastic texture representation, rendered with Layer Control Masks",
+            summary: "Scaled, rotated, mirrored, signed copies of one small base element on layers of \
+                      decreasing resolution, one stored event byte per replication point.",
+            params_schema: super::params_schema::<Params>(),
+            inputs: &[InputInfo {
+                name: "element",
+                required: false,
+                what: "the base element when `element` names no built-in: a square PNG of side 2^K whose \
+                       grey level − 128 is the intensity (one plane with a palette, else one per channel)",
+            }],
+        }
+    }
+    fn create(&self, name: &str, params: &serde_json::Value, inputs: &Inputs) -> Result<Bundle> {
+        create(name, params, inputs)
+    }
+    fn load(&self, bundle: &Bundle) -> Result<Arc<dyn Texture>> {
+        Ok(Arc::new(load(bundle)?))
+    }
+    fn demos(&self) -> Vec<Bundle> {
+        demos()
+    }
+    fn mip_guarantee(&self) -> MipGuarantee {
+        MipGuarantee { min_psnr_db: 33.0, max_mean_error: 2.0 }
+    }
+}
