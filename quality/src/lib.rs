@@ -18,6 +18,8 @@
 //! All metrics ignore alpha and work on sRGB-coded byte values as stored (no linearisation):
 //! they judge what is served.
 
+#![forbid(unsafe_code)]
+
 pub mod contrast;
 pub mod gimp_pattern;
 pub mod histogram;

@@ -3,6 +3,8 @@
 //! the 100k × 100k chaos mosaic demo; every iteration takes the next tile of level 0.
 //! Baseline in the same run: synthesis alone (`render_only`), and encoding alone.
 
+#![forbid(unsafe_code)]
+
 use criterion::{criterion_group, criterion_main, Criterion};
 use std::hint::black_box;
 use vtex_server::encode::{encode, Format};

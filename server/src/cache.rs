@@ -6,6 +6,7 @@
 //! tile larger than a quarter of a shard is served but not cached (it would flush the shard).
 
 use crate::encode::Format;
+use crate::transport::Transport;
 use axum::http::HeaderValue;
 use bytes::Bytes;
 use lru::LruCache;
@@ -44,12 +45,6 @@ pub struct Tile {
     pub height: u32,
 }
 
-impl Tile {
-    fn cost(&self) -> u64 {
-        crate::zerocopy::footprint(self.body.len()) as u64 + ENTRY_OVERHEAD
-    }
-}
-
 struct Shard {
     lru: LruCache<TileKey, Arc<Tile>>,
     bytes: u64,
@@ -65,6 +60,8 @@ pub struct TileCache {
     evictions: AtomicU64,
     hasher: std::hash::RandomState,
     pending: Mutex<HashMap<TileKey, Pending>>,
+    /// How bodies are held, which decides the memory each one takes.
+    send: Transport,
 }
 
 /// How a tile was obtained.
@@ -77,7 +74,8 @@ pub enum Source {
 }
 
 impl TileCache {
-    pub fn new(budget_bytes: u64) -> Self {
+    /// A cache of `budget_bytes` for bodies [`Transport::seal`]ed by `send`.
+    pub fn new(budget_bytes: u64, send: Transport) -> Self {
         let n = (budget_bytes / MIN_SHARD_BYTES).clamp(1, MAX_SHARDS);
         let shards = (0..n).map(|_| Mutex::new(Shard { lru: LruCache::unbounded(), bytes: 0 })).collect();
         TileCache {
@@ -88,6 +86,7 @@ impl TileCache {
             evictions: AtomicU64::new(0),
             hasher: std::hash::RandomState::new(),
             pending: Mutex::new(HashMap::new()),
+            send,
         }
     }
 
@@ -122,22 +121,27 @@ impl TileCache {
         self.shard(key).lock().unwrap().lru.get(key).cloned()
     }
 
+    /// What `tile` is charged: the memory its body takes, plus [`ENTRY_OVERHEAD`].
+    fn cost(&self, tile: &Tile) -> u64 {
+        self.send.footprint(tile.body.len()) as u64 + ENTRY_OVERHEAD
+    }
+
     pub fn insert(&self, key: TileKey, tile: Arc<Tile>) {
-        let cost = tile.cost();
+        let cost = self.cost(&tile);
         if cost > self.shard_budget / 4 {
             return;
         }
         let mut shard = self.shard(&key).lock().unwrap();
         if let Some(old) = shard.lru.put(key, tile) {
-            shard.bytes -= old.cost();
-            self.bytes.fetch_sub(old.cost(), Ordering::Relaxed);
+            shard.bytes -= self.cost(&old);
+            self.bytes.fetch_sub(self.cost(&old), Ordering::Relaxed);
         }
         shard.bytes += cost;
         self.bytes.fetch_add(cost, Ordering::Relaxed);
         while shard.bytes > self.shard_budget {
             let (_, evicted) = shard.lru.pop_lru().expect("bytes > 0 implies an entry");
-            shard.bytes -= evicted.cost();
-            self.bytes.fetch_sub(evicted.cost(), Ordering::Relaxed);
+            shard.bytes -= self.cost(&evicted);
+            self.bytes.fetch_sub(self.cost(&evicted), Ordering::Relaxed);
             self.evictions.fetch_add(1, Ordering::Relaxed);
         }
     }
@@ -195,7 +199,7 @@ mod tests {
 
     #[test]
     fn budget_holds_and_lru_evicts_oldest() {
-        let cache = TileCache::new(1 << 20);
+        let cache = TileCache::new(1 << 20, Transport::Copy);
         assert_eq!(cache.budget(), 1 << 20);
         for x in 0..1000 {
             cache.insert(key(x), tile(10_000));
@@ -215,7 +219,7 @@ mod tests {
 
     #[test]
     fn oversized_tiles_are_not_cached() {
-        let cache = TileCache::new(1 << 20);
+        let cache = TileCache::new(1 << 20, Transport::Copy);
         cache.insert(key(1), tile(300_000));
         assert!(cache.is_empty());
         assert_eq!(cache.bytes(), 0);
@@ -223,15 +227,26 @@ mod tests {
 
     #[test]
     fn replacing_a_key_keeps_the_count_exact() {
-        let cache = TileCache::new(1 << 20);
+        let cache = TileCache::new(1 << 20, Transport::Copy);
         cache.insert(key(1), tile(100));
         cache.insert(key(1), tile(200));
         assert_eq!(cache.bytes(), 200 + ENTRY_OVERHEAD);
     }
 
+    /// Sealed bodies take whole pages, and the budget counts them so.
+    #[cfg(target_os = "linux")]
+    #[test]
+    fn splice_charges_the_pages_a_sealed_body_takes() {
+        let cache = TileCache::new(1 << 20, Transport::Splice);
+        cache.insert(key(1), tile(20_000));
+        assert_eq!(cache.bytes(), 5 * 4096 + ENTRY_OVERHEAD);
+        cache.insert(key(2), tile(100));
+        assert_eq!(cache.bytes(), 5 * 4096 + 100 + 2 * ENTRY_OVERHEAD, "small bodies stay unsealed");
+    }
+
     #[tokio::test(flavor = "multi_thread", worker_threads = 4)]
     async fn concurrent_misses_compute_once() {
-        let cache = Arc::new(TileCache::new(1 << 20));
+        let cache = Arc::new(TileCache::new(1 << 20, Transport::Copy));
         let runs = Arc::new(AtomicUsize::new(0));
         let mut tasks = Vec::new();
         for _ in 0..64 {
@@ -263,7 +278,7 @@ mod tests {
 
     #[tokio::test]
     async fn a_failed_computation_is_retried() {
-        let cache = TileCache::new(1 << 20);
+        let cache = TileCache::new(1 << 20, Transport::Copy);
         assert!(cache.get_or_compute(key(1), || async { Err::<Tile, _>("boom") }).await.is_err());
         assert_eq!(cache.pending(), 0);
         let (t, src) = cache

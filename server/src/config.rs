@@ -1,6 +1,7 @@
 //! Settings of `vtex serve`. Each one comes from its flag, else its environment variable,
 //! else its default — one precedence for all, implemented by clap.
 
+use crate::transport::Transport;
 use clap::Args;
 use std::net::SocketAddr;
 use std::path::PathBuf;
@@ -48,6 +49,11 @@ pub struct ServeConfig {
     /// Threads serving connections, one single-threaded runtime each. Default: CPU count.
     #[arg(long, env = "VTEX_IO_THREADS")]
     pub io_threads: Option<usize>,
+    /// How tile bodies reach the socket: `copy` (portable: written from the heap) or `splice`
+    /// (Linux: cached tiles sent by page reference, like nginx's sendfile). Default: `splice`
+    /// on Linux, `copy` elsewhere.
+    #[arg(long, env = "VTEX_SEND", default_value_t = Transport::default())]
+    pub send: Transport,
     /// Do not write the demo textures into an empty data directory.
     #[arg(long, env = "VTEX_NO_DEMOS")]
     pub no_demos: bool,

@@ -13,7 +13,7 @@
 use crate::api::{self, AppState};
 use crate::config::ServeConfig;
 use crate::store::Store;
-use crate::zerocopy::SpliceIo;
+use crate::transport::Transport;
 use hyper_util::rt::{TokioExecutor, TokioTimer};
 use hyper_util::server::conn::auto;
 use prometheus::IntGauge;
@@ -53,12 +53,12 @@ pub async fn run(cfg: ServeConfig, shutdown: impl Future<Output = ()>) -> anyhow
 
     let listener = TcpListener::bind(cfg.bind).await?;
     let addr = listener.local_addr()?;
+    tracing::info!(%addr, cache_mb = cfg.cache_mb, syntheses = cfg.syntheses(), send = %cfg.send, "serving");
     {
         let mut out = std::io::stdout().lock();
         writeln!(out, "vtex listening on http://{addr}")?;
         out.flush()?;
     }
-    tracing::info!(%addr, cache_mb = cfg.cache_mb, syntheses = cfg.syntheses(), "serving");
 
     // One single-threaded runtime per core, each serving its own connections (nginx's worker
     // model): no cross-thread wake-ups on the hot path. This runtime accepts and hands each
@@ -67,14 +67,14 @@ pub async fn run(cfg: ServeConfig, shutdown: impl Future<Output = ()>) -> anyhow
     for (i, worker) in workers.iter_mut().enumerate().skip(1) {
         let (tx, rx) = tokio::sync::mpsc::unbounded_channel();
         worker.tx = Some(tx);
-        let (live, front, hdr) = (worker.live.clone(), front.clone(), cfg.header_timeout());
+        let (live, front, hdr, send) = (worker.live.clone(), front.clone(), cfg.header_timeout(), cfg.send);
         threads.push(std::thread::Builder::new().name(format!("vtex-io-{i}")).spawn(move || {
             let rt = tokio::runtime::Builder::new_current_thread().enable_all().build()?;
-            rt.block_on(serve_handed(rx, Conns::new(front, hdr, live)));
+            rt.block_on(serve_handed(rx, Conns::new(front, hdr, send, live)));
             anyhow::Ok(())
         })?);
     }
-    let own = Conns::new(front, cfg.header_timeout(), workers[0].live.clone());
+    let own = Conns::new(front, cfg.header_timeout(), cfg.send, workers[0].live.clone());
     accept_loop(listener, workers, own, shutdown).await;
     for t in threads {
         tokio::task::spawn_blocking(move || t.join())
@@ -104,23 +104,24 @@ struct Worker {
 struct Conns {
     front: api::Front,
     builder: auto::Builder<TokioExecutor>,
+    send: Transport,
     graceful: hyper_util::server::graceful::GracefulShutdown,
     live: IntGauge,
 }
 
 impl Conns {
-    fn new(front: api::Front, header_timeout: Duration, live: IntGauge) -> Conns {
+    fn new(front: api::Front, header_timeout: Duration, send: Transport, live: IntGauge) -> Conns {
         let mut builder = auto::Builder::new(TokioExecutor::new());
         builder.http1().timer(TokioTimer::new()).header_read_timeout(header_timeout);
         builder.http2().timer(TokioTimer::new());
-        Conns { front, builder, graceful: hyper_util::server::graceful::GracefulShutdown::new(), live }
+        Conns { front, builder, send, graceful: hyper_util::server::graceful::GracefulShutdown::new(), live }
     }
 
     /// Serves `stream` on the current runtime until it closes; counted in `live` meanwhile
     /// (the acceptor counted it already).
     fn serve(&self, stream: TcpStream) {
         let _ = stream.set_nodelay(true);
-        let conn = self.builder.serve_connection_with_upgrades(SpliceIo::new(stream), self.front.clone()).into_owned();
+        let conn = self.builder.serve_connection_with_upgrades(self.send.wrap(stream), self.front.clone()).into_owned();
         let conn = self.graceful.watch(conn);
         let live = LiveGuard(self.live.clone());
         tokio::spawn(async move {

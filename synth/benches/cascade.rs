@@ -3,6 +3,8 @@
 //! elements = pixels, so criterion prints Melem/s = Mpx/s).
 //! `cargo bench -p vtex-synth --bench cascade`
 
+#![forbid(unsafe_code)]
+
 use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion, Throughput};
 use serde_json::json;
 use vtex_synth::models::{self, cascade, Inputs};

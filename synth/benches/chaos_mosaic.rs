@@ -7,6 +7,8 @@
 //! * prefiltered 256 × 256 tiles at coarse levels of the 100,000² demo;
 //! * loading the 100,000² demo: block generation, cat map and the per-tile index.
 
+#![forbid(unsafe_code)]
+
 use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion, Throughput};
 use serde_json::json;
 use std::hint::black_box;

@@ -4,6 +4,8 @@
 //!
 //! `cargo bench -p vtex-synth --bench lcm`
 
+#![forbid(unsafe_code)]
+
 use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion, Throughput};
 use vtex_synth::models::lcm::{demos, load, OpCount};
 use vtex_synth::{Region, Texture};

@@ -4,6 +4,8 @@
 //! The paper's GeForceFX prototype did 320 × 200 at 113 / 73 / 36 / 5 fps for the basic /
 //! areas map / dithered areas map / dithered + transitions fragment programs.
 
+#![forbid(unsafe_code)]
+
 use criterion::{criterion_group, criterion_main, Criterion, Throughput};
 use std::hint::black_box;
 use vtex_synth::bundle::Bundle;

@@ -11,6 +11,8 @@
 //! * [`pixels`] — RGBA8 buffers and bounded PNG decoding of untrusted samples.
 //! * [`mip`] — the exact 2×2 box downsample that every model's prefiltered levels are held to.
 
+#![forbid(unsafe_code)]
+
 pub mod bundle;
 pub mod error;
 pub mod hash;

@@ -14,6 +14,8 @@
 //! `vtex_quality::sample`). For each sample it writes `<name>-sample.png`,
 //! `<name>-side-by-side.png` (plain tiling | chaos mosaic) and a section of `report.md`.
 
+#![forbid(unsafe_code)]
+
 use serde_json::json;
 use std::{collections::BTreeSet, path::PathBuf, process::ExitCode, time::Instant};
 use vtex_quality::{

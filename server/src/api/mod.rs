@@ -72,7 +72,7 @@ pub type App = Arc<AppState>;
 impl AppState {
     pub fn new(store: Arc<Store>, cfg: ServeConfig) -> App {
         let metrics = Metrics::new();
-        let cache = TileCache::new(cfg.cache_bytes());
+        let cache = TileCache::new(cfg.cache_bytes(), cfg.send);
         metrics.cache_budget_bytes.set(cache.budget() as i64);
         Arc::new(AppState { store, cache, metrics, synth_permits: Arc::new(Semaphore::new(cfg.syntheses())), cfg })
     }
@@ -84,14 +84,15 @@ impl AppState {
     }
 
     /// [`Self::synthesize`], then `finish` on the encoded bytes in the same blocking task — for
-    /// tiles, `zerocopy::seal`, whose copy (and the first touch of a fresh huge-page arena,
-    /// which may wait for the kernel to compact memory) then stays off the I/O runtimes.
+    /// tiles, [`crate::transport::Transport::seal`], whose copy (and the first touch of a fresh
+    /// huge-page arena, which may wait for the kernel to compact memory) then stays off the I/O
+    /// runtimes.
     pub async fn synthesize_then<T: Send + 'static>(
         &self,
         entry: Arc<Entry>,
         region: Region,
         format: Format,
-        finish: fn(Vec<u8>) -> T,
+        finish: impl FnOnce(Vec<u8>) -> T + Send + 'static,
     ) -> Result<T, ApiError> {
         // The permit moves into the blocking work, not this future: a request dropped while
         // its tile renders (a client gone, a batch the viewer aborted) must not free the slot
@@ -207,7 +208,7 @@ async fn healthz(_: Query<NoQuery>) -> Response {
 async fn metrics(State(app): State<App>, _: Query<NoQuery>) -> Response {
     let m = &app.metrics;
     m.cache_bytes.set(app.cache.bytes() as i64);
-    m.cache_mapped_bytes.set(crate::zerocopy::mapped_bytes() as i64);
+    m.cache_mapped_bytes.set(app.cfg.send.mapped_bytes() as i64);
     m.cache_entries.set(app.cache.len() as i64);
     m.cache_evictions.set(app.cache.evictions() as i64);
     m.textures.set(app.store.len() as i64);

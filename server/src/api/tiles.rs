@@ -174,7 +174,8 @@ pub(super) async fn obtain(
                     let (px, py) = (x as u64 * ts, y as u64 * ts);
                     let (w, h) = ((lw - px).min(ts) as u32, (lh - py).min(ts) as u32);
                     let region = Region::new(level, px as i64, py as i64, w, h).at_frame(frame);
-                    let body = app.synthesize_then(entry.clone(), region, format, crate::zerocopy::seal).await?;
+                    let send = app.cfg.send;
+                    let body = app.synthesize_then(entry.clone(), region, format, move |b| send.seal(b)).await?;
                     Ok::<_, ApiError>(Tile { body, etag: tag, width: w, height: h })
                 })
                 .await?

@@ -12,6 +12,10 @@ use vtex_synth::models::{self, Inputs};
 pub const BIN: &str = env!("CARGO_BIN_EXE_vtex");
 
 /// A running `vtex serve`, killed when dropped.
+///
+/// The server inherits the test's environment, so `VTEX_SEND=copy|splice` picks the transport
+/// of every server the suites start (`scripts/test` runs them under both); [`Server::start`]
+/// checks that the server runs the one asked for.
 pub struct Server {
     pub child: Child,
     pub base: String,
@@ -58,6 +62,12 @@ impl Server {
             let _ = child.kill();
             panic!("server did not start: {:?}\n{}", line, std::fs::read_to_string(&log).unwrap_or_default());
         };
+        // The `serving` line, logged before the address is printed, names the transport.
+        let asked = env.iter().find(|(k, _)| *k == "VTEX_SEND").map(|(_, v)| v.to_string());
+        if let Some(send) = asked.or_else(|| std::env::var("VTEX_SEND").ok()).filter(|_| !extra.contains(&"--send")) {
+            let log = without_colours(&std::fs::read_to_string(&log).unwrap_or_default());
+            assert!(log.contains(&format!("send={send}")), "the server does not run VTEX_SEND={send}:\n{log}");
+        }
         let base = base.to_string();
         let addr = base.trim_start_matches("http://").to_string();
         Server { child, base, addr, data_dir: data_dir.to_path_buf(), log }
@@ -94,9 +104,25 @@ impl Server {
         self.child.try_wait().unwrap().is_none()
     }
 
+    /// The server's log so far, as plain text.
     pub fn log_text(&self) -> String {
-        std::fs::read_to_string(&self.log).unwrap_or_default()
+        without_colours(&std::fs::read_to_string(&self.log).unwrap_or_default())
     }
+}
+
+/// `log` without the terminal escape sequences (colours) the logger writes around fields.
+fn without_colours(log: &str) -> String {
+    let mut out = String::with_capacity(log.len());
+    let mut chars = log.chars();
+    while let Some(c) = chars.next() {
+        if c == '\x1b' {
+            // An escape sequence runs up to its final letter (`m` for colours).
+            chars.by_ref().find(|c| c.is_ascii_alphabetic());
+        } else {
+            out.push(c);
+        }
+    }
+    out
 }
 
 impl Drop for Server {
