@@ -282,6 +282,65 @@ fn mip_levels_approximate_the_exact_downsample() {
     }
 }
 
+/// A grey control map of `w × 2` texels, column i at luminance `columns[i]`.
+fn control(columns: &[u8]) -> Inputs {
+    let mut img = Rgba8Image::new(columns.len() as u32, 2);
+    for (x, &v) in columns.iter().enumerate() {
+        for y in 0..2 {
+            img.set_pixel(x as u32, y, [v, v, v, 255]);
+        }
+    }
+    Inputs::from([("control".to_string(), img.to_png())])
+}
+
+/// The final-stage lattice values (before the palette) of a `w × h` window at (x, y).
+fn lattice(t: &Cascade, x: u64, y: u64, w: usize, h: usize) -> Vec<f32> {
+    t.engine().field(t.engine().stages.len() - 1, x, y, w, h).v
+}
+
+/// The control map scales the kernel by 1 + c·(max − 1) at each point: where the map is
+/// white the lattice is exactly the one of a uniform integer dilation `max`, where it is
+/// black exactly the undilated one, and in between neither (the taps fall between lattice
+/// points and are read bilinearly).
+#[test]
+fn the_dilation_map_dilates_the_lattice_by_its_control_value() {
+    let stage = json!({"kernel": {"size": 3, "preset": "gauss"}, "map": {"kind": "sine", "r": 0.97}, "iterations": 6});
+    let with = |dilation: u32, map: Option<(&[u8], u64)>| {
+        let mut s = stage.clone();
+        s["dilation"] = json!(dilation);
+        let mut p = json!({"seed": 5, "stages": [s]});
+        let inputs = match map {
+            Some((columns, cell)) => {
+                p["dilation_map"] = json!({"max": 4, "cell": cell});
+                control(columns)
+            }
+            None => Inputs::new(),
+        };
+        cascade::load(&models::create("cascade", "d", &p, &inputs).unwrap()).unwrap()
+    };
+    let (plain, by4) = (with(1, None), with(4, None));
+    let (x, y, w, h) = ((1u64 << 33) + 7, 5u64, 96usize, 64usize);
+    assert_ne!(lattice(&plain, x, y, w, h), lattice(&by4, x, y, w, h), "dilation 4 changes the lattice");
+    // Uniform maps: white is dilation 4 everywhere, black is no dilation.
+    assert!(lattice(&with(1, Some((&[255, 255], 64))), x, y, w, h) == lattice(&by4, x, y, w, h), "white ≠ dilation 4");
+    assert!(lattice(&with(1, Some((&[0, 0], 64))), x, y, w, h) == lattice(&plain, x, y, w, h), "black ≠ no dilation");
+    // Columns white, white, black, black at 256 px a texel, repeating: between the centres of
+    // the two white texels (x ∈ [128, 384] mod 1024) the map is exactly 1, between the black
+    // ones ([640, 896]) exactly 0. A point's value depends on the lattice within
+    // iterations × radius × 4 = 24 px, so away from the transitions by that much each half
+    // is the uniform texture; in the transitions it is neither.
+    let split = with(1, Some((&[255, 255, 0, 0], 256)));
+    let period = 10u64 * 1024;
+    let (white, black, ramp) = (period + 128 + 24, period + 640 + 24, period + 384 + 24);
+    let side = 256 - 48;
+    assert!(lattice(&split, white, y, side, h) == lattice(&by4, white, y, side, h), "white half ≠ dilation 4");
+    assert!(lattice(&split, black, y, side, h) == lattice(&plain, black, y, side, h), "black half ≠ no dilation");
+    let (mid, a, b) =
+        (lattice(&split, ramp, y, 200, h), lattice(&by4, ramp, y, 200, h), lattice(&plain, ramp, y, 200, h));
+    let differ = |u: &[f32]| mid.iter().zip(u).filter(|(p, q)| p != q).count();
+    assert!(differ(&a) > mid.len() / 2 && differ(&b) > mid.len() / 2, "the ramp is not an intermediate dilation");
+}
+
 fn err(params: serde_json::Value, inputs: &Inputs) -> String {
     models::create("cascade", "bad", &params, inputs).unwrap_err().to_string()
 }
