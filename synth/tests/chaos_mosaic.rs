@@ -403,21 +403,43 @@ fn explicit_and_seed_derived_sequences_render_identically() {
 
 #[test]
 fn storage_matches_the_papers_arithmetic() {
-    // §3.1: 12 m²/n² bytes for the block sequence; §3.3: a 5000² texture from a 128² 24-bit
-    // sample is about 67 KB. 5000 is not a multiple of 128, so the nearest mosaic is 40×40
-    // tiles (5120²).
-    let paper = 12.0 * 5000f64.powi(2) / 128f64.powi(2) + 128.0 * 128.0 * 3.0;
-    assert!((paper / 1000.0 - 67.0).abs() < 1.0, "{paper}");
+    // §3.1: the block sequence of an m × m texture from an n × n sample takes 12 m²/n² bytes
+    // (one 12-byte record per tile); with b blocks a tile, b times that. Everything else in
+    // the bundle (manifest, sample) does not grow with the texture.
+    let size_of = |sample: &Rgba8Image, tiles: (u32, u32), per_tile: u32| {
+        let b = bundle(
+            sample,
+            json!({"tiles_x": tiles.0, "tiles_y": tiles.1, "blocks_per_tile": per_tile, "sequence": "explicit"}),
+        );
+        let tex = models::load(&b).unwrap();
+        let (m2, n2) = (tex.width() * tex.height(), (sample.width * sample.height) as u64);
+        let blocks = b.section("blocks").unwrap().len() as u64;
+        assert_eq!(blocks, 12 * per_tile as u64 * m2 / n2, "{tiles:?} tiles of {}×{}", sample.width, sample.height);
+        (b.to_bytes().len() as u64, m2, n2)
+    };
+    for (sample, per_tile) in [
+        (samples::lichen(128, 3), 1),
+        (samples::pebbles(64, 9, 4, true), 2),
+        (samples::lichen(48, 1).crop(0, 0, 48, 30), 3),
+    ] {
+        let (small, m2_small, n2) = size_of(&sample, (10, 20), per_tile);
+        let (large, m2_large, _) = size_of(&sample, (30, 60), per_tile);
+        // Same digit count in the manifest: the whole difference is the sequence.
+        assert_eq!(large - small, 12 * per_tile as u64 * (m2_large - m2_small) / n2, "{per_tile} blocks a tile");
+    }
+    // §3.3: a 5000² texture from a 128² 24-bit sample, about 67 KB. 5000 is not a multiple of
+    // 128, so the nearest mosaic is 40×40 tiles (5120²); the sample is stored as PNG.
     let sample = samples::lichen(128, 3);
-    let b = bundle(&sample, json!({"tiles_x": 40, "tiles_y": 40, "sequence": "explicit"}));
-    assert_eq!(b.section("blocks").unwrap().len(), 12 * 40 * 40);
-    let stored = b.to_bytes().len();
-    let explicit = 5120usize * 5120 * 3;
-    println!("5120² chaos mosaic: bundle {stored} B (paper's estimate {paper:.0} B), explicit texture {explicit} B, ratio {:.0}×", explicit as f64 / stored as f64);
-    assert!(stored < 80_000, "bundle of {stored} bytes");
-    // Seed-derived: the structure is a few bytes whatever the size.
-    let seeded = bundle(&sample, json!({"tiles_x": 781, "tiles_y": 781}));
-    assert!(seeded.to_bytes().len() < sample.to_png().len() + 1000);
+    let (stored, m2, n2) = size_of(&sample, (40, 40), 1);
+    let paper = 12 * 5000u64.pow(2) / 128u64.pow(2) + 3 * 128 * 128;
+    let ours = 12 * m2 / n2 + 3 * 128 * 128;
+    let png = sample.to_png().len();
+    println!("5120² chaos mosaic: bundle {stored} B (sample PNG {png} B, blocks {} B); the paper's formula gives {paper} B at 5000², {ours} B at 5120²; explicit texture {} B", 12 * m2 / n2, m2 * 3);
+    assert!(stored <= ours + 1024, "bundle of {stored} B, the paper's arithmetic gives {ours} B");
+    // Seed-derived: the structure is the seed, whatever the size ("781" is one digit longer
+    // than "40" in each of two places).
+    let seeded = |t: u32| bundle(&sample, json!({"tiles_x": t, "tiles_y": t})).to_bytes().len();
+    assert_eq!(seeded(781) - seeded(40), 2);
 }
 
 /// PSNR of `level` against the exact 2×2-box downsample of level 0 over a `size²` window at
