@@ -11,8 +11,8 @@ pub enum Error {
     Param { name: String, reason: String },
     #[error("invalid region: {0}")]
     Region(String),
-    #[error("unknown model `{0}`")]
-    UnknownModel(String),
+    #[error("unknown model `{model}`; known models: {known}")]
+    UnknownModel { model: String, known: String },
 }
 
 pub type Result<T, E = Error> = std::result::Result<T, E>;

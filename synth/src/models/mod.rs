@@ -1,13 +1,14 @@
-//! The texture models, and the registry that creates and loads any of them by model id.
+//! The texture models, and the registry through which the rest of vtex reaches them.
 //!
-//! Each model module offers the same three functions, wired in below:
-//! `create(name, params, inputs) -> Bundle` makes an encoding from parameters and input
-//! images, `load(&Bundle) -> Model` validates an encoding completely before use, and
-//! `demos() -> Vec<Bundle>` makes its demo encodings from project-made inputs.
+//! Every model is one module with the same layout — `mod.rs` (what the model is, and its
+//! [`Model`] implementation: the registry entry), `params.rs` (its creation parameters),
+//! `encoding.rs` (parameters and inputs to a [`Bundle`], and a bundle back to a validated
+//! texture), `demos.rs` — plus its own internals. [`REGISTRY`] lists one entry per model;
+//! nothing else in vtex names a model, so adding one is a module and a line there.
 
 use crate::{bundle::Bundle, Error, Result, Texture};
 use std::collections::BTreeMap;
-use std::sync::Arc;
+use std::sync::{Arc, LazyLock};
 
 pub mod cascade;
 pub mod chaos_mosaic;
@@ -17,38 +18,91 @@ pub mod patterns;
 /// Input images by name (PNG bytes), e.g. `sample` for the chaos mosaic.
 pub type Inputs = BTreeMap<String, Vec<u8>>;
 
-/// The model ids this build knows.
-pub const MODELS: &[&str] = &[cascade::MODEL, chaos_mosaic::MODEL, lcm::MODEL, patterns::MODEL];
+/// One texture model: everything the rest of vtex may know about it.
+pub trait Model: Send + Sync + 'static {
+    /// The id used in bundles, URLs and the CLI (`chaos-mosaic`, `lcm`, …).
+    fn id(&self) -> &'static str;
+    /// What it is and how it is made: for listings, `--help`, and generic checks.
+    fn describe(&self) -> ModelInfo;
+    /// Makes a new encoding from JSON parameters and named input images (PNG bytes).
+    fn create(&self, name: &str, params: &serde_json::Value, inputs: &Inputs) -> Result<Bundle>;
+    /// Validates a bundle of this model completely and returns its texture.
+    fn load(&self, bundle: &Bundle) -> Result<Arc<dyn Texture>>;
+    /// Its demo encodings, from project-made inputs only.
+    fn demos(&self) -> Vec<Bundle>;
+    /// What its prefiltered coarse levels promise, held by the conformance suite.
+    fn mip_guarantee(&self) -> MipGuarantee;
+}
+
+/// A model's self-description.
+#[derive(Clone, Debug, PartialEq)]
+pub struct ModelInfo {
+    pub id: &'static str,
+    /// Human name, e.g. "Chaos mosaic".
+    pub title: &'static str,
+    /// The publication the model implements: authors, year, title.
+    pub paper: &'static str,
+    /// One sentence.
+    pub summary: &'static str,
+    /// JSON Schema of `create`'s params, generated from the model's `Params` type.
+    pub params_schema: serde_json::Value,
+    /// Named input images `create` accepts or needs.
+    pub inputs: &'static [InputInfo],
+}
+
+/// One input image of [`Model::create`].
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct InputInfo {
+    /// The key in [`Inputs`]; `*` stands for any name the parameters give an input.
+    pub name: &'static str,
+    pub required: bool,
+    /// What the image holds and how it is read.
+    pub what: &'static str,
+}
+
+/// What a model's prefiltered coarse levels promise.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct MipGuarantee {
+    /// PSNR (dB) every level L ≥ 1 keeps against the exact 2×2 box downsample of level L−1 (any region).
+    pub min_psnr_db: f64,
+    /// Largest |mean difference| (0–255 per channel) between the coarsest level and the true mean.
+    pub max_mean_error: f64,
+}
+
+/// Every model this build knows, one line each.
+pub static REGISTRY: &[&dyn Model] = &[&cascade::CASCADE, &chaos_mosaic::CHAOS_MOSAIC, &lcm::LCM, &patterns::PATTERNS];
+
+/// The model ids as a list, in registry order.
+pub static MODELS: LazyLock<Vec<&'static str>> = LazyLock::new(|| ids().collect());
+
+/// The registered model called `id`.
+pub fn get(id: &str) -> Result<&'static dyn Model> {
+    REGISTRY
+        .iter()
+        .copied()
+        .find(|m| m.id() == id)
+        .ok_or_else(|| Error::UnknownModel { model: id.into(), known: ids().collect::<Vec<_>>().join(", ") })
+}
+
+/// The registered model ids, in registry order.
+pub fn ids() -> impl Iterator<Item = &'static str> {
+    REGISTRY.iter().map(|m| m.id())
+}
 
 /// Makes a new encoding of `model` from its JSON parameters and input images.
 pub fn create(model: &str, name: &str, params: &serde_json::Value, inputs: &Inputs) -> Result<Bundle> {
     check_name(name)?;
-    match model {
-        cascade::MODEL => cascade::create(name, params, inputs),
-        chaos_mosaic::MODEL => chaos_mosaic::create(name, params, inputs),
-        lcm::MODEL => lcm::create(name, params, inputs),
-        patterns::MODEL => patterns::create(name, params, inputs),
-        other => Err(Error::UnknownModel(other.into())),
-    }
+    get(model)?.create(name, params, inputs)
 }
 
 /// Validates an encoding completely and returns the texture it describes.
 pub fn load(bundle: &Bundle) -> Result<Arc<dyn Texture>> {
-    match bundle.manifest.model.as_str() {
-        cascade::MODEL => Ok(Arc::new(cascade::load(bundle)?)),
-        chaos_mosaic::MODEL => Ok(Arc::new(chaos_mosaic::load(bundle)?)),
-        lcm::MODEL => Ok(Arc::new(lcm::load(bundle)?)),
-        patterns::MODEL => Ok(Arc::new(patterns::load(bundle)?)),
-        other => Err(Error::UnknownModel(other.into())),
-    }
+    get(&bundle.manifest.model)?.load(bundle)
 }
 
-/// Every model's demo encodings.
+/// Every model's demo encodings, sorted by name.
 pub fn demos() -> Vec<Bundle> {
-    let mut all = chaos_mosaic::demos();
-    all.extend(cascade::demos());
-    all.extend(lcm::demos());
-    all.extend(patterns::demos());
+    let mut all: Vec<Bundle> = REGISTRY.iter().flat_map(|m| m.demos()).collect();
     all.sort_by(|a, b| a.manifest.name.cmp(&b.manifest.name));
     all
 }
@@ -65,4 +119,33 @@ fn check_name(name: &str) -> Result<()> {
 pub fn input_image(inputs: &Inputs, name: &str) -> Result<crate::Rgba8Image> {
     let bytes = inputs.get(name).ok_or_else(|| Error::image(name, "missing; this model needs it"))?;
     crate::pixels::decode_png(name, bytes)
+}
+
+/// Parses a model's parameters from JSON. Only an object is accepted; a wrong type, a missing
+/// or an unknown field is an [`Error::Param`] named by its full path (`layers[2].weight`).
+pub fn parse_params<P: serde::de::DeserializeOwned>(params: &serde_json::Value) -> Result<P> {
+    if !params.is_object() {
+        return Err(Error::param("params", format!("must be a JSON object, not {}", json_kind(params))));
+    }
+    serde_path_to_error::deserialize(params).map_err(|e| {
+        let path = e.path().to_string();
+        let name = if path == "." { "params".to_string() } else { path };
+        Error::param(name, e.into_inner().to_string())
+    })
+}
+
+fn json_kind(v: &serde_json::Value) -> &'static str {
+    match v {
+        serde_json::Value::Null => "null",
+        serde_json::Value::Bool(_) => "a boolean",
+        serde_json::Value::Number(_) => "a number",
+        serde_json::Value::String(_) => "a string",
+        serde_json::Value::Array(_) => "an array",
+        serde_json::Value::Object(_) => "an object",
+    }
+}
+
+/// The JSON Schema of a model's parameter type, for [`ModelInfo::params_schema`].
+pub fn params_schema<P: schemars::JsonSchema>() -> serde_json::Value {
+    schemars::schema_for!(P).into()
 }

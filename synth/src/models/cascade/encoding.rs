@@ -20,6 +20,7 @@ use super::maps::{Map, MapSpec};
 use super::palette::PaletteSpec;
 use crate::pixels::{decode_png, Rgba8Image};
 use crate::{Error, Result};
+use schemars::JsonSchema;
 use serde::{Deserialize, Serialize};
 
 pub const MAX_STAGES: usize = 12;
@@ -43,7 +44,7 @@ pub const MAX_EXACT_LEVELS: u32 = 3;
 pub const CONTROL_SECTION: &str = "control.png";
 pub const INITIAL_SECTION: &str = "initial.png";
 
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct Params {
     pub seed: u64,
@@ -67,7 +68,7 @@ pub struct Params {
     pub exact_levels: u32,
 }
 
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct StageSpec {
     #[serde(default)]
@@ -85,7 +86,7 @@ pub struct StageSpec {
     pub jitter: f64,
 }
 
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct DilationMapSpec {
     /// Dilation where the control map is white (black is 1).
@@ -94,7 +95,7 @@ pub struct DilationMapSpec {
     pub cell: u64,
 }
 
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct InitialSpec {
     /// Pixels per image texel.

@@ -3,13 +3,14 @@
 //! so that N keeps values near the unit interval the maps act on.
 
 use crate::{Error, Result};
+use schemars::JsonSchema;
 use serde::{Deserialize, Serialize};
 
 /// Largest kernel side the paper allows (7 × 7).
 pub const MAX_KERNEL_SIZE: u32 = 7;
 
 /// A kernel as written in the manifest.
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct KernelSpec {
     /// Side length: 1, 3, 5 or 7.

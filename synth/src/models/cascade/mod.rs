@@ -23,18 +23,64 @@ pub mod maps;
 pub mod palette;
 pub mod prefilter;
 
+use super::{input_image, InputInfo, Inputs, MipGuarantee, Model, ModelInfo};
 use crate::bundle::Bundle;
-use crate::models::{input_image, Inputs};
 use crate::pixels::Rgba8Image;
 use crate::texture::{Domain, Region, Texture};
 use crate::{Error, Result};
 use encoding::{build_engine, section_image, Params, CONTROL_SECTION, INITIAL_SECTION};
 use engine::{Engine, STREAM_CALIBRATION};
-use std::sync::OnceLock;
+use std::sync::{Arc, OnceLock};
 
 pub use demos::demos;
 
 pub const MODEL: &str = "cascade";
+
+/// The cascade's registry entry.
+pub struct CascadeModel;
+pub static CASCADE: CascadeModel = CascadeModel;
+
+impl Model for CascadeModel {
+    fn id(&self) -> &'static str {
+        MODEL
+    }
+    fn describe(&self) -> ModelInfo {
+        ModelInfo {
+            id: MODEL,
+            title: "Nonlinear dynamical cascade",
+            paper: "Mould, Fiume 2000, Textures from Nonlinear Dynamical Cascades",
+            summary: "Hashed noise iterated through a small convolution and a nonlinear map, in a cascade of \
+                      scales: an unbounded plane evaluated on demand from each region's dependency window.",
+            params_schema: super::params_schema::<Params>(),
+            inputs: &[
+                InputInfo {
+                    name: "control",
+                    required: false,
+                    what: "low-resolution dilation map (grey level: black 1, white `dilation_map.max`); \
+                           needed exactly when `dilation_map` is set",
+                },
+                InputInfo {
+                    name: "initial",
+                    required: false,
+                    what: "structured initial image blended into the first stage's noise; needed exactly \
+                           when `initial` is set",
+                },
+            ],
+        }
+    }
+    fn create(&self, name: &str, params: &serde_json::Value, inputs: &Inputs) -> Result<Bundle> {
+        create(name, params, inputs)
+    }
+    fn load(&self, bundle: &Bundle) -> Result<Arc<dyn Texture>> {
+        Ok(Arc::new(load(bundle)?))
+    }
+    fn demos(&self) -> Vec<Bundle> {
+        demos()
+    }
+    fn mip_guarantee(&self) -> MipGuarantee {
+        MipGuarantee { min_psnr_db: 15.0, max_mean_error: 8.0 }
+    }
+}
 
 /// Level-0 pixels computed per chunk: bounds the memory of one render call.
 const CHUNK: u32 = 1024;

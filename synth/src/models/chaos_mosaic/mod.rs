@@ -26,14 +26,53 @@ pub use demos::demos;
 pub use params::{Params, Sequence};
 pub use prefilter::EXACT_LEVELS;
 
-use crate::{bundle::Bundle, models::Inputs, pixels::Rgba8Image, Domain, Error, Region, Result, Texture};
+use super::{InputInfo, Inputs, MipGuarantee, Model, ModelInfo};
+use crate::{bundle::Bundle, pixels::Rgba8Image, Domain, Error, Region, Result, Texture};
 use blocks::SizeRule;
 use index::TileIndex;
 use prefilter::{BoxTables, PeriodicSums};
+use std::sync::Arc;
 
 pub const MODEL: &str = "chaos-mosaic";
 const SAMPLE_SECTION: &str = "sample.png";
 const BLOCKS_SECTION: &str = "blocks";
+
+/// The chaos mosaic's registry entry.
+pub struct ChaosMosaicModel;
+pub static CHAOS_MOSAIC: ChaosMosaicModel = ChaosMosaicModel;
+
+impl Model for ChaosMosaicModel {
+    fn id(&self) -> &'static str {
+        MODEL
+    }
+    fn describe(&self) -> ModelInfo {
+        ModelInfo {
+            id: MODEL,
+            title: "Chaos mosaic",
+            paper: "Xu, Guo, Shum 2000, Chaos Mosaic: Fast and Memory Efficient Texture Synthesis",
+            summary: "A tiling of the sample overlaid with random blocks of it, scattered by the cat map and \
+                      cross-edge filtered: a seamless torus of any size from one small sample.",
+            params_schema: super::params_schema::<Params>(),
+            inputs: &[InputInfo {
+                name: "sample",
+                required: true,
+                what: "the example texture, 2 × 2 up to 4096 × 4096 pixels (straight alpha kept)",
+            }],
+        }
+    }
+    fn create(&self, name: &str, params: &serde_json::Value, inputs: &Inputs) -> Result<Bundle> {
+        create(name, params, inputs)
+    }
+    fn load(&self, bundle: &Bundle) -> Result<Arc<dyn Texture>> {
+        Ok(Arc::new(load(bundle)?))
+    }
+    fn demos(&self) -> Vec<Bundle> {
+        demos()
+    }
+    fn mip_guarantee(&self) -> MipGuarantee {
+        MipGuarantee { min_psnr_db: 30.0, max_mean_error: 2.0 }
+    }
+}
 
 /// A loaded chaos mosaic: everything needed to evaluate any region, validated.
 pub struct ChaosMosaic {

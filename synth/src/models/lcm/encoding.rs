@@ -19,6 +19,7 @@ use super::{elements, MODEL};
 use crate::bundle::Bundle;
 use crate::models::{input_image, Inputs};
 use crate::{Error, Result};
+use schemars::JsonSchema;
 use serde::{Deserialize, Serialize};
 
 /// At most this many layers.
@@ -34,7 +35,7 @@ pub const MAX_SIZE: u64 = 1 << 40;
 pub const MAX_WEIGHT: f64 = 64.0;
 
 /// How the base element is stored.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize, JsonSchema)]
 #[serde(rename_all = "snake_case")]
 pub enum Representation {
     /// Scaled copies in explicit form, like a mip chain (fast; what the paper counts).
@@ -45,7 +46,7 @@ pub enum Representation {
 }
 
 /// Order of application of the layers (§2.2).
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize, JsonSchema)]
 #[serde(rename_all = "snake_case")]
 pub enum Order {
     /// Layer 0 (the largest elements) first.
@@ -56,7 +57,7 @@ pub enum Order {
 }
 
 /// One layer as the manifest describes it.
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct LayerParams {
     /// The paper's layer number n: resolution K + magnify − n.
@@ -82,7 +83,7 @@ fn one_tile() -> [u32; 2] {
 }
 
 /// The manifest parameters of an `lcm` encoding.
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct Params {
     /// The base element is 2^k pixels a side.
@@ -114,7 +115,7 @@ pub struct Params {
 }
 
 /// A base element made in code, by name.
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct Builtin {
     /// `stroke`, `hole`, `brick` (one plane) or `pebble` (three).
@@ -124,7 +125,7 @@ pub struct Builtin {
 
 /// Parameters of [`create`]: the manifest's, less what is derived (k, planes, stored
 /// resolutions), plus where the base element comes from.
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct CreateParams {
     /// A built-in element; without it the input image `element` is used: a square PNG of

@@ -33,5 +33,47 @@ pub use demos::demos;
 pub use encoding::{create, load, CreateParams, Params};
 pub use render::{LcmTexture, OpCount};
 
+use super::{InputInfo, Inputs, MipGuarantee, Model, ModelInfo};
+use crate::{bundle::Bundle, Result, Texture};
+use std::sync::Arc;
+
 /// The model id.
 pub const MODEL: &str = "lcm";
+
+/// The `lcm` registry entry.
+pub struct LcmModel;
+pub static LCM: LcmModel = LcmModel;
+
+impl Model for LcmModel {
+    fn id(&self) -> &'static str {
+        MODEL
+    }
+    fn describe(&self) -> ModelInfo {
+        ModelInfo {
+            id: MODEL,
+            title: "Layer Control Masks",
+            paper: "A multi-scaled model for stochastic texture representation, rendered with Layer Control Masks",
+            summary: "Scaled, rotated, mirrored, signed copies of one small base element on layers of \
+                      decreasing resolution, one stored event byte per replication point.",
+            params_schema: super::params_schema::<CreateParams>(),
+            inputs: &[InputInfo {
+                name: "element",
+                required: false,
+                what: "the base element when `element` names no built-in: a square PNG of side 2^K whose \
+                       grey level − 128 is the intensity (one plane with a palette, else one per channel)",
+            }],
+        }
+    }
+    fn create(&self, name: &str, params: &serde_json::Value, inputs: &Inputs) -> Result<Bundle> {
+        create(name, params, inputs)
+    }
+    fn load(&self, bundle: &Bundle) -> Result<Arc<dyn Texture>> {
+        Ok(Arc::new(load(bundle)?))
+    }
+    fn demos(&self) -> Vec<Bundle> {
+        demos()
+    }
+    fn mip_guarantee(&self) -> MipGuarantee {
+        MipGuarantee { min_psnr_db: 30.0, max_mean_error: 2.0 }
+    }
+}

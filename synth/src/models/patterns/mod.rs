@@ -29,8 +29,55 @@ pub mod transitions;
 pub use model::{PatternTexture, MODEL};
 pub use params::Params;
 
-use super::Inputs;
-use crate::{bundle::Bundle, Error, Result};
+use super::{InputInfo, Inputs, MipGuarantee, Model, ModelInfo};
+use crate::{bundle::Bundle, Error, Result, Texture};
+use std::sync::Arc;
+
+/// The `patterns` registry entry.
+pub struct PatternsModel;
+pub static PATTERNS: PatternsModel = PatternsModel;
+
+impl Model for PatternsModel {
+    fn id(&self) -> &'static str {
+        MODEL
+    }
+    fn describe(&self) -> ModelInfo {
+        ModelInfo {
+            id: MODEL,
+            title: "Pattern-based procedural textures",
+            paper: "Lefebvre, Neyret 2003, Pattern Based Procedural Textures",
+            summary: "A reference texture of small patterns composed per pixel through virtual and explicit \
+                      indirection, probability, area, transition and animation maps.",
+            params_schema: super::params_schema::<Params>(),
+            inputs: &[
+                InputInfo {
+                    name: "reference",
+                    required: true,
+                    what: "the reference texture: `reference[0] × reference[1]` patterns of `pattern_size` \
+                           pixels, packed row-major",
+                },
+                InputInfo {
+                    name: "*",
+                    required: false,
+                    what: "an explicit map, named by the section the parameters give it; its red channel \
+                           holds the values",
+                },
+            ],
+        }
+    }
+    fn create(&self, name: &str, params: &serde_json::Value, inputs: &Inputs) -> Result<Bundle> {
+        create(name, params, inputs)
+    }
+    fn load(&self, bundle: &Bundle) -> Result<Arc<dyn Texture>> {
+        Ok(Arc::new(load(bundle)?))
+    }
+    fn demos(&self) -> Vec<Bundle> {
+        demos()
+    }
+    fn mip_guarantee(&self) -> MipGuarantee {
+        MipGuarantee { min_psnr_db: 22.0, max_mean_error: 6.0 }
+    }
+}
 
 /// Makes an encoding from params (see [`Params`]) and input images: `reference` (the packed
 /// patterns, required); any other input is an explicit map whose red channel gives its

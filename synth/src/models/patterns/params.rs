@@ -7,11 +7,12 @@
 //! convolution (Fig. 18–19); `sprites` is explicit positioning (texture sprites, Fig. 21d);
 //! an `animation` block makes a tiling layer an animated tiling (Fig. 20).
 
+use schemars::JsonSchema;
 use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
 
 /// Everything in the manifest's `params`.
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct Params {
     /// Level-0 size in pixels; every layer's cell size must divide both (the texture is a torus).
@@ -37,7 +38,7 @@ pub struct Params {
     pub fps: Option<f32>,
 }
 
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, JsonSchema)]
 #[serde(rename_all = "lowercase")]
 pub enum LayerKind {
     /// One pattern per cell of the virtual tile map (aperiodic tiling).
@@ -48,7 +49,7 @@ pub enum LayerKind {
     Sprites,
 }
 
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct LayerParams {
     pub kind: LayerKind,
@@ -69,7 +70,7 @@ pub struct LayerParams {
 }
 
 /// The pattern-choice blocks.
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, JsonSchema)]
 #[serde(tag = "kind", rename_all = "snake_case", deny_unknown_fields)]
 pub enum Choice {
     /// Virtual indirection map: σ-hashed vectorial pattern index over the whole reference.
@@ -89,7 +90,7 @@ pub enum Choice {
 
 /// A material: a probability map (pattern indices, duplicated in proportion; -1 = blank)
 /// and the family of compatible tiles it belongs to (§3.3).
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct MaterialParams {
     pub patterns: Vec<i32>,
@@ -98,7 +99,7 @@ pub struct MaterialParams {
 }
 
 /// An areas map: one material index per area; each area covers (grid / size) cells.
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct AreasParams {
     pub map: MapRef,
@@ -108,7 +109,7 @@ pub struct AreasParams {
 }
 
 /// A high-resolution material mask stored as an adaptive (indirection-compressed) map.
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct PixelMapParams {
     /// Section holding the compressed map (see `pixel_map.rs`).
@@ -121,7 +122,7 @@ pub struct PixelMapParams {
 }
 
 /// A map: `size` values given inline or in a bundle section (`depth` bytes each, LE).
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct MapRef {
     pub size: [u32; 2],
@@ -141,7 +142,7 @@ fn is_one(v: &u8) -> bool {
     *v == 1
 }
 
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct TransformParams {
     /// Scale range relative to the cell: s = min + r (max − min).
@@ -157,14 +158,14 @@ pub struct TransformParams {
 
 /// Transition tiles: for every family f ≥ 1, 14 pattern indices drawn with a transparent
 /// background, indexed by the 4-bit mask (1..=14) of the corners that belong to f.
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct TransitionParams {
     pub tiles: Vec<Vec<u32>>,
 }
 
 /// Animation sequence + animation map + temporal transition (§3.4).
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct AnimationParams {
     /// Pattern indices of the sequence; the first is the rest state.
@@ -178,7 +179,7 @@ pub struct AnimationParams {
     pub previous: Option<PreviousParams>,
 }
 
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct PreviousParams {
     pub a: f64,
@@ -188,7 +189,7 @@ pub struct PreviousParams {
 
 /// A per-cell integer: an explicit map (per cell, wrapping) plus a virtual random value in
 /// `0..random` (which must divide the σ size, 256, to avoid the bias of Fig. 2.2).
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct ValueParams {
     #[serde(default, skip_serializing_if = "Option::is_none")]
@@ -198,7 +199,7 @@ pub struct ValueParams {
 }
 
 /// A texture sprite: pattern `pattern` with its top-left corner at (x, y) level-0 pixels.
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct SpriteParams {
     pub pattern: u32,
