@@ -30,8 +30,7 @@ pub enum Command {
 
 #[derive(Args, Debug)]
 pub struct CreateArgs {
-    /// Model id, e.g. `chaos-mosaic`.
-    #[arg(long)]
+    #[arg(long, help = model_help())]
     pub model: String,
     /// Display name.
     #[arg(long)]
@@ -81,6 +80,12 @@ pub struct InfoArgs {
     pub data_dir: PathBuf,
     #[arg(long, env = "VTEX_TILE_SIZE", default_value_t = 256)]
     pub tile_size: u32,
+}
+
+/// `--model`'s help: the ids of the registered models, read from the registry so it never lags.
+fn model_help() -> String {
+    let ids: Vec<&str> = models::ids().collect();
+    format!("Model id: {}", ids.join(", "))
 }
 
 /// Loads and validates a texture named by id (in `data_dir`) or by path.

@@ -361,7 +361,7 @@ fn bad_input_gives_clear_errors() {
         (with_stage(json!({"map": {"kind": "logistic", "r": 4.2}})), "stages[0].map.r"),
         (with_stage(json!({"map": {"kind": "tent", "mu": -1}})), "map.mu"),
         (with_stage(json!({"map": {"kind": "sigmoid", "gain": 0, "center": 0.5}})), "map.gain"),
-        (with_stage(json!({"map": {"kind": "henon", "a": 1.4}})), "params"),
+        (with_stage(json!({"map": {"kind": "henon", "a": 1.4}})), "stages[0].map"),
         (with_stage(json!({"dilation": 0})), "dilation"),
         (with_stage(json!({"upsample": 2})), "upsample"),
         (json!({"seed": 1, "stages": [{}, {"upsample": 3}]}), "stages[1].upsample"),
@@ -371,7 +371,7 @@ fn bad_input_gives_clear_errors() {
         (json!({"seed": 1, "stages": [{}], "width": 0}), "width"),
         (json!({"seed": 1, "stages": [{}], "range": [1, 0]}), "range"),
         (json!({"seed": 1, "stages": [{}], "exact_levels": 9}), "exact_levels"),
-        (json!({"seed": -1, "stages": [{}]}), "params"),
+        (json!({"seed": -1, "stages": [{}]}), "seed"),
         (json!({"seed": 1, "stages": [{}], "dilation_map": {"max": 3, "cell": 16}}), "control"),
         (
             json!({"seed": 1, "stages": [{"iterations": 64, "kernel": {"size": 7, "preset": "box"}, "dilation": 8}]}),

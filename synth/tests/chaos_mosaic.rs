@@ -524,7 +524,7 @@ fn bad_parameters_are_refused_with_a_reason() {
         (json!({"tiles_x": 4, "tiles_y": 4, "blocks_per_tile": 0}), "blocks_per_tile"),
         (json!({"tiles_x": 4, "tiles_y": 4, "blocks_per_tile": 9}), "blocks_per_tile"),
         (json!({"tiles_x": 4}), "tiles_y"),
-        (json!({"tiles_x": -3, "tiles_y": 4}), "params"),
+        (json!({"tiles_x": -3, "tiles_y": 4}), "tiles_x"),
         (json!({"tiles_x": 4, "tiles_y": 4, "colour": "red"}), "colour"),
         (json!("not an object"), "params"),
     ];

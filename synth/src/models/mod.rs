@@ -149,3 +149,44 @@ fn json_kind(v: &serde_json::Value) -> &'static str {
 pub fn params_schema<P: schemars::JsonSchema>() -> serde_json::Value {
     schemars::schema_for!(P).into()
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use serde_json::json;
+
+    #[test]
+    fn unknown_models_are_named_with_the_known_ids() {
+        let Err(Error::UnknownModel { model, known }) = get("voronoi") else { panic!("`voronoi` was found") };
+        assert_eq!(model, "voronoi");
+        assert_eq!(known, "cascade, chaos-mosaic, lcm, patterns");
+        assert!(create("voronoi", "v", &json!({}), &Inputs::new()).is_err());
+    }
+
+    #[test]
+    fn every_entry_is_found_by_its_id_and_describes_itself() {
+        for m in REGISTRY {
+            assert_eq!(get(m.id()).unwrap().id(), m.id());
+            let info = m.describe();
+            assert_eq!(info.id, m.id());
+            assert!(info.params_schema["properties"].is_object(), "{}: {}", m.id(), info.params_schema);
+        }
+        assert_eq!(*MODELS, ids().collect::<Vec<_>>());
+    }
+
+    #[test]
+    fn parameter_errors_name_the_full_path() {
+        let name = |v: serde_json::Value| match parse_params::<lcm::Params>(&v) {
+            Err(Error::Param { name, .. }) => name,
+            other => panic!("{v}: {other:?}"),
+        };
+        let layer = json!({"layer": 0, "lcm": [4, 4]});
+        let bad_weight = json!({"layer": 0, "lcm": [4, 4], "weight": "heavy"});
+        assert_eq!(name(json!({"layers": [layer, layer, bad_weight]})), "layers[2].weight");
+        assert_eq!(name(json!({"layers": [], "seed": -1})), "seed");
+        assert_eq!(name(json!({"layers": [], "colour": 1})), "colour");
+        assert_eq!(name(json!({"layers": [{"layer": 0, "lcm": [4, 4], "colour": 1}]})), "layers[0].colour");
+        assert_eq!(name(json!([1, 2])), "params");
+        assert!(parse_params::<lcm::Params>(&json!({"layers": []})).is_ok());
+    }
+}

@@ -1,27 +1,18 @@
-//! The cascade's encoding: manifest parameters, input images and their validation.
-//!
-//! ```json
-//! {"seed": 7, "width": 100000, "height": 100000,
-//!  "stages": [{"kernel": {"size": 5, "preset": "gauss"}, "map": {"kind": "logistic", "r": 3.7},
-//!              "iterations": 5},
-//!             {"upsample": 2, "jitter": 0.1, "kernel": {"size": 3, "weights": [0,1,0,1,4,1,0,1,0]},
-//!              "map": {"kind": "sine", "r": 0.95}}],
-//!  "palette": "earth", "range": [0.1, 0.9],
-//!  "dilation_map": {"max": 3, "cell": 64},          // needs input/section `control`
-//!  "initial": {"cell": 8, "strength": 0.7, "repeat": false},  // needs input/section `initial`
-//!  "exact_levels": 2}
-//! ```
-//! Stages run coarse to fine; each after the first is `upsample` (1, 2, 4 or 8) times finer.
+//! The cascade's encoding: the parameters in the manifest, the optional `control` and
+//! `initial` images as sections, and their complete validation.
 
 use super::engine::{Control, Engine, Initial, Stage};
-use super::kernel::{Kernel, KernelSpec};
+use super::kernel::Kernel;
 use super::lattice::ImageField;
-use super::maps::{Map, MapSpec};
-use super::palette::PaletteSpec;
+use super::maps::Map;
+use super::render::{auto_range, Cascade};
+use super::MODEL;
+use crate::bundle::Bundle;
+use crate::models::{input_image, parse_params, Inputs};
 use crate::pixels::{decode_png, Rgba8Image};
 use crate::{Error, Result};
-use schemars::JsonSchema;
-use serde::{Deserialize, Serialize};
+
+pub use super::params::{DilationMapSpec, InitialSpec, Params, StageSpec};
 
 pub const MAX_STAGES: usize = 12;
 /// More iterations than this is absurd: the transient patterns the paper uses are gone and
@@ -43,88 +34,6 @@ pub const MAX_EXACT_LEVELS: u32 = 3;
 
 pub const CONTROL_SECTION: &str = "control.png";
 pub const INITIAL_SECTION: &str = "initial.png";
-
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, JsonSchema)]
-#[serde(deny_unknown_fields)]
-pub struct Params {
-    pub seed: u64,
-    /// Served extent in pixels; the texture is defined on the whole plane.
-    #[serde(default = "default_extent")]
-    pub width: u64,
-    #[serde(default = "default_extent")]
-    pub height: u64,
-    pub stages: Vec<StageSpec>,
-    #[serde(default)]
-    pub palette: PaletteSpec,
-    /// Values mapped to the palette's ends; computed by `create` from a sample when absent.
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub range: Option<[f64; 2]>,
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub dilation_map: Option<DilationMapSpec>,
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub initial: Option<InitialSpec>,
-    /// Mip levels 1..=exact_levels are the exact box downsample; coarser ones prefiltered.
-    #[serde(default = "default_exact_levels")]
-    pub exact_levels: u32,
-}
-
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, JsonSchema)]
-#[serde(deny_unknown_fields)]
-pub struct StageSpec {
-    #[serde(default)]
-    pub kernel: KernelSpec,
-    #[serde(default)]
-    pub map: MapSpec,
-    #[serde(default = "default_iterations")]
-    pub iterations: u32,
-    #[serde(default = "one")]
-    pub dilation: u32,
-    /// Factor from the previous stage's lattice; not allowed on the first stage.
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub upsample: Option<u32>,
-    #[serde(default)]
-    pub jitter: f64,
-}
-
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, JsonSchema)]
-#[serde(deny_unknown_fields)]
-pub struct DilationMapSpec {
-    /// Dilation where the control map is white (black is 1).
-    pub max: u32,
-    /// Pixels per control-map texel; the map repeats over the plane.
-    pub cell: u64,
-}
-
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, JsonSchema)]
-#[serde(deny_unknown_fields)]
-pub struct InitialSpec {
-    /// Pixels per image texel.
-    pub cell: u64,
-    /// Weight of the image against the noise, in [0, 1].
-    pub strength: f64,
-    /// Repeat the image over the plane; otherwise noise surrounds it.
-    #[serde(default)]
-    pub repeat: bool,
-}
-
-fn default_extent() -> u64 {
-    100_000
-}
-fn default_iterations() -> u32 {
-    5
-}
-fn one() -> u32 {
-    1
-}
-fn default_exact_levels() -> u32 {
-    2
-}
-
-impl Params {
-    pub fn from_json(v: &serde_json::Value) -> Result<Self> {
-        serde_json::from_value(v.clone()).map_err(|e| Error::param("params", e.to_string()))
-    }
-}
 
 /// Validates everything and builds the engine. `control` / `initial` are the decoded images.
 pub fn build_engine(p: &Params, control: Option<&Rgba8Image>, initial: Option<&Rgba8Image>) -> Result<Engine> {
@@ -250,4 +159,42 @@ pub fn section_image(bundle: &crate::bundle::Bundle, section: &str, name: &str) 
         Some(s) => Ok(Some(decode_png(name, &s.data)?)),
         None => Ok(None),
     }
+}
+
+/// Makes an encoding from parameters and the optional `control` / `initial` images.
+pub fn create(name: &str, params: &serde_json::Value, inputs: &Inputs) -> Result<Bundle> {
+    if let Some(other) = inputs.keys().find(|k| !["control", "initial"].contains(&k.as_str())) {
+        return Err(Error::image(other.as_str(), "not an input of `cascade` (it takes `control` and `initial`)"));
+    }
+    let mut p: Params = parse_params(params)?;
+    let control = inputs.contains_key("control").then(|| input_image(inputs, "control")).transpose()?;
+    let initial = inputs.contains_key("initial").then(|| input_image(inputs, "initial")).transpose()?;
+    let tex = Cascade::build(p.clone(), control.as_ref(), initial.as_ref())?;
+    if p.range.is_none() {
+        p.range = Some(auto_range(&tex.engine));
+    }
+    let json = serde_json::to_value(&p).map_err(|e| Error::param("params", e.to_string()))?;
+    let mut bundle = Bundle::new(MODEL, name, json);
+    if let Some(c) = control {
+        bundle = bundle.with_section(CONTROL_SECTION, c.to_png());
+    }
+    if let Some(i) = initial {
+        bundle = bundle.with_section(INITIAL_SECTION, i.to_png());
+    }
+    load(&Bundle::from_bytes(&bundle.to_bytes())?)?;
+    Ok(bundle)
+}
+
+/// Validates an encoding completely and returns the texture.
+pub fn load(bundle: &Bundle) -> Result<Cascade> {
+    if bundle.manifest.model != MODEL {
+        return Err(Error::bundle(format!("model `{}`, expected `{MODEL}`", bundle.manifest.model)));
+    }
+    if let Some(s) = bundle.sections.iter().find(|s| s.name != CONTROL_SECTION && s.name != INITIAL_SECTION) {
+        return Err(Error::bundle(format!("unexpected section `{}`", s.name)));
+    }
+    let p: Params = parse_params(&bundle.manifest.params)?;
+    let control = section_image(bundle, CONTROL_SECTION, "control")?;
+    let initial = section_image(bundle, INITIAL_SECTION, "initial")?;
+    Cascade::build(p, control.as_ref(), initial.as_ref())
 }

@@ -3,7 +3,8 @@
 //! Tab. 2 (Tab. 3, §6's 40 × 40 + 20 × 20 LCMs and 640 × 640 period), and a 100,800 ×
 //! 100,800 colour texture of pebbles (one element plane per channel).
 
-use super::encoding::{create, CreateParams, LayerParams, Order, Representation, PEBBLE_SAND};
+use super::encoding::{create, PEBBLE_SAND};
+use super::params::{Builtin, LayerParams, Order, Params, Representation};
 use super::table::{Cell, Table};
 use crate::bundle::Bundle;
 use crate::models::Inputs;
@@ -43,9 +44,9 @@ pub fn table_brick() -> Table {
     }
 }
 
-fn params(element: &str, k: u32, layers: Vec<LayerParams>) -> CreateParams {
-    CreateParams {
-        element: Some(super::encoding::Builtin { builtin: element.into(), k }),
+fn params(element: &str, k: u32, layers: Vec<LayerParams>) -> Params {
+    Params {
+        element: Some(Builtin { builtin: element.into(), k }),
         representation: Representation::Explicit,
         magnify: 0,
         background: None,
@@ -59,9 +60,9 @@ fn params(element: &str, k: u32, layers: Vec<LayerParams>) -> CreateParams {
 
 /// "Random rotation": 4 layers of the zero-mean stroke, Tab. 1 on each, weights 1. LCM sizes
 /// 50 × 60 and 76 × 46 (not multiples of each other, §5) give a period far beyond any layer's.
-pub fn random_rotation() -> CreateParams {
+pub fn random_rotation() -> Params {
     let t = table_random_rotation;
-    CreateParams {
+    Params {
         palette: vec![[-160.0, 16.0, 34.0, 78.0], [160.0, 246.0, 236.0, 206.0]],
         seed: 11,
         ..params(
@@ -78,10 +79,10 @@ pub fn random_rotation() -> CreateParams {
 }
 
 /// "Cheese": one hole element at two scales, rarely replicated, holes painted over each other.
-pub fn cheese() -> CreateParams {
+pub fn cheese() -> Params {
     let holes =
         |p: f64| Table::single(Cell { sign: [p, 0.0, 1.0 - p], rotation: UNIFORM, mirror: 0.5, operation: NON_ZERO });
-    CreateParams {
+    Params {
         palette: vec![
             [-130.0, 120.0, 78.0, 14.0],
             [-60.0, 196.0, 146.0, 40.0],
@@ -102,8 +103,8 @@ fn brick_palette() -> Vec<[f64; 4]> {
 }
 
 /// "Brick wall", simple (Fig. 3 centre): Tab. 3 on layer 0 only.
-pub fn brick_wall_simple() -> CreateParams {
-    CreateParams {
+pub fn brick_wall_simple() -> Params {
+    Params {
         palette: brick_palette(),
         seed: 3,
         tiles: [2, 2],
@@ -114,10 +115,10 @@ pub fn brick_wall_simple() -> CreateParams {
 /// "Brick wall" (Fig. 3 right, §6): Tab. 3 on layer 0 (LCM 40 × 40) and the element again as
 /// noise (Tab. 2) with weight 0.2 on layers 2 and 3, which share one 20 × 20 LCM — the
 /// 40² + 20² + 32² + 8² + 4² = 3,104 bytes of the paper, for a 640 × 640 period.
-pub fn brick_wall() -> CreateParams {
+pub fn brick_wall() -> Params {
     let mut shared = layer(3, 0.2, [20, 20], table_noise());
     shared.share = Some(1);
-    CreateParams {
+    Params {
         palette: brick_palette(),
         seed: 3,
         tiles: [2, 2],
@@ -134,11 +135,11 @@ pub fn brick_wall() -> CreateParams {
 /// are chosen so that the layer periods (across: 64·225, 32·225, 16·100, 8·56, 4·36 px) have
 /// the least common multiple 64 · 1575 = 100,800 along each axis. The two largest layers get
 /// the largest LCMs: their own repetition is what shows when the whole texture is in view.
-pub fn pebbles() -> CreateParams {
+pub fn pebbles() -> Params {
     let stones = |pos: f64, neg: f64| {
         Table::single(Cell { sign: [pos, neg, 1.0 - pos - neg], rotation: UNIFORM, mirror: 0.5, operation: NON_ZERO })
     };
-    CreateParams {
+    Params {
         background: Some(PEBBLE_SAND.to_vec()),
         order: Order::BottomUp,
         seed: 100_800,
@@ -157,7 +158,7 @@ pub fn pebbles() -> CreateParams {
 }
 
 /// The named demo parameter sets.
-pub fn all_params() -> Vec<(&'static str, CreateParams)> {
+pub fn all_params() -> Vec<(&'static str, Params)> {
     vec![
         ("LCM random rotation", random_rotation()),
         ("LCM cheese", cheese()),
@@ -168,7 +169,7 @@ pub fn all_params() -> Vec<(&'static str, CreateParams)> {
 }
 
 /// Makes one demo's encoding.
-pub fn make(name: &str, p: &CreateParams) -> Result<Bundle> {
+pub fn make(name: &str, p: &Params) -> Result<Bundle> {
     let json = serde_json::to_value(p).expect("demo parameters serialize");
     create(name, &json, &Inputs::new())
 }

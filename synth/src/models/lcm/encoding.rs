@@ -14,10 +14,12 @@ use super::event::Event;
 use super::layer::{Layer, QW};
 use super::period::{lcm, mask_period};
 use super::render::LcmTexture;
-use super::table::Table;
 use super::{elements, MODEL};
+
+use super::params::one_tile;
+pub use super::params::{Builtin, LayerParams, Order, Params, Representation};
 use crate::bundle::Bundle;
-use crate::models::{input_image, Inputs};
+use crate::models::{input_image, parse_params, Inputs};
 use crate::{Error, Result};
 use schemars::JsonSchema;
 use serde::{Deserialize, Serialize};
@@ -34,58 +36,11 @@ pub const MAX_SIZE: u64 = 1 << 40;
 /// Layer weights lie within ± this.
 pub const MAX_WEIGHT: f64 = 64.0;
 
-/// How the base element is stored.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize, JsonSchema)]
-#[serde(rename_all = "snake_case")]
-pub enum Representation {
-    /// Scaled copies in explicit form, like a mip chain (fast; what the paper counts).
-    #[default]
-    Explicit,
-    /// The Haar transform of the element (§6).
-    Haar,
-}
-
-/// Order of application of the layers (§2.2).
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize, JsonSchema)]
-#[serde(rename_all = "snake_case")]
-pub enum Order {
-    /// Layer 0 (the largest elements) first.
-    #[default]
-    TopDown,
-    /// The finest layer first, layer 0 last.
-    BottomUp,
-}
-
-/// One layer as the manifest describes it.
+/// The manifest parameters of an `lcm` encoding: [`Params`] with the derived fields filled in
+/// and the base element stored in sections.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize, JsonSchema)]
 #[serde(deny_unknown_fields)]
-pub struct LayerParams {
-    /// The paper's layer number n: resolution K + magnify − n.
-    pub layer: u32,
-    #[serde(default = "one")]
-    pub weight: f64,
-    /// LCM size in points, [width, height].
-    pub lcm: [u32; 2],
-    /// Use the LCM of this earlier entry of `layers` instead of one of its own (the paper's
-    /// brick wall shares one 20 × 20 LCM between layers 2 and 3).
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub share: Option<usize>,
-    /// The event table the LCM was drawn from (needed by `create`, kept for the record).
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub table: Option<Table>,
-}
-
-fn one() -> f64 {
-    1.0
-}
-fn one_tile() -> [u32; 2] {
-    [1, 1]
-}
-
-/// The manifest parameters of an `lcm` encoding.
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, JsonSchema)]
-#[serde(deny_unknown_fields)]
-pub struct Params {
+pub struct StoredParams {
     /// The base element is 2^k pixels a side.
     pub k: u32,
     /// Magnification 2^magnify (§2.4): layer 0 at resolution K + magnify, elements stretched.
@@ -109,42 +64,6 @@ pub struct Params {
     #[serde(default = "one_tile")]
     pub tiles: [u32; 2],
     /// The seed the LCMs were drawn with (for the record).
-    #[serde(default)]
-    pub seed: u64,
-    pub layers: Vec<LayerParams>,
-}
-
-/// A base element made in code, by name.
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, JsonSchema)]
-#[serde(deny_unknown_fields)]
-pub struct Builtin {
-    /// `stroke`, `hole`, `brick` (one plane) or `pebble` (three).
-    pub builtin: String,
-    pub k: u32,
-}
-
-/// Parameters of [`create`]: the manifest's, less what is derived (k, planes, stored
-/// resolutions), plus where the base element comes from.
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, JsonSchema)]
-#[serde(deny_unknown_fields)]
-pub struct CreateParams {
-    /// A built-in element; without it the input image `element` is used: a square PNG of
-    /// side 2^K whose grey level − 128 is the intensity (transparent pixels are 0), one plane
-    /// with a palette, else one plane per channel.
-    #[serde(default)]
-    pub element: Option<Builtin>,
-    #[serde(default)]
-    pub representation: Representation,
-    #[serde(default)]
-    pub magnify: u32,
-    #[serde(default)]
-    pub background: Option<Vec<f64>>,
-    #[serde(default)]
-    pub order: Order,
-    #[serde(default)]
-    pub palette: Vec<[f64; 4]>,
-    #[serde(default = "one_tile")]
-    pub tiles: [u32; 2],
     #[serde(default)]
     pub seed: u64,
     pub layers: Vec<LayerParams>,
@@ -205,7 +124,7 @@ fn image_planes(inputs: &Inputs, planes: usize) -> Result<Vec<Plane>> {
 
 /// Makes an encoding: the base element, the LCMs drawn from the tables with the seed.
 pub fn create(name: &str, params: &serde_json::Value, inputs: &Inputs) -> Result<Bundle> {
-    let p: CreateParams = serde_json::from_value(params.clone()).map_err(|e| Error::param("params", e.to_string()))?;
+    let p: Params = parse_params(params)?;
     let planes = match &p.element {
         Some(b) => builtin_planes(b)?,
         None => image_planes(inputs, if p.palette.is_empty() { 3 } else { 1 })?,
@@ -251,7 +170,7 @@ pub fn create(name: &str, params: &serde_json::Value, inputs: &Inputs) -> Result
             }
         }
     }
-    let manifest = Params {
+    let manifest = StoredParams {
         k,
         magnify: p.magnify,
         planes: planes.len() as u32,
@@ -286,7 +205,7 @@ fn check_lcm_size(size: [u32; 2], n: usize) -> Result<()> {
 
 /// Checks an encoding completely and builds its texture.
 pub fn load(bundle: &Bundle) -> Result<LcmTexture> {
-    let p: Params = bundle.params()?;
+    let p: StoredParams = bundle.params()?;
     if !(1..=MAX_K).contains(&p.k) {
         return Err(Error::param("k", format!("{}: the base element side must be 2^k with 1 ≤ k ≤ {MAX_K}", p.k)));
     }

@@ -1,0 +1,97 @@
+//! The cascade's parameters, as given to `create` and stored in the manifest (with `range`
+//! filled in).
+//!
+//! ```json
+//! {"seed": 7, "width": 100000, "height": 100000,
+//!  "stages": [{"kernel": {"size": 5, "preset": "gauss"}, "map": {"kind": "logistic", "r": 3.7},
+//!              "iterations": 5},
+//!             {"upsample": 2, "jitter": 0.1, "kernel": {"size": 3, "weights": [0,1,0,1,4,1,0,1,0]},
+//!              "map": {"kind": "sine", "r": 0.95}}],
+//!  "palette": "earth", "range": [0.1, 0.9],
+//!  "dilation_map": {"max": 3, "cell": 64},          // needs input/section `control`
+//!  "initial": {"cell": 8, "strength": 0.7, "repeat": false},  // needs input/section `initial`
+//!  "exact_levels": 2}
+//! ```
+//! Stages run coarse to fine; each after the first is `upsample` (1, 2, 4 or 8) times finer.
+
+use super::kernel::KernelSpec;
+use super::maps::MapSpec;
+use super::palette::PaletteSpec;
+use schemars::JsonSchema;
+use serde::{Deserialize, Serialize};
+
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct Params {
+    pub seed: u64,
+    /// Served extent in pixels; the texture is defined on the whole plane.
+    #[serde(default = "default_extent")]
+    pub width: u64,
+    #[serde(default = "default_extent")]
+    pub height: u64,
+    pub stages: Vec<StageSpec>,
+    #[serde(default)]
+    pub palette: PaletteSpec,
+    /// Values mapped to the palette's ends; computed by `create` from a sample when absent.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub range: Option<[f64; 2]>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub dilation_map: Option<DilationMapSpec>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub initial: Option<InitialSpec>,
+    /// Mip levels 1..=exact_levels are the exact box downsample; coarser ones prefiltered.
+    #[serde(default = "default_exact_levels")]
+    pub exact_levels: u32,
+}
+
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct StageSpec {
+    #[serde(default)]
+    pub kernel: KernelSpec,
+    #[serde(default)]
+    pub map: MapSpec,
+    #[serde(default = "default_iterations")]
+    pub iterations: u32,
+    #[serde(default = "one")]
+    pub dilation: u32,
+    /// Factor from the previous stage's lattice; not allowed on the first stage.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub upsample: Option<u32>,
+    #[serde(default)]
+    pub jitter: f64,
+}
+
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct DilationMapSpec {
+    /// Dilation where the control map is white (black is 1).
+    pub max: u32,
+    /// Pixels per control-map texel; the map repeats over the plane.
+    pub cell: u64,
+}
+
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct InitialSpec {
+    /// Pixels per image texel.
+    pub cell: u64,
+    /// Weight of the image against the noise, in [0, 1].
+    pub strength: f64,
+    /// Repeat the image over the plane; otherwise noise surrounds it.
+    #[serde(default)]
+    pub repeat: bool,
+}
+
+fn default_extent() -> u64 {
+    100_000
+}
+fn default_iterations() -> u32 {
+    5
+}
+fn one() -> u32 {
+    1
+}
+fn default_exact_levels() -> u32 {
+    2
+}

@@ -1,0 +1,195 @@
+//! The loaded texture: the validated engine and palette, rendering level 0 and the exact
+//! levels by brute force over bounded chunks and coarser levels through [`prefilter`](super::prefilter).
+
+use super::encoding::{build_engine, Params};
+use super::engine::{Engine, STREAM_CALIBRATION};
+use super::{palette, prefilter, MODEL};
+use crate::pixels::Rgba8Image;
+use crate::texture::{Domain, Region, Texture};
+use crate::{Error, Result};
+use std::sync::OnceLock;
+
+/// Level-0 pixels computed per chunk: bounds the memory of one render call.
+const CHUNK: u32 = 1024;
+
+/// A loaded, validated cascade texture.
+pub struct Cascade {
+    pub(super) params: Params,
+    pub(super) engine: Engine,
+    pub(super) lut: Vec<[u8; 4]>,
+    pub(super) lo: f32,
+    pub(super) scale: f32,
+    /// Statistics for the prefiltered mip levels, computed on first use (a pure function of
+    /// the encoding, so when it is computed never changes a result).
+    pub(super) calibration: OnceLock<prefilter::Calibration>,
+}
+
+impl std::fmt::Debug for Cascade {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(f, "Cascade({} stages, seed {})", self.engine.stages.len(), self.engine.seed)
+    }
+}
+
+impl Cascade {
+    pub(super) fn build(params: Params, control: Option<&Rgba8Image>, initial: Option<&Rgba8Image>) -> Result<Self> {
+        let engine = build_engine(&params, control, initial)?;
+        let lut = palette::build(&params.palette)?;
+        let [lo, hi] = params.range.unwrap_or_else(|| auto_range(&engine));
+        let (lo, scale) = (lo as f32, (1.0 / (hi - lo)) as f32);
+        if !(scale.is_finite() && scale > 0.0) {
+            return Err(Error::param("range", format!("[{lo}, {hi}] is too narrow")));
+        }
+        Ok(Self { params, engine, lut, lo, scale, calibration: OnceLock::new() })
+    }
+
+    pub fn params(&self) -> &Params {
+        &self.params
+    }
+
+    pub fn engine(&self) -> &Engine {
+        &self.engine
+    }
+
+    /// The palette colour of a final-stage value.
+    #[inline]
+    pub fn colour(&self, v: f32) -> [u8; 4] {
+        let t = ((v - self.lo) * self.scale).clamp(0.0, 1.0);
+        self.lut[(t * (palette::LUT_SIZE - 1) as f32 + 0.5) as usize]
+    }
+
+    /// Level-0 pixels of the window at (x, y) (plane coordinates as u64 on the 2^64 torus).
+    pub fn level0(&self, x: u64, y: u64, w: u32, h: u32) -> Rgba8Image {
+        let last = self.engine.stages.len() - 1;
+        let g = self.engine.field(last, x, y, w as usize, h as usize);
+        let mut img = Rgba8Image::new(w, h);
+        for (px, v) in img.data.chunks_exact_mut(4).zip(&g.v) {
+            px.copy_from_slice(&self.colour(*v));
+        }
+        img
+    }
+
+    fn calibration(&self) -> &prefilter::Calibration {
+        self.calibration.get_or_init(|| prefilter::Calibration::compute(self))
+    }
+}
+
+impl Texture for Cascade {
+    fn model(&self) -> &'static str {
+        MODEL
+    }
+    fn width(&self) -> u64 {
+        self.params.width
+    }
+    fn height(&self) -> u64 {
+        self.params.height
+    }
+    fn domain(&self) -> Domain {
+        Domain::Plane
+    }
+
+    fn render(&self, region: &Region, out: &mut [u8]) {
+        let l = region.level;
+        // Chunks keep every buffer bounded; each pixel is independent of the chunking.
+        let step = if l <= self.params.exact_levels { (CHUNK >> l).max(1) } else { 256 };
+        let row = region.width as usize * 4;
+        for cy in (0..region.height).step_by(step as usize) {
+            for cx in (0..region.width).step_by(step as usize) {
+                let (w, h) = (step.min(region.width - cx), step.min(region.height - cy));
+                let (x, y) = ((region.x as u64).wrapping_add(cx as u64), (region.y as u64).wrapping_add(cy as u64));
+                let img = if l == 0 {
+                    self.level0(x, y, w, h)
+                } else if l <= self.params.exact_levels {
+                    crate::mip::downsample_n(&self.level0(x << l, y << l, w << l, h << l), l)
+                } else {
+                    prefilter::render(self, self.calibration(), l, x, y, w, h)
+                };
+                for r in 0..h as usize {
+                    let dst = (cy as usize + r) * row + cx as usize * 4;
+                    out[dst..dst + w as usize * 4]
+                        .copy_from_slice(&img.data[r * w as usize * 4..(r + 1) * w as usize * 4]);
+                }
+            }
+        }
+    }
+}
+
+/// Final-stage value range from a deterministic sample of windows: the 0.5 % and 99.5 %
+/// quantiles, rounded to 1e-4 so the manifest stays short and parses exactly.
+pub(super) fn auto_range(engine: &Engine) -> [f64; 2] {
+    let last = engine.stages.len() - 1;
+    let mut v: Vec<f32> = Vec::new();
+    for i in 0..8 {
+        let h = crate::hash::hash4(engine.seed, STREAM_CALIBRATION, i, 7);
+        let g = engine.field(last, h, h.rotate_left(32), 48, 48);
+        v.extend(g.v);
+    }
+    v.sort_by(f32::total_cmp);
+    let q = |f: f64| v[((v.len() - 1) as f64 * f) as usize] as f64;
+    let round = |x: f64| (x * 1e4).round() / 1e4;
+    let (lo, hi) = (round(q(0.005)), round(q(0.995)));
+    if hi - lo < 1e-3 {
+        [round(lo - 0.05), round(lo + 0.05)]
+    } else {
+        [lo, hi]
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::super::{create, demos, load};
+    use super::*;
+    use crate::models::Inputs;
+    use serde_json::json;
+
+    fn cascade(params: serde_json::Value) -> Cascade {
+        load(&create("t", &params, &Inputs::new()).unwrap()).unwrap()
+    }
+
+    /// The dependency margin is exactly right: computing any stage from a window one point
+    /// narrower (edge values repeated) changes the result, and the full margin reproduces it.
+    #[test]
+    fn one_point_less_of_margin_changes_the_result() {
+        let t = cascade(json!({"seed": 9, "stages": [
+            {"kernel": {"size": 5, "preset": "gauss"}, "map": {"kind": "logistic", "r": 3.8}},
+            {"upsample": 2, "jitter": 0.1, "kernel": {"size": 3, "preset": "box"}, "map": {"kind": "tent", "mu": 1.7}, "iterations": 3},
+            {"upsample": 4, "jitter": 0.1, "kernel": {"size": 7, "preset": "gauss"}, "map": {"kind": "sine", "r": 0.95}, "iterations": 2, "dilation": 2}]}));
+        let e = t.engine();
+        let last = e.stages.len() - 1;
+        let (x, y, w, h) = (u64::MAX - 20, 1 << 40, 48, 40);
+        let full = e.field(last, x, y, w, h);
+        assert_eq!(e.field_with(last, x, y, w, h, None), full);
+        for s in 0..=last {
+            let short = e.field_with(last, x, y, w, h, Some(s));
+            let differ = full.v.iter().zip(&short.v).filter(|(a, b)| a != b).count();
+            assert!(differ > 0, "stage {s}: a margin one point short went unnoticed");
+        }
+        // The margins are the formula k·r·d: 5·2·1, 3·1·1, 2·3·2.
+        assert_eq!((0..=last).map(|s| e.margin(s)).collect::<Vec<_>>(), vec![10, 3, 12]);
+    }
+
+    #[test]
+    fn margin_with_a_dilation_map_uses_the_largest_dilation() {
+        let mut inputs = Inputs::new();
+        let white = Rgba8Image::from_raw(2, 2, vec![255; 16]).unwrap();
+        inputs.insert("control".into(), white.to_png());
+        let params = json!({"seed": 2, "stages": [{"kernel": {"size": 3, "preset": "box"}, "map": {"kind": "logistic", "r": 3.9}, "iterations": 4}],
+                            "dilation_map": {"max": 3, "cell": 8}});
+        let t = load(&create("d", &params, &inputs).unwrap()).unwrap();
+        let e = t.engine();
+        assert_eq!(e.margin(0), 4 * 3);
+        let full = e.field(0, 5, 5, 30, 30);
+        assert_ne!(e.field_with(0, 5, 5, 30, 30, Some(0)), full);
+    }
+
+    #[test]
+    fn dilation_map_changes_the_scale_of_features() {
+        let mut inputs = Inputs::new();
+        inputs.insert("control".into(), demos::control_map(16).to_png());
+        let base = json!({"seed": 5, "stages": [{"kernel": {"size": 3, "preset": "gauss"}, "map": {"kind": "sine", "r": 0.97}}]});
+        let mut with_map = base.clone();
+        with_map["dilation_map"] = json!({"max": 4, "cell": 64});
+        let plain = cascade(base);
+        let dilated = load(&create("d", &with_map, &inputs).unwrap()).unwrap();
+        assert_ne!(plain.level0(0, 0, 64, 64), dilated.level0(0, 0, 64, 64));
+    }
+}

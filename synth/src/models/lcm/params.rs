@@ -1,0 +1,90 @@
+//! The parameters of an `lcm` encoding as `create` takes them: the layers with their event
+//! tables, the background, order and colour, and where the base element comes from.
+
+use super::table::Table;
+use schemars::JsonSchema;
+use serde::{Deserialize, Serialize};
+
+/// How the base element is stored.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize, JsonSchema)]
+#[serde(rename_all = "snake_case")]
+pub enum Representation {
+    /// Scaled copies in explicit form, like a mip chain (fast; what the paper counts).
+    #[default]
+    Explicit,
+    /// The Haar transform of the element (§6).
+    Haar,
+}
+
+/// Order of application of the layers (§2.2).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize, JsonSchema)]
+#[serde(rename_all = "snake_case")]
+pub enum Order {
+    /// Layer 0 (the largest elements) first.
+    #[default]
+    TopDown,
+    /// The finest layer first, layer 0 last.
+    BottomUp,
+}
+
+/// One layer as the manifest describes it.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct LayerParams {
+    /// The paper's layer number n: resolution K + magnify − n.
+    pub layer: u32,
+    #[serde(default = "one")]
+    pub weight: f64,
+    /// LCM size in points, [width, height].
+    pub lcm: [u32; 2],
+    /// Use the LCM of this earlier entry of `layers` instead of one of its own (the paper's
+    /// brick wall shares one 20 × 20 LCM between layers 2 and 3).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub share: Option<usize>,
+    /// The event table the LCM was drawn from (needed by `create`, kept for the record).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub table: Option<Table>,
+}
+
+fn one() -> f64 {
+    1.0
+}
+pub(super) fn one_tile() -> [u32; 2] {
+    [1, 1]
+}
+
+/// A base element made in code, by name.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct Builtin {
+    /// `stroke`, `hole`, `brick` (one plane) or `pebble` (three).
+    pub builtin: String,
+    pub k: u32,
+}
+
+/// The creation parameters: those of the manifest ([`StoredParams`](super::encoding::StoredParams)) less
+/// what is derived (k, planes, stored resolutions), plus where the base element comes from.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct Params {
+    /// A built-in element; without it the input image `element` is used: a square PNG of
+    /// side 2^K whose grey level − 128 is the intensity (transparent pixels are 0), one plane
+    /// with a palette, else one plane per channel.
+    #[serde(default)]
+    pub element: Option<Builtin>,
+    #[serde(default)]
+    pub representation: Representation,
+    #[serde(default)]
+    pub magnify: u32,
+    #[serde(default)]
+    pub background: Option<Vec<f64>>,
+    #[serde(default)]
+    pub order: Order,
+    #[serde(default)]
+    pub palette: Vec<[f64; 4]>,
+    #[serde(default = "one_tile")]
+    pub tiles: [u32; 2],
+    #[serde(default)]
+    pub seed: u64,
+    pub layers: Vec<LayerParams>,
+}
