@@ -309,79 +309,7 @@ fn reported_periods_are_the_true_ones() {
 
 // ---------------------------------------------------------------- mip levels (§2.4)
 
-#[test]
-fn native_mip_levels_against_the_exact_downsample() {
-    let mut report = Vec::new();
-    for (name, floor) in [
-        ("LCM brick wall", 45.0),
-        ("LCM brick wall (simple)", 48.0),
-        ("LCM random rotation", 42.0),
-        ("LCM cheese", 33.0),
-        ("LCM pebbles 100k", 30.0),
-    ] {
-        let (_, t) = demo(name);
-        let full = render(&t, 0, 0, 0, 1024, 1024);
-        for level in 1..=5u32 {
-            let native = render(&t, level, 0, 0, 1024 >> level, 1024 >> level);
-            let exact = mip::downsample_n(&full, level);
-            let db = mip::psnr(&native, &exact);
-            report.push(format!("{name} L{level}: {db:.1} dB"));
-            assert!(db > floor, "{name} level {level}: {db:.1} dB\n{}", report.join("\n"));
-        }
-        // The coarsest levels keep the mean colour (over whole periods).
-        if name.starts_with("LCM brick") {
-            let (w, h) = (t.width(), t.height());
-            let whole = render(&t, 0, 0, 0, w as u32, h as u32);
-            let coarse = render(&t, 7, 0, 0, (w >> 7) as u32, (h >> 7) as u32);
-            let (a, b) = (mip::mean_rgba(&whole), mip::mean_rgba(&coarse));
-            report.push(format!("{name} mean colour L0 {a:.1?} vs L7 {b:.1?}"));
-            for c in 0..3 {
-                assert!((a[c] - b[c]).abs() < 2.0, "{name}: mean {a:?} vs coarse {b:?}");
-            }
-        }
-    }
-    eprintln!("{}", report.join("\n"));
-}
-
 // ---------------------------------------------------------------- DESIGN §3 invariants
-
-#[test]
-fn tiles_are_crops_of_larger_regions_at_every_level_and_across_the_seam() {
-    for name in ["LCM brick wall", "LCM cheese", "LCM pebbles 100k"] {
-        let (b, t) = demo(name);
-        for level in [0u32, 1, 3, 6] {
-            let (w, h) = vtex_synth::texture::level_size(t.width(), t.height(), level);
-            let (w, h) = (w as i64, h as i64);
-            // A region straddling the torus corner, and tiles inside it.
-            let big = render(&t, level, w - 70, h - 50, 200, 150);
-            for (dx, dy, tw, th) in [(0, 0, 64, 64), (60, 40, 64, 64), (131, 97, 69, 53), (70, 50, 1, 1)] {
-                let tile = render(&t, level, w - 70 + dx, h - 50 + dy, tw, th);
-                assert_eq!(tile, big.crop(dx as u32, dy as u32, tw, th), "{name} L{level} tile at {dx},{dy}");
-            }
-            // Coordinates beyond the texture wrap, negative ones too.
-            assert_eq!(render(&t, level, 5 - w, 7 + 3 * h, 32, 32), render(&t, level, 5, 7, 32, 32));
-        }
-        // A fresh load of the same bytes renders the same bytes.
-        let again = lcm::load(&Bundle::from_bytes(&b.to_bytes()).unwrap()).unwrap();
-        assert_eq!(render(&again, 2, 11, 13, 100, 90), render(&t, 2, 11, 13, 100, 90));
-    }
-}
-
-#[test]
-fn registry_creates_loads_and_lists_the_model() {
-    assert!(models::MODELS.contains(&"lcm"));
-    let lcm_demos: Vec<Bundle> = models::demos().into_iter().filter(|b| b.manifest.model == "lcm").collect();
-    assert_eq!(lcm_demos.len(), 5);
-    let big = lcm_demos.iter().find(|b| b.manifest.name == "LCM pebbles 100k").unwrap();
-    let t = models::load(big).unwrap();
-    assert_eq!((t.width(), t.height(), t.model()), (100_800, 100_800, "lcm"));
-    assert_eq!(t.domain(), vtex_synth::Domain::Torus);
-    let p = serde_json::to_value(demos::cheese()).unwrap();
-    let b = models::create("lcm", "cheese again", &p, &Inputs::new()).unwrap();
-    assert_eq!(b.manifest.model, "lcm");
-    // Same parameters, same bytes.
-    assert_eq!(b.to_bytes(), models::create("lcm", "cheese again", &p, &Inputs::new()).unwrap().to_bytes());
-}
 
 // ---------------------------------------------------------------- representation, colour, scaling
 
