@@ -143,6 +143,11 @@ fn eval(table: &[[f32; 3]], a: f32) -> [f32; 3] {
 }
 
 /// Renders `w × h` pixels of level `l` at (x, y) (level-`l` coordinates on the torus).
+/// The guided path's sample budget is set for the level's own extent, capped at the largest
+/// chunk the renderer passes (256 × 256), never for the region at hand, so that a pixel does
+/// not depend on the size of the region it is rendered in.
+const BUDGET_PIXELS: u64 = 256 * 256;
+
 pub fn render(tex: &Cascade, cal: &Calibration, l: u32, x: u64, y: u64, w: u32, h: u32) -> Rgba8Image {
     let e = tex.engine();
     let last = e.stages.len() - 1;
@@ -153,7 +158,8 @@ pub fn render(tex: &Cascade, cal: &Calibration, l: u32, x: u64, y: u64, w: u32, 
             // scale; average g over n × n samples of it per block, about one per texel
             // (4 to 64 per axis, at most 2^22 samples a call).
             let per_texel = ((1u64 << l.min(40)) / guide.cell).clamp(4, 64);
-            let budget = libm::sqrt((1u64 << 22) as f64 / (w as f64 * h as f64)) as u64;
+            let (lw, lh) = crate::texture::level_size(tex.params().width, tex.params().height, l);
+            let budget = libm::sqrt((1u64 << 22) as f64 / (lw * lh).min(BUDGET_PIXELS) as f64) as u64;
             let n = per_texel.min(budget.max(4)).next_power_of_two().min(1 << (l - 1));
             // Spread the samples over the block, or over one period of a repeating guide
             // when the block is larger (sampling a period at a fixed phase would alias).

@@ -136,7 +136,7 @@ pub(super) fn auto_range(engine: &Engine) -> [f64; 2] {
 
 #[cfg(test)]
 mod tests {
-    use super::super::{create, demos, load};
+    use super::super::{create, load};
     use super::*;
     use crate::models::Inputs;
     use serde_json::json;
@@ -179,17 +179,5 @@ mod tests {
         assert_eq!(e.margin(0), 4 * 3);
         let full = e.field(0, 5, 5, 30, 30);
         assert_ne!(e.field_with(0, 5, 5, 30, 30, Some(0)), full);
-    }
-
-    #[test]
-    fn dilation_map_changes_the_scale_of_features() {
-        let mut inputs = Inputs::new();
-        inputs.insert("control".into(), demos::control_map(16).to_png());
-        let base = json!({"seed": 5, "stages": [{"kernel": {"size": 3, "preset": "gauss"}, "map": {"kind": "sine", "r": 0.97}}]});
-        let mut with_map = base.clone();
-        with_map["dilation_map"] = json!({"max": 4, "cell": 64});
-        let plain = cascade(base);
-        let dilated = load(&create("d", &with_map, &inputs).unwrap()).unwrap();
-        assert_ne!(plain.level0(0, 0, 64, 64), dilated.level0(0, 0, 64, 64));
     }
 }

@@ -46,7 +46,15 @@ impl ChaosMosaic {
             (Sequence::Seed, None) => blocks::generate(&params, sw, sh, &rule),
             (Sequence::Explicit, Some(bytes)) => {
                 super::encoding::check_explicit_sample(&sample)?;
-                blocks::unpack(bytes, sw, sh, width, height, &rule)?
+                let blocks = blocks::unpack(bytes, sw, sh, width, height, &rule)?;
+                let expected = params.tiles_x as usize * params.tiles_y as usize * params.blocks_per_tile as usize;
+                if blocks.len() != expected {
+                    return Err(Error::bundle(format!(
+                        "section `blocks` holds {} blocks; tiles_x × tiles_y × blocks_per_tile is {expected}",
+                        blocks.len()
+                    )));
+                }
+                blocks
             }
             (Sequence::Seed, Some(_)) => {
                 return Err(Error::bundle("section `blocks` present for a seed-derived sequence"))

@@ -1,0 +1,610 @@
+//! The conformance suite: the invariants every texture model promises, checked on every demo
+//! of every model in `models::REGISTRY` with no per-model code, so a model added later is
+//! covered as soon as it is registered. It prints one row per demo and one column per
+//! invariant (pass/fail and the figure behind it), then the mip PSNR of every level, and
+//! fails when any cell fails.
+//!
+//! `cargo test -p vtex-synth --test conformance`; `CONFORMANCE_ONLY=<text>` keeps the demos
+//! whose `model/name` contains the text.
+
+use std::collections::BTreeMap;
+use std::panic::{catch_unwind, AssertUnwindSafe};
+use std::sync::atomic::{AtomicUsize, Ordering};
+use std::sync::{Arc, Mutex};
+use std::thread;
+
+use serde_json::{json, Value};
+use vtex_synth::bundle::Bundle;
+use vtex_synth::mip::{downsample, mean_rgba, psnr};
+use vtex_synth::models::{self, Inputs, Model};
+use vtex_synth::texture::{level_count, level_size, render_image};
+use vtex_synth::{samples, Domain, Error, Region, Rgba8Image, Texture};
+
+#[path = "../../wasm/src/probe.rs"]
+mod probe;
+
+/// Expected BLAKE3 of each demo's probe: `<hex>  <model>/<name>` a line.
+const PINNED: &str = include_str!("conformance.pinned");
+
+/// One demo under test.
+struct Demo {
+    model: &'static dyn Model,
+    bundle: Bundle,
+    tex: Arc<dyn Texture>,
+}
+
+impl Demo {
+    fn label(&self) -> String {
+        format!("{}/{}", self.model.id(), self.bundle.manifest.name)
+    }
+
+    fn levels(&self) -> u32 {
+        level_count(self.tex.width(), self.tex.height())
+    }
+
+    fn level_size(&self, level: u32) -> (u64, u64) {
+        level_size(self.tex.width(), self.tex.height(), level)
+    }
+
+    /// A later frame for animated textures, else only frame 0.
+    fn frames(&self) -> Vec<u32> {
+        if self.tex.animation().is_some() {
+            vec![0, 37]
+        } else {
+            vec![0]
+        }
+    }
+
+    fn render(&self, region: Region) -> Result<Rgba8Image, String> {
+        render_image(&*self.tex, &region).map_err(|e| format!("{region:?}: {e}"))
+    }
+}
+
+/// What one cell found: the figure shown, and whether the invariant holds.
+type Outcome = Result<String, String>;
+
+/// Mip PSNR of one level: served and point-sampled against the exact box downsample.
+#[derive(Clone, Copy)]
+struct LevelPsnr {
+    level: u32,
+    served: f64,
+    point: f64,
+}
+
+/// One invariant's check of a demo; the mip check also records its per-level figures.
+type Check = fn(&Demo, &mut Vec<LevelPsnr>) -> Outcome;
+
+/// The checks, in column order.
+const COLUMNS: [(&str, Check); 9] = [
+    ("tile = crop", |d, _| tile_equals_crop(d)),
+    ("order/threads", |d, _| order_and_threads(d)),
+    ("torus wrap", |d, _| torus_wrap(d)),
+    ("mip vs 2×2 box", mip_coherence),
+    ("coarsest mean", |d, _| coarsest_mean(d)),
+    ("pinned", |d, _| pinned(d)),
+    ("native ≡ wasm32", |d, _| wasm_probe(d)),
+    ("bad params", |d, _| bad_params(d)),
+    ("bad bundle", |d, _| bad_bundle(d)),
+];
+
+// ---------------------------------------------------------------- 1. a tile is a crop
+
+/// Tiles inside a 96 × 80 region at several levels and origins (near, negative, far in both
+/// directions) and frames must equal its crops.
+fn tile_equals_crop(d: &Demo) -> Outcome {
+    let levels = d.levels();
+    let mut chosen = vec![0, 1, 3, levels / 2, levels - 1];
+    chosen.retain(|&l| l < levels);
+    chosen.dedup();
+    let mut tiles = 0;
+    for &level in &chosen {
+        let (lw, lh) = d.level_size(level);
+        for (ox, oy) in [(lw as i64 / 3, lh as i64 / 2), (-37, -21), ((1 << 33) + 11, -(1 << 34) - 5)] {
+            for frame in d.frames() {
+                let big = d.render(Region::new(level, ox, oy, 96, 80).at_frame(frame))?;
+                for (dx, dy, w, h) in [(0, 0, 64, 64), (33, 17, 63, 63), (95, 79, 1, 1), (5, 50, 91, 30)] {
+                    let tile = d.render(Region::new(level, ox + dx as i64, oy + dy as i64, w, h).at_frame(frame))?;
+                    if tile != big.crop(dx, dy, w, h) {
+                        return Err(format!("L{level} frame {frame}: tile ({dx},{dy}) {w}×{h} of ({ox},{oy}) ≠ crop"));
+                    }
+                    tiles += 1;
+                }
+            }
+        }
+    }
+    Ok(format!("{tiles} tiles, levels {chosen:?}"))
+}
+
+// ---------------------------------------------------------------- 2. order and threads
+
+/// The same tiles rendered in order, in reverse, on 2 and 4 threads (each taking every
+/// k-th tile backwards) and from a fresh load of the bundle's bytes: identical bytes.
+fn order_and_threads(d: &Demo) -> Outcome {
+    let levels = d.levels();
+    let frame = *d.frames().last().unwrap();
+    let tiles: Vec<Region> = (0..12i64)
+        .map(|i| {
+            let level = (i as u32 % 3).min(levels - 1);
+            Region::new(level, (i % 4) * 64 - 100, (i / 4) * 64 + (1 << 20), 64, 64).at_frame(frame)
+        })
+        .collect();
+    let render_all = |tex: &dyn Texture, order: &[usize]| -> Result<Vec<(usize, Vec<u8>)>, String> {
+        order.iter().map(|&i| Ok((i, render_image(tex, &tiles[i]).map_err(|e| e.to_string())?.data))).collect()
+    };
+    let forward: Vec<usize> = (0..tiles.len()).collect();
+    let mut serial = render_all(&*d.tex, &forward)?;
+    serial.sort();
+    let mut runs = 1;
+    let mut compare = |mut got: Vec<(usize, Vec<u8>)>, what: &str| -> Result<(), String> {
+        got.sort();
+        runs += 1;
+        match got.iter().zip(&serial).find(|(a, b)| a != b) {
+            Some(((i, _), _)) => Err(format!("{what}: tile {:?} differs", tiles[*i])),
+            None => Ok(()),
+        }
+    };
+    let backward: Vec<usize> = (0..tiles.len()).rev().collect();
+    compare(render_all(&*d.tex, &backward)?, "reverse order")?;
+    for threads in [2, 4] {
+        let got = thread::scope(|s| {
+            let workers: Vec<_> = (0..threads)
+                .map(|k| {
+                    let mine: Vec<usize> = (k..tiles.len()).step_by(threads).rev().collect();
+                    let tex = Arc::clone(&d.tex);
+                    let render_all = &render_all;
+                    s.spawn(move || render_all(&*tex, &mine))
+                })
+                .collect();
+            workers.into_iter().map(|w| w.join().expect("worker panicked")).collect::<Result<Vec<_>, _>>()
+        })?;
+        compare(got.into_iter().flatten().collect(), &format!("{threads} threads"))?;
+    }
+    let fresh = models::load(&Bundle::from_bytes(&d.bundle.to_bytes()).map_err(|e| e.to_string())?)
+        .map_err(|e| e.to_string())?;
+    let shuffled: Vec<usize> = (0..tiles.len()).map(|i| (i * 5 + 3) % tiles.len()).collect();
+    compare(render_all(&*fresh, &shuffled)?, "fresh load, shuffled")?;
+    Ok(format!("{} tiles × {runs} runs", tiles.len()))
+}
+
+// ---------------------------------------------------------------- 3. torus wrap
+
+/// A torus texture repeats with its level size, and a region across its edge is the crop of
+/// a larger region spanning it.
+fn torus_wrap(d: &Demo) -> Outcome {
+    if d.tex.domain() != Domain::Torus {
+        return Ok("plane: n/a".into());
+    }
+    let levels = d.levels();
+    let mut chosen = vec![0, 1, levels / 2];
+    chosen.retain(|&l| l < levels);
+    chosen.dedup();
+    for &level in &chosen {
+        let (lw, lh) = d.level_size(level);
+        let (lw, lh) = (lw as i64, lh as i64);
+        for frame in d.frames() {
+            let at = |x: i64, y: i64, w: u32, h: u32| d.render(Region::new(level, x, y, w, h).at_frame(frame));
+            let edge = at(-37, -21, 90, 60)?;
+            for (x, y) in [(lw - 37, lh - 21), (3 * lw - 37, -lh - 21), (-5 * lw - 37, 7 * lh - 21)] {
+                if at(x, y, 90, 60)? != edge {
+                    return Err(format!("L{level} frame {frame}: ({x}, {y}) ≠ (−37, −21) one period away"));
+                }
+            }
+            if at(lw - 100, lh - 80, 200, 160)?.crop(63, 59, 90, 60) != edge {
+                return Err(format!("L{level} frame {frame}: the region across the edge ≠ crop of a larger one"));
+            }
+        }
+    }
+    Ok(format!("levels {chosen:?}"))
+}
+
+// ---------------------------------------------------------------- 4. mip coherence
+
+/// Every level L ≥ 1 against the exact 2×2 box downsample of a region of level L−1: the
+/// served level must keep the model's PSNR floor. Point sampling (every other pixel of level
+/// L−1, the procedure evaluated at low resolution) is scored the same way to show what the
+/// floor rejects.
+fn mip_coherence(d: &Demo, out: &mut Vec<LevelPsnr>) -> Outcome {
+    let floor = d.model.mip_guarantee().min_psnr_db;
+    for level in 1..d.levels() {
+        let (pw, ph) = d.level_size(level - 1);
+        let (lw, lh) = d.level_size(level);
+        // Up to 64 × 64 at level L from a region of level L−1 inside the level, so the box
+        // never straddles an odd edge; a side of 1 at L−1 stays 1.
+        let side =
+            |prev: u64| if prev == 1 { (1, 1) } else { ((prev / 2).min(64) as u32, 2 * (prev / 2).min(64) as u32) };
+        let ((w, w2), (h, h2)) = (side(pw), side(ph));
+        let (x, y) = (((lw - w as u64) / 3) as i64, ((lh - h as u64) / 2) as i64);
+        let prev = d.render(Region::new(level - 1, 2 * x, 2 * y, w2, h2))?;
+        let exact = downsample(&prev);
+        let served = d.render(Region::new(level, x, y, w, h))?;
+        let mut point = Rgba8Image::new(w, h);
+        for j in 0..h {
+            for i in 0..w {
+                point.set_pixel(i, j, prev.pixel((2 * i).min(w2 - 1), (2 * j).min(h2 - 1)));
+            }
+        }
+        out.push(LevelPsnr { level, served: psnr(&served, &exact), point: psnr(&point, &exact) });
+    }
+    let worst = out.iter().min_by(|a, b| a.served.total_cmp(&b.served)).expect("a texture has level 1");
+    let below: Vec<u32> = out.iter().filter(|p| p.point < floor).map(|p| p.level).collect();
+    let text = format!(
+        "min {} (L{}) ≥ {floor}; point < floor at {}/{} levels",
+        db(worst.served),
+        worst.level,
+        below.len(),
+        out.len()
+    );
+    if worst.served < floor {
+        Err(text)
+    } else {
+        Ok(text)
+    }
+}
+
+fn db(v: f64) -> String {
+    if v.is_infinite() {
+        "exact".into()
+    } else {
+        format!("{v:.1} dB")
+    }
+}
+
+// ---------------------------------------------------------------- 4b. coarsest level's mean
+
+/// Up to this many pixels a whole level-0 render gives the true mean exactly.
+const EXACT_MEAN_PIXELS: u64 = 1 << 24;
+
+/// The coarsest level's pixel against the texture's true mean colour. The true mean is the
+/// mean of the whole level 0 when it has at most [`EXACT_MEAN_PIXELS`]; for larger textures
+/// it is taken from the whole of the finest level with at most 2^22 pixels, which covers the
+/// entire texture and is held to level 0 by the mip check above.
+fn coarsest_mean(d: &Demo) -> Outcome {
+    let bound = d.model.mip_guarantee().max_mean_error;
+    let (w, h) = (d.tex.width(), d.tex.height());
+    let reference = if w * h <= EXACT_MEAN_PIXELS {
+        0
+    } else {
+        (0..d.levels()).find(|&l| d.level_size(l).0 * d.level_size(l).1 <= 1 << 22).expect("the last level is 1×1")
+    };
+    let (rw, rh) = d.level_size(reference);
+    let mean = mean_rgba(&d.render(Region::new(reference, 0, 0, rw as u32, rh as u32))?);
+    let top = d.render(Region::new(d.levels() - 1, 0, 0, 1, 1))?.pixel(0, 0);
+    let err = (0..3).map(|c| (top[c] as f64 - mean[c]).abs()).fold(0.0, f64::max);
+    let text = format!("Δ {err:.2} ≤ {bound} (mean of L{reference})");
+    if err <= bound {
+        Ok(text)
+    } else {
+        Err(text)
+    }
+}
+
+// ---------------------------------------------------------------- 5. pinned determinism
+
+/// BLAKE3 of the demo's probe hashes against `conformance.pinned`.
+fn pinned(d: &Demo) -> Outcome {
+    let digest = blake3::hash(probe::hashes(&*d.tex).join("\n").as_bytes()).to_hex().to_string();
+    let label = d.label();
+    let expected = PINNED.lines().filter_map(|l| l.split_once("  ")).find(|(_, name)| *name == label);
+    match expected {
+        Some((hex, _)) if hex == digest => Ok(digest[..12].to_string()),
+        Some((hex, _)) => Err(format!("{} pinned, {} rendered", &hex[..12], &digest[..12])),
+        None => Err(format!("not pinned; add to conformance.pinned: {digest}  {label}")),
+    }
+}
+
+// ---------------------------------------------------------------- 6. native ≡ wasm32
+
+/// The bytes are compared with the WebAssembly build by `tests/wasm/parity.test.mjs`, over
+/// the probe regions of every demo; here the probe is held to cover what the invariant needs.
+fn wasm_probe(d: &Demo) -> Outcome {
+    let regions = probe::regions(&*d.tex);
+    let levels = d.levels();
+    let renderable: Vec<&Region> = regions.iter().filter(|r| r.level < levels).collect();
+    let has = |what: &str, ok: bool| if ok { Ok(()) } else { Err(format!("the probe lacks {what}")) };
+    has("a level above 0", renderable.iter().any(|r| r.level > 0))?;
+    has("the coarsest level", renderable.iter().any(|r| r.level == levels - 1))?;
+    has("far coordinates", renderable.iter().any(|r| r.x.unsigned_abs().max(r.y.unsigned_abs()) > 1 << 32))?;
+    has("negative coordinates", renderable.iter().any(|r| r.x < 0 && r.y < 0))?;
+    has("a later frame", renderable.iter().any(|r| r.frame > 0))?;
+    Ok(format!("{} regions → tests/wasm/parity.test.mjs", regions.len()))
+}
+
+// ---------------------------------------------------------------- 7. bad parameters
+
+/// The JSON types a schema accepts; empty when it accepts anything.
+fn accepted_types(schema: &Value, root: &Value, out: &mut Vec<String>) {
+    if let Some(r) = schema.get("$ref").and_then(Value::as_str) {
+        let path = r.trim_start_matches('#');
+        if let Some(target) = root.pointer(path) {
+            accepted_types(target, root, out);
+        }
+    }
+    match schema.get("type") {
+        Some(Value::String(t)) => out.push(t.clone()),
+        Some(Value::Array(ts)) => out.extend(ts.iter().filter_map(Value::as_str).map(String::from)),
+        _ => {}
+    }
+    if let Some(values) = schema.get("enum").and_then(Value::as_array) {
+        out.extend(values.iter().map(|v| json_type(v).to_string()));
+    }
+    if let Some(v) = schema.get("const") {
+        out.push(json_type(v).to_string());
+    }
+    for key in ["anyOf", "oneOf", "allOf"] {
+        for branch in schema.get(key).and_then(Value::as_array).into_iter().flatten() {
+            accepted_types(branch, root, out);
+        }
+    }
+}
+
+fn json_type(v: &Value) -> &'static str {
+    match v {
+        Value::Null => "null",
+        Value::Bool(_) => "boolean",
+        Value::Number(n) if n.is_f64() => "number",
+        Value::Number(_) => "integer",
+        Value::String(_) => "string",
+        Value::Array(_) => "array",
+        Value::Object(_) => "object",
+    }
+}
+
+/// A value of a JSON type `types` does not accept (`integer` accepts no fraction, `number`
+/// accepts every number), or `None` when it accepts every type.
+fn wrong_value(types: &[String]) -> Option<Value> {
+    let takes = |t: &str| types.iter().any(|a| a == t);
+    [
+        (json!(true), takes("boolean")),
+        (json!("conformance"), takes("string")),
+        (json!(1.5), takes("number")),
+        (json!([]), takes("array")),
+        (json!({}), takes("object")),
+        (Value::Null, takes("null")),
+    ]
+    .into_iter()
+    .find(|(_, ok)| !ok)
+    .map(|(v, _)| v)
+}
+
+/// Generic refusals derived from the model's parameter schema: a non-object, an unknown
+/// top-level key, and a wrong-typed value for each top-level property, each an
+/// `Error::Param` naming what is wrong. Required input images are given, so only the
+/// parameters can be at fault.
+fn bad_params(d: &Demo) -> Outcome {
+    let info = d.model.describe();
+    let schema = &info.params_schema;
+    let image = samples::lichen(16, 1).to_png();
+    let inputs: Inputs = info
+        .inputs
+        .iter()
+        .filter(|i| i.required && i.name != "*")
+        .map(|i| (i.name.to_string(), image.clone()))
+        .collect();
+    let refuse = |params: Value, names: &str| -> Result<(), String> {
+        match catch_unwind(AssertUnwindSafe(|| d.model.create("conformance", &params, &inputs))) {
+            Err(_) => Err(format!("{params} panicked")),
+            Ok(Ok(_)) => Err(format!("{params} was accepted")),
+            Ok(Err(Error::Param { name, reason }))
+                if names.is_empty() || name.contains(names) || reason.contains(names) =>
+            {
+                Ok(())
+            }
+            Ok(Err(e)) => Err(format!("{params}: `{e}` does not name `{names}` as a parameter")),
+        }
+    };
+    let mut checked = 0;
+    for v in [json!("params"), json!(7), json!([1, 2]), Value::Null] {
+        refuse(v, "")?;
+        checked += 1;
+    }
+    refuse(json!({"conformance_unknown_key": 1}), "conformance_unknown_key")?;
+    checked += 1;
+    let properties = schema.get("properties").and_then(Value::as_object).ok_or("the schema has no properties")?;
+    let mut open = Vec::new();
+    for (name, property) in properties {
+        let mut types = Vec::new();
+        accepted_types(property, schema, &mut types);
+        match (types.is_empty(), wrong_value(&types)) {
+            (false, Some(v)) => {
+                refuse(json!({ name.as_str(): v }), name)?;
+                checked += 1;
+            }
+            _ => open.push(name.as_str()),
+        }
+    }
+    let open = if open.is_empty() { String::new() } else { format!(" (any type: {})", open.join(", ")) };
+    Ok(format!("{checked} refused{open}"))
+}
+
+// ---------------------------------------------------------------- 7b. bad bundles
+
+/// Truncations of the bundle's bytes are refused by the container; each section cut to half
+/// is refused by `load`; flipped bytes anywhere are refused or load into a texture that
+/// renders. Nothing may panic.
+fn bad_bundle(d: &Demo) -> Outcome {
+    let bytes = d.bundle.to_bytes();
+    let n = bytes.len();
+    let guard = |what: String, f: &dyn Fn() -> Result<(), String>| {
+        catch_unwind(AssertUnwindSafe(f)).unwrap_or_else(|_| Err(format!("{what}: panicked")))
+    };
+    let mut cuts: Vec<usize> = (0..32).chain((0..48).map(|k| k * n / 48)).chain([n - 1]).collect();
+    cuts.sort();
+    cuts.dedup();
+    for &cut in &cuts {
+        guard(format!("cut at {cut}"), &|| match Bundle::from_bytes(&bytes[..cut]) {
+            Ok(_) => Err(format!("cut at {cut} of {n} bytes parsed")),
+            Err(_) => Ok(()),
+        })?;
+    }
+    for (i, section) in d.bundle.sections.iter().enumerate() {
+        guard(format!("section `{}` halved", section.name), &|| {
+            let mut b = d.bundle.clone();
+            b.sections[i].data.truncate(section.data.len() / 2);
+            match models::load(&b) {
+                Ok(_) => Err(format!("section `{}` cut to half loaded", section.name)),
+                Err(_) => Ok(()),
+            }
+        })?;
+    }
+    let flips = 64.min(n);
+    let mut loaded = 0;
+    for k in 0..flips {
+        let at = k * n / flips;
+        let ok = guard(format!("byte {at} flipped"), &|| {
+            let mut b = bytes.clone();
+            b[at] ^= 0x5a;
+            if let Ok(t) = Bundle::from_bytes(&b).and_then(|b| models::load(&b)) {
+                let top = level_count(t.width(), t.height()) - 1;
+                for region in [Region::new(0, -5, -5, 24, 24), Region::new(top, 0, 0, 1, 1)] {
+                    render_image(&*t, &region).map_err(|e| e.to_string())?;
+                }
+                return Err(String::new());
+            }
+            Ok(())
+        });
+        match ok {
+            Ok(()) => {}
+            Err(e) if e.is_empty() => loaded += 1,
+            Err(e) => return Err(e),
+        }
+    }
+    Ok(format!("{} cuts, {} sections, {flips} flips ({loaded} still load)", cuts.len(), d.bundle.sections.len()))
+}
+
+// ---------------------------------------------------------------- the table
+
+struct Row {
+    label: String,
+    cells: Vec<Outcome>,
+    mip: Vec<LevelPsnr>,
+}
+
+fn run(d: &Demo) -> Row {
+    let mut mip = Vec::new();
+    let cells = COLUMNS
+        .iter()
+        .map(|(name, check)| {
+            catch_unwind(AssertUnwindSafe(|| check(d, &mut mip)))
+                .unwrap_or_else(|p| Err(format!("{name} panicked: {}", panic_text(&p))))
+        })
+        .collect();
+    Row { label: d.label(), cells, mip }
+}
+
+fn panic_text(p: &Box<dyn std::any::Any + Send>) -> String {
+    p.downcast_ref::<String>().cloned().or_else(|| p.downcast_ref::<&str>().map(|s| s.to_string())).unwrap_or_default()
+}
+
+fn cell_text(o: &Outcome) -> String {
+    match o {
+        Ok(t) => format!("pass: {t}"),
+        Err(t) => format!("FAIL: {t}"),
+    }
+}
+
+fn main() {
+    let only = std::env::var("CONFORMANCE_ONLY").ok();
+    let mut demos = Vec::new();
+    for model in models::REGISTRY {
+        for bundle in model.demos() {
+            let tex = match model.load(&bundle) {
+                Ok(t) => t,
+                Err(e) => {
+                    eprintln!("{}/{}: the demo does not load: {e}", model.id(), bundle.manifest.name);
+                    std::process::exit(1);
+                }
+            };
+            let demo = Demo { model: *model, bundle, tex };
+            if only.as_deref().is_none_or(|o| demo.label().contains(o)) {
+                demos.push(demo);
+            }
+        }
+    }
+    let next = AtomicUsize::new(0);
+    let rows: Mutex<BTreeMap<usize, Row>> = Mutex::new(BTreeMap::new());
+    let workers = thread::available_parallelism().map_or(2, |n| n.get()).min(demos.len().max(1));
+    thread::scope(|s| {
+        for _ in 0..workers {
+            s.spawn(|| loop {
+                let i = next.fetch_add(1, Ordering::Relaxed);
+                let Some(d) = demos.get(i) else { break };
+                let row = run(d);
+                rows.lock().unwrap().insert(i, row);
+            });
+        }
+    });
+    let rows: Vec<Row> = rows.into_inner().unwrap().into_values().collect();
+
+    let mut header = vec!["demo (model/name)".to_string()];
+    header.extend(COLUMNS.iter().map(|(n, _)| n.to_string()));
+    let table: Vec<Vec<String>> =
+        rows.iter().map(|r| std::iter::once(r.label.clone()).chain(r.cells.iter().map(cell_text)).collect()).collect();
+    print_table(&header, &table);
+
+    println!("\nmip coherence per level: served PSNR / point sampling PSNR against the exact 2×2 box of level L−1");
+    let deepest = rows.iter().map(|r| r.mip.len()).max().unwrap_or(0);
+    let mut header = vec!["demo (model/name)".to_string(), "floor".to_string()];
+    header.extend((1..=deepest).map(|l| format!("L{l}")));
+    let table: Vec<Vec<String>> = rows
+        .iter()
+        .zip(&demos)
+        .map(|(r, d)| {
+            let mut line = vec![r.label.clone(), format!("{}", d.model.mip_guarantee().min_psnr_db)];
+            line.extend(r.mip.iter().map(|p| format!("{}/{}", short_db(p.served), short_db(p.point))));
+            line
+        })
+        .collect();
+    print_table(&header, &table);
+
+    let failed: Vec<(String, &str, &String)> = rows
+        .iter()
+        .flat_map(|r| {
+            r.cells
+                .iter()
+                .zip(COLUMNS)
+                .filter_map(|(c, (name, _))| c.as_ref().err().map(|e| (r.label.clone(), name, e)))
+        })
+        .collect();
+    println!(
+        "\n{} demos of {} models, {} cells, {} failed",
+        rows.len(),
+        models::REGISTRY.len(),
+        rows.len() * COLUMNS.len(),
+        failed.len()
+    );
+    for (label, column, why) in &failed {
+        println!("FAILED {label} · {column}: {why}");
+    }
+    if !failed.is_empty() {
+        std::process::exit(1);
+    }
+}
+
+fn short_db(v: f64) -> String {
+    if v.is_infinite() {
+        "∞".into()
+    } else {
+        format!("{v:.1}")
+    }
+}
+
+fn print_table(header: &[String], rows: &[Vec<String>]) {
+    let width = |i: usize| {
+        rows.iter().map(|r| r.get(i).map_or(0, |c| c.chars().count())).chain([header[i].chars().count()]).max().unwrap()
+    };
+    let widths: Vec<usize> = (0..header.len()).map(width).collect();
+    let line = |cells: &[String]| {
+        let padded: Vec<String> = (0..header.len())
+            .map(|i| {
+                let c = cells.get(i).map_or("", String::as_str);
+                format!("{c}{}", " ".repeat(widths[i] - c.chars().count()))
+            })
+            .collect();
+        println!("| {} |", padded.join(" | "));
+    };
+    line(header);
+    println!("|{}|", widths.iter().map(|w| "-".repeat(w + 2)).collect::<Vec<_>>().join("|"));
+    for r in rows {
+        line(r);
+    }
+}
