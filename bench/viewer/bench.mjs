@@ -477,7 +477,8 @@ async function idle(page) {
   await page.waitFor(viewerIdle);
 }
 
-// The session's raw tiles must fit the server's cache for "warm server" to be warm: 2 GiB holds them.
+// The session's raw tiles must fit the server's cache for "warm server" to be warm: 2 GiB
+// holds them.
 if (args.shots) mkdirSync(args.shots, { recursive: true });
 const serverArgs = ['--cache-mb', '2048', ...args['server-args'].split(/\s+/).filter(Boolean)];
 const server = await startServer({ extraArgs: serverArgs });

@@ -14,7 +14,7 @@
 //   put(opaque)+draw  the same with `{ alpha: false }` canvases
 //   bitmap(none)+draw default reader + createImageBitmap(ImageData, premultiplyAlpha 'none')
 //   byob              a BYOB reader into one reused 2 MiB buffer, chunks dropped
-//   byob+bitmap(none)+draw   the viewer's reader (batch.js readChunks), unpremultiplied bitmaps, drawn
+//   byob+bitmap(none)+draw   the viewer's reader (batch.js readChunks) + bitmap(none)+draw
 //   w:read            a dedicated Worker fetches and reads (default reader), chunks dropped
 //   w:bitmap[(none)][+draw]  a Worker reads, splits frames, makes an ImageBitmap per tile and
 //                     transfers it; the main thread receives (and draws) them

@@ -1,6 +1,7 @@
-//! The chaos mosaic against the paper and the invariants every model keeps: determinism, seamlessness, the cat map
-//! and block constraint, i = 0 as the plain tiling, explicit ≡ seed-derived sequences, mip
-//! coherence, the storage arithmetic of §3.1, and refusal of bad encodings.
+//! The chaos mosaic against the paper and the invariants every model keeps: determinism,
+//! seamlessness, the cat map and block constraint, i = 0 as the plain tiling, explicit ≡
+//! seed-derived sequences, mip coherence, the storage arithmetic of §3.1, and refusal of bad
+//! encodings.
 
 use serde_json::{json, Value};
 use vtex_synth::models::chaos_mosaic::{self, ChaosMosaic, RECORD_BYTES};
