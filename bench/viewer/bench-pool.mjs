@@ -1,12 +1,12 @@
 // Pools the view times of several `bench.mjs --json FILE` runs, per pass: one run's p95 rests on
-// its three slowest views of 60, and from run to run it moves by more than most changes do
-// (BENCHMARKS.md "Viewer"). Groups of runs (an A/B comparison) are separated by `--`.
+// its three slowest views of 60, and from run to run it moves by more than most changes do.
+// Groups of runs (an A/B comparison) are separated by `--`.
 //
 //   node bench/viewer/bench-pool.mjs A1.json A2.json … [-- B1.json B2.json …] [--views N] [--fast MS] [--drawn]
 //
 // Times are to the end of the main-thread work of the frame that completed each view, raster
-// included (bench.mjs `rasterTimes`); with --drawn, to its draw calls (`times`: the figure up to
-// session 6, and the only one of runs before session 7).
+// included (bench.mjs `rasterTimes`); with --drawn, to its draw calls (`times`: the only figure
+// in the JSON files of older versions of bench.mjs).
 //
 // For each group and pass: views pooled, mean, p50 / p75 / p90 / p95, views over the warm
 // target (30 ms), each run's p95, and the machine reference (bench.mjs cpuReference: mean of

@@ -7,20 +7,20 @@
 //
 // The texture is the 100k × 100k chaos mosaic (the flagship demo, as bench/server/run.sh picks
 // it) unless --texture names another. Chromium is driven over a bare DevTools pipe (cdp.mjs):
-// Playwright's network instrumentation would add ~2 ms of CPU to every tile request.
+// Playwright's network instrumentation would add Chromium CPU to every tile request.
 //
 // 1. View changes: a fixed, seeded sequence of jumps, pans and zooms over the texture. For
 //    each, the time from the change (applied at once, no animation) to the first OpenSeadragon
 //    frame that has drawn every tile the new view needs, to two points of that frame: its draw
-//    calls issued (the end of its animation-frame callback; the figure up to session 6), and
-//    its work on the main thread done, the canvas raster included (a message posted from the
-//    callback runs right after; the figure the targets are read against since session 7:
-//    the raster happens at the frame's commit, after the callback). A view is done in an
+//    calls issued (the end of its animation-frame callback), and its work on the main thread
+//    done, the canvas raster included (a message posted from the callback runs right after;
+//    the figure the targets are read against: the raster happens at the frame's commit, after
+//    the callback). A view is done in an
 //    animation frame, so where in the frame clock the change lands counts: by default each is
 //    applied at a seeded random point of a frame, as a click, a key or a link arrives
 //    (--phase random); --phase after applies it as soon as the previous view was drawn, which
-//    locks the whole pass to one phase that depends on how long the viewer's frames take (the
-//    harness before session 6). Four passes:
+//    locks the whole pass to one phase that depends on how long the viewer's frames take. Four
+//    passes:
 //      cold         fresh server (empty tile cache) and fresh browser profile;
 //      warm-browser same browser after a reload (tiles from its HTTP cache, OSD's memory empty);
 //      warm-server  fresh browser profile; every tile comes from the server's cache (2 GiB, so
@@ -57,7 +57,7 @@ const { values: args } = parseArgs({
     osd: { type: 'string' },
     // Server flags, e.g. --server-args "--max-syntheses 4".
     'server-args': { type: 'string', default: '' },
-    // Drive Chromium with Playwright (its network instrumentation costs ~2 ms CPU per request)
+    // Drive Chromium with Playwright (its network instrumentation adds CPU to every request)
     // instead of the bare DevTools pipe (bench/viewer/cdp.mjs).
     playwright: { type: 'boolean', default: false },
     // Texture to measure (name, id or model); default: the 100k × 100k chaos mosaic.
@@ -107,8 +107,8 @@ function referenceWork(seed, n) {
 
 /**
  * ms this machine takes for five million steps of `referenceWork` (median of 5 rounds), taken
- * before and after each pass: the test machine's speed swings by 2× within minutes
- * (BENCHMARKS.md "Session 6"), so passes are only comparable beside it. The first call warms
+ * before and after each pass: a machine's speed can change within minutes (frequency
+ * scaling, a shared host), so passes are only comparable beside it. The first call warms
  * V8 up first (type feedback, then one optimised round), so every figure is of the same code.
  */
 function cpuReference() {
@@ -477,7 +477,8 @@ async function idle(page) {
   await page.waitFor(viewerIdle);
 }
 
-// The session's raw tiles (~500 MB) must fit the server's cache for "warm server" to be warm.
+// The session's raw tiles must fit the server's cache for "warm server" to be warm: 2 GiB
+// holds them.
 if (args.shots) mkdirSync(args.shots, { recursive: true });
 const serverArgs = ['--cache-mb', '2048', ...args['server-args'].split(/\s+/).filter(Boolean)];
 const server = await startServer({ extraArgs: serverArgs });

@@ -1,10 +1,9 @@
 // Chromium driven over a bare DevTools pipe, for the measured session (`bench.mjs`).
 //
 // Playwright enables DevTools' Network domain on every page (it reports every request and
-// response to its driver), which costs Chromium about 2 ms of CPU per tile request on the
-// 2-core test machine — 40 % more than the request itself (measured with /proc CPU times
-// around 128 fetches; see BENCHMARKS.md "Viewer"). A view change fetches ~32 tiles, so the
-// measurement would mostly measure the instrumentation. Here only Runtime.evaluate,
+// response to its driver), which adds Chromium CPU to every request — a large share of what
+// the request itself costs (`request-cost.mjs` measures both drivers) — so the bench would
+// partly measure the instrumentation. Here only Runtime.evaluate,
 // Page.reload and Page.captureScreenshot are sent: the page runs as it would for a user.
 import { spawn } from 'node:child_process';
 import { mkdtempSync, rmSync, writeFileSync } from 'node:fs';
@@ -71,8 +70,7 @@ export async function launchBare(url, { width = 1280, height = 800, initScript }
   // The page's viewport exactly width × height (as Playwright's `viewport`), whatever the window.
   await page('Emulation.setDeviceMetricsOverride', { width, height, deviceScaleFactor: 1, mobile: false });
   if (initScript) {
-    // Without the Page domain enabled Chromium takes the script and never runs it (until
-    // session 7, `bench.mjs --osd` changed nothing over this driver).
+    // Without the Page domain enabled Chromium takes the script and never runs it.
     await page('Page.enable');
     await page('Page.addScriptToEvaluateOnNewDocument', { source: initScript });
   }

@@ -9,12 +9,12 @@
 //   read              default stream reader, chunks dropped          (main thread)
 //   arrayBuffer       the whole body at once
 //   frames            default reader + FrameReader
-//   put               + a canvas per tile, putImageData              (the viewer before session 4)
+//   put               + a canvas per tile, putImageData              (the simplest way)
 //   put+draw          + every tile drawn at half size into a 960×760 canvas, as a zoomed-out view
 //   put(opaque)+draw  the same with `{ alpha: false }` canvases
 //   bitmap(none)+draw default reader + createImageBitmap(ImageData, premultiplyAlpha 'none')
 //   byob              a BYOB reader into one reused 2 MiB buffer, chunks dropped
-//   byob+bitmap(none)+draw   the viewer now (batch.js readChunks, tilesource.js rgbaTile)
+//   byob+bitmap(none)+draw   the viewer's reader (batch.js readChunks) + bitmap(none)+draw
 //   w:read            a dedicated Worker fetches and reads (default reader), chunks dropped
 //   w:bitmap[(none)][+draw]  a Worker reads, splits frames, makes an ImageBitmap per tile and
 //                     transfers it; the main thread receives (and draws) them

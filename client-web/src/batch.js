@@ -28,9 +28,9 @@ export function tileKey(level, x, y) {
  * height, length, body: Uint8Array } the moment its last byte is pushed. A frame that lies
  * wholly inside one chunk is a view of it; one split across chunks is copied once, into a
  * buffer of its own — or, with `reuse`, into one buffer the reader keeps for every split frame
- * (`body` is then valid only during `onFrame`, which must copy what it keeps): a fresh 256 KiB
- * buffer costs the browser ~0.2 ms to allocate and fill, as much as the copy
- * (bench/viewer/ingest.mjs).
+ * (`body` is then valid only during `onFrame`, which must copy what it keeps): a fresh buffer
+ * costs the browser as much to allocate and fill as the copy itself (`bench/viewer/ingest.mjs`
+ * compares them).
  */
 export class FrameReader {
   constructor(onFrame, { reuse = false } = {}) {
@@ -47,7 +47,7 @@ export class FrameReader {
   push(chunk) {
     let i = 0;
     while (i < chunk.length) {
-      // A whole frame inside this chunk (most of them: chunks run to ~1 MB) is handed over
+      // A whole frame inside this chunk (most of them: a chunk holds several tiles) is handed over
       // as a view of the chunk, not copied.
       if (!this.frame && this.headerFill === 0 && chunk.length - i >= HEADER_LEN) {
         const frame = parseHeader(chunk.subarray(i, i + HEADER_LEN), false);
@@ -102,8 +102,8 @@ export const READ_BUFFER_BYTES = 2 << 20;
  * valid only during the call). Where the stream supports it (fetch bodies in Chromium), every
  * chunk is read into one buffer that goes back and forth between the stream and `push`,
  * taken from and returned to `buffers` (a pool shared by the batches): a default reader
- * allocates a fresh ArrayBuffer for every chunk, which costs the page's main thread ~1 ms of
- * CPU a MB (bench/viewer/ingest.mjs: 15 MB read with 16 ms of main-thread CPU, 6 ms here).
+ * allocates a fresh ArrayBuffer for every chunk, which costs the page's main thread CPU in
+ * proportion to the bytes (`bench/viewer/ingest.mjs` compares the two readers).
  */
 export async function readChunks(body, push, buffers = []) {
   let reader;

@@ -1,8 +1,8 @@
 // The network side of the tile batches, in a dedicated Worker (tilesource.js starts it): fetches
 // a batch, splits its body into frames (batch.js) and turns each tile into an ImageBitmap that
 // it transfers to the page. On the page's main thread the body could only be read between
-// animation frames, which cost 5–11 ms each while a view loads (canvas raster, OpenSeadragon's
-// update): a view's bytes trickled in over 2–4 frames. Here they flow while the page draws.
+// animation frames, each busy with canvas raster and OpenSeadragon's update while a view loads,
+// so a view's bytes would trickle in over several frames. Here they flow while the page draws.
 //
 // Messages in:  { type: 'load', id, url, format }   { type: 'abort', id }
 // Messages out: { type: 'tiles', id, tiles: [{ level, x, y, status, cache, length, arrived,
@@ -129,12 +129,11 @@ let opaqueCanvas = null;
  * A raw RGBA tile as an ImageBitmap, its size from the frame header, its bytes copied at the
  * call: put into an opaque canvas (`alpha: false`) and taken out as its bitmap. The page's
  * canvas draws an opaque (or premultiplied) bitmap as fast as it can: a bitmap marked
- * unpremultiplied is converted at every draw, which makes a view drawn at 1:1 about twice as
- * dear (3.1 against 1.3 ms here) and other scales up to ~20 %; and the opaque bitmap costs
- * the Worker ~0.2 ms a 256 px tile to make, a premultiplied `createImageBitmap` ~0.3 ms
- * (`bench/viewer/ingest.mjs`, last two tables). The viewer treats tiles as opaque anyway
- * (tilesource.js `hasTransparency`); these opaque pixels reach the screen exactly (the
- * browser tests compare them), a pixel with alpha would show over black.
+ * unpremultiplied is converted at every draw, and an opaque bitmap is cheaper for the Worker
+ * to make than a premultiplied `createImageBitmap` (`bench/viewer/ingest.mjs` compares them).
+ * The viewer treats tiles as opaque anyway (tilesource.js `hasTransparency`); these opaque
+ * pixels reach the screen exactly (the browser tests compare them), a pixel with alpha would
+ * show over black.
  */
 function rgbaTile(f) {
   const { width: w, height: h, body } = f;

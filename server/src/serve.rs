@@ -6,9 +6,9 @@
 //!
 //! Connections are served by one single-threaded tokio runtime per core, each serving its own
 //! connections (nginx's worker model); one accepts and hands each new connection to the
-//! runtime serving the fewest. With one work-stealing runtime instead, a warm tile cost more
-//! CPU and waited on cross-thread wake-ups (BENCHMARKS.md). Syntheses still run on blocking
-//! pools, bounded by one semaphore.
+//! runtime serving the fewest. One work-stealing runtime would spend more CPU per warm tile
+//! and wait on cross-thread wake-ups. Syntheses still run on blocking pools, bounded by one
+//! semaphore.
 
 use crate::api::{self, AppState};
 use crate::config::ServeConfig;

@@ -32,7 +32,7 @@ pub fn served_levels(width: u64, height: u64, tile_size: u32) -> u32 {
     }
 }
 
-/// What clients see of a texture (CONTRACT: list items and `GET /api/v1/textures/{id}`).
+/// What clients see of a texture: the items of the texture list and `GET /api/v1/textures/{id}`.
 #[derive(Clone, Debug, Serialize, serde::Deserialize, PartialEq)]
 pub struct TextureInfo {
     pub id: String,

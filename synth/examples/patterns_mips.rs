@@ -1,6 +1,6 @@
-//! Mip coherence of the `patterns` demos against the exact 2×2 box chain of their level 0
-//! (DESIGN §3.3), printed as a table: `cargo run --release -p vtex-synth --example
-//! patterns_mips`. (A measurement, not a test: it renders whole 4096² demos.)
+//! Mip coherence of the `patterns` demos against the exact 2×2 box chain of their level 0,
+//! printed as a table: `cargo run --release -p vtex-synth --example patterns_mips`. (A
+//! measurement, not a test: it renders whole 4096² demos.)
 
 use vtex_synth::models::{self, patterns::demos};
 use vtex_synth::texture::{level_count, render_image};

@@ -31,7 +31,7 @@ pub const MAX_BUNDLE_BYTES: usize = 64 << 20;
 #[serde(deny_unknown_fields)]
 pub struct Manifest {
     pub format: String,
-    /// Model id (DESIGN §2).
+    /// Model id, as the registry lists it.
     pub model: String,
     /// Human-readable name shown by viewers.
     pub name: String,

@@ -62,7 +62,7 @@ pub struct Animation {
 /// frame) — never on the region's other pixels, its size, the call order or any cache —
 /// so that a tile always equals the matching crop of any larger region.
 pub trait Texture: Send + Sync {
-    /// The model id, as in DESIGN §2 (`chaos-mosaic`, `lcm`, …).
+    /// The model id, as the registry lists it (`chaos-mosaic`, `lcm`, …).
     fn model(&self) -> &'static str;
     /// Level-0 width in pixels.
     fn width(&self) -> u64;

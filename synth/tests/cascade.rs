@@ -1,6 +1,6 @@
-//! The cascade model against DESIGN §3: seamless regions (also far from the origin),
-//! agreement with a direct evaluation of the definition, determinism, mip coherence with
-//! measured PSNR, and clear errors for bad encodings.
+//! The cascade model against the invariants every model keeps: seamless regions (also far from
+//! the origin), agreement with a direct evaluation of the definition, determinism, mip
+//! coherence with measured PSNR, and clear errors for bad encodings.
 
 use serde_json::json;
 use std::sync::Arc;

@@ -1,6 +1,7 @@
-//! The chaos mosaic against the paper and DESIGN §3: determinism, seamlessness, the cat map
-//! and block constraint, i = 0 as the plain tiling, explicit ≡ seed-derived sequences, mip
-//! coherence, the storage arithmetic of §3.1, and refusal of bad encodings.
+//! The chaos mosaic against the paper and the invariants every model keeps: determinism,
+//! seamlessness, the cat map and block constraint, i = 0 as the plain tiling, explicit ≡
+//! seed-derived sequences, mip coherence, the storage arithmetic of §3.1, and refusal of bad
+//! encodings.
 
 use serde_json::{json, Value};
 use vtex_synth::models::chaos_mosaic::{self, ChaosMosaic, RECORD_BYTES};
@@ -104,8 +105,8 @@ fn mid_level_hashes(tex: &dyn Texture, regions: impl Fn(u32) -> Vec<(i64, i64, u
 
 #[test]
 fn mid_levels_are_pinned_across_parameter_kinds() {
-    // Hashes written by the build of c7db1bd (session 3's mid levels): bundles already served
-    // must keep their tiles, so every later speed-up must reproduce them bit for bit. Regions
+    // Hashes of the mid levels as first served (commit c7db1bd): bundles already served must
+    // keep their tiles, so every later speed-up must reproduce them bit for bit. Regions
     // wrap the torus and reach the partial last pixels of odd-sized levels.
     let cases = [
         (

@@ -1,6 +1,6 @@
-//! The `lcm` model against the paper and DESIGN §3: event codes, the four-replication bound,
-//! the order of non-commutative operations, LCM statistics, periods, native mip levels,
-//! consistency, seamlessness, encoding size, operation counts and bad input.
+//! The `lcm` model against the paper and the invariants every model keeps: event codes, the
+//! four-replication bound, the order of non-commutative operations, LCM statistics, periods,
+//! native mip levels, consistency, seamlessness, encoding size, operation counts and bad input.
 
 use serde_json::json;
 use std::collections::BTreeMap;
@@ -309,7 +309,7 @@ fn reported_periods_are_the_true_ones() {
 
 // ---------------------------------------------------------------- mip levels (§2.4)
 
-// ---------------------------------------------------------------- DESIGN §3 invariants
+// ---------------------------------------------------------------- invariants every model keeps
 
 // ---------------------------------------------------------------- representation, colour, scaling
 

@@ -1,4 +1,5 @@
-//! The `patterns` model: each §3 block's stated behaviour, the DESIGN §3 invariants and bad input.
+//! The `patterns` model: each §3 block's stated behaviour, the invariants every model keeps and
+//! bad input.
 
 use std::collections::BTreeMap;
 use std::sync::Arc;
@@ -589,7 +590,7 @@ fn pixel_map_is_sharp_and_compressed() {
     }
 }
 
-// ---------------------------------------------------------------- DESIGN §3 invariants
+// ---------------------------------------------------------------- invariants every model keeps
 
 #[test]
 fn demos_are_reproducible_and_compact() {

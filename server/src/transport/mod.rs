@@ -43,7 +43,7 @@ pub enum Transport {
 }
 
 impl Default for Transport {
-    /// The faster transport where it exists, as measured on warm tiles.
+    /// Splice where the platform has it: warm tiles then reach the socket without a copy.
     fn default() -> Transport {
         #[cfg(target_os = "linux")]
         {
