@@ -50,7 +50,7 @@ const loaded = groups.map((files) =>
   files.map((file) => {
     const run = JSON.parse(readFileSync(file, 'utf8'));
     if (!run.warmServer || !run.warmServer[field]) {
-      console.error(`${file}: no ${field} (a run before session 7? try --drawn)`);
+      console.error(`${file}: no ${field} (a run made before the bench timed views to the raster? try --drawn)`);
       process.exit(2);
     }
     return run;
