@@ -63,7 +63,8 @@ pub struct InputInfo {
 /// What a model's prefiltered coarse levels promise.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct MipGuarantee {
-    /// PSNR (dB) every level L ≥ 1 keeps against the exact 2×2 box downsample of level L−1 (any region).
+    /// PSNR (dB) every level L ≥ 1 keeps against three exact 2×2 box downsamples of level L−3
+    /// (fewer near level 0; any region): high enough that point sampling falls below it.
     pub min_psnr_db: f64,
     /// Largest |mean difference| (0–255 per channel) between the coarsest level and the true mean.
     pub max_mean_error: f64,

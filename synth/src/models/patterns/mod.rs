@@ -79,6 +79,6 @@ impl Model for PatternsModel {
         demos()
     }
     fn mip_guarantee(&self) -> MipGuarantee {
-        MipGuarantee { min_psnr_db: 22.0, max_mean_error: 6.0 }
+        MipGuarantee { min_psnr_db: 27.0, max_mean_error: 6.0 }
     }
 }
