@@ -142,12 +142,12 @@ fn eval(table: &[[f32; 3]], a: f32) -> [f32; 3] {
     [0, 1, 2].map(|k| p[k] + (q[k] - p[k]) * f)
 }
 
-/// Renders `w × h` pixels of level `l` at (x, y) (level-`l` coordinates on the torus).
 /// The guided path's sample budget is set for the level's own extent, capped at the largest
 /// chunk the renderer passes (256 × 256), never for the region at hand, so that a pixel does
 /// not depend on the size of the region it is rendered in.
 const BUDGET_PIXELS: u64 = 256 * 256;
 
+/// Renders `w × h` pixels of level `l` at (x, y) (level-`l` coordinates on the torus).
 pub fn render(tex: &Cascade, cal: &Calibration, l: u32, x: u64, y: u64, w: u32, h: u32) -> Rgba8Image {
     let e = tex.engine();
     let last = e.stages.len() - 1;
@@ -156,7 +156,8 @@ pub fn render(tex: &Cascade, cal: &Calibration, l: u32, x: u64, y: u64, w: u32, 
         if let (Some(guide), Some(table)) = (guide(tex), &cal.image) {
             // A guide image (texture transfer, dilation map) carries structure at every
             // scale; average g over n × n samples of it per block, about one per texel
-            // (4 to 64 per axis, at most 2^22 samples a call).
+            // (4 to 64 per axis; at most 2^22 samples for a chunk
+            // no larger than its level).
             let per_texel = ((1u64 << l.min(40)) / guide.cell).clamp(4, 64);
             let (lw, lh) = crate::texture::level_size(tex.params().width, tex.params().height, l);
             let budget = libm::sqrt((1u64 << 22) as f64 / (lw * lh).min(BUDGET_PIXELS) as f64) as u64;
