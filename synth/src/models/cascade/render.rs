@@ -5,7 +5,7 @@ use super::encoding::{build_engine, Params};
 use super::engine::{Engine, STREAM_CALIBRATION};
 use super::{palette, prefilter, MODEL};
 use crate::pixels::Rgba8Image;
-use crate::texture::{Domain, Region, Texture};
+use crate::texture::{Domain, Region, Stop, Texture};
 use crate::{Error, Result};
 use std::sync::OnceLock;
 
@@ -87,7 +87,7 @@ impl Texture for Cascade {
         Domain::Plane
     }
 
-    fn render(&self, region: &Region, out: &mut [u8]) {
+    fn render(&self, region: &Region, out: &mut [u8], _stop: &dyn Stop) {
         let l = region.level;
         // Chunks keep every buffer bounded; each pixel is independent of the chunking.
         let step = if l <= self.params.exact_levels { (CHUNK >> l).max(1) } else { 256 };

@@ -6,7 +6,7 @@ use super::index::{self, TileIndex};
 use super::params::{self, Params, Sequence};
 use super::prefilter::{BoxTables, PeriodicSums};
 use super::{Block, MODEL};
-use crate::{pixels::Rgba8Image, Domain, Error, Region, Result, Texture};
+use crate::{pixels::Rgba8Image, Domain, Error, Region, Result, Stop, Texture};
 
 /// A loaded chaos mosaic: everything needed to evaluate any region, validated.
 pub struct ChaosMosaic {
@@ -116,7 +116,7 @@ impl Texture for ChaosMosaic {
     fn domain(&self) -> Domain {
         Domain::Torus
     }
-    fn render(&self, region: &Region, out: &mut [u8]) {
+    fn render(&self, region: &Region, out: &mut [u8], _stop: &dyn Stop) {
         if region.level == 0 {
             self.render_level0(region.x, region.y, region.width, region.height, out);
         } else {

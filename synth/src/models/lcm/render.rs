@@ -8,7 +8,7 @@ use super::colour::Colour;
 use super::element::Copies;
 use super::layer::{Counter, Layer, NoCount};
 use crate::texture::{level_size, wrap};
-use crate::{Domain, Region, Texture};
+use crate::{Domain, Region, Stop, Texture};
 
 /// A loaded, validated LCM texture.
 #[derive(Debug)]
@@ -115,7 +115,7 @@ impl Texture for LcmTexture {
     fn domain(&self) -> Domain {
         Domain::Torus
     }
-    fn render(&self, region: &Region, out: &mut [u8]) {
+    fn render(&self, region: &Region, out: &mut [u8], _stop: &dyn Stop) {
         self.render_counted(region, out, &mut NoCount);
     }
 }

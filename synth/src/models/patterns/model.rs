@@ -20,7 +20,7 @@ use super::sprites::Positioning;
 use super::transform::{Placed, TransformBlock};
 use super::transitions::{Pick, Transitions};
 use crate::texture::{level_size, wrap};
-use crate::{bundle::Bundle, Animation, Domain, Error, Region, Result, Texture};
+use crate::{bundle::Bundle, Animation, Domain, Error, Region, Result, Stop, Texture};
 use std::sync::Arc;
 
 pub const MODEL: &str = "patterns";
@@ -564,7 +564,7 @@ impl Texture for PatternTexture {
     fn animation(&self) -> Option<Animation> {
         self.animation
     }
-    fn render(&self, region: &Region, out: &mut [u8]) {
+    fn render(&self, region: &Region, out: &mut [u8], _stop: &dyn Stop) {
         for px in out.chunks_exact_mut(4) {
             px.copy_from_slice(&self.background);
         }
