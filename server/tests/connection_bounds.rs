@@ -104,7 +104,20 @@ impl H2 {
     /// GET `path` on stream `id` with `:authority` and no `Host`; returns the status, read
     /// from the response's first header (hyper sends `:status` as a static-table index).
     fn get(&mut self, id: u32, path: &str) -> u16 {
-        let mut block = vec![0x82, 0x86, 0x44, path.len() as u8];
+        let mut block = vec![0x82, 0x86, 0x44];
+        // The path's length: an HPACK integer with a 7-bit prefix.
+        let mut n = path.len();
+        if n < 127 {
+            block.push(n as u8);
+        } else {
+            block.push(127);
+            n -= 127;
+            while n >= 128 {
+                block.push((n % 128) as u8 | 0x80);
+                n /= 128;
+            }
+            block.push(n as u8);
+        }
         block.extend_from_slice(path.as_bytes());
         block.extend_from_slice(&[0x41, 1, b'x']);
         let mut frame = (block.len() as u32).to_be_bytes()[1..].to_vec();
@@ -180,6 +193,23 @@ fn readers_that_stop_are_dropped_after_the_send_timeout_and_their_memory_freed()
         let _ = r.read_to_end(&mut got);
         assert!(got.len() < full.len(), "the response was cut short ({} of {} bytes)", got.len(), full.len());
     }
+}
+
+/// An HTTP/2 client that reads every byte but never opens its flow-control window stalls its
+/// response without filling the socket; hyper has taken the whole body, so no request is in
+/// flight and no bytes move: the idle timeout drops the connection and what it buffered.
+#[test]
+fn an_http2_response_stalled_by_flow_control_is_dropped_when_idle() {
+    let dir = tempdir();
+    let s = Server::start(dir.path(), &["--idle-timeout-secs", "1"]);
+    let id = upload(&s, &mosaic(64, 8, 1));
+    let mut h2 = H2::connect(&s.addr);
+    assert_eq!(h2.get(1, &format!("/api/v1/textures/{id}/region?level=0&x=0&y=0&w=1024&h=1024&format=rgba")), 200);
+    let since = Instant::now();
+    let closed = closed_within(&mut h2.0, Duration::from_secs(30)).expect("the stalled connection is closed");
+    eprintln!("stalled HTTP/2 response dropped {:?} after its head", closed - since);
+    assert!(closed - since >= Duration::from_millis(900), "not before the idle timeout");
+    assert!(eventually(Duration::from_secs(10), || open_connections(&s) <= 1.0), "and uncounted");
 }
 
 /// A connection that never speaks, an HTTP/1.1 keep-alive connection after its answer and an
