@@ -13,6 +13,12 @@ pub const TILE_SIZES: std::ops::RangeInclusive<u32> = 16..=2048;
 pub const DEFAULT_MAX_REGION_PIXELS: u64 = 4096 * 4096;
 /// Longest side of a region: WebP cannot encode more than 16383 pixels a side.
 pub const MAX_REGION_SIDE: u32 = 16383;
+/// Descriptors kept back from connections: standard streams, the listener, each runtime's
+/// poller and wake-up descriptors, bundle and static files being read or written, and the
+/// refusals of connections over the limit being answered.
+pub const FD_RESERVE: u64 = 64;
+/// The open-file limit assumed where the system does not report one.
+const DEFAULT_FD_LIMIT: u64 = 1024;
 
 #[derive(Args, Clone, Debug)]
 pub struct ServeConfig {
@@ -57,6 +63,19 @@ pub struct ServeConfig {
     /// Do not write the demo textures into an empty data directory.
     #[arg(long, env = "VTEX_NO_DEMOS")]
     pub no_demos: bool,
+    /// A response whose bytes make no progress into the socket for this long is abandoned and
+    /// its connection closed (slow or stalled readers free what they hold).
+    #[arg(long, env = "VTEX_SEND_TIMEOUT_SECS", default_value_t = 30.0)]
+    pub send_timeout_secs: f64,
+    /// A connection with no request in flight and no bytes moving for this long is closed
+    /// (HTTP/1.1 keep-alive and HTTP/2 alike, and one that never sends a byte).
+    #[arg(long, env = "VTEX_IDLE_TIMEOUT_SECS", default_value_t = 60.0)]
+    pub idle_timeout_secs: f64,
+    /// Open connections served at once; beyond it a new one gets a 503 and is closed.
+    /// Default: (open-file limit − 64) ÷ descriptors per connection (3 under `splice`, 1 under
+    /// `copy`).
+    #[arg(long, env = "VTEX_MAX_CONNECTIONS")]
+    pub max_connections: Option<usize>,
 }
 
 impl ServeConfig {
@@ -90,6 +109,11 @@ impl ServeConfig {
         if self.io_threads == Some(0) {
             return Err("io-threads must be at least 1".into());
         }
+        positive(self.send_timeout_secs, "send-timeout-secs")?;
+        positive(self.idle_timeout_secs, "idle-timeout-secs")?;
+        if self.max_connections == Some(0) {
+            return Err("max-connections must be at least 1".into());
+        }
         Ok(())
     }
 
@@ -116,5 +140,23 @@ impl ServeConfig {
 
     pub fn header_timeout(&self) -> Duration {
         Duration::from_secs_f64(self.header_timeout_secs)
+    }
+
+    pub fn send_timeout(&self) -> Duration {
+        Duration::from_secs_f64(self.send_timeout_secs)
+    }
+
+    pub fn idle_timeout(&self) -> Duration {
+        Duration::from_secs_f64(self.idle_timeout_secs)
+    }
+
+    /// `--max-connections`, else what the open-file limit allows after [`FD_RESERVE`]:
+    /// descriptors a connection may hold under `--send` divide the rest.
+    pub fn max_connections(&self) -> usize {
+        self.max_connections.unwrap_or_else(|| {
+            let limit = crate::transport::descriptor_limit().unwrap_or(DEFAULT_FD_LIMIT);
+            let per = self.send.descriptors_per_connection();
+            usize::try_from(limit.saturating_sub(FD_RESERVE) / per).unwrap_or(usize::MAX).max(1)
+        })
     }
 }

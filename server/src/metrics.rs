@@ -35,6 +35,10 @@ pub struct Metrics {
     pub textures: IntGauge,
     /// Open connections by the I/O runtime serving them (`runtime` = 0, 1, …).
     pub connections: IntGaugeVec,
+    /// The limit on open connections (`--max-connections`).
+    pub connections_max: IntGauge,
+    /// Connections refused (503) because the limit was reached.
+    pub connections_refused: IntCounter,
 }
 
 fn must<T>(r: prometheus::Result<T>) -> T {
@@ -99,6 +103,12 @@ impl Metrics {
             Opts::new("vtex_http_connections", "Open connections by the I/O runtime (thread) serving them"),
             &["runtime"],
         ));
+        let connections_max =
+            must(IntGauge::new("vtex_http_connections_max", "Open connections served at once (--max-connections)"));
+        let connections_refused = must(IntCounter::new(
+            "vtex_http_connections_refused_total",
+            "Connections answered 503 and closed because the connection limit was reached",
+        ));
         for c in [
             Box::new(requests.clone()) as Box<dyn prometheus::core::Collector>,
             Box::new(request_seconds.clone()),
@@ -117,6 +127,8 @@ impl Metrics {
             Box::new(cache_evictions.clone()),
             Box::new(textures.clone()),
             Box::new(connections.clone()),
+            Box::new(connections_max.clone()),
+            Box::new(connections_refused.clone()),
         ] {
             must(registry.register(c));
         }
@@ -143,6 +155,8 @@ impl Metrics {
             cache_evictions,
             textures,
             connections,
+            connections_max,
+            connections_refused,
         }
     }
 

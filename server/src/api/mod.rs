@@ -36,11 +36,14 @@ use tower_http::LatencyUnit;
 use vtex_synth::Region;
 
 pub use error::ApiError as Error;
-pub use front::Front;
+pub use front::{Front, MAX_HEAD_BYTES};
 
 /// The route of a single tile: [`router`] serves it, and [`Front`] answers plain GETs of it
 /// directly, matching paths against this same template.
 pub const TILE: &str = "/api/v1/textures/{id}/tiles/{level}/{x}/{file}";
+/// The route of a tile batch, the one route whose query may be longer than
+/// [`extract::MAX_QUERY_BYTES`].
+pub const BATCH: &str = "/api/v1/textures/{id}/tiles";
 
 pub const CACHE_IMMUTABLE: HeaderValue = HeaderValue::from_static("public, max-age=31536000, immutable");
 pub static X_VTEX_CACHE: HeaderName = HeaderName::from_static("x-vtex-cache");
@@ -155,7 +158,7 @@ pub fn router(app: App) -> Router {
         .route("/api/v1/textures", get(textures::list).post(textures::upload))
         .route("/api/v1/textures/{id}", get(textures::info).patch(textures::patch))
         .route("/api/v1/textures/{id}/encoding", get(textures::encoding))
-        .route("/api/v1/textures/{id}/tiles", get(batch::batch))
+        .route(BATCH, get(batch::batch))
         .route(TILE, get(tiles::tile))
         .route("/api/v1/textures/{id}/region", get(tiles::region))
         .route("/healthz", get(healthz))
