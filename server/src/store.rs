@@ -345,6 +345,10 @@ impl Store {
         if let Some(entry) = self.loaded.get(id) {
             return Ok(Some(entry));
         }
+        if self.record(id).is_none() {
+            // The load this one waited on found the bundle invalid and dropped it.
+            return Ok(None);
+        }
         let store = self.clone();
         // The turn moves into the load, so that a request dropped while it runs (a client gone)
         // does not let the next one start a second load of the same texture.
