@@ -1,11 +1,13 @@
 //! Settings of `vtex serve`. Each one comes from its flag, else its environment variable,
 //! else its default — one precedence for all, implemented by clap.
 
+use crate::store::Bounds;
 use crate::transport::Transport;
 use clap::Args;
 use std::net::SocketAddr;
 use std::path::PathBuf;
 use std::time::Duration;
+use vtex_synth::models::Limits;
 
 /// Tile sizes the server accepts: a tile must encode in milliseconds and fit every format.
 pub const TILE_SIZES: std::ops::RangeInclusive<u32> = 16..=2048;
@@ -19,6 +21,10 @@ pub const MAX_REGION_SIDE: u32 = 16383;
 pub const FD_RESERVE: u64 = 64;
 /// The open-file limit assumed where the system does not report one.
 const DEFAULT_FD_LIMIT: u64 = 1024;
+/// Default bound on the work units of one tile of a stored texture (`vtex_synth::models::cost`).
+pub const DEFAULT_MAX_TILE_WORK: u64 = 5_000_000_000;
+/// Default bound on the work units of creating or loading one texture.
+pub const DEFAULT_MAX_BUILD_WORK: u64 = 20_000_000_000;
 
 #[derive(Args, Clone, Debug)]
 pub struct ServeConfig {
@@ -76,6 +82,24 @@ pub struct ServeConfig {
     /// `copy`).
     #[arg(long, env = "VTEX_MAX_CONNECTIONS")]
     pub max_connections: Option<usize>,
+    /// Byte budget of loaded textures, in MiB, charged what each one's plan says it holds:
+    /// textures load on first use and the least recently used are dropped to stay within it.
+    /// A texture that alone holds more is refused.
+    #[arg(long, env = "VTEX_TEXTURES_MB", default_value_t = 2048.0)]
+    pub textures_mb: f64,
+    /// Most work units one tile of a texture may cost (`vtex_synth::models::cost`); an upload
+    /// over it is refused.
+    #[arg(long, env = "VTEX_MAX_TILE_WORK", default_value_t = DEFAULT_MAX_TILE_WORK)]
+    pub max_tile_work: u64,
+    /// Most work units creating or loading one texture may cost; an upload over it is refused.
+    #[arg(long, env = "VTEX_MAX_BUILD_WORK", default_value_t = DEFAULT_MAX_BUILD_WORK)]
+    pub max_build_work: u64,
+    /// Most textures the store holds; an upload past it is refused (507).
+    #[arg(long, env = "VTEX_MAX_TEXTURES", default_value_t = 10_000)]
+    pub max_textures: usize,
+    /// Most bytes of bundles the store holds on disk, in MiB; an upload past it is refused (507).
+    #[arg(long, env = "VTEX_STORE_MB", default_value_t = 4096.0)]
+    pub store_mb: f64,
 }
 
 impl ServeConfig {
@@ -100,6 +124,8 @@ impl ServeConfig {
         positive(self.max_upload_mb, "max-upload-mb")?;
         positive(self.request_timeout_secs, "request-timeout-secs")?;
         positive(self.header_timeout_secs, "header-timeout-secs")?;
+        positive(self.textures_mb, "textures-mb")?;
+        positive(self.store_mb, "store-mb")?;
         if self.max_region_pixels < self.tile_size as u64 * self.tile_size as u64 {
             return Err("max-region-pixels must allow at least one tile".into());
         }
@@ -123,6 +149,22 @@ impl ServeConfig {
 
     pub fn max_upload_bytes(&self) -> usize {
         (self.max_upload_mb * 1024.0 * 1024.0) as usize
+    }
+
+    /// The bounds of the store: what one texture may cost (holding at most the whole texture
+    /// budget), the budget of loaded textures, and the caps on what is stored.
+    pub fn store_bounds(&self) -> Bounds {
+        let mib = |v: f64| (v * 1024.0 * 1024.0) as u64;
+        Bounds {
+            tile_size: self.tile_size,
+            limits: Limits {
+                max_resident_bytes: mib(self.textures_mb),
+                max_tile_work: self.max_tile_work,
+                max_build_work: self.max_build_work,
+            },
+            max_textures: self.max_textures,
+            max_store_bytes: mib(self.store_mb),
+        }
     }
 
     pub fn syntheses(&self) -> usize {

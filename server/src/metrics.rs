@@ -33,6 +33,13 @@ pub struct Metrics {
     pub cache_entries: IntGauge,
     pub cache_evictions: IntGauge,
     pub textures: IntGauge,
+    pub store_bytes: IntGauge,
+    pub textures_loaded: IntGauge,
+    /// Bytes charged against the texture budget: loaded textures and loads in progress.
+    pub textures_loaded_bytes: IntGauge,
+    pub textures_budget_bytes: IntGauge,
+    pub texture_loads: IntGauge,
+    pub texture_evictions: IntGauge,
     /// Open connections by the I/O runtime serving them (`runtime` = 0, 1, …).
     pub connections: IntGaugeVec,
     /// The limit on open connections (`--max-connections`).
@@ -98,7 +105,17 @@ impl Metrics {
         ));
         let cache_entries = must(IntGauge::new("vtex_tile_cache_entries", "Tiles held by the tile cache"));
         let cache_evictions = must(IntGauge::new("vtex_tile_cache_evictions", "Tiles evicted since start"));
-        let textures = must(IntGauge::new("vtex_textures", "Textures in the store"));
+        let textures = must(IntGauge::new("vtex_textures", "Textures in the store (indexed and served)"));
+        let store_bytes = must(IntGauge::new("vtex_store_bytes", "Bytes of the stored bundles on disk"));
+        let textures_loaded = must(IntGauge::new("vtex_textures_loaded", "Textures loaded in memory"));
+        let textures_loaded_bytes = must(IntGauge::new(
+            "vtex_textures_loaded_bytes",
+            "Bytes loaded textures hold (as their plans state), loads in progress included",
+        ));
+        let textures_budget_bytes = must(IntGauge::new("vtex_textures_budget_bytes", "Byte budget of loaded textures"));
+        let texture_loads = must(IntGauge::new("vtex_texture_loads", "Textures loaded since start, uploads included"));
+        let texture_evictions =
+            must(IntGauge::new("vtex_texture_evictions", "Loaded textures evicted to stay within the budget"));
         let connections = must(IntGaugeVec::new(
             Opts::new("vtex_http_connections", "Open connections by the I/O runtime (thread) serving them"),
             &["runtime"],
@@ -126,6 +143,12 @@ impl Metrics {
             Box::new(cache_entries.clone()),
             Box::new(cache_evictions.clone()),
             Box::new(textures.clone()),
+            Box::new(store_bytes.clone()),
+            Box::new(textures_loaded.clone()),
+            Box::new(textures_loaded_bytes.clone()),
+            Box::new(textures_budget_bytes.clone()),
+            Box::new(texture_loads.clone()),
+            Box::new(texture_evictions.clone()),
             Box::new(connections.clone()),
             Box::new(connections_max.clone()),
             Box::new(connections_refused.clone()),
@@ -154,6 +177,12 @@ impl Metrics {
             cache_entries,
             cache_evictions,
             textures,
+            store_bytes,
+            textures_loaded,
+            textures_loaded_bytes,
+            textures_budget_bytes,
+            texture_loads,
+            texture_evictions,
             connections,
             connections_max,
             connections_refused,

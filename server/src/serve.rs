@@ -37,10 +37,16 @@ const DRAIN_TIMEOUT: Duration = Duration::from_secs(10);
 pub async fn run(cfg: ServeConfig, shutdown: impl Future<Output = ()>) -> anyhow::Result<()> {
     cfg.validate().map_err(anyhow::Error::msg)?;
     let t0 = Instant::now();
-    let (dir, ts, demos) = (cfg.data_dir.clone(), cfg.tile_size, !cfg.no_demos);
-    let (store, report) = tokio::task::spawn_blocking(move || Store::open(&dir, ts, demos)).await??;
+    let (dir, bounds, demos) = (cfg.data_dir.clone(), cfg.store_bounds(), !cfg.no_demos);
+    let (store, report) = tokio::task::spawn_blocking(move || Store::open(&dir, bounds, demos)).await??;
     for (path, why) in &report.rejected {
         tracing::warn!(path = %path.display(), reason = %why, "not serving an invalid file in the data directory");
+    }
+    for (path, why) in &report.stale_temp_kept {
+        tracing::warn!(path = %path.display(), reason = %why, "could not remove a stale temporary file; left in place");
+    }
+    for (name, why) in &report.demos_refused {
+        tracing::warn!(demo = %name, reason = %why, "demo not written: over the store's bounds");
     }
     tracing::info!(
         data_dir = %cfg.data_dir.display(),

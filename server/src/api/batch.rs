@@ -166,7 +166,7 @@ pub async fn batch(
     Query(BatchQuery { tiles, format, frame }): Query<BatchQuery>,
 ) -> Result<Response, ApiError> {
     let started = Instant::now();
-    let entry = lookup(&app, &id)?;
+    let entry = lookup(&app, &id).await?;
     for t in &tiles {
         tiles::check_tile(&entry, t.level, t.x, t.y)?;
     }

@@ -23,6 +23,12 @@ pub enum ApiError {
     UriTooLong(String),
     #[error("{0}")]
     UnsupportedMediaType(String),
+    /// An encoding over a bound of the server: what it would cost (`vtex_synth::Error::TooCostly`).
+    #[error("{0}")]
+    TooCostly(String),
+    /// The store holds its maximum, or its disk is full: the message names which.
+    #[error("{0}")]
+    InsufficientStorage(String),
     /// The server failed. `what` (static text, so it cannot carry a path or an OS message) is
     /// all the client learns; `cause` goes to the log.
     #[error("{what}: {cause}")]
@@ -52,6 +58,8 @@ impl ApiError {
             ApiError::PayloadTooLarge(_) => StatusCode::PAYLOAD_TOO_LARGE,
             ApiError::UriTooLong(_) => StatusCode::URI_TOO_LONG,
             ApiError::UnsupportedMediaType(_) => StatusCode::UNSUPPORTED_MEDIA_TYPE,
+            ApiError::TooCostly(_) => StatusCode::UNPROCESSABLE_ENTITY,
+            ApiError::InsufficientStorage(_) => StatusCode::INSUFFICIENT_STORAGE,
             ApiError::Internal { .. } => StatusCode::INTERNAL_SERVER_ERROR,
         }
     }
@@ -86,9 +94,14 @@ pub fn echo(s: &str) -> String {
     }
 }
 
+/// An encoding the client got wrong is a 400; one that is well formed but over the server's
+/// bounds a 422.
 impl From<vtex_synth::Error> for ApiError {
     fn from(e: vtex_synth::Error) -> Self {
-        ApiError::bad_request(e.to_string())
+        match e {
+            vtex_synth::Error::TooCostly { .. } => ApiError::TooCostly(e.to_string()),
+            e => ApiError::bad_request(e.to_string()),
+        }
     }
 }
 
@@ -114,5 +127,21 @@ mod tests {
         assert!(body.contains("storing the bundle failed"), "{body}");
         assert!(!body.contains("secret") && !body.contains("permission"), "{body}");
         assert!(e.to_string().contains("/secret/dir"), "the cause stays available for the log");
+    }
+
+    #[test]
+    fn costs_over_the_bounds_are_422() {
+        let e = vtex_synth::Error::TooCostly {
+            model: "cascade".into(),
+            what: "work units per tile",
+            value: 9,
+            why: "3 stages × 3".into(),
+            bound: 5,
+        };
+        let (status, message) = ApiError::from(e).to_client();
+        assert_eq!(status, StatusCode::UNPROCESSABLE_ENTITY);
+        assert!(message.contains("cascade") && message.contains("3 stages × 3") && message.contains('5'), "{message}");
+        let bad = ApiError::from(vtex_synth::Error::param("name", "1 to 200 printable characters"));
+        assert_eq!(bad.status(), StatusCode::BAD_REQUEST);
     }
 }

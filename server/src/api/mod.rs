@@ -13,7 +13,7 @@ use crate::cache::TileCache;
 use crate::config::ServeConfig;
 use crate::encode::{self, Format};
 use crate::metrics::Metrics;
-use crate::store::{Entry, Store};
+use crate::store::{Entry, Record, Store, StoreError};
 use axum::error_handling::HandleErrorLayer;
 use axum::extract::{DefaultBodyLimit, MatchedPath, Request, State};
 use axum::http::{header, HeaderMap, HeaderName, HeaderValue, Method, StatusCode};
@@ -77,6 +77,7 @@ impl AppState {
         let metrics = Metrics::new();
         let cache = TileCache::new(cfg.cache_bytes(), cfg.send);
         metrics.cache_budget_bytes.set(cache.budget() as i64);
+        metrics.textures_budget_bytes.set(store.bounds().limits.max_resident_bytes as i64);
         Arc::new(AppState { store, cache, metrics, synth_permits: Arc::new(Semaphore::new(cfg.syntheses())), cfg })
     }
 
@@ -214,7 +215,13 @@ async fn metrics(State(app): State<App>, _: Query<NoQuery>) -> Response {
     m.cache_mapped_bytes.set(app.cfg.send.mapped_bytes() as i64);
     m.cache_entries.set(app.cache.len() as i64);
     m.cache_evictions.set(app.cache.evictions() as i64);
-    m.textures.set(app.store.len() as i64);
+    let store = &app.store;
+    m.textures.set(store.len() as i64);
+    m.store_bytes.set(store.stored_bytes() as i64);
+    m.textures_loaded.set(store.loaded() as i64);
+    m.textures_loaded_bytes.set(store.loaded_bytes() as i64);
+    m.texture_loads.set(store.loads() as i64);
+    m.texture_evictions.set(store.evictions() as i64);
     ([(header::CONTENT_TYPE, "text/plain; version=0.0.4")], m.render()).into_response()
 }
 
@@ -299,14 +306,37 @@ pub async fn refuse_oversized(req: Request, limit: usize) -> ApiError {
 }
 
 /// A texture id from the path: checked before it can reach a file name.
-pub fn lookup(app: &AppState, id: &str) -> Result<Arc<Entry>, ApiError> {
-    if !vtex_synth::bundle::is_valid_id(id) {
-        return Err(ApiError::bad_request(format!(
-            "invalid texture id `{}`: expected 64 lowercase hex characters",
-            error::echo(id)
-        )));
+fn check_id(id: &str) -> Result<(), ApiError> {
+    if vtex_synth::bundle::is_valid_id(id) {
+        return Ok(());
     }
-    app.store.get(id).ok_or_else(|| ApiError::not_found(format!("no texture with id {id}")))
+    Err(ApiError::bad_request(format!(
+        "invalid texture id `{}`: expected 64 lowercase hex characters",
+        error::echo(id)
+    )))
+}
+
+fn no_texture(id: &str) -> ApiError {
+    ApiError::not_found(format!("no texture with id {id}"))
+}
+
+/// What the store knows of texture `id`, without loading it.
+pub fn record(app: &AppState, id: &str) -> Result<Arc<Record>, ApiError> {
+    check_id(id)?;
+    app.store.record(id).ok_or_else(|| no_texture(id))
+}
+
+/// Texture `id`, loaded: on its first use (or after its eviction) off the I/O threads.
+pub async fn lookup(app: &AppState, id: &str) -> Result<Arc<Entry>, ApiError> {
+    check_id(id)?;
+    match app.store.get(id).await {
+        Ok(Some(entry)) => Ok(entry),
+        Ok(None) => Err(no_texture(id)),
+        Err(StoreError::Invalid(e)) => {
+            Err(ApiError::internal("the stored texture failed validation when loaded; it is no longer served", e))
+        }
+        Err(e) => Err(ApiError::internal("loading the stored texture failed", e)),
+    }
 }
 
 #[cfg(test)]

@@ -121,7 +121,7 @@ pub(super) async fn answer(
     TileQuery { frame }: TileQuery,
     headers: &HeaderMap,
 ) -> Result<Response, ApiError> {
-    let entry = lookup(app, &id)?;
+    let entry = lookup(app, &id).await?;
     let (y, ext) = file.rsplit_once('.').ok_or_else(|| {
         ApiError::bad_request(format!("tile `{}` has no format extension; {}", echo(&file), Format::EXPECTED))
     })?;
@@ -218,7 +218,7 @@ pub async fn region(
     Query(q): Query<RegionQuery>,
     headers: HeaderMap,
 ) -> Result<Response, ApiError> {
-    let entry = lookup(&app, &id)?;
+    let entry = lookup(&app, &id).await?;
     let RegionQuery { level, x, y, w, h, format, frame } = q;
     let format = format.unwrap_or(Format::Png);
     let frame = frame_for(&entry, frame);
