@@ -26,6 +26,7 @@ pub fn crash_dir() -> PathBuf {
 /// What a run did.
 #[derive(Debug, Default)]
 pub struct Stats {
+    pub seeds: usize,
     pub inputs: u64,
     pub accepted: u64,
     pub elapsed: Duration,
@@ -39,8 +40,9 @@ impl std::fmt::Display for Stats {
         let secs = self.elapsed.as_secs_f64();
         write!(
             f,
-            "{} inputs in {secs:.1} s ({:.0}/s), {} accepted; largest allocation {} bytes, peak live growth {} bytes",
+            "{} inputs ({} seeds) in {secs:.1} s ({:.0}/s), {} accepted; largest allocation {} bytes, peak live growth {} bytes",
             self.inputs,
+            self.seeds,
             self.inputs as f64 / secs.max(1e-9),
             self.accepted,
             self.largest_alloc,
@@ -143,14 +145,14 @@ pub fn fuzz(target: &'static dyn Target, duration: Duration, seed: u64) -> Stats
     let seeds = target.seeds();
     assert!(!seeds.is_empty(), "{} has no seeds", target.name());
     let mut corpus: Vec<Vec<u8>> = Vec::new();
-    let mut stats = Stats::default();
+    let mut stats = Stats { seeds: seeds.len(), ..Stats::default() };
     let start = Instant::now();
-    // Every seed once as it is, then mutants.
+    // Every seed once as it is, then mutants: at least one, however slow the seeds were.
     for s in &seeds {
         let (ok, largest, peak) = run_one(target, s);
         stats.note(ok, largest, peak);
     }
-    while start.elapsed() < duration {
+    while stats.inputs == seeds.len() as u64 || start.elapsed() < duration {
         let from = if corpus.is_empty() || rng.random_bool(0.5) {
             &seeds[rng.random_range(0..seeds.len())]
         } else {
