@@ -89,8 +89,10 @@ fn fail(what: &str) -> ! {
     std::process::exit(1);
 }
 
+/// Runs on the allocating thread, so the backtrace names the allocation's site.
 fn on_violation(v: alloc::Violation) {
-    fail(&format!("allocation over the bound: {v}"));
+    let site = std::backtrace::Backtrace::force_capture();
+    fail(&format!("allocation over the bound: {v}\n{site}"));
 }
 
 /// Sets up the failure reports once per process: the allocator's, the panic hook's, and a
