@@ -91,6 +91,8 @@ fn fail(what: &str) -> ! {
 
 /// Runs on the allocating thread, so the backtrace names the allocation's site.
 fn on_violation(v: alloc::Violation) {
+    // Symbolising the backtrace takes a while: the watchdog must not report a timeout meanwhile.
+    STARTED_MS.store(0, Relaxed);
     let site = std::backtrace::Backtrace::force_capture();
     fail(&format!("allocation over the bound: {v}\n{site}"));
 }
