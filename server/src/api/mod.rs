@@ -7,7 +7,7 @@ pub mod extract;
 mod front;
 pub mod params;
 mod textures;
-mod tiles;
+pub mod tiles;
 
 use crate::cache::TileCache;
 use crate::config::ServeConfig;
