@@ -34,10 +34,9 @@ pub trait Target: Sync {
     fn run(&self, input: &[u8]) -> bool;
 }
 
-/// The bounds the fuzzer loads textures within, standing for the server's: a texture may hold
-/// 256 MiB, a tile may cost about 2 s of a core and making a texture about 20 s.
-pub const LIMITS: Limits =
-    Limits { max_resident_bytes: 256 << 20, max_tile_work: 2_000_000_000, max_build_work: 20_000_000_000 };
+/// The bounds the fuzzer loads textures within: the server's, with a texture holding at most
+/// 256 MiB so that the fuzzer's heap bound stays tight.
+pub const LIMITS: Limits = Limits { max_resident_bytes: 256 << 20, ..Limits::SERVE };
 
 /// Tiles rendered per loaded texture (the finest, a middle and the coarsest level).
 const TILES_PER_LOAD: u64 = 3;

@@ -21,10 +21,6 @@ pub const MAX_REGION_SIDE: u32 = 16383;
 pub const FD_RESERVE: u64 = 64;
 /// The open-file limit assumed where the system does not report one.
 const DEFAULT_FD_LIMIT: u64 = 1024;
-/// Default bound on the work units of one tile of a stored texture (`vtex_synth::models::cost`).
-pub const DEFAULT_MAX_TILE_WORK: u64 = 5_000_000_000;
-/// Default bound on the work units of creating or loading one texture.
-pub const DEFAULT_MAX_BUILD_WORK: u64 = 20_000_000_000;
 
 #[derive(Args, Clone, Debug)]
 pub struct ServeConfig {
@@ -89,10 +85,10 @@ pub struct ServeConfig {
     pub textures_mb: f64,
     /// Most work units one tile of a texture may cost (`vtex_synth::models::cost`); an upload
     /// over it is refused.
-    #[arg(long, env = "VTEX_MAX_TILE_WORK", default_value_t = DEFAULT_MAX_TILE_WORK)]
+    #[arg(long, env = "VTEX_MAX_TILE_WORK", default_value_t = Limits::SERVE.max_tile_work)]
     pub max_tile_work: u64,
     /// Most work units creating or loading one texture may cost; an upload over it is refused.
-    #[arg(long, env = "VTEX_MAX_BUILD_WORK", default_value_t = DEFAULT_MAX_BUILD_WORK)]
+    #[arg(long, env = "VTEX_MAX_BUILD_WORK", default_value_t = Limits::SERVE.max_build_work)]
     pub max_build_work: u64,
     /// Most textures the store holds; an upload past it is refused (507).
     #[arg(long, env = "VTEX_MAX_TEXTURES", default_value_t = 10_000)]

@@ -27,7 +27,6 @@ async fn gauge(c: &reqwest::Client, s: &Server, name: &str) -> f64 {
 /// tile of each in turn loads and evicts them, the bytes they hold never pass the budget, and
 /// every texture still answers.
 #[tokio::test]
-#[ignore = "needs every model's cost model (branch b-cost): the bounds-base scaffold plans cost nothing"]
 async fn loaded_textures_stay_within_the_budget() {
     let bundles: Vec<Bundle> = (1..=4).map(|seed| mosaic(64, 8, seed)).collect();
     let largest = bundles.iter().map(resident).max().unwrap();
@@ -61,7 +60,6 @@ async fn loaded_textures_stay_within_the_budget() {
 /// A texture that alone holds more than the budget is refused at upload (422 naming it), and a
 /// stored one is not served by a server whose budget it passes.
 #[tokio::test]
-#[ignore = "needs every model's cost model (branch b-cost): the bounds-base scaffold plans cost nothing"]
 async fn a_texture_alone_over_the_budget_is_refused() {
     let big = mosaic(64, 8, 5);
     let small_budget = mib(resident(&big) / 2);
