@@ -114,6 +114,26 @@ pub fn decode_png(name: &str, bytes: &[u8]) -> Result<Rgba8Image> {
     Ok(Rgba8Image { width: w, height: h, data: rgba.into_raw() })
 }
 
+/// The width and height a PNG declares in its header (IHDR, which the format puts first), read
+/// without inflating anything: what a cost plan may know of an image before deciding to
+/// decode it. Sides are checked against [`MAX_IMAGE_SIDE`] as [`decode_png`] checks them.
+pub fn png_dimensions(name: &str, bytes: &[u8]) -> Result<(u32, u32)> {
+    let fail = |reason: &str| Error::image(name, reason.to_string());
+    if !bytes.starts_with(b"\x89PNG\r\n\x1a\n") {
+        return Err(fail("not a PNG file (bad signature)"));
+    }
+    let ihdr = bytes.get(8..24).ok_or_else(|| fail("truncated before the end of its header"))?;
+    if ihdr[..8] != [0, 0, 0, 13, b'I', b'H', b'D', b'R'] {
+        return Err(fail("the first chunk is not a 13-byte IHDR"));
+    }
+    let side = |at: usize| u32::from_be_bytes(ihdr[at..at + 4].try_into().expect("4 bytes"));
+    let (w, h) = (side(8), side(12));
+    if w == 0 || h == 0 || w > MAX_IMAGE_SIDE || h > MAX_IMAGE_SIDE {
+        return Err(Error::image(name, format!("{w}×{h} pixels; each side must be 1..={MAX_IMAGE_SIDE}")));
+    }
+    Ok((w, h))
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -45,6 +45,12 @@ pub struct Plan {
     pub cost: Cost,
 }
 
+/// Work units of an estimate in floating point, rounded up and saturated at `u64::MAX` (the
+/// formulas multiply parameters that may each be at their bound).
+pub fn units(v: f64) -> u64 {
+    v.ceil() as u64
+}
+
 /// Bounds an encoding's [`Cost`] must stay within to be created or loaded.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct Limits {
@@ -56,6 +62,16 @@ pub struct Limits {
 impl Limits {
     /// No bound: for offline tools that run what they are given.
     pub const NONE: Limits = Limits { max_resident_bytes: u64::MAX, max_tile_work: u64::MAX, max_build_work: u64::MAX };
+
+    /// Bounds for a public server, in the time of one core of a loaded machine. A tile may
+    /// take about ten seconds: the dearest demo tiles (the first coarse tile of a pattern
+    /// texture with transition tiles, which fills its caches) stay at least twice below it,
+    /// while a cascade whose tile takes minutes is refused. Making a texture may take about
+    /// twenty seconds: twice the 100k chaos mosaic's 781,250 blocks made and loaded, and a
+    /// fifth of a mosaic with the most blocks allowed. One texture may hold 2 GiB: the
+    /// server's default budget for all loaded textures, which it passes here in place of this.
+    pub const SERVE: Limits =
+        Limits { max_resident_bytes: 2 << 30, max_tile_work: 10_000_000_000, max_build_work: 20_000_000_000 };
 
     /// Refuses `plan` of `model` when any part of its cost is over its bound.
     pub fn check(&self, model: &str, plan: &Plan) -> Result<()> {

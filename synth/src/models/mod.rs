@@ -31,25 +31,12 @@ pub trait Model: Send + Sync + 'static {
     fn create(&self, name: &str, params: &serde_json::Value, inputs: &Inputs) -> Result<Bundle>;
     /// Validates a bundle of this model completely and returns its texture.
     fn load(&self, bundle: &Bundle) -> Result<Arc<dyn Texture>>;
-    /// What `load(bundle)` would give and cost, from the manifest and section headers alone.
-    // SCAFFOLD(bounds-base): every model overrides this with its cost model; remove the default.
-    fn plan(&self, bundle: &Bundle) -> Result<Plan> {
-        let t = self.load(bundle)?;
-        let zero = || Measure::new(0, "scaffold");
-        Ok(Plan {
-            width: t.width(),
-            height: t.height(),
-            domain: t.domain(),
-            animation: t.animation(),
-            cost: Cost { resident_bytes: zero(), tile_work: zero(), build_work: zero() },
-        })
-    }
+    /// What `load(bundle)` would give and cost, from the manifest, section lengths and image
+    /// headers alone: nothing drawn, generated, indexed or decoded.
+    fn plan(&self, bundle: &Bundle) -> Result<Plan>;
     /// What `create(name, params, inputs)` would give and cost, from the parameters and the
-    /// inputs' headers alone.
-    // SCAFFOLD(bounds-base): every model overrides this with its cost model; remove the default.
-    fn plan_create(&self, params: &serde_json::Value, inputs: &Inputs) -> Result<Plan> {
-        self.plan(&self.create("plan", params, inputs)?)
-    }
+    /// inputs' headers alone; refuses every parameter `create` would refuse.
+    fn plan_create(&self, params: &serde_json::Value, inputs: &Inputs) -> Result<Plan>;
     /// Its demo encodings, from project-made inputs only.
     fn demos(&self) -> Vec<Bundle>;
     /// What its prefiltered coarse levels promise, held by the conformance suite.

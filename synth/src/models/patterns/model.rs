@@ -77,21 +77,7 @@ impl PatternTexture {
             layers.push(Layer::load(i, lp, &p, bundle, &reference, tables.clone()).map_err(|e| in_layer(i, e))?);
         }
         let animated: Vec<&AnimationBlock> = layers.iter().filter_map(|l| l.animation.as_ref()).collect();
-        let animation = match (animated.is_empty(), p.fps) {
-            (true, _) => None,
-            (false, Some(fps)) if fps > 0.0 && fps <= 240.0 => {
-                let mut period = 1u64;
-                for a in &animated {
-                    let q = a.period() as u64;
-                    period = if q == 0 || period == 0 { 0 } else { period / gcd(period, q) * q };
-                    if period > u32::MAX as u64 {
-                        period = 0;
-                    }
-                }
-                Some(Animation { fps, period_frames: period as u32 })
-            }
-            (false, _) => return Err(Error::param("fps", "animated layers need fps in (0, 240]")),
-        };
+        let animation = super::plan::animation(&animated, p.fps)?;
         Ok(Self { width: p.width, height: p.height, reference, background: p.background, layers, animation })
     }
 
@@ -118,14 +104,6 @@ impl PatternTexture {
     /// The pixel map's material at level-0 pixel (x, y) of layer `layer`, if it has one.
     pub fn pixel_material(&self, layer: usize, x: u64, y: u64) -> Option<u16> {
         self.layers[layer].choice.as_ref()?.pixel_map().map(|p| p.at(x, y))
-    }
-}
-
-fn gcd(a: u64, b: u64) -> u64 {
-    if b == 0 {
-        a
-    } else {
-        gcd(b, a % b)
     }
 }
 
