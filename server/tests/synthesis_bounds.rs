@@ -128,3 +128,28 @@ async fn sigterm_exits_within_the_drain_time_with_renders_in_flight() {
     assert!(status.success(), "{status}");
     assert!(took < Duration::from_secs(15), "exited {took:?} after SIGTERM");
 }
+
+/// A queued miss whose client hangs up leaves the queue; a render goes on while one of
+/// several clients of its tile still waits.
+#[tokio::test]
+async fn clients_leaving_free_queue_places_but_not_a_render_another_waits_for() {
+    let dir = tempdir();
+    let s = start(dir.path(), &["--max-syntheses", "3", "--max-syntheses-per-texture", "3"]);
+    let c = client();
+    let slow = put(&c, &s, &expensive()).await;
+    let tile = [ask(&s, &tile_path(&slow, 0)), ask(&s, &tile_path(&slow, 0))];
+    let batch = ask(&s, &format!("/api/v1/textures/{slow}/tiles?format=png&tiles=0/1/0"));
+    let region = ask(&s, &format!("/api/v1/textures/{slow}/region?level=0&x=0&y=512&w=256&h=256"));
+    wait_for(&c, &s, "three renders", |running, _| running == 3.0).await;
+    let queued = ask(&s, &tile_path(&slow, 2));
+    wait_for(&c, &s, "a miss queued", |running, queued| running == 3.0 && queued == 1.0).await;
+    drop(queued);
+    wait_for(&c, &s, "the queued miss gone", |running, queued| running == 3.0 && queued == 0.0).await;
+    let [first, second] = tile;
+    drop(first);
+    // The other client of that tile still waits: its render goes on.
+    tokio::time::sleep(Duration::from_millis(1500)).await;
+    assert_eq!(syntheses(&c, &s).await, (3.0, 0.0));
+    assert_eq!(metric(&metrics(&c, &s).await, "vtex_syntheses_stopped_total", &[]), 0.0);
+    drop((second, batch, region));
+}
