@@ -116,11 +116,11 @@ impl Texture for ChaosMosaic {
     fn domain(&self) -> Domain {
         Domain::Torus
     }
-    fn render(&self, region: &Region, out: &mut [u8], _stop: &dyn Stop) {
-        if region.level == 0 {
-            self.render_level0(region.x, region.y, region.width, region.height, out);
-        } else {
-            self.render_prefiltered(region, out);
-        }
+    fn render(&self, region: &Region, out: &mut [u8], stop: &dyn Stop) {
+        // `None` when stopped: `out` is then incomplete, and discarded.
+        let _ = match region.level {
+            0 => self.render_level0(region.x, region.y, region.width, region.height, out, stop),
+            _ => self.render_prefiltered(region, out, stop),
+        };
     }
 }

@@ -72,7 +72,7 @@ impl Reference {
     }
 
     /// Texel (x, y) of pattern `p` at its mip level `level` (coordinates inside the level).
-    #[inline]
+    #[inline(always)]
     pub fn texel(&self, p: u32, level: u32, x: u32, y: u32) -> [u8; 4] {
         let side = self.size >> level;
         let i = ((p as usize * side as usize + y as usize) * side as usize + x as usize) * 4;
