@@ -5,7 +5,7 @@
 
 mod common;
 use common::*;
-use std::io::Write;
+use std::io::{Read, Write};
 use std::net::TcpStream;
 use std::time::{Duration, Instant};
 use vtex_synth::models::{self, Inputs};
@@ -59,6 +59,14 @@ fn ask(s: &Server, path: &str) -> TcpStream {
     let mut sock = TcpStream::connect(&s.addr).unwrap();
     write!(sock, "GET {path} HTTP/1.1\r\nHost: x\r\n\r\n").unwrap();
     sock
+}
+
+/// Everything the server sends on `sock` until it closes it (or `limit` passes).
+fn answer(mut sock: TcpStream, limit: Duration) -> String {
+    sock.set_read_timeout(Some(limit)).unwrap();
+    let mut out = Vec::new();
+    let _ = sock.read_to_end(&mut out);
+    String::from_utf8_lossy(&out).into_owned()
 }
 
 fn tile_path(id: &str, x: u32) -> String {
@@ -120,19 +128,30 @@ async fn sigterm_exits_within_the_drain_time_with_renders_in_flight() {
     let s = start(dir.path(), &["--max-syntheses", "2"]);
     let c = client();
     let slow = put(&c, &s, &expensive()).await;
-    let _clients: Vec<_> = (0..3).map(|x| ask(&s, &tile_path(&slow, x))).collect();
+    let clients: Vec<_> = (0..3).map(|x| ask(&s, &tile_path(&slow, x))).collect();
     wait_for(&c, &s, "renders in flight", |running, queued| running >= 1.0 && running + queued >= 3.0).await;
     let t0 = Instant::now();
+    let answers: Vec<_> = clients
+        .into_iter()
+        .map(|sock| tokio::task::spawn_blocking(move || (answer(sock, Duration::from_secs(30)), t0.elapsed())))
+        .collect();
     let status = tokio::task::spawn_blocking(move || s.terminate()).await.unwrap();
     let took = t0.elapsed();
     assert!(status.success(), "{status}");
     assert!(took < Duration::from_secs(15), "exited {took:?} after SIGTERM");
+    // Every client waiting was answered before the exit: its render stopped, or its miss
+    // refused, rather than its connection cut.
+    for a in answers {
+        let (text, when) = a.await.unwrap();
+        assert!(text.starts_with("HTTP/1.1 503") && text.contains("shutting down"), "{when:?}: {text}");
+        assert!(when <= took, "answered {when:?} after SIGTERM, after the exit at {took:?}");
+    }
 }
 
-/// A queued miss whose client hangs up leaves the queue; a render goes on while one of
-/// several clients of its tile still waits.
+/// Renders stop once every client waiting for them has hung up — tiles, batches, regions,
+/// and queued misses — but not while one of several clients of one tile still waits.
 #[tokio::test]
-async fn clients_leaving_free_queue_places_but_not_a_render_another_waits_for() {
+async fn renders_stop_when_their_clients_are_gone() {
     let dir = tempdir();
     let s = start(dir.path(), &["--max-syntheses", "3", "--max-syntheses-per-texture", "3"]);
     let c = client();
@@ -152,4 +171,8 @@ async fn clients_leaving_free_queue_places_but_not_a_render_another_waits_for() 
     assert_eq!(syntheses(&c, &s).await, (3.0, 0.0));
     assert_eq!(metric(&metrics(&c, &s).await, "vtex_syntheses_stopped_total", &[]), 0.0);
     drop((second, batch, region));
+    wait_for(&c, &s, "every render stopped", |running, queued| running == 0.0 && queued == 0.0).await;
+    let m = metrics(&c, &s).await;
+    assert_eq!(metric(&m, "vtex_syntheses_stopped_total", &[]), 3.0);
+    assert_eq!(metric(&m, "vtex_syntheses_total", &[]), 3.0, "the queued miss never started");
 }
