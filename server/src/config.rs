@@ -96,7 +96,21 @@ pub struct ServeConfig {
     /// Most bytes of bundles the store holds on disk, in MiB; an upload past it is refused (507).
     #[arg(long, env = "VTEX_STORE_MB", default_value_t = 4096.0)]
     pub store_mb: f64,
+    /// Syntheses one texture may run at once, so that its misses, however slow, leave slots
+    /// to the others. Default: all slots but one (one when there is one slot).
+    #[arg(long, env = "VTEX_MAX_SYNTHESES_PER_TEXTURE")]
+    pub max_syntheses_per_texture: Option<usize>,
+    /// Misses waiting for a synthesis slot; one more is answered 503 at once. Default:
+    /// [`QUEUED_PER_SLOT`] per slot.
+    #[arg(long, env = "VTEX_MAX_QUEUED")]
+    pub max_queued: Option<usize>,
 }
+
+/// Misses queued per synthesis slot by default: an ordinary tile renders in milliseconds, so a
+/// full queue drains within a second or so, and a burst of every connection of a busy viewer
+/// missing at once is absorbed; a queue longer than that would only be answered near or past
+/// the request deadline, where a prompt 503 serves the client better.
+pub const QUEUED_PER_SLOT: usize = 32;
 
 impl ServeConfig {
     /// Checks ranges clap cannot express; the message names the setting.
@@ -127,6 +141,9 @@ impl ServeConfig {
         }
         if self.max_syntheses == Some(0) {
             return Err("max-syntheses must be at least 1".into());
+        }
+        if self.max_syntheses_per_texture.is_some_and(|n| n == 0 || n > self.syntheses()) {
+            return Err(format!("max-syntheses-per-texture must be 1..={} (max-syntheses)", self.syntheses()));
         }
         if self.io_threads == Some(0) {
             return Err("io-threads must be at least 1".into());
@@ -165,6 +182,16 @@ impl ServeConfig {
 
     pub fn syntheses(&self) -> usize {
         self.max_syntheses.unwrap_or_else(|| std::thread::available_parallelism().map_or(2, |n| n.get()))
+    }
+
+    /// Syntheses one texture may run at once.
+    pub fn syntheses_per_texture(&self) -> usize {
+        self.max_syntheses_per_texture.unwrap_or_else(|| self.syntheses().saturating_sub(1).max(1))
+    }
+
+    /// Misses that may wait for a synthesis slot.
+    pub fn max_queued(&self) -> usize {
+        self.max_queued.unwrap_or_else(|| QUEUED_PER_SLOT * self.syntheses())
     }
 
     /// Threads serving connections, one single-threaded runtime each: one per core by default.

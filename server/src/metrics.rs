@@ -26,6 +26,11 @@ pub struct Metrics {
     /// Whole tile batches, from the request to the body's end, by how the body ended.
     pub batch_seconds: HistogramVec,
     pub syntheses_in_flight: IntGauge,
+    /// Renders stopped before their end: nobody waited for them any more, or shutdown.
+    pub syntheses_stopped: IntCounter,
+    /// Misses answered 503 because the synthesis queue was full.
+    pub syntheses_shed: IntCounter,
+    pub syntheses_queued: IntGauge,
     pub cache_bytes: IntGauge,
     pub cache_budget_bytes: IntGauge,
     /// Memory mapped for cached tile bodies (their whole pages, and arena pages between them).
@@ -97,6 +102,15 @@ impl Metrics {
             &["outcome"],
         ));
         let syntheses_in_flight = must(IntGauge::new("vtex_syntheses_in_flight", "Syntheses running now"));
+        let syntheses_stopped = must(IntCounter::new(
+            "vtex_syntheses_stopped_total",
+            "Renders stopped before their end (every request waiting for them gone, or shutdown)",
+        ));
+        let syntheses_shed = must(IntCounter::new(
+            "vtex_syntheses_shed_total",
+            "Misses answered 503 because the synthesis queue was full",
+        ));
+        let syntheses_queued = must(IntGauge::new("vtex_syntheses_queued", "Misses waiting for a synthesis slot"));
         let cache_bytes = must(IntGauge::new("vtex_tile_cache_bytes", "Bytes held by the tile cache"));
         let cache_budget_bytes = must(IntGauge::new("vtex_tile_cache_budget_bytes", "Byte budget of the tile cache"));
         let cache_mapped_bytes = must(IntGauge::new(
@@ -137,6 +151,9 @@ impl Metrics {
             Box::new(encode_seconds.clone()),
             Box::new(batch_seconds.clone()),
             Box::new(syntheses_in_flight.clone()),
+            Box::new(syntheses_stopped.clone()),
+            Box::new(syntheses_shed.clone()),
+            Box::new(syntheses_queued.clone()),
             Box::new(cache_bytes.clone()),
             Box::new(cache_budget_bytes.clone()),
             Box::new(cache_mapped_bytes.clone()),
@@ -171,6 +188,9 @@ impl Metrics {
             encode_seconds,
             batch_seconds,
             syntheses_in_flight,
+            syntheses_stopped,
+            syntheses_shed,
+            syntheses_queued,
             cache_bytes,
             cache_budget_bytes,
             cache_mapped_bytes,

@@ -7,13 +7,17 @@
 //! Connections are served by one single-threaded tokio runtime per core, each serving its own
 //! connections (nginx's worker model); one accepts and hands each new connection to the
 //! runtime serving the fewest. One work-stealing runtime would spend more CPU per warm tile
-//! and wait on cross-thread wake-ups. Syntheses still run on blocking pools, bounded by one
-//! semaphore.
+//! and wait on cross-thread wake-ups. Syntheses still run on blocking pools, bounded by the
+//! shared [`crate::slots::Slots`].
 //!
 //! Every connection is bounded in time and number: a response that cannot be sent for
 //! `--send-timeout-secs` is abandoned (in [`crate::transport::Io`]), a connection idle for
 //! `--idle-timeout-secs` is closed ([`until_idle`]), and beyond `--max-connections` a new
 //! connection is answered 503 and closed ([`Refusal`]) rather than left to hold a descriptor.
+//!
+//! Shutdown stops accepting, lets requests in flight finish within the drain time, stops the
+//! renders that would outlast it (their requests get 503), and exits without waiting for
+//! anything past it.
 
 use crate::api::{self, AppState};
 use crate::config::ServeConfig;
@@ -32,6 +36,19 @@ use tokio::sync::Semaphore;
 
 /// How long shutdown waits for requests in flight before it gives up on them.
 const DRAIN_TIMEOUT: Duration = Duration::from_secs(10);
+/// How long before the end of the drain every render still running is stopped: time for the
+/// models to reach their next band and for the 503s to be sent.
+const STOP_BEFORE_END: Duration = Duration::from_secs(2);
+
+/// `vtex serve`: [`run`] until SIGTERM or Ctrl-C. The runtime is not waited for when the
+/// server is done: work still on its blocking pool then (a render that did not stop in the
+/// drain time) has nobody left to answer, so the process exits within the drain time.
+pub fn main(cfg: ServeConfig) -> anyhow::Result<()> {
+    let rt = tokio::runtime::Builder::new_current_thread().enable_all().build()?;
+    let result = rt.block_on(run(cfg, shutdown_signal()));
+    rt.shutdown_background();
+    result
+}
 
 /// Runs the server until `shutdown` resolves.
 pub async fn run(cfg: ServeConfig, shutdown: impl Future<Output = ()>) -> anyhow::Result<()> {
@@ -60,6 +77,19 @@ pub async fn run(cfg: ServeConfig, shutdown: impl Future<Output = ()>) -> anyhow
         tracing::warn!(web_dir = %cfg.web_dir.display(), "no index.html in the web directory; the viewer is not served");
     }
     let app = AppState::new(Arc::new(store), cfg.clone());
+    // Renders in flight at shutdown may finish during the drain; those that would outlast it
+    // are stopped shortly before it ends, so their requests are answered 503 rather than cut.
+    let shutdown = {
+        let app = app.clone();
+        async move {
+            shutdown.await;
+            tokio::spawn(async move {
+                tokio::time::sleep(DRAIN_TIMEOUT - STOP_BEFORE_END).await;
+                tracing::info!("stopping the syntheses still running");
+                app.stop_syntheses();
+            });
+        }
+    };
     let live = |i: usize| app.metrics.connections.with_label_values(&[i.to_string().as_str()]);
     let mut workers: Vec<Worker> = (0..cfg.io_threads()).map(|i| Worker { live: live(i), tx: None }).collect();
     let max_connections = cfg.max_connections();
@@ -94,6 +124,8 @@ pub async fn run(cfg: ServeConfig, shutdown: impl Future<Output = ()>) -> anyhow
         threads.push(std::thread::Builder::new().name(format!("vtex-io-{i}")).spawn(move || {
             let rt = tokio::runtime::Builder::new_current_thread().enable_all().build()?;
             rt.block_on(serve_handed(rx, conns));
+            // Drained: what its blocking pool still runs answers nobody (see `main`).
+            rt.shutdown_background();
             anyhow::Ok(())
         })?);
     }

@@ -4,10 +4,14 @@
 use axum::http::{header, HeaderValue, StatusCode};
 use axum::response::{IntoResponse, Response};
 
-/// The cause of an internal error: kept for the log, never sent.
-pub type Cause = Box<dyn std::error::Error + Send + Sync>;
+/// The cause of an internal error: kept for the log, never sent. Shared, so that one
+/// synthesis's error can answer every request that waited for it.
+pub type Cause = std::sync::Arc<dyn std::error::Error + Send + Sync>;
 
-#[derive(Debug, thiserror::Error)]
+/// Seconds a client is asked to wait before retrying a `503`.
+pub const RETRY_AFTER_SECS: u32 = 1;
+
+#[derive(Clone, Debug, thiserror::Error)]
 pub enum ApiError {
     #[error("{0}")]
     BadRequest(String),
@@ -29,6 +33,9 @@ pub enum ApiError {
     /// The store holds its maximum, or its disk is full: the message names which.
     #[error("{0}")]
     InsufficientStorage(String),
+    /// Over capacity or shutting down: answered at once with `Retry-After`.
+    #[error("{0}")]
+    Unavailable(String),
     /// The server failed. `what` (static text, so it cannot carry a path or an OS message) is
     /// all the client learns; `cause` goes to the log.
     #[error("{what}: {cause}")]
@@ -45,8 +52,8 @@ impl ApiError {
     }
 
     /// A server-side failure: `what` the server was doing, `cause` why it failed.
-    pub fn internal(what: &'static str, cause: impl Into<Cause>) -> Self {
-        ApiError::Internal { what, cause: cause.into() }
+    pub fn internal(what: &'static str, cause: impl Into<Box<dyn std::error::Error + Send + Sync>>) -> Self {
+        ApiError::Internal { what, cause: Cause::from(cause.into()) }
     }
 
     pub fn status(&self) -> StatusCode {
@@ -60,6 +67,7 @@ impl ApiError {
             ApiError::UnsupportedMediaType(_) => StatusCode::UNSUPPORTED_MEDIA_TYPE,
             ApiError::TooCostly(_) => StatusCode::UNPROCESSABLE_ENTITY,
             ApiError::InsufficientStorage(_) => StatusCode::INSUFFICIENT_STORAGE,
+            ApiError::Unavailable(_) => StatusCode::SERVICE_UNAVAILABLE,
             ApiError::Internal { .. } => StatusCode::INTERNAL_SERVER_ERROR,
         }
     }
@@ -110,6 +118,9 @@ impl IntoResponse for ApiError {
         let (status, body) = self.to_json();
         let mut resp = (status, body).into_response();
         resp.headers_mut().insert(header::CONTENT_TYPE, HeaderValue::from_static("application/json"));
+        if status == StatusCode::SERVICE_UNAVAILABLE {
+            resp.headers_mut().insert(header::RETRY_AFTER, HeaderValue::from(RETRY_AFTER_SECS));
+        }
         resp
     }
 }

@@ -13,6 +13,7 @@ use crate::cache::TileCache;
 use crate::config::ServeConfig;
 use crate::encode::{self, Format};
 use crate::metrics::Metrics;
+use crate::slots::{Refused, Slots};
 use crate::store::{Entry, Record, Store, StoreError};
 use axum::error_handling::HandleErrorLayer;
 use axum::extract::{DefaultBodyLimit, MatchedPath, Request, State};
@@ -25,15 +26,15 @@ use error::ApiError;
 use extract::{NoQuery, Query};
 use http_body_util::BodyExt;
 use serde::Deserialize;
+use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
 use std::time::Instant;
-use tokio::sync::Semaphore;
 use tower::ServiceBuilder;
 use tower_http::cors::{Any, CorsLayer};
 use tower_http::services::ServeDir;
 use tower_http::trace::{DefaultMakeSpan, DefaultOnResponse, TraceLayer};
 use tower_http::LatencyUnit;
-use vtex_synth::Region;
+use vtex_synth::{Region, Stop};
 
 pub use error::ApiError as Error;
 pub use front::{Front, MAX_HEAD_BYTES};
@@ -65,12 +66,36 @@ pub struct AppState {
     pub store: Arc<Store>,
     pub cache: TileCache,
     pub metrics: Metrics,
-    /// Permits for syntheses; a miss waits for one (back-pressure), never runs unbounded.
-    pub synth_permits: Arc<Semaphore>,
+    /// Synthesis slots, shared fairly between textures, with a bounded queue.
+    pub slots: Arc<Slots>,
+    /// Set when shutdown stops the renders still running.
+    pub stopping: Arc<AtomicBool>,
     pub cfg: ServeConfig,
 }
 
 pub type App = Arc<AppState>;
+
+/// The stop of one synthesis: requested when nobody waits for it any more, or for all at
+/// shutdown.
+struct SynthesisStop {
+    abandoned: AtomicBool,
+    server: Arc<AtomicBool>,
+}
+
+impl Stop for SynthesisStop {
+    fn requested(&self) -> bool {
+        self.abandoned.load(Ordering::Relaxed) || self.server.load(Ordering::Relaxed)
+    }
+}
+
+/// Requests the stop of a synthesis when the future waiting for it ends, finished or dropped.
+struct StopOnDrop(Arc<SynthesisStop>);
+
+impl Drop for StopOnDrop {
+    fn drop(&mut self) {
+        self.0.abandoned.store(true, Ordering::Relaxed);
+    }
+}
 
 impl AppState {
     pub fn new(store: Arc<Store>, cfg: ServeConfig) -> App {
@@ -78,11 +103,19 @@ impl AppState {
         let cache = TileCache::new(cfg.cache_bytes(), cfg.send);
         metrics.cache_budget_bytes.set(cache.budget() as i64);
         metrics.textures_budget_bytes.set(store.bounds().limits.max_resident_bytes as i64);
-        Arc::new(AppState { store, cache, metrics, synth_permits: Arc::new(Semaphore::new(cfg.syntheses())), cfg })
+        let slots = Slots::new(cfg.syntheses(), cfg.syntheses_per_texture(), cfg.max_queued());
+        Arc::new(AppState { store, cache, metrics, slots, stopping: Arc::new(AtomicBool::new(false)), cfg })
     }
 
-    /// Renders `region` of `entry` and encodes it, on the blocking pool, holding a permit.
-    /// Returns the encoded bytes. Bad regions are 400s; a panicking model is a 500.
+    /// Shutdown: stops every render in progress and refuses every miss waiting or to come.
+    pub fn stop_syntheses(&self) {
+        self.stopping.store(true, Ordering::Relaxed);
+        self.slots.close();
+    }
+
+    /// Renders `region` of `entry` and encodes it, on the blocking pool, holding a slot.
+    /// Returns the encoded bytes. Bad regions are 400s; a panicking model is a 500; no slot
+    /// (queue full, shutting down) or a render stopped by shutdown is a 503.
     pub async fn synthesize(&self, entry: Arc<Entry>, region: Region, format: Format) -> Result<Vec<u8>, ApiError> {
         self.synthesize_then(entry, region, format, |bytes| bytes).await
     }
@@ -91,6 +124,9 @@ impl AppState {
     /// tiles, [`crate::transport::Transport::seal`], whose copy (and the first touch of a fresh
     /// huge-page arena, which may wait for the kernel to compact memory) then stays off the I/O
     /// runtimes.
+    ///
+    /// Dropping the future (its request gone) stops the render: the model returns at its next
+    /// band, and the slot is free again.
     pub async fn synthesize_then<T: Send + 'static>(
         &self,
         entry: Arc<Entry>,
@@ -98,22 +134,34 @@ impl AppState {
         format: Format,
         finish: impl FnOnce(Vec<u8>) -> T + Send + 'static,
     ) -> Result<T, ApiError> {
-        // The permit moves into the blocking work, not this future: a request dropped while
-        // its tile renders (a client gone, a batch the viewer aborted) must not free the slot
-        // while the render still runs, or more syntheses than permits would run at once.
-        let permit = self.synth_permits.clone().acquire_owned().await.expect("the semaphore is never closed");
-        let (synth_s, encode_s, in_flight, count) = (
-            self.metrics.synthesis_seconds.clone(),
-            self.metrics.encode_seconds.with_label_values(&[format.ext()]),
-            self.metrics.syntheses_in_flight.clone(),
-            self.metrics.syntheses.clone(),
+        let slot = self.slots.acquire(entry.key).await.map_err(|refused| {
+            if refused == Refused::Full {
+                self.metrics.syntheses_shed.inc();
+            }
+            unavailable(refused)
+        })?;
+        let stop = Arc::new(SynthesisStop { abandoned: AtomicBool::new(false), server: self.stopping.clone() });
+        let _stop_on_drop = StopOnDrop(stop.clone());
+        let m = &self.metrics;
+        let (synth_s, encode_s, in_flight, count, stopped) = (
+            m.synthesis_seconds.clone(),
+            m.encode_seconds.with_label_values(&[format.ext()]),
+            m.syntheses_in_flight.clone(),
+            m.syntheses.clone(),
+            m.syntheses_stopped.clone(),
         );
+        // The slot moves into the blocking work, not this future: a request dropped while its
+        // tile renders must not free the slot before the render has returned, or more
+        // syntheses than slots would run at once.
         tokio::task::spawn_blocking(move || {
             count.inc();
             in_flight.inc();
             let work = || {
                 let t0 = Instant::now();
-                let img = vtex_synth::texture::render_image(&*entry.texture, &region)?;
+                let Some(img) = vtex_synth::texture::render_image_until(&*entry.texture, &region, &*stop)? else {
+                    stopped.inc();
+                    return Err(unavailable(Refused::Closed));
+                };
                 synth_s.observe(t0.elapsed().as_secs_f64());
                 let t1 = Instant::now();
                 let bytes = encode::encode(&img, format).map_err(|e| ApiError::internal("encoding failed", e))?;
@@ -122,12 +170,21 @@ impl AppState {
             };
             let result = std::panic::catch_unwind(std::panic::AssertUnwindSafe(work));
             in_flight.dec();
-            drop(permit);
+            drop(slot);
             result.unwrap_or_else(|panic| Err(ApiError::internal(SYNTHESIS_FAILED, panic_message(panic))))
         })
         .await
         .map_err(|e| ApiError::internal(SYNTHESIS_FAILED, e))?
     }
+}
+
+/// The 503 for a miss that got no slot, or whose render shutdown stopped (a render stopped
+/// because its requests left answers nobody).
+fn unavailable(why: Refused) -> ApiError {
+    ApiError::Unavailable(match why {
+        Refused::Full => "too many tiles wait for synthesis; retry shortly".into(),
+        Refused::Closed => "the server is shutting down".into(),
+    })
 }
 
 /// The path of the routes of one texture, `/api/v1/textures/{id}…`.
@@ -222,6 +279,7 @@ async fn metrics(State(app): State<App>, _: Query<NoQuery>) -> Response {
     m.textures_loaded_bytes.set(store.loaded_bytes() as i64);
     m.texture_loads.set(store.loads() as i64);
     m.texture_evictions.set(store.evictions() as i64);
+    m.syntheses_queued.set(app.slots.queued() as i64);
     ([(header::CONTENT_TYPE, "text/plain; version=0.0.4")], m.render()).into_response()
 }
 
