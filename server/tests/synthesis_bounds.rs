@@ -10,9 +10,10 @@ use std::net::TcpStream;
 use std::time::{Duration, Instant};
 use vtex_synth::models::{self, Inputs};
 
-/// Flags every server here starts with: the expensive texture must be admitted at upload
-/// wherever uploads are checked against a per-tile work bound.
-const ADMIT_EXPENSIVE: &[&str] = &[];
+/// Flags every server here starts with: the expensive texture is over the default work bounds,
+/// which these servers lift so that it is admitted.
+const ADMIT_EXPENSIVE: &[&str] =
+    &["--max-tile-work", "18446744073709551615", "--max-build-work", "18446744073709551615"];
 
 fn start(dir: &std::path::Path, flags: &[&str]) -> Server {
     Server::start(dir, &[ADMIT_EXPENSIVE, flags].concat())
