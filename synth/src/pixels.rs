@@ -107,6 +107,12 @@ pub fn decode_png(name: &str, bytes: &[u8]) -> Result<Rgba8Image> {
         return Err(fail(format!("{w}×{h} pixels; each side must be 1..={MAX_IMAGE_SIDE}")));
     }
     let mut reader = decoder.read_info().map_err(|e| fail(e.to_string()))?;
+    // The png crate expands whatever palette it was given and assumes whole RGB entries.
+    if let Some(palette) = reader.info().palette.as_deref() {
+        if palette.len() % 3 != 0 || palette.len() > 256 * 3 {
+            return Err(fail(format!("a palette of {} bytes; it must be 1 to 256 RGB entries", palette.len())));
+        }
+    }
     // 16-bit samples decode to twice the bytes of RGBA8: bound what the decoder allocates.
     let decoded = reader.output_buffer_size().map_or(u64::MAX, |n| n as u64);
     if decoded > MAX_IMAGE_ALLOC {
@@ -174,6 +180,38 @@ mod tests {
             }
         }
         img
+    }
+
+    /// A PLTE chunk of `n` bytes in an otherwise valid 1 × 1 indexed PNG.
+    fn indexed_with_palette_bytes(n: usize) -> Vec<u8> {
+        let chunk = |png: &mut Vec<u8>, kind: &[u8], data: &[u8]| {
+            png.extend((data.len() as u32).to_be_bytes());
+            let mut body = kind.to_vec();
+            body.extend(data);
+            png.extend(&body);
+            png.extend(crc32fast::hash(&body).to_be_bytes());
+        };
+        let mut png = b"\x89PNG\r\n\x1a\n".to_vec();
+        chunk(&mut png, b"IHDR", &[0, 0, 0, 1, 0, 0, 0, 1, 8, 3, 0, 0, 0]);
+        chunk(&mut png, b"PLTE", &vec![7; n]);
+        let idat = {
+            use std::io::Write;
+            let mut z = flate2::write::ZlibEncoder::new(Vec::new(), flate2::Compression::default());
+            z.write_all(&[0, 0]).unwrap();
+            z.finish().unwrap()
+        };
+        chunk(&mut png, b"IDAT", &idat);
+        chunk(&mut png, b"IEND", &[]);
+        png
+    }
+
+    /// The png crate panics expanding a palette of partial entries unless it is refused first.
+    #[test]
+    fn refuses_palettes_of_partial_entries() {
+        assert_eq!(decode_png("s", &indexed_with_palette_bytes(3)).unwrap().pixel(0, 0), [7, 7, 7, 255]);
+        for n in [1, 2, 4, 5, 770] {
+            assert!(decode_png("s", &indexed_with_palette_bytes(n)).is_err(), "a palette of {n} bytes was accepted");
+        }
     }
 
     #[test]
