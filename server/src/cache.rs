@@ -5,6 +5,7 @@
 //! its bytes fit, under its own lock, so the sum over shards never exceeds the budget. A
 //! tile larger than a quarter of a shard is served but not cached (it would flush the shard).
 
+use crate::api::error::ApiError;
 use crate::encode::Format;
 use crate::transport::Transport;
 use axum::http::HeaderValue;
@@ -15,7 +16,8 @@ use std::future::Future;
 use std::hash::{BuildHasher, Hash};
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::{Arc, Mutex};
-use tokio::sync::OnceCell;
+use tokio::sync::watch;
+use tokio::task::AbortHandle;
 
 /// Bookkeeping charged per entry on top of the tile bytes (key, LRU links, map slot, the
 /// `Arc<Tile>` with its ETag, the sealed body's arena handle and registry entry).
@@ -50,8 +52,6 @@ struct Shard {
     bytes: u64,
 }
 
-type Pending = Arc<OnceCell<Arc<Tile>>>;
-
 pub struct TileCache {
     shards: Vec<Mutex<Shard>>,
     shard_budget: u64,
@@ -59,7 +59,8 @@ pub struct TileCache {
     bytes: AtomicU64,
     evictions: AtomicU64,
     hasher: std::hash::RandomState,
-    pending: Mutex<HashMap<TileKey, Pending>>,
+    pending: Mutex<HashMap<TileKey, Flight>>,
+    next_flight: AtomicU64,
     /// How bodies are held, which decides the memory each one takes.
     send: Transport,
 }
@@ -86,6 +87,7 @@ impl TileCache {
             evictions: AtomicU64::new(0),
             hasher: std::hash::RandomState::new(),
             pending: Mutex::new(HashMap::new()),
+            next_flight: AtomicU64::new(0),
             send,
         }
     }
@@ -147,35 +149,57 @@ impl TileCache {
     }
 
     /// The tile for `key`, computing it with `compute` on a miss. Concurrent callers with
-    /// the same key share one computation; a failed computation is retried by the next.
-    pub async fn get_or_compute<F, Fut, E>(&self, key: TileKey, compute: F) -> Result<(Arc<Tile>, Source), E>
+    /// the same key share one computation, which runs as a task of its own for as long as one
+    /// of them still waits: when the last leaves (its request dropped: a client gone, a
+    /// deadline passed), the task is aborted. An error answers every caller waiting then;
+    /// the next caller computes again.
+    pub async fn get_or_compute<F, Fut>(&self, key: TileKey, compute: F) -> Result<(Arc<Tile>, Source), ApiError>
     where
         F: FnOnce() -> Fut,
-        Fut: Future<Output = Result<Tile, E>>,
+        Fut: Future<Output = Result<Tile, ApiError>> + Send + 'static,
     {
         if let Some(tile) = self.get(&key) {
             return Ok((tile, Source::Hit));
         }
-        let cell = self.pending.lock().unwrap().entry(key).or_default().clone();
-        let result = cell
-            .get_or_try_init(|| async {
-                // A computation for this key may have finished between our miss and now.
-                if let Some(tile) = self.get(&key) {
-                    return Ok(tile);
-                }
-                let tile = Arc::new(compute().await?);
-                self.insert(key, tile.clone());
-                Ok(tile)
-            })
-            .await
-            .cloned();
-        {
+        let (mut result, id) = {
             let mut pending = self.pending.lock().unwrap();
-            if pending.get(&key).is_some_and(|c| Arc::ptr_eq(c, &cell)) && (cell.initialized() || result.is_err()) {
-                pending.remove(&key);
+            if let Some(flight) = pending.get_mut(&key) {
+                flight.waiters += 1;
+                (flight.result.clone(), flight.id)
+            } else {
+                // A computation for this key may have finished between our miss and now: it
+                // inserts its tile before it leaves `pending`, under this lock.
+                if let Some(tile) = self.get(&key) {
+                    return Ok((tile, Source::Miss));
+                }
+                let (tx, rx) = watch::channel(None);
+                let fut = compute();
+                let task = tokio::spawn(async move {
+                    let _ = tx.send(Some(fut.await.map(Arc::new)));
+                });
+                let id = self.next_flight.fetch_add(1, Ordering::Relaxed);
+                pending.insert(key, Flight { result: rx.clone(), waiters: 1, task: task.abort_handle(), id });
+                (rx, id)
+            }
+        };
+        let waiting = Waiting { cache: self, key, id };
+        let outcome = match result.wait_for(Option::is_some).await {
+            Ok(done) => done.clone().expect("waited for a result"),
+            // The task panicked, or its runtime ended.
+            Err(_) => Err(ApiError::internal("synthesis failed", "the computation ended without a result")),
+        };
+        // Whichever waiter sees the result first caches it and retires the flight.
+        let mut pending = self.pending.lock().unwrap();
+        if pending.get(&key).is_some_and(|f| f.id == id) {
+            pending.remove(&key);
+            if let Ok(tile) = &outcome {
+                self.insert(key, tile.clone());
             }
         }
-        result.map(|t| (t, Source::Miss))
+        drop(pending);
+        // The flight is retired: leaving it changes nothing.
+        drop(waiting);
+        outcome.map(|t| (t, Source::Miss))
     }
 
     /// Keys waiting on a computation now (for tests and metrics).
@@ -184,10 +208,40 @@ impl TileCache {
     }
 }
 
+/// A computation in progress and the requests waiting for it.
+struct Flight {
+    result: watch::Receiver<Option<Result<Arc<Tile>, ApiError>>>,
+    waiters: usize,
+    task: AbortHandle,
+    /// Tells this flight from a later one for the same key.
+    id: u64,
+}
+
+/// One request waiting on a [`Flight`]; dropped before the result came, it leaves, and the
+/// last to leave aborts the computation.
+struct Waiting<'a> {
+    cache: &'a TileCache,
+    key: TileKey,
+    id: u64,
+}
+
+impl Drop for Waiting<'_> {
+    fn drop(&mut self) {
+        let mut pending = self.cache.pending.lock().unwrap();
+        if let Some(flight) = pending.get_mut(&self.key).filter(|f| f.id == self.id) {
+            flight.waiters -= 1;
+            if flight.waiters == 0 {
+                flight.task.abort();
+                pending.remove(&self.key);
+            }
+        }
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
-    use std::sync::atomic::AtomicUsize;
+    use std::sync::atomic::{AtomicBool, AtomicUsize};
 
     fn key(x: u32) -> TileKey {
         TileKey { texture: [7; 32], level: 0, x, y: 0, frame: 0, format: Format::Png }
@@ -244,6 +298,10 @@ mod tests {
         assert_eq!(cache.bytes(), 5 * 4096 + 100 + 2 * ENTRY_OVERHEAD, "small bodies stay unsealed");
     }
 
+    fn small(body: &'static [u8]) -> Tile {
+        Tile { body: Bytes::from_static(body), etag: HeaderValue::from_static("\"t\""), width: 1, height: 1 }
+    }
+
     #[tokio::test(flavor = "multi_thread", worker_threads = 4)]
     async fn concurrent_misses_compute_once() {
         let cache = Arc::new(TileCache::new(1 << 20, Transport::Copy));
@@ -253,15 +311,10 @@ mod tests {
             let (cache, runs) = (cache.clone(), runs.clone());
             tasks.push(tokio::spawn(async move {
                 cache
-                    .get_or_compute(key(3), || async {
+                    .get_or_compute(key(3), || async move {
                         runs.fetch_add(1, Ordering::SeqCst);
                         tokio::time::sleep(std::time::Duration::from_millis(50)).await;
-                        Ok::<_, ()>(Tile {
-                            body: Bytes::from_static(b"abc"),
-                            etag: HeaderValue::from_static("\"t\""),
-                            width: 1,
-                            height: 1,
-                        })
+                        Ok(small(b"abc"))
                     })
                     .await
                     .unwrap()
@@ -272,26 +325,86 @@ mod tests {
         }
         assert_eq!(runs.load(Ordering::SeqCst), 1);
         assert_eq!(cache.pending(), 0);
-        let (_, src) = cache.get_or_compute(key(3), || async { Err::<Tile, _>(()) }).await.unwrap();
+        let (_, src) = cache.get_or_compute(key(3), || async { Err(ApiError::bad_request("unused")) }).await.unwrap();
         assert_eq!(src, Source::Hit);
     }
 
     #[tokio::test]
     async fn a_failed_computation_is_retried() {
         let cache = TileCache::new(1 << 20, Transport::Copy);
-        assert!(cache.get_or_compute(key(1), || async { Err::<Tile, _>("boom") }).await.is_err());
+        let failed = cache.get_or_compute(key(1), || async { Err(ApiError::bad_request("boom")) }).await;
+        assert!(failed.is_err());
         assert_eq!(cache.pending(), 0);
-        let (t, src) = cache
-            .get_or_compute(key(1), || async {
-                Ok::<_, &str>(Tile {
-                    body: Bytes::from_static(b"x"),
-                    etag: HeaderValue::from_static("\"t\""),
-                    width: 1,
-                    height: 1,
-                })
-            })
-            .await
-            .unwrap();
+        let (t, src) = cache.get_or_compute(key(1), || async { Ok(small(b"x")) }).await.unwrap();
         assert_eq!((&t.body[..], src), (&b"x"[..], Source::Miss));
+    }
+
+    /// A computation that waits for `go`, and sets `dropped` if it is dropped unfinished.
+    fn gated(go: Arc<tokio::sync::Notify>, dropped: Arc<AtomicBool>) -> impl Future<Output = Result<Tile, ApiError>> {
+        struct SetOnDrop(Option<Arc<AtomicBool>>);
+        impl Drop for SetOnDrop {
+            fn drop(&mut self) {
+                if let Some(flag) = &self.0 {
+                    flag.store(true, Ordering::SeqCst);
+                }
+            }
+        }
+        async move {
+            let mut armed = SetOnDrop(Some(dropped));
+            go.notified().await;
+            armed.0 = None;
+            Ok(small(b"done"))
+        }
+    }
+
+    /// Lets spawned tasks run until `cond` holds.
+    async fn until(cond: impl Fn() -> bool) {
+        for _ in 0..1000 {
+            if cond() {
+                return;
+            }
+            tokio::time::sleep(std::time::Duration::from_millis(1)).await;
+        }
+        panic!("condition not reached");
+    }
+
+    #[tokio::test]
+    async fn one_waiter_leaving_does_not_stop_the_computation_another_waits_for() {
+        let cache = Arc::new(TileCache::new(1 << 20, Transport::Copy));
+        let (go, dropped) = (Arc::new(tokio::sync::Notify::new()), Arc::new(AtomicBool::new(false)));
+        let first = {
+            let (cache, go, dropped) = (cache.clone(), go.clone(), dropped.clone());
+            tokio::spawn(async move { cache.get_or_compute(key(5), || gated(go, dropped)).await })
+        };
+        until(|| cache.pending() == 1).await;
+        let second = {
+            let cache = cache.clone();
+            tokio::spawn(async move { cache.get_or_compute(key(5), || async { unreachable!("coalesced") }).await })
+        };
+        until(|| cache.pending.lock().unwrap().get(&key(5)).is_some_and(|f| f.waiters == 2)).await;
+        first.abort();
+        assert!(first.await.unwrap_err().is_cancelled());
+        assert!(!dropped.load(Ordering::SeqCst), "the second waiter still waits: the computation goes on");
+        go.notify_one();
+        let (tile, src) = second.await.unwrap().unwrap();
+        assert_eq!((&tile.body[..], src), (&b"done"[..], Source::Miss));
+        assert!(cache.get(&key(5)).is_some() && cache.pending() == 0);
+    }
+
+    #[tokio::test]
+    async fn the_last_waiter_leaving_aborts_the_computation() {
+        let cache = Arc::new(TileCache::new(1 << 20, Transport::Copy));
+        let (go, dropped) = (Arc::new(tokio::sync::Notify::new()), Arc::new(AtomicBool::new(false)));
+        let only = {
+            let (cache, go, dropped) = (cache.clone(), go.clone(), dropped.clone());
+            tokio::spawn(async move { cache.get_or_compute(key(6), || gated(go, dropped)).await })
+        };
+        until(|| cache.pending() == 1).await;
+        only.abort();
+        until(|| dropped.load(Ordering::SeqCst)).await;
+        assert_eq!(cache.pending(), 0);
+        // The next request computes afresh.
+        let (tile, _) = cache.get_or_compute(key(6), || async { Ok(small(b"again")) }).await.unwrap();
+        assert_eq!(&tile.body[..], b"again");
     }
 }

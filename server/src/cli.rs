@@ -2,7 +2,7 @@
 
 use crate::config::ServeConfig;
 use crate::encode::{self, Format};
-use crate::store::{self, Entry, Store};
+use crate::store::{self, Bounds, Entry, Store};
 use anyhow::{anyhow, bail, Context};
 use clap::{Args, Parser, Subcommand};
 use std::path::{Path, PathBuf};
@@ -120,7 +120,7 @@ pub fn create(args: CreateArgs) -> anyhow::Result<()> {
         }
         None => {
             std::fs::create_dir_all(&args.data_dir)?;
-            let (store, _) = Store::open(&args.data_dir, 256, false)?;
+            let (store, _) = Store::open(&args.data_dir, Bounds::unbounded(256), false)?;
             store.put(bytes)?;
         }
     }
@@ -143,7 +143,7 @@ pub fn info(args: InfoArgs) -> anyhow::Result<()> {
     let out = match &args.texture {
         Some(t) => serde_json::to_string_pretty(&open_texture(t, &args.data_dir, args.tile_size)?.info())?,
         None => {
-            let (store, report) = Store::open(&args.data_dir, args.tile_size, false)?;
+            let (store, report) = Store::open(&args.data_dir, Bounds::unbounded(args.tile_size), false)?;
             for (path, why) in report.rejected {
                 eprintln!("skipping {}: {why}", path.display());
             }

@@ -1,11 +1,13 @@
 //! Settings of `vtex serve`. Each one comes from its flag, else its environment variable,
 //! else its default — one precedence for all, implemented by clap.
 
+use crate::store::Bounds;
 use crate::transport::Transport;
 use clap::Args;
 use std::net::SocketAddr;
 use std::path::PathBuf;
 use std::time::Duration;
+use vtex_synth::models::Limits;
 
 /// Tile sizes the server accepts: a tile must encode in milliseconds and fit every format.
 pub const TILE_SIZES: std::ops::RangeInclusive<u32> = 16..=2048;
@@ -13,6 +15,12 @@ pub const TILE_SIZES: std::ops::RangeInclusive<u32> = 16..=2048;
 pub const DEFAULT_MAX_REGION_PIXELS: u64 = 4096 * 4096;
 /// Longest side of a region: WebP cannot encode more than 16383 pixels a side.
 pub const MAX_REGION_SIDE: u32 = 16383;
+/// Descriptors kept back from connections: standard streams, the listener, each runtime's
+/// poller and wake-up descriptors, bundle and static files being read or written, and the
+/// refusals of connections over the limit being answered.
+pub const FD_RESERVE: u64 = 64;
+/// The open-file limit assumed where the system does not report one.
+const DEFAULT_FD_LIMIT: u64 = 1024;
 
 #[derive(Args, Clone, Debug)]
 pub struct ServeConfig {
@@ -57,7 +65,52 @@ pub struct ServeConfig {
     /// Do not write the demo textures into an empty data directory.
     #[arg(long, env = "VTEX_NO_DEMOS")]
     pub no_demos: bool,
+    /// A response whose bytes make no progress into the socket for this long is abandoned and
+    /// its connection closed (slow or stalled readers free what they hold).
+    #[arg(long, env = "VTEX_SEND_TIMEOUT_SECS", default_value_t = 30.0)]
+    pub send_timeout_secs: f64,
+    /// A connection with no request in flight and no bytes moving for this long is closed
+    /// (HTTP/1.1 keep-alive and HTTP/2 alike, and one that never sends a byte).
+    #[arg(long, env = "VTEX_IDLE_TIMEOUT_SECS", default_value_t = 60.0)]
+    pub idle_timeout_secs: f64,
+    /// Open connections served at once; beyond it a new one gets a 503 and is closed.
+    /// Default: (open-file limit − 64) ÷ descriptors per connection (3 under `splice`, 1 under
+    /// `copy`).
+    #[arg(long, env = "VTEX_MAX_CONNECTIONS")]
+    pub max_connections: Option<usize>,
+    /// Byte budget of loaded textures, in MiB, charged what each one's plan says it holds:
+    /// textures load on first use and the least recently used are dropped to stay within it.
+    /// A texture that alone holds more is refused.
+    #[arg(long, env = "VTEX_TEXTURES_MB", default_value_t = 2048.0)]
+    pub textures_mb: f64,
+    /// Most work units one tile of a texture may cost (`vtex_synth::models::cost`); an upload
+    /// over it is refused.
+    #[arg(long, env = "VTEX_MAX_TILE_WORK", default_value_t = Limits::SERVE.max_tile_work)]
+    pub max_tile_work: u64,
+    /// Most work units creating or loading one texture may cost; an upload over it is refused.
+    #[arg(long, env = "VTEX_MAX_BUILD_WORK", default_value_t = Limits::SERVE.max_build_work)]
+    pub max_build_work: u64,
+    /// Most textures the store holds; an upload past it is refused (507).
+    #[arg(long, env = "VTEX_MAX_TEXTURES", default_value_t = 10_000)]
+    pub max_textures: usize,
+    /// Most bytes of bundles the store holds on disk, in MiB; an upload past it is refused (507).
+    #[arg(long, env = "VTEX_STORE_MB", default_value_t = 4096.0)]
+    pub store_mb: f64,
+    /// Syntheses one texture may run at once, so that its misses, however slow, leave slots
+    /// to the others. Default: all slots but one (one when there is one slot).
+    #[arg(long, env = "VTEX_MAX_SYNTHESES_PER_TEXTURE")]
+    pub max_syntheses_per_texture: Option<usize>,
+    /// Misses waiting for a synthesis slot; one more is answered 503 at once. Default:
+    /// [`QUEUED_PER_SLOT`] per slot.
+    #[arg(long, env = "VTEX_MAX_QUEUED")]
+    pub max_queued: Option<usize>,
 }
+
+/// Misses queued per synthesis slot by default: an ordinary tile renders in milliseconds, so a
+/// full queue drains within a second or so, and a burst of every connection of a busy viewer
+/// missing at once is absorbed; a queue longer than that would only be answered near or past
+/// the request deadline, where a prompt 503 serves the client better.
+pub const QUEUED_PER_SLOT: usize = 32;
 
 impl ServeConfig {
     /// Checks ranges clap cannot express; the message names the setting.
@@ -81,14 +134,24 @@ impl ServeConfig {
         positive(self.max_upload_mb, "max-upload-mb")?;
         positive(self.request_timeout_secs, "request-timeout-secs")?;
         positive(self.header_timeout_secs, "header-timeout-secs")?;
+        positive(self.textures_mb, "textures-mb")?;
+        positive(self.store_mb, "store-mb")?;
         if self.max_region_pixels < self.tile_size as u64 * self.tile_size as u64 {
             return Err("max-region-pixels must allow at least one tile".into());
         }
         if self.max_syntheses == Some(0) {
             return Err("max-syntheses must be at least 1".into());
         }
+        if self.max_syntheses_per_texture.is_some_and(|n| n == 0 || n > self.syntheses()) {
+            return Err(format!("max-syntheses-per-texture must be 1..={} (max-syntheses)", self.syntheses()));
+        }
         if self.io_threads == Some(0) {
             return Err("io-threads must be at least 1".into());
+        }
+        positive(self.send_timeout_secs, "send-timeout-secs")?;
+        positive(self.idle_timeout_secs, "idle-timeout-secs")?;
+        if self.max_connections == Some(0) {
+            return Err("max-connections must be at least 1".into());
         }
         Ok(())
     }
@@ -101,8 +164,34 @@ impl ServeConfig {
         (self.max_upload_mb * 1024.0 * 1024.0) as usize
     }
 
+    /// The bounds of the store: what one texture may cost (holding at most the whole texture
+    /// budget), the budget of loaded textures, and the caps on what is stored.
+    pub fn store_bounds(&self) -> Bounds {
+        let mib = |v: f64| (v * 1024.0 * 1024.0) as u64;
+        Bounds {
+            tile_size: self.tile_size,
+            limits: Limits {
+                max_resident_bytes: mib(self.textures_mb),
+                max_tile_work: self.max_tile_work,
+                max_build_work: self.max_build_work,
+            },
+            max_textures: self.max_textures,
+            max_store_bytes: mib(self.store_mb),
+        }
+    }
+
     pub fn syntheses(&self) -> usize {
         self.max_syntheses.unwrap_or_else(|| std::thread::available_parallelism().map_or(2, |n| n.get()))
+    }
+
+    /// Syntheses one texture may run at once.
+    pub fn syntheses_per_texture(&self) -> usize {
+        self.max_syntheses_per_texture.unwrap_or_else(|| self.syntheses().saturating_sub(1).max(1))
+    }
+
+    /// Misses that may wait for a synthesis slot.
+    pub fn max_queued(&self) -> usize {
+        self.max_queued.unwrap_or_else(|| QUEUED_PER_SLOT * self.syntheses())
     }
 
     /// Threads serving connections, one single-threaded runtime each: one per core by default.
@@ -116,5 +205,23 @@ impl ServeConfig {
 
     pub fn header_timeout(&self) -> Duration {
         Duration::from_secs_f64(self.header_timeout_secs)
+    }
+
+    pub fn send_timeout(&self) -> Duration {
+        Duration::from_secs_f64(self.send_timeout_secs)
+    }
+
+    pub fn idle_timeout(&self) -> Duration {
+        Duration::from_secs_f64(self.idle_timeout_secs)
+    }
+
+    /// `--max-connections`, else what the open-file limit allows after [`FD_RESERVE`]:
+    /// descriptors a connection may hold under `--send` divide the rest.
+    pub fn max_connections(&self) -> usize {
+        self.max_connections.unwrap_or_else(|| {
+            let limit = crate::transport::descriptor_limit().unwrap_or(DEFAULT_FD_LIMIT);
+            let per = self.send.descriptors_per_connection();
+            usize::try_from(limit.saturating_sub(FD_RESERVE) / per).unwrap_or(usize::MAX).max(1)
+        })
     }
 }

@@ -10,6 +10,7 @@
 //! * [`encode`] — tile formats (PNG, WebP, JPEG, raw RGBA).
 //! * [`metrics`] — Prometheus counters, gauges and histograms.
 //! * [`api`] — the HTTP API v1 (axum).
+//! * [`slots`] — synthesis slots shared fairly between textures, with a bounded queue.
 //! * [`serve`] — the listener: connection timeouts and graceful shutdown.
 //! * [`transport`] — how bodies reach the socket (`--send copy|splice`); all platform-specific code.
 //! * [`cli`] — the offline subcommands `create`, `render`, `info`.
@@ -25,6 +26,7 @@ pub mod config;
 pub mod encode;
 pub mod metrics;
 pub mod serve;
+pub mod slots;
 pub mod store;
 #[allow(unsafe_code)]
 pub mod transport;

@@ -26,6 +26,11 @@ pub struct Metrics {
     /// Whole tile batches, from the request to the body's end, by how the body ended.
     pub batch_seconds: HistogramVec,
     pub syntheses_in_flight: IntGauge,
+    /// Renders stopped before their end: nobody waited for them any more, or shutdown.
+    pub syntheses_stopped: IntCounter,
+    /// Misses answered 503 because the synthesis queue was full.
+    pub syntheses_shed: IntCounter,
+    pub syntheses_queued: IntGauge,
     pub cache_bytes: IntGauge,
     pub cache_budget_bytes: IntGauge,
     /// Memory mapped for cached tile bodies (their whole pages, and arena pages between them).
@@ -33,8 +38,19 @@ pub struct Metrics {
     pub cache_entries: IntGauge,
     pub cache_evictions: IntGauge,
     pub textures: IntGauge,
+    pub store_bytes: IntGauge,
+    pub textures_loaded: IntGauge,
+    /// Bytes charged against the texture budget: loaded textures and loads in progress.
+    pub textures_loaded_bytes: IntGauge,
+    pub textures_budget_bytes: IntGauge,
+    pub texture_loads: IntGauge,
+    pub texture_evictions: IntGauge,
     /// Open connections by the I/O runtime serving them (`runtime` = 0, 1, …).
     pub connections: IntGaugeVec,
+    /// The limit on open connections (`--max-connections`).
+    pub connections_max: IntGauge,
+    /// Connections refused (503) because the limit was reached.
+    pub connections_refused: IntCounter,
 }
 
 fn must<T>(r: prometheus::Result<T>) -> T {
@@ -86,6 +102,15 @@ impl Metrics {
             &["outcome"],
         ));
         let syntheses_in_flight = must(IntGauge::new("vtex_syntheses_in_flight", "Syntheses running now"));
+        let syntheses_stopped = must(IntCounter::new(
+            "vtex_syntheses_stopped_total",
+            "Renders stopped before their end (every request waiting for them gone, or shutdown)",
+        ));
+        let syntheses_shed = must(IntCounter::new(
+            "vtex_syntheses_shed_total",
+            "Misses answered 503 because the synthesis queue was full",
+        ));
+        let syntheses_queued = must(IntGauge::new("vtex_syntheses_queued", "Misses waiting for a synthesis slot"));
         let cache_bytes = must(IntGauge::new("vtex_tile_cache_bytes", "Bytes held by the tile cache"));
         let cache_budget_bytes = must(IntGauge::new("vtex_tile_cache_budget_bytes", "Byte budget of the tile cache"));
         let cache_mapped_bytes = must(IntGauge::new(
@@ -94,10 +119,26 @@ impl Metrics {
         ));
         let cache_entries = must(IntGauge::new("vtex_tile_cache_entries", "Tiles held by the tile cache"));
         let cache_evictions = must(IntGauge::new("vtex_tile_cache_evictions", "Tiles evicted since start"));
-        let textures = must(IntGauge::new("vtex_textures", "Textures in the store"));
+        let textures = must(IntGauge::new("vtex_textures", "Textures in the store (indexed and served)"));
+        let store_bytes = must(IntGauge::new("vtex_store_bytes", "Bytes of the stored bundles on disk"));
+        let textures_loaded = must(IntGauge::new("vtex_textures_loaded", "Textures loaded in memory"));
+        let textures_loaded_bytes = must(IntGauge::new(
+            "vtex_textures_loaded_bytes",
+            "Bytes loaded textures hold (as their plans state), loads in progress included",
+        ));
+        let textures_budget_bytes = must(IntGauge::new("vtex_textures_budget_bytes", "Byte budget of loaded textures"));
+        let texture_loads = must(IntGauge::new("vtex_texture_loads", "Textures loaded since start, uploads included"));
+        let texture_evictions =
+            must(IntGauge::new("vtex_texture_evictions", "Loaded textures evicted to stay within the budget"));
         let connections = must(IntGaugeVec::new(
             Opts::new("vtex_http_connections", "Open connections by the I/O runtime (thread) serving them"),
             &["runtime"],
+        ));
+        let connections_max =
+            must(IntGauge::new("vtex_http_connections_max", "Open connections served at once (--max-connections)"));
+        let connections_refused = must(IntCounter::new(
+            "vtex_http_connections_refused_total",
+            "Connections answered 503 and closed because the connection limit was reached",
         ));
         for c in [
             Box::new(requests.clone()) as Box<dyn prometheus::core::Collector>,
@@ -110,13 +151,24 @@ impl Metrics {
             Box::new(encode_seconds.clone()),
             Box::new(batch_seconds.clone()),
             Box::new(syntheses_in_flight.clone()),
+            Box::new(syntheses_stopped.clone()),
+            Box::new(syntheses_shed.clone()),
+            Box::new(syntheses_queued.clone()),
             Box::new(cache_bytes.clone()),
             Box::new(cache_budget_bytes.clone()),
             Box::new(cache_mapped_bytes.clone()),
             Box::new(cache_entries.clone()),
             Box::new(cache_evictions.clone()),
             Box::new(textures.clone()),
+            Box::new(store_bytes.clone()),
+            Box::new(textures_loaded.clone()),
+            Box::new(textures_loaded_bytes.clone()),
+            Box::new(textures_budget_bytes.clone()),
+            Box::new(texture_loads.clone()),
+            Box::new(texture_evictions.clone()),
             Box::new(connections.clone()),
+            Box::new(connections_max.clone()),
+            Box::new(connections_refused.clone()),
         ] {
             must(registry.register(c));
         }
@@ -136,13 +188,24 @@ impl Metrics {
             encode_seconds,
             batch_seconds,
             syntheses_in_flight,
+            syntheses_stopped,
+            syntheses_shed,
+            syntheses_queued,
             cache_bytes,
             cache_budget_bytes,
             cache_mapped_bytes,
             cache_entries,
             cache_evictions,
             textures,
+            store_bytes,
+            textures_loaded,
+            textures_loaded_bytes,
+            textures_budget_bytes,
+            texture_loads,
+            texture_evictions,
             connections,
+            connections_max,
+            connections_refused,
         }
     }
 

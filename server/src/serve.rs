@@ -7,33 +7,63 @@
 //! Connections are served by one single-threaded tokio runtime per core, each serving its own
 //! connections (nginx's worker model); one accepts and hands each new connection to the
 //! runtime serving the fewest. One work-stealing runtime would spend more CPU per warm tile
-//! and wait on cross-thread wake-ups. Syntheses still run on blocking pools, bounded by one
-//! semaphore.
+//! and wait on cross-thread wake-ups. Syntheses still run on blocking pools, bounded by the
+//! shared [`crate::slots::Slots`].
+//!
+//! Every connection is bounded in time and number: a response that cannot be sent for
+//! `--send-timeout-secs` is abandoned (in [`crate::transport::Io`]), a connection idle for
+//! `--idle-timeout-secs` is closed ([`until_idle`]), and beyond `--max-connections` a new
+//! connection is answered 503 and closed ([`Refusal`]) rather than left to hold a descriptor.
+//!
+//! Shutdown stops accepting, lets requests in flight finish within the drain time, stops the
+//! renders that would outlast it (their requests get 503), and exits without waiting for
+//! anything past it.
 
 use crate::api::{self, AppState};
 use crate::config::ServeConfig;
 use crate::store::Store;
-use crate::transport::Transport;
+use crate::transport::{Activity, Transport};
 use hyper_util::rt::{TokioExecutor, TokioTimer};
 use hyper_util::server::conn::auto;
-use prometheus::IntGauge;
+use prometheus::{IntCounter, IntGauge};
 use std::future::Future;
 use std::io::Write;
 use std::sync::Arc;
 use std::time::{Duration, Instant};
+use tokio::io::{AsyncReadExt, AsyncWriteExt};
 use tokio::net::{TcpListener, TcpStream};
+use tokio::sync::Semaphore;
 
 /// How long shutdown waits for requests in flight before it gives up on them.
 const DRAIN_TIMEOUT: Duration = Duration::from_secs(10);
+/// How long before the end of the drain every render still running is stopped: time for the
+/// models to reach their next band and for the 503s to be sent.
+const STOP_BEFORE_END: Duration = Duration::from_secs(2);
+
+/// `vtex serve`: [`run`] until SIGTERM or Ctrl-C. The runtime is not waited for when the
+/// server is done: work still on its blocking pool then (a render that did not stop in the
+/// drain time) has nobody left to answer, so the process exits within the drain time.
+pub fn main(cfg: ServeConfig) -> anyhow::Result<()> {
+    let rt = tokio::runtime::Builder::new_current_thread().enable_all().build()?;
+    let result = rt.block_on(run(cfg, shutdown_signal()));
+    rt.shutdown_background();
+    result
+}
 
 /// Runs the server until `shutdown` resolves.
 pub async fn run(cfg: ServeConfig, shutdown: impl Future<Output = ()>) -> anyhow::Result<()> {
     cfg.validate().map_err(anyhow::Error::msg)?;
     let t0 = Instant::now();
-    let (dir, ts, demos) = (cfg.data_dir.clone(), cfg.tile_size, !cfg.no_demos);
-    let (store, report) = tokio::task::spawn_blocking(move || Store::open(&dir, ts, demos)).await??;
+    let (dir, bounds, demos) = (cfg.data_dir.clone(), cfg.store_bounds(), !cfg.no_demos);
+    let (store, report) = tokio::task::spawn_blocking(move || Store::open(&dir, bounds, demos)).await??;
     for (path, why) in &report.rejected {
         tracing::warn!(path = %path.display(), reason = %why, "not serving an invalid file in the data directory");
+    }
+    for (path, why) in &report.stale_temp_kept {
+        tracing::warn!(path = %path.display(), reason = %why, "could not remove a stale temporary file; left in place");
+    }
+    for (name, why) in &report.demos_refused {
+        tracing::warn!(demo = %name, reason = %why, "demo not written: over the store's bounds");
     }
     tracing::info!(
         data_dir = %cfg.data_dir.display(),
@@ -47,13 +77,36 @@ pub async fn run(cfg: ServeConfig, shutdown: impl Future<Output = ()>) -> anyhow
         tracing::warn!(web_dir = %cfg.web_dir.display(), "no index.html in the web directory; the viewer is not served");
     }
     let app = AppState::new(Arc::new(store), cfg.clone());
+    // Renders in flight at shutdown may finish during the drain; those that would outlast it
+    // are stopped shortly before it ends, so their requests are answered 503 rather than cut.
+    let shutdown = {
+        let app = app.clone();
+        async move {
+            shutdown.await;
+            tokio::spawn(async move {
+                tokio::time::sleep(DRAIN_TIMEOUT - STOP_BEFORE_END).await;
+                tracing::info!("stopping the syntheses still running");
+                app.stop_syntheses();
+            });
+        }
+    };
     let live = |i: usize| app.metrics.connections.with_label_values(&[i.to_string().as_str()]);
     let mut workers: Vec<Worker> = (0..cfg.io_threads()).map(|i| Worker { live: live(i), tx: None }).collect();
+    let max_connections = cfg.max_connections();
+    app.metrics.connections_max.set(i64::try_from(max_connections).unwrap_or(i64::MAX));
+    let refusal = Refusal::new(max_connections, app.metrics.connections_refused.clone());
     let front = api::Front::new(app);
 
     let listener = TcpListener::bind(cfg.bind).await?;
     let addr = listener.local_addr()?;
-    tracing::info!(%addr, cache_mb = cfg.cache_mb, syntheses = cfg.syntheses(), send = %cfg.send, "serving");
+    tracing::info!(
+        %addr,
+        cache_mb = cfg.cache_mb,
+        syntheses = cfg.syntheses(),
+        send = %cfg.send,
+        max_connections,
+        "serving"
+    );
     {
         let mut out = std::io::stdout().lock();
         writeln!(out, "vtex listening on http://{addr}")?;
@@ -67,15 +120,17 @@ pub async fn run(cfg: ServeConfig, shutdown: impl Future<Output = ()>) -> anyhow
     for (i, worker) in workers.iter_mut().enumerate().skip(1) {
         let (tx, rx) = tokio::sync::mpsc::unbounded_channel();
         worker.tx = Some(tx);
-        let (live, front, hdr, send) = (worker.live.clone(), front.clone(), cfg.header_timeout(), cfg.send);
+        let conns = Conns::new(front.clone(), &cfg, worker.live.clone());
         threads.push(std::thread::Builder::new().name(format!("vtex-io-{i}")).spawn(move || {
             let rt = tokio::runtime::Builder::new_current_thread().enable_all().build()?;
-            rt.block_on(serve_handed(rx, Conns::new(front, hdr, send, live)));
+            rt.block_on(serve_handed(rx, conns));
+            // Drained: what its blocking pool still runs answers nobody (see `main`).
+            rt.shutdown_background();
             anyhow::Ok(())
         })?);
     }
-    let own = Conns::new(front, cfg.header_timeout(), cfg.send, workers[0].live.clone());
-    accept_loop(listener, workers, own, shutdown).await;
+    let own = Conns::new(front, &cfg, workers[0].live.clone());
+    accept_loop(listener, workers, own, refusal, shutdown).await;
     for t in threads {
         tokio::task::spawn_blocking(move || t.join())
             .await?
@@ -105,28 +160,50 @@ struct Conns {
     front: api::Front,
     builder: auto::Builder<TokioExecutor>,
     send: Transport,
+    send_timeout: Duration,
+    idle_timeout: Duration,
     graceful: hyper_util::server::graceful::GracefulShutdown,
     live: IntGauge,
 }
 
 impl Conns {
-    fn new(front: api::Front, header_timeout: Duration, send: Transport, live: IntGauge) -> Conns {
+    fn new(front: api::Front, cfg: &ServeConfig, live: IntGauge) -> Conns {
         let mut builder = auto::Builder::new(TokioExecutor::new());
-        builder.http1().timer(TokioTimer::new()).header_read_timeout(header_timeout);
-        builder.http2().timer(TokioTimer::new());
-        Conns { front, builder, send, graceful: hyper_util::server::graceful::GracefulShutdown::new(), live }
+        builder
+            .http1()
+            .timer(TokioTimer::new())
+            .header_read_timeout(cfg.header_timeout())
+            .max_buf_size(api::MAX_HEAD_BYTES);
+        let head = u32::try_from(api::MAX_HEAD_BYTES).expect("the head bound fits HTTP/2's setting");
+        builder.http2().timer(TokioTimer::new()).max_header_list_size(head);
+        Conns {
+            front,
+            builder,
+            send: cfg.send,
+            send_timeout: cfg.send_timeout(),
+            idle_timeout: cfg.idle_timeout(),
+            graceful: hyper_util::server::graceful::GracefulShutdown::new(),
+            live,
+        }
     }
 
-    /// Serves `stream` on the current runtime until it closes; counted in `live` meanwhile
-    /// (the acceptor counted it already).
+    /// Serves `stream` on the current runtime until it closes or idles; counted in `live`
+    /// meanwhile (the acceptor counted it already).
     fn serve(&self, stream: TcpStream) {
         let _ = stream.set_nodelay(true);
-        let conn = self.builder.serve_connection_with_upgrades(self.send.wrap(stream), self.front.clone()).into_owned();
+        let activity = Arc::new(Activity::default());
+        let io = self.send.wrap(stream, activity.clone(), self.send_timeout);
+        let service = self.front.connection(activity.clone());
+        let conn = self.builder.serve_connection_with_upgrades(io, service).into_owned();
         let conn = self.graceful.watch(conn);
-        let live = LiveGuard(self.live.clone());
+        let (live, idle) = (LiveGuard(self.live.clone()), self.idle_timeout);
         tokio::spawn(async move {
-            if let Err(e) = conn.await {
-                tracing::debug!(error = %e, "connection ended with an error");
+            // Dropping an idle connection loses nothing: no request is in flight on it.
+            tokio::select! {
+                ended = conn => if let Err(e) = ended {
+                    tracing::debug!(error = %e, "connection ended with an error");
+                },
+                () = until_idle(&activity, idle) => tracing::debug!("closed an idle connection"),
             }
             drop(live);
         });
@@ -141,6 +218,100 @@ impl Conns {
     }
 }
 
+/// Resolves once `activity` has shown no bytes moving and no request in flight for `idle`.
+///
+/// Sampled at quarters of `idle`, so a connection closes between one and one and a quarter
+/// idle times after its last byte, at the cost of four timer wake-ups per idle time.
+async fn until_idle(activity: &Activity, idle: Duration) {
+    const SAMPLES: u32 = 4;
+    let period = idle / SAMPLES;
+    let mut ticks = tokio::time::interval_at(tokio::time::Instant::now() + period, period);
+    ticks.set_missed_tick_behavior(tokio::time::MissedTickBehavior::Delay);
+    let (mut seen, mut quiet) = (activity.moved(), 0);
+    loop {
+        ticks.tick().await;
+        let now = activity.moved();
+        if now != seen || activity.in_flight() > 0 {
+            (seen, quiet) = (now, 0);
+        } else {
+            quiet += 1;
+            if quiet == SAMPLES {
+                return;
+            }
+        }
+    }
+}
+
+/// How a connection over `--max-connections` is turned away: a complete `503` naming the limit,
+/// then a close — a clear answer where waiting in the backlog or a reset would tell the
+/// client nothing.
+struct Refusal {
+    max: usize,
+    answer: bytes::Bytes,
+    /// Refusals being answered at once; each holds a descriptor from [`FD_RESERVE`].
+    ///
+    /// [`FD_RESERVE`]: crate::config::FD_RESERVE
+    answering: Arc<Semaphore>,
+    refused: IntCounter,
+}
+
+/// Refusals answered at once, their descriptors taken from the reserve; beyond it a refusal
+/// writes what the socket takes at once and closes.
+const REFUSALS_AT_ONCE: usize = 16;
+/// How long a refusal may take, waiting for the client to read it and close.
+const REFUSAL_TIME: Duration = Duration::from_secs(2);
+/// Most request bytes a refusal reads (and discards) while it waits for the client to close.
+const REFUSAL_DRAIN_BYTES: usize = 64 * 1024;
+
+impl Refusal {
+    fn new(max: usize, refused: IntCounter) -> Refusal {
+        let body = serde_json::json!({
+            "error": format!("the server is serving its limit of {max} connections; retry later")
+        })
+        .to_string();
+        let answer = format!(
+            "HTTP/1.1 503 Service Unavailable\r\ncontent-type: application/json\r\ncontent-length: {}\r\n\
+             retry-after: 1\r\nconnection: close\r\naccess-control-allow-origin: *\r\n\r\n{body}",
+            body.len()
+        );
+        Refusal { max, answer: answer.into(), answering: Arc::new(Semaphore::new(REFUSALS_AT_ONCE)), refused }
+    }
+
+    /// Whether a new connection would exceed the limit, with `open` served now.
+    fn full(&self, open: i64) -> bool {
+        usize::try_from(open).is_ok_and(|open| open >= self.max)
+    }
+
+    /// Answers `stream` 503 and closes it, on the current runtime.
+    fn refuse(&self, mut stream: TcpStream) {
+        self.refused.inc();
+        let Ok(permit) = self.answering.clone().try_acquire_owned() else {
+            let _ = stream.try_write(&self.answer);
+            return;
+        };
+        let answer = self.answer.clone();
+        tokio::spawn(async move {
+            let exchange = async {
+                stream.write_all(&answer).await?;
+                stream.shutdown().await?;
+                // Closing with the request unread would reset the connection, and a reset
+                // may discard the answer before the client reads it: read until it closes.
+                let mut sink = [0u8; 4096];
+                let mut left = REFUSAL_DRAIN_BYTES;
+                while left > 0 {
+                    match stream.read(&mut sink).await? {
+                        0 => break,
+                        n => left = left.saturating_sub(n),
+                    }
+                }
+                std::io::Result::Ok(())
+            };
+            let _ = tokio::time::timeout(REFUSAL_TIME, exchange).await;
+            drop(permit);
+        });
+    }
+}
+
 /// Uncounts a connection when its task ends or is dropped.
 struct LiveGuard(IntGauge);
 
@@ -151,9 +322,16 @@ impl Drop for LiveGuard {
 }
 
 /// Accepts connections until `shutdown` resolves, serving each on the runtime of `workers`
-/// with the fewest live ones (`workers[0]` is this runtime: `own`); then drains this
+/// with the fewest live ones (`workers[0]` is this runtime: `own`), or refusing it when they
+/// serve the limit already; then drains this
 /// runtime's connections (closing the channels tells the other runtimes to drain theirs).
-async fn accept_loop(listener: TcpListener, workers: Vec<Worker>, own: Conns, shutdown: impl Future<Output = ()>) {
+async fn accept_loop(
+    listener: TcpListener,
+    workers: Vec<Worker>,
+    own: Conns,
+    refusal: Refusal,
+    shutdown: impl Future<Output = ()>,
+) {
     let mut next = 0;
     tokio::pin!(shutdown);
     loop {
@@ -168,6 +346,10 @@ async fn accept_loop(listener: TcpListener, workers: Vec<Worker>, own: Conns, sh
                         continue;
                     }
                 };
+                if refusal.full(workers.iter().map(|w| w.live.get()).sum()) {
+                    refusal.refuse(stream);
+                    continue;
+                }
                 // The least-loaded runtime; ties go round-robin.
                 let n = workers.len();
                 let k = (0..n).map(|i| (next + i) % n).min_by_key(|&k| workers[k].live.get()).unwrap_or(0);

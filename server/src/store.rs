@@ -1,19 +1,30 @@
-//! The encoding store: a data directory of content-addressed bundles, `<id>.vtex`.
+//! The encoding store: an index of the content-addressed bundles of a data directory,
+//! `<id>.vtex`, and the textures loaded from them within a memory budget.
 //!
-//! A bundle is validated completely (container and model) before it is written or served.
-//! Writes are atomic — a temporary file in the same directory, fsync, rename, fsync of the
-//! directory — so a crash leaves either the whole bundle or nothing but a temporary file,
-//! which the next start removes. Bundles are immutable: an edit is a new bundle, a new id.
+//! At open each bundle's container is parsed and its cost planned — no texture is built — so a
+//! bundle over the bounds is rejected before it costs anything. A texture is loaded on its first
+//! use, off the I/O threads, one load shared by concurrent first uses, and kept in an LRU charged
+//! with the bytes its plan says it holds. A load reserves its charge before it starts, so what
+//! loaded textures hold stays within the budget; evicting drops the store's reference only, and
+//! requests in flight keep theirs.
+//!
+//! A bundle is validated completely (container and model) before it is written. Writes are
+//! atomic — a temporary file in the same directory, fsync, rename, fsync of the directory — so
+//! a crash leaves either the whole bundle or nothing but a temporary file, which the next start
+//! removes. Bundles are immutable: an edit is a new bundle, a new id.
 
+use lru::LruCache;
 use serde::Serialize;
 use std::collections::BTreeMap;
 use std::io::Write;
+use std::ops::Deref;
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicU64, Ordering};
-use std::sync::{Arc, RwLock};
+use std::sync::{Arc, Condvar, Mutex, RwLock};
 use vtex_synth::bundle::{id_of, is_valid_id, Bundle, Manifest};
+use vtex_synth::models::{self, Limits, Plan};
 use vtex_synth::texture::level_size;
-use vtex_synth::{models, Animation, Domain, Texture};
+use vtex_synth::{Animation, Domain, Texture};
 
 pub const BUNDLE_EXT: &str = "vtex";
 /// Prefix of temporary files; anything carrying it at start-up is a crashed write.
@@ -51,97 +62,198 @@ pub struct TextureInfo {
     pub animation: Option<Animation>,
 }
 
-/// A stored, validated texture, ready to render.
-pub struct Entry {
+/// What the store knows of a stored bundle without loading its texture: its manifest and plan.
+pub struct Record {
     pub id: String,
     /// The id as 32 raw bytes: the compact form used in cache keys.
     pub key: [u8; 32],
     pub manifest: Manifest,
-    pub texture: Arc<dyn Texture>,
+    pub plan: Plan,
     pub encoding_bytes: u64,
     pub levels: u32,
     pub tile_size: u32,
+    /// Held while the texture loads, so that concurrent first uses share one load.
+    loading: Arc<tokio::sync::Mutex<()>>,
 }
 
-impl Entry {
-    /// Validates bundle bytes completely and prepares the texture. The id is computed here.
-    pub fn from_bytes(bytes: &[u8], tile_size: u32) -> Result<Entry, vtex_synth::Error> {
-        let bundle = Bundle::from_bytes(bytes)?;
-        let texture = models::load(&bundle)?;
-        let id = id_of(bytes);
+impl Record {
+    /// Plans `bundle`, stored as `encoding_bytes` bytes whose hash is `id`, and checks the plan
+    /// against `limits`; the texture is not built.
+    fn plan(
+        bundle: &Bundle,
+        id: String,
+        encoding_bytes: usize,
+        tile_size: u32,
+        limits: &Limits,
+    ) -> Result<Record, vtex_synth::Error> {
+        let plan = models::plan(bundle)?;
+        limits.check(&bundle.manifest.model, &plan)?;
         let key = blake3::Hash::from_hex(&id).expect("id_of gives hex").into();
-        let levels = served_levels(texture.width(), texture.height(), tile_size);
-        Ok(Entry { id, key, manifest: bundle.manifest, texture, encoding_bytes: bytes.len() as u64, levels, tile_size })
+        Ok(Record {
+            id,
+            key,
+            manifest: bundle.manifest.clone(),
+            levels: served_levels(plan.width, plan.height, tile_size),
+            plan,
+            encoding_bytes: encoding_bytes as u64,
+            tile_size,
+            loading: Default::default(),
+        })
+    }
+
+    /// Bytes the loaded texture is charged against the budget: what its plan says it holds.
+    pub fn resident_bytes(&self) -> u64 {
+        self.plan.cost.resident_bytes.value
     }
 
     pub fn info(&self) -> TextureInfo {
-        let t = &self.texture;
-        let animation = t.animation();
+        let p = &self.plan;
         TextureInfo {
             id: self.id.clone(),
             name: self.manifest.name.clone(),
             model: self.manifest.model.clone(),
-            width: t.width(),
-            height: t.height(),
+            width: p.width,
+            height: p.height,
             levels: self.levels,
             tile_size: self.tile_size,
             encoding_bytes: self.encoding_bytes,
-            explicit_bytes: t.width().saturating_mul(t.height()).saturating_mul(3),
-            wraps: t.domain() == Domain::Torus,
-            domain: t.domain(),
-            animated: animation.is_some(),
-            animation,
+            explicit_bytes: p.width.saturating_mul(p.height).saturating_mul(3),
+            wraps: p.domain == Domain::Torus,
+            domain: p.domain,
+            animated: p.animation.is_some(),
+            animation: p.animation,
         }
     }
 
     /// Tiles across and down at `level`.
     pub fn tiles_at(&self, level: u32) -> (u64, u64) {
-        let (w, h) = level_size(self.texture.width(), self.texture.height(), level);
+        let (w, h) = level_size(self.plan.width, self.plan.height, level);
         let ts = self.tile_size as u64;
         (w.div_ceil(ts), h.div_ceil(ts))
     }
 }
 
-/// Why a bundle was not stored.
+/// A loaded texture, ready to render, with its record.
+pub struct Entry {
+    pub record: Arc<Record>,
+    pub texture: Arc<dyn Texture>,
+}
+
+impl Deref for Entry {
+    type Target = Record;
+    fn deref(&self) -> &Record {
+        &self.record
+    }
+}
+
+impl Entry {
+    /// Validates bundle bytes completely and loads the texture, within no bound: for the
+    /// offline commands, which run what they are given.
+    pub fn from_bytes(bytes: &[u8], tile_size: u32) -> Result<Entry, vtex_synth::Error> {
+        let bundle = Bundle::from_bytes(bytes)?;
+        let record = Record::plan(&bundle, id_of(bytes), bytes.len(), tile_size, &Limits::NONE)?;
+        let texture = models::load(&bundle)?;
+        Ok(Entry { record: Arc::new(record), texture })
+    }
+}
+
+/// Why a bundle was not stored or a texture not loaded.
 #[derive(Debug, thiserror::Error)]
 pub enum StoreError {
     #[error("{0}")]
     Invalid(#[from] vtex_synth::Error),
+    /// A cap of the store is reached, or the disk is full: the message names which.
+    #[error("{0}")]
+    Full(String),
     #[error("storage failure: {0}")]
     Io(#[from] std::io::Error),
 }
 
-/// The data directory and every valid texture in it.
+/// A full disk is a full store, not a failure of the server.
+fn write_error(e: std::io::Error) -> StoreError {
+    use std::io::ErrorKind::{QuotaExceeded, StorageFull};
+    match e.kind() {
+        StorageFull | QuotaExceeded => StoreError::Full("the disk holding the store is full".into()),
+        _ => StoreError::Io(e),
+    }
+}
+
+/// The bounds a serving store keeps.
+#[derive(Clone, Copy, Debug)]
+pub struct Bounds {
+    pub tile_size: u32,
+    /// What one texture may cost; `max_resident_bytes` is also the budget of all loaded textures.
+    pub limits: Limits,
+    pub max_textures: usize,
+    /// Bytes of stored bundles.
+    pub max_store_bytes: u64,
+}
+
+impl Bounds {
+    /// No bound but the tile size: for the offline commands.
+    pub fn unbounded(tile_size: u32) -> Bounds {
+        Bounds { tile_size, limits: Limits::NONE, max_textures: usize::MAX, max_store_bytes: u64::MAX }
+    }
+}
+
+/// The indexed bundles and the bytes they take on disk.
+#[derive(Default)]
+struct Index {
+    records: BTreeMap<String, Arc<Record>>,
+    bytes: u64,
+}
+
+/// The data directory: every servable bundle indexed, textures loaded within the budget.
 pub struct Store {
     dir: PathBuf,
-    tile_size: u32,
-    entries: RwLock<BTreeMap<String, Arc<Entry>>>,
+    bounds: Bounds,
+    index: RwLock<Index>,
+    loaded: Budgeted<Arc<Entry>>,
+    loads: AtomicU64,
+    /// Held from the last check of the index and the caps to the index holding the new bundle,
+    /// so that of identical uploads exactly one is new, and concurrent uploads cannot pass a cap.
+    writing: Mutex<()>,
 }
 
 /// What [`Store::open`] found, for the start-up log.
 #[derive(Debug, Default)]
 pub struct OpenReport {
-    pub loaded: usize,
+    pub indexed: usize,
     pub demos_written: usize,
     pub stale_temp_removed: usize,
-    /// Files that are not valid bundles (wrong name, hash mismatch, invalid): left alone, not served.
+    /// Temporary files of crashed writes that could not be removed: left in place, never served.
+    pub stale_temp_kept: Vec<(PathBuf, String)>,
+    /// Files that are not valid bundles (wrong name, hash mismatch, invalid, over the bounds):
+    /// left alone, not served.
     pub rejected: Vec<(PathBuf, String)>,
+    /// Demos over the bounds or the caps, by name: not written.
+    pub demos_refused: Vec<(String, String)>,
 }
 
 impl Store {
     /// Opens (creating if needed) the data directory: removes temporary files of crashed
-    /// writes, validates and loads every bundle, and writes the demos into an empty directory.
-    pub fn open(dir: &Path, tile_size: u32, write_demos: bool) -> std::io::Result<(Store, OpenReport)> {
+    /// writes, indexes every bundle within `bounds`, and writes the demos into an empty
+    /// directory.
+    pub fn open(dir: &Path, bounds: Bounds, write_demos: bool) -> std::io::Result<(Store, OpenReport)> {
         std::fs::create_dir_all(dir)?;
-        let store = Store { dir: dir.to_path_buf(), tile_size, entries: RwLock::new(BTreeMap::new()) };
+        let store = Store {
+            dir: dir.to_path_buf(),
+            bounds,
+            index: Default::default(),
+            loaded: Budgeted::new(bounds.limits.max_resident_bytes),
+            loads: AtomicU64::new(0),
+            writing: Mutex::new(()),
+        };
         let mut report = OpenReport::default();
         let mut bundles = Vec::new();
         for item in std::fs::read_dir(dir)? {
             let item = item?;
             let name = item.file_name().to_string_lossy().into_owned();
             if name.starts_with(TEMP_PREFIX) {
-                std::fs::remove_file(item.path())?;
-                report.stale_temp_removed += 1;
+                match std::fs::remove_file(item.path()) {
+                    Ok(()) => report.stale_temp_removed += 1,
+                    Err(e) => report.stale_temp_kept.push((item.path(), e.to_string())),
+                }
             } else if name.ends_with(&format!(".{BUNDLE_EXT}")) {
                 bundles.push(item.path());
             }
@@ -151,60 +263,175 @@ impl Store {
         }
         bundles.sort();
         for path in &bundles {
-            match store.load_file(path) {
-                Ok(entry) => {
-                    store.entries.write().unwrap().insert(entry.id.clone(), Arc::new(entry));
-                    report.loaded += 1;
-                }
+            match store.index_file(path) {
+                Ok(record) => store.insert(Arc::new(record)),
                 Err(why) => report.rejected.push((path.clone(), why)),
             }
         }
+        report.indexed = store.len();
         if bundles.is_empty() && write_demos {
             for demo in models::demos() {
-                let (_, created) = store.put(demo.to_bytes()).map_err(|e| match e {
-                    StoreError::Io(e) => e,
-                    StoreError::Invalid(e) => {
-                        std::io::Error::other(format!("demo `{}` is invalid: {e}", demo.manifest.name))
+                match store.put(demo.to_bytes()) {
+                    Ok((_, created)) => report.demos_written += created as usize,
+                    Err(StoreError::Io(e)) => return Err(e),
+                    Err(e @ (StoreError::Full(_) | StoreError::Invalid(vtex_synth::Error::TooCostly { .. }))) => {
+                        report.demos_refused.push((demo.manifest.name.clone(), e.to_string()))
                     }
-                })?;
-                report.demos_written += created as usize;
+                    Err(StoreError::Invalid(e)) => {
+                        return Err(std::io::Error::other(format!("demo `{}` is invalid: {e}", demo.manifest.name)))
+                    }
+                }
             }
         }
         Ok((store, report))
     }
 
-    fn load_file(&self, path: &Path) -> Result<Entry, String> {
+    /// Reads and plans one stored bundle, checking its name against its content.
+    fn index_file(&self, path: &Path) -> Result<Record, String> {
         let stem = path.file_stem().and_then(|s| s.to_str()).unwrap_or("");
         if !is_valid_id(stem) {
             return Err("file name is not a bundle id".into());
         }
         let bytes = std::fs::read(path).map_err(|e| e.to_string())?;
-        let entry = Entry::from_bytes(&bytes, self.tile_size).map_err(|e| e.to_string())?;
-        if entry.id != stem {
-            return Err(format!("content hash {} does not match the file name", entry.id));
+        let bundle = Bundle::from_bytes(&bytes).map_err(|e| e.to_string())?;
+        let id = id_of(&bytes);
+        if id != stem {
+            return Err(format!("content hash {id} does not match the file name"));
         }
-        Ok(entry)
+        Record::plan(&bundle, id, bytes.len(), self.bounds.tile_size, &self.bounds.limits).map_err(|e| e.to_string())
+    }
+
+    fn insert(&self, record: Arc<Record>) {
+        let mut index = self.index.write().unwrap();
+        index.bytes += record.encoding_bytes;
+        if let Some(old) = index.records.insert(record.id.clone(), record) {
+            index.bytes -= old.encoding_bytes;
+        }
+    }
+
+    /// Stops serving `id`: its bundle failed validation when loaded, or vanished.
+    fn drop_record(&self, id: &str, why: &dyn std::fmt::Display) {
+        tracing::warn!(%id, reason = %why, "the stored bundle cannot be loaded; no longer serving it");
+        let mut index = self.index.write().unwrap();
+        if let Some(old) = index.records.remove(id) {
+            index.bytes -= old.encoding_bytes;
+        }
+        drop(index);
+        self.loaded.remove(id);
     }
 
     pub fn dir(&self) -> &Path {
         &self.dir
     }
 
-    pub fn get(&self, id: &str) -> Option<Arc<Entry>> {
-        self.entries.read().unwrap().get(id).cloned()
+    pub fn bounds(&self) -> &Bounds {
+        &self.bounds
     }
 
+    /// What the store knows of texture `id`, without loading it.
+    pub fn record(&self, id: &str) -> Option<Arc<Record>> {
+        self.index.read().unwrap().records.get(id).cloned()
+    }
+
+    /// Texture `id`, loaded on its first use (on the blocking pool: call from the runtime);
+    /// `None` when no such texture is served. A bundle that fails validation when loaded is
+    /// dropped from the index and answered with [`StoreError::Invalid`].
+    pub async fn get(self: &Arc<Self>, id: &str) -> Result<Option<Arc<Entry>>, StoreError> {
+        if let Some(entry) = self.loaded.get(id) {
+            return Ok(Some(entry));
+        }
+        let Some(record) = self.record(id) else { return Ok(None) };
+        let turn = record.loading.clone().lock_owned().await;
+        if let Some(entry) = self.loaded.get(id) {
+            return Ok(Some(entry));
+        }
+        if self.record(id).is_none() {
+            // The load this one waited on found the bundle invalid and dropped it.
+            return Ok(None);
+        }
+        let store = self.clone();
+        // The turn moves into the load, so that a request dropped while it runs (a client gone)
+        // does not let the next one start a second load of the same texture.
+        tokio::task::spawn_blocking(move || {
+            let _turn = turn;
+            store.load(record).map(Some)
+        })
+        .await
+        .map_err(|e| StoreError::Io(std::io::Error::other(format!("loading the texture panicked: {e}"))))?
+    }
+
+    /// Reads, validates completely and loads `record`'s texture within the budget. Blocking.
+    fn load(&self, record: Arc<Record>) -> Result<Arc<Entry>, StoreError> {
+        let read = || -> Result<Bundle, StoreError> {
+            let bytes = std::fs::read(self.path_of(&record.id))?;
+            if id_of(&bytes) != record.id {
+                return Err(vtex_synth::Error::bundle("its content no longer matches its id").into());
+            }
+            Ok(Bundle::from_bytes(&bytes)?)
+        };
+        let id = record.id.clone();
+        let result = read().and_then(|bundle| {
+            let (entry, charge) = self.load_charged(record, &bundle)?;
+            self.loaded.keep(charge, id.clone(), entry.clone());
+            Ok(entry)
+        });
+        match &result {
+            Err(StoreError::Invalid(e)) => self.drop_record(&id, e),
+            Err(StoreError::Io(e)) if e.kind() == std::io::ErrorKind::NotFound => self.drop_record(&id, e),
+            _ => {}
+        }
+        result
+    }
+
+    /// Loads `bundle`'s texture with its charge reserved against the budget first.
+    fn load_charged(
+        &self,
+        record: Arc<Record>,
+        bundle: &Bundle,
+    ) -> Result<(Arc<Entry>, Charge<'_, Arc<Entry>>), StoreError> {
+        let charge = self.loaded.reserve(record.resident_bytes());
+        let texture = models::load_within(bundle, &self.bounds.limits)?;
+        self.loads.fetch_add(1, Ordering::Relaxed);
+        Ok((Arc::new(Entry { record, texture }), charge))
+    }
+
+    /// Textures indexed (servable).
     pub fn len(&self) -> usize {
-        self.entries.read().unwrap().len()
+        self.index.read().unwrap().records.len()
     }
 
     pub fn is_empty(&self) -> bool {
         self.len() == 0
     }
 
+    /// Bytes of the indexed bundles on disk.
+    pub fn stored_bytes(&self) -> u64 {
+        self.index.read().unwrap().bytes
+    }
+
+    /// Textures loaded now.
+    pub fn loaded(&self) -> usize {
+        self.loaded.len()
+    }
+
+    /// Bytes charged against the texture budget: loaded textures and loads in progress.
+    pub fn loaded_bytes(&self) -> u64 {
+        self.loaded.charged()
+    }
+
+    /// Textures loaded since open (uploads included: each is loaded to be validated).
+    pub fn loads(&self) -> u64 {
+        self.loads.load(Ordering::Relaxed)
+    }
+
+    /// Textures evicted to stay within the budget since open.
+    pub fn evictions(&self) -> u64 {
+        self.loaded.evictions()
+    }
+
     /// Every texture, sorted by name (then id).
-    pub fn list(&self) -> Vec<Arc<Entry>> {
-        let mut all: Vec<_> = self.entries.read().unwrap().values().cloned().collect();
+    pub fn list(&self) -> Vec<Arc<Record>> {
+        let mut all: Vec<_> = self.index.read().unwrap().records.values().cloned().collect();
         all.sort_by(|a, b| a.manifest.name.cmp(&b.manifest.name).then_with(|| a.id.cmp(&b.id)));
         all
     }
@@ -213,18 +440,145 @@ impl Store {
         self.dir.join(format!("{id}.{BUNDLE_EXT}"))
     }
 
-    /// Validates and stores bundle bytes. Returns the entry and whether it is new (an
-    /// identical bundle already stored is not written again). Blocking: call off the runtime.
-    pub fn put(&self, bytes: Vec<u8>) -> Result<(Arc<Entry>, bool), StoreError> {
-        let entry = Entry::from_bytes(&bytes, self.tile_size)?;
-        if let Some(existing) = self.get(&entry.id) {
+    /// Refuses `bytes` more of bundles when the store holds its maximum of textures or bytes.
+    fn check_caps(&self, bytes: u64) -> Result<(), StoreError> {
+        let index = self.index.read().unwrap();
+        let b = &self.bounds;
+        if index.records.len() >= b.max_textures {
+            return Err(StoreError::Full(format!(
+                "the store holds its maximum of {} textures (--max-textures)",
+                b.max_textures
+            )));
+        }
+        if index.bytes.saturating_add(bytes) > b.max_store_bytes {
+            return Err(StoreError::Full(format!(
+                "a bundle of {bytes} bytes would take the store past its bound of {} bytes of bundles \
+                 (--store-mb); it holds {}",
+                b.max_store_bytes, index.bytes
+            )));
+        }
+        Ok(())
+    }
+
+    /// Validates bundle bytes within the bounds and stores them. Returns the record and whether
+    /// it is new (an identical bundle already stored is not written again); the texture stays
+    /// loaded. Blocking: call off the runtime.
+    pub fn put(&self, bytes: Vec<u8>) -> Result<(Arc<Record>, bool), StoreError> {
+        let bundle = Bundle::from_bytes(&bytes)?;
+        let id = id_of(&bytes);
+        if let Some(existing) = self.record(&id) {
             return Ok((existing, false));
         }
-        write_atomic(&self.dir, &self.path_of(&entry.id), &bytes)?;
-        let entry = Arc::new(entry);
-        let mut map = self.entries.write().unwrap();
-        let stored = map.entry(entry.id.clone()).or_insert_with(|| entry.clone()).clone();
-        Ok((stored, true))
+        let record = Record::plan(&bundle, id, bytes.len(), self.bounds.tile_size, &self.bounds.limits)?;
+        self.check_caps(bytes.len() as u64)?;
+        let (entry, charge) = self.load_charged(Arc::new(record), &bundle)?;
+        let _writing = self.writing.lock().unwrap();
+        if let Some(existing) = self.record(&entry.id) {
+            return Ok((existing, false));
+        }
+        self.check_caps(bytes.len() as u64)?;
+        write_atomic(&self.dir, &self.path_of(&entry.id), &bytes).map_err(write_error)?;
+        self.insert(entry.record.clone());
+        self.loaded.keep(charge, entry.id.clone(), entry.clone());
+        Ok((entry.record.clone(), true))
+    }
+}
+
+/// Values charged against a byte budget, kept least recently used first. A load reserves its
+/// charge before it starts — evicting, or waiting for loads in progress to finish — so the sum
+/// charged, kept values and loads in progress together, never exceeds the budget.
+struct Budgeted<V> {
+    budget: u64,
+    state: Mutex<Charged<V>>,
+    /// Signalled when charge is released or a value is kept (and so becomes evictable).
+    room: Condvar,
+    evictions: AtomicU64,
+}
+
+struct Charged<V> {
+    lru: LruCache<String, (V, u64)>,
+    bytes: u64,
+}
+
+/// A charge reserved for a load in progress: released when dropped, unless kept.
+#[must_use]
+struct Charge<'a, V> {
+    set: &'a Budgeted<V>,
+    bytes: u64,
+}
+
+impl<V> Drop for Charge<'_, V> {
+    fn drop(&mut self) {
+        if self.bytes > 0 {
+            self.set.state.lock().unwrap().bytes -= self.bytes;
+            self.set.room.notify_all();
+        }
+    }
+}
+
+impl<V: Clone> Budgeted<V> {
+    fn new(budget: u64) -> Self {
+        Budgeted {
+            budget,
+            state: Mutex::new(Charged { lru: LruCache::unbounded(), bytes: 0 }),
+            room: Condvar::new(),
+            evictions: AtomicU64::new(0),
+        }
+    }
+
+    fn get(&self, key: &str) -> Option<V> {
+        self.state.lock().unwrap().lru.get(key).map(|(v, _)| v.clone())
+    }
+
+    /// Reserves `bytes`, evicting least recently used values, or waiting for loads in progress
+    /// when none is left to evict. Blocking.
+    fn reserve(&self, bytes: u64) -> Charge<'_, V> {
+        let mut state = self.state.lock().unwrap();
+        while state.bytes.saturating_add(bytes) > self.budget {
+            if let Some((_, (_, freed))) = state.lru.pop_lru() {
+                state.bytes -= freed;
+                self.evictions.fetch_add(1, Ordering::Relaxed);
+            } else if state.bytes > 0 {
+                state = self.room.wait(state).unwrap();
+            } else {
+                // Alone over the budget: callers check each value against it first.
+                break;
+            }
+        }
+        state.bytes += bytes;
+        Charge { set: self, bytes }
+    }
+
+    /// Keeps `value` under `key`, charged what `charge` reserved.
+    fn keep(&self, mut charge: Charge<'_, V>, key: String, value: V) {
+        let mut state = self.state.lock().unwrap();
+        if let Some((_, (_, old))) = state.lru.push(key, (value, charge.bytes)) {
+            state.bytes -= old;
+        }
+        charge.bytes = 0;
+        drop(state);
+        self.room.notify_all();
+    }
+
+    fn remove(&self, key: &str) {
+        let mut state = self.state.lock().unwrap();
+        if let Some((_, freed)) = state.lru.pop(key) {
+            state.bytes -= freed;
+            drop(state);
+            self.room.notify_all();
+        }
+    }
+
+    fn len(&self) -> usize {
+        self.state.lock().unwrap().lru.len()
+    }
+
+    fn charged(&self) -> u64 {
+        self.state.lock().unwrap().bytes
+    }
+
+    fn evictions(&self) -> u64 {
+        self.evictions.load(Ordering::Relaxed)
     }
 }
 
@@ -285,7 +639,7 @@ mod tests {
         std::fs::write(dir.join(".tmp-1-0-abc.vtex"), b"half a bundle").unwrap();
         let bogus = dir.join(format!("{}.vtex", "ab".repeat(32)));
         std::fs::write(&bogus, b"not a bundle").unwrap();
-        let (store, report) = Store::open(&dir, 256, false).unwrap();
+        let (store, report) = Store::open(&dir, Bounds::unbounded(256), false).unwrap();
         assert_eq!(report.stale_temp_removed, 1);
         assert!(!dir.join(".tmp-1-0-abc.vtex").exists());
         assert_eq!(report.rejected.len(), 1);
@@ -294,5 +648,67 @@ mod tests {
         assert!(store.is_empty());
         assert!(matches!(store.put(b"junk".to_vec()), Err(StoreError::Invalid(_))));
         std::fs::remove_dir_all(&dir).unwrap();
+    }
+
+    #[test]
+    fn open_goes_on_past_a_stale_temp_it_cannot_remove() {
+        let dir = std::env::temp_dir().join(format!("vtex-store-stuck-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&dir);
+        // A non-empty directory: `remove_file` cannot remove it, even as root.
+        let stuck = dir.join(".tmp-1-0-stuck.vtex");
+        std::fs::create_dir_all(&stuck).unwrap();
+        std::fs::write(stuck.join("inside"), b"x").unwrap();
+        let (store, report) = Store::open(&dir, Bounds::unbounded(256), false).unwrap();
+        assert_eq!(report.stale_temp_kept.len(), 1, "{report:?}");
+        assert_eq!(report.stale_temp_kept[0].0, stuck);
+        assert!(store.is_empty());
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+
+    #[test]
+    fn a_full_disk_is_a_full_store() {
+        for kind in [std::io::ErrorKind::StorageFull, std::io::ErrorKind::QuotaExceeded] {
+            let e = write_error(std::io::Error::from(kind));
+            assert!(matches!(&e, StoreError::Full(m) if m.contains("disk")), "{kind:?}: {e:?}");
+        }
+        let e = write_error(std::io::Error::from(std::io::ErrorKind::PermissionDenied));
+        assert!(matches!(e, StoreError::Io(_)), "{e:?}");
+    }
+
+    #[test]
+    fn the_budget_evicts_least_recently_used_first() {
+        let set: Budgeted<u32> = Budgeted::new(100);
+        set.keep(set.reserve(40), "a".into(), 1);
+        set.keep(set.reserve(40), "b".into(), 2);
+        assert_eq!(set.get("a"), Some(1), "a is now the most recently used");
+        set.keep(set.reserve(40), "c".into(), 3);
+        assert_eq!((set.get("a"), set.get("b"), set.get("c")), (Some(1), None, Some(3)));
+        assert_eq!((set.charged(), set.evictions(), set.len()), (80, 1, 2));
+        // A failed load gives its reservation back.
+        drop(set.reserve(60));
+        assert_eq!((set.charged(), set.evictions()), (40, 2));
+        set.remove("c");
+        assert_eq!((set.charged(), set.len()), (0, 0));
+    }
+
+    #[test]
+    fn loads_in_progress_count_against_the_budget() {
+        let set: Arc<Budgeted<u32>> = Arc::new(Budgeted::new(100));
+        let first = set.reserve(70);
+        let (tx, rx) = std::sync::mpsc::channel();
+        let waiter = {
+            let set = set.clone();
+            std::thread::spawn(move || {
+                let charge = set.reserve(70);
+                tx.send(set.charged()).unwrap();
+                set.keep(charge, "second".into(), 2);
+            })
+        };
+        // Nothing is evictable while the first load runs: the second waits for it.
+        assert!(rx.recv_timeout(std::time::Duration::from_millis(200)).is_err(), "the budget was overcommitted");
+        set.keep(first, "first".into(), 1);
+        assert_eq!(rx.recv_timeout(std::time::Duration::from_secs(10)).unwrap(), 70, "the first was evicted");
+        waiter.join().unwrap();
+        assert_eq!((set.get("first"), set.get("second"), set.charged()), (None, Some(2), 70));
     }
 }

@@ -23,7 +23,7 @@ fn tile(c: &mut Criterion, group: &str, id: String, t: &dyn Texture, region: Reg
         .measurement_time(std::time::Duration::from_secs(2));
     g.throughput(Throughput::Elements(region.pixel_count()));
     let mut out = vec![0u8; region.byte_len()];
-    g.bench_function(BenchmarkId::from_parameter(id), |b| b.iter(|| t.render(&region, &mut out)));
+    g.bench_function(BenchmarkId::from_parameter(id), |b| b.iter(|| t.render(&region, &mut out, &vtex_synth::Never)));
     g.finish();
 }
 

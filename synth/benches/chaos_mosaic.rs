@@ -38,7 +38,9 @@ fn level0(c: &mut Criterion) {
     let mut out = vec![0u8; 512 * 512 * 4];
     let mut g = c.benchmark_group("level0_512x512_from_64x64");
     g.throughput(Throughput::Elements(512 * 512));
-    g.bench_function("chaos_mosaic", |b| b.iter(|| tex.render(black_box(&Region::new(0, 0, 0, 512, 512)), &mut out)));
+    g.bench_function("chaos_mosaic", |b| {
+        b.iter(|| tex.render(black_box(&Region::new(0, 0, 0, 512, 512)), &mut out, &vtex_synth::Never))
+    });
     g.bench_function("plain_tiling_baseline", |b| b.iter(|| plain_tiling(black_box(&sample), 512, 512, &mut out)));
     g.finish();
 }
@@ -58,7 +60,7 @@ fn coarse_levels(c: &mut Criterion) {
         let (lw, _) = vtex_synth::texture::level_size(tex.width(), tex.height(), level);
         let at = (lw as i64 / 2 / 256) * 256;
         g.bench_with_input(BenchmarkId::new("level", level), &level, |b, &level| {
-            b.iter(|| tex.render(&Region::new(level, at, at, 256, 256), &mut out))
+            b.iter(|| tex.render(&Region::new(level, at, at, 256, 256), &mut out, &vtex_synth::Never))
         });
     }
     g.finish();

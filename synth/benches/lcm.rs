@@ -42,7 +42,7 @@ fn bench(c: &mut Criterion) {
                     // Walk over different tiles so the LCM reads are not all cache-hot.
                     k += 1;
                     let region = Region::new(level, (k * 7919) % 50_000, (k * 104_729) % 50_000, TILE, TILE);
-                    tex.render(&region, &mut out);
+                    tex.render(&region, &mut out, &vtex_synth::Never);
                     out[0]
                 })
             });

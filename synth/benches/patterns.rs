@@ -41,7 +41,7 @@ fn compositions(c: &mut Criterion) {
     for (name, bundle, x, y) in cases {
         let tex = models::load(&bundle).unwrap();
         let region = Region::new(0, x, y, 256, 256).at_frame(30);
-        g.bench_function(name, |b| b.iter(|| tex.render(black_box(&region), &mut out)));
+        g.bench_function(name, |b| b.iter(|| tex.render(black_box(&region), &mut out, &vtex_synth::Never)));
     }
     g.finish();
     let mut g = c.benchmark_group("patterns 256x256 tile, coarse levels");
@@ -50,7 +50,7 @@ fn compositions(c: &mut Criterion) {
     for level in [7u32, 9] {
         let region = Region::new(level, 0, 0, 256, 256);
         g.bench_function(format!("basic tiling level {level}"), |b| {
-            b.iter(|| tex.render(black_box(&region), &mut out))
+            b.iter(|| tex.render(black_box(&region), &mut out, &vtex_synth::Never))
         });
     }
     g.finish();

@@ -13,6 +13,9 @@ pub enum Error {
     Region(String),
     #[error("unknown model `{model}`; known models: {known}")]
     UnknownModel { model: String, known: String },
+    /// An encoding whose cost is over a bound the caller set (see `models::cost`).
+    #[error("{model}: {value} {what} ({why}) exceeds the bound of {bound}")]
+    TooCostly { model: String, what: &'static str, value: u64, why: String, bound: u64 },
 }
 
 pub type Result<T, E = Error> = std::result::Result<T, E>;

@@ -24,4 +24,4 @@ pub mod texture;
 
 pub use error::{Error, Result};
 pub use pixels::Rgba8Image;
-pub use texture::{Animation, Domain, Region, Texture};
+pub use texture::{Animation, Domain, Never, Region, Stop, Texture};

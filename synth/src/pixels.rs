@@ -86,32 +86,85 @@ impl Rgba8Image {
 
 /// Decodes an untrusted PNG into RGBA8. The declared size is checked against
 /// [`MAX_IMAGE_SIDE`] before any pixel memory is allocated, so a decompression bomb or a
-/// header that lies about its size is refused, not obeyed. `name` is used in errors.
+/// header that lies about its size is refused, not obeyed. Ancillary chunks that would be
+/// inflated (the `iCCP` colour profile, `zTXt` and `iTXt` text) and all text are skipped
+/// unread, and every buffer the decoder makes counts against [`MAX_IMAGE_ALLOC`]. Every colour
+/// type and bit depth gives RGBA8: grey is replicated, a palette and `tRNS` are expanded,
+/// missing alpha is opaque, 16-bit samples are rounded to 8 bits. `name` is used in errors.
 pub fn decode_png(name: &str, bytes: &[u8]) -> Result<Rgba8Image> {
-    use image::ImageDecoder;
     let fail = |reason: String| Error::image(name, reason);
     if !bytes.starts_with(b"\x89PNG\r\n\x1a\n") {
         return Err(fail("not a PNG file (bad signature)".into()));
     }
-    let mut decoder =
-        image::codecs::png::PngDecoder::new(std::io::Cursor::new(bytes)).map_err(|e| fail(e.to_string()))?;
-    let (w, h) = decoder.dimensions();
+    let limits = png::Limits { bytes: MAX_IMAGE_ALLOC as usize };
+    let mut decoder = png::Decoder::new_with_limits(std::io::Cursor::new(bytes), limits);
+    decoder.set_ignore_iccp_chunk(true);
+    decoder.set_ignore_text_chunk(true);
+    decoder.set_transformations(png::Transformations::EXPAND);
+    let header = decoder.read_header_info().map_err(|e| fail(e.to_string()))?;
+    let (w, h) = (header.width, header.height);
     if w == 0 || h == 0 || w > MAX_IMAGE_SIDE || h > MAX_IMAGE_SIDE {
         return Err(fail(format!("{w}×{h} pixels; each side must be 1..={MAX_IMAGE_SIDE}")));
     }
+    let mut reader = decoder.read_info().map_err(|e| fail(e.to_string()))?;
+    // The png crate expands whatever palette it was given and assumes whole RGB entries.
+    if let Some(palette) = reader.info().palette.as_deref() {
+        if palette.len() % 3 != 0 || palette.len() > 256 * 3 {
+            return Err(fail(format!("a palette of {} bytes; it must be 1 to 256 RGB entries", palette.len())));
+        }
+    }
     // 16-bit samples decode to twice the bytes of RGBA8: bound what the decoder allocates.
-    let decoded = decoder.total_bytes();
+    let decoded = reader.output_buffer_size().map_or(u64::MAX, |n| n as u64);
     if decoded > MAX_IMAGE_ALLOC {
         return Err(fail(format!("{w}×{h} pixels decode to {decoded} bytes; at most {MAX_IMAGE_ALLOC} allowed")));
     }
-    let mut limits = image::Limits::default();
-    limits.max_image_width = Some(MAX_IMAGE_SIDE);
-    limits.max_image_height = Some(MAX_IMAGE_SIDE);
-    limits.max_alloc = Some(MAX_IMAGE_ALLOC);
-    decoder.set_limits(limits).map_err(|e| fail(e.to_string()))?;
-    let img = image::DynamicImage::from_decoder(decoder).map_err(|e| fail(e.to_string()))?;
-    let rgba = img.into_rgba8();
-    Ok(Rgba8Image { width: w, height: h, data: rgba.into_raw() })
+    let mut buf = vec![0; decoded as usize];
+    reader.next_frame(&mut buf).map_err(|e| fail(e.to_string()))?;
+    let (colour, depth) = reader.output_color_type();
+    let channels = colour.samples();
+    let data = match depth {
+        png::BitDepth::Eight if channels == 4 => buf,
+        png::BitDepth::Eight => to_rgba(&buf, channels, 1, |s| s[0]),
+        // Rounded as `round(v · 255 / 65535)`.
+        _ => to_rgba(&buf, channels, 2, |s| ((u16::from_be_bytes([s[0], s[1]]) as u32 + 128) / 257) as u8),
+    };
+    Ok(Rgba8Image { width: w, height: h, data })
+}
+
+/// RGBA8 from expanded samples of `size` bytes, `channels` a pixel (grey, grey and alpha,
+/// RGB or RGBA), each read by `sample`.
+fn to_rgba(buf: &[u8], channels: usize, size: usize, sample: impl Fn(&[u8]) -> u8) -> Vec<u8> {
+    let mut out = Vec::with_capacity(buf.len() / (channels * size) * 4);
+    for px in buf.chunks_exact(channels * size) {
+        let v = |c: usize| sample(&px[c * size..]);
+        out.extend_from_slice(&match channels {
+            1 => [v(0), v(0), v(0), 255],
+            2 => [v(0), v(0), v(0), v(1)],
+            3 => [v(0), v(1), v(2), 255],
+            _ => [v(0), v(1), v(2), v(3)],
+        });
+    }
+    out
+}
+
+/// The width and height a PNG declares in its header (IHDR, which the format puts first), read
+/// without inflating anything: what a cost plan may know of an image before deciding to
+/// decode it. Sides are checked against [`MAX_IMAGE_SIDE`] as [`decode_png`] checks them.
+pub fn png_dimensions(name: &str, bytes: &[u8]) -> Result<(u32, u32)> {
+    let fail = |reason: &str| Error::image(name, reason.to_string());
+    if !bytes.starts_with(b"\x89PNG\r\n\x1a\n") {
+        return Err(fail("not a PNG file (bad signature)"));
+    }
+    let ihdr = bytes.get(8..24).ok_or_else(|| fail("truncated before the end of its header"))?;
+    if ihdr[..8] != [0, 0, 0, 13, b'I', b'H', b'D', b'R'] {
+        return Err(fail("the first chunk is not a 13-byte IHDR"));
+    }
+    let side = |at: usize| u32::from_be_bytes(ihdr[at..at + 4].try_into().expect("4 bytes"));
+    let (w, h) = (side(8), side(12));
+    if w == 0 || h == 0 || w > MAX_IMAGE_SIDE || h > MAX_IMAGE_SIDE {
+        return Err(Error::image(name, format!("{w}×{h} pixels; each side must be 1..={MAX_IMAGE_SIDE}")));
+    }
+    Ok((w, h))
 }
 
 #[cfg(test)]
@@ -127,6 +180,38 @@ mod tests {
             }
         }
         img
+    }
+
+    /// A PLTE chunk of `n` bytes in an otherwise valid 1 × 1 indexed PNG.
+    fn indexed_with_palette_bytes(n: usize) -> Vec<u8> {
+        let chunk = |png: &mut Vec<u8>, kind: &[u8], data: &[u8]| {
+            png.extend((data.len() as u32).to_be_bytes());
+            let mut body = kind.to_vec();
+            body.extend(data);
+            png.extend(&body);
+            png.extend(crc32fast::hash(&body).to_be_bytes());
+        };
+        let mut png = b"\x89PNG\r\n\x1a\n".to_vec();
+        chunk(&mut png, b"IHDR", &[0, 0, 0, 1, 0, 0, 0, 1, 8, 3, 0, 0, 0]);
+        chunk(&mut png, b"PLTE", &vec![7; n]);
+        let idat = {
+            use std::io::Write;
+            let mut z = flate2::write::ZlibEncoder::new(Vec::new(), flate2::Compression::default());
+            z.write_all(&[0, 0]).unwrap();
+            z.finish().unwrap()
+        };
+        chunk(&mut png, b"IDAT", &idat);
+        chunk(&mut png, b"IEND", &[]);
+        png
+    }
+
+    /// The png crate panics expanding a palette of partial entries unless it is refused first.
+    #[test]
+    fn refuses_palettes_of_partial_entries() {
+        assert_eq!(decode_png("s", &indexed_with_palette_bytes(3)).unwrap().pixel(0, 0), [7, 7, 7, 255]);
+        for n in [1, 2, 4, 5, 770] {
+            assert!(decode_png("s", &indexed_with_palette_bytes(n)).is_err(), "a palette of {n} bytes was accepted");
+        }
     }
 
     #[test]
@@ -179,6 +264,61 @@ mod tests {
         // The same size in 8 bits passes the bound (and then fails for its missing data).
         let err = decode_png("sample", &header_only(4096, 4096, 8)).unwrap_err().to_string();
         assert!(!err.contains("bytes; at most"), "{err}");
+    }
+
+    /// A `w × h` PNG of `colour` at `depth` bits with pseudo-random samples (a full palette
+    /// with a partial `tRNS` for indexed images).
+    fn encoded(colour: png::ColorType, depth: png::BitDepth, w: u32, h: u32) -> Vec<u8> {
+        let bits = depth as usize;
+        let row = (w as usize * colour.samples() * bits).div_ceil(8);
+        let mut state = 0x9e37_79b9_u32.wrapping_mul(bits as u32 + 7 * colour as u32 + 1);
+        let mut next = || {
+            state ^= state << 13;
+            state ^= state >> 17;
+            state ^= state << 5;
+            state as u8
+        };
+        let data: Vec<u8> = (0..row * h as usize).map(|_| next()).collect();
+        let mut out = Vec::new();
+        let mut enc = png::Encoder::new(&mut out, w, h);
+        enc.set_color(colour);
+        enc.set_depth(depth);
+        if colour == png::ColorType::Indexed {
+            enc.set_palette((0..3 << bits).map(|_| next()).collect::<Vec<u8>>());
+            enc.set_trns((0..1 << (bits - 1)).map(|_| next()).collect::<Vec<u8>>());
+        }
+        let mut writer = enc.write_header().unwrap();
+        writer.write_image_data(&data).unwrap();
+        writer.finish().unwrap();
+        out
+    }
+
+    /// Every colour type and bit depth decodes to the RGBA8 the `image` crate makes of it.
+    #[test]
+    fn every_colour_type_and_depth_decodes_as_image_does() {
+        use png::{BitDepth::*, ColorType::*};
+        let cases = [
+            (Grayscale, vec![One, Two, Four, Eight, Sixteen]),
+            (GrayscaleAlpha, vec![Eight, Sixteen]),
+            (Indexed, vec![One, Two, Four, Eight]),
+            (Rgb, vec![Eight, Sixteen]),
+            (Rgba, vec![Eight, Sixteen]),
+        ];
+        for (colour, depths) in cases {
+            for depth in depths {
+                let png = encoded(colour, depth, 13, 7);
+                let want = image::load_from_memory(&png).unwrap().into_rgba8();
+                let got = decode_png("s", &png).unwrap();
+                assert_eq!((got.width, got.height), (13, 7));
+                assert_eq!(got.data, want.into_raw(), "{colour:?} {depth:?}");
+            }
+        }
+        // The conversions themselves: 1-bit white is 255, 16-bit samples round.
+        let grey = decode_png("s", &encoded(Grayscale, One, 8, 1)).unwrap();
+        assert!(grey
+            .data
+            .chunks_exact(4)
+            .all(|p| p[0] == p[1] && p[1] == p[2] && [0, 255].contains(&p[0]) && p[3] == 255));
     }
 
     #[test]

@@ -73,8 +73,31 @@ pub trait Texture: Send + Sync {
         None
     }
     /// Writes `region` as row-major RGBA8 into `out` (exactly `region.byte_len()` bytes).
-    /// Called only with regions that passed [`check_region`].
-    fn render(&self, region: &Region, out: &mut [u8]);
+    /// Called only with regions that passed [`check_region`]. Polls `stop` between bands of
+    /// work and returns early once it is requested, leaving `out` incomplete: the caller
+    /// discards it. `stop` never changes a pixel that is written.
+    fn render(&self, region: &Region, out: &mut [u8], stop: &dyn Stop);
+}
+
+/// A request to stop a render in progress: its client left, its deadline passed, or the
+/// server is shutting down. An input like the region, so models stay pure functions.
+pub trait Stop: Sync {
+    fn requested(&self) -> bool;
+}
+
+/// The stop that is never requested, for renders that must finish.
+pub struct Never;
+
+impl Stop for Never {
+    fn requested(&self) -> bool {
+        false
+    }
+}
+
+impl Stop for std::sync::atomic::AtomicBool {
+    fn requested(&self) -> bool {
+        self.load(std::sync::atomic::Ordering::Relaxed)
+    }
 }
 
 /// Size of `level` for a texture of `width × height` at level 0.
@@ -117,10 +140,15 @@ pub fn check_region(tex: &dyn Texture, region: &Region) -> Result<()> {
 
 /// Checks and renders a region into a new image.
 pub fn render_image(tex: &dyn Texture, region: &Region) -> Result<Rgba8Image> {
+    Ok(render_image_until(tex, region, &Never)?.expect("a render that is never stopped completes"))
+}
+
+/// Checks and renders a region into a new image, unless `stop` is requested first: then `None`.
+pub fn render_image_until(tex: &dyn Texture, region: &Region, stop: &dyn Stop) -> Result<Option<Rgba8Image>> {
     check_region(tex, region)?;
     let mut img = Rgba8Image::new(region.width, region.height);
-    tex.render(region, &mut img.data);
-    Ok(img)
+    tex.render(region, &mut img.data, stop);
+    Ok((!stop.requested()).then_some(img))
 }
 
 /// Reduces a coordinate onto a torus of period `period`.

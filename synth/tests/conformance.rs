@@ -7,6 +7,8 @@
 //! `cargo test -p vtex-synth --test conformance`; `CONFORMANCE_ONLY=<text>` keeps the demos
 //! whose `model/name` contains the text.
 
+use std::alloc::{GlobalAlloc, Layout, System};
+use std::cell::Cell;
 use std::collections::BTreeMap;
 use std::panic::{catch_unwind, AssertUnwindSafe};
 use std::sync::atomic::{AtomicUsize, Ordering};
@@ -16,7 +18,7 @@ use std::thread;
 use serde_json::{json, Value};
 use vtex_synth::bundle::Bundle;
 use vtex_synth::mip::{downsample_n, mean_rgba, psnr};
-use vtex_synth::models::{self, Inputs, Model};
+use vtex_synth::models::{self, Inputs, Limits, Model};
 use vtex_synth::texture::{level_count, level_size, render_image};
 use vtex_synth::{samples, Domain, Error, Region, Rgba8Image, Texture};
 
@@ -75,7 +77,7 @@ struct LevelPsnr {
 type Check = fn(&Demo, &mut Vec<LevelPsnr>) -> Outcome;
 
 /// The checks, in column order.
-const COLUMNS: [(&str, Check); 9] = [
+const COLUMNS: [(&str, Check); 10] = [
     ("tile = crop", |d, _| tile_equals_crop(d)),
     ("order/threads", |d, _| order_and_threads(d)),
     ("torus wrap", |d, _| torus_wrap(d)),
@@ -85,6 +87,7 @@ const COLUMNS: [(&str, Check); 9] = [
     ("native ≡ wasm32", |d, _| wasm_probe(d)),
     ("bad params", |d, _| bad_params(d)),
     ("bad bundle", |d, _| bad_bundle(d)),
+    ("plan", |d, _| plan(d)),
 ];
 
 // ---------------------------------------------------------------- 1. a tile is a crop
@@ -483,6 +486,65 @@ fn bad_bundle(d: &Demo) -> Outcome {
         }
     }
     Ok(format!("{} cuts, {} sections, {flips} flips ({loaded} still load)", cuts.len(), d.bundle.sections.len()))
+}
+
+// ---------------------------------------------------------------- 8. the cost plan
+
+/// Counts the heap bytes each thread holds: what it allocated less what it freed.
+struct Counting;
+
+thread_local! {
+    static LIVE: Cell<i64> = const { Cell::new(0) };
+}
+
+unsafe impl GlobalAlloc for Counting {
+    unsafe fn alloc(&self, layout: Layout) -> *mut u8 {
+        LIVE.with(|l| l.set(l.get() + layout.size() as i64));
+        System.alloc(layout)
+    }
+    unsafe fn dealloc(&self, ptr: *mut u8, layout: Layout) {
+        LIVE.with(|l| l.set(l.get() - layout.size() as i64));
+        System.dealloc(ptr, layout)
+    }
+    unsafe fn realloc(&self, ptr: *mut u8, layout: Layout, new_size: usize) -> *mut u8 {
+        LIVE.with(|l| l.set(l.get() + new_size as i64 - layout.size() as i64));
+        System.realloc(ptr, layout, new_size)
+    }
+}
+
+#[global_allocator]
+static COUNTING: Counting = Counting;
+
+/// The plan read from the bundle alone: the loaded texture's shape, within the public
+/// server's bounds, and a resident size that bounds the heap a fresh load holds after a tile
+/// of every level (and frame) has filled its caches, without exceeding 4× that + 1 MiB.
+fn plan(d: &Demo) -> Outcome {
+    let plan = models::plan(&d.bundle).map_err(|e| e.to_string())?;
+    let t = &d.tex;
+    let shape = (plan.width, plan.height, plan.domain, plan.animation);
+    if shape != (t.width(), t.height(), t.domain(), t.animation()) {
+        return Err(format!("plan {shape:?} ≠ texture {:?}", (t.width(), t.height(), t.domain(), t.animation())));
+    }
+    Limits::SERVE.check(d.model.id(), &plan).map_err(|e| e.to_string())?;
+    let before = LIVE.with(Cell::get);
+    let tex = models::load(&d.bundle).map_err(|e| e.to_string())?;
+    for level in 0..d.levels() {
+        let (lw, lh) = d.level_size(level);
+        for frame in d.frames() {
+            let region = Region::new(level, lw as i64 / 2 - 32, lh as i64 / 2 - 32, 64, 64).at_frame(frame);
+            render_image(&*tex, &region).map_err(|e| e.to_string())?;
+        }
+    }
+    let held = (LIVE.with(Cell::get) - before).max(0) as u64;
+    drop(tex);
+    let resident = plan.cost.resident_bytes.value;
+    let mib = |b: u64| b as f64 / (1 << 20) as f64;
+    let text = format!("{:.2} MiB planned, {:.2} MiB held", mib(resident), mib(held));
+    if resident < held || resident > 4 * held + (1 << 20) {
+        Err(text)
+    } else {
+        Ok(text)
+    }
 }
 
 // ---------------------------------------------------------------- the table

@@ -7,7 +7,7 @@
 //! The body is a stream of frames sent in completion order: tiles found in the cache at once,
 //! the others as each synthesis finishes. Each frame is a [`HEADER_LEN`]-byte little-endian
 //! header followed by exactly the bytes the single-tile endpoint returns for that tile (the
-//! same cache, the same coalescing of concurrent misses, the same synthesis permits:
+//! same cache, the same coalescing of concurrent misses, the same synthesis slots:
 //! [`tiles::obtain`]). Header, by byte offset:
 //!
 //! | bytes  | field                                                             |
@@ -24,9 +24,10 @@
 //! repeated tile, more than [`MAX_TILES`] tiles, a list over [`MAX_LIST_BYTES`], an unknown
 //! format or parameter are 400s, a level the texture does not serve a 400 and a tile outside
 //! its level a 404, as for single tiles, each naming the problem. Errors after that (a model
-//! failing to render) come as error frames. Dropping the response (a client that went away)
-//! aborts the tiles not yet done, so a synthesis that has not started never starts; a body
-//! not finished within the request deadline is cut off (the client sees a truncated stream).
+//! failing to render; no synthesis slot, 503) come as error frames. Dropping the response (a
+//! client that went away) aborts the tiles not yet done: a synthesis that has not started never
+//! starts, and one running stops unless another request waits for the same tile; a body not
+//! finished within the request deadline is cut off (the client sees a truncated stream).
 
 use super::error::{echo, ApiError};
 use super::extract::{Path, Query};
@@ -48,6 +49,7 @@ use std::pin::Pin;
 use std::sync::Arc;
 use std::task::{Context, Poll};
 use std::time::Instant;
+use tokio::sync::Semaphore;
 use tokio::task::JoinSet;
 
 /// Most tiles one request may ask for (a 4K screen of 256-px tiles needs ~150).
@@ -159,20 +161,24 @@ pub struct BatchQuery {
 }
 
 /// The handler. Tiles in the cache are framed at once; each other tile is a task of its own
-/// (they wait for synthesis permits like single tiles do), framed as it finishes.
+/// (they wait for synthesis slots like single tiles do), framed as it finishes.
 pub async fn batch(
     State(app): State<App>,
     Path(TextureId { id }): Path<TextureId>,
     Query(BatchQuery { tiles, format, frame }): Query<BatchQuery>,
 ) -> Result<Response, ApiError> {
     let started = Instant::now();
-    let entry = lookup(&app, &id)?;
+    let entry = lookup(&app, &id).await?;
     for t in &tiles {
         tiles::check_tile(&entry, t.level, t.x, t.y)?;
     }
     let frame = frame_for(&entry, frame);
     let mut ready = VecDeque::new();
     let mut pending = JoinSet::new();
+    // No more of a batch's misses in flight than its texture may render at once: the rest
+    // wait inside the batch, so a view of a hundred misses neither floods the shared queue
+    // (to be shed tile by tile) nor asks for more than its texture's share of the slots.
+    let turns = Arc::new(Semaphore::new(app.cfg.syntheses_per_texture()));
     for tile in tiles {
         let key = TileKey { texture: entry.key, level: tile.level, x: tile.x, y: tile.y, frame, format };
         match app.cache.get(&key) {
@@ -181,8 +187,9 @@ pub async fn batch(
                 push_tile(&mut ready, tile, &hit, Source::Hit);
             }
             None => {
-                let (app, entry) = (app.clone(), entry.clone());
+                let (app, entry, turns) = (app.clone(), entry.clone(), turns.clone());
                 pending.spawn(async move {
+                    let _turn = turns.acquire().await.expect("the semaphore is never closed");
                     let tag = tiles::tile_etag(&entry, &key);
                     (tile, tiles::obtain(&app, &entry, key, None, tag).await)
                 });

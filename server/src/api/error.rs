@@ -4,10 +4,14 @@
 use axum::http::{header, HeaderValue, StatusCode};
 use axum::response::{IntoResponse, Response};
 
-/// The cause of an internal error: kept for the log, never sent.
-pub type Cause = Box<dyn std::error::Error + Send + Sync>;
+/// The cause of an internal error: kept for the log, never sent. Shared, so that one
+/// synthesis's error can answer every request that waited for it.
+pub type Cause = std::sync::Arc<dyn std::error::Error + Send + Sync>;
 
-#[derive(Debug, thiserror::Error)]
+/// Seconds a client is asked to wait before retrying a `503`.
+pub const RETRY_AFTER_SECS: u32 = 1;
+
+#[derive(Clone, Debug, thiserror::Error)]
 pub enum ApiError {
     #[error("{0}")]
     BadRequest(String),
@@ -20,7 +24,18 @@ pub enum ApiError {
     #[error("{0}")]
     PayloadTooLarge(String),
     #[error("{0}")]
+    UriTooLong(String),
+    #[error("{0}")]
     UnsupportedMediaType(String),
+    /// An encoding over a bound of the server: what it would cost (`vtex_synth::Error::TooCostly`).
+    #[error("{0}")]
+    TooCostly(String),
+    /// The store holds its maximum, or its disk is full: the message names which.
+    #[error("{0}")]
+    InsufficientStorage(String),
+    /// Over capacity or shutting down: answered at once with `Retry-After`.
+    #[error("{0}")]
+    Unavailable(String),
     /// The server failed. `what` (static text, so it cannot carry a path or an OS message) is
     /// all the client learns; `cause` goes to the log.
     #[error("{what}: {cause}")]
@@ -37,8 +52,8 @@ impl ApiError {
     }
 
     /// A server-side failure: `what` the server was doing, `cause` why it failed.
-    pub fn internal(what: &'static str, cause: impl Into<Cause>) -> Self {
-        ApiError::Internal { what, cause: cause.into() }
+    pub fn internal(what: &'static str, cause: impl Into<Box<dyn std::error::Error + Send + Sync>>) -> Self {
+        ApiError::Internal { what, cause: Cause::from(cause.into()) }
     }
 
     pub fn status(&self) -> StatusCode {
@@ -48,7 +63,11 @@ impl ApiError {
             ApiError::MethodNotAllowed(_) => StatusCode::METHOD_NOT_ALLOWED,
             ApiError::Timeout(_) => StatusCode::REQUEST_TIMEOUT,
             ApiError::PayloadTooLarge(_) => StatusCode::PAYLOAD_TOO_LARGE,
+            ApiError::UriTooLong(_) => StatusCode::URI_TOO_LONG,
             ApiError::UnsupportedMediaType(_) => StatusCode::UNSUPPORTED_MEDIA_TYPE,
+            ApiError::TooCostly(_) => StatusCode::UNPROCESSABLE_ENTITY,
+            ApiError::InsufficientStorage(_) => StatusCode::INSUFFICIENT_STORAGE,
+            ApiError::Unavailable(_) => StatusCode::SERVICE_UNAVAILABLE,
             ApiError::Internal { .. } => StatusCode::INTERNAL_SERVER_ERROR,
         }
     }
@@ -83,9 +102,14 @@ pub fn echo(s: &str) -> String {
     }
 }
 
+/// An encoding the client got wrong is a 400; one that is well formed but over the server's
+/// bounds a 422.
 impl From<vtex_synth::Error> for ApiError {
     fn from(e: vtex_synth::Error) -> Self {
-        ApiError::bad_request(e.to_string())
+        match e {
+            vtex_synth::Error::TooCostly { .. } => ApiError::TooCostly(e.to_string()),
+            e => ApiError::bad_request(e.to_string()),
+        }
     }
 }
 
@@ -94,6 +118,9 @@ impl IntoResponse for ApiError {
         let (status, body) = self.to_json();
         let mut resp = (status, body).into_response();
         resp.headers_mut().insert(header::CONTENT_TYPE, HeaderValue::from_static("application/json"));
+        if status == StatusCode::SERVICE_UNAVAILABLE {
+            resp.headers_mut().insert(header::RETRY_AFTER, HeaderValue::from(RETRY_AFTER_SECS));
+        }
         resp
     }
 }
@@ -111,5 +138,21 @@ mod tests {
         assert!(body.contains("storing the bundle failed"), "{body}");
         assert!(!body.contains("secret") && !body.contains("permission"), "{body}");
         assert!(e.to_string().contains("/secret/dir"), "the cause stays available for the log");
+    }
+
+    #[test]
+    fn costs_over_the_bounds_are_422() {
+        let e = vtex_synth::Error::TooCostly {
+            model: "cascade".into(),
+            what: "work units per tile",
+            value: 9,
+            why: "3 stages × 3".into(),
+            bound: 5,
+        };
+        let (status, message) = ApiError::from(e).to_client();
+        assert_eq!(status, StatusCode::UNPROCESSABLE_ENTITY);
+        assert!(message.contains("cascade") && message.contains("3 stages × 3") && message.contains('5'), "{message}");
+        let bad = ApiError::from(vtex_synth::Error::param("name", "1 to 200 printable characters"));
+        assert_eq!(bad.status(), StatusCode::BAD_REQUEST);
     }
 }

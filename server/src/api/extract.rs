@@ -2,6 +2,10 @@
 //! segments or query string into a struct (`#[serde(deny_unknown_fields)]`) and rejecting with
 //! [`ApiError`]. Every endpoint thereby names a bad, missing, repeated or unknown parameter in
 //! the same words.
+//!
+//! [`check_query`] bounds a query before anything parses it: its length (414) and its number
+//! of parameters (400). [`Front`](super::Front) applies it to every request, so a hostile
+//! query costs one scan of at most [`MAX_BATCH_QUERY_BYTES`] bytes, whatever the route.
 
 use super::error::{echo, ApiError};
 use axum::extract::{FromRequestParts, RawPathParams};
@@ -10,6 +14,33 @@ use serde::de::value::MapDeserializer;
 use serde::de::{DeserializeOwned, IntoDeserializer};
 use serde::Deserialize;
 use std::fmt;
+
+/// Longest query of every route but the tile batch; the others take a few short numbers.
+pub const MAX_QUERY_BYTES: usize = 2048;
+/// Longest query of a tile batch ([`super::BATCH`]): its longest list with every byte
+/// percent-encoded, and its other parameters.
+pub const MAX_BATCH_QUERY_BYTES: usize = 3 * super::batch::MAX_LIST_BYTES + 256;
+/// Most parameters any route takes (a region's seven); a query with more cannot be valid.
+pub const MAX_QUERY_KEYS: usize = 7;
+
+/// Refuses a query over `max_bytes` (414) or with more than [`MAX_QUERY_KEYS`] parameters
+/// (400), counting them as the parser would (`&`-separated, empty ones skipped).
+pub fn check_query(query: Option<&str>, max_bytes: usize) -> Result<(), ApiError> {
+    let Some(q) = query.filter(|q| !q.is_empty()) else { return Ok(()) };
+    if q.len() > max_bytes {
+        return Err(ApiError::UriTooLong(format!(
+            "the query is {} bytes long; this endpoint takes at most {max_bytes}",
+            q.len()
+        )));
+    }
+    let keys = q.split('&').filter(|p| !p.is_empty()).count();
+    if keys > MAX_QUERY_KEYS {
+        return Err(ApiError::bad_request(format!(
+            "the query has {keys} parameters; no endpoint takes more than {MAX_QUERY_KEYS}"
+        )));
+    }
+    Ok(())
+}
 
 /// The path segments of the matched route template, by name.
 pub struct Path<T>(pub T);
@@ -145,6 +176,77 @@ mod tests {
 
     fn query<T: DeserializeOwned>(q: &str) -> Result<T, String> {
         query_params(Some(q)).map_err(|e| e.to_string())
+    }
+
+    /// The number of fields of a parameter struct, as its `Deserialize` declares them.
+    fn fields<T: DeserializeOwned>() -> usize {
+        struct Probe;
+        #[derive(Debug)]
+        struct Fields(usize);
+        impl fmt::Display for Fields {
+            fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+                write!(f, "{} fields", self.0)
+            }
+        }
+        impl std::error::Error for Fields {}
+        impl serde::de::Error for Fields {
+            fn custom<M: fmt::Display>(msg: M) -> Self {
+                panic!("not a struct: {msg}")
+            }
+        }
+        impl<'de> serde::Deserializer<'de> for Probe {
+            type Error = Fields;
+            fn deserialize_any<V: serde::de::Visitor<'de>>(self, _: V) -> Result<V::Value, Fields> {
+                panic!("a parameter struct deserializes as a struct")
+            }
+            fn deserialize_struct<V: serde::de::Visitor<'de>>(
+                self,
+                _: &'static str,
+                fields: &'static [&'static str],
+                _: V,
+            ) -> Result<V::Value, Fields> {
+                Err(Fields(fields.len()))
+            }
+            serde::forward_to_deserialize_any! {
+                bool i8 i16 i32 i64 i128 u8 u16 u32 u64 u128 f32 f64 char str string bytes byte_buf
+                option unit unit_struct newtype_struct seq tuple tuple_struct map enum identifier
+                ignored_any
+            }
+        }
+        T::deserialize(Probe).err().expect("the probe never yields a value").0
+    }
+
+    /// [`MAX_QUERY_KEYS`] refuses no valid query: it is the largest count of parameters of any
+    /// route's query.
+    #[test]
+    fn the_key_bound_is_the_largest_query() {
+        use crate::api::{batch::BatchQuery, tiles::RegionQuery, tiles::TileQuery};
+        let counts = [fields::<NoQuery>(), fields::<TileQuery>(), fields::<BatchQuery>(), fields::<RegionQuery>()];
+        assert_eq!(counts, [0, 1, 3, 7]);
+        assert_eq!(counts.iter().max(), Some(&MAX_QUERY_KEYS));
+    }
+
+    #[test]
+    fn long_and_crowded_queries_are_refused_before_parsing() {
+        let status = |q: &str, max| check_query(Some(q), max).map_err(|e| e.status().as_u16());
+        assert_eq!(status("level=0&x=0&y=0&w=1&h=1&format=png&frame=0", MAX_QUERY_BYTES), Ok(()));
+        assert_eq!(status("a&&&&&&&&b&c&d&e&f&g", MAX_QUERY_BYTES), Ok(()), "empty pairs are skipped");
+        assert_eq!(status("a&b&c&d&e&f&g&h", MAX_QUERY_BYTES), Err(400));
+        assert_eq!(status(&"x".repeat(MAX_QUERY_BYTES), MAX_QUERY_BYTES), Ok(()));
+        assert_eq!(status(&"x".repeat(MAX_QUERY_BYTES + 1), MAX_QUERY_BYTES), Err(414));
+        let e = check_query(Some(&"k=1&".repeat(15_000)), MAX_BATCH_QUERY_BYTES).unwrap_err();
+        assert_eq!(e.to_string(), "the query is 60000 bytes long; this endpoint takes at most 24832");
+        let e = check_query(Some(&"k=1&".repeat(100)), MAX_QUERY_BYTES).unwrap_err();
+        assert_eq!(e.to_string(), "the query has 100 parameters; no endpoint takes more than 7");
+        assert!(check_query(None, 0).is_ok() && check_query(Some(""), 0).is_ok());
+    }
+
+    /// The longest batch list, every byte percent-encoded, fits the batch's bound.
+    #[test]
+    fn the_longest_batch_query_fits() {
+        let list = "%2C".repeat(crate::api::batch::MAX_LIST_BYTES);
+        let q = format!("format=rgba&frame=4294967295&tiles={list}");
+        assert!(check_query(Some(&q), MAX_BATCH_QUERY_BYTES).is_ok());
     }
 
     #[test]

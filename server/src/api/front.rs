@@ -8,21 +8,38 @@
 //! ([`tiles::answer`]) and gives the answer the same CORS headers, metrics label, log line
 //! and deadline. Anything else (HEAD, other methods, percent-encoded paths, other routes)
 //! takes the router, so answers are the same either way (tests compare both).
+//!
+//! Before either, every request's head is checked where it costs least, before any route or
+//! parser sees it: its `Host` (RFC 9112 §3.2) and its query's length and number of parameters
+//! ([`check_query`]). Each connection has its own [`Connection`] service, which counts its
+//! requests in flight for the idle timeout.
 
-use super::extract::{path_params, query_params};
-use super::{cors_layer, count, router, tiles, timed_out, App, TILE};
+use super::error::{echo, ApiError};
+use super::extract::{check_query, path_params, query_params, MAX_BATCH_QUERY_BYTES, MAX_QUERY_BYTES};
+use super::{cors_layer, count, router, tiles, timed_out, App, BATCH, TILE};
+use crate::transport::{Activity, InFlight};
 use axum::body::Body;
-use axum::http::{header, HeaderMap, HeaderValue, Method, Request};
+use axum::http::uri::Authority;
+use axum::http::{header, HeaderMap, HeaderValue, Method, Request, Version};
 use axum::response::{IntoResponse, Response};
 use axum::Router;
+use bytes::Bytes;
 use hyper::body::Incoming;
 use std::convert::Infallible;
 use std::future::Future;
 use std::pin::Pin;
 use std::sync::Arc;
+use std::task::{Context, Poll};
 use std::time::Instant;
 use tower::ServiceExt;
 use tower_http::cors::CorsLayer;
+
+/// Largest request head (request line and headers) hyper reads, in either protocol: the longest
+/// query any route takes (a tile batch's) and room for ordinary headers.
+pub const MAX_HEAD_BYTES: usize = MAX_BATCH_QUERY_BYTES + 32 * 1024;
+
+/// The `route` label of requests refused before routing (a bad `Host`, an oversized query).
+const REFUSED: &str = "refused";
 
 /// Cloned per connection and per request (one reference count); the state is shared.
 #[derive(Clone)]
@@ -33,56 +50,161 @@ struct Inner {
     router: Router,
     /// [`TILE`] alone, in the matcher the router uses.
     tile: matchit::Router<()>,
+    /// [`BATCH`] alone, likewise: the route allowed a longer query.
+    batch: matchit::Router<()>,
     cors: CorsHeaders,
 }
 
 impl Front {
     pub fn new(app: App) -> Front {
-        let mut tile = matchit::Router::new();
-        tile.insert(TILE, ()).expect("the tile route is a valid template");
+        let one = |template: &str| {
+            let mut m = matchit::Router::new();
+            m.insert(template, ()).expect("route templates are valid");
+            m
+        };
         let cors = CorsHeaders::from_layer(cors_layer());
-        Front(Arc::new(Inner { router: router(app.clone()), app, tile, cors }))
+        Front(Arc::new(Inner { router: router(app.clone()), app, tile: one(TILE), batch: one(BATCH), cors }))
+    }
+
+    /// The service of one connection, counting its requests in flight in `activity`.
+    pub fn connection(&self, activity: Arc<Activity>) -> Connection {
+        Connection { front: self.clone(), activity }
     }
 }
 
-impl hyper::service::Service<Request<Incoming>> for Front {
-    type Response = Response;
+/// [`Front`] serving one connection.
+pub struct Connection {
+    front: Front,
+    activity: Arc<Activity>,
+}
+
+impl hyper::service::Service<Request<Incoming>> for Connection {
+    type Response = Response<Tracked>;
     type Error = Infallible;
-    type Future = Pin<Box<dyn Future<Output = Result<Response, Infallible>> + Send>>;
+    type Future = Pin<Box<dyn Future<Output = Result<Response<Tracked>, Infallible>> + Send>>;
 
     fn call(&self, req: Request<Incoming>) -> Self::Future {
-        let this = self.0.clone();
+        let in_flight = self.activity.start();
+        let this = self.front.0.clone();
         Box::pin(async move {
-            // Percent-encoded segments need decoding, which the router's extractor does.
-            let plain = req.method() == Method::GET && !req.uri().path().contains('%');
-            if let Some(m) = plain.then(|| this.tile.at(req.uri().path()).ok()).flatten() {
-                let start = Instant::now();
-                let limit = this.app.cfg.request_timeout();
-                let work = async {
-                    let (path, query) = (path_params(m.params.iter())?, query_params(req.uri().query())?);
-                    tiles::answer(&this.app, path, query, req.headers()).await
-                };
-                let mut resp = match tokio::time::timeout(limit, work).await {
-                    Ok(answer) => answer.into_response(),
-                    Err(_) => timed_out(limit).into_response(),
-                };
-                this.cors.apply(resp.headers_mut());
-                count(&this.app, TILE, &Method::GET, start, &resp);
-                tracing::info!(
-                    target: "vtex::http",
-                    method = "GET",
-                    uri = %req.uri(),
-                    status = resp.status().as_u16(),
-                    latency_us = start.elapsed().as_micros() as u64,
-                    "finished processing request"
-                );
-                return Ok(resp);
-            }
-            match this.router.clone().oneshot(req.map(Body::new)).await {
-                Ok(resp) => Ok(resp),
-                Err(never) => match never {},
-            }
+            let resp = Inner::answer(this, req).await;
+            Ok(resp.map(|body| Tracked { body, _in_flight: in_flight }))
         })
+    }
+}
+
+/// A response body that keeps its request counted in flight until it is finished or dropped.
+pub struct Tracked {
+    body: Body,
+    _in_flight: InFlight,
+}
+
+impl http_body::Body for Tracked {
+    type Data = Bytes;
+    type Error = axum::Error;
+
+    fn poll_frame(
+        mut self: Pin<&mut Self>,
+        cx: &mut Context<'_>,
+    ) -> Poll<Option<Result<http_body::Frame<Bytes>, axum::Error>>> {
+        Pin::new(&mut self.body).poll_frame(cx)
+    }
+
+    fn is_end_stream(&self) -> bool {
+        self.body.is_end_stream()
+    }
+
+    fn size_hint(&self) -> http_body::SizeHint {
+        self.body.size_hint()
+    }
+}
+
+impl Inner {
+    /// The answer to `req`: refused, or from the fast path, or from the router.
+    async fn answer(this: Arc<Inner>, req: Request<Incoming>) -> Response {
+        if let Err(e) = this.check_head(&req) {
+            return this.refuse(&req, e);
+        }
+        // Percent-encoded segments need decoding, which the router's extractor does.
+        let plain = req.method() == Method::GET && !req.uri().path().contains('%');
+        if let Some(m) = plain.then(|| this.tile.at(req.uri().path()).ok()).flatten() {
+            let start = Instant::now();
+            let limit = this.app.cfg.request_timeout();
+            let work = async {
+                let (path, query) = (path_params(m.params.iter())?, query_params(req.uri().query())?);
+                tiles::answer(&this.app, path, query, req.headers()).await
+            };
+            let mut resp = match tokio::time::timeout(limit, work).await {
+                Ok(answer) => answer.into_response(),
+                Err(_) => timed_out(limit).into_response(),
+            };
+            this.cors.apply(resp.headers_mut());
+            count(&this.app, TILE, &Method::GET, start, &resp);
+            tracing::info!(
+                target: "vtex::http",
+                method = "GET",
+                uri = %req.uri(),
+                status = resp.status().as_u16(),
+                latency_us = start.elapsed().as_micros() as u64,
+                "finished processing request"
+            );
+            return resp;
+        }
+        match this.router.clone().oneshot(req.map(Body::new)).await {
+            Ok(resp) => resp,
+            Err(never) => match never {},
+        }
+    }
+
+    /// What every request must satisfy before routing: a valid `Host`, a bounded query. The
+    /// query's bound is looked up by route only for a query longer than the usual one.
+    fn check_head(&self, req: &Request<Incoming>) -> Result<(), ApiError> {
+        check_host(req.version(), req.headers())?;
+        let query = req.uri().query();
+        let long = query.is_some_and(|q| q.len() > MAX_QUERY_BYTES) && self.batch.at(req.uri().path()).is_ok();
+        check_query(query, if long { MAX_BATCH_QUERY_BYTES } else { MAX_QUERY_BYTES })
+    }
+
+    /// The answer to a request [`Self::check_head`] refused: counted and logged like any other.
+    fn refuse(&self, req: &Request<Incoming>, e: ApiError) -> Response {
+        let start = Instant::now();
+        let mut resp = e.into_response();
+        self.cors.apply(resp.headers_mut());
+        count(&self.app, REFUSED, req.method(), start, &resp);
+        tracing::info!(
+            target: "vtex::http",
+            method = %req.method(),
+            uri = %echo(&req.uri().to_string()),
+            status = resp.status().as_u16(),
+            "refused before routing"
+        );
+        resp
+    }
+}
+
+/// RFC 9112 §3.2: an HTTP/1.1 request without `Host`, and an HTTP/1 request with more than one
+/// or with one that is not `host[:port]`, are 400s. HTTP/2 carries `:authority` instead.
+fn check_host(version: Version, headers: &HeaderMap) -> Result<(), ApiError> {
+    if version != Version::HTTP_11 && version != Version::HTTP_10 {
+        return Ok(());
+    }
+    let mut hosts = headers.get_all(header::HOST).iter();
+    match (hosts.next(), hosts.next()) {
+        (None, _) if version == Version::HTTP_11 => {
+            Err(ApiError::bad_request("an HTTP/1.1 request needs a Host header (RFC 9112 §3.2)"))
+        }
+        (None, _) => Ok(()),
+        (Some(_), Some(_)) => Err(ApiError::bad_request("more than one Host header (RFC 9112 §3.2)")),
+        (Some(host), None) => {
+            let valid = !host.as_bytes().contains(&b'@') && Authority::try_from(host.as_bytes()).is_ok();
+            match valid {
+                true => Ok(()),
+                false => Err(ApiError::bad_request(format!(
+                    "the Host header `{}` is not host[:port]",
+                    echo(&String::from_utf8_lossy(host.as_bytes()))
+                ))),
+            }
+        }
     }
 }
 

@@ -7,13 +7,14 @@ pub mod extract;
 mod front;
 pub mod params;
 mod textures;
-mod tiles;
+pub mod tiles;
 
 use crate::cache::TileCache;
 use crate::config::ServeConfig;
 use crate::encode::{self, Format};
 use crate::metrics::Metrics;
-use crate::store::{Entry, Store};
+use crate::slots::{Refused, Slots};
+use crate::store::{Entry, Record, Store, StoreError};
 use axum::error_handling::HandleErrorLayer;
 use axum::extract::{DefaultBodyLimit, MatchedPath, Request, State};
 use axum::http::{header, HeaderMap, HeaderName, HeaderValue, Method, StatusCode};
@@ -25,22 +26,25 @@ use error::ApiError;
 use extract::{NoQuery, Query};
 use http_body_util::BodyExt;
 use serde::Deserialize;
+use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
 use std::time::Instant;
-use tokio::sync::Semaphore;
 use tower::ServiceBuilder;
 use tower_http::cors::{Any, CorsLayer};
 use tower_http::services::ServeDir;
 use tower_http::trace::{DefaultMakeSpan, DefaultOnResponse, TraceLayer};
 use tower_http::LatencyUnit;
-use vtex_synth::Region;
+use vtex_synth::{Region, Stop};
 
 pub use error::ApiError as Error;
-pub use front::Front;
+pub use front::{Front, MAX_HEAD_BYTES};
 
 /// The route of a single tile: [`router`] serves it, and [`Front`] answers plain GETs of it
 /// directly, matching paths against this same template.
 pub const TILE: &str = "/api/v1/textures/{id}/tiles/{level}/{x}/{file}";
+/// The route of a tile batch, the one route whose query may be longer than
+/// [`extract::MAX_QUERY_BYTES`].
+pub const BATCH: &str = "/api/v1/textures/{id}/tiles";
 
 pub const CACHE_IMMUTABLE: HeaderValue = HeaderValue::from_static("public, max-age=31536000, immutable");
 pub static X_VTEX_CACHE: HeaderName = HeaderName::from_static("x-vtex-cache");
@@ -62,23 +66,56 @@ pub struct AppState {
     pub store: Arc<Store>,
     pub cache: TileCache,
     pub metrics: Metrics,
-    /// Permits for syntheses; a miss waits for one (back-pressure), never runs unbounded.
-    pub synth_permits: Arc<Semaphore>,
+    /// Synthesis slots, shared fairly between textures, with a bounded queue.
+    pub slots: Arc<Slots>,
+    /// Set when shutdown stops the renders still running.
+    pub stopping: Arc<AtomicBool>,
     pub cfg: ServeConfig,
 }
 
 pub type App = Arc<AppState>;
+
+/// The stop of one synthesis: requested when nobody waits for it any more, or for all at
+/// shutdown.
+struct SynthesisStop {
+    abandoned: AtomicBool,
+    server: Arc<AtomicBool>,
+}
+
+impl Stop for SynthesisStop {
+    fn requested(&self) -> bool {
+        self.abandoned.load(Ordering::Relaxed) || self.server.load(Ordering::Relaxed)
+    }
+}
+
+/// Requests the stop of a synthesis when the future waiting for it ends, finished or dropped.
+struct StopOnDrop(Arc<SynthesisStop>);
+
+impl Drop for StopOnDrop {
+    fn drop(&mut self) {
+        self.0.abandoned.store(true, Ordering::Relaxed);
+    }
+}
 
 impl AppState {
     pub fn new(store: Arc<Store>, cfg: ServeConfig) -> App {
         let metrics = Metrics::new();
         let cache = TileCache::new(cfg.cache_bytes(), cfg.send);
         metrics.cache_budget_bytes.set(cache.budget() as i64);
-        Arc::new(AppState { store, cache, metrics, synth_permits: Arc::new(Semaphore::new(cfg.syntheses())), cfg })
+        metrics.textures_budget_bytes.set(store.bounds().limits.max_resident_bytes as i64);
+        let slots = Slots::new(cfg.syntheses(), cfg.syntheses_per_texture(), cfg.max_queued());
+        Arc::new(AppState { store, cache, metrics, slots, stopping: Arc::new(AtomicBool::new(false)), cfg })
     }
 
-    /// Renders `region` of `entry` and encodes it, on the blocking pool, holding a permit.
-    /// Returns the encoded bytes. Bad regions are 400s; a panicking model is a 500.
+    /// Shutdown: stops every render in progress and refuses every miss waiting or to come.
+    pub fn stop_syntheses(&self) {
+        self.stopping.store(true, Ordering::Relaxed);
+        self.slots.close();
+    }
+
+    /// Renders `region` of `entry` and encodes it, on the blocking pool, holding a slot.
+    /// Returns the encoded bytes. Bad regions are 400s; a panicking model is a 500; no slot
+    /// (queue full, shutting down) or a render stopped by shutdown is a 503.
     pub async fn synthesize(&self, entry: Arc<Entry>, region: Region, format: Format) -> Result<Vec<u8>, ApiError> {
         self.synthesize_then(entry, region, format, |bytes| bytes).await
     }
@@ -87,6 +124,9 @@ impl AppState {
     /// tiles, [`crate::transport::Transport::seal`], whose copy (and the first touch of a fresh
     /// huge-page arena, which may wait for the kernel to compact memory) then stays off the I/O
     /// runtimes.
+    ///
+    /// Dropping the future (its request gone) stops the render: the model returns at its next
+    /// band, and the slot is free again.
     pub async fn synthesize_then<T: Send + 'static>(
         &self,
         entry: Arc<Entry>,
@@ -94,22 +134,34 @@ impl AppState {
         format: Format,
         finish: impl FnOnce(Vec<u8>) -> T + Send + 'static,
     ) -> Result<T, ApiError> {
-        // The permit moves into the blocking work, not this future: a request dropped while
-        // its tile renders (a client gone, a batch the viewer aborted) must not free the slot
-        // while the render still runs, or more syntheses than permits would run at once.
-        let permit = self.synth_permits.clone().acquire_owned().await.expect("the semaphore is never closed");
-        let (synth_s, encode_s, in_flight, count) = (
-            self.metrics.synthesis_seconds.clone(),
-            self.metrics.encode_seconds.with_label_values(&[format.ext()]),
-            self.metrics.syntheses_in_flight.clone(),
-            self.metrics.syntheses.clone(),
+        let slot = self.slots.acquire(entry.key).await.map_err(|refused| {
+            if refused == Refused::Full {
+                self.metrics.syntheses_shed.inc();
+            }
+            unavailable(refused)
+        })?;
+        let stop = Arc::new(SynthesisStop { abandoned: AtomicBool::new(false), server: self.stopping.clone() });
+        let _stop_on_drop = StopOnDrop(stop.clone());
+        let m = &self.metrics;
+        let (synth_s, encode_s, in_flight, count, stopped) = (
+            m.synthesis_seconds.clone(),
+            m.encode_seconds.with_label_values(&[format.ext()]),
+            m.syntheses_in_flight.clone(),
+            m.syntheses.clone(),
+            m.syntheses_stopped.clone(),
         );
+        // The slot moves into the blocking work, not this future: a request dropped while its
+        // tile renders must not free the slot before the render has returned, or more
+        // syntheses than slots would run at once.
         tokio::task::spawn_blocking(move || {
             count.inc();
             in_flight.inc();
             let work = || {
                 let t0 = Instant::now();
-                let img = vtex_synth::texture::render_image(&*entry.texture, &region)?;
+                let Some(img) = vtex_synth::texture::render_image_until(&*entry.texture, &region, &*stop)? else {
+                    stopped.inc();
+                    return Err(unavailable(Refused::Closed));
+                };
                 synth_s.observe(t0.elapsed().as_secs_f64());
                 let t1 = Instant::now();
                 let bytes = encode::encode(&img, format).map_err(|e| ApiError::internal("encoding failed", e))?;
@@ -118,12 +170,21 @@ impl AppState {
             };
             let result = std::panic::catch_unwind(std::panic::AssertUnwindSafe(work));
             in_flight.dec();
-            drop(permit);
+            drop(slot);
             result.unwrap_or_else(|panic| Err(ApiError::internal(SYNTHESIS_FAILED, panic_message(panic))))
         })
         .await
         .map_err(|e| ApiError::internal(SYNTHESIS_FAILED, e))?
     }
+}
+
+/// The 503 for a miss that got no slot, or whose render shutdown stopped (a render stopped
+/// because its requests left answers nobody).
+fn unavailable(why: Refused) -> ApiError {
+    ApiError::Unavailable(match why {
+        Refused::Full => "too many tiles wait for synthesis; retry shortly".into(),
+        Refused::Closed => "the server is shutting down".into(),
+    })
 }
 
 /// The path of the routes of one texture, `/api/v1/textures/{id}…`.
@@ -155,7 +216,7 @@ pub fn router(app: App) -> Router {
         .route("/api/v1/textures", get(textures::list).post(textures::upload))
         .route("/api/v1/textures/{id}", get(textures::info).patch(textures::patch))
         .route("/api/v1/textures/{id}/encoding", get(textures::encoding))
-        .route("/api/v1/textures/{id}/tiles", get(batch::batch))
+        .route(BATCH, get(batch::batch))
         .route(TILE, get(tiles::tile))
         .route("/api/v1/textures/{id}/region", get(tiles::region))
         .route("/healthz", get(healthz))
@@ -211,7 +272,14 @@ async fn metrics(State(app): State<App>, _: Query<NoQuery>) -> Response {
     m.cache_mapped_bytes.set(app.cfg.send.mapped_bytes() as i64);
     m.cache_entries.set(app.cache.len() as i64);
     m.cache_evictions.set(app.cache.evictions() as i64);
-    m.textures.set(app.store.len() as i64);
+    let store = &app.store;
+    m.textures.set(store.len() as i64);
+    m.store_bytes.set(store.stored_bytes() as i64);
+    m.textures_loaded.set(store.loaded() as i64);
+    m.textures_loaded_bytes.set(store.loaded_bytes() as i64);
+    m.texture_loads.set(store.loads() as i64);
+    m.texture_evictions.set(store.evictions() as i64);
+    m.syntheses_queued.set(app.slots.queued() as i64);
     ([(header::CONTENT_TYPE, "text/plain; version=0.0.4")], m.render()).into_response()
 }
 
@@ -296,14 +364,37 @@ pub async fn refuse_oversized(req: Request, limit: usize) -> ApiError {
 }
 
 /// A texture id from the path: checked before it can reach a file name.
-pub fn lookup(app: &AppState, id: &str) -> Result<Arc<Entry>, ApiError> {
-    if !vtex_synth::bundle::is_valid_id(id) {
-        return Err(ApiError::bad_request(format!(
-            "invalid texture id `{}`: expected 64 lowercase hex characters",
-            error::echo(id)
-        )));
+fn check_id(id: &str) -> Result<(), ApiError> {
+    if vtex_synth::bundle::is_valid_id(id) {
+        return Ok(());
     }
-    app.store.get(id).ok_or_else(|| ApiError::not_found(format!("no texture with id {id}")))
+    Err(ApiError::bad_request(format!(
+        "invalid texture id `{}`: expected 64 lowercase hex characters",
+        error::echo(id)
+    )))
+}
+
+fn no_texture(id: &str) -> ApiError {
+    ApiError::not_found(format!("no texture with id {id}"))
+}
+
+/// What the store knows of texture `id`, without loading it.
+pub fn record(app: &AppState, id: &str) -> Result<Arc<Record>, ApiError> {
+    check_id(id)?;
+    app.store.record(id).ok_or_else(|| no_texture(id))
+}
+
+/// Texture `id`, loaded: on its first use (or after its eviction) off the I/O threads.
+pub async fn lookup(app: &AppState, id: &str) -> Result<Arc<Entry>, ApiError> {
+    check_id(id)?;
+    match app.store.get(id).await {
+        Ok(Some(entry)) => Ok(entry),
+        Ok(None) => Err(no_texture(id)),
+        Err(StoreError::Invalid(e)) => {
+            Err(ApiError::internal("the stored texture failed validation when loaded; it is no longer served", e))
+        }
+        Err(e) => Err(ApiError::internal("loading the stored texture failed", e)),
+    }
 }
 
 #[cfg(test)]

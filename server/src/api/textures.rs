@@ -3,7 +3,7 @@
 use super::error::{echo, ApiError};
 use super::extract::{NoQuery, Path, Query};
 use super::{
-    declared_length, lookup, not_modified, not_modified_response, read_body, refuse_oversized, App, TextureId,
+    declared_length, not_modified, not_modified_response, read_body, record, refuse_oversized, App, TextureId,
     CACHE_IMMUTABLE,
 };
 use crate::store::{StoreError, TextureInfo};
@@ -13,7 +13,7 @@ use axum::response::{IntoResponse, Response};
 use axum::Json;
 use serde_json::Value;
 use vtex_synth::bundle::{Bundle, Manifest};
-use vtex_synth::models::{self, Inputs};
+use vtex_synth::models::{self, Inputs, Limits};
 
 /// Most multipart fields an upload may carry (model, name, params and input images).
 const MAX_FIELDS: usize = 16;
@@ -30,7 +30,7 @@ pub async fn info(
     Path(TextureId { id }): Path<TextureId>,
     _: Query<NoQuery>,
 ) -> Result<Json<TextureInfo>, ApiError> {
-    Ok(Json(lookup(&app, &id)?.info()))
+    Ok(Json(record(&app, &id)?.info()))
 }
 
 /// The bundle bytes exactly as stored. The id is the content hash: a perfect strong ETag.
@@ -40,7 +40,7 @@ pub async fn encoding(
     _: Query<NoQuery>,
     headers: HeaderMap,
 ) -> Result<Response, ApiError> {
-    let entry = lookup(&app, &id)?;
+    let entry = record(&app, &id)?;
     let tag = HeaderValue::from_str(&format!("\"{}\"", entry.id)).expect("hex id");
     if not_modified(&headers, tag.to_str().unwrap_or_default()) {
         return Ok(not_modified_response(tag));
@@ -62,6 +62,7 @@ pub async fn encoding(
 }
 
 /// Validates and stores bundle bytes off the runtime: 201 when new, 200 when already stored.
+/// Over the server's bounds is 422; past a cap of the store or on a full disk, 507.
 async fn store_bundle(app: &App, bytes: Vec<u8>) -> Result<(StatusCode, Json<TextureInfo>), ApiError> {
     let store = app.store.clone();
     let (entry, created) = tokio::task::spawn_blocking(move || store.put(bytes))
@@ -69,6 +70,7 @@ async fn store_bundle(app: &App, bytes: Vec<u8>) -> Result<(StatusCode, Json<Tex
         .map_err(|e| ApiError::internal("validating the bundle failed inside the model", e))?
         .map_err(|e| match e {
             StoreError::Invalid(e) => ApiError::from(e),
+            StoreError::Full(why) => ApiError::InsufficientStorage(why),
             StoreError::Io(e) => ApiError::internal("storing the bundle failed", e),
         })?;
     if created {
@@ -94,7 +96,7 @@ pub async fn upload(
         if declared_length(req.headers()).is_some_and(|n| n > limit as u64) {
             return Err(refuse_oversized(req, limit).await);
         }
-        let bytes = bundle_from_multipart(req, limit).await?;
+        let bytes = bundle_from_multipart(req, limit, app.store.bounds().limits).await?;
         store_bundle(&app, bytes).await
     } else if content_type.starts_with("application/octet-stream") {
         let bytes = read_body(req, limit).await?;
@@ -107,7 +109,8 @@ pub async fn upload(
     }
 }
 
-async fn bundle_from_multipart(req: Request, limit: usize) -> Result<Vec<u8>, ApiError> {
+/// The bundle a multipart upload describes, created only when its plan is within `bounds`.
+async fn bundle_from_multipart(req: Request, limit: usize, bounds: Limits) -> Result<Vec<u8>, ApiError> {
     let multipart_error = |status: StatusCode, text: String| {
         if status == StatusCode::PAYLOAD_TOO_LARGE {
             ApiError::PayloadTooLarge(format!("request body larger than the limit of {limit} bytes"))
@@ -147,7 +150,7 @@ async fn bundle_from_multipart(req: Request, limit: usize) -> Result<Vec<u8>, Ap
     let model = model.ok_or_else(|| ApiError::bad_request("missing multipart field `model`"))?;
     let name = name.unwrap_or_else(|| model.clone());
     let params = params.unwrap_or_else(|| serde_json::json!({}));
-    let bundle = tokio::task::spawn_blocking(move || models::create(&model, &name, &params, &inputs))
+    let bundle = tokio::task::spawn_blocking(move || models::create_within(&model, &name, &params, &inputs, &bounds))
         .await
         .map_err(|e| ApiError::internal("creating the encoding failed inside the model", e))??;
     Ok(bundle.to_bytes())
@@ -180,7 +183,7 @@ pub async fn patch(
     _: Query<NoQuery>,
     req: Request,
 ) -> Result<(StatusCode, Json<TextureInfo>), ApiError> {
-    let entry = lookup(&app, &id)?;
+    let entry = record(&app, &id)?;
     let body = read_body(req, MAX_PATCH_BYTES).await?;
     let patch: Value =
         serde_json::from_slice(&body).map_err(|e| ApiError::bad_request(format!("patch is not JSON: {e}")))?;

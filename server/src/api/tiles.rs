@@ -121,7 +121,7 @@ pub(super) async fn answer(
     TileQuery { frame }: TileQuery,
     headers: &HeaderMap,
 ) -> Result<Response, ApiError> {
-    let entry = lookup(app, &id)?;
+    let entry = lookup(app, &id).await?;
     let (y, ext) = file.rsplit_once('.').ok_or_else(|| {
         ApiError::bad_request(format!("tile `{}` has no format extension; {}", echo(&file), Format::EXPECTED))
     })?;
@@ -153,8 +153,8 @@ pub(super) fn tile_etag(entry: &Entry, key: &TileKey) -> HeaderValue {
 }
 
 /// Tile `key` (inside `entry`'s pyramid): `cached` when the caller found it in the cache, else
-/// from the cache or synthesized, one computation shared by every concurrent request for it,
-/// holding a synthesis permit. Counted as a hit or a miss. Single tiles and batches
+/// from the cache or synthesized, one computation shared by every concurrent request for it
+/// (holding a synthesis slot, and stopped once none of them waits any more). Counted as a hit or a miss. Single tiles and batches
 /// (`batch.rs`) both come through here, so they share the cache, coalescing and bounds.
 pub(super) async fn obtain(
     app: &App,
@@ -166,17 +166,18 @@ pub(super) async fn obtain(
     let (tile, source) = match cached {
         Some(tile) => (tile, Source::Hit),
         None => {
+            let (owner, entry) = (app.clone(), entry.clone());
             app.cache
-                .get_or_compute(key, || async {
+                .get_or_compute(key, move || async move {
                     let TileKey { level, x, y, frame, format, .. } = key;
                     let ts = entry.tile_size as u64;
                     let (lw, lh) = level_size(entry.texture.width(), entry.texture.height(), level);
                     let (px, py) = (x as u64 * ts, y as u64 * ts);
                     let (w, h) = ((lw - px).min(ts) as u32, (lh - py).min(ts) as u32);
                     let region = Region::new(level, px as i64, py as i64, w, h).at_frame(frame);
-                    let send = app.cfg.send;
-                    let body = app.synthesize_then(entry.clone(), region, format, move |b| send.seal(b)).await?;
-                    Ok::<_, ApiError>(Tile { body, etag: tag, width: w, height: h })
+                    let send = owner.cfg.send;
+                    let body = owner.synthesize_then(entry, region, format, move |b| send.seal(b)).await?;
+                    Ok(Tile { body, etag: tag, width: w, height: h })
                 })
                 .await?
         }
@@ -218,7 +219,7 @@ pub async fn region(
     Query(q): Query<RegionQuery>,
     headers: HeaderMap,
 ) -> Result<Response, ApiError> {
-    let entry = lookup(&app, &id)?;
+    let entry = lookup(&app, &id).await?;
     let RegionQuery { level, x, y, w, h, format, frame } = q;
     let format = format.unwrap_or(Format::Png);
     let frame = frame_for(&entry, frame);

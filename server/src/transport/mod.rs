@@ -11,7 +11,8 @@
 //!   files with `sendfile` ([`splice`]).
 //!
 //! The rest of the server calls only [`Transport`]'s methods and [`Io`], so it never needs to
-//! know which one runs. This is the one module of the crate allowed `unsafe` code (mappings,
+//! know which one runs. [`Io`] also holds what both transports share: the send timeout, and the
+//! [`Activity`] a connection's idle timeout reads. This is the one module of the crate allowed `unsafe` code (mappings,
 //! `vmsplice`, `mallopt`); each use carries a `SAFETY:` comment.
 
 #[cfg(target_os = "linux")]
@@ -23,11 +24,16 @@ use bytes::Bytes;
 use hyper::rt::{Read, ReadBufCursor, Write};
 use hyper_util::rt::TokioIo;
 use std::fmt;
+use std::future::Future;
 use std::io::{self, IoSlice};
 use std::pin::Pin;
 use std::str::FromStr;
+use std::sync::atomic::{AtomicU64, AtomicUsize, Ordering};
+use std::sync::Arc;
 use std::task::{Context, Poll};
+use std::time::Duration;
 use tokio::net::TcpStream;
+use tokio::time::{Instant, Sleep};
 
 #[cfg(target_os = "linux")]
 const PAGE: usize = 4096;
@@ -114,13 +120,37 @@ impl Transport {
         }
     }
 
-    /// A connection ready for hyper, sending through this transport.
-    pub fn wrap(self, stream: TcpStream) -> Io {
-        match self {
-            Transport::Copy => Io::Copy(TokioIo::new(stream)),
+    /// A connection ready for hyper, sending through this transport: every byte it moves is
+    /// counted in `activity`, and a write that makes no progress for `send_timeout` fails.
+    pub fn wrap(self, stream: TcpStream, activity: Arc<Activity>, send_timeout: Duration) -> Io {
+        let inner = match self {
+            Transport::Copy => Inner::Copy(TokioIo::new(stream)),
             #[cfg(target_os = "linux")]
-            Transport::Splice => Io::Splice(splice::SpliceIo::new(stream)),
+            Transport::Splice => Inner::Splice(splice::SpliceIo::new(stream)),
+        };
+        Io { inner, activity, send: SendDeadline { limit: send_timeout, sleep: None, armed: false } }
+    }
+
+    /// Descriptors one connection may hold: its socket, and under `splice` the pipe it sends
+    /// sealed bodies through.
+    pub fn descriptors_per_connection(self) -> u64 {
+        match self {
+            Transport::Copy => 1,
+            #[cfg(target_os = "linux")]
+            Transport::Splice => 3,
         }
+    }
+}
+
+/// The soft limit on open file descriptors (`RLIMIT_NOFILE`), `None` when unlimited or unknown.
+pub fn descriptor_limit() -> Option<u64> {
+    #[cfg(target_os = "linux")]
+    {
+        rustix::process::getrlimit(rustix::process::Resource::Nofile).current
+    }
+    #[cfg(not(target_os = "linux"))]
+    {
+        None
     }
 }
 
@@ -138,8 +168,99 @@ pub fn tune_allocator() {
     }
 }
 
+/// What a connection's idle timeout watches: a count of I/O calls that moved bytes (or saw the
+/// peer close), and the requests in flight — from the moment hyper hands one to the service
+/// until its response body is finished or dropped.
+///
+/// A counter rather than a timestamp keeps a clock read off every read and write; the watcher
+/// samples it.
+#[derive(Debug, Default)]
+pub struct Activity {
+    moved: AtomicU64,
+    in_flight: AtomicUsize,
+}
+
+impl Activity {
+    fn touch(&self) {
+        self.moved.fetch_add(1, Ordering::Relaxed);
+    }
+
+    /// Changes whenever bytes moved (or a request started or ended) since the last call.
+    pub fn moved(&self) -> u64 {
+        self.moved.load(Ordering::Relaxed)
+    }
+
+    /// Requests whose answer is not finished.
+    pub fn in_flight(&self) -> usize {
+        self.in_flight.load(Ordering::Relaxed)
+    }
+
+    /// Counts a request in flight until the guard is dropped.
+    pub fn start(self: &Arc<Self>) -> InFlight {
+        self.in_flight.fetch_add(1, Ordering::Relaxed);
+        self.touch();
+        InFlight(self.clone())
+    }
+}
+
+/// One request in flight on a connection (see [`Activity::start`]).
+#[derive(Debug)]
+pub struct InFlight(Arc<Activity>);
+
+impl Drop for InFlight {
+    fn drop(&mut self) {
+        self.0.in_flight.fetch_sub(1, Ordering::Relaxed);
+        self.0.touch();
+    }
+}
+
+/// The send timeout: armed when a write-side call has to wait, disarmed by any call that moves
+/// bytes towards the peer, and failing the call once it expires — hyper then drops the
+/// connection and the response it was sending, so a client that stops reading frees what it
+/// held. A call that returns without moving anything (a flush with nothing buffered, which
+/// hyper makes whenever its task wakes) leaves the deadline running.
+struct SendDeadline {
+    limit: Duration,
+    /// Made on the first call that has to wait, then reset: most connections never need it.
+    sleep: Option<Pin<Box<Sleep>>>,
+    armed: bool,
+}
+
+impl SendDeadline {
+    fn check<T>(&mut self, cx: &mut Context<'_>, polled: Poll<io::Result<T>>, moved: bool) -> Poll<io::Result<T>> {
+        if moved {
+            self.armed = false;
+        }
+        if polled.is_ready() {
+            return polled;
+        }
+        let sleep = match &mut self.sleep {
+            Some(s) if self.armed => s,
+            Some(s) => {
+                s.as_mut().reset(Instant::now() + self.limit);
+                s
+            }
+            None => self.sleep.insert(Box::pin(tokio::time::sleep(self.limit))),
+        };
+        self.armed = true;
+        match sleep.as_mut().poll(cx) {
+            Poll::Ready(()) => Poll::Ready(Err(io::Error::new(
+                io::ErrorKind::TimedOut,
+                format!("no bytes could be sent for {} s (send timeout)", self.limit.as_secs_f64()),
+            ))),
+            Poll::Pending => Poll::Pending,
+        }
+    }
+}
+
 /// One served connection, as [`Transport::wrap`] made it.
-pub enum Io {
+pub struct Io {
+    inner: Inner,
+    activity: Arc<Activity>,
+    send: SendDeadline,
+}
+
+enum Inner {
     Copy(TokioIo<TcpStream>),
     #[cfg(target_os = "linux")]
     Splice(splice::SpliceIo),
@@ -149,22 +270,63 @@ pub enum Io {
 macro_rules! each {
     ($io:expr, $inner:ident => $call:expr) => {
         match $io {
-            Io::Copy($inner) => $call,
+            Inner::Copy($inner) => $call,
             #[cfg(target_os = "linux")]
-            Io::Splice($inner) => $call,
+            Inner::Splice($inner) => $call,
         }
     };
 }
 
+impl Inner {
+    /// Bytes accepted from hyper but not yet in the socket (the splice pipe's).
+    fn unsent(&self) -> usize {
+        match self {
+            Inner::Copy(_) => 0,
+            #[cfg(target_os = "linux")]
+            Inner::Splice(io) => io.unsent(),
+        }
+    }
+}
+
+impl Io {
+    /// A write-side call under the send timeout. It moved bytes when it wrote some
+    /// (`wrote`) or drained the splice pipe; writing counts as activity.
+    fn sending<T>(
+        self: Pin<&mut Self>,
+        cx: &mut Context<'_>,
+        call: impl FnOnce(&mut Inner, &mut Context<'_>) -> Poll<io::Result<T>>,
+        wrote: impl FnOnce(&T) -> bool,
+    ) -> Poll<io::Result<T>> {
+        let this = self.get_mut();
+        let unsent = this.inner.unsent();
+        let polled = call(&mut this.inner, cx);
+        let moved = match &polled {
+            Poll::Ready(Ok(v)) if wrote(v) => {
+                this.activity.touch();
+                true
+            }
+            _ => this.inner.unsent() < unsent,
+        };
+        this.send.check(cx, polled, moved)
+    }
+}
+
 impl Read for Io {
+    /// A read that completes moved bytes or saw the peer close (a socket with nothing to read
+    /// stays pending): activity either way.
     fn poll_read(self: Pin<&mut Self>, cx: &mut Context<'_>, buf: ReadBufCursor<'_>) -> Poll<io::Result<()>> {
-        each!(self.get_mut(), io => Pin::new(io).poll_read(cx, buf))
+        let this = self.get_mut();
+        let polled = each!(&mut this.inner, io => Pin::new(io).poll_read(cx, buf));
+        if polled.is_ready() {
+            this.activity.touch();
+        }
+        polled
     }
 }
 
 impl Write for Io {
     fn poll_write(self: Pin<&mut Self>, cx: &mut Context<'_>, buf: &[u8]) -> Poll<io::Result<usize>> {
-        each!(self.get_mut(), io => Pin::new(io).poll_write(cx, buf))
+        self.sending(cx, |inner, cx| each!(inner, io => Pin::new(io).poll_write(cx, buf)), |&n| n > 0)
     }
 
     fn poll_write_vectored(
@@ -172,19 +334,19 @@ impl Write for Io {
         cx: &mut Context<'_>,
         bufs: &[IoSlice<'_>],
     ) -> Poll<io::Result<usize>> {
-        each!(self.get_mut(), io => Pin::new(io).poll_write_vectored(cx, bufs))
+        self.sending(cx, |inner, cx| each!(inner, io => Pin::new(io).poll_write_vectored(cx, bufs)), |&n| n > 0)
     }
 
     fn is_write_vectored(&self) -> bool {
-        each!(self, io => io.is_write_vectored())
+        each!(&self.inner, io => io.is_write_vectored())
     }
 
     fn poll_flush(self: Pin<&mut Self>, cx: &mut Context<'_>) -> Poll<io::Result<()>> {
-        each!(self.get_mut(), io => Pin::new(io).poll_flush(cx))
+        self.sending(cx, |inner, cx| each!(inner, io => Pin::new(io).poll_flush(cx)), |()| false)
     }
 
     fn poll_shutdown(self: Pin<&mut Self>, cx: &mut Context<'_>) -> Poll<io::Result<()>> {
-        each!(self.get_mut(), io => Pin::new(io).poll_shutdown(cx))
+        self.sending(cx, |inner, cx| each!(inner, io => Pin::new(io).poll_shutdown(cx)), |()| false)
     }
 }
 
@@ -258,7 +420,8 @@ pub(crate) mod tests {
                 s.read_to_end(&mut all).await.unwrap();
                 all
             });
-            let mut io = t.wrap(small().connect(addr).await.unwrap());
+            let mut io =
+                t.wrap(small().connect(addr).await.unwrap(), Arc::default(), std::time::Duration::from_secs(30));
             let head = b"HTTP/1.1 200 OK\r\ncontent-length: 3210000\r\n\r\n".to_vec();
             let tile = t.seal(pattern(150_000));
             let big = t.seal(pattern(3_000_000));

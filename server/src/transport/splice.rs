@@ -59,6 +59,11 @@ impl SpliceIo {
         SpliceIo { io: TokioIo::new(stream), pipe: None, no_pipe: false, queued: 0, corked: false }
     }
 
+    /// Bytes in the pipe not yet in the socket.
+    pub fn unsent(&self) -> usize {
+        self.queued
+    }
+
     fn stream(&self) -> &TcpStream {
         self.io.inner()
     }

@@ -33,6 +33,12 @@ impl Server {
 
     /// [`Server::start`] with extra environment variables.
     pub fn start_env(data_dir: &Path, extra: &[&str], env: &[(&str, &str)]) -> Server {
+        Self::start_under(&[], data_dir, extra, env)
+    }
+
+    /// [`Server::start_env`] run through a `wrapper` command that executes it in its own
+    /// process (e.g. `prlimit --nofile=128:128 --`), so the pid stays the server's.
+    pub fn start_under(wrapper: &[&str], data_dir: &Path, extra: &[&str], env: &[(&str, &str)]) -> Server {
         let log = data_dir.with_extension(format!("log-{}", std::process::id()));
         let mut args = vec!["serve", "--bind", "127.0.0.1:0", "--data-dir", data_dir.to_str().unwrap()];
         let demos = extra.contains(&"--demos");
@@ -40,7 +46,15 @@ impl Server {
         if !demos {
             args.push("--no-demos");
         }
-        let mut child = Command::new(BIN)
+        let mut cmd = match wrapper.split_first() {
+            Some((program, rest)) => {
+                let mut c = Command::new(program);
+                c.args(rest).arg(BIN);
+                c
+            }
+            None => Command::new(BIN),
+        };
+        let mut child = cmd
             .args(&args)
             .env_remove("VTEX_BIND")
             .env("VTEX_WEB_DIR", data_dir.join("no-web-dir"))

@@ -10,8 +10,11 @@ use crate::{bundle::Bundle, Error, Result, Texture};
 use std::collections::BTreeMap;
 use std::sync::{Arc, LazyLock};
 
+pub use cost::{Cost, Limits, Measure, Plan};
+
 pub mod cascade;
 pub mod chaos_mosaic;
+pub mod cost;
 pub mod lcm;
 pub mod patterns;
 
@@ -28,6 +31,12 @@ pub trait Model: Send + Sync + 'static {
     fn create(&self, name: &str, params: &serde_json::Value, inputs: &Inputs) -> Result<Bundle>;
     /// Validates a bundle of this model completely and returns its texture.
     fn load(&self, bundle: &Bundle) -> Result<Arc<dyn Texture>>;
+    /// What `load(bundle)` would give and cost, from the manifest, section lengths and image
+    /// headers alone: nothing drawn, generated, indexed or decoded.
+    fn plan(&self, bundle: &Bundle) -> Result<Plan>;
+    /// What `create(name, params, inputs)` would give and cost, from the parameters and the
+    /// inputs' headers alone; refuses every parameter `create` would refuse.
+    fn plan_create(&self, params: &serde_json::Value, inputs: &Inputs) -> Result<Plan>;
     /// Its demo encodings, from project-made inputs only.
     fn demos(&self) -> Vec<Bundle>;
     /// What its prefiltered coarse levels promise, held by the conformance suite.
@@ -96,9 +105,36 @@ pub fn create(model: &str, name: &str, params: &serde_json::Value, inputs: &Inpu
     get(model)?.create(name, params, inputs)
 }
 
+/// [`create`], refused before any heavy work when its [`Plan`] is over `limits`.
+pub fn create_within(
+    model: &str,
+    name: &str,
+    params: &serde_json::Value,
+    inputs: &Inputs,
+    limits: &Limits,
+) -> Result<Bundle> {
+    check_name(name)?;
+    let m = get(model)?;
+    limits.check(model, &m.plan_create(params, inputs)?)?;
+    m.create(name, params, inputs)
+}
+
 /// Validates an encoding completely and returns the texture it describes.
 pub fn load(bundle: &Bundle) -> Result<Arc<dyn Texture>> {
+    check_name(&bundle.manifest.name)?;
     get(&bundle.manifest.model)?.load(bundle)
+}
+
+/// [`load`], refused before any heavy work when its [`Plan`] is over `limits`.
+pub fn load_within(bundle: &Bundle, limits: &Limits) -> Result<Arc<dyn Texture>> {
+    limits.check(&bundle.manifest.model, &plan(bundle)?)?;
+    get(&bundle.manifest.model)?.load(bundle)
+}
+
+/// What loading `bundle` would give and cost, without loading it.
+pub fn plan(bundle: &Bundle) -> Result<Plan> {
+    check_name(&bundle.manifest.name)?;
+    get(&bundle.manifest.model)?.plan(bundle)
 }
 
 /// Every model's demo encodings, sorted by name.

@@ -37,6 +37,25 @@ pub const INITIAL_SECTION: &str = "initial.png";
 
 /// Validates everything and builds the engine. `control` / `initial` are the decoded images.
 pub fn build_engine(p: &Params, control: Option<&Rgba8Image>, initial: Option<&Rgba8Image>) -> Result<Engine> {
+    let size = |img: Option<&Rgba8Image>| img.map(|i| (i.width, i.height));
+    let stages = check(p, size(control), size(initial))?;
+    let control = p
+        .dilation_map
+        .as_ref()
+        .zip(control)
+        .map(|(d, img)| Control { field: ImageField::from_image(img, d.cell, true), max: d.max });
+    let initial = p
+        .initial
+        .as_ref()
+        .zip(initial)
+        .map(|(i, img)| Initial { field: ImageField::from_image(img, i.cell, i.repeat), strength: i.strength as f32 });
+    Ok(Engine { seed: p.seed, stages, control, initial })
+}
+
+/// Validates the parameters against the sizes of the `control` / `initial` images (read from
+/// their headers, or decoded) and returns the stages: everything `build_engine` checks,
+/// before any image is decoded.
+pub fn check(p: &Params, control: Option<(u32, u32)>, initial: Option<(u32, u32)>) -> Result<Vec<Stage>> {
     for (name, v) in [("width", p.width), ("height", p.height)] {
         if !(1..=MAX_EXTENT).contains(&v) {
             return Err(Error::param(name, format!("{v}: must be 1..=2^40")));
@@ -53,40 +72,36 @@ pub fn build_engine(p: &Params, control: Option<&Rgba8Image>, initial: Option<&R
             return Err(Error::param("range", format!("[{lo}, {hi}]: needs finite lo < hi")));
         }
     }
-    let control = match (&p.dilation_map, control) {
-        (None, None) => None,
+    let control_max = match (&p.dilation_map, control) {
+        (None, None) => 1,
         (Some(_), None) => return Err(Error::image("control", "missing; `dilation_map` needs a control image")),
         (None, Some(_)) => return Err(Error::image("control", "given but `dilation_map` is not set")),
-        (Some(d), Some(img)) => {
+        (Some(d), Some((w, h))) => {
             if !(1..=MAX_DILATION).contains(&d.max) {
                 return Err(Error::param("dilation_map.max", format!("{}: must be 1..={MAX_DILATION}", d.max)));
             }
             check_cell("dilation_map.cell", d.cell)?;
             let side = 2..=MAX_CONTROL_SIDE;
-            if !side.contains(&img.width) || !side.contains(&img.height) {
+            if !side.contains(&w) || !side.contains(&h) {
                 return Err(Error::image(
                     "control",
-                    format!(
-                        "{}×{}: a control map is low resolution, each side 2..={MAX_CONTROL_SIDE}",
-                        img.width, img.height
-                    ),
+                    format!("{w}×{h}: a control map is low resolution, each side 2..={MAX_CONTROL_SIDE}"),
                 ));
             }
-            Some(Control { field: ImageField::from_image(img, d.cell, true), max: d.max })
+            d.max
         }
     };
-    let initial = match (&p.initial, initial) {
-        (None, None) => None,
+    match (&p.initial, initial) {
+        (None, None) => {}
         (Some(_), None) => return Err(Error::image("initial", "missing; `initial` needs an initial image")),
         (None, Some(_)) => return Err(Error::image("initial", "given but `initial` is not set")),
-        (Some(i), Some(img)) => {
+        (Some(i), Some(_)) => {
             check_cell("initial.cell", i.cell)?;
             if !(i.strength.is_finite() && (0.0..=1.0).contains(&i.strength)) {
                 return Err(Error::param("initial.strength", format!("{}: must be in [0, 1]", i.strength)));
             }
-            Some(Initial { field: ImageField::from_image(img, i.cell, i.repeat), strength: i.strength as f32 })
         }
-    };
+    }
     let mut stages = Vec::with_capacity(p.stages.len());
     for (s, sp) in p.stages.iter().enumerate() {
         let at = format!("stages[{s}]");
@@ -96,7 +111,7 @@ pub fn build_engine(p: &Params, control: Option<&Rgba8Image>, initial: Option<&R
                 format!("{}: must be 1..={MAX_ITERATIONS} (the paper uses about 5)", sp.iterations),
             ));
         }
-        let max_d = sp.dilation * control.as_ref().map_or(1, |c| c.max);
+        let max_d = sp.dilation * control_max;
         if sp.dilation == 0 || max_d > MAX_DILATION {
             return Err(Error::param(
                 format!("{at}.dilation"),
@@ -143,7 +158,7 @@ pub fn build_engine(p: &Params, control: Option<&Rgba8Image>, initial: Option<&R
         st.shift = shift;
         shift += st.up;
     }
-    Ok(Engine { seed: p.seed, stages, control, initial })
+    Ok(stages)
 }
 
 fn check_cell(name: &str, cell: u64) -> Result<()> {
@@ -161,17 +176,15 @@ pub fn section_image(bundle: &crate::bundle::Bundle, section: &str, name: &str) 
     }
 }
 
-/// Makes an encoding from parameters and the optional `control` / `initial` images.
+/// Makes an encoding from parameters and the optional `control` / `initial` images; a missing
+/// `range` is estimated from a sample of the texture.
 pub fn create(name: &str, params: &serde_json::Value, inputs: &Inputs) -> Result<Bundle> {
-    if let Some(other) = inputs.keys().find(|k| !["control", "initial"].contains(&k.as_str())) {
-        return Err(Error::image(other.as_str(), "not an input of `cascade` (it takes `control` and `initial`)"));
-    }
+    super::plan::plan_create(params, inputs)?;
     let mut p: Params = parse_params(params)?;
     let control = inputs.contains_key("control").then(|| input_image(inputs, "control")).transpose()?;
     let initial = inputs.contains_key("initial").then(|| input_image(inputs, "initial")).transpose()?;
-    let tex = Cascade::build(p.clone(), control.as_ref(), initial.as_ref())?;
     if p.range.is_none() {
-        p.range = Some(auto_range(&tex.engine));
+        p.range = Some(auto_range(&build_engine(&p, control.as_ref(), initial.as_ref())?));
     }
     let json = serde_json::to_value(&p).map_err(|e| Error::param("params", e.to_string()))?;
     let mut bundle = Bundle::new(MODEL, name, json);
@@ -193,6 +206,7 @@ pub fn load(bundle: &Bundle) -> Result<Cascade> {
     if let Some(s) = bundle.sections.iter().find(|s| s.name != CONTROL_SECTION && s.name != INITIAL_SECTION) {
         return Err(Error::bundle(format!("unexpected section `{}`", s.name)));
     }
+    super::plan::plan(bundle)?;
     let p: Params = parse_params(&bundle.manifest.params)?;
     let control = section_image(bundle, CONTROL_SECTION, "control")?;
     let initial = section_image(bundle, INITIAL_SECTION, "initial")?;

@@ -7,10 +7,14 @@
 //! recurses to the coarser stage for the upsampling footprint of that expanded window.
 //! Every value is produced by the same operations in the same order whatever window it lies
 //! in, so a region is bit-identical to the crop of any larger one.
+//!
+//! Every loop over the rows of a window polls a [`Stop`]: once it is requested the field is
+//! abandoned (`None`), so a stop takes effect within one row of one iteration.
 
 use super::kernel::Kernel;
 use super::lattice::{lattice_mask, noise, upsample, upsample_footprint, Grid, ImageField};
 use super::maps::Map;
+use crate::{Never, Stop};
 
 /// Hash streams (one per use of the seed).
 pub const STREAM_NOISE: u64 = 0x100;
@@ -77,54 +81,78 @@ impl Engine {
 
     /// Stage `s` after its iterations on the `w × h` window at lattice point (x0, y0).
     pub fn field(&self, s: usize, x0: u64, y0: u64, w: usize, h: usize) -> Grid {
-        self.field_with(s, x0, y0, w, h, None)
+        self.field_until(s, x0, y0, w, h, &Never).expect("a field that is never stopped completes")
+    }
+
+    /// [`Engine::field`], or `None` once `stop` is requested.
+    pub fn field_until(&self, s: usize, x0: u64, y0: u64, w: usize, h: usize, stop: &dyn Stop) -> Option<Grid> {
+        self.field_with(s, x0, y0, w, h, None, stop)
     }
 
     /// [`Engine::field`], but when `short == Some(t)` stage t is computed from a window one
     /// point narrower on each side than its margin needs, with the edge values repeated —
     /// what an implementation with an off-by-one margin would do. Tests use it to show the
     /// margin is exactly right.
-    pub(crate) fn field_with(&self, s: usize, x0: u64, y0: u64, w: usize, h: usize, short: Option<usize>) -> Grid {
+    #[allow(clippy::too_many_arguments)]
+    pub(crate) fn field_with(
+        &self,
+        s: usize,
+        x0: u64,
+        y0: u64,
+        w: usize,
+        h: usize,
+        short: Option<usize>,
+        stop: &dyn Stop,
+    ) -> Option<Grid> {
         let st = &self.stages[s];
         let mask = lattice_mask(st.shift);
         let m = self.margin(s);
         let (iw, ih) = (w + 2 * m, h + 2 * m);
         let (ix0, iy0) = (x0.wrapping_sub(m as u64) & mask, y0.wrapping_sub(m as u64) & mask);
         let v = if short == Some(s) && m > 0 {
-            let inner =
-                self.initial_values(s, ix0.wrapping_add(1) & mask, iy0.wrapping_add(1) & mask, iw - 2, ih - 2, short);
-            pad_edges(&inner, iw - 2, ih - 2)
+            let (x, y) = (ix0.wrapping_add(1) & mask, iy0.wrapping_add(1) & mask);
+            pad_edges(&self.initial_values(s, x, y, iw - 2, ih - 2, short, stop)?, iw - 2, ih - 2)
         } else {
-            self.initial_values(s, ix0, iy0, iw, ih, short)
+            self.initial_values(s, ix0, iy0, iw, ih, short, stop)?
         };
         let mut g = Grid { x0: ix0, y0: iy0, w: iw, h: ih, v };
         let e = self.step_margin(s);
-        let dil = self.control.as_ref().map(|c| {
-            self.dilations(
-                s,
-                c,
-                ix0.wrapping_add(e as u64) & mask,
-                iy0.wrapping_add(e as u64) & mask,
-                iw - 2 * e,
-                ih - 2 * e,
-            )
-        });
+        let dil = match &self.control {
+            Some(c) => {
+                let (x, y) = (ix0.wrapping_add(e as u64) & mask, iy0.wrapping_add(e as u64) & mask);
+                Some(self.dilations(s, c, x, y, iw - 2 * e, ih - 2 * e, stop)?)
+            }
+            None => None,
+        };
         for i in 0..st.iterations as usize {
-            g = self.step(s, &g, dil.as_ref().map(|d| (d, iw - 2 * e, i * e)));
+            g = self.step(s, &g, dil.as_ref().map(|d| (d, iw - 2 * e, i * e)), stop)?;
         }
         debug_assert_eq!((g.w, g.h, g.x0, g.y0), (w, h, x0 & mask, y0 & mask));
-        g
+        Some(g)
     }
 
     /// Initial values of stage `s` on a window: hashed noise (mixed with the structured
     /// image) for the first stage, the upsampled coarser stage plus jitter for the others.
-    fn initial_values(&self, s: usize, x0: u64, y0: u64, w: usize, h: usize, short: Option<usize>) -> Vec<f32> {
+    #[allow(clippy::too_many_arguments)]
+    fn initial_values(
+        &self,
+        s: usize,
+        x0: u64,
+        y0: u64,
+        w: usize,
+        h: usize,
+        short: Option<usize>,
+        stop: &dyn Stop,
+    ) -> Option<Vec<f32>> {
         let st = &self.stages[s];
         let mask = lattice_mask(st.shift);
         let stream = STREAM_NOISE + s as u64;
         let mut v = if s == 0 {
             let mut v = Vec::with_capacity(w * h);
             for j in 0..h as u64 {
+                if stop.requested() {
+                    return None;
+                }
                 let y = y0.wrapping_add(j) & mask;
                 for i in 0..w as u64 {
                     let x = x0.wrapping_add(i) & mask;
@@ -138,15 +166,18 @@ impl Engine {
                     });
                 }
             }
-            return v;
+            return Some(v);
         } else {
             let k = st.up;
             let (cw, ch) = (upsample_footprint(x0, w, k), upsample_footprint(y0, h, k));
-            let coarse = self.field_with(s - 1, x0 >> k, y0 >> k, cw, ch, short);
+            let coarse = self.field_with(s - 1, x0 >> k, y0 >> k, cw, ch, short, stop)?;
             upsample(&coarse, k, x0, y0, w, h)
         };
         if st.jitter > 0.0 {
             for j in 0..h {
+                if stop.requested() {
+                    return None;
+                }
                 let y = y0.wrapping_add(j as u64) & mask;
                 for i in 0..w {
                     let x = x0.wrapping_add(i as u64) & mask;
@@ -154,15 +185,28 @@ impl Engine {
                 }
             }
         }
-        v
+        Some(v)
     }
 
     /// Per-point dilations of stage `s` on a window (its first iteration's output window).
-    fn dilations(&self, s: usize, c: &Control, x0: u64, y0: u64, w: usize, h: usize) -> Vec<f32> {
+    #[allow(clippy::too_many_arguments)]
+    fn dilations(
+        &self,
+        s: usize,
+        c: &Control,
+        x0: u64,
+        y0: u64,
+        w: usize,
+        h: usize,
+        stop: &dyn Stop,
+    ) -> Option<Vec<f32>> {
         let st = &self.stages[s];
         let mask = lattice_mask(st.shift);
         let mut out = Vec::with_capacity(w * h);
         for j in 0..h as u64 {
+            if stop.requested() {
+                return None;
+            }
             let y = y0.wrapping_add(j) & mask;
             for i in 0..w as u64 {
                 let x = x0.wrapping_add(i) & mask;
@@ -170,13 +214,13 @@ impl Engine {
                 out.push((st.dilation as f64 * (1.0 + ctl * (c.max - 1) as f64)) as f32);
             }
         }
-        out
+        Some(out)
     }
 
     /// One iteration: convolve, then map. The output window is the input shrunk by the step
     /// margin on each side. `dil` = (per-point dilations, their row length, offset of this
     /// iteration's output window inside them).
-    fn step(&self, s: usize, g: &Grid, dil: Option<(&Vec<f32>, usize, usize)>) -> Grid {
+    fn step(&self, s: usize, g: &Grid, dil: Option<(&Vec<f32>, usize, usize)>, stop: &dyn Stop) -> Option<Grid> {
         let st = &self.stages[s];
         let mask = lattice_mask(st.shift);
         let e = self.step_margin(s);
@@ -186,6 +230,9 @@ impl Engine {
             None => {
                 let d = st.dilation as isize;
                 for (y, row) in out.chunks_exact_mut(ow).enumerate() {
+                    if stop.requested() {
+                        return None;
+                    }
                     for t in &st.kernel.taps {
                         let sy = (y + e) as isize + t.dy as isize * d;
                         let sx = e as isize + t.dx as isize * d;
@@ -200,6 +247,9 @@ impl Engine {
             Some((dv, dw, off)) => {
                 let w = g.w as isize;
                 for (y, row) in out.chunks_exact_mut(ow).enumerate() {
+                    if stop.requested() {
+                        return None;
+                    }
                     let drow = &dv[(y + off) * dw + off..];
                     for (x, o) in row.iter_mut().enumerate() {
                         let d = drow[x];
@@ -229,7 +279,13 @@ impl Engine {
                 }
             }
         }
-        Grid { x0: g.x0.wrapping_add(e as u64) & mask, y0: g.y0.wrapping_add(e as u64) & mask, w: ow, h: oh, v: out }
+        Some(Grid {
+            x0: g.x0.wrapping_add(e as u64) & mask,
+            y0: g.y0.wrapping_add(e as u64) & mask,
+            w: ow,
+            h: oh,
+            v: out,
+        })
     }
 }
 

@@ -70,6 +70,7 @@ impl ImageField {
     }
 
     /// Texel pair and the right one's weight in units of 1/(2·cell) along one axis at pixel `p`.
+    #[inline]
     fn axis(&self, p: i64, n: u32) -> Option<(usize, usize, i64)> {
         let cell = self.cell as i64;
         let c = p.div_euclid(cell);
@@ -86,6 +87,8 @@ impl ImageField {
     }
 
     /// The image value in [0, 1] at pixel (px, py), or `None` outside a non-repeating image.
+    /// Always inlined: the guided coarse levels take thousands of samples a pixel.
+    #[inline(always)]
     pub fn sample(&self, px: i64, py: i64) -> Option<f64> {
         let (x0, x1, tx) = self.axis(px, self.w)?;
         let (y0, y1, ty) = self.axis(py, self.h)?;

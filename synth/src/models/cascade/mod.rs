@@ -17,6 +17,7 @@
 pub mod demos;
 pub mod encoding;
 pub mod params;
+mod plan;
 
 pub mod engine;
 pub mod kernel;
@@ -26,7 +27,7 @@ pub mod palette;
 pub mod prefilter;
 mod render;
 
-use super::{InputInfo, Inputs, MipGuarantee, Model, ModelInfo};
+use super::{InputInfo, Inputs, MipGuarantee, Model, ModelInfo, Plan};
 use crate::bundle::Bundle;
 use crate::texture::Texture;
 use crate::Result;
@@ -76,6 +77,12 @@ impl Model for CascadeModel {
     }
     fn load(&self, bundle: &Bundle) -> Result<Arc<dyn Texture>> {
         Ok(Arc::new(load(bundle)?))
+    }
+    fn plan(&self, bundle: &Bundle) -> Result<Plan> {
+        plan::plan(bundle)
+    }
+    fn plan_create(&self, params: &serde_json::Value, inputs: &Inputs) -> Result<Plan> {
+        plan::plan_create(params, inputs)
     }
     fn demos(&self) -> Vec<Bundle> {
         demos()

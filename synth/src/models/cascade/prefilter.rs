@@ -23,6 +23,7 @@ use super::lattice::{upsample, upsample_footprint};
 use super::Cascade;
 use crate::hash::hash4;
 use crate::pixels::Rgba8Image;
+use crate::Stop;
 
 /// Bins of the conditional-mean tables over stage values in [0, 1].
 const BINS: usize = 64;
@@ -50,15 +51,26 @@ fn guide(tex: &Cascade) -> Option<&super::lattice::ImageField> {
     e.initial.as_ref().map(|i| &i.field).or(e.control.as_ref().map(|c| &c.field))
 }
 
-/// Stage `s` of the cascade upsampled straight to level-0 pixels (bilinear, one step).
-pub fn stage_at_pixels(tex: &Cascade, s: usize, x: u64, y: u64, w: usize, h: usize) -> Vec<f32> {
+/// Stage `s` of the cascade upsampled straight to level-0 pixels (bilinear, one step), or
+/// `None` once `stop` is requested.
+pub fn stage_at_pixels(
+    tex: &Cascade,
+    s: usize,
+    x: u64,
+    y: u64,
+    w: usize,
+    h: usize,
+    stop: &dyn Stop,
+) -> Option<Vec<f32>> {
     let k = tex.engine().stages[s].shift;
-    let g = tex.engine().field(s, x >> k, y >> k, upsample_footprint(x, w, k), upsample_footprint(y, h, k));
-    upsample(&g, k, x, y, w, h)
+    let (fw, fh) = (upsample_footprint(x, w, k), upsample_footprint(y, h, k));
+    let g = tex.engine().field_until(s, x >> k, y >> k, fw, fh, stop)?;
+    Some(upsample(&g, k, x, y, w, h))
 }
 
 impl Calibration {
-    pub fn compute(tex: &Cascade) -> Self {
+    /// The statistics, or `None` once `stop` is requested.
+    pub fn compute(tex: &Cascade, stop: &dyn Stop) -> Option<Self> {
         let e = tex.engine();
         let n = e.stages.len();
         // One table per stage, plus one over the initial image's value.
@@ -68,7 +80,7 @@ impl Calibration {
         for i in 0..WINDOWS {
             let h = hash4(e.seed, STREAM_CALIBRATION, i as i64, 1);
             let (x, y) = (h, h.rotate_left(29));
-            let img = tex.level0(x, y, WINDOW, WINDOW);
+            let img = tex.level0(x, y, WINDOW, WINDOW, stop)?;
             for p in img.data.chunks_exact(4) {
                 for c in 0..3 {
                     mean[c] += p[c] as f64;
@@ -88,7 +100,7 @@ impl Calibration {
                 }
             }
             for (s, bins) in sums.iter_mut().enumerate().take(n - 1) {
-                let a = stage_at_pixels(tex, s, x, y, WINDOW as usize, WINDOW as usize);
+                let a = stage_at_pixels(tex, s, x, y, WINDOW as usize, WINDOW as usize, stop)?;
                 for (v, p) in a.iter().zip(img.data.chunks_exact(4)) {
                     let b = &mut bins[bin(*v)];
                     for c in 0..3 {
@@ -101,7 +113,7 @@ impl Calibration {
         let mean = mean.map(|m| (m / count) as f32);
         let mut tables: Vec<Vec<[f32; 3]>> = sums.iter().map(|bins| fill(bins, mean)).collect();
         let image = tables.pop().filter(|_| guide(tex).is_some());
-        Calibration { tables, image, mean }
+        Some(Calibration { tables, image, mean })
     }
 }
 
@@ -147,8 +159,19 @@ fn eval(table: &[[f32; 3]], a: f32) -> [f32; 3] {
 /// not depend on the size of the region it is rendered in.
 const BUDGET_PIXELS: u64 = 256 * 256;
 
-/// Renders `w × h` pixels of level `l` at (x, y) (level-`l` coordinates on the torus).
-pub fn render(tex: &Cascade, cal: &Calibration, l: u32, x: u64, y: u64, w: u32, h: u32) -> Rgba8Image {
+/// Renders `w × h` pixels of level `l` at (x, y) (level-`l` coordinates on the torus), or
+/// `None` once `stop` is requested.
+#[allow(clippy::too_many_arguments)]
+pub fn render(
+    tex: &Cascade,
+    cal: &Calibration,
+    l: u32,
+    x: u64,
+    y: u64,
+    w: u32,
+    h: u32,
+    stop: &dyn Stop,
+) -> Option<Rgba8Image> {
     let e = tex.engine();
     let last = e.stages.len() - 1;
     let mut img = Rgba8Image::new(w, h);
@@ -171,8 +194,13 @@ pub fn render(tex: &Cascade, cal: &Calibration, l: u32, x: u64, y: u64, w: u32, 
             };
             let (offs_x, offs_y) = (offsets(guide.w), offsets(guide.h));
             let inv = 1.0 / (n * n) as f32;
+            // A pixel can take thousands of samples: poll every 2^14 samples or so (n is a power of two).
+            let poll = ((1u64 << 14) / (n * n)).max(1) - 1;
             for j in 0..h as u64 {
                 for i in 0..w as u64 {
+                    if (j * w as u64 + i) & poll == 0 && stop.requested() {
+                        return None;
+                    }
                     let (px, py) = (x.wrapping_add(i) << l, y.wrapping_add(j) << l);
                     let mut acc = [0.0f32; 3];
                     for oy in &offs_y {
@@ -186,13 +214,19 @@ pub fn render(tex: &Cascade, cal: &Calibration, l: u32, x: u64, y: u64, w: u32, 
                     img.set_pixel(i as u32, j as u32, [p[0], p[1], p[2], 255]);
                 }
             }
-            return img;
+            return Some(img);
         }
+        // Flat, but still a row at a time: a region may be as large as a render allows.
         let px = cal.mean.map(|m| (m + 0.5).floor() as u8);
-        for p in img.data.chunks_exact_mut(4) {
-            p.copy_from_slice(&[px[0], px[1], px[2], 255]);
+        for row in img.data.chunks_exact_mut(w as usize * 4) {
+            if stop.requested() {
+                return None;
+            }
+            for p in row.chunks_exact_mut(4) {
+                p.copy_from_slice(&[px[0], px[1], px[2], 255]);
+            }
         }
-        return img;
+        return Some(img);
     };
     let shift = e.stages[s].shift;
     let ql = l.saturating_sub(shift);
@@ -202,13 +236,16 @@ pub fn render(tex: &Cascade, cal: &Calibration, l: u32, x: u64, y: u64, w: u32, 
     let cell = (1u64 << shift) - 1;
     let (bx, by) = ((x << l) & cell, (y << l) & cell);
     let span = |b: u64, n: u32| ((b + ((n as u64 - 1) << l) + offs[q - 1]) >> shift) as usize + 2;
-    let g = e.field(s, (x << l) >> shift, (y << l) >> shift, span(bx, w), span(by, h));
+    let g = e.field_until(s, (x << l) >> shift, (y << l) >> shift, span(bx, w), span(by, h), stop)?;
     let inv_f = 1.0 / (1u64 << shift) as f32;
     let split = |p: u64| ((p >> shift) as usize, (p & cell) as f32 * inv_f);
     let xs: Vec<Vec<(usize, f32)>> =
         (0..w as u64).map(|i| offs.iter().map(|o| split(bx + (i << l) + o)).collect()).collect();
     let inv_n = 1.0 / (q * q) as f32;
     for j in 0..h as u64 {
+        if stop.requested() {
+            return None;
+        }
         let ys: Vec<(usize, f32)> = offs.iter().map(|o| split(by + (j << l) + o)).collect();
         for (i, xi) in xs.iter().enumerate() {
             let mut acc = [0.0f32; 3];
@@ -232,5 +269,5 @@ pub fn render(tex: &Cascade, cal: &Calibration, l: u32, x: u64, y: u64, w: u32, 
             img.set_pixel(i as u32, j as u32, [px[0], px[1], px[2], 255]);
         }
     }
-    img
+    Some(img)
 }

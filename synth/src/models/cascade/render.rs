@@ -5,7 +5,7 @@ use super::encoding::{build_engine, Params};
 use super::engine::{Engine, STREAM_CALIBRATION};
 use super::{palette, prefilter, MODEL};
 use crate::pixels::Rgba8Image;
-use crate::texture::{Domain, Region, Texture};
+use crate::texture::{Domain, Region, Stop, Texture};
 use crate::{Error, Result};
 use std::sync::OnceLock;
 
@@ -57,19 +57,27 @@ impl Cascade {
         self.lut[(t * (palette::LUT_SIZE - 1) as f32 + 0.5) as usize]
     }
 
-    /// Level-0 pixels of the window at (x, y) (plane coordinates as u64 on the 2^64 torus).
-    pub fn level0(&self, x: u64, y: u64, w: u32, h: u32) -> Rgba8Image {
+    /// Level-0 pixels of the window at (x, y) (plane coordinates as u64 on the 2^64 torus),
+    /// or `None` once `stop` is requested.
+    pub fn level0(&self, x: u64, y: u64, w: u32, h: u32, stop: &dyn Stop) -> Option<Rgba8Image> {
         let last = self.engine.stages.len() - 1;
-        let g = self.engine.field(last, x, y, w as usize, h as usize);
+        let g = self.engine.field_until(last, x, y, w as usize, h as usize, stop)?;
         let mut img = Rgba8Image::new(w, h);
         for (px, v) in img.data.chunks_exact_mut(4).zip(&g.v) {
             px.copy_from_slice(&self.colour(*v));
         }
-        img
+        Some(img)
     }
 
-    fn calibration(&self) -> &prefilter::Calibration {
-        self.calibration.get_or_init(|| prefilter::Calibration::compute(self))
+    /// The calibration, kept once a render has computed it whole; `None` when `stop` is
+    /// requested first. Renders that need it before it is kept each compute it (the same
+    /// value), rather than wait on one another, so that each can stop on its own.
+    fn calibration(&self, stop: &dyn Stop) -> Option<&prefilter::Calibration> {
+        if let Some(c) = self.calibration.get() {
+            return Some(c);
+        }
+        let c = prefilter::Calibration::compute(self, stop)?;
+        Some(self.calibration.get_or_init(|| c))
     }
 }
 
@@ -87,7 +95,7 @@ impl Texture for Cascade {
         Domain::Plane
     }
 
-    fn render(&self, region: &Region, out: &mut [u8]) {
+    fn render(&self, region: &Region, out: &mut [u8], stop: &dyn Stop) {
         let l = region.level;
         // Chunks keep every buffer bounded; each pixel is independent of the chunking.
         let step = if l <= self.params.exact_levels { (CHUNK >> l).max(1) } else { 256 };
@@ -97,12 +105,13 @@ impl Texture for Cascade {
                 let (w, h) = (step.min(region.width - cx), step.min(region.height - cy));
                 let (x, y) = ((region.x as u64).wrapping_add(cx as u64), (region.y as u64).wrapping_add(cy as u64));
                 let img = if l == 0 {
-                    self.level0(x, y, w, h)
+                    self.level0(x, y, w, h, stop)
                 } else if l <= self.params.exact_levels {
-                    crate::mip::downsample_n(&self.level0(x << l, y << l, w << l, h << l), l)
+                    self.level0(x << l, y << l, w << l, h << l, stop).map(|full| crate::mip::downsample_n(&full, l))
                 } else {
-                    prefilter::render(self, self.calibration(), l, x, y, w, h)
+                    self.calibration(stop).and_then(|cal| prefilter::render(self, cal, l, x, y, w, h, stop))
                 };
+                let Some(img) = img else { return };
                 for r in 0..h as usize {
                     let dst = (cy as usize + r) * row + cx as usize * 4;
                     out[dst..dst + w as usize * 4]
@@ -139,6 +148,7 @@ mod tests {
     use super::super::{create, load};
     use super::*;
     use crate::models::Inputs;
+    use crate::Never;
     use serde_json::json;
 
     fn cascade(params: serde_json::Value) -> Cascade {
@@ -157,9 +167,9 @@ mod tests {
         let last = e.stages.len() - 1;
         let (x, y, w, h) = (u64::MAX - 20, 1 << 40, 48, 40);
         let full = e.field(last, x, y, w, h);
-        assert_eq!(e.field_with(last, x, y, w, h, None), full);
+        assert_eq!(e.field_with(last, x, y, w, h, None, &Never), Some(full.clone()));
         for s in 0..=last {
-            let short = e.field_with(last, x, y, w, h, Some(s));
+            let short = e.field_with(last, x, y, w, h, Some(s), &Never).unwrap();
             let differ = full.v.iter().zip(&short.v).filter(|(a, b)| a != b).count();
             assert!(differ > 0, "stage {s}: a margin one point short went unnoticed");
         }
@@ -178,6 +188,6 @@ mod tests {
         let e = t.engine();
         assert_eq!(e.margin(0), 4 * 3);
         let full = e.field(0, 5, 5, 30, 30);
-        assert_ne!(e.field_with(0, 5, 5, 30, 30, Some(0)), full);
+        assert_ne!(e.field_with(0, 5, 5, 30, 30, Some(0), &Never), Some(full));
     }
 }

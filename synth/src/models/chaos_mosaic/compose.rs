@@ -5,6 +5,10 @@
 use super::layout::RowSeam;
 use super::params::MAX_FILTER_WIDTH;
 use super::ChaosMosaic;
+use crate::Stop;
+
+/// Rows of the mosaic made between two polls of the [`Stop`].
+const POLL_ROWS: usize = 16;
 
 impl ChaosMosaic {
     /// Level 0 of the chaos mosaic into `out` (RGBA8, `w × h`), streamed a row at a time:
@@ -13,8 +17,16 @@ impl ChaosMosaic {
     /// each output row then takes the vertical filter across row seams from the ring. A pixel
     /// at distance d < r from the nearest seam becomes the mean of the 2(r − d) + 1 pixels
     /// centred on it across the seam (strongest at the seam, fading over r pixels). The
-    /// working set is a few rows, whatever the region's size.
-    pub(super) fn render_level0(&self, x0: i64, y0: i64, w: u32, h: u32, out: &mut [u8]) {
+    /// working set is a few rows, whatever the region's size. `None` once `stop` is requested.
+    pub(super) fn render_level0(
+        &self,
+        x0: i64,
+        y0: i64,
+        w: u32,
+        h: u32,
+        out: &mut [u8],
+        stop: &dyn Stop,
+    ) -> Option<()> {
         let r = self.params.filter_width as usize;
         let (w, h) = (w as usize, h as usize);
         let layout = self.layout(x0 - r as i64, y0 - r as i64, w + 2 * r, h + 2 * r);
@@ -56,6 +68,9 @@ impl ChaosMosaic {
                 seams.push((base..(b + 2 * r).min(w + 2 * r), first..near.len()));
             }
             for y in band.y0..band.y1 {
+                if y % POLL_ROWS == 0 && stop.requested() {
+                    return None;
+                }
                 self.fill_row(&layout, band, y, &mut row);
                 let filtered = &mut ring[(y % ring_rows) * w..][..w];
                 filtered.copy_from_slice(&row[r..r + w]);
@@ -82,6 +97,7 @@ impl ChaosMosaic {
                 }
             }
         }
+        Some(())
     }
 
     /// Pixels of `[x0, x0+w) × [y0, y0+h)` at level 0 that touch a seam (either side).

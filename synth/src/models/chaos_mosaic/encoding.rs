@@ -8,18 +8,15 @@ use super::MODEL;
 use crate::models::{input_image, parse_params, Inputs};
 use crate::{bundle::Bundle, pixels::Rgba8Image, Error, Result};
 
-const SAMPLE_SECTION: &str = "sample.png";
-const BLOCKS_SECTION: &str = "blocks";
+pub(super) const SAMPLE_SECTION: &str = "sample.png";
+pub(super) const BLOCKS_SECTION: &str = "blocks";
 
 /// Makes an encoding from `params` (JSON, see [`Params`]) and the input image `sample`.
 /// When `seamless` is not given it is measured from the sample.
 pub fn create(name: &str, params: &serde_json::Value, inputs: &Inputs) -> Result<Bundle> {
+    super::plan::plan_create(params, inputs)?;
     let mut p: Params = parse_params(params)?;
-    p.validate()?;
     let sample = input_image(inputs, "sample")?;
-    if p.sequence == Sequence::Explicit {
-        check_explicit_sample(&sample)?;
-    }
     p.seamless.get_or_insert_with(|| is_seamless(&sample));
     let rule = SizeRule::new(sample.width, sample.height, &p)?;
     let mut bundle = Bundle::new(MODEL, name, serde_json::to_value(&p).expect("params serialize"))
@@ -34,24 +31,20 @@ pub fn create(name: &str, params: &serde_json::Value, inputs: &Inputs) -> Result
 
 /// Validates a stored encoding completely and builds the texture.
 pub fn load(bundle: &Bundle) -> Result<ChaosMosaic> {
-    if let Some(s) = bundle.sections.iter().find(|s| s.name != SAMPLE_SECTION && s.name != BLOCKS_SECTION) {
-        return Err(Error::bundle(format!("unexpected section `{}`", s.name)));
-    }
+    super::plan::plan(bundle)?;
     let params: Params = bundle.params()?;
     let sample = crate::pixels::decode_png(SAMPLE_SECTION, bundle.section(SAMPLE_SECTION)?)?;
     let explicit = bundle.sections.iter().find(|s| s.name == BLOCKS_SECTION).map(|s| s.data.as_slice());
     ChaosMosaic::new(params, sample, explicit)
 }
 
-pub(super) fn check_explicit_sample(sample: &Rgba8Image) -> Result<()> {
+/// Refuses a `width × height` sample for an explicit sequence when its records cannot hold it.
+pub(super) fn check_explicit_sample(width: u32, height: u32) -> Result<()> {
     let max = params::MAX_EXPLICIT_SAMPLE_SIDE;
-    if sample.width > max || sample.height > max {
+    if width > max || height > max {
         return Err(Error::param(
             "sequence",
-            format!(
-                "explicit 12-byte blocks need a sample of at most {max}×{max}; use \"seed\" for {}×{}",
-                sample.width, sample.height
-            ),
+            format!("explicit 12-byte blocks need a sample of at most {max}×{max}; use \"seed\" for {width}×{height}"),
         ));
     }
     Ok(())

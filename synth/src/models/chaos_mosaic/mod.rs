@@ -15,6 +15,7 @@
 mod demos;
 mod encoding;
 mod params;
+mod plan;
 
 mod blocks;
 pub mod catmap;
@@ -31,7 +32,7 @@ pub use mosaic::ChaosMosaic;
 pub use params::{Params, Sequence};
 pub use prefilter::EXACT_LEVELS;
 
-use super::{InputInfo, Inputs, MipGuarantee, Model, ModelInfo};
+use super::{InputInfo, Inputs, MipGuarantee, Model, ModelInfo, Plan};
 use crate::{bundle::Bundle, Result, Texture};
 use std::sync::Arc;
 
@@ -65,6 +66,12 @@ impl Model for ChaosMosaicModel {
     }
     fn load(&self, bundle: &Bundle) -> Result<Arc<dyn Texture>> {
         Ok(Arc::new(load(bundle)?))
+    }
+    fn plan(&self, bundle: &Bundle) -> Result<Plan> {
+        plan::plan(bundle)
+    }
+    fn plan_create(&self, params: &serde_json::Value, inputs: &Inputs) -> Result<Plan> {
+        plan::plan_create(params, inputs)
     }
     fn demos(&self) -> Vec<Bundle> {
         demos()

@@ -6,7 +6,7 @@ use super::index::{self, TileIndex};
 use super::params::{self, Params, Sequence};
 use super::prefilter::{BoxTables, PeriodicSums};
 use super::{Block, MODEL};
-use crate::{pixels::Rgba8Image, Domain, Error, Region, Result, Texture};
+use crate::{pixels::Rgba8Image, Domain, Error, Region, Result, Stop, Texture};
 
 /// A loaded chaos mosaic: everything needed to evaluate any region, validated.
 pub struct ChaosMosaic {
@@ -45,7 +45,7 @@ impl ChaosMosaic {
         let blocks = match (params.sequence, explicit) {
             (Sequence::Seed, None) => blocks::generate(&params, sw, sh, &rule),
             (Sequence::Explicit, Some(bytes)) => {
-                super::encoding::check_explicit_sample(&sample)?;
+                super::encoding::check_explicit_sample(sw, sh)?;
                 let blocks = blocks::unpack(bytes, sw, sh, width, height, &rule)?;
                 let expected = params.tiles_x as usize * params.tiles_y as usize * params.blocks_per_tile as usize;
                 if blocks.len() != expected {
@@ -116,11 +116,11 @@ impl Texture for ChaosMosaic {
     fn domain(&self) -> Domain {
         Domain::Torus
     }
-    fn render(&self, region: &Region, out: &mut [u8]) {
-        if region.level == 0 {
-            self.render_level0(region.x, region.y, region.width, region.height, out);
-        } else {
-            self.render_prefiltered(region, out);
-        }
+    fn render(&self, region: &Region, out: &mut [u8], stop: &dyn Stop) {
+        // `None` when stopped: `out` is then incomplete, and discarded.
+        let _ = match region.level {
+            0 => self.render_level0(region.x, region.y, region.width, region.height, out, stop),
+            _ => self.render_prefiltered(region, out, stop),
+        };
     }
 }

@@ -15,7 +15,7 @@
 //! no more than level 4.
 
 use super::ChaosMosaic;
-use crate::{mip, pixels::Rgba8Image, texture::level_size, Region};
+use crate::{mip, pixels::Rgba8Image, texture::level_size, Region, Stop};
 use std::sync::OnceLock;
 
 /// Levels computed by rendering level 0 and downsampling (exact, bit for bit).
@@ -303,16 +303,15 @@ struct Paths {
 }
 
 impl ChaosMosaic {
-    /// Renders a level ≥ 1.
-    pub(super) fn render_prefiltered(&self, region: &Region, out: &mut [u8]) {
+    /// Renders a level ≥ 1; `None` once `stop` is requested.
+    pub(super) fn render_prefiltered(&self, region: &Region, out: &mut [u8], stop: &dyn Stop) -> Option<()> {
         if region.level <= EXACT_LEVELS {
-            self.render_exact(region, out);
-            return;
+            return self.render_exact(region, out, stop);
         }
         let (lw, lh) = level_size(self.width, self.height, region.level);
         for (oy, ly, ny) in wrap_runs(region.y, region.height, lh) {
             for (ox, lx, nx) in wrap_runs(region.x, region.width, lw) {
-                let piece = self.integrate(region.level, lx as i64, ly as i64, nx, ny, Paths::default());
+                let piece = self.integrate(region.level, lx as i64, ly as i64, nx, ny, Paths::default(), stop)?;
                 for (j, row) in piece.chunks_exact(nx as usize).enumerate() {
                     let at = ((oy as usize + j) * region.width as usize + ox as usize) * 4;
                     for (o, px) in out[at..at + nx as usize * 4].chunks_exact_mut(4).zip(row) {
@@ -321,11 +320,12 @@ impl ChaosMosaic {
                 }
             }
         }
+        Some(())
     }
 
     /// Exact levels: render the level-0 footprint and apply the reference 2×2 filter L times.
     /// The region is cut where it wraps so that every footprint is aligned.
-    fn render_exact(&self, region: &Region, out: &mut [u8]) {
+    fn render_exact(&self, region: &Region, out: &mut [u8], stop: &dyn Stop) -> Option<()> {
         let (lw, lh) = level_size(self.width, self.height, region.level);
         let f = 1i64 << region.level;
         let mut dst = Rgba8Image::new(region.width, region.height);
@@ -334,11 +334,12 @@ impl ChaosMosaic {
                 let (x0, x1) = (lx as i64 * f, ((lx + nx as u64) as i64 * f).min(self.width as i64));
                 let (y0, y1) = (ly as i64 * f, ((ly + ny as u64) as i64 * f).min(self.height as i64));
                 let mut full = Rgba8Image::new((x1 - x0) as u32, (y1 - y0) as u32);
-                self.render_level0(x0, y0, full.width, full.height, &mut full.data);
+                self.render_level0(x0, y0, full.width, full.height, &mut full.data, stop)?;
                 dst.blit(&mip::downsample_n(&full, region.level), ox, oy);
             }
         }
         out.copy_from_slice(&dst.data);
+        Some(())
     }
 
     /// Level-`level` pixels [lx, lx+nx) × [ly, ly+ny), which must not wrap, by integration.
@@ -347,8 +348,19 @@ impl ChaosMosaic {
     /// a pixel is *clean* when one layer covers its footprint grown by the filter's reach
     /// (then the last block to touch that neighbourhood covers it whole); otherwise *dirty*.
     /// `rasterize` forces how cells find their layers (the two ways give the same result);
-    /// `None` picks the cheaper one.
-    fn integrate(&self, level: u32, lx: i64, ly: i64, nx: u32, ny: u32, paths: Paths) -> Vec<[u8; 4]> {
+    /// `None` picks the cheaper one. Polls `stop` a band of rows at a time: `None` once it is
+    /// requested.
+    #[allow(clippy::too_many_arguments)]
+    fn integrate(
+        &self,
+        level: u32,
+        lx: i64,
+        ly: i64,
+        nx: u32,
+        ny: u32,
+        paths: Paths,
+        stop: &dyn Stop,
+    ) -> Option<Vec<[u8; 4]>> {
         let f = 1i64 << level;
         let (nx, ny) = (nx as usize, ny as usize);
         let (tw, th) = (self.width as i64, self.height as i64);
@@ -518,6 +530,9 @@ impl ChaosMosaic {
         let mut layer = vec![0u32; if coarse { 0 } else { gw * cells * band.min(ny) }];
         let mut out = vec![[0u8; 4]; nx * ny];
         for j0 in (0..ny).step_by(band) {
+            if stop.requested() {
+                return None;
+            }
             let (j1, r0) = ((j0 + band).min(ny), j0 * cells);
             let r1 = j1 * cells;
             if rasterize {
@@ -600,7 +615,7 @@ impl ChaosMosaic {
                 }
             }
         }
-        out
+        Some(out)
     }
 
     /// The sum of cell [c0, c1) × [r0, r1) of the layer with packed `offset`: one look-up when
@@ -706,6 +721,7 @@ fn wrap_runs(start: i64, count: u32, period: u64) -> impl Iterator<Item = (u32, 
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::Never;
 
     #[test]
     fn periodic_sums_match_brute_force() {
@@ -750,9 +766,10 @@ mod tests {
             let tex = super::super::load(&models::create("chaos-mosaic", "t", &params, &inputs).unwrap()).unwrap();
             // Footprints of 16 and 32 pixels: between the fine and the coarse regimes.
             for (level, lx, ly, n) in [(4, 0, 0, 50), (4, 13, 40, 9), (5, 3, 2, 20)] {
-                let rasterized = tex.integrate(level, lx, ly, n, n, Paths { rasterize: Some(true), general: false });
+                let rasterized =
+                    tex.integrate(level, lx, ly, n, n, Paths { rasterize: Some(true), general: false }, &Never);
                 let indexed = Paths { rasterize: Some(false), general: false };
-                assert_eq!(rasterized, tex.integrate(level, lx, ly, n, n, indexed), "level {level} bpt {bpt}");
+                assert_eq!(rasterized, tex.integrate(level, lx, ly, n, n, indexed, &Never), "level {level} bpt {bpt}");
             }
         }
     }
@@ -814,8 +831,8 @@ mod tests {
                     let (lx, ly) = (lx.max(0), ly.max(0));
                     let (nx, ny) = ((lw - lx).min(24) as u32, (lh - ly).min(24) as u32);
                     for rasterize in [Some(true), Some(false), None] {
-                        let fast = tex.integrate(level, lx, ly, nx, ny, Paths { rasterize, general: false });
-                        let general = tex.integrate(level, lx, ly, nx, ny, Paths { rasterize, general: true });
+                        let fast = tex.integrate(level, lx, ly, nx, ny, Paths { rasterize, general: false }, &Never);
+                        let general = tex.integrate(level, lx, ly, nx, ny, Paths { rasterize, general: true }, &Never);
                         assert_eq!(fast, general, "n {n} level {level} at ({lx}, {ly}) {rasterize:?}");
                     }
                 }

@@ -69,28 +69,41 @@ pub struct StoredParams {
     pub layers: Vec<LayerParams>,
 }
 
-/// The element planes of a built-in.
-fn builtin_planes(b: &Builtin) -> Result<Vec<Plane>> {
-    let k = element::side_exponent(1usize.checked_shl(b.k).unwrap_or(0), "element.k")?;
-    let need = |min: u32| {
-        if k < min {
-            Err(Error::param("element.k", format!("`{}` needs k ≥ {min}", b.builtin)))
-        } else {
-            Ok(())
+/// The side exponent K and plane count of the element `create` would use, checked from the
+/// parameters and the input image's header, without drawing or decoding it.
+pub(super) fn element_shape(p: &Params, inputs: &Inputs) -> Result<(u32, u32)> {
+    let Some(b) = &p.element else {
+        let bytes = inputs.get("element").ok_or_else(|| Error::image("element", "missing; this model needs it"))?;
+        let (w, h) = crate::pixels::png_dimensions("element", bytes)?;
+        if w != h {
+            return Err(Error::image("element", format!("{w}×{h} is not square")));
         }
+        let k = element::side_exponent(w as usize, "element").map_err(|e| Error::image("element", e.to_string()))?;
+        return Ok((k, if p.palette.is_empty() { 3 } else { 1 }));
     };
-    Ok(match b.builtin.as_str() {
-        "stroke" => vec![elements::stroke(k)],
-        "hole" => vec![elements::hole(k)],
-        "brick" => {
-            need(3)?;
-            vec![elements::brick(k)]
-        }
-        "pebble" => elements::pebble(k, PEBBLE_STONE, PEBBLE_SAND).to_vec(),
+    let k = element::side_exponent(1usize.checked_shl(b.k).unwrap_or(0), "element.k")?;
+    let (min_k, planes) = match b.builtin.as_str() {
+        "stroke" | "hole" => (1, 1),
+        "brick" => (3, 1),
+        "pebble" => (1, 3),
         other => {
             return Err(Error::param("element.builtin", format!("`{other}` is none of stroke, hole, brick, pebble")))
         }
-    })
+    };
+    if k < min_k {
+        return Err(Error::param("element.k", format!("`{}` needs k ≥ {min_k}", b.builtin)));
+    }
+    Ok((k, planes))
+}
+
+/// The element planes of a built-in that [`element_shape`] accepted.
+fn builtin_planes(b: &Builtin) -> Vec<Plane> {
+    match b.builtin.as_str() {
+        "stroke" => vec![elements::stroke(b.k)],
+        "hole" => vec![elements::hole(b.k)],
+        "brick" => vec![elements::brick(b.k)],
+        _ => elements::pebble(b.k, PEBBLE_STONE, PEBBLE_SAND).to_vec(),
+    }
 }
 
 /// Colours of the pebble element: stone and the sand it is an offset from.
@@ -122,40 +135,20 @@ fn image_planes(inputs: &Inputs, planes: usize) -> Result<Vec<Plane>> {
     chans.into_iter().map(|c| Plane::new(img.width as usize, px(c), "element")).collect()
 }
 
-/// Makes an encoding: the base element, the LCMs drawn from the tables with the seed.
+/// Makes an encoding: the base element, the LCMs drawn from the tables with the seed. Every
+/// parameter is checked ([`super::plan::plan_create`]) before anything is drawn.
 pub fn create(name: &str, params: &serde_json::Value, inputs: &Inputs) -> Result<Bundle> {
+    super::plan::plan_create(params, inputs)?;
     let p: Params = parse_params(params)?;
     let planes = match &p.element {
-        Some(b) => builtin_planes(b)?,
+        Some(b) => builtin_planes(b),
         None => image_planes(inputs, if p.palette.is_empty() { 3 } else { 1 })?,
     };
     let k = planes[0].k;
-    if p.magnify > MAX_TOP - k {
-        return Err(Error::param("magnify", format!("{}: k + magnify may not exceed {MAX_TOP}", p.magnify)));
-    }
     let background = p.background.clone().unwrap_or_else(|| vec![0.0; planes.len()]);
-    let mut sections: Vec<(String, Vec<u8>)> = Vec::new();
-    for (n, l) in p.layers.iter().enumerate() {
-        if l.share.is_some() {
-            continue;
-        }
-        let what = format!("layers[{n}].table");
-        let table = l.table.as_ref().ok_or_else(|| Error::param(&what, "needed to draw the LCM"))?;
-        check_lcm_size(l.lcm, n)?;
-        table.check(l.lcm, &what)?;
-        sections.push((format!("lcm.{n}"), table.generate(l.lcm, p.seed, n as u64)));
-    }
-    let top = k + p.magnify;
-    let mut stored_resolutions: Vec<u32> = vec![k];
-    if p.representation == Representation::Explicit {
-        for l in &p.layers {
-            let r = top.saturating_sub(l.layer);
-            if (1..k).contains(&r) && !stored_resolutions.contains(&r) {
-                stored_resolutions.push(r);
-            }
-        }
-        stored_resolutions.sort_unstable_by(|a, b| b.cmp(a));
-    }
+    let mut sections: Vec<(String, Vec<u8>)> =
+        drawn_lcms(&p)?.into_iter().enumerate().filter_map(|(n, c)| Some((format!("lcm.{n}"), c?))).collect();
+    let stored_resolutions = stored_resolutions(&p, k);
     for (i, plane) in planes.iter().enumerate() {
         match p.representation {
             Representation::Explicit => {
@@ -193,6 +186,39 @@ pub fn create(name: &str, params: &serde_json::Value, inputs: &Inputs) -> Result
     Ok(bundle)
 }
 
+/// The resolutions an explicit element stores: K and those the layers use at level 0.
+pub(super) fn stored_resolutions(p: &Params, k: u32) -> Vec<u32> {
+    let top = k + p.magnify;
+    let mut stored_resolutions: Vec<u32> = vec![k];
+    if p.representation == Representation::Explicit {
+        for l in &p.layers {
+            let r = top.saturating_sub(l.layer);
+            if (1..k).contains(&r) && !stored_resolutions.contains(&r) {
+                stored_resolutions.push(r);
+            }
+        }
+        stored_resolutions.sort_unstable_by(|a, b| b.cmp(a));
+    }
+    stored_resolutions
+}
+
+/// Each layer's LCM drawn from its table with the seed (`None` for a layer that shares one).
+/// Callers check the layers first ([`check_layers`]), which bounds what this draws.
+pub(super) fn drawn_lcms(p: &Params) -> Result<Vec<Option<Vec<u8>>>> {
+    p.layers
+        .iter()
+        .enumerate()
+        .map(|(n, l)| {
+            if l.share.is_some() {
+                return Ok(None);
+            }
+            let what = format!("layers[{n}].table");
+            let table = l.table.as_ref().ok_or_else(|| Error::param(&what, "needed to draw the LCM"))?;
+            Ok(Some(table.generate(l.lcm, p.seed, n as u64)))
+        })
+        .collect()
+}
+
 fn check_lcm_size(size: [u32; 2], n: usize) -> Result<()> {
     if size.iter().any(|&s| s == 0 || s > MAX_LCM_SIDE) {
         return Err(Error::param(
@@ -203,9 +229,126 @@ fn check_lcm_size(size: [u32; 2], n: usize) -> Result<()> {
     Ok(())
 }
 
-/// Checks an encoding completely and builds its texture.
-pub fn load(bundle: &Bundle) -> Result<LcmTexture> {
-    let p: StoredParams = bundle.params()?;
+/// Checks every layer's parameters — count, resolution, weight, LCM size, sharing, table —
+/// and the LCM points they hold in all, from the parameters alone; returns that count.
+pub(super) fn check_layers(layers: &[LayerParams], top: u32) -> Result<u64> {
+    if layers.is_empty() || layers.len() > MAX_LAYERS {
+        return Err(Error::param("layers", format!("{} layers; 1..={MAX_LAYERS}", layers.len())));
+    }
+    let mut points = 0u64;
+    for (n, l) in layers.iter().enumerate() {
+        let what = format!("layers[{n}]");
+        if l.layer >= top {
+            return Err(Error::param(
+                format!("{what}.layer"),
+                format!("layer {} would be below resolution 1 (k + magnify = {top})", l.layer),
+            ));
+        }
+        if !l.weight.is_finite() || l.weight.abs() > MAX_WEIGHT {
+            return Err(Error::param(format!("{what}.weight"), format!("{} is not within ±{MAX_WEIGHT}", l.weight)));
+        }
+        check_lcm_size(l.lcm, n)?;
+        match l.share {
+            Some(s) if s >= n || layers[s].share.is_some() || layers[s].lcm != l.lcm => {
+                return Err(Error::param(
+                    format!("{what}.share"),
+                    format!("{s}: must name an earlier layer with an LCM of its own of the same size"),
+                ))
+            }
+            Some(_) => {}
+            None => points += l.lcm[0] as u64 * l.lcm[1] as u64,
+        }
+        if let Some(t) = &l.table {
+            t.check(l.lcm, &format!("{what}.table"))?;
+        }
+    }
+    if points > MAX_LCM_POINTS {
+        return Err(Error::param("layers", format!("{points} LCM points in all; at most {MAX_LCM_POINTS}")));
+    }
+    Ok(points)
+}
+
+/// A layer weight in fixed point (Q12).
+fn quantized_weight(weight: f64) -> i64 {
+    libm::floor(weight * (1u64 << QW) as f64 + 0.5) as i64
+}
+
+/// The texture's period in pixels from layers that passed [`check_layers`] and their LCMs
+/// (`codes(n)`: layer n's own, or the one it shares): each LCM's length and events checked,
+/// and the least common multiple of every visible layer's mask period times its spacing.
+pub(super) fn period<'a>(
+    layers: &[LayerParams],
+    top: u32,
+    codes: impl Fn(usize) -> Result<&'a [u8]>,
+) -> Result<(u64, u64)> {
+    let mut period = (1u64, 1u64);
+    for (n, l) in layers.iter().enumerate() {
+        let source = l.share.unwrap_or(n);
+        let name = format!("lcm.{source}");
+        let codes = codes(source)?;
+        let (w, h) = (l.lcm[0] as usize, l.lcm[1] as usize);
+        if codes.len() != w * h {
+            return Err(Error::param(&name, format!("{} bytes for an LCM of {w}×{h} = {} points", codes.len(), w * h)));
+        }
+        if source == n {
+            if let Some((at, e)) = codes.iter().enumerate().find_map(|(i, &c)| Event::decode(c).err().map(|e| (i, e))) {
+                return Err(Error::param(&name, format!("point ({}, {}): {e}", at % w, at / w)));
+            }
+        }
+        if quantized_weight(l.weight) != 0 && codes.iter().any(|&c| Event::canonical(c) != 0) {
+            let (dx, dy) = mask_period(codes, w, h);
+            let spacing = 1u64 << (top - l.layer - 1);
+            let too_big = || Error::param("layers", format!("the texture's period exceeds {MAX_SIZE} pixels"));
+            period.0 = lcm(period.0, dx * spacing).filter(|&v| v <= MAX_SIZE).ok_or_else(too_big)?;
+            period.1 = lcm(period.1, dy * spacing).filter(|&v| v <= MAX_SIZE).ok_or_else(too_big)?;
+        }
+    }
+    Ok(period)
+}
+
+/// The served size: `tiles` periods, each side within [`MAX_SIZE`].
+pub(super) fn served_size(period: (u64, u64), tiles: [u32; 2]) -> Result<(u64, u64)> {
+    let size = (period.0 * tiles[0] as u64, period.1 * tiles[1] as u64);
+    if tiles.contains(&0) || size.0 > MAX_SIZE || size.1 > MAX_SIZE {
+        return Err(Error::param(
+            "tiles",
+            format!(
+                "{:?} periods of {}×{}: each at least 1 and at most {MAX_SIZE} px a side",
+                tiles, period.0, period.1
+            ),
+        ));
+    }
+    Ok(size)
+}
+
+/// How intensities become colour, checked with the background against the plane count.
+pub(super) fn colour(planes: u32, palette: &[[f64; 4]], background: &[f64]) -> Result<Colour> {
+    let colour = match (planes, palette.is_empty()) {
+        (1, false) => Colour::palette(palette)?,
+        (3, true) => Colour::Channels,
+        (1, true) => return Err(Error::param("palette", "one intensity plane needs a palette")),
+        (3, false) => return Err(Error::param("palette", "three planes are the RGB channels; no palette")),
+        (n, _) => return Err(Error::param("planes", format!("{n}; must be 1 (palette) or 3 (RGB)"))),
+    };
+    let planes = planes as usize;
+    if background.len() != planes || background.iter().any(|b| !b.is_finite() || b.abs() > 1e6) {
+        return Err(Error::param("background", format!("needs {planes} finite intensities within ±1e6")));
+    }
+    Ok(colour)
+}
+
+/// The checked shape of a stored encoding: its colour, period and served size, and the
+/// element's stored resolutions (explicit only), from the manifest and section bytes.
+pub(super) struct Checked {
+    pub colour: Colour,
+    pub period: (u64, u64),
+    pub size: (u64, u64),
+    pub resolutions: Vec<u32>,
+}
+
+/// Checks a stored encoding's manifest and every section's length and LCM bytes, before any
+/// element copy or layer is built.
+pub(super) fn check(p: &StoredParams, bundle: &Bundle) -> Result<Checked> {
     if !(1..=MAX_K).contains(&p.k) {
         return Err(Error::param("k", format!("{}: the base element side must be 2^k with 1 ≤ k ≤ {MAX_K}", p.k)));
     }
@@ -213,39 +356,67 @@ pub fn load(bundle: &Bundle) -> Result<LcmTexture> {
         return Err(Error::param("magnify", format!("{}: k + magnify may not exceed {MAX_TOP}", p.magnify)));
     }
     let top = p.k + p.magnify;
-    let colour = match (p.planes, p.palette.is_empty()) {
-        (1, false) => Colour::palette(&p.palette)?,
-        (3, true) => Colour::Channels,
-        (1, true) => return Err(Error::param("palette", "one intensity plane needs a palette")),
-        (3, false) => return Err(Error::param("palette", "three planes are the RGB channels; no palette")),
-        (n, _) => return Err(Error::param("planes", format!("{n}; must be 1 (palette) or 3 (RGB)"))),
-    };
-    let planes = p.planes as usize;
-    if p.background.len() != planes || p.background.iter().any(|b| !b.is_finite() || b.abs() > 1e6) {
-        return Err(Error::param("background", format!("needs {planes} finite intensities within ±1e6")));
-    }
+    let colour = colour(p.planes, &p.palette, &p.background)?;
     let mut expected: Vec<String> = Vec::new();
-    // The element.
+    let mut resolutions = p.stored_resolutions.clone();
+    resolutions.sort_unstable_by(|a, b| b.cmp(a));
+    resolutions.dedup();
+    for i in 0..p.planes {
+        match p.representation {
+            Representation::Explicit => {
+                if resolutions.len() != p.stored_resolutions.len()
+                    || resolutions.first() != Some(&p.k)
+                    || resolutions.contains(&0)
+                {
+                    return Err(Error::param(
+                        "stored_resolutions",
+                        format!("{:?}: distinct resolutions 1..=k that include k = {}", p.stored_resolutions, p.k),
+                    ));
+                }
+                for &r in &resolutions {
+                    let name = format!("element.{i}.{r}");
+                    let len = bundle.section(&name)?.len();
+                    if len != 1 << (2 * r) {
+                        return Err(Error::param(&name, format!("{len} pixels for a {0}×{0} element", 1u32 << r)));
+                    }
+                    expected.push(name);
+                }
+            }
+            Representation::Haar => {
+                let name = format!("haar.{i}");
+                let len = bundle.section(&name)?.len();
+                let n = 1usize << (2 * p.k);
+                if len != 2 * n {
+                    return Err(Error::param(&name, format!("{len} bytes; 2^{0}×2^{0} i16 need {1}", p.k, 2 * n)));
+                }
+                expected.push(name);
+            }
+        }
+    }
+    check_layers(&p.layers, top)?;
+    expected.extend(p.layers.iter().enumerate().filter(|(_, l)| l.share.is_none()).map(|(n, _)| format!("lcm.{n}")));
+    let period = period(&p.layers, top, |n| bundle.section(&format!("lcm.{n}")))?;
+    if let Some(extra) = bundle.sections.iter().find(|s| !expected.contains(&s.name)) {
+        return Err(Error::bundle(format!("unexpected section `{}` in an lcm encoding", extra.name)));
+    }
+    let size = served_size(period, p.tiles)?;
+    Ok(Checked { colour, period, size, resolutions })
+}
+
+/// Checks an encoding completely ([`check`]) and builds its texture.
+pub fn load(bundle: &Bundle) -> Result<LcmTexture> {
+    let p: StoredParams = bundle.params()?;
+    let Checked { colour, period, size, resolutions } = check(&p, bundle)?;
+    let planes = p.planes as usize;
     let copies = (0..planes)
         .map(|i| {
             let stored = match p.representation {
                 Representation::Explicit => {
-                    let mut res = p.stored_resolutions.clone();
-                    res.sort_unstable_by(|a, b| b.cmp(a));
-                    res.dedup();
-                    if res.len() != p.stored_resolutions.len() || res.first() != Some(&p.k) || res.contains(&0) {
-                        return Err(Error::param(
-                            "stored_resolutions",
-                            format!("{:?}: distinct resolutions 1..=k that include k = {}", p.stored_resolutions, p.k),
-                        ));
-                    }
-                    let copies = res
+                    let copies = resolutions
                         .iter()
                         .map(|&r| {
                             let name = format!("element.{i}.{r}");
-                            let data = bundle.section(&name)?;
-                            expected.push(name.clone());
-                            Plane::new(1 << r, data.iter().map(|&b| b as i8).collect(), &name)
+                            Plane::new(1 << r, bundle.section(&name)?.iter().map(|&b| b as i8).collect(), &name)
                         })
                         .collect::<Result<Vec<_>>>()?;
                     Stored::Explicit(copies)
@@ -253,14 +424,6 @@ pub fn load(bundle: &Bundle) -> Result<LcmTexture> {
                 Representation::Haar => {
                     let name = format!("haar.{i}");
                     let data = bundle.section(&name)?;
-                    expected.push(name.clone());
-                    let n = 1usize << (2 * p.k);
-                    if data.len() != 2 * n {
-                        return Err(Error::param(
-                            &name,
-                            format!("{} bytes; 2^{}×2^{} i16 need {}", data.len(), p.k, p.k, 2 * n),
-                        ));
-                    }
                     let coef: Vec<i16> = data.chunks_exact(2).map(|b| i16::from_le_bytes([b[0], b[1]])).collect();
                     if let Some(c) = coef.iter().find(|c| c.abs() > 1020) {
                         return Err(Error::param(
@@ -274,83 +437,20 @@ pub fn load(bundle: &Bundle) -> Result<LcmTexture> {
             Ok(Copies::build(&stored, p.k, p.magnify))
         })
         .collect::<Result<Vec<_>>>()?;
-    // The layers.
-    if p.layers.is_empty() || p.layers.len() > MAX_LAYERS {
-        return Err(Error::param("layers", format!("{} layers; 1..={MAX_LAYERS}", p.layers.len())));
-    }
-    let mut points = 0u64;
-    let mut layers = Vec::with_capacity(p.layers.len());
-    let mut period = (1u64, 1u64);
-    for (n, l) in p.layers.iter().enumerate() {
-        let what = format!("layers[{n}]");
-        if l.layer >= top {
-            return Err(Error::param(
-                format!("{what}.layer"),
-                format!("layer {} would be below resolution 1 (k + magnify = {top})", l.layer),
-            ));
-        }
-        if !l.weight.is_finite() || l.weight.abs() > MAX_WEIGHT {
-            return Err(Error::param(format!("{what}.weight"), format!("{} is not within ±{MAX_WEIGHT}", l.weight)));
-        }
-        check_lcm_size(l.lcm, n)?;
-        let source = match l.share {
-            Some(s) if s >= n || p.layers[s].share.is_some() || p.layers[s].lcm != l.lcm => {
-                return Err(Error::param(
-                    format!("{what}.share"),
-                    format!("{s}: must name an earlier layer with an LCM of its own of the same size"),
-                ))
-            }
-            Some(s) => s,
-            None => n,
-        };
-        if let Some(t) = &l.table {
-            t.check(l.lcm, &format!("{what}.table"))?;
-        }
-        let name = format!("lcm.{source}");
-        let codes = bundle.section(&name)?;
-        let (w, h) = (l.lcm[0] as usize, l.lcm[1] as usize);
-        if codes.len() != w * h {
-            return Err(Error::param(&name, format!("{} bytes for an LCM of {w}×{h} = {} points", codes.len(), w * h)));
-        }
-        if source == n {
-            expected.push(name.clone());
-            points += codes.len() as u64;
-            if let Some((at, e)) = codes.iter().enumerate().find_map(|(i, &c)| Event::decode(c).err().map(|e| (i, e))) {
-                return Err(Error::param(&name, format!("point ({}, {}): {e}", at % w, at / w)));
-            }
-        }
-        let weight = libm::floor(l.weight * (1u64 << QW) as f64 + 0.5) as i64;
-        let layer = Layer::new(l.layer, weight, w, h, codes, planes);
-        // The layer's period in pixels: its mask's own period times the point spacing.
-        if weight != 0 && layer.codes.iter().any(|&c| c != 0) {
-            let (dx, dy) = mask_period(&layer.codes, w, h);
-            let spacing = 1u64 << (top - l.layer - 1);
-            let too_big = || Error::param("layers", format!("the texture's period exceeds {MAX_SIZE} pixels"));
-            period.0 = lcm(period.0, dx * spacing).filter(|&v| v <= MAX_SIZE).ok_or_else(too_big)?;
-            period.1 = lcm(period.1, dy * spacing).filter(|&v| v <= MAX_SIZE).ok_or_else(too_big)?;
-        }
-        layers.push(layer);
-    }
-    if points > MAX_LCM_POINTS {
-        return Err(Error::param("layers", format!("{points} LCM points in all; at most {MAX_LCM_POINTS}")));
-    }
-    if let Some(extra) = bundle.sections.iter().find(|s| !expected.contains(&s.name)) {
-        return Err(Error::bundle(format!("unexpected section `{}` in an lcm encoding", extra.name)));
-    }
+    let mut layers = p
+        .layers
+        .iter()
+        .enumerate()
+        .map(|(n, l)| {
+            let codes = bundle.section(&format!("lcm.{}", l.share.unwrap_or(n)))?;
+            let (w, h) = (l.lcm[0] as usize, l.lcm[1] as usize);
+            Ok(Layer::new(l.layer, quantized_weight(l.weight), w, h, codes, planes))
+        })
+        .collect::<Result<Vec<_>>>()?;
     if p.order == Order::BottomUp {
         layers.sort_by_key(|l| std::cmp::Reverse(l.index));
     } else {
         layers.sort_by_key(|l| l.index);
-    }
-    let size = (period.0 * p.tiles[0] as u64, period.1 * p.tiles[1] as u64);
-    if p.tiles.contains(&0) || size.0 > MAX_SIZE || size.1 > MAX_SIZE {
-        return Err(Error::param(
-            "tiles",
-            format!(
-                "{:?} periods of {}×{}: each at least 1 and at most {MAX_SIZE} px a side",
-                p.tiles, period.0, period.1
-            ),
-        ));
     }
     let background = p.background.iter().map(|b| libm::floor(b * (1u64 << QI) as f64 + 0.5) as i64).collect();
     Ok(LcmTexture { k: p.k, magnify: p.magnify, copies, layers, background, colour, period, size })

@@ -21,6 +21,7 @@
 pub mod demos;
 pub mod encoding;
 pub mod params;
+mod plan;
 
 pub mod colour;
 pub mod element;
@@ -40,7 +41,7 @@ pub use params::Params;
 pub type CreateParams = Params;
 pub use render::{LcmTexture, OpCount};
 
-use super::{InputInfo, Inputs, MipGuarantee, Model, ModelInfo};
+use super::{InputInfo, Inputs, MipGuarantee, Model, ModelInfo, Plan};
 use crate::{bundle::Bundle, Result, Texture};
 use std::sync::Arc;
 
@@ -76,6 +77,12 @@ impl Model for LcmModel {
     }
     fn load(&self, bundle: &Bundle) -> Result<Arc<dyn Texture>> {
         Ok(Arc::new(load(bundle)?))
+    }
+    fn plan(&self, bundle: &Bundle) -> Result<Plan> {
+        plan::plan(bundle)
+    }
+    fn plan_create(&self, params: &serde_json::Value, inputs: &Inputs) -> Result<Plan> {
+        plan::plan_create(params, inputs)
     }
     fn demos(&self) -> Vec<Bundle> {
         demos()

@@ -8,7 +8,7 @@ use super::colour::Colour;
 use super::element::Copies;
 use super::layer::{Counter, Layer, NoCount};
 use crate::texture::{level_size, wrap};
-use crate::{Domain, Region, Texture};
+use crate::{Domain, Never, Region, Stop, Texture};
 
 /// A loaded, validated LCM texture.
 #[derive(Debug)]
@@ -51,6 +51,12 @@ impl LcmTexture {
 
     /// Renders `region` while `cnt` counts the work of every pixel (row by row).
     pub fn render_counted<C: Counter + RowCounter>(&self, region: &Region, out: &mut [u8], cnt: &mut C) {
+        self.render_rows(region, out, cnt, &Never);
+    }
+
+    /// Renders `region` a row at a time, polling `stop` before each row and returning once it
+    /// is requested.
+    fn render_rows<C: Counter + RowCounter>(&self, region: &Region, out: &mut [u8], cnt: &mut C, stop: &dyn Stop) {
         let (lw, lh) = level_size(self.size.0, self.size.1, region.level);
         let width = region.width as usize;
         // Runs of the row that do not cross the torus seam: (first x on the level, length).
@@ -64,6 +70,9 @@ impl LcmTexture {
         }
         let mut planes = vec![vec![0i64; width]; self.copies.len()];
         for row in 0..region.height as usize {
+            if stop.requested() {
+                return;
+            }
             let y = wrap(region.y + row as i64, lh);
             cnt.start_row(width);
             for (p, acc) in planes.iter_mut().enumerate() {
@@ -115,8 +124,8 @@ impl Texture for LcmTexture {
     fn domain(&self) -> Domain {
         Domain::Torus
     }
-    fn render(&self, region: &Region, out: &mut [u8]) {
-        self.render_counted(region, out, &mut NoCount);
+    fn render(&self, region: &Region, out: &mut [u8], stop: &dyn Stop) {
+        self.render_rows(region, out, &mut NoCount, stop);
     }
 }
 

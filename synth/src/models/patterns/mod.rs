@@ -14,6 +14,7 @@
 pub mod demos;
 pub mod encoding;
 pub mod params;
+mod plan;
 
 pub mod animation;
 pub mod art;
@@ -33,7 +34,7 @@ pub use encoding::{create, load};
 pub use model::{PatternTexture, MODEL};
 pub use params::Params;
 
-use super::{InputInfo, Inputs, MipGuarantee, Model, ModelInfo};
+use super::{InputInfo, Inputs, MipGuarantee, Model, ModelInfo, Plan};
 use crate::{bundle::Bundle, Result, Texture};
 use std::sync::Arc;
 
@@ -74,6 +75,12 @@ impl Model for PatternsModel {
     }
     fn load(&self, bundle: &Bundle) -> Result<Arc<dyn Texture>> {
         Ok(Arc::new(load(bundle)?))
+    }
+    fn plan(&self, bundle: &Bundle) -> Result<Plan> {
+        plan::plan(bundle)
+    }
+    fn plan_create(&self, params: &serde_json::Value, inputs: &Inputs) -> Result<Plan> {
+        plan::plan_create(params, inputs)
     }
     fn demos(&self) -> Vec<Bundle> {
         demos()

@@ -20,10 +20,12 @@ use super::sprites::Positioning;
 use super::transform::{Placed, TransformBlock};
 use super::transitions::{Pick, Transitions};
 use crate::texture::{level_size, wrap};
-use crate::{bundle::Bundle, Animation, Domain, Error, Region, Result, Texture};
+use crate::{bundle::Bundle, Animation, Domain, Error, Region, Result, Stop, Texture};
 use std::sync::Arc;
 
 pub const MODEL: &str = "patterns";
+/// Sprites splatted between two polls of the [`Stop`] at levels where they are under a pixel.
+const SPRITES_A_POLL: usize = 64;
 /// Largest side of a texture, in pixels.
 pub const MAX_SIDE: u64 = 1 << 24;
 pub const MAX_LAYERS: usize = 8;
@@ -77,21 +79,7 @@ impl PatternTexture {
             layers.push(Layer::load(i, lp, &p, bundle, &reference, tables.clone()).map_err(|e| in_layer(i, e))?);
         }
         let animated: Vec<&AnimationBlock> = layers.iter().filter_map(|l| l.animation.as_ref()).collect();
-        let animation = match (animated.is_empty(), p.fps) {
-            (true, _) => None,
-            (false, Some(fps)) if fps > 0.0 && fps <= 240.0 => {
-                let mut period = 1u64;
-                for a in &animated {
-                    let q = a.period() as u64;
-                    period = if q == 0 || period == 0 { 0 } else { period / gcd(period, q) * q };
-                    if period > u32::MAX as u64 {
-                        period = 0;
-                    }
-                }
-                Some(Animation { fps, period_frames: period as u32 })
-            }
-            (false, _) => return Err(Error::param("fps", "animated layers need fps in (0, 240]")),
-        };
+        let animation = super::plan::animation(&animated, p.fps)?;
         Ok(Self { width: p.width, height: p.height, reference, background: p.background, layers, animation })
     }
 
@@ -118,14 +106,6 @@ impl PatternTexture {
     /// The pixel map's material at level-0 pixel (x, y) of layer `layer`, if it has one.
     pub fn pixel_material(&self, layer: usize, x: u64, y: u64) -> Option<u16> {
         self.layers[layer].choice.as_ref()?.pixel_map().map(|p| p.at(x, y))
-    }
-}
-
-fn gcd(a: u64, b: u64) -> u64 {
-    if b == 0 {
-        a
-    } else {
-        gcd(b, a % b)
     }
 }
 
@@ -265,7 +245,7 @@ impl Layer {
     }
 
     /// Texel (x, y) of a pick's patterns at `level`, overlays composited on the base.
-    #[inline]
+    #[inline(always)]
     fn compose(&self, r: &Reference, pick: &Pick, level: u32, x: u32, y: u32) -> [u8; 4] {
         let mut c = match pick.base {
             Some(p) => r.texel(p, level, x, y),
@@ -277,15 +257,17 @@ impl Layer {
         c
     }
 
-    fn render(&self, tex: &PatternTexture, region: &Region, out: &mut [u8]) {
+    /// Paints this layer over `out`, polling `stop` a row (or a few sprites) at a time and
+    /// returning once it is requested.
+    fn render(&self, tex: &PatternTexture, region: &Region, out: &mut [u8], stop: &dyn Stop) {
         match self.kind {
-            LayerKind::Tiling => self.render_tiling(tex, region, out),
-            LayerKind::Sparse => self.render_sparse(tex, region, out),
-            LayerKind::Sprites => self.render_sprites(tex, region, out),
+            LayerKind::Tiling => self.render_tiling(tex, region, out, stop),
+            LayerKind::Sparse => self.render_sparse(tex, region, out, stop),
+            LayerKind::Sprites => self.render_sprites(tex, region, out, stop),
         }
     }
 
-    fn render_tiling(&self, tex: &PatternTexture, region: &Region, out: &mut [u8]) {
+    fn render_tiling(&self, tex: &PatternTexture, region: &Region, out: &mut [u8], stop: &dyn Stop) {
         let r = &tex.reference;
         let level = region.level;
         let t = region.frame;
@@ -295,6 +277,9 @@ impl Layer {
             let cs = (r.size >> level) as u64;
             let pixel_map = self.choice.as_ref().and_then(|c| c.pixel_map());
             for row in 0..region.height as usize {
+                if stop.requested() {
+                    return;
+                }
                 let py = wrap(region.y + row as i64, lh);
                 let (gy, ly) = (py / cs, (py % cs) as u32);
                 let mut last = u64::MAX;
@@ -321,6 +306,9 @@ impl Layer {
         }
         let k = 1u64 << (level - r.log2);
         for row in 0..region.height as usize {
+            if stop.requested() {
+                return;
+            }
             let py = wrap(region.y + row as i64, lh);
             for col in 0..w {
                 let px = wrap(region.x + col as i64, lw);
@@ -401,7 +389,7 @@ impl Layer {
         Some(self.transform.as_ref().unwrap().place(&self.rng, gx, gy, p, tex.reference.size))
     }
 
-    fn render_sparse(&self, tex: &PatternTexture, region: &Region, out: &mut [u8]) {
+    fn render_sparse(&self, tex: &PatternTexture, region: &Region, out: &mut [u8], stop: &dyn Stop) {
         let r = &tex.reference;
         let tr = self.transform.as_ref().unwrap();
         let level = region.level;
@@ -414,6 +402,9 @@ impl Layer {
             let choice = self.choice.as_ref().unwrap();
             let area = tr.mean_area();
             for row in 0..region.height as usize {
+                if stop.requested() {
+                    return;
+                }
                 let py = wrap(region.y + row as i64, lh) as f64;
                 for col in 0..w {
                     let px = wrap(region.x + col as i64, lw) as f64;
@@ -435,6 +426,9 @@ impl Layer {
         let mut rows: Vec<Vec<Option<Placed>>> = Vec::new();
         let mut rows_y0 = i64::MIN;
         for row in 0..region.height as usize {
+            if stop.requested() {
+                return;
+            }
             let y = (region.y + row as i64) as f64 * f + f * 0.5;
             let uy = (y / c).floor() as i64;
             let ry = ((y - uy as f64 * c) / c) as f32;
@@ -469,7 +463,7 @@ impl Layer {
         }
     }
 
-    fn render_sprites(&self, tex: &PatternTexture, region: &Region, out: &mut [u8]) {
+    fn render_sprites(&self, tex: &PatternTexture, region: &Region, out: &mut [u8], stop: &dyn Stop) {
         let r = &tex.reference;
         let pos = self.positioning.as_ref().unwrap();
         let level = region.level;
@@ -480,6 +474,9 @@ impl Layer {
             let f = 1u64 << level;
             let k = 1.0 / f as f32;
             for row in 0..region.height as usize {
+                if stop.requested() {
+                    return;
+                }
                 let py = wrap(region.y + row as i64, lh);
                 let y = (py * f + f / 2) % tex.height;
                 for col in 0..w {
@@ -500,7 +497,10 @@ impl Layer {
         }
         // Patterns smaller than a pixel: splat each sprite's coverage-weighted mean colour.
         let f = 1u64 << level.min(62);
-        for e in &pos.list {
+        for (n, e) in pos.list.iter().enumerate() {
+            if n % SPRITES_A_POLL == 0 && stop.requested() {
+                return;
+            }
             let pm = r.pm_mean(e.pattern);
             let span = |v: u64| {
                 let (a, b) = (v / f, (v + s - 1) / f);
@@ -564,12 +564,15 @@ impl Texture for PatternTexture {
     fn animation(&self) -> Option<Animation> {
         self.animation
     }
-    fn render(&self, region: &Region, out: &mut [u8]) {
+    fn render(&self, region: &Region, out: &mut [u8], stop: &dyn Stop) {
         for px in out.chunks_exact_mut(4) {
             px.copy_from_slice(&self.background);
         }
         for layer in &self.layers {
-            layer.render(self, region, out);
+            if stop.requested() {
+                return;
+            }
+            layer.render(self, region, out, stop);
         }
     }
 }

@@ -2,7 +2,7 @@
 //! mip chain built from that pattern alone — the "sub-textures" §5.2 asks hardware for — so
 //! packed neighbours never bleed into each other at any level.
 
-use crate::{mip, Error, Result, Rgba8Image};
+use crate::{mip, Result, Rgba8Image};
 
 pub struct Reference {
     /// Pattern side S (a power of two) and log2 S.
@@ -19,27 +19,7 @@ pub struct Reference {
 impl Reference {
     /// Cuts `img` into `tx × ty` patterns of side `size` and builds their mip chains.
     pub fn new(img: &Rgba8Image, size: u32, tx: u32, ty: u32) -> Result<Self> {
-        if size == 0 || !size.is_power_of_two() || size > 1024 {
-            return Err(Error::param(
-                "pattern_size",
-                format!("{size}: must be a power of two up to 1024 (each pattern has its own mip chain)"),
-            ));
-        }
-        if tx == 0 || ty == 0 || tx > 256 || ty > 256 {
-            return Err(Error::param("reference", format!("{tx}×{ty} patterns: each side must be 1..=256")));
-        }
-        if img.width != tx * size || img.height != ty * size {
-            return Err(Error::image(
-                "reference",
-                format!(
-                    "{}×{} pixels; {tx}×{ty} patterns of {size}² need {}×{}",
-                    img.width,
-                    img.height,
-                    tx * size,
-                    ty * size
-                ),
-            ));
-        }
+        super::plan::check_reference(img.width, img.height, size, tx, ty)?;
         let log2 = size.trailing_zeros();
         let count = (tx * ty) as usize;
         let mut levels: Vec<Vec<u8>> =
@@ -72,7 +52,7 @@ impl Reference {
     }
 
     /// Texel (x, y) of pattern `p` at its mip level `level` (coordinates inside the level).
-    #[inline]
+    #[inline(always)]
     pub fn texel(&self, p: u32, level: u32, x: u32, y: u32) -> [u8; 4] {
         let side = self.size >> level;
         let i = ((p as usize * side as usize + y as usize) * side as usize + x as usize) * 4;

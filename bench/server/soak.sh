@@ -1,0 +1,55 @@
+#!/usr/bin/env bash
+# Soak benchmark of `vtex serve` (not a timed test): a release server with the demos and set
+# memory budgets, kept busy for SECONDS at CONNECTIONS connections by the load driver
+# (fuzz/src/bin/soak.rs) mixing cached tiles, uncached tiles of every stored texture (every
+# model, the dearest demo included), uploads of new textures, slow readers of a 16 MiB region
+# and clients that never read. Reports each class's answers (0 errors expected for the
+# well-behaved ones; 503/408/507 counted apart), p50/p99 of cached tiles and the server's RSS
+# sampled every 100 ms against the budgets + 20 %. Appends to bench/results/soak-<date>.txt.
+# Usage: flock /tmp/vtex-bench.lock bench/server/soak.sh [SECONDS, default 60]
+# Environment: CACHE_MB (default 64), TEXTURES_MB (default 256), CONNECTIONS (default 64),
+#              SEED (default 1), EXTRA_FLAGS (more `vtex serve` flags).
+set -euo pipefail
+ROOT=$(cd "$(dirname "$0")/../.." && pwd)
+SECS=${1:-60}
+CACHE_MB=${CACHE_MB:-64}
+TEXTURES_MB=${TEXTURES_MB:-256}
+CONNECTIONS=${CONNECTIONS:-64}
+SEED=${SEED:-1}
+cd "$ROOT"
+cargo build --release -q --locked -p vtex-server -p vtex-fuzz
+BIN="${CARGO_TARGET_DIR:-$ROOT/target}/release"
+WORK=$(mktemp -d /tmp/vtex-soak.XXXXXX)
+PID=""
+cleanup() {
+  [ -z "$PID" ] || kill "$PID" 2>/dev/null || true
+  rm -rf "$WORK"
+}
+trap cleanup EXIT
+
+flags=(--bind 127.0.0.1:0 --data-dir "$WORK/data" --cache-mb "$CACHE_MB" --web-dir "$WORK/none")
+# RSS is held to the budgets together, + 20 %.
+budget=$((CACHE_MB + TEXTURES_MB))
+note="budgets: tiles $CACHE_MB MiB, textures $TEXTURES_MB MiB"
+if "$BIN/vtex" serve --help | grep -q -- '--textures-mb'; then
+  flags+=(--textures-mb "$TEXTURES_MB")
+else
+  note="$note; this build has no --textures-mb, so loaded textures are not bounded"
+fi
+# shellcheck disable=SC2206
+flags+=(${EXTRA_FLAGS:-})
+VTEX_LOG=${VTEX_LOG:-warn} "$BIN/vtex" serve "${flags[@]}" > "$WORK/out" 2> "$WORK/err" &
+PID=$!
+for _ in $(seq 1 600); do grep -q listening "$WORK/out" 2>/dev/null && break; sleep 0.1; done
+URL=$(sed -n 's/^vtex listening on //p' "$WORK/out")
+[ -n "$URL" ] || { cat "$WORK/err" >&2; exit 1; }
+
+out=bench/results/soak-$(date -u +%Y-%m-%d).txt
+{
+  echo "== $(date -u +%FT%TZ) $(git rev-parse --short HEAD)$(git diff --quiet || echo '+dirty') soak ${SECS}s, $(nproc) cores"
+  echo "vtex serve ${flags[*]}"
+  echo "($note)"
+  "$BIN/soak" --url "$URL" --pid "$PID" --seconds "$SECS" --connections "$CONNECTIONS" --budget-mb "$budget" --seed "$SEED"
+  echo "server log lines: $(wc -l < "$WORK/err") (warnings and errors); server still running: $(kill -0 "$PID" 2>/dev/null && echo yes || echo NO)"
+  echo
+} | tee -a "$out"

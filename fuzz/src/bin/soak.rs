@@ -1,0 +1,405 @@
+//! The soak benchmark's load driver (run by `bench/server/soak.sh`): for a fixed time it keeps
+//! a fixed number of connections busy against a running `vtex serve`, mixing well-behaved
+//! clients (cached tiles, uncached tiles of every stored texture, uploads) with slow readers
+//! (reading a large region a few bytes a second) and clients that never read, while sampling
+//! the server's resident memory from `/proc/<pid>/status` every 100 ms. It reports each class's
+//! answers, the cached tiles' latency percentiles and the largest RSS against the budgets.
+
+use clap::Parser;
+use rand::rngs::StdRng;
+use rand::{Rng, SeedableRng};
+use serde_json::Value;
+use std::collections::BTreeMap;
+use std::sync::atomic::{AtomicBool, Ordering::Relaxed};
+use std::sync::{Arc, Mutex};
+use std::time::{Duration, Instant};
+use tokio::io::{AsyncReadExt, AsyncWriteExt};
+
+#[derive(Parser)]
+struct Args {
+    /// Base URL of the server, e.g. http://127.0.0.1:8080.
+    #[arg(long)]
+    url: String,
+    /// The server's process id, for its RSS.
+    #[arg(long)]
+    pid: u32,
+    #[arg(long, default_value_t = 60)]
+    seconds: u64,
+    #[arg(long, default_value_t = 64)]
+    connections: usize,
+    /// The memory budgets the server was given, summed (MiB): RSS is held to this + 20 %.
+    #[arg(long)]
+    budget_mb: f64,
+    #[arg(long, default_value_t = 1)]
+    seed: u64,
+}
+
+/// A stored texture, as `GET /api/v1/textures` lists it.
+#[derive(Clone, Debug)]
+struct Texture {
+    id: String,
+    model: String,
+    width: u64,
+    height: u64,
+    levels: u32,
+    tile_size: u64,
+}
+
+impl Texture {
+    fn tiles_at(&self, level: u32) -> (u64, u64) {
+        let side = |v: u64| v.div_ceil(1u64 << level.min(63)).max(1).div_ceil(self.tile_size);
+        (side(self.width), side(self.height))
+    }
+
+    fn tile_url(&self, base: &str, level: u32, x: u64, y: u64, ext: &str) -> String {
+        format!("{base}/api/v1/textures/{}/tiles/{level}/{x}/{y}.{ext}", self.id)
+    }
+}
+
+/// What one class of clients got back.
+#[derive(Default, Debug)]
+struct Tally {
+    ok: u64,
+    /// Refusals a loaded server is allowed to give (503 shed, 408 deadline, 507 store full).
+    shed: BTreeMap<u16, u64>,
+    /// Anything else: other statuses and transport errors, by description.
+    errors: BTreeMap<String, u64>,
+    latencies: Vec<Duration>,
+}
+
+impl Tally {
+    fn status(&mut self, status: u16, ok: &[u16], shed: &[u16]) {
+        if ok.contains(&status) {
+            self.ok += 1;
+        } else if shed.contains(&status) {
+            *self.shed.entry(status).or_default() += 1;
+        } else {
+            *self.errors.entry(format!("HTTP {status}")).or_default() += 1;
+        }
+    }
+
+    fn error(&mut self, e: &reqwest::Error) {
+        let kind = if e.is_timeout() {
+            "client timeout"
+        } else if e.is_connect() {
+            "connect"
+        } else {
+            "transport"
+        };
+        *self.errors.entry(kind.into()).or_default() += 1;
+    }
+
+    fn merge(&mut self, other: Tally) {
+        self.ok += other.ok;
+        other.shed.into_iter().for_each(|(k, v)| *self.shed.entry(k).or_default() += v);
+        other.errors.into_iter().for_each(|(k, v)| *self.errors.entry(k).or_default() += v);
+        self.latencies.extend(other.latencies);
+    }
+
+    fn line(&self, class: &str, clients: usize) -> String {
+        let errors: u64 = self.errors.values().sum();
+        format!(
+            "{class:<16} {clients:>3} clients  {:>7} ok  shed {:?}  errors {errors} {:?}",
+            self.ok, self.shed, self.errors
+        )
+    }
+}
+
+fn client() -> reqwest::Client {
+    // One connection per client task: the connection count is the task count.
+    reqwest::Client::builder()
+        .pool_max_idle_per_host(1)
+        .timeout(Duration::from_secs(90))
+        .build()
+        .expect("a client builds")
+}
+
+async fn textures(base: &str) -> Vec<Texture> {
+    let list: Value = reqwest::get(format!("{base}/api/v1/textures")).await.unwrap().json().await.unwrap();
+    let items = list.get("textures").unwrap_or(&list).as_array().expect("a list of textures").clone();
+    items
+        .iter()
+        .map(|t| Texture {
+            id: t["id"].as_str().unwrap().into(),
+            model: t["model"].as_str().unwrap().into(),
+            width: t["width"].as_u64().unwrap(),
+            height: t["height"].as_u64().unwrap(),
+            levels: t["levels"].as_u64().unwrap() as u32,
+            tile_size: t["tile_size"].as_u64().unwrap(),
+        })
+        .collect()
+}
+
+/// Fetches tiles of a warm set in a loop, timing each.
+async fn cached(urls: Arc<Vec<String>>, stop: Arc<AtomicBool>, seed: u64) -> Tally {
+    let (http, mut rng, mut t) = (client(), StdRng::seed_from_u64(seed), Tally::default());
+    while !stop.load(Relaxed) {
+        let url = &urls[rng.random_range(0..urls.len())];
+        let start = Instant::now();
+        match http.get(url).send().await {
+            Ok(r) => {
+                let status = r.status().as_u16();
+                let body = r.bytes().await;
+                if body.is_ok() {
+                    t.latencies.push(start.elapsed());
+                    t.status(status, &[200], &[]);
+                } else {
+                    *t.errors.entry("body".into()).or_default() += 1;
+                }
+            }
+            Err(e) => t.error(&e),
+        }
+    }
+    t
+}
+
+/// Asks for tiles never asked before, of every texture in turn, in every format.
+async fn uncached(base: String, texs: Arc<Vec<Texture>>, stop: Arc<AtomicBool>, seed: u64, first: usize) -> Tally {
+    let (http, mut rng, mut t) = (client(), StdRng::seed_from_u64(seed), Tally::default());
+    let mut i = first;
+    while !stop.load(Relaxed) {
+        let tex = &texs[i % texs.len()];
+        i += 1;
+        let level = rng.random_range(0..tex.levels);
+        let (cols, rows) = tex.tiles_at(level);
+        let ext = ["png", "webp", "jpg", "rgba"][rng.random_range(0..4)];
+        let url = tex.tile_url(&base, level, rng.random_range(0..cols), rng.random_range(0..rows), ext);
+        match http.get(url).send().await {
+            Ok(r) => {
+                let status = r.status().as_u16();
+                match r.bytes().await {
+                    Ok(_) => t.status(status, &[200], &[503, 408]),
+                    Err(e) => t.error(&e),
+                }
+            }
+            Err(e) => t.error(&e),
+        }
+    }
+    t
+}
+
+/// Uploads new textures: a stored bundle renamed, so each upload is a new encoding.
+async fn uploads(base: String, bundle: Arc<Vec<u8>>, stop: Arc<AtomicBool>, who: usize) -> Tally {
+    let (http, mut t) = (client(), Tally::default());
+    let mut b = vtex_synth::bundle::Bundle::from_bytes(&bundle).expect("the server's encoding parses");
+    let mut n = 0u64;
+    while !stop.load(Relaxed) {
+        n += 1;
+        b.manifest.name = format!("soak {who}.{n}");
+        let req = http
+            .post(format!("{base}/api/v1/textures"))
+            .header("content-type", "application/octet-stream")
+            .body(b.to_bytes());
+        match req.send().await {
+            Ok(r) => {
+                let status = r.status().as_u16();
+                let _ = r.bytes().await;
+                t.status(status, &[201, 200], &[503, 507]);
+            }
+            Err(e) => t.error(&e),
+        }
+    }
+    t
+}
+
+/// What a slow or silent reader saw.
+#[derive(Debug, Default)]
+struct Slow {
+    bytes: u64,
+    /// Seconds after the request at which the server closed the connection.
+    closed_after: Option<f64>,
+}
+
+/// Requests a large region and reads it `per_second` bytes a second (0: never reads), until
+/// the end of the run or until the server closes the connection.
+async fn slow_reader(addr: String, path: String, per_second: usize, stop: Arc<AtomicBool>) -> Slow {
+    let mut s = Slow::default();
+    let Ok(mut sock) = tokio::net::TcpStream::connect(&addr).await else { return s };
+    let req = format!("GET {path} HTTP/1.1\r\nHost: {addr}\r\n\r\n");
+    if sock.write_all(req.as_bytes()).await.is_err() {
+        return s;
+    }
+    let start = Instant::now();
+    let mut buf = vec![0u8; per_second.max(1)];
+    while !stop.load(Relaxed) {
+        tokio::time::sleep(Duration::from_secs(1)).await;
+        if per_second == 0 {
+            continue;
+        }
+        match tokio::time::timeout(Duration::from_millis(100), sock.read(&mut buf)).await {
+            Ok(Ok(0)) | Ok(Err(_)) => {
+                s.closed_after = Some(start.elapsed().as_secs_f64());
+                return s;
+            }
+            Ok(Ok(n)) => s.bytes += n as u64,
+            Err(_) => {}
+        }
+    }
+    if per_second == 0 {
+        // Whether the server is still holding the response for it: drain what is buffered.
+        let mut big = vec![0u8; 1 << 20];
+        loop {
+            match tokio::time::timeout(Duration::from_millis(200), sock.read(&mut big)).await {
+                Ok(Ok(0)) | Ok(Err(_)) => {
+                    s.closed_after = Some(start.elapsed().as_secs_f64());
+                    break;
+                }
+                Ok(Ok(n)) => s.bytes += n as u64,
+                Err(_) => break,
+            }
+        }
+    }
+    s
+}
+
+/// RSS and its high-water mark (kB) from `/proc/<pid>/status`.
+fn rss_kb(pid: u32) -> Option<(u64, u64)> {
+    let status = std::fs::read_to_string(format!("/proc/{pid}/status")).ok()?;
+    let field =
+        |name: &str| status.lines().find(|l| l.starts_with(name))?.split_whitespace().nth(1)?.parse::<u64>().ok();
+    Some((field("VmRSS:")?, field("VmHWM:")?))
+}
+
+fn percentile(sorted: &[Duration], p: f64) -> f64 {
+    if sorted.is_empty() {
+        return f64::NAN;
+    }
+    let i = ((sorted.len() as f64 * p).ceil() as usize).clamp(1, sorted.len()) - 1;
+    sorted[i].as_secs_f64() * 1e3
+}
+
+#[tokio::main]
+async fn main() {
+    let args = Args::parse();
+    let base = args.url.trim_end_matches('/').to_string();
+    let base_ref = base.as_str();
+    let addr = base.trim_start_matches("http://").to_string();
+    let texs = textures(&base).await;
+    assert!(!texs.is_empty(), "the server stores no texture");
+    let models: std::collections::BTreeSet<String> = texs.iter().map(|t| t.model.clone()).collect();
+
+    // The warm set: the two coarsest levels' first tile of every texture, all asked at once;
+    // the ones that answered (an expensive texture's may run past the deadline) are kept.
+    let candidates: Vec<String> = texs
+        .iter()
+        .flat_map(|t| (t.levels.saturating_sub(2)..t.levels).map(move |l| t.tile_url(base_ref, l, 0, 0, "png")))
+        .collect();
+    let http = client();
+    let asked = candidates.into_iter().map(|url| {
+        let http = http.clone();
+        tokio::spawn(async move {
+            let r = http.get(&url).send().await.ok()?;
+            (r.status().as_u16() == 200 && r.bytes().await.is_ok()).then_some(url)
+        })
+    });
+    let warm: Vec<String> = join_all(asked.collect()).await.into_iter().flatten().collect();
+    assert!(!warm.is_empty(), "no tile could be warmed");
+    let smallest = texs.iter().min_by_key(|t| t.width * t.height).unwrap();
+    let bundle = http.get(format!("{base}/api/v1/textures/{}/encoding", smallest.id)).send().await.unwrap();
+    let bundle = Arc::new(bundle.bytes().await.unwrap().to_vec());
+    let region = format!(
+        "/api/v1/textures/{}/region?level=0&x=0&y=0&w=2048&h=2048&format=rgba",
+        texs.iter().find(|t| t.model == "chaos-mosaic").unwrap_or(&texs[0]).id
+    );
+
+    // The mix, out of `connections`: 1/16 slow readers, 1/16 never-readers, 1/16 uploaders,
+    // 3/16 uncached, the rest cached.
+    let n = args.connections;
+    let (slow, silent, up) = ((n / 16).max(1), (n / 16).max(1), (n / 16).max(1));
+    let cold = (3 * n / 16).max(1);
+    let warm_clients = n.saturating_sub(slow + silent + up + cold).max(1);
+
+    let stop = Arc::new(AtomicBool::new(false));
+    let samples: Arc<Mutex<Vec<(f64, u64)>>> = Arc::default();
+    let sampler = {
+        let (stop, samples, pid) = (stop.clone(), samples.clone(), args.pid);
+        std::thread::spawn(move || {
+            let start = Instant::now();
+            while !stop.load(Relaxed) {
+                if let Some((rss, _)) = rss_kb(pid) {
+                    samples.lock().unwrap().push((start.elapsed().as_secs_f64(), rss));
+                }
+                std::thread::sleep(Duration::from_millis(100));
+            }
+        })
+    };
+    let urls = Arc::new(warm);
+    let texs = Arc::new(texs);
+    let mut seed = args.seed * 1000;
+    let mut next = || {
+        seed += 1;
+        seed
+    };
+    let warm_tasks: Vec<_> =
+        (0..warm_clients).map(|_| tokio::spawn(cached(urls.clone(), stop.clone(), next()))).collect();
+    let cold_tasks: Vec<_> =
+        (0..cold).map(|i| tokio::spawn(uncached(base.clone(), texs.clone(), stop.clone(), next(), i))).collect();
+    let up_tasks: Vec<_> =
+        (0..up).map(|i| tokio::spawn(uploads(base.clone(), bundle.clone(), stop.clone(), i))).collect();
+    let slow_tasks: Vec<_> = (0..slow)
+        .map(|_| tokio::spawn(slow_reader(addr.clone(), region.clone(), 16, stop.clone())))
+        .chain((0..silent).map(|_| tokio::spawn(slow_reader(addr.clone(), region.clone(), 0, stop.clone()))))
+        .collect();
+
+    tokio::time::sleep(Duration::from_secs(args.seconds)).await;
+    stop.store(true, Relaxed);
+    let mut classes = Vec::new();
+    for (name, tasks) in [("cached tiles", warm_tasks), ("uncached tiles", cold_tasks), ("uploads", up_tasks)] {
+        let clients = tasks.len();
+        let mut t = Tally::default();
+        join_all(tasks).await.into_iter().for_each(|one| t.merge(one));
+        classes.push((name, clients, t));
+    }
+    let slow_seen: Vec<Slow> = join_all(slow_tasks).await;
+    sampler.join().unwrap();
+
+    let samples = samples.lock().unwrap();
+    let max_rss = samples.iter().map(|s| s.1).max().unwrap_or(0) as f64 / 1024.0;
+    let hwm = rss_kb(args.pid).map(|r| r.1 as f64 / 1024.0).unwrap_or(f64::NAN);
+    let bound = args.budget_mb * 1.2;
+    println!(
+        "{} s at {n} connections; {} textures of models {:?}; {} cached tiles in the warm set",
+        args.seconds,
+        texs.len(),
+        models,
+        urls.len()
+    );
+    for (name, clients, t) in &classes {
+        println!("{}", t.line(name, *clients));
+    }
+    let mut lat = classes[0].2.latencies.clone();
+    lat.sort();
+    println!(
+        "cached tiles: {} requests, p50 {:.2} ms, p99 {:.2} ms, max {:.2} ms",
+        lat.len(),
+        percentile(&lat, 0.50),
+        percentile(&lat, 0.99),
+        percentile(&lat, 1.0)
+    );
+    for (kind, seen) in [("slow readers (16 B/s)", &slow_seen[..slow]), ("never-readers", &slow_seen[slow..])] {
+        let closed: Vec<String> = seen.iter().filter_map(|s| s.closed_after.map(|c| format!("{c:.0} s"))).collect();
+        let read: u64 = seen.iter().map(|s| s.bytes).sum();
+        println!(
+            "{kind}: {} clients, {read} bytes read in all; closed by the server: {} ({})",
+            seen.len(),
+            closed.len(),
+            closed.join(", ")
+        );
+    }
+    println!(
+        "RSS: {} samples every 100 ms, max {max_rss:.1} MiB (VmHWM {hwm:.1} MiB); budgets {:.1} MiB + 20 % = {bound:.1} MiB: {}",
+        samples.len(),
+        args.budget_mb,
+        if max_rss <= bound { "within" } else { "OVER" }
+    );
+    let well_behaved_errors: u64 = classes.iter().map(|c| c.2.errors.values().sum::<u64>()).sum();
+    println!("well-behaved clients' errors: {well_behaved_errors}");
+}
+
+async fn join_all<T>(tasks: Vec<tokio::task::JoinHandle<T>>) -> Vec<T> {
+    let mut out = Vec::with_capacity(tasks.len());
+    for t in tasks {
+        out.push(t.await.unwrap());
+    }
+    out
+}
