@@ -58,6 +58,7 @@ impl SizeRule {
 /// moved by `iterations` steps of the cat map.
 pub fn generate(p: &Params, sample_w: u32, sample_h: u32, rule: &SizeRule) -> Vec<Block> {
     let (tex_w, tex_h) = (p.tiles_x as u64 * sample_w as u64, p.tiles_y as u64 * sample_h as u64);
+    let map = catmap::CatMap::new(tex_w, tex_h, p.iterations);
     let mut out = Vec::with_capacity(p.tiles_x as usize * p.tiles_y as usize * p.blocks_per_tile as usize);
     for ty in 0..p.tiles_y as i64 {
         for tx in 0..p.tiles_x as i64 {
@@ -69,7 +70,7 @@ pub fn generate(p: &Params, sample_w: u32, sample_h: u32, rule: &SizeRule) -> Ve
                 let y = hash::below(draw(4), (sample_h - h as u32 + 1) as u64) as u16;
                 let x0 = x as u64 + tx as u64 * sample_w as u64;
                 let y0 = y as u64 + ty as u64 * sample_h as u64;
-                let (s, t) = catmap::iterate(x0, y0, tex_w, tex_h, p.iterations);
+                let (s, t) = map.apply(x0, y0);
                 out.push(Block { x, y, w, h, s: s as u32, t: t as u32 });
             }
         }

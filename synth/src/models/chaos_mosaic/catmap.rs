@@ -1,31 +1,63 @@
-//! Arnold's cat map on the texture torus (paper eq. 1–2).
+//! Arnold's cat map (x, y) → (x + y, x + 2y) on the texture torus (paper eq. 1–2).
 
-/// The cat map (x, y) → (x + y, x + 2y) on an `n × n` torus: an area-preserving bijection.
-#[inline]
-pub fn step(x: u64, y: u64, n: u64) -> (u64, u64) {
-    // x, y < n, so x + y < 2n and x + 2y < 3n: subtractions instead of divisions.
-    let reduce = |mut v: u64| {
-        while v >= n {
-            v -= n;
-        }
-        v
-    };
-    (reduce(x + y), reduce(x + 2 * y))
-}
-
-/// `iterations` steps of the cat map on a `width × height` torus.
+/// `iterations` steps of the cat map on a `width × height` torus, as one linear map.
 ///
 /// The paper's map is defined on a square. A non-square torus is scaled onto the square torus
-/// of side lcm(width, height) — exact for square textures, where the scale is 1 — iterated
-/// there, and scaled back.
-pub fn iterate(x: u64, y: u64, width: u64, height: u64, iterations: u32) -> (u64, u64) {
-    let n = lcm(width, height);
-    let (sx, sy) = (n / width, n / height);
-    let (mut u, mut v) = (x * sx, y * sy);
-    for _ in 0..iterations {
-        (u, v) = step(u, v, n);
+/// of side lcm(width, height) — exact for square textures, where the scale is 1 — mapped
+/// there, and scaled back. The map is linear, so `iterations` steps are the matrix
+/// [[1, 1], [1, 2]] raised to that power modulo the side, computed once by squaring: a block
+/// costs two multiply-adds however many iterations there are.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct CatMap {
+    n: u64,
+    scale: (u64, u64),
+    /// [[a, b], [c, d]]: (x, y) → (a·x + b·y, c·x + d·y) mod n.
+    matrix: [[u64; 2]; 2],
+}
+
+impl CatMap {
+    pub fn new(width: u64, height: u64, iterations: u32) -> Self {
+        let n = lcm(width, height);
+        let mut matrix = [[1 % n, 0], [0, 1 % n]];
+        let mut power = [[1 % n, 1 % n], [1 % n, 2 % n]];
+        let mut e = iterations;
+        while e > 0 {
+            if e & 1 == 1 {
+                matrix = mul(&matrix, &power, n);
+            }
+            power = mul(&power, &power, n);
+            e >>= 1;
+        }
+        Self { n, scale: (n / width, n / height), matrix }
     }
-    (u / sx, v / sy)
+
+    /// Where (x, y) of the `width × height` torus goes.
+    pub fn apply(&self, x: u64, y: u64) -> (u64, u64) {
+        let (u, v) = (x * self.scale.0, y * self.scale.1);
+        let [[a, b], [c, d]] = self.matrix;
+        let n = self.n;
+        let row = |p: u64, q: u64| add(mul_mod(p, u, n), mul_mod(q, v, n), n);
+        (row(a, b) / self.scale.0, row(c, d) / self.scale.1)
+    }
+}
+
+fn mul(x: &[[u64; 2]; 2], y: &[[u64; 2]; 2], n: u64) -> [[u64; 2]; 2] {
+    let cell = |i: usize, j: usize| add(mul_mod(x[i][0], y[0][j], n), mul_mod(x[i][1], y[1][j], n), n);
+    [[cell(0, 0), cell(0, 1)], [cell(1, 0), cell(1, 1)]]
+}
+
+/// a·b mod n for a, b < n; in 64 bits whenever the product fits (every side below 2^32).
+fn mul_mod(a: u64, b: u64, n: u64) -> u64 {
+    match a.checked_mul(b) {
+        Some(p) => p % n,
+        None => (a as u128 * b as u128 % n as u128) as u64,
+    }
+}
+
+/// a + b mod n for a, b < n.
+fn add(a: u64, b: u64, n: u64) -> u64 {
+    let s = a as u128 + b as u128;
+    (if s >= n as u128 { s - n as u128 } else { s }) as u64
 }
 
 fn gcd(a: u64, b: u64) -> u64 {
@@ -43,6 +75,11 @@ pub fn lcm(a: u64, b: u64) -> u64 {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// One step of the cat map on an `n × n` torus, as the paper writes it.
+    fn step(x: u64, y: u64, n: u64) -> (u64, u64) {
+        ((x + y) % n, (x + 2 * y) % n)
+    }
 
     #[test]
     fn is_a_bijection_on_square_tori() {
@@ -63,7 +100,7 @@ mod tests {
         let mut seen = vec![false; (n * n) as usize];
         for y in 0..n {
             for x in 0..n {
-                let (u, v) = iterate(x, y, n, n, 10);
+                let (u, v) = CatMap::new(n, n, 10).apply(x, y);
                 assert!(!std::mem::replace(&mut seen[(v * n + u) as usize], true));
             }
         }
@@ -71,12 +108,45 @@ mod tests {
 
     #[test]
     fn zero_iterations_is_identity_and_known_values() {
-        assert_eq!(iterate(5, 9, 100, 100, 0), (5, 9));
+        assert_eq!(CatMap::new(100, 100, 0).apply(5, 9), (5, 9));
         assert_eq!(step(3, 4, 10), (7, 1));
         // Non-square: stays on the torus.
         for (x, y) in [(0, 0), (99, 49), (37, 11)] {
-            let (u, v) = iterate(x, y, 100, 50, 10);
+            let (u, v) = CatMap::new(100, 50, 10).apply(x, y);
             assert!(u < 100 && v < 50);
         }
+    }
+
+    /// The paper's definition, one step at a time.
+    fn stepped(x: u64, y: u64, width: u64, height: u64, iterations: u32) -> (u64, u64) {
+        let n = lcm(width, height);
+        let (sx, sy) = (n / width, n / height);
+        let (mut u, mut v) = (x * sx, y * sy);
+        for _ in 0..iterations {
+            (u, v) = step(u, v, n);
+        }
+        (u / sx, v / sy)
+    }
+
+    #[test]
+    fn the_matrix_power_equals_iterating_step_by_step() {
+        for (w, h) in [(1, 1), (64, 64), (100, 50), (48, 80), (100_000, 100_000), (6_400, 25_600)] {
+            for i in [0, 1, 2, 3, 10, 17, 64, 1000] {
+                let map = CatMap::new(w, h, i);
+                for k in 0..40u64 {
+                    let (x, y) = (k * 7919 % w, k * 104_729 % h);
+                    assert_eq!(map.apply(x, y), stepped(x, y, w, h, i), "{w}×{h}, {i} iterations, ({x}, {y})");
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn sides_near_the_largest_allowed_do_not_overflow() {
+        let side = u32::MAX as u64;
+        let map = CatMap::new(side, side - 1, 1000);
+        let (u, v) = map.apply(side - 1, side - 2);
+        assert!(u < side && v < side - 1);
+        assert_eq!(CatMap::new(side, side, 1).apply(side - 1, side - 1), (side - 2, side - 3));
     }
 }

@@ -30,12 +30,11 @@ const TABLE_PIXEL: f64 = 40.0;
 /// Decoding, summing and copying the sample, per pixel; encoding it as PNG in `create`.
 const SAMPLE_PIXEL: f64 = 30.0;
 const ENCODE_PIXEL: f64 = 60.0;
-/// One block: drawing it, per cat map iteration, and grouping and indexing it; blocks beyond
-/// what the caches hold (about `CACHED_BLOCKS`) add a miss at each of those steps.
-const BLOCK: f64 = 200.0;
+/// One block: drawing it, moving it by the cat map's matrix power, grouping and indexing it;
+/// blocks beyond what the caches hold (about `CACHED_BLOCKS`) add a miss at each of those steps.
+const BLOCK: f64 = 300.0;
 const BLOCK_MISS: f64 = 4000.0;
 const CACHED_BLOCKS: f64 = 131_072.0;
-const BLOCK_ITERATION: f64 = 2.0;
 
 /// The size of box table the prefiltered levels use at most, as in `prefilter::BoxTables`.
 const TABLE_SIDES: u32 = 13;
@@ -128,20 +127,16 @@ fn plan_params(p: &Params, sw: u32, sh: u32, create: bool) -> Result<Plan> {
         p.blocks_per_tile, p.filter_width
     );
 
-    // Making it: decoding and summing the sample, drawing the blocks (iterations cat map
-    // steps each), grouping and indexing them; `create` also measures the seams and encodes
+    // Making it: decoding and summing the sample, drawing and moving the blocks, grouping and
+    // indexing them; `create` also measures the seams and encodes
     // the sample, then loads what it made, and the caller loads it once more.
-    let per_block = BLOCK + BLOCK_MISS * n / (n + CACHED_BLOCKS) + BLOCK_ITERATION * p.iterations as f64;
+    let per_block = BLOCK + BLOCK_MISS * n / (n + CACHED_BLOCKS);
     let load = SAMPLE_PIXEL * px + n * per_block;
     let build = match create {
         true => 3.0 * load + ENCODE_PIXEL * px,
         false => load,
     };
-    let build_why = format!(
-        "sample {sw}×{sh} + {n} blocks × iterations {}{}",
-        p.iterations,
-        if create { ", made and loaded" } else { "" }
-    );
+    let build_why = format!("sample {sw}×{sh} + {n} blocks{}", if create { ", made and loaded" } else { "" });
     Ok(Plan {
         width,
         height,
