@@ -230,14 +230,14 @@ pub struct SendLimits {
 ///
 /// A *wait* begins when a write-side call has to wait for the socket and ends at the next call
 /// that moves bytes into it. A wait of [`SendLimits::timeout`] fails the call (a client that
-/// stopped reading). Waits also add up in a window: once they total `timeout`, the bytes moved
-/// in the window must reach `min_rate` × `timeout`, or the call fails (a client that reads a
-/// trickle, resetting the timeout with every few bytes); otherwise a new window begins. Time
-/// not spent waiting (a render, an idle keep-alive) never counts, so only a reader that holds
-/// a response back is measured. A failed call makes hyper drop the connection and the response
-/// it was sending, which frees what it held; the connection is reset. A call that returns
-/// without moving anything (a flush with nothing buffered, which hyper makes whenever its task
-/// wakes) leaves a wait running.
+/// stopped reading). Waits also add up in a window, from the first: once they total `timeout`,
+/// the bytes moved in the window must reach `min_rate` × `timeout`, or the call fails (a client
+/// that reads a trickle, resetting the timeout with every few bytes); otherwise a new window
+/// begins. Time not spent waiting (a render, an idle keep-alive) never counts, so only a reader
+/// that holds a response back is measured. A failed call makes hyper drop the connection and
+/// the response it was sending, which frees what it held; the connection is reset. A call that
+/// returns without moving anything (a flush with nothing buffered, which hyper makes whenever
+/// its task wakes) leaves a wait running.
 struct SendBounds {
     limits: SendLimits,
     /// Made on the first wait, then reset: most connections never need it.
@@ -277,6 +277,11 @@ impl SendBounds {
         if self.waiting_since.is_none() {
             let now = Instant::now();
             (self.waiting_since, self.counted_to) = (Some(now), now);
+            if self.waited.is_zero() {
+                // A window begins with its first wait: what a reader took at once before it
+                // held anything back is no credit for what follows.
+                self.moved = 0;
+            }
             let deadline = self.deadline();
             match &mut self.sleep {
                 Some(s) => s.as_mut().reset(deadline),
