@@ -252,6 +252,12 @@ async fn slow_request(addr: &str, path: &str, per_second: usize, stop: &AtomicBo
     let mut buf = vec![0u8; per_second.max(STATUS_LINE)];
     while !stop.load(Relaxed) {
         tokio::time::sleep(Duration::from_secs(1)).await;
+        // A reset shows here at once; a read would first return what the socket still holds,
+        // for a long time at a few bytes a second.
+        if sock.take_error().is_ok_and(|e| e.is_some()) {
+            s.closed_after.push(start.elapsed().as_secs_f64());
+            return;
+        }
         let want = match STATUS_LINE.saturating_sub(head.len()) {
             0 if per_second == 0 => continue,
             0 => per_second,
