@@ -539,6 +539,51 @@ pub(crate) mod tests {
         }
     }
 
+    /// Drives `bounds` through `rounds` of a reader that lets `per_round` bytes through after
+    /// each wait of `wait`; returns the round whose call was refused, if any.
+    fn reader(bounds: &mut SendBounds, rounds: usize, wait: std::time::Duration, per_round: usize) -> Option<usize> {
+        let mut cx = Context::from_waker(std::task::Waker::noop());
+        (0..rounds).find(|_| {
+            assert!(bounds.check::<usize>(&mut cx, Poll::Pending, 0).unwrap().is_pending());
+            std::thread::sleep(wait);
+            bounds.check(&mut cx, Poll::Ready(Ok(per_round)), per_round).is_err()
+        })
+    }
+
+    const LIMITS: SendLimits = SendLimits { timeout: std::time::Duration::from_millis(300), min_rate: 1000 };
+
+    /// A reader that lets 10 bytes through every 50 ms of waiting restarts the send timeout
+    /// every time, but is refused once its waits fill a window (300 ms) with fewer than 300
+    /// bytes, though it took a megabyte at once before its first wait.
+    #[tokio::test]
+    async fn a_trickle_is_refused_at_the_end_of_its_first_window() {
+        let mut bounds = SendBounds::new(LIMITS);
+        let mut cx = Context::from_waker(std::task::Waker::noop());
+        assert!(bounds.check(&mut cx, Poll::Ready(Ok(1 << 20)), 1 << 20).is_ok());
+        let refused = reader(&mut bounds, 8, std::time::Duration::from_millis(50), 10);
+        assert!(refused.is_some_and(|round| round < 7), "refused in round {refused:?}");
+    }
+
+    /// A reader that keeps up with the rate is never refused, however long it waits in all.
+    #[tokio::test]
+    async fn a_reader_at_the_rate_is_served() {
+        let mut bounds = SendBounds::new(LIMITS);
+        assert_eq!(reader(&mut bounds, 20, std::time::Duration::from_millis(50), 1000), None);
+    }
+
+    /// One wait as long as the send timeout is refused, whatever moved before.
+    #[tokio::test]
+    async fn a_stalled_reader_meets_the_send_timeout() {
+        let mut bounds = SendBounds::new(SendLimits { min_rate: 0, ..LIMITS });
+        let mut cx = Context::from_waker(std::task::Waker::noop());
+        assert!(bounds.check(&mut cx, Poll::Ready(Ok(1 << 20)), 1 << 20).is_ok());
+        assert!(bounds.check::<usize>(&mut cx, Poll::Pending, 0).unwrap().is_pending());
+        // Yielding to the runtime, so that its timer fires the bound's sleep.
+        tokio::time::sleep(std::time::Duration::from_millis(350)).await;
+        let refused = bounds.check::<usize>(&mut cx, Poll::Pending, 0).unwrap_err();
+        assert!(refused.to_string().contains("send timeout"), "{refused}");
+    }
+
     #[test]
     fn copy_keeps_bodies_on_the_heap() {
         let body = Transport::Copy.seal(pattern(200_000));
