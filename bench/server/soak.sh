@@ -4,16 +4,20 @@
 # (fuzz/src/bin/soak.rs) mixing cached tiles, uncached tiles of every stored texture (every
 # model, the dearest demo included), uploads of new textures, slow readers of a 16 MiB region
 # and clients that never read. Reports each class's answers (0 errors expected for the
-# well-behaved ones; 503/408/507 counted apart), p50/p99 of cached tiles and the server's RSS
-# sampled every 100 ms against the budgets + 20 %. Appends to bench/results/soak-<date>.txt.
+# well-behaved ones; 503/408/507 counted apart, and the slow readers' 503s when the in-flight
+# budget is spent), p50/p99 of cached tiles and the server's RSS sampled every 100 ms against
+# the budgets + 20 %. Appends to bench/results/soak-<date>.txt.
 # Usage: flock /tmp/vtex-bench.lock bench/server/soak.sh [SECONDS, default 60]
-# Environment: CACHE_MB (default 64), TEXTURES_MB (default 256), CONNECTIONS (default 64),
-#              SEED (default 1), EXTRA_FLAGS (more `vtex serve` flags).
+# Environment: CACHE_MB (default 64), TEXTURES_MB (default 256), INFLIGHT_MB (default 64: four
+#              of the slow readers' regions; regions are then limited to their size, 2048²,
+#              so that the budget holds the largest), CONNECTIONS (default 64), SEED (default
+#              1), EXTRA_FLAGS (more `vtex serve` flags).
 set -euo pipefail
 ROOT=$(cd "$(dirname "$0")/../.." && pwd)
 SECS=${1:-60}
 CACHE_MB=${CACHE_MB:-64}
 TEXTURES_MB=${TEXTURES_MB:-256}
+INFLIGHT_MB=${INFLIGHT_MB:-64}
 CONNECTIONS=${CONNECTIONS:-64}
 SEED=${SEED:-1}
 cd "$ROOT"
@@ -35,6 +39,13 @@ if "$BIN/vtex" serve --help | grep -q -- '--textures-mb'; then
   flags+=(--textures-mb "$TEXTURES_MB")
 else
   note="$note; this build has no --textures-mb, so loaded textures are not bounded"
+fi
+if "$BIN/vtex" serve --help | grep -q -- '--inflight-mb'; then
+  flags+=(--inflight-mb "$INFLIGHT_MB" --max-region-pixels $((2048 * 2048)))
+  budget=$((budget + INFLIGHT_MB))
+  note="$note, response bodies in flight $INFLIGHT_MB MiB"
+else
+  note="$note; this build has no --inflight-mb, so response bodies in flight are not bounded"
 fi
 # shellcheck disable=SC2206
 flags+=(${EXTRA_FLAGS:-})

@@ -134,7 +134,7 @@ pub fn render(args: RenderArgs) -> anyhow::Result<()> {
     let entry = open_texture(&args.texture, &args.data_dir, 256)?;
     let region = Region::new(args.level, args.x, args.y, args.width, args.height).at_frame(args.frame);
     let img = vtex_synth::texture::render_image(&*entry.texture, &region)?;
-    let bytes = encode::encode(&img, format).map_err(anyhow::Error::msg)?;
+    let bytes = encode::encode(img, format).map_err(anyhow::Error::msg)?;
     std::fs::write(&args.out, bytes).with_context(|| format!("writing {}", args.out.display()))?;
     Ok(())
 }

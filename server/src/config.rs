@@ -1,8 +1,9 @@
 //! Settings of `vtex serve`. Each one comes from its flag, else its environment variable,
 //! else its default — one precedence for all, implemented by clap.
 
+use crate::encode::Format;
 use crate::store::Bounds;
-use crate::transport::Transport;
+use crate::transport::{SendLimits, Transport};
 use clap::Args;
 use std::net::SocketAddr;
 use std::path::PathBuf;
@@ -104,7 +105,22 @@ pub struct ServeConfig {
     /// [`QUEUED_PER_SLOT`] per slot.
     #[arg(long, env = "VTEX_MAX_QUEUED")]
     pub max_queued: Option<usize>,
+    /// Byte budget of response bodies in flight, in MiB: regions (from their render until
+    /// sent), bundle downloads and batch frames reserve their bytes first; past it, 503.
+    /// Cached tiles are the tile cache's and are not charged.
+    #[arg(long, env = "VTEX_INFLIGHT_MB", default_value_t = DEFAULT_INFLIGHT_MB)]
+    pub inflight_mb: f64,
+    /// Fewest bytes a second a response must move while it waits for its reader, averaged over
+    /// each `--send-timeout-secs` of waiting; a slower one is abandoned and its connection
+    /// closed. 0 turns the check off.
+    #[arg(long, env = "VTEX_MIN_SEND_RATE", default_value_t = 1024)]
+    pub min_send_rate: u64,
 }
+
+/// The default of `--inflight-mb`: two of the largest regions rendering at once (one a
+/// synthesis slot on two cores; each reserves its pixels and its encoding, 128 MiB at 4096²),
+/// or four of them waiting for their readers.
+pub const DEFAULT_INFLIGHT_MB: f64 = 256.0;
 
 /// Misses queued per synthesis slot by default: an ordinary tile renders in milliseconds, so a
 /// full queue drains within a second or so, and a burst of every connection of a busy viewer
@@ -136,6 +152,16 @@ impl ServeConfig {
         positive(self.header_timeout_secs, "header-timeout-secs")?;
         positive(self.textures_mb, "textures-mb")?;
         positive(self.store_mb, "store-mb")?;
+        positive(self.inflight_mb, "inflight-mb")?;
+        let largest = self.largest_response_bytes();
+        if self.inflight_bytes() < largest {
+            return Err(format!(
+                "inflight-mb ({} MiB) must hold the largest response, {:.1} MiB (a region of max-region-pixels \
+                 encoded, or the largest bundle)",
+                self.inflight_mb,
+                largest as f64 / (1 << 20) as f64
+            ));
+        }
         if self.max_region_pixels < self.tile_size as u64 * self.tile_size as u64 {
             return Err("max-region-pixels must allow at least one tile".into());
         }
@@ -158,6 +184,19 @@ impl ServeConfig {
 
     pub fn cache_bytes(&self) -> u64 {
         (self.cache_mb * 1024.0 * 1024.0) as u64
+    }
+
+    pub fn inflight_bytes(&self) -> u64 {
+        (self.inflight_mb * 1024.0 * 1024.0) as u64
+    }
+
+    /// The most one response reserves from the in-flight budget: the largest region at its
+    /// peak, or the largest bundle.
+    fn largest_response_bytes(&self) -> u64 {
+        let side = MAX_REGION_SIDE as u64;
+        let pixels = self.max_region_pixels.min(side * side) as u32;
+        let region = crate::encode::peak_bytes(Format::Png, pixels, 1);
+        region.max(vtex_synth::bundle::MAX_BUNDLE_BYTES as u64)
     }
 
     pub fn max_upload_bytes(&self) -> usize {
@@ -207,8 +246,8 @@ impl ServeConfig {
         Duration::from_secs_f64(self.header_timeout_secs)
     }
 
-    pub fn send_timeout(&self) -> Duration {
-        Duration::from_secs_f64(self.send_timeout_secs)
+    pub fn send_limits(&self) -> SendLimits {
+        SendLimits { timeout: Duration::from_secs_f64(self.send_timeout_secs), min_rate: self.min_send_rate }
     }
 
     pub fn idle_timeout(&self) -> Duration {

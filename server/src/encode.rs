@@ -55,13 +55,29 @@ impl Format {
     pub const EXPECTED: &'static str = "expected png, webp, jpg or rgba";
 }
 
-/// Encodes an image. Fails only for sizes a format cannot hold (WebP: 16383 px a side),
-/// which the API's region bound keeps out of reach.
-pub fn encode(img: &Rgba8Image, format: Format) -> Result<Vec<u8>, String> {
+/// Headroom over raw pixels in [`peak_bytes`]: an encoder's headers and, for data it cannot
+/// compress, its stored blocks' framing.
+const ENCODING_SLACK: u64 = 64 * 1024;
+
+/// Most bytes rendering and encoding a `width` × `height` image holds at once: its pixels, and
+/// an encoded copy no larger than the pixels plus [`ENCODING_SLACK`] (raw RGBA is the pixels
+/// themselves).
+pub fn peak_bytes(format: Format, width: u32, height: u32) -> u64 {
+    let pixels = width as u64 * height as u64 * 4;
+    match format {
+        Format::Rgba => pixels,
+        Format::Png | Format::Webp | Format::Jpg => 2 * pixels + ENCODING_SLACK,
+    }
+}
+
+/// Encodes an image, taking it so that raw RGBA is the pixels without a copy. Fails only for
+/// sizes a format cannot hold (WebP: 16383 px a side), which the API's region bound keeps out
+/// of reach.
+pub fn encode(img: Rgba8Image, format: Format) -> Result<Vec<u8>, String> {
     let (w, h) = (img.width, img.height);
     let mut out = Vec::with_capacity(img.data.len() / 2);
     let res = match format {
-        Format::Rgba => return Ok(img.data.clone()),
+        Format::Rgba => return Ok(img.data),
         Format::Png => {
             // Fast deflate keeps a cold 256² tile within a few milliseconds; still lossless.
             let enc =
@@ -98,8 +114,9 @@ mod tests {
     fn lossless_formats_round_trip_and_are_deterministic() {
         let img = gradient(37, 21);
         for f in Format::ALL {
-            let a = encode(&img, f).unwrap();
-            assert_eq!(a, encode(&img, f).unwrap(), "{f:?} is deterministic");
+            let a = encode(img.clone(), f).unwrap();
+            assert_eq!(a, encode(img.clone(), f).unwrap(), "{f:?} is deterministic");
+            assert!(a.len() as u64 <= peak_bytes(f, 37, 21), "{f:?}");
             if f == Format::Jpg {
                 let back = image::load_from_memory(&a).unwrap();
                 assert_eq!((back.width(), back.height()), (37, 21));

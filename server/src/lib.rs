@@ -11,6 +11,7 @@
 //! * [`metrics`] — Prometheus counters, gauges and histograms.
 //! * [`api`] — the HTTP API v1 (axum).
 //! * [`slots`] — synthesis slots shared fairly between textures, with a bounded queue.
+//! * [`inflight`] — the byte budget of response bodies in flight.
 //! * [`serve`] — the listener: connection timeouts and graceful shutdown.
 //! * [`transport`] — how bodies reach the socket (`--send copy|splice`); all platform-specific code.
 //! * [`cli`] — the offline subcommands `create`, `render`, `info`.
@@ -24,6 +25,7 @@ pub mod cache;
 pub mod cli;
 pub mod config;
 pub mod encode;
+pub mod inflight;
 pub mod metrics;
 pub mod serve;
 pub mod slots;

@@ -51,6 +51,9 @@ pub struct Metrics {
     pub connections_max: IntGauge,
     /// Connections refused (503) because the limit was reached.
     pub connections_refused: IntCounter,
+    /// Bytes reserved by response bodies in flight.
+    pub inflight_bytes: IntGauge,
+    pub inflight_budget_bytes: IntGauge,
 }
 
 fn must<T>(r: prometheus::Result<T>) -> T {
@@ -140,6 +143,13 @@ impl Metrics {
             "vtex_http_connections_refused_total",
             "Connections answered 503 and closed because the connection limit was reached",
         ));
+        let inflight_bytes = must(IntGauge::new(
+            "vtex_inflight_bytes",
+            "Bytes reserved by response bodies in flight (regions from their render until sent, bundle \
+             downloads, batch frames)",
+        ));
+        let inflight_budget_bytes =
+            must(IntGauge::new("vtex_inflight_budget_bytes", "Byte budget of response bodies in flight"));
         for c in [
             Box::new(requests.clone()) as Box<dyn prometheus::core::Collector>,
             Box::new(request_seconds.clone()),
@@ -169,6 +179,8 @@ impl Metrics {
             Box::new(connections.clone()),
             Box::new(connections_max.clone()),
             Box::new(connections_refused.clone()),
+            Box::new(inflight_bytes.clone()),
+            Box::new(inflight_budget_bytes.clone()),
         ] {
             must(registry.register(c));
         }
@@ -206,6 +218,8 @@ impl Metrics {
             connections,
             connections_max,
             connections_refused,
+            inflight_bytes,
+            inflight_budget_bytes,
         }
     }
 

@@ -11,7 +11,8 @@
 //! shared [`crate::slots::Slots`].
 //!
 //! Every connection is bounded in time and number: a response that cannot be sent for
-//! `--send-timeout-secs` is abandoned (in [`crate::transport::Io`]), a connection idle for
+//! `--send-timeout-secs`, or that its reader takes slower than `--min-send-rate`, is abandoned
+//! (in [`crate::transport::Io`]), a connection idle for
 //! `--idle-timeout-secs` is closed ([`until_idle`]), and beyond `--max-connections` a new
 //! connection is answered 503 and closed ([`Refusal`]) rather than left to hold a descriptor.
 //!
@@ -22,7 +23,7 @@
 use crate::api::{self, AppState};
 use crate::config::ServeConfig;
 use crate::store::Store;
-use crate::transport::{Activity, Transport};
+use crate::transport::{Activity, SendLimits, Transport};
 use hyper_util::rt::{TokioExecutor, TokioTimer};
 use hyper_util::server::conn::auto;
 use prometheus::{IntCounter, IntGauge};
@@ -160,7 +161,7 @@ struct Conns {
     front: api::Front,
     builder: auto::Builder<TokioExecutor>,
     send: Transport,
-    send_timeout: Duration,
+    send_limits: SendLimits,
     idle_timeout: Duration,
     graceful: hyper_util::server::graceful::GracefulShutdown,
     live: IntGauge,
@@ -180,7 +181,7 @@ impl Conns {
             front,
             builder,
             send: cfg.send,
-            send_timeout: cfg.send_timeout(),
+            send_limits: cfg.send_limits(),
             idle_timeout: cfg.idle_timeout(),
             graceful: hyper_util::server::graceful::GracefulShutdown::new(),
             live,
@@ -192,7 +193,7 @@ impl Conns {
     fn serve(&self, stream: TcpStream) {
         let _ = stream.set_nodelay(true);
         let activity = Arc::new(Activity::default());
-        let io = self.send.wrap(stream, activity.clone(), self.send_timeout);
+        let io = self.send.wrap(stream, activity.clone(), self.send_limits);
         let service = self.front.connection(activity.clone());
         let conn = self.builder.serve_connection_with_upgrades(io, service).into_owned();
         let conn = self.graceful.watch(conn);

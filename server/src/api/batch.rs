@@ -23,8 +23,9 @@
 //! The whole request is validated before anything is sent: a malformed or empty list, a
 //! repeated tile, more than [`MAX_TILES`] tiles, a list over [`MAX_LIST_BYTES`], an unknown
 //! format or parameter are 400s, a level the texture does not serve a 400 and a tile outside
-//! its level a 404, as for single tiles, each naming the problem. Errors after that (a model
-//! failing to render; no synthesis slot, 503) come as error frames. Dropping the response (a
+//! its level a 404, as for single tiles, each naming the problem; a spent in-flight budget
+//! ([`crate::inflight`]) is a 503. Errors after that (a model failing to render; no synthesis
+//! slot, 503) come as error frames. Dropping the response (a
 //! client that went away) aborts the tiles not yet done: a synthesis that has not started never
 //! starts, and one running stops unless another request waits for the same tile; a body not
 //! finished within the request deadline is cut off (the client sees a truncated stream).
@@ -36,6 +37,7 @@ use super::tiles::{self, frame_for};
 use super::{lookup, App, TextureId};
 use crate::cache::{Source, Tile, TileKey};
 use crate::encode::Format;
+use crate::inflight::Reservation;
 use axum::body::Body;
 use axum::extract::State;
 use axum::http::{header, HeaderValue};
@@ -61,6 +63,10 @@ pub const MAGIC: [u8; 4] = *b"vtb\x01";
 pub const HEADER_LEN: usize = 32;
 /// The media type of a batch body.
 pub const CONTENT_TYPE: &str = "application/x-vtex-tile-batch";
+/// What a batch reserves from the in-flight budget for each of its tiles: the frame header it
+/// builds and, for a tile that fails, room for its error's JSON (one of the synthesis path's
+/// fixed messages). The tiles' bytes are the cache's, sent without a copy, and not charged.
+const FRAME_RESERVE: u64 = HEADER_LEN as u64 + 256;
 
 /// One tile as the query names it.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
@@ -173,6 +179,7 @@ pub async fn batch(
         tiles::check_tile(&entry, t.level, t.x, t.y)?;
     }
     let frame = frame_for(&entry, frame);
+    let reservation = app.inflight.reserve(tiles.len() as u64 * FRAME_RESERVE)?;
     let mut ready = VecDeque::new();
     let mut pending = JoinSet::new();
     // No more of a batch's misses in flight than its texture may render at once: the rest
@@ -197,7 +204,8 @@ pub async fn batch(
         }
     }
     let deadline = Box::pin(tokio::time::sleep(app.cfg.request_timeout()));
-    let body = BatchBody { ready, pending, deadline, app: app.clone(), started, timed_out: false };
+    let body =
+        BatchBody { ready, pending, deadline, app: app.clone(), started, timed_out: false, _reservation: reservation };
     let mut resp = Response::new(Body::new(body));
     let h = resp.headers_mut();
     h.insert(header::CONTENT_TYPE, HeaderValue::from_static(CONTENT_TYPE));
@@ -236,6 +244,7 @@ struct BatchBody {
     app: App,
     started: Instant,
     timed_out: bool,
+    _reservation: Reservation,
 }
 
 impl Drop for BatchBody {

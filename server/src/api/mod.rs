@@ -12,6 +12,7 @@ pub mod tiles;
 use crate::cache::TileCache;
 use crate::config::ServeConfig;
 use crate::encode::{self, Format};
+use crate::inflight::Inflight;
 use crate::metrics::Metrics;
 use crate::slots::{Refused, Slots};
 use crate::store::{Entry, Record, Store, StoreError};
@@ -68,6 +69,8 @@ pub struct AppState {
     pub metrics: Metrics,
     /// Synthesis slots, shared fairly between textures, with a bounded queue.
     pub slots: Arc<Slots>,
+    /// The budget of response bodies in flight (`--inflight-mb`).
+    pub inflight: Inflight,
     /// Set when shutdown stops the renders still running.
     pub stopping: Arc<AtomicBool>,
     pub cfg: ServeConfig,
@@ -103,8 +106,11 @@ impl AppState {
         let cache = TileCache::new(cfg.cache_bytes(), cfg.send);
         metrics.cache_budget_bytes.set(cache.budget() as i64);
         metrics.textures_budget_bytes.set(store.bounds().limits.max_resident_bytes as i64);
+        let inflight = Inflight::new(cfg.inflight_bytes());
+        metrics.inflight_budget_bytes.set(inflight.budget_bytes() as i64);
         let slots = Slots::new(cfg.syntheses(), cfg.syntheses_per_texture(), cfg.max_queued());
-        Arc::new(AppState { store, cache, metrics, slots, stopping: Arc::new(AtomicBool::new(false)), cfg })
+        let stopping = Arc::new(AtomicBool::new(false));
+        Arc::new(AppState { store, cache, metrics, slots, inflight, stopping, cfg })
     }
 
     /// Shutdown: stops every render in progress and refuses every miss waiting or to come.
@@ -164,7 +170,7 @@ impl AppState {
                 };
                 synth_s.observe(t0.elapsed().as_secs_f64());
                 let t1 = Instant::now();
-                let bytes = encode::encode(&img, format).map_err(|e| ApiError::internal("encoding failed", e))?;
+                let bytes = encode::encode(img, format).map_err(|e| ApiError::internal("encoding failed", e))?;
                 encode_s.observe(t1.elapsed().as_secs_f64());
                 Ok(finish(bytes))
             };
@@ -280,6 +286,7 @@ async fn metrics(State(app): State<App>, _: Query<NoQuery>) -> Response {
     m.texture_loads.set(store.loads() as i64);
     m.texture_evictions.set(store.evictions() as i64);
     m.syntheses_queued.set(app.slots.queued() as i64);
+    m.inflight_bytes.set(app.inflight.reserved_bytes() as i64);
     ([(header::CONTENT_TYPE, "text/plain; version=0.0.4")], m.render()).into_response()
 }
 

@@ -33,7 +33,8 @@ pub async fn info(
     Ok(Json(record(&app, &id)?.info()))
 }
 
-/// The bundle bytes exactly as stored. The id is the content hash: a perfect strong ETag.
+/// The bundle bytes exactly as stored, read whole once their length is reserved from the
+/// in-flight budget. The id is the content hash: a perfect strong ETag.
 pub async fn encoding(
     State(app): State<App>,
     Path(TextureId { id }): Path<TextureId>,
@@ -45,9 +46,11 @@ pub async fn encoding(
     if not_modified(&headers, tag.to_str().unwrap_or_default()) {
         return Ok(not_modified_response(tag));
     }
+    let reservation = app.inflight.reserve(entry.encoding_bytes)?;
     let bytes = tokio::fs::read(app.store.path_of(&entry.id))
         .await
         .map_err(|e| ApiError::internal("reading the stored bundle failed", e))?;
+    let bytes = reservation.hold(bytes);
     let disposition = format!("attachment; filename=\"{}.vtex\"", entry.id);
     Ok((
         [

@@ -9,7 +9,7 @@ use super::{
 };
 use crate::cache::{Source, Tile, TileKey};
 use crate::config::MAX_REGION_SIDE;
-use crate::encode::Format;
+use crate::encode::{self, Format};
 use crate::store::Entry;
 use axum::body::Body;
 use axum::extract::State;
@@ -212,7 +212,10 @@ pub struct RegionQuery {
 /// `GET /api/v1/textures/{id}/region?level=&x=&y=&w=&h=[&format=png][&frame=]`
 ///
 /// Any integer coordinates are allowed (a torus wraps, a plane is defined everywhere);
-/// the area is bounded by `--max-region-pixels`. Regions are rendered, not cached.
+/// the area is bounded by `--max-region-pixels`. Regions are rendered, not cached: each one
+/// reserves its peak bytes from the in-flight budget before it waits for a slot, keeps its
+/// body's length reserved until the body is sent or dropped, and is a 503 when the budget is
+/// spent.
 pub async fn region(
     State(app): State<App>,
     Path(TextureId { id }): Path<TextureId>,
@@ -239,6 +242,8 @@ pub async fn region(
     }
     let region = Region::new(level, x, y, w, h).at_frame(frame);
     vtex_synth::texture::check_region(&*entry.texture, &region)?;
+    let mut reservation = app.inflight.reserve(encode::peak_bytes(format, w, h))?;
     let body = app.synthesize(entry, region, format).await?;
-    Ok(image_response(Bytes::from(body), format, tag, w, h))
+    app.inflight.resize(&mut reservation, body.len() as u64)?;
+    Ok(image_response(reservation.hold(body), format, tag, w, h))
 }

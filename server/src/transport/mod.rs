@@ -11,8 +11,9 @@
 //!   files with `sendfile` ([`splice`]).
 //!
 //! The rest of the server calls only [`Transport`]'s methods and [`Io`], so it never needs to
-//! know which one runs. [`Io`] also holds what both transports share: the send timeout, and the
-//! [`Activity`] a connection's idle timeout reads. This is the one module of the crate allowed `unsafe` code (mappings,
+//! know which one runs. [`Io`] also holds what both transports share: the send bounds (a
+//! timeout and a minimum rate, [`SendLimits`]), and the [`Activity`] a connection's idle
+//! timeout reads. This is the one module of the crate allowed `unsafe` code (mappings,
 //! `vmsplice`, `mallopt`); each use carries a `SAFETY:` comment.
 
 #[cfg(target_os = "linux")]
@@ -121,14 +122,14 @@ impl Transport {
     }
 
     /// A connection ready for hyper, sending through this transport: every byte it moves is
-    /// counted in `activity`, and a write that makes no progress for `send_timeout` fails.
-    pub fn wrap(self, stream: TcpStream, activity: Arc<Activity>, send_timeout: Duration) -> Io {
+    /// counted in `activity`, and a response that does not keep up with `limits` fails.
+    pub fn wrap(self, stream: TcpStream, activity: Arc<Activity>, limits: SendLimits) -> Io {
         let inner = match self {
             Transport::Copy => Inner::Copy(TokioIo::new(stream)),
             #[cfg(target_os = "linux")]
             Transport::Splice => Inner::Splice(splice::SpliceIo::new(stream)),
         };
-        Io { inner, activity, send: SendDeadline { limit: send_timeout, sleep: None, armed: false } }
+        Io { inner, activity, send: SendBounds::new(limits) }
     }
 
     /// Descriptors one connection may hold: its socket, and under `splice` the pipe it sends
@@ -214,42 +215,124 @@ impl Drop for InFlight {
     }
 }
 
-/// The send timeout: armed when a write-side call has to wait, disarmed by any call that moves
-/// bytes towards the peer, and failing the call once it expires — hyper then drops the
-/// connection and the response it was sending, so a client that stops reading frees what it
-/// held. A call that returns without moving anything (a flush with nothing buffered, which
-/// hyper makes whenever its task wakes) leaves the deadline running.
-struct SendDeadline {
-    limit: Duration,
-    /// Made on the first call that has to wait, then reset: most connections never need it.
-    sleep: Option<Pin<Box<Sleep>>>,
-    armed: bool,
+/// What a response being sent must keep up with, in both transports: the send timeout and the
+/// minimum send rate (`--send-timeout-secs`, `--min-send-rate`).
+#[derive(Clone, Copy, Debug)]
+pub struct SendLimits {
+    /// Longest wait without a byte reaching the socket.
+    pub timeout: Duration,
+    /// Fewest bytes a second while waiting for the reader, averaged over each `timeout` of
+    /// waiting; 0 for no such bound.
+    pub min_rate: u64,
 }
 
-impl SendDeadline {
-    fn check<T>(&mut self, cx: &mut Context<'_>, polled: Poll<io::Result<T>>, moved: bool) -> Poll<io::Result<T>> {
-        if moved {
-            self.armed = false;
+/// The send bounds of one connection.
+///
+/// A *wait* begins when a write-side call has to wait for the socket and ends at the next call
+/// that moves bytes into it. A wait of [`SendLimits::timeout`] fails the call (a client that
+/// stopped reading). Waits also add up in a window, from the first: once they total `timeout`,
+/// the bytes moved in the window must reach `min_rate` × `timeout`, or the call fails (a client
+/// that reads a trickle, resetting the timeout with every few bytes); otherwise a new window
+/// begins. Time not spent waiting (a render, an idle keep-alive) never counts, so only a reader
+/// that holds a response back is measured. A failed call makes hyper drop the connection and
+/// the response it was sending, which frees what it held; the connection is reset. A call that
+/// returns without moving anything (a flush with nothing buffered, which hyper makes whenever
+/// its task wakes) leaves a wait running.
+struct SendBounds {
+    limits: SendLimits,
+    /// Made on the first wait, then reset: most connections never need it.
+    sleep: Option<Pin<Box<Sleep>>>,
+    /// When the current wait began.
+    waiting_since: Option<Instant>,
+    /// Up to when the current wait is added to `waited`.
+    counted_to: Instant,
+    /// Time waited, and bytes moved, in the current window.
+    waited: Duration,
+    moved: u64,
+}
+
+impl SendBounds {
+    fn new(limits: SendLimits) -> SendBounds {
+        let now = Instant::now();
+        SendBounds { limits, sleep: None, waiting_since: None, counted_to: now, waited: Duration::ZERO, moved: 0 }
+    }
+
+    /// Checks a write-side call that moved `sent` bytes into the socket and returned `polled`:
+    /// `polled` when within the bounds, else why the response is abandoned.
+    fn check<T>(
+        &mut self,
+        cx: &mut Context<'_>,
+        polled: Poll<io::Result<T>>,
+        sent: usize,
+    ) -> io::Result<Poll<io::Result<T>>> {
+        if sent > 0 {
+            self.moved += sent as u64;
+            if self.waiting_since.take().is_some() {
+                self.count_wait(Instant::now())?;
+            }
         }
         if polled.is_ready() {
-            return polled;
+            return Ok(polled);
         }
-        let sleep = match &mut self.sleep {
-            Some(s) if self.armed => s,
-            Some(s) => {
-                s.as_mut().reset(Instant::now() + self.limit);
-                s
+        if self.waiting_since.is_none() {
+            let now = Instant::now();
+            (self.waiting_since, self.counted_to) = (Some(now), now);
+            if self.waited.is_zero() {
+                // A window begins with its first wait: what a reader took at once before it
+                // held anything back is no credit for what follows.
+                self.moved = 0;
             }
-            None => self.sleep.insert(Box::pin(tokio::time::sleep(self.limit))),
-        };
-        self.armed = true;
-        match sleep.as_mut().poll(cx) {
-            Poll::Ready(()) => Poll::Ready(Err(io::Error::new(
-                io::ErrorKind::TimedOut,
-                format!("no bytes could be sent for {} s (send timeout)", self.limit.as_secs_f64()),
-            ))),
-            Poll::Pending => Poll::Pending,
+            let deadline = self.deadline();
+            match &mut self.sleep {
+                Some(s) => s.as_mut().reset(deadline),
+                None => self.sleep = Some(Box::pin(tokio::time::sleep_until(deadline))),
+            }
         }
+        loop {
+            let sleep = self.sleep.as_mut().expect("a wait has its sleep");
+            if sleep.as_mut().poll(cx).is_pending() {
+                return Ok(Poll::Pending);
+            }
+            let (now, since) = (Instant::now(), self.waiting_since.expect("polled only while waiting"));
+            if now - since >= self.limits.timeout {
+                return Err(io::Error::new(
+                    io::ErrorKind::TimedOut,
+                    format!("no bytes could be sent for {} s (send timeout)", self.limits.timeout.as_secs_f64()),
+                ));
+            }
+            self.count_wait(now)?;
+            let deadline = self.deadline();
+            self.sleep.as_mut().expect("a wait has its sleep").as_mut().reset(deadline);
+        }
+    }
+
+    /// When the current wait fails the send timeout or fills the window, whichever is first.
+    fn deadline(&self) -> Instant {
+        let since = self.waiting_since.expect("only a wait has a deadline");
+        let window_full = self.counted_to + self.limits.timeout.saturating_sub(self.waited);
+        (since + self.limits.timeout).min(window_full)
+    }
+
+    /// Adds the current wait up to `now` to the window; once the window is full, fails if too
+    /// few bytes moved in it, or begins the next one.
+    fn count_wait(&mut self, now: Instant) -> io::Result<()> {
+        self.waited += now - self.counted_to;
+        self.counted_to = now;
+        if self.waited < self.limits.timeout {
+            return Ok(());
+        }
+        let window = self.waited.as_secs_f64();
+        if (self.moved as f64) < self.limits.min_rate as f64 * window {
+            return Err(io::Error::new(
+                io::ErrorKind::TimedOut,
+                format!(
+                    "{} bytes sent in {window:.1} s of waiting for the reader, below the minimum send rate of {} B/s",
+                    self.moved, self.limits.min_rate
+                ),
+            ));
+        }
+        (self.waited, self.moved) = (Duration::ZERO, 0);
+        Ok(())
     }
 }
 
@@ -257,7 +340,7 @@ impl SendDeadline {
 pub struct Io {
     inner: Inner,
     activity: Arc<Activity>,
-    send: SendDeadline,
+    send: SendBounds,
 }
 
 enum Inner {
@@ -278,6 +361,14 @@ macro_rules! each {
 }
 
 impl Inner {
+    fn stream(&self) -> &TcpStream {
+        match self {
+            Inner::Copy(io) => io.inner(),
+            #[cfg(target_os = "linux")]
+            Inner::Splice(io) => io.stream(),
+        }
+    }
+
     /// Bytes accepted from hyper but not yet in the socket (the splice pipe's).
     fn unsent(&self) -> usize {
         match self {
@@ -289,25 +380,32 @@ impl Inner {
 }
 
 impl Io {
-    /// A write-side call under the send timeout. It moved bytes when it wrote some
-    /// (`wrote`) or drained the splice pipe; writing counts as activity.
+    /// A write-side call under the send bounds. The bytes it moved into the socket are those it
+    /// accepted (`wrote`) and those it drained from the splice pipe, less those it left in the
+    /// pipe; writing counts as activity.
     fn sending<T>(
         self: Pin<&mut Self>,
         cx: &mut Context<'_>,
         call: impl FnOnce(&mut Inner, &mut Context<'_>) -> Poll<io::Result<T>>,
-        wrote: impl FnOnce(&T) -> bool,
+        wrote: impl FnOnce(&T) -> usize,
     ) -> Poll<io::Result<T>> {
         let this = self.get_mut();
         let unsent = this.inner.unsent();
         let polled = call(&mut this.inner, cx);
-        let moved = match &polled {
-            Poll::Ready(Ok(v)) if wrote(v) => {
-                this.activity.touch();
-                true
-            }
-            _ => this.inner.unsent() < unsent,
+        let accepted = match &polled {
+            Poll::Ready(Ok(v)) => wrote(v),
+            _ => 0,
         };
-        this.send.check(cx, polled, moved)
+        let sent = (accepted + unsent).saturating_sub(this.inner.unsent());
+        if accepted > 0 || sent > 0 {
+            this.activity.touch();
+        }
+        this.send.check(cx, polled, sent).unwrap_or_else(|abandoned| {
+            // Reset rather than close, so the kernel drops what it still holds for this reader
+            // too (as nginx's `reset_timedout_connection`).
+            let _ = this.inner.stream().set_zero_linger();
+            Poll::Ready(Err(abandoned))
+        })
     }
 }
 
@@ -326,7 +424,7 @@ impl Read for Io {
 
 impl Write for Io {
     fn poll_write(self: Pin<&mut Self>, cx: &mut Context<'_>, buf: &[u8]) -> Poll<io::Result<usize>> {
-        self.sending(cx, |inner, cx| each!(inner, io => Pin::new(io).poll_write(cx, buf)), |&n| n > 0)
+        self.sending(cx, |inner, cx| each!(inner, io => Pin::new(io).poll_write(cx, buf)), |&n| n)
     }
 
     fn poll_write_vectored(
@@ -334,7 +432,7 @@ impl Write for Io {
         cx: &mut Context<'_>,
         bufs: &[IoSlice<'_>],
     ) -> Poll<io::Result<usize>> {
-        self.sending(cx, |inner, cx| each!(inner, io => Pin::new(io).poll_write_vectored(cx, bufs)), |&n| n > 0)
+        self.sending(cx, |inner, cx| each!(inner, io => Pin::new(io).poll_write_vectored(cx, bufs)), |&n| n)
     }
 
     fn is_write_vectored(&self) -> bool {
@@ -342,11 +440,11 @@ impl Write for Io {
     }
 
     fn poll_flush(self: Pin<&mut Self>, cx: &mut Context<'_>) -> Poll<io::Result<()>> {
-        self.sending(cx, |inner, cx| each!(inner, io => Pin::new(io).poll_flush(cx)), |()| false)
+        self.sending(cx, |inner, cx| each!(inner, io => Pin::new(io).poll_flush(cx)), |()| 0)
     }
 
     fn poll_shutdown(self: Pin<&mut Self>, cx: &mut Context<'_>) -> Poll<io::Result<()>> {
-        self.sending(cx, |inner, cx| each!(inner, io => Pin::new(io).poll_shutdown(cx)), |()| false)
+        self.sending(cx, |inner, cx| each!(inner, io => Pin::new(io).poll_shutdown(cx)), |()| 0)
     }
 }
 
@@ -420,8 +518,8 @@ pub(crate) mod tests {
                 s.read_to_end(&mut all).await.unwrap();
                 all
             });
-            let mut io =
-                t.wrap(small().connect(addr).await.unwrap(), Arc::default(), std::time::Duration::from_secs(30));
+            let limits = SendLimits { timeout: std::time::Duration::from_secs(30), min_rate: 0 };
+            let mut io = t.wrap(small().connect(addr).await.unwrap(), Arc::default(), limits);
             let head = b"HTTP/1.1 200 OK\r\ncontent-length: 3210000\r\n\r\n".to_vec();
             let tile = t.seal(pattern(150_000));
             let big = t.seal(pattern(3_000_000));
@@ -439,6 +537,51 @@ pub(crate) mod tests {
             assert_eq!(got.len(), expected.len(), "{t}");
             assert!(got == expected, "{t}: bytes differ");
         }
+    }
+
+    /// Drives `bounds` through `rounds` of a reader that lets `per_round` bytes through after
+    /// each wait of `wait`; returns the round whose call was refused, if any.
+    fn reader(bounds: &mut SendBounds, rounds: usize, wait: std::time::Duration, per_round: usize) -> Option<usize> {
+        let mut cx = Context::from_waker(std::task::Waker::noop());
+        (0..rounds).find(|_| {
+            assert!(bounds.check::<usize>(&mut cx, Poll::Pending, 0).unwrap().is_pending());
+            std::thread::sleep(wait);
+            bounds.check(&mut cx, Poll::Ready(Ok(per_round)), per_round).is_err()
+        })
+    }
+
+    const LIMITS: SendLimits = SendLimits { timeout: std::time::Duration::from_millis(300), min_rate: 1000 };
+
+    /// A reader that lets 10 bytes through every 50 ms of waiting restarts the send timeout
+    /// every time, but is refused once its waits fill a window (300 ms) with fewer than 300
+    /// bytes, though it took a megabyte at once before its first wait.
+    #[tokio::test]
+    async fn a_trickle_is_refused_at_the_end_of_its_first_window() {
+        let mut bounds = SendBounds::new(LIMITS);
+        let mut cx = Context::from_waker(std::task::Waker::noop());
+        assert!(bounds.check(&mut cx, Poll::Ready(Ok(1 << 20)), 1 << 20).is_ok());
+        let refused = reader(&mut bounds, 8, std::time::Duration::from_millis(50), 10);
+        assert!(refused.is_some_and(|round| round < 7), "refused in round {refused:?}");
+    }
+
+    /// A reader that keeps up with the rate is never refused, however long it waits in all.
+    #[tokio::test]
+    async fn a_reader_at_the_rate_is_served() {
+        let mut bounds = SendBounds::new(LIMITS);
+        assert_eq!(reader(&mut bounds, 20, std::time::Duration::from_millis(50), 1000), None);
+    }
+
+    /// One wait as long as the send timeout is refused, whatever moved before.
+    #[tokio::test]
+    async fn a_stalled_reader_meets_the_send_timeout() {
+        let mut bounds = SendBounds::new(SendLimits { min_rate: 0, ..LIMITS });
+        let mut cx = Context::from_waker(std::task::Waker::noop());
+        assert!(bounds.check(&mut cx, Poll::Ready(Ok(1 << 20)), 1 << 20).is_ok());
+        assert!(bounds.check::<usize>(&mut cx, Poll::Pending, 0).unwrap().is_pending());
+        // Yielding to the runtime, so that its timer fires the bound's sleep.
+        tokio::time::sleep(std::time::Duration::from_millis(350)).await;
+        let refused = bounds.check::<usize>(&mut cx, Poll::Pending, 0).unwrap_err();
+        assert!(refused.to_string().contains("send timeout"), "{refused}");
     }
 
     #[test]

@@ -64,7 +64,7 @@ impl SpliceIo {
         self.queued
     }
 
-    fn stream(&self) -> &TcpStream {
+    pub fn stream(&self) -> &TcpStream {
         self.io.inner()
     }
 
