@@ -16,6 +16,7 @@ pub mod cascade;
 pub mod chaos_mosaic;
 pub mod cost;
 pub mod lcm;
+pub mod order_independent;
 pub mod patterns;
 
 /// Input images by name (PNG bytes), e.g. `sample` for the chaos mosaic.
