@@ -2,4 +2,5 @@
 //! in any order, identically every time (Wei & Levoy 2002, *Order-Independent Texture
 //! Synthesis*).
 
+pub mod reference;
 pub mod structure;
