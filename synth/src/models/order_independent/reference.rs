@@ -122,6 +122,70 @@ type TagMap<V> = HashMap<Entry, V, BuildHasherDefault<TagHasher>>;
 
 const NIL: u32 = u32::MAX;
 
+/// Tori with at most this many entries index their cache slots by a table over all entries.
+const DENSE_ENTRIES: u64 = 1 << 26;
+
+/// Which slot holds an entry: a table over every entry of a small torus (one load, no
+/// hashing), a hash map otherwise.
+enum Index {
+    /// `bases[s · stride + m]`: where (s, m) starts in `table`.
+    Dense {
+        structure: Structure,
+        stride: usize,
+        bases: Vec<usize>,
+        table: Vec<u32>,
+    },
+    Hashed(TagMap<u32>),
+}
+
+impl Index {
+    fn new(structure: &Structure) -> Self {
+        if structure.torus.is_none() || entries(structure) > DENSE_ENTRIES {
+            return Index::Hashed(TagMap::default());
+        }
+        let stride = structure.generations.max(structure.coarsest_generations) as usize;
+        let mut bases = vec![0; structure.levels as usize * stride];
+        let mut next = 0;
+        for s in 0..structure.levels {
+            let (w, h) = structure.period(s).expect("a torus");
+            for m in 0..structure.generations_of(s) {
+                bases[s as usize * stride + m as usize] = next;
+                next += (w * h) as usize;
+            }
+        }
+        Index::Dense { structure: structure.clone(), stride, bases, table: vec![NIL; next] }
+    }
+
+    /// The table position of a canonical entry of a torus.
+    fn position(structure: &Structure, stride: usize, bases: &[usize], e: &Entry) -> usize {
+        let w = structure.period(e.s).expect("a torus").0 as usize;
+        bases[e.s as usize * stride + e.m as usize] + e.y as usize * w + e.x as usize
+    }
+
+    fn get(&self, e: &Entry) -> Option<u32> {
+        match self {
+            Index::Dense { structure, stride, bases, table } => {
+                Some(table[Self::position(structure, *stride, bases, e)]).filter(|&i| i != NIL)
+            }
+            Index::Hashed(map) => map.get(e).copied(),
+        }
+    }
+
+    fn set(&mut self, e: &Entry, slot: u32) {
+        match self {
+            Index::Dense { structure, stride, bases, table } => {
+                table[Self::position(structure, *stride, bases, e)] = slot;
+            }
+            Index::Hashed(map) if slot == NIL => {
+                map.remove(e);
+            }
+            Index::Hashed(map) => {
+                map.insert(*e, slot);
+            }
+        }
+    }
+}
+
 struct Slot {
     entry: Entry,
     value: u16,
@@ -129,24 +193,27 @@ struct Slot {
     older: u32,
 }
 
-/// Entries in a slab threaded by a doubly linked recency list.
+/// Entries in a slab threaded by a doubly linked recency list (not kept when nothing is ever
+/// evicted).
 struct Lru {
     capacity: usize,
-    index: TagMap<u32>,
+    index: Index,
     slots: Vec<Slot>,
     newest: u32,
     oldest: u32,
 }
 
 impl Lru {
-    fn new(capacity: usize) -> Self {
-        Self { capacity, index: TagMap::default(), slots: Vec::new(), newest: NIL, oldest: NIL }
+    fn new(structure: &Structure, capacity: usize) -> Self {
+        Self { capacity, index: Index::new(structure), slots: Vec::new(), newest: NIL, oldest: NIL }
     }
 
     fn get(&mut self, e: &Entry) -> Option<u16> {
-        let i = *self.index.get(e)?;
-        self.unlink(i);
-        self.link_newest(i);
+        let i = self.index.get(e)?;
+        if self.capacity != UNBOUNDED && i != self.newest {
+            self.unlink(i);
+            self.link_newest(i);
+        }
         Some(self.slots[i as usize].value)
     }
 
@@ -162,12 +229,12 @@ impl Lru {
         } else {
             let i = self.oldest;
             self.unlink(i);
-            self.index.remove(&self.slots[i as usize].entry);
+            self.index.set(&self.slots[i as usize].entry, NIL);
             self.slots[i as usize].entry = entry;
             self.slots[i as usize].value = value;
             i
         };
-        self.index.insert(entry, i);
+        self.index.set(&entry, i);
         self.link_newest(i);
     }
 
@@ -217,9 +284,9 @@ impl<S: Synthesis> Reference<S> {
     /// An empty cache of `capacity` entries (0: no cache, [`UNBOUNDED`]: never evicts).
     pub fn new(structure: Structure, synthesis: S, capacity: usize) -> Self {
         Self {
+            cache: Lru::new(&structure, capacity),
             structure,
             synthesis,
-            cache: Lru::new(capacity),
             pinned: TagMap::default(),
             counters: Counters::default(),
             stack: Vec::new(),
@@ -242,7 +309,7 @@ impl<S: Synthesis> Reference<S> {
 
     /// The entries the cache holds, pinned ones excluded, in no particular order.
     pub fn cached(&self) -> impl Iterator<Item = Entry> + '_ {
-        self.cache.index.keys().copied()
+        self.cache.slots.iter().map(|slot| slot.entry)
     }
 
     /// The served pixel (x, y) of level `s`: entry (s, last(s), x, y).
@@ -438,6 +505,26 @@ mod tests {
                 "{computed:?}"
             );
             assert_eq!(computed[3], computed[4]);
+        }
+    }
+
+    /// The plane indexes its cache by hashing instead of a table: the same check, against an
+    /// unbounded cache in scanline order.
+    #[test]
+    fn on_the_plane_values_do_not_depend_on_the_cache_capacity_or_the_request_order() {
+        let st = Structure { torus: None, ..small(1) };
+        let window: Vec<(i64, i64)> = (-8..8).flat_map(|y| (-8..8).map(move |x| (x * 3 - 1, y * 2 + 5))).collect();
+        let mut unbounded = Reference::new(st.clone(), Hashing, UNBOUNDED);
+        let truth: HashMap<(i64, i64), u16> =
+            window.iter().map(|&(x, y)| ((x, y), unbounded.request(2, x, y))).collect();
+        for (capacity, seed) in [(0, 1), (16, 2), (1000, 3)] {
+            let mut order = window.clone();
+            order.sort_by_key(|&(x, y)| hash4(seed, 0, x, y));
+            let mut r = Reference::new(st.clone(), Hashing, capacity);
+            for (x, y) in order {
+                assert_eq!(r.request(2, x, y), truth[&(x, y)], "capacity {capacity}");
+            }
+            assert!(r.counters().computed > unbounded.counters().computed);
         }
     }
 
