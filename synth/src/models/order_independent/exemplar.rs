@@ -6,7 +6,7 @@ use crate::pixels::Rgba8Image;
 
 /// Neighbourhood vectors are padded to a multiple of this many bytes, so the SSD kernel runs
 /// on whole fixed-size chunks.
-pub const CHUNK: usize = 16;
+pub const CHUNK: usize = 32;
 
 /// One level s of the exemplar pyramid (0 = coarsest).
 #[derive(Clone, Debug)]
@@ -30,6 +30,10 @@ pub struct Level {
     /// C_s(u): `k` slots a pixel, the first `kset_len[u]` used; the pixel itself first.
     pub kset: Vec<u16>,
     pub kset_len: Vec<u8>,
+    /// For each pixel v and 3×3 offset d (row-major), the valid pixels of C_s(v) − d: the
+    /// candidates v contributes to the entry at −d from it; `k` slots, `shifted_len` used.
+    pub shifted: Vec<u16>,
+    pub shifted_len: Vec<u8>,
 }
 
 impl Level {
@@ -41,6 +45,13 @@ impl Level {
     #[inline]
     pub fn kset(&self, u: usize, k: usize) -> &[u16] {
         &self.kset[u * k..u * k + self.kset_len[u] as usize]
+    }
+
+    /// The valid pixels of C_s(v) − d, d the `d`-th offset of the 3×3 square.
+    #[inline]
+    pub fn shifted(&self, v: usize, d: usize, k: usize) -> &[u16] {
+        let at = v * 9 + d;
+        &self.shifted[at * k..at * k + self.shifted_len[at] as usize]
     }
 }
 
@@ -131,7 +142,7 @@ pub fn ssd_below(a: &[u8], b: &[u8], bound: u32) -> u32 {
     for (x, y) in a.chunks_exact(CHUNK).zip(b.chunks_exact(CHUNK)) {
         let mut acc = 0i32;
         for i in 0..CHUNK {
-            let d = x[i] as i32 - y[i] as i32;
+            let d = x[i].abs_diff(y[i]) as i32;
             acc += d * d;
         }
         total += acc as u32;
@@ -176,12 +187,15 @@ impl Exemplar {
                 vectors: Vec::new(),
                 kset: Vec::new(),
                 kset_len: Vec::new(),
+                shifted: Vec::new(),
+                shifted_len: Vec::new(),
             };
             if searched {
                 let coarser = levels.last();
                 fill_neighbourhoods(&mut level, coarser, &o.same, lower, o.wrap);
                 if o.k > 0 {
                     fill_ksets(&mut level, o.k, o.k_exclusion);
+                    fill_shifted(&mut level, o.k, o.wrap);
                 }
             }
             levels.push(level);
@@ -241,12 +255,12 @@ fn fill_ksets(level: &mut Level, k: usize, exclusion: u32) {
     let mut kset = vec![0u16; n * k];
     let mut kset_len = vec![0u8; n];
     let mut best: Vec<(u32, u16)> = Vec::with_capacity(k);
+    let valid: Vec<(u16, i64, i64)> = level.valid.iter().map(|&v| (v, v as i64 % w, v as i64 / w)).collect();
     for u in 0..n {
         best.clear();
         let a = level.vector(u);
         let (ux, uy) = (u as i64 % w, u as i64 / w);
-        for &v in &level.valid {
-            let (vx, vy) = (v as i64 % w, v as i64 / w);
+        for &(v, vx, vy) in &valid {
             if (vx - ux).abs().max((vy - uy).abs()) <= exclusion as i64 || v as usize == u {
                 continue;
             }
@@ -271,6 +285,34 @@ fn fill_ksets(level: &mut Level, k: usize, exclusion: u32) {
     }
     level.kset = kset;
     level.kset_len = kset_len;
+}
+
+/// The k-coherence sets shifted by each 3×3 offset, invalid pixels dropped.
+fn fill_shifted(level: &mut Level, k: usize, wrap: bool) {
+    let (w, h) = (level.w as i64, level.h as i64);
+    let n = (w * h) as usize;
+    let mut shifted = vec![0u16; n * 9 * k];
+    let mut shifted_len = vec![0u8; n * 9];
+    for v in 0..n {
+        for (d, (dx, dy)) in (-1..=1).flat_map(|dy| (-1..=1).map(move |dx| (dx, dy))).enumerate() {
+            let at = v * 9 + d;
+            for &c in level.kset(v, k) {
+                let (mut x, mut y) = (c as i64 % w - dx, c as i64 / w - dy);
+                if wrap {
+                    (x, y) = (x.rem_euclid(w), y.rem_euclid(h));
+                } else if !(0..w).contains(&x) || !(0..h).contains(&y) {
+                    continue;
+                }
+                let u = (y * w + x) as usize;
+                if level.is_valid[u] {
+                    shifted[at * k + shifted_len[at] as usize] = u as u16;
+                    shifted_len[at] += 1;
+                }
+            }
+        }
+    }
+    level.shifted = shifted;
+    level.shifted_len = shifted_len;
 }
 
 #[cfg(test)]

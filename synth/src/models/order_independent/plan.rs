@@ -64,7 +64,7 @@ fn plan_params(p: &Params, sw: u32, sh: u32, create: bool) -> Result<Plan> {
     let pixels = |s: u8| ((sw >> (fin - s)) as f64) * ((sh >> (fin - s)) as f64);
     let vector = |s: u8| {
         let taps = st.same.len() + if s > 0 { st.lower.len() } else { 0 };
-        (3 * taps).div_ceil(16) as f64 * 16.0
+        (3 * taps).div_ceil(32) as f64 * 32.0
     };
     let searched = |s: u8| s > 0 || p.coarsest_generations > 1;
     let k = if p.search == Search::Kcoherence { p.k as f64 } else { 0.0 };
@@ -119,11 +119,13 @@ fn plan_params(p: &Params, sw: u32, sh: u32, create: bool) -> Result<Plan> {
     );
 
     // Resident: per exemplar pixel of each level, colours and box colours, the valid masks,
-    // and where searched its vector and k-coherence set; the calibration's colours.
+    // and where searched its vector, its k-coherence set and the set shifted 9 ways; the
+    // calibration's colours.
     let resident: f64 = (0..p.levels)
         .map(|s| {
             let n = pixels(s);
-            let searched = if searched(s) { n * (vector(s) + 5.0 + 2.0 * k + 1.0) } else { 0.0 };
+            let ksets = if k > 0.0 { 2.0 * k + 1.0 + 9.0 * (2.0 * k + 1.0) } else { 0.0 };
+            let searched = if searched(s) { n * (vector(s) + 5.0 + ksets) } else { 0.0 };
             n * 6.0 + searched
         })
         .sum::<f64>()

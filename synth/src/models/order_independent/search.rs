@@ -27,14 +27,14 @@ pub struct Synthesizer {
     seed: u64,
     search: Search,
     generation0: Generation0,
-    wrap: bool,
     /// For each same-level tap of the neighbourhood vector, its position in the `same` reads.
     same_at: Vec<usize>,
     /// Coarser-level taps of the neighbourhood vector (the `lower` reads, in order).
     lower_taps: usize,
-    /// For each 3×3 offset d whose k-coherence sets give candidates: its position in the
-    /// `same` reads, and d.
-    coherent: Vec<(usize, i64, i64)>,
+    /// For each offset of the 3×3 window whose k-coherence sets give candidates: its index
+    /// in the 3×3 square and its position in the `same` reads. The centre comes first: the
+    /// pixel's own coherent match is usually near the best, so later sums are abandoned early.
+    coherent: Vec<(usize, usize)>,
     /// Position of (0, 0) in the `same` reads: the previous generation of the pixel itself.
     centre: Option<usize>,
 }
@@ -118,10 +118,15 @@ impl Synthesizer {
         let same_at = compared.iter().map(|t| position(t).expect("compared taps are read")).collect();
         let coherent = match p.search {
             Search::Exhaustive => Vec::new(),
-            Search::Kcoherence => square(1)
-                .iter()
-                .map(|t| (position(t).expect("the 3×3 window is read"), t.0 as i64, t.1 as i64))
-                .collect(),
+            Search::Kcoherence => {
+                let mut window: Vec<(usize, usize)> = square(1)
+                    .iter()
+                    .enumerate()
+                    .map(|(d, t)| (d, position(t).expect("the 3×3 window is read")))
+                    .collect();
+                window.swap(0, 4);
+                window
+            }
         };
         Ok(Synthesizer {
             centre: position(&(0, 0)),
@@ -131,7 +136,6 @@ impl Synthesizer {
             seed: p.seed,
             search: p.search,
             generation0: p.generation0(),
-            wrap: p.exemplar_wrap,
             same_at,
             coherent,
         })
@@ -164,52 +168,36 @@ impl Synthesizer {
     }
 
     /// The k-coherence candidates of an entry: each set C(v) of its 3×3 window's previous
-    /// values, shifted back by the window offset, kept when valid; sorted, without repeats.
+    /// values v, shifted back by the window offset, kept when valid, without repeats.
     fn candidates<'a>(&self, level: &Level, same: &[u16], buf: &'a mut [u16; MAX_CANDIDATES]) -> &'a [u16] {
-        let (w, h) = (level.w as i64, level.h as i64);
         let mut n = 0;
-        for &(i, dx, dy) in &self.coherent {
-            for &c in level.kset(same[i] as usize, self.exemplar.k) {
-                let (mut x, mut y) = (c as i64 % w - dx, c as i64 / w - dy);
-                if self.wrap {
-                    (x, y) = (x.rem_euclid(w), y.rem_euclid(h));
-                } else if !(0..w).contains(&x) || !(0..h).contains(&y) {
-                    continue;
-                }
-                let u = (y * w + x) as usize;
-                if level.is_valid[u] {
-                    buf[n] = u as u16;
+        for &(d, i) in &self.coherent {
+            for &c in level.shifted(same[i] as usize, d, self.exemplar.k) {
+                if !buf[..n].contains(&c) {
+                    buf[n] = c;
                     n += 1;
                 }
             }
         }
-        let list = &mut buf[..n];
-        list.sort_unstable();
-        let mut kept = 0;
-        for i in 0..n {
-            if i == 0 || list[i] != list[kept - 1] {
-                list[kept] = list[i];
-                kept += 1;
-            }
-        }
-        &buf[..kept]
+        &buf[..n]
     }
 }
 
-/// The pixel of `pixels` (in increasing index order) whose vector part `range` is nearest to
-/// `target`'s, the first on a tie.
+/// The pixel of `pixels` whose vector part `range` is nearest to `target`'s, the lowest
+/// index on a tie.
 fn argmin(level: &Level, pixels: &[u16], target: &[u8], range: std::ops::Range<usize>) -> Option<u16> {
     let mut best: Option<(u32, u16)> = None;
     let target = &target[range.clone()];
     for &u in pixels {
         let v = &level.vector(u as usize)[range.clone()];
-        let bound = best.map_or(u32::MAX, |b| b.0);
+        // Abandoning a sum once it exceeds the best keeps it exact wherever it can win or tie.
+        let bound = best.map_or(u32::MAX, |b| b.0.saturating_add(1));
         let d = if range.len() % CHUNK == 0 {
             ssd_below(target, v, bound)
         } else {
             target.iter().zip(v).map(|(&a, &b)| (a as i32 - b as i32).pow(2) as u32).sum()
         };
-        if d < bound {
+        if best.is_none_or(|b| (d, u) < b) {
             best = Some((d, u));
         }
     }

@@ -193,6 +193,8 @@ fn compute<S: Synthesis>(
     let coarser = (l > 0).then(|| &below[l as usize - 1][st.last(l - 1) as usize]);
     let mut same = Vec::with_capacity(32);
     let mut lower = Vec::with_capacity(32);
+    // Reads are indexed from the pixel's (or its parent's) index in the rectangle below.
+    let offset = |r: &Rect, x: i64, y: i64| (y.wrapping_sub(r.y) * r.w as i64 + x.wrapping_sub(r.x)) as isize;
     for j in 0..rect.h {
         if stop.requested() {
             return None;
@@ -212,16 +214,19 @@ fn compute<S: Synthesis>(
             let reads = st.reads(l, m, x, y);
             same.clear();
             if let Some(p) = prev {
-                for &(dx, dy) in reads.same {
-                    same.push(p.values[p.rect.at(x.wrapping_add(dx as i64), y.wrapping_add(dy as i64))]);
-                }
+                let base = offset(&p.rect, x, y);
+                let pw = p.rect.w as isize;
+                same.extend(
+                    reads.same.iter().map(|&(dx, dy)| p.values[(base + dy as isize * pw + dx as isize) as usize]),
+                );
             }
             lower.clear();
             if let Some(c) = coarser {
-                let (px, py) = (x >> 1, y >> 1);
-                for &(dx, dy) in reads.lower {
-                    lower.push(c.values[c.rect.at(px.wrapping_add(dx as i64), py.wrapping_add(dy as i64))]);
-                }
+                let base = offset(&c.rect, x >> 1, y >> 1);
+                let cw = c.rect.w as isize;
+                lower.extend(
+                    reads.lower.iter().map(|&(dx, dy)| c.values[(base + dy as isize * cw + dx as isize) as usize]),
+                );
             }
             layer.values[at] = syn.entry(Entry { s: l, m, x, y }, &same, &lower);
             if m == 0 || st.updates(m, x, y) {
