@@ -334,6 +334,32 @@ mod tests {
         // Wrapping instead of mirroring changes only the borders: x = 0 sees 255 at x = −1, −2.
         let wrapped = gaussian_down(&step, 8, 8, true);
         assert_eq!(wrapped[0][0], ((255 * (1 + 4) * 16 + 128) >> 8) as u8);
+        // Against the 2-D sum of a hashed image, rounded once, mirrored at the borders.
+        let (w, h) = (64i64, 48i64);
+        let img: Vec<[u8; 3]> = (0..w * h).map(|i| [0, 1, 2].map(|c| crate::hash::hash4(1, c, i, 0) as u8)).collect();
+        let k = [1u32, 4, 6, 4, 1];
+        let mirror = |v: i64, n: i64| {
+            if v < 0 {
+                -v
+            } else if v >= n {
+                2 * n - 2 - v
+            } else {
+                v
+            }
+        };
+        let down = gaussian_down(&img, w as u32, h as u32, false);
+        for y in 0..h / 2 {
+            for x in 0..w / 2 {
+                let mut acc = [0u32; 3];
+                for j in 0..5 {
+                    for i in 0..5 {
+                        let p = img[(mirror(2 * y + j - 2, h) * w + mirror(2 * x + i - 2, w)) as usize];
+                        (0..3).for_each(|c| acc[c] += k[i as usize] * k[j as usize] * p[c] as u32);
+                    }
+                }
+                assert_eq!(down[(y * w / 2 + x) as usize], acc.map(|a| ((a + 128) >> 8) as u8), "({x}, {y})");
+            }
+        }
     }
 
     #[test]

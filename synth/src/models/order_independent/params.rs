@@ -244,3 +244,38 @@ impl Params {
         Ok(())
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use serde_json::json;
+
+    fn named(params: serde_json::Value, w: u32, h: u32) -> String {
+        let p: Params = serde_json::from_value(params.clone()).unwrap();
+        match p.validate(w, h) {
+            Err(Error::Param { name, .. }) | Err(Error::Image { name, .. }) => name,
+            other => panic!("{params} on {w}×{h}: {other:?}"),
+        }
+    }
+
+    #[test]
+    fn bad_parameters_are_refused_by_name() {
+        assert!(serde_json::from_value::<Params>(json!({"seed": 1})).unwrap().validate(64, 64).is_ok());
+        assert_eq!(named(json!({"seed": 1}), 16, 64), "levels"); // coarsest level 2×8
+        assert_eq!(named(json!({"seed": 1, "levels": 3}), 34, 36), "levels"); // not a multiple of 4
+        assert_eq!(named(json!({"seed": 1}), 512, 64), "sample");
+        assert_eq!(named(json!({"seed": 1, "search": "exhaustive"}), 256, 128), "search");
+        assert_eq!(named(json!({"seed": 1, "levels": 9}), 64, 64), "levels");
+        assert_eq!(named(json!({"seed": 1, "generations": 0}), 64, 64), "generations");
+        assert_eq!(named(json!({"seed": 1, "coarsest_generations": 4}), 64, 64), "coarsest_generations");
+        assert_eq!(named(json!({"seed": 1, "k": 9}), 64, 64), "k");
+        assert_eq!(named(json!({"seed": 1, "k_exclusion": 17}), 64, 64), "k_exclusion");
+        assert_eq!(named(json!({"seed": 1, "subpasses": 2}), 64, 64), "subpasses");
+        assert_eq!(named(json!({"seed": 1, "width": 0}), 64, 64), "width");
+        assert_eq!(named(json!({"seed": 1, "height": 1u64 << 41}), 64, 64), "height");
+        assert_eq!(named(json!({"seed": 1, "domain": "torus", "width": 1000, "height": 1004}), 64, 64), "domain");
+        assert_eq!(named(json!({"seed": 1, "mip": {"lookahead": 2}}), 64, 64), "mip.lookahead");
+        assert_eq!(named(json!({"seed": 1, "mip": {"noise_levels": 5}}), 64, 64), "mip.noise_levels");
+        assert_eq!(named(json!({"seed": 1, "mip": {"exact_levels": 3}}), 64, 64), "mip.exact_levels");
+    }
+}

@@ -248,3 +248,43 @@ impl Synthesis for Synthesizer {
         .unwrap_or_else(|| same[self.centre.expect("k-coherence reads the pixel itself")])
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use serde_json::json;
+
+    fn synthesizer(params: serde_json::Value) -> Synthesizer {
+        let p: Params = serde_json::from_value(params).unwrap();
+        Synthesizer::new(&p, &crate::samples::lichen(32, 1)).unwrap()
+    }
+
+    /// The noise is a pure function of (seed, x, y), covers the coarsest level, and is
+    /// periodic on a torus.
+    #[test]
+    fn the_noise_is_hashed_from_the_seed_and_the_pixel() {
+        let (a, b, c) = (
+            synthesizer(json!({"seed": 5, "levels": 3})),
+            synthesizer(json!({"seed": 5, "levels": 3})),
+            synthesizer(json!({"seed": 6, "levels": 3})),
+        );
+        let n = 8 * 8;
+        let mut seen = vec![false; n];
+        let mut differ = 0;
+        for y in -100..100i64 {
+            for x in [-(1i64 << 40), -3, 0, 7, 1 << 50].map(|o| o + y * 3) {
+                let v = a.noise(x, y);
+                assert_eq!(v, b.noise(x, y));
+                assert!((v as usize) < n);
+                seen[v as usize] = true;
+                differ += (v != c.noise(x, y)) as u32;
+                assert_eq!(v, below(hash4(5, STREAM_NOISE, x, y), n as u64) as u16);
+            }
+        }
+        assert!(seen.iter().all(|&s| s), "every coarsest pixel is drawn");
+        assert!(differ > 900, "another seed, other noise: {differ} of 1000 differ");
+        let t = synthesizer(json!({"seed": 5, "levels": 3, "domain": "torus", "width": 40, "height": 24}));
+        assert_eq!(t.noise(3, 4), t.noise(3 + 10, 4 - 6));
+        assert_ne!(t.noise(3, 4), t.noise(3 + 5, 4));
+    }
+}
