@@ -287,7 +287,8 @@ pub struct Reference<S> {
     cache: Lru,
     pinned: TagMap<u16>,
     counters: Counters,
-    /// Frames of the recursion; those past `depth` are kept for their allocations.
+    /// Frames of the recursion, outermost first; those deeper than the current one are spare,
+    /// kept for their allocations.
     stack: Vec<Frame>,
 }
 
