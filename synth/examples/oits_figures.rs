@@ -2,9 +2,10 @@
 //! F7a, F7bc, F4, F8, F9), as CSV files and PNG images, counted by the reference evaluator in
 //! structure-only mode (which entries are computed does not depend on the search):
 //!
-//! `cargo run --release -p vtex-synth --example oits_figures -- [OUT_DIR]`
+//! `cargo run --release -p vtex-synth --example oits_figures -- [OUT_DIR [FIGURE…]]`
 //!
-//! OUT_DIR defaults to `docs/models/oits-figures`. `docs/models/order-independent-figures.md`
+//! OUT_DIR defaults to `docs/models/oits-figures`; FIGURE (F3, F7, F4, F8, F9) limits the run to
+//! those figures. `docs/models/order-independent-figures.md`
 //! sets the numbers beside the paper's.
 
 #[path = "oits_figures/plot.rs"]
@@ -42,12 +43,17 @@ impl Out {
 }
 
 fn main() {
-    let dir = PathBuf::from(std::env::args().nth(1).unwrap_or_else(|| "docs/models/oits-figures".into()));
+    let args: Vec<String> = std::env::args().skip(1).collect();
+    let dir = PathBuf::from(args.first().map_or("docs/models/oits-figures", String::as_str));
+    let only = &args[args.len().min(1)..];
     std::fs::create_dir_all(&dir).expect("creating the output directory");
     let out = Out(dir);
     let start = Instant::now();
     let figures: [(&str, Figure); 5] = [("F3", fig3), ("F7", fig7), ("F4", fig4), ("F8", fig8), ("F9", fig9)];
     for (name, figure) in figures {
+        if !only.is_empty() && !only.iter().any(|f| f == name) {
+            continue;
+        }
         let t = Instant::now();
         println!("{name}");
         figure(&out);

@@ -114,7 +114,7 @@ fn half(a: f64, b: f64) -> u64 {
 /// quads of two triangles, clipped by the frustum, trilinear over 4 levels.
 pub fn polygon() -> Scene {
     let ground =
-        Ground { width: 512, height: 512, focal: 400.0, pitch: 0.5, eye: 60.0, density: 1.0, origin: (160.0, -40.0) };
+        Ground { width: 512, height: 512, focal: 400.0, pitch: 0.6, eye: 80.0, density: 1.0, origin: (160.0, -40.0) };
     let quad = 512.0 / 64.0;
     let fragments = ground.fragments(|u, v| {
         if !(0.0..512.0).contains(&u) || !(0.0..512.0).contains(&v) {
@@ -134,7 +134,7 @@ pub fn polygon() -> Scene {
 /// repeated over it (64² for quake I, 512² for quake II).
 pub fn quake(name: &'static str, texture: u64) -> Scene {
     let ground =
-        Ground { width: 1280, height: 1024, focal: 900.0, pitch: 0.45, eye: 40.0, density: 1.0, origin: (256.0, 0.0) };
+        Ground { width: 1280, height: 1024, focal: 900.0, pitch: 0.45, eye: 40.0, density: 2.0, origin: (256.0, 0.0) };
     let quad = 512.0;
     let fragments = ground.fragments(|u, v| {
         let (qx, qy) = ((u / quad).floor(), (v / quad).floor());
