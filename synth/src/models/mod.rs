@@ -16,6 +16,7 @@ pub mod cascade;
 pub mod chaos_mosaic;
 pub mod cost;
 pub mod lcm;
+pub mod order_independent;
 pub mod patterns;
 
 /// Input images by name (PNG bytes), e.g. `sample` for the chaos mosaic.
@@ -80,7 +81,13 @@ pub struct MipGuarantee {
 }
 
 /// Every model this build knows, one line each.
-pub static REGISTRY: &[&dyn Model] = &[&cascade::CASCADE, &chaos_mosaic::CHAOS_MOSAIC, &lcm::LCM, &patterns::PATTERNS];
+pub static REGISTRY: &[&dyn Model] = &[
+    &cascade::CASCADE,
+    &chaos_mosaic::CHAOS_MOSAIC,
+    &lcm::LCM,
+    &order_independent::ORDER_INDEPENDENT,
+    &patterns::PATTERNS,
+];
 
 /// The model ids as a list, in registry order.
 pub static MODELS: LazyLock<Vec<&'static str>> = LazyLock::new(|| ids().collect());

@@ -1,0 +1,42 @@
+//! The encoding: the exemplar as `sample.png` and the parameters in the manifest; everything
+//! derived (pyramid, vectors, k-coherence sets) is recomputed at load.
+
+use super::params::Params;
+use super::render::OrderIndependent;
+use super::MODEL;
+use crate::bundle::Bundle;
+use crate::models::{input_image, parse_params, Inputs};
+use crate::pixels::decode_png;
+use crate::{Error, Result};
+
+pub(super) const SAMPLE_SECTION: &str = "sample.png";
+
+/// Makes an encoding from `params` (JSON, see [`Params`]) and the input image `sample`.
+pub fn create(name: &str, params: &serde_json::Value, inputs: &Inputs) -> Result<Bundle> {
+    super::plan::plan_create(params, inputs)?;
+    let mut p: Params = parse_params(params)?;
+    p.generation0 = Some(p.generation0());
+    let sample = input_image(inputs, "sample")?;
+    let bundle = Bundle::new(MODEL, name, serde_json::to_value(&p).expect("params serialize"))
+        .with_section(SAMPLE_SECTION, sample.to_png());
+    load(&bundle)?;
+    Ok(bundle)
+}
+
+/// Validates a stored encoding completely and builds the texture.
+pub fn load(bundle: &Bundle) -> Result<OrderIndependent> {
+    super::plan::plan(bundle)?;
+    let params: Params = parse_params(&bundle.manifest.params)?;
+    let sample = decode_png(SAMPLE_SECTION, bundle.section(SAMPLE_SECTION)?)?;
+    let hash = blake3::hash(&bundle.to_bytes());
+    let key = u64::from_le_bytes(hash.as_bytes()[..8].try_into().expect("8 bytes"));
+    OrderIndependent::new(params, &sample, key)
+}
+
+/// Refuses a stored manifest that leaves a default to be filled.
+pub(super) fn check_stored(p: &Params) -> Result<()> {
+    if p.generation0.is_none() {
+        return Err(Error::param("generation0", "must be set in a stored encoding"));
+    }
+    Ok(())
+}

@@ -1,0 +1,395 @@
+//! The exemplar, prepared once at load (integer only): its Gaussian pyramid, its 2×2-box mip
+//! chain, which pixels are valid candidates, their neighbourhood vectors and k-coherence sets.
+
+use super::structure::Taps;
+use crate::pixels::Rgba8Image;
+
+/// Neighbourhood vectors are padded to a multiple of this many bytes, so the SSD kernel runs
+/// on whole fixed-size chunks.
+pub const CHUNK: usize = 32;
+
+/// One level s of the exemplar pyramid (0 = coarsest).
+#[derive(Clone, Debug)]
+pub struct Level {
+    pub w: u32,
+    pub h: u32,
+    /// E_s: the Gaussian pyramid level the search compares.
+    pub colour: Vec<[u8; 3]>,
+    /// B_(fin − s): the 2×2-box mip of the sample at this size, which colours coarse vtex levels.
+    pub boxed: Vec<[u8; 3]>,
+    /// V_s in index order: pixels whose whole neighbourhood lies in the sample.
+    pub valid: Vec<u16>,
+    /// Whether each pixel is in V_s.
+    pub is_valid: Vec<bool>,
+    /// V_s^low: pixels whose coarser-level part lies in the sample (generation-0 search).
+    pub valid_low: Vec<u16>,
+    /// Bytes of one neighbourhood vector (same-level taps, then coarser-level taps, then zeros).
+    pub stride: usize,
+    /// N_s(u) for every pixel u; taps outside the sample are mirrored (or wrapped).
+    pub vectors: Vec<u8>,
+    /// C_s(u): `k` slots a pixel, the first `kset_len[u]` used; the pixel itself first.
+    pub kset: Vec<u16>,
+    pub kset_len: Vec<u8>,
+    /// For each pixel v and 3×3 offset d (row-major), the valid pixels of C_s(v) − d: the
+    /// candidates v contributes to the entry at −d from it; `k` slots, `shifted_len` used.
+    pub shifted: Vec<u16>,
+    pub shifted_len: Vec<u8>,
+}
+
+impl Level {
+    #[inline]
+    pub fn vector(&self, u: usize) -> &[u8] {
+        &self.vectors[u * self.stride..(u + 1) * self.stride]
+    }
+
+    #[inline]
+    pub fn kset(&self, u: usize, k: usize) -> &[u16] {
+        &self.kset[u * k..u * k + self.kset_len[u] as usize]
+    }
+
+    /// The valid pixels of C_s(v) − d, d the `d`-th offset of the 3×3 square.
+    #[inline]
+    pub fn shifted(&self, v: usize, d: usize, k: usize) -> &[u16] {
+        let at = v * 9 + d;
+        &self.shifted[at * k..at * k + self.shifted_len[at] as usize]
+    }
+}
+
+/// What to prepare, from the parameters.
+#[derive(Clone, Debug)]
+pub struct Options {
+    pub levels: u8,
+    pub same: Taps,
+    pub lower: Taps,
+    pub wrap: bool,
+    /// k-coherence set size; 0 builds none (exhaustive search).
+    pub k: usize,
+    pub k_exclusion: u32,
+    /// Whether the coarsest level is searched (more than one generation there).
+    pub coarsest_search: bool,
+}
+
+/// The prepared exemplar.
+#[derive(Clone, Debug)]
+pub struct Exemplar {
+    pub levels: Vec<Level>,
+    pub k: usize,
+}
+
+/// A coordinate reduced into 0..n: wrapped, or mirrored without repeating the edge
+/// (reflect-101: −1 → 1, n → n − 2).
+#[inline]
+fn border(v: i64, n: i64, wrap: bool) -> i64 {
+    if wrap {
+        return v.rem_euclid(n);
+    }
+    let period = 2 * (n - 1);
+    let m = v.rem_euclid(period);
+    if m < n {
+        m
+    } else {
+        period - m
+    }
+}
+
+/// One level down the Gaussian pyramid: the separable binomial [1 4 6 4 1]/16 at the even
+/// pixels, exact in integers with one rounding ((Σ + 128) >> 8).
+pub fn gaussian_down(src: &[[u8; 3]], w: u32, h: u32, wrap: bool) -> Vec<[u8; 3]> {
+    const K: [u32; 5] = [1, 4, 6, 4, 1];
+    let (w, h) = (w as i64, h as i64);
+    let (ow, oh) = (w / 2, h / 2);
+    // Horizontal pass at even columns, unrounded (≤ 16·255 a channel).
+    let mut rows = vec![[0u32; 3]; (ow * h) as usize];
+    for y in 0..h {
+        for x in 0..ow {
+            let mut acc = [0u32; 3];
+            for (i, k) in K.iter().enumerate() {
+                let sx = border(2 * x + i as i64 - 2, w, wrap);
+                let p = src[(y * w + sx) as usize];
+                (0..3).for_each(|c| acc[c] += k * p[c] as u32);
+            }
+            rows[(y * ow + x) as usize] = acc;
+        }
+    }
+    let mut out = vec![[0u8; 3]; (ow * oh) as usize];
+    for y in 0..oh {
+        for x in 0..ow {
+            let mut acc = [0u32; 3];
+            for (i, k) in K.iter().enumerate() {
+                let sy = border(2 * y + i as i64 - 2, h, wrap);
+                let p = rows[(sy * ow + x) as usize];
+                (0..3).for_each(|c| acc[c] += k * p[c]);
+            }
+            out[(y * ow + x) as usize] = acc.map(|a| ((a + 128) >> 8) as u8);
+        }
+    }
+    out
+}
+
+/// Sum of squared differences of two padded vectors, in fixed-size chunks the compiler
+/// vectorises.
+#[cfg(test)]
+pub fn ssd(a: &[u8], b: &[u8]) -> u32 {
+    ssd_below(a, b, u32::MAX)
+}
+
+/// The sum of squared differences of two padded vectors, abandoned once it reaches `bound`:
+/// exact below `bound`, otherwise some value ≥ `bound`. Fixed-size chunks let the compiler
+/// vectorise.
+#[inline]
+pub fn ssd_below(a: &[u8], b: &[u8], bound: u32) -> u32 {
+    let mut total = 0u32;
+    for (x, y) in a.chunks_exact(CHUNK).zip(b.chunks_exact(CHUNK)) {
+        let mut acc = 0i32;
+        for i in 0..CHUNK {
+            let d = x[i].abs_diff(y[i]) as i32;
+            acc += d * d;
+        }
+        total += acc as u32;
+        if total >= bound {
+            return total;
+        }
+    }
+    total
+}
+
+impl Exemplar {
+    /// Prepares `sample` (its sides multiples of 2^(levels − 1), at least 4 × that).
+    pub fn build(sample: &Rgba8Image, o: &Options) -> Exemplar {
+        let n = o.levels as usize;
+        let fin = n - 1;
+        // Gaussian pyramid E_s, finest first, and the box mip chain B_j.
+        let mut colours = vec![sample.data.chunks_exact(4).map(|p| [p[0], p[1], p[2]]).collect::<Vec<_>>()];
+        let mut boxed = vec![sample.clone()];
+        let (mut w, mut h) = (sample.width, sample.height);
+        for _ in 0..fin {
+            colours.push(gaussian_down(colours.last().unwrap(), w, h, o.wrap));
+            boxed.push(crate::mip::downsample(boxed.last().unwrap()));
+            (w, h) = (w / 2, h / 2);
+        }
+        colours.reverse();
+        boxed.reverse();
+        let mut levels: Vec<Level> = Vec::with_capacity(n);
+        for s in 0..n {
+            let (w, h) = (sample.width >> (fin - s), sample.height >> (fin - s));
+            let rgb = boxed[s].data.chunks_exact(4).map(|p| [p[0], p[1], p[2]]).collect();
+            let lower = if s == 0 { &[][..] } else { &o.lower[..] };
+            let searched = s > 0 || o.coarsest_search;
+            let mut level = Level {
+                w,
+                h,
+                colour: std::mem::take(&mut colours[s]),
+                boxed: rgb,
+                valid: Vec::new(),
+                is_valid: Vec::new(),
+                valid_low: Vec::new(),
+                stride: 0,
+                vectors: Vec::new(),
+                kset: Vec::new(),
+                kset_len: Vec::new(),
+                shifted: Vec::new(),
+                shifted_len: Vec::new(),
+            };
+            if searched {
+                let coarser = levels.last();
+                fill_neighbourhoods(&mut level, coarser, &o.same, lower, o.wrap);
+                if o.k > 0 {
+                    fill_ksets(&mut level, o.k, o.k_exclusion);
+                    fill_shifted(&mut level, o.k, o.wrap);
+                }
+            }
+            levels.push(level);
+        }
+        Exemplar { levels, k: o.k }
+    }
+}
+
+/// Valid masks and neighbourhood vectors of `level`, whose coarser level is `coarser`.
+fn fill_neighbourhoods(level: &mut Level, coarser: Option<&Level>, same: &[(i8, i8)], lower: &[(i8, i8)], wrap: bool) {
+    let (w, h) = (level.w as i64, level.h as i64);
+    let bytes = 3 * (same.len() + lower.len());
+    let stride = bytes.div_ceil(CHUNK) * CHUNK;
+    let inside = |x: i64, y: i64, w: i64, h: i64| (0..w).contains(&x) && (0..h).contains(&y);
+    let mut vectors = vec![0u8; stride * (w * h) as usize];
+    for y in 0..h {
+        for x in 0..w {
+            let u = (y * w + x) as usize;
+            let v = &mut vectors[u * stride..(u + 1) * stride];
+            let mut same_in = true;
+            for (t, &(dx, dy)) in same.iter().enumerate() {
+                let (sx, sy) = (x + dx as i64, y + dy as i64);
+                same_in &= inside(sx, sy, w, h);
+                let p = level.colour[(border(sy, h, wrap) * w + border(sx, w, wrap)) as usize];
+                v[3 * t..3 * t + 3].copy_from_slice(&p);
+            }
+            let mut lower_in = true;
+            if let Some(c) = coarser {
+                let (cw, ch) = (c.w as i64, c.h as i64);
+                for (t, &(dx, dy)) in lower.iter().enumerate() {
+                    let (px, py) = ((x >> 1) + dx as i64, (y >> 1) + dy as i64);
+                    lower_in &= inside(px, py, cw, ch);
+                    let p = c.colour[(border(py, ch, wrap) * cw + border(px, cw, wrap)) as usize];
+                    let at = 3 * (same.len() + t);
+                    v[at..at + 3].copy_from_slice(&p);
+                }
+            }
+            let valid = wrap || (same_in && lower_in);
+            level.is_valid.push(valid);
+            if valid {
+                level.valid.push(u as u16);
+            }
+            if wrap || lower_in {
+                level.valid_low.push(u as u16);
+            }
+        }
+    }
+    level.stride = stride;
+    level.vectors = vectors;
+}
+
+/// C_s(u) for every pixel u: u, then the k − 1 valid v ≠ u outside its exclusion square with
+/// the smallest (SSD(N(u), N(v)), index v).
+fn fill_ksets(level: &mut Level, k: usize, exclusion: u32) {
+    let n = (level.w * level.h) as usize;
+    let w = level.w as i64;
+    let mut kset = vec![0u16; n * k];
+    let mut kset_len = vec![0u8; n];
+    let mut best: Vec<(u32, u16)> = Vec::with_capacity(k);
+    let valid: Vec<(u16, i64, i64)> = level.valid.iter().map(|&v| (v, v as i64 % w, v as i64 / w)).collect();
+    for u in 0..n {
+        best.clear();
+        let a = level.vector(u);
+        let (ux, uy) = (u as i64 % w, u as i64 / w);
+        for &(v, vx, vy) in &valid {
+            if (vx - ux).abs().max((vy - uy).abs()) <= exclusion as i64 || v as usize == u {
+                continue;
+            }
+            // Scanning in index order, a tie never displaces an earlier pixel.
+            let full = best.len() == k - 1;
+            let bound = if full { best.last().map_or(0, |b| b.0) } else { u32::MAX };
+            let d = ssd_below(a, level.vector(v as usize), bound);
+            if d >= bound {
+                continue;
+            }
+            if full {
+                best.pop();
+            }
+            let at = best.partition_point(|b| b.0 <= d);
+            best.insert(at, (d, v));
+        }
+        kset[u * k] = u as u16;
+        for (i, b) in best.iter().enumerate() {
+            kset[u * k + 1 + i] = b.1;
+        }
+        kset_len[u] = 1 + best.len() as u8;
+    }
+    level.kset = kset;
+    level.kset_len = kset_len;
+}
+
+/// The k-coherence sets shifted by each 3×3 offset, invalid pixels dropped.
+fn fill_shifted(level: &mut Level, k: usize, wrap: bool) {
+    let (w, h) = (level.w as i64, level.h as i64);
+    let n = (w * h) as usize;
+    let mut shifted = vec![0u16; n * 9 * k];
+    let mut shifted_len = vec![0u8; n * 9];
+    for v in 0..n {
+        for (d, (dx, dy)) in (-1..=1).flat_map(|dy| (-1..=1).map(move |dx| (dx, dy))).enumerate() {
+            let at = v * 9 + d;
+            for &c in level.kset(v, k) {
+                let (mut x, mut y) = (c as i64 % w - dx, c as i64 / w - dy);
+                if wrap {
+                    (x, y) = (x.rem_euclid(w), y.rem_euclid(h));
+                } else if !(0..w).contains(&x) || !(0..h).contains(&y) {
+                    continue;
+                }
+                let u = (y * w + x) as usize;
+                if level.is_valid[u] {
+                    shifted[at * k + shifted_len[at] as usize] = u as u16;
+                    shifted_len[at] += 1;
+                }
+            }
+        }
+    }
+    level.shifted = shifted;
+    level.shifted_len = shifted_len;
+}
+
+#[cfg(test)]
+mod tests {
+    use super::super::structure::{circle5, square};
+    use super::*;
+
+    #[test]
+    fn the_gaussian_level_of_a_constant_is_the_constant_and_of_a_step_is_exact() {
+        let flat = vec![[200u8, 7, 0]; 64];
+        assert_eq!(gaussian_down(&flat, 8, 8, false), vec![[200, 7, 0]; 16]);
+        // A vertical step (0 left of x = 4, 255 from it) of an 8-wide image. Output column 1
+        // (x = 2) sees the step with weight 1: 255·1·16/256 → 16; column 2 (x = 4) with
+        // 6 + 4 + 1: 255·11·16/256 = 175.3 → 175; mirrored edges stay inside each half.
+        let step: Vec<[u8; 3]> = (0..64).map(|i| if i % 8 >= 4 { [255; 3] } else { [0; 3] }).collect();
+        let down = gaussian_down(&step, 8, 8, false);
+        let row: Vec<u8> = down[..4].iter().map(|p| p[0]).collect();
+        assert_eq!(row, vec![0, 16, 175, 255]);
+        // Wrapping instead of mirroring changes only the borders: x = 0 sees 255 at x = −1, −2.
+        let wrapped = gaussian_down(&step, 8, 8, true);
+        assert_eq!(wrapped[0][0], ((255 * (1 + 4) * 16 + 128) >> 8) as u8);
+        // Against the 2-D sum of a hashed image, rounded once, mirrored at the borders.
+        let (w, h) = (64i64, 48i64);
+        let img: Vec<[u8; 3]> = (0..w * h).map(|i| [0, 1, 2].map(|c| crate::hash::hash4(1, c, i, 0) as u8)).collect();
+        let k = [1u32, 4, 6, 4, 1];
+        let mirror = |v: i64, n: i64| {
+            if v < 0 {
+                -v
+            } else if v >= n {
+                2 * n - 2 - v
+            } else {
+                v
+            }
+        };
+        let down = gaussian_down(&img, w as u32, h as u32, false);
+        for y in 0..h / 2 {
+            for x in 0..w / 2 {
+                let mut acc = [0u32; 3];
+                for j in 0..5 {
+                    for i in 0..5 {
+                        let p = img[(mirror(2 * y + j - 2, h) * w + mirror(2 * x + i - 2, w)) as usize];
+                        (0..3).for_each(|c| acc[c] += k[i as usize] * k[j as usize] * p[c] as u32);
+                    }
+                }
+                assert_eq!(down[(y * w / 2 + x) as usize], acc.map(|a| ((a + 128) >> 8) as u8), "({x}, {y})");
+            }
+        }
+    }
+
+    #[test]
+    fn ksets_start_with_the_pixel_and_are_sorted_by_ssd_then_index() {
+        let img = crate::samples::lichen(32, 3);
+        let o = Options {
+            levels: 2,
+            same: circle5(),
+            lower: square(1),
+            wrap: false,
+            k: 4,
+            k_exclusion: 0,
+            coarsest_search: false,
+        };
+        let ex = Exemplar::build(&img, &o);
+        let l = &ex.levels[1];
+        assert!(!l.valid.is_empty());
+        for u in 0..(l.w * l.h) as usize {
+            let set = l.kset(u, 4);
+            assert_eq!(set[0] as usize, u);
+            assert_eq!(set.len(), 4);
+            let key = |v: u16| (ssd(l.vector(u), l.vector(v as usize)), v);
+            // Sorted, and nothing valid outside the set beats its last member.
+            assert!(set[1..].windows(2).all(|p| key(p[0]) < key(p[1])), "{u}: {set:?}");
+            let worst = key(set[3]);
+            for &v in &l.valid {
+                if !set.contains(&v) && v as usize != u {
+                    assert!(key(v) > worst, "{u}: {v} beats {set:?}");
+                }
+            }
+        }
+    }
+}

@@ -1,0 +1,91 @@
+//! `order-independent`: texture synthesis by example in which any pixel can be computed alone,
+//! in any order, identically every time (Wei & Levoy 2002, *Order-Independent Texture
+//! Synthesis*).
+//!
+//! The output is a K-level pyramid whose pixels keep several generations. An entry (level s,
+//! generation m, pixel p) is the exemplar pixel whose neighbourhood best matches the values it
+//! reads: the previous generation of its own level around p and the latest generation of the
+//! coarser level around p's parent. Reads go only to lexically smaller (level, generation)
+//! pairs, so the dependency graph is acyclic and every entry is a function of the hashed noise
+//! at the coarsest level. Entries hold exemplar coordinates, not colours.
+//!
+//! * [`structure`] — what each entry reads (levels, generations, neighbourhoods, ≺);
+//! * [`params`] — the parameters; [`encoding`] — `create`, `load` and validation;
+//! * [`exemplar`] — the exemplar pyramid, valid masks, neighbourhood vectors, k-coherence sets;
+//! * [`search`] — the per-entry function ([`Synthesizer`], a [`structure::Synthesis`]);
+//! * [`served`] — the dense evaluator of a rectangle's dependency cone;
+//! * [`cache`] — the pyramidal cache shared by every texture of the model;
+//! * [`prefilter`] — coarse mip levels from the synthesis pyramid;
+//! * [`demos`] — the demo encodings.
+
+pub mod cache;
+pub mod demos;
+pub mod encoding;
+pub mod exemplar;
+pub mod params;
+mod plan;
+pub mod prefilter;
+pub mod reference;
+mod render;
+pub mod search;
+pub mod served;
+pub mod structure;
+
+use super::{InputInfo, Inputs, MipGuarantee, Model, ModelInfo, Plan};
+use crate::bundle::Bundle;
+use crate::texture::Texture;
+use crate::Result;
+use std::sync::Arc;
+
+pub use cache::set_cache_budget;
+pub use demos::demos;
+pub use encoding::{create, load};
+pub use params::Params;
+pub use render::OrderIndependent;
+pub use search::Synthesizer;
+
+pub const MODEL: &str = "order-independent";
+
+/// The model's registry entry.
+pub struct OrderIndependentModel;
+pub static ORDER_INDEPENDENT: OrderIndependentModel = OrderIndependentModel;
+
+impl Model for OrderIndependentModel {
+    fn id(&self) -> &'static str {
+        MODEL
+    }
+    fn describe(&self) -> ModelInfo {
+        ModelInfo {
+            id: MODEL,
+            title: "Order-independent synthesis",
+            paper: "Wei, Levoy 2002, Order-Independent Texture Synthesis",
+            summary: "Multiresolution neighbourhood search in which every pixel keeps several generations and reads \
+                      only coarser levels and earlier generations, so any pixel is computed alone from hashed \
+                      noise, in any order, through a pyramidal cache.",
+            params_schema: super::params_schema::<Params>(),
+            inputs: &[InputInfo {
+                name: "sample",
+                required: true,
+                what: "the exemplar (RGB; alpha ignored), sides multiples of 2^(levels − 1), at least 4× that, at most 256",
+            }],
+        }
+    }
+    fn create(&self, name: &str, params: &serde_json::Value, inputs: &Inputs) -> Result<Bundle> {
+        create(name, params, inputs)
+    }
+    fn load(&self, bundle: &Bundle) -> Result<Arc<dyn Texture>> {
+        Ok(Arc::new(load(bundle)?))
+    }
+    fn plan(&self, bundle: &Bundle) -> Result<Plan> {
+        plan::plan(bundle)
+    }
+    fn plan_create(&self, params: &serde_json::Value, inputs: &Inputs) -> Result<Plan> {
+        plan::plan_create(params, inputs)
+    }
+    fn demos(&self) -> Vec<Bundle> {
+        demos()
+    }
+    fn mip_guarantee(&self) -> MipGuarantee {
+        MipGuarantee { min_psnr_db: 26.0, max_mean_error: 4.0 }
+    }
+}

@@ -1,0 +1,281 @@
+//! The parameters of an order-independent texture, as given to `create` and stored in the
+//! manifest (with `generation0` filled in), and their validation against the sample's size.
+//!
+//! ```json
+//! {"seed": 7, "width": 100000, "height": 100000, "levels": 4, "generations": 3,
+//!  "neighbourhood": {"same": "circle5", "lower": "square3"}, "search": "kcoherence", "k": 2,
+//!  "mip": {"exact_levels": 0, "lookahead": 1, "noise_levels": 3}}
+//! ```
+
+use crate::{Error, Result};
+use schemars::JsonSchema;
+use serde::{Deserialize, Serialize};
+
+/// Largest served extent per side.
+pub const MAX_EXTENT: u64 = 1 << 40;
+/// Largest sample side: an exemplar index must fit in a u16.
+pub const MAX_SAMPLE_SIDE: u32 = 256;
+/// Largest sample the exhaustive search scans for every entry (its tile cost).
+pub const MAX_EXHAUSTIVE_PIXELS: u64 = 128 * 128;
+pub const MAX_LEVELS: u8 = 8;
+pub const MAX_GENERATIONS: u8 = 6;
+pub const MAX_COARSEST_GENERATIONS: u8 = 3;
+pub const MAX_K: u8 = 8;
+pub const MAX_K_EXCLUSION: u8 = 16;
+pub const MAX_EXACT_LEVELS: u8 = 2;
+pub const MAX_NOISE_LEVELS: u8 = 4;
+
+/// Where the texture is defined.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize, JsonSchema)]
+#[serde(rename_all = "lowercase")]
+pub enum DomainSpec {
+    /// The unbounded plane; `width × height` is only the extent served.
+    #[default]
+    Plane,
+    /// Periodic with `width × height`, which must be multiples of 2^(levels − 1).
+    Torus,
+}
+
+/// Taps read at the entry's own level, from the previous generation (centre excluded).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize, JsonSchema)]
+#[serde(rename_all = "lowercase")]
+pub enum SameShape {
+    /// The paper's "circular 5×5" (Fig. 7): 20 taps.
+    #[default]
+    Circle5,
+    /// The 5×5 square: 24 taps.
+    Square5,
+    /// The 3×3 square: 8 taps.
+    Square3,
+}
+
+/// Taps read around the parent at the next coarser level, latest generation.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize, JsonSchema)]
+#[serde(rename_all = "lowercase")]
+pub enum LowerShape {
+    #[default]
+    Square3,
+    Square5,
+}
+
+/// The neighbourhood compared when searching (paper: "circular 5×5 with 2 levels").
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct Neighbourhood {
+    #[serde(default)]
+    pub same: SameShape,
+    #[serde(default)]
+    pub lower: LowerShape,
+}
+
+/// How an entry's best exemplar pixel is found.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize, JsonSchema)]
+#[serde(rename_all = "lowercase")]
+pub enum Search {
+    /// Every valid exemplar pixel (the paper's Table 1): the reference, slow.
+    Exhaustive,
+    /// k-coherence candidates (Tong et al. 2002): the served default.
+    #[default]
+    Kcoherence,
+}
+
+/// How generation 0 of a level above the coarsest is made.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, JsonSchema)]
+#[serde(rename_all = "lowercase")]
+pub enum Generation0 {
+    /// The parent's exemplar coordinate, doubled, plus the pixel's parity (Lefebvre–Hoppe 2005).
+    Upsample,
+    /// Exhaustive search on the coarser level's part of the neighbourhood (the paper).
+    Search,
+}
+
+/// How coarse vtex levels are made (see `prefilter`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct MipSpec {
+    /// Levels 1..=exact_levels are rendered at level 0 and box-filtered (4^level tiles each).
+    #[serde(default)]
+    pub exact_levels: u8,
+    /// 1: vtex level j is coloured from synthesis level fin − (j − 1) and box-filtered once.
+    #[serde(default = "one")]
+    pub lookahead: u8,
+    /// Levels beyond the pyramid that average the coloured noise exactly.
+    #[serde(default = "three")]
+    pub noise_levels: u8,
+}
+
+impl Default for MipSpec {
+    fn default() -> Self {
+        MipSpec { exact_levels: 0, lookahead: 1, noise_levels: 3 }
+    }
+}
+
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct Params {
+    /// Noise seed: the whole texture is a function of it and the sample.
+    pub seed: u64,
+    /// Served extent at vtex level 0.
+    #[serde(default = "default_extent")]
+    pub width: u64,
+    #[serde(default = "default_extent")]
+    pub height: u64,
+    #[serde(default)]
+    pub domain: DomainSpec,
+    /// K, synthesis levels (paper: 4).
+    #[serde(default = "four")]
+    pub levels: u8,
+    /// Generations of every level but the coarsest (paper: 3).
+    #[serde(default = "three")]
+    pub generations: u8,
+    /// Generations of the coarsest level; its generation 0 is the noise (paper, Fig. 7: 1).
+    #[serde(default = "one")]
+    pub coarsest_generations: u8,
+    #[serde(default)]
+    pub neighbourhood: Neighbourhood,
+    #[serde(default)]
+    pub search: Search,
+    /// k-coherence set size, the pixel itself included.
+    #[serde(default = "two")]
+    pub k: u8,
+    /// Chebyshev radius around a pixel from which its k-coherence set takes no other pixel.
+    #[serde(default)]
+    pub k_exclusion: u8,
+    /// Unset when creating: `upsample` for `kcoherence`, `search` for `exhaustive`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub generation0: Option<Generation0>,
+    /// 1, or 4: generation m updates one parity class of pixels, `(m − 1) mod 4`.
+    #[serde(default = "one")]
+    pub subpasses: u8,
+    /// The sample tiles seamlessly: its neighbourhoods wrap and every pixel is a candidate.
+    #[serde(default)]
+    pub exemplar_wrap: bool,
+    #[serde(default)]
+    pub mip: MipSpec,
+}
+
+fn default_extent() -> u64 {
+    100_000
+}
+fn one() -> u8 {
+    1
+}
+fn two() -> u8 {
+    2
+}
+fn three() -> u8 {
+    3
+}
+fn four() -> u8 {
+    4
+}
+
+impl Params {
+    /// `generation0`, or the default for the search mode.
+    pub fn generation0(&self) -> Generation0 {
+        self.generation0.unwrap_or(match self.search {
+            Search::Exhaustive => Generation0::Search,
+            Search::Kcoherence => Generation0::Upsample,
+        })
+    }
+
+    /// Every check that needs only the parameters and the sample's size.
+    pub fn validate(&self, sample_w: u32, sample_h: u32) -> Result<()> {
+        for (name, v) in [("width", self.width), ("height", self.height)] {
+            if !(1..=MAX_EXTENT).contains(&v) {
+                return Err(Error::param(name, format!("{v}: must be 1..=2^40")));
+            }
+        }
+        let range = |name: &str, v: u8, lo: u8, hi: u8| {
+            if (lo..=hi).contains(&v) {
+                Ok(())
+            } else {
+                Err(Error::param(name, format!("{v}: must be {lo}..={hi}")))
+            }
+        };
+        range("levels", self.levels, 2, MAX_LEVELS)?;
+        range("generations", self.generations, 1, MAX_GENERATIONS)?;
+        range("coarsest_generations", self.coarsest_generations, 1, MAX_COARSEST_GENERATIONS)?;
+        range("k", self.k, 1, MAX_K)?;
+        range("k_exclusion", self.k_exclusion, 0, MAX_K_EXCLUSION)?;
+        range("mip.exact_levels", self.mip.exact_levels, 0, MAX_EXACT_LEVELS)?;
+        range("mip.lookahead", self.mip.lookahead, 0, 1)?;
+        range("mip.noise_levels", self.mip.noise_levels, 0, MAX_NOISE_LEVELS)?;
+        if self.subpasses != 1 && self.subpasses != 4 {
+            return Err(Error::param("subpasses", format!("{}: must be 1 or 4", self.subpasses)));
+        }
+        let unit = 1u64 << (self.levels - 1);
+        if self.domain == DomainSpec::Torus && (self.width % unit != 0 || self.height % unit != 0) {
+            return Err(Error::param(
+                "domain",
+                format!("a torus needs width and height divisible by 2^(levels − 1) = {unit}"),
+            ));
+        }
+        if sample_w > MAX_SAMPLE_SIDE || sample_h > MAX_SAMPLE_SIDE {
+            return Err(Error::image(
+                "sample",
+                format!("{sample_w}×{sample_h}: each side at most {MAX_SAMPLE_SIDE} (indices are 16-bit)"),
+            ));
+        }
+        let min = 4 * unit;
+        if (sample_w as u64) < min || (sample_h as u64) < min {
+            return Err(Error::param(
+                "levels",
+                format!(
+                    "{} levels need a sample of at least {min}×{min} (the coarsest level ≥ 4×4); it is {sample_w}×{sample_h}",
+                    self.levels
+                ),
+            ));
+        }
+        if sample_w as u64 % unit != 0 || sample_h as u64 % unit != 0 {
+            return Err(Error::param(
+                "levels",
+                format!("{} levels need sample sides divisible by {unit}; it is {sample_w}×{sample_h}", self.levels),
+            ));
+        }
+        if self.search == Search::Exhaustive && sample_w as u64 * sample_h as u64 > MAX_EXHAUSTIVE_PIXELS {
+            return Err(Error::param(
+                "search",
+                format!(
+                    "exhaustive search scans the whole sample per entry: at most 128×128, not {sample_w}×{sample_h}"
+                ),
+            ));
+        }
+        Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use serde_json::json;
+
+    fn named(params: serde_json::Value, w: u32, h: u32) -> String {
+        let p: Params = serde_json::from_value(params.clone()).unwrap();
+        match p.validate(w, h) {
+            Err(Error::Param { name, .. }) | Err(Error::Image { name, .. }) => name,
+            other => panic!("{params} on {w}×{h}: {other:?}"),
+        }
+    }
+
+    #[test]
+    fn bad_parameters_are_refused_by_name() {
+        assert!(serde_json::from_value::<Params>(json!({"seed": 1})).unwrap().validate(64, 64).is_ok());
+        assert_eq!(named(json!({"seed": 1}), 16, 64), "levels"); // coarsest level 2×8
+        assert_eq!(named(json!({"seed": 1, "levels": 3}), 34, 36), "levels"); // not a multiple of 4
+        assert_eq!(named(json!({"seed": 1}), 512, 64), "sample");
+        assert_eq!(named(json!({"seed": 1, "search": "exhaustive"}), 256, 128), "search");
+        assert_eq!(named(json!({"seed": 1, "levels": 9}), 64, 64), "levels");
+        assert_eq!(named(json!({"seed": 1, "generations": 0}), 64, 64), "generations");
+        assert_eq!(named(json!({"seed": 1, "coarsest_generations": 4}), 64, 64), "coarsest_generations");
+        assert_eq!(named(json!({"seed": 1, "k": 9}), 64, 64), "k");
+        assert_eq!(named(json!({"seed": 1, "k_exclusion": 17}), 64, 64), "k_exclusion");
+        assert_eq!(named(json!({"seed": 1, "subpasses": 2}), 64, 64), "subpasses");
+        assert_eq!(named(json!({"seed": 1, "width": 0}), 64, 64), "width");
+        assert_eq!(named(json!({"seed": 1, "height": 1u64 << 41}), 64, 64), "height");
+        assert_eq!(named(json!({"seed": 1, "domain": "torus", "width": 1000, "height": 1004}), 64, 64), "domain");
+        assert_eq!(named(json!({"seed": 1, "mip": {"lookahead": 2}}), 64, 64), "mip.lookahead");
+        assert_eq!(named(json!({"seed": 1, "mip": {"noise_levels": 5}}), 64, 64), "mip.noise_levels");
+        assert_eq!(named(json!({"seed": 1, "mip": {"exact_levels": 3}}), 64, 64), "mip.exact_levels");
+    }
+}

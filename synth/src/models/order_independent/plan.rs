@@ -1,0 +1,155 @@
+//! The cost model: from the parameters and the sample's PNG header alone, what a loaded texture
+//! holds and what its dearest tile and its making cost. Work units are about 1 ns of one core.
+
+use super::encoding::{check_stored, SAMPLE_SECTION};
+use super::params::{Generation0, Params, Search};
+use super::prefilter::{source, span, Source};
+use super::render::CHUNK;
+use super::search::structure;
+use super::served::{cone, Rect};
+use super::MODEL;
+use crate::bundle::Bundle;
+use crate::models::{cost, parse_params, Cost, Inputs, Measure, Plan};
+use crate::pixels::png_dimensions;
+use crate::texture::level_count;
+use crate::{Domain, Error, Result};
+
+/// Per noise entry (a hash), per upsampled entry, per k-coherence entry (gathering, candidates
+/// and about a dozen 96-byte SSDs), and per byte an exhaustive scan compares.
+const NOISE: f64 = 8.0;
+const UPSAMPLE: f64 = 10.0;
+const COHERENT: f64 = 160.0;
+const SCAN_BYTE: f64 = 0.12;
+/// Per k-coherence-set comparison byte at load (the scan abandons most comparisons early).
+const KSET_BYTE: f64 = 0.05;
+/// Per output pixel: colouring, and each box filter.
+const COLOUR: f64 = 2.0;
+const DOWNSAMPLE: f64 = 8.0;
+/// Per sample pixel: decoding, the pyramids and vectors; encoding it as PNG in `create`.
+const SAMPLE_PIXEL: f64 = 300.0;
+const ENCODE_PIXEL: f64 = 60.0;
+/// Calibration windows and their side, as in `prefilter`.
+const CALIBRATION_WINDOWS: f64 = 64.0;
+const CALIBRATION_WINDOW: usize = 64;
+
+/// What loading `bundle` gives and costs, from its manifest and the sample's header.
+pub fn plan(bundle: &Bundle) -> Result<Plan> {
+    if bundle.manifest.model != MODEL {
+        return Err(Error::bundle(format!("model `{}`, expected `{MODEL}`", bundle.manifest.model)));
+    }
+    if let Some(s) = bundle.sections.iter().find(|s| s.name != SAMPLE_SECTION) {
+        return Err(Error::bundle(format!("unexpected section `{}`", s.name)));
+    }
+    let p: Params = parse_params(&bundle.manifest.params)?;
+    check_stored(&p)?;
+    let (w, h) = png_dimensions(SAMPLE_SECTION, bundle.section(SAMPLE_SECTION)?)?;
+    plan_params(&p, w, h, false)
+}
+
+/// What `create` gives and costs, from the parameters and the sample's header.
+pub fn plan_create(params: &serde_json::Value, inputs: &Inputs) -> Result<Plan> {
+    if let Some(other) = inputs.keys().find(|k| k.as_str() != "sample") {
+        return Err(Error::image(other.as_str(), "not an input of `order-independent` (it takes `sample`)"));
+    }
+    let p: Params = parse_params(params)?;
+    let sample = inputs.get("sample").ok_or_else(|| Error::image("sample", "missing; this model needs it"))?;
+    let (w, h) = png_dimensions("sample", sample)?;
+    plan_params(&p, w, h, true)
+}
+
+fn plan_params(p: &Params, sw: u32, sh: u32, create: bool) -> Result<Plan> {
+    p.validate(sw, sh)?;
+    let st = structure(p);
+    let fin = p.levels - 1;
+    let pixels = |s: u8| ((sw >> (fin - s)) as f64) * ((sh >> (fin - s)) as f64);
+    let vector = |s: u8| {
+        let taps = st.same.len() + if s > 0 { st.lower.len() } else { 0 };
+        (3 * taps).div_ceil(32) as f64 * 32.0
+    };
+    let searched = |s: u8| s > 0 || p.coarsest_generations > 1;
+    let k = if p.search == Search::Kcoherence { p.k as f64 } else { 0.0 };
+
+    // The work of every entry of the cone of an s-level rectangle.
+    let entry = |s: u8, m: u8| -> f64 {
+        match (s, m) {
+            (0, 0) => NOISE,
+            (_, 0) if p.generation0() == Generation0::Upsample => UPSAMPLE,
+            (_, 0) => pixels(s) * 3.0 * st.lower.len() as f64 * SCAN_BYTE,
+            _ if p.search == Search::Kcoherence => COHERENT * (st.same.len() + st.lower.len()) as f64 / 30.0 * k / 2.0,
+            _ => pixels(s) * vector(s) * SCAN_BYTE,
+        }
+    };
+    let work = |s: u8, side: usize| -> f64 {
+        let rects = cone(&st, s, Rect { x: 0, y: 0, w: side, h: side });
+        rects
+            .iter()
+            .enumerate()
+            .flat_map(|(l, gens)| gens.iter().enumerate().map(move |(m, r)| (l, m, r)))
+            .map(|(l, m, r)| r.area() as f64 * entry(l as u8, m as u8))
+            .sum()
+    };
+    let tile = (CHUNK * CHUNK) as f64;
+    let calibration = CALIBRATION_WINDOWS * work(fin, CALIBRATION_WINDOW.max(2 << fin));
+    let levels = level_count(p.width, p.height);
+    let level_work = |l: u32| -> f64 {
+        if l == 0 {
+            return work(fin, CHUNK as usize) + tile * COLOUR;
+        }
+        let d = span(p, l);
+        let chunks = (1u64 << (2 * d)) as f64;
+        match source(p, l) {
+            Source::Exact => chunks * (work(fin, CHUNK as usize) + tile * COLOUR) + chunks * tile * DOWNSAMPLE,
+            Source::Pyramid { r } => {
+                let s = fin - r as u8;
+                let cal = if s == 0 { calibration } else { 0.0 };
+                chunks * (work(s, CHUNK as usize) + tile * (COLOUR + DOWNSAMPLE)) + cal
+            }
+            Source::Mean => calibration + tile * COLOUR,
+        }
+    };
+    let (tile_work, worst) =
+        (0..levels).map(|l| (level_work(l), l)).fold((0.0, 0), |a, b| if b.0 > a.0 { b } else { a });
+    let search = match p.search {
+        Search::Kcoherence => format!("k-coherence, k = {}", p.k),
+        Search::Exhaustive => format!("exhaustive over {sw}×{sh}"),
+    };
+    let tile_why = format!(
+        "the dependency cone of {} levels × {} generations ({search}) under level {worst} of a 256² tile",
+        p.levels, p.generations
+    );
+
+    // Resident: per exemplar pixel of each level, colours and box colours, the valid masks,
+    // and where searched its vector, its k-coherence set and the set shifted 9 ways; the
+    // calibration's colours.
+    let resident: f64 = (0..p.levels)
+        .map(|s| {
+            let n = pixels(s);
+            let ksets = if k > 0.0 { 2.0 * k + 1.0 + 9.0 * (2.0 * k + 1.0) } else { 0.0 };
+            let searched = if searched(s) { n * (vector(s) + 5.0 + ksets) } else { 0.0 };
+            n * 6.0 + searched
+        })
+        .sum::<f64>()
+        + pixels(0) * 3.0
+        + 4096.0;
+    let resident_why = format!("a {sw}×{sh} sample in {} levels: colours, vectors, k-coherence sets", p.levels);
+
+    let ksets: f64 =
+        (0..p.levels).filter(|&s| searched(s) && k > 0.0).map(|s| pixels(s) * pixels(s) * vector(s) * KSET_BYTE).sum();
+    let load = SAMPLE_PIXEL * pixels(fin) + ksets;
+    let build = if create { 2.0 * load + ENCODE_PIXEL * pixels(fin) } else { load };
+    let build_why = format!("k-coherence sets of {sw}×{sh} pixels{}", if create { ", made and loaded" } else { "" });
+    Ok(Plan {
+        width: p.width,
+        height: p.height,
+        domain: match p.domain {
+            super::params::DomainSpec::Plane => Domain::Plane,
+            super::params::DomainSpec::Torus => Domain::Torus,
+        },
+        animation: None,
+        cost: Cost {
+            resident_bytes: Measure::new(cost::units(resident), resident_why),
+            tile_work: Measure::new(cost::units(tile_work), tile_why),
+            build_work: Measure::new(cost::units(build), build_why),
+        },
+    })
+}

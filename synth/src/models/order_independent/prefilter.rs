@@ -1,0 +1,152 @@
+//! Coarse vtex levels from the synthesis pyramid itself (DESIGN §3.3, mip coherence): vtex
+//! level j must approximate the 2×2-box chain of level 0, which a 100k texture cannot afford.
+//!
+//! * Levels 1..=`exact_levels`: level 0 rendered and box-filtered j times (exact).
+//! * Up to K − 1 + `noise_levels`: the synthesis level r = min(j − lookahead, K − 1) steps
+//!   coarser than the finest, evaluated over the tile's footprint, each entry coloured with the
+//!   exemplar's own box mip B_r at its coordinate, then box-filtered j − r times with the same
+//!   rounding as vtex. With lookahead 1, level 1 is exact. At the coarsest synthesis level the
+//!   colour of an exemplar coordinate u is g(u), the measured mean colour of the level-0 blocks
+//!   grown from u, so levels beyond the pyramid are exact averages of coloured noise.
+//! * Beyond: the texture's mean colour, flat (a pixel there averages thousands of independent
+//!   noise cells).
+
+use super::render::OrderIndependent;
+use super::served::Rect;
+use crate::hash::hash4;
+use crate::mip::downsample_n;
+use crate::pixels::Rgba8Image;
+use crate::texture::wrap;
+use crate::Stop;
+
+/// Hash stream of the calibration windows' positions.
+pub const STREAM_CALIBRATION: u64 = 0x0043_414c_4942;
+/// Calibration windows of level 0, and their side (at least two coarsest-level pixels).
+const WINDOWS: i64 = 64;
+const WINDOW: u32 = 64;
+
+/// Where a vtex level's pixels come from.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Source {
+    /// Level 0, box-filtered.
+    Exact,
+    /// Synthesis level K − 1 − r, coloured with B_r (g at the coarsest), box-filtered j − r times.
+    Pyramid { r: u32 },
+    /// The mean colour.
+    Mean,
+}
+
+/// The source of vtex level `l` ≥ 1.
+pub fn source(p: &super::Params, l: u32) -> Source {
+    let fin = p.levels as u32 - 1;
+    if l <= p.mip.exact_levels as u32 {
+        Source::Exact
+    } else if l > fin + p.mip.noise_levels as u32 {
+        Source::Mean
+    } else {
+        Source::Pyramid { r: (l - p.mip.lookahead as u32).min(fin) }
+    }
+}
+
+/// How many times level `l`'s source is box-filtered: a pixel covers 2^span × 2^span of it.
+pub fn span(p: &super::Params, l: u32) -> u32 {
+    match (l, source(p, l.max(1))) {
+        (0, _) => 0,
+        (_, Source::Exact) => l,
+        (_, Source::Pyramid { r }) => l - r,
+        (_, Source::Mean) => 0,
+    }
+}
+
+/// What the coarsest synthesis level looks like from afar: a colour per exemplar coordinate,
+/// and the texture's mean.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct Calibration {
+    /// g(u): mean level-0 colour of the blocks whose coarsest-level coordinate is u (B at u
+    /// where no block of the windows grew from u).
+    pub g: Vec<[u8; 3]>,
+    pub mean: [u8; 3],
+}
+
+impl Calibration {
+    /// Measured over [`WINDOWS`] deterministic level-0 windows; `None` once `stop` is requested.
+    pub fn compute(tex: &OrderIndependent, stop: &dyn Stop) -> Option<Calibration> {
+        let p = tex.params();
+        let fin = p.levels as u32 - 1;
+        let block = 1i64 << fin;
+        let side = WINDOW.max(2 * block as u32);
+        let coarsest = &tex.synthesizer().exemplar().levels[0];
+        let n = coarsest.colour.len();
+        let mut sums = vec![[0u64; 4]; n];
+        for i in 0..WINDOWS {
+            let h = hash4(p.seed, STREAM_CALIBRATION, i, 0);
+            let (mut x, mut y) = ((h as i64) >> 24, (h.rotate_left(32) as i64) >> 24);
+            if p.domain == super::params::DomainSpec::Torus {
+                (x, y) = (wrap(x, p.width) as i64, wrap(y, p.height) as i64);
+            }
+            let (x, y) = (x & !(block - 1), y & !(block - 1));
+            let img = tex.level0(x, y, side, side, stop)?;
+            let cells = side as usize >> fin;
+            let rect = Rect { x: x >> fin, y: y >> fin, w: cells, h: cells };
+            let coarse = tex.entries(0, rect, stop)?;
+            for (k, &u) in coarse.iter().enumerate() {
+                let (bx, by) = ((k % cells) << fin, (k / cells) << fin);
+                let acc = &mut sums[u as usize];
+                for j in 0..block as usize {
+                    let row = (by + j) * side as usize + bx;
+                    for px in img.data[row * 4..(row + block as usize) * 4].chunks_exact(4) {
+                        (0..3).for_each(|c| acc[c] += px[c] as u64);
+                        acc[3] += 1;
+                    }
+                }
+            }
+        }
+        let g: Vec<[u8; 3]> = sums
+            .iter()
+            .zip(&coarsest.boxed)
+            .map(|(s, b)| if s[3] == 0 { *b } else { [0, 1, 2].map(|c| ((s[c] + s[3] / 2) / s[3]) as u8) })
+            .collect();
+        // The noise is uniform over the coarsest level, so with one generation there the
+        // texture's mean is g's plain mean; otherwise weigh g by how often each u grew.
+        let (total, weight) = if p.coarsest_generations == 1 {
+            let t = g.iter().fold([0u64; 3], |a, c| [0, 1, 2].map(|k| a[k] + c[k] as u64));
+            (t, n as u64)
+        } else {
+            let t = sums.iter().fold([0u64; 3], |a, s| [0, 1, 2].map(|k| a[k] + s[k]));
+            (t, sums.iter().map(|s| s[3]).sum())
+        };
+        let mean = total.map(|t| ((t + weight / 2) / weight) as u8);
+        Some(Calibration { g, mean })
+    }
+}
+
+/// Renders `w × h` pixels of level `l` ≥ 1 at (x, y), or `None` once `stop` is requested.
+pub fn render(tex: &OrderIndependent, l: u32, x: i64, y: i64, w: u32, h: u32, stop: &dyn Stop) -> Option<Rgba8Image> {
+    let p = tex.params();
+    let fin = p.levels as u32 - 1;
+    match source(p, l) {
+        Source::Exact => Some(downsample_n(&tex.level0(x << l, y << l, w << l, h << l, stop)?, l)),
+        Source::Mean => {
+            let c = tex.calibration(stop)?.mean;
+            let mut img = Rgba8Image::new(w, h);
+            for px in img.data.chunks_exact_mut(4) {
+                px.copy_from_slice(&[c[0], c[1], c[2], 255]);
+            }
+            Some(img)
+        }
+        Source::Pyramid { r } => {
+            let d = l - r;
+            let s = fin - r;
+            let rect = Rect { x: x << d, y: y << d, w: (w as usize) << d, h: (h as usize) << d };
+            let colours =
+                if s == 0 { &tex.calibration(stop)?.g } else { &tex.synthesizer().exemplar().levels[s as usize].boxed };
+            let values = tex.entries(s as u8, rect, stop)?;
+            let mut img = Rgba8Image::new(w << d, h << d);
+            for (px, &v) in img.data.chunks_exact_mut(4).zip(&values) {
+                let c = colours[v as usize];
+                px.copy_from_slice(&[c[0], c[1], c[2], 255]);
+            }
+            Some(downsample_n(&img, d))
+        }
+    }
+}

@@ -1,0 +1,244 @@
+//! The loaded texture: vtex level 0 is the finest synthesis level's latest generation, coloured
+//! by the exemplar; coarser levels come from [`prefilter`](super::prefilter).
+
+use super::cache::{cache_budget, Pyramid};
+use super::params::{DomainSpec, Params};
+use super::prefilter::{self, Calibration};
+use super::search::Synthesizer;
+use super::served::{evaluate, Counts, Rect};
+use super::MODEL;
+use crate::pixels::Rgba8Image;
+use crate::texture::{Domain, Region, Stop, Texture};
+use crate::Result;
+use std::sync::atomic::{AtomicU64, Ordering};
+use std::sync::OnceLock;
+
+/// Side of the chunks a large region is evaluated in, in pixels of the evaluated level:
+/// bounds the memory of one call (about 2 bytes an entry over the chunk's cone).
+pub const CHUNK: u32 = 256;
+
+/// A loaded, validated order-independent texture.
+pub struct OrderIndependent {
+    pub(super) params: Params,
+    pub(super) synthesizer: Synthesizer,
+    pyramid: Pyramid,
+    /// The colours of coarse levels beyond the pyramid, measured on first use (a pure
+    /// function of the encoding, so when it is computed never changes a result).
+    calibration: OnceLock<Calibration>,
+    computed: AtomicU64,
+    noise: AtomicU64,
+    requested: AtomicU64,
+}
+
+impl std::fmt::Debug for OrderIndependent {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(f, "OrderIndependent({} levels, seed {})", self.params.levels, self.params.seed)
+    }
+}
+
+impl OrderIndependent {
+    /// The texture of `params` over `sample`; `key` (the start of its bundle's hash) names its
+    /// entries in the shared pyramidal cache.
+    pub fn new(params: Params, sample: &Rgba8Image, key: u64) -> Result<Self> {
+        let synthesizer = Synthesizer::new(&params, sample)?;
+        Ok(OrderIndependent {
+            params,
+            synthesizer,
+            pyramid: Pyramid::new(key),
+            calibration: OnceLock::new(),
+            computed: AtomicU64::new(0),
+            noise: AtomicU64::new(0),
+            requested: AtomicU64::new(0),
+        })
+    }
+
+    pub fn params(&self) -> &Params {
+        &self.params
+    }
+
+    /// The per-entry function, shared with the reference evaluator.
+    pub fn synthesizer(&self) -> &Synthesizer {
+        &self.synthesizer
+    }
+
+    /// The latest generation of synthesis level `s` over `rect` (exemplar indices), through
+    /// the shared cache when it has a budget; `None` once `stop` is requested.
+    pub fn entries(&self, s: u8, rect: Rect, stop: &dyn Stop) -> Option<Vec<u16>> {
+        let cache = (cache_budget() > 0).then_some(&self.pyramid);
+        let mut counts = Counts::default();
+        let st = self.synthesizer.structure();
+        let values = evaluate(&self.synthesizer, st, cache, s, rect, &mut counts, stop);
+        self.computed.fetch_add(counts.computed, Ordering::Relaxed);
+        self.noise.fetch_add(counts.noise, Ordering::Relaxed);
+        values
+    }
+
+    /// Level-0 pixels of a `w × h` window at (x, y), or `None` once `stop` is requested.
+    pub fn level0(&self, x: i64, y: i64, w: u32, h: u32, stop: &dyn Stop) -> Option<Rgba8Image> {
+        let fin = self.params.levels - 1;
+        let values = self.entries(fin, Rect { x, y, w: w as usize, h: h as usize }, stop)?;
+        let colour = &self.synthesizer.exemplar().levels[fin as usize].colour;
+        let mut img = Rgba8Image::new(w, h);
+        for (px, &v) in img.data.chunks_exact_mut(4).zip(&values) {
+            let c = colour[v as usize];
+            px.copy_from_slice(&[c[0], c[1], c[2], 255]);
+        }
+        Some(img)
+    }
+
+    /// The calibration, kept once a render has computed it whole; `None` when `stop` is
+    /// requested first.
+    pub(super) fn calibration(&self, stop: &dyn Stop) -> Option<&Calibration> {
+        if let Some(c) = self.calibration.get() {
+            return Some(c);
+        }
+        let c = Calibration::compute(self, stop)?;
+        Some(self.calibration.get_or_init(|| c))
+    }
+}
+
+impl Texture for OrderIndependent {
+    fn model(&self) -> &'static str {
+        MODEL
+    }
+    fn width(&self) -> u64 {
+        self.params.width
+    }
+    fn height(&self) -> u64 {
+        self.params.height
+    }
+    fn domain(&self) -> Domain {
+        match self.params.domain {
+            DomainSpec::Plane => Domain::Plane,
+            DomainSpec::Torus => Domain::Torus,
+        }
+    }
+
+    fn render(&self, region: &Region, out: &mut [u8], stop: &dyn Stop) {
+        self.requested.fetch_add(region.pixel_count(), Ordering::Relaxed);
+        let l = region.level;
+        // Each output pixel depends on its own block of finer pixels only, so chunking never
+        // changes a pixel.
+        let step = (CHUNK >> prefilter::span(&self.params, l).min(8)).max(1);
+        let row = region.width as usize * 4;
+        for cy in (0..region.height).step_by(step as usize) {
+            for cx in (0..region.width).step_by(step as usize) {
+                let (w, h) = (step.min(region.width - cx), step.min(region.height - cy));
+                let (x, y) = (region.x.wrapping_add(cx as i64), region.y.wrapping_add(cy as i64));
+                let img =
+                    if l == 0 { self.level0(x, y, w, h, stop) } else { prefilter::render(self, l, x, y, w, h, stop) };
+                let Some(img) = img else { return };
+                for r in 0..h as usize {
+                    let dst = (cy as usize + r) * row + cx as usize * 4;
+                    out[dst..dst + w as usize * 4]
+                        .copy_from_slice(&img.data[r * w as usize * 4..(r + 1) * w as usize * 4]);
+                }
+            }
+        }
+    }
+
+    fn work_counters(&self) -> Vec<(&'static str, u64)> {
+        vec![
+            ("entries_computed", self.computed.load(Ordering::Relaxed)),
+            ("noise_entries", self.noise.load(Ordering::Relaxed)),
+            ("pixels_requested", self.requested.load(Ordering::Relaxed)),
+        ]
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::super::cache::{cache_bytes, set_cache_budget, BLOCK_BYTES};
+    use super::super::{create, load};
+    use super::*;
+    use crate::models::Inputs;
+    use crate::Never;
+    use serde_json::json;
+
+    fn texture(params: serde_json::Value, sample: Rgba8Image) -> OrderIndependent {
+        let mut inputs = Inputs::new();
+        inputs.insert("sample".into(), sample.to_png());
+        load(&create("t", &params, &inputs).unwrap()).unwrap()
+    }
+
+    fn regions() -> Vec<Region> {
+        vec![
+            Region::new(0, -40, 17, 70, 50),
+            Region::new(0, -10, 30, 33, 40),
+            Region::new(0, 1 << 33, -(1 << 35), 40, 24),
+            Region::new(1, -20, 8, 40, 30),
+            Region::new(2, 3, -9, 24, 24),
+            Region::new(4, 0, 0, 16, 16),
+            Region::new(7, 0, 0, 4, 4),
+        ]
+    }
+
+    fn render_all(t: &OrderIndependent, order: &[usize]) -> Vec<Vec<u8>> {
+        let regions = regions();
+        let mut out = vec![Vec::new(); regions.len()];
+        for &i in order {
+            out[i] = crate::texture::render_image(t, &regions[i]).unwrap().data;
+        }
+        out
+    }
+
+    fn computed(t: &OrderIndependent) -> u64 {
+        t.work_counters()[0].1
+    }
+
+    /// Budgets of 0, a few blocks and plenty; cold and warm; shuffled orders on two threads:
+    /// the same bytes. The warm pass with plenty computes less, so the cache was in use.
+    #[test]
+    fn the_pyramidal_cache_never_changes_a_result() {
+        let t = texture(json!({"seed": 8, "levels": 3, "width": 4096, "height": 4096}), crate::samples::lichen(32, 2));
+        let n = regions().len();
+        let forward: Vec<usize> = (0..n).collect();
+        set_cache_budget(0);
+        let cold = render_all(&t, &forward);
+        for budget in [16 * 3 * BLOCK_BYTES, 64 << 20] {
+            set_cache_budget(budget);
+            for pass in 0..2 {
+                let before = computed(&t);
+                let parts: Vec<Vec<Vec<u8>>> = std::thread::scope(|s| {
+                    let workers: Vec<_> = (0..2)
+                        .map(|k| {
+                            let order: Vec<usize> = (0..n).map(|i| (i * 3 + k * 5 + pass) % n).collect();
+                            let t = &t;
+                            s.spawn(move || render_all(t, &order))
+                        })
+                        .collect();
+                    workers.into_iter().map(|w| w.join().unwrap()).collect()
+                });
+                for got in parts {
+                    assert_eq!(got, cold, "budget {budget}, pass {pass}");
+                }
+                assert!(cache_bytes() <= budget.max(BLOCK_BYTES * 16));
+                if budget == 64 << 20 && pass == 1 {
+                    let warm = computed(&t) - before;
+                    assert!(warm < 2 * 1000, "a warm pass computed {warm} entries");
+                }
+            }
+        }
+        set_cache_budget(0);
+    }
+
+    /// The paper's computation ratio for an isolated cold 256² tile of the default structure:
+    /// through the cache's need masks, exactly the cone, 276,360 entries with the noise (4.22 a
+    /// pixel, as the specification's prototype counts); without a cache, its bounding
+    /// rectangles (the disc's cut corners computed too).
+    #[test]
+    fn a_cold_tile_computes_its_cone_once() {
+        let t = texture(json!({"seed": 1}), crate::samples::pebbles(64, 9, 22, false));
+        let syn = t.synthesizer();
+        let rect = Rect { x: 0, y: 0, w: 256, h: 256 };
+        let count = |cache: Option<&Pyramid>| {
+            let mut counts = Counts::default();
+            let v = evaluate(syn, syn.structure(), cache, 3, rect, &mut counts, &Never).unwrap();
+            (v, counts.computed + counts.noise)
+        };
+        let (exact, masked) = count(Some(&Pyramid::new(0x5eed)));
+        let (dense, rectangles) = count(None);
+        assert_eq!((masked, rectangles), (276_360, 276_412));
+        assert_eq!(exact, dense);
+    }
+}

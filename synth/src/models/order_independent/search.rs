@@ -1,0 +1,290 @@
+//! The synthesized function itself: the value of one entry from the values it reads (the
+//! [`Synthesis`] both evaluators call). Values are exemplar indices `y·w_s + x` at the entry's
+//! level; the search compares neighbourhoods by exact integer SSD on sRGB bytes and breaks
+//! ties by the lower index, as the paper's strict `>` over a scanline scan does.
+
+use super::exemplar::{ssd_below, Exemplar, Level, Options, CHUNK};
+use super::params::{Generation0, LowerShape, Params, SameShape, Search};
+use super::structure::{circle5, square, union, without_centre, Entry, Structure, Synthesis, Taps};
+use crate::hash::{below, hash4};
+use crate::pixels::Rgba8Image;
+use crate::{Error, Result};
+
+/// Hash stream of the noise level.
+pub const STREAM_NOISE: u64 = 0x004e_4f49_5345;
+
+/// The longest neighbourhood vector: 24 same-level and 25 coarser taps, padded.
+const MAX_STRIDE: usize = (3 * (24 + 25usize)).div_ceil(CHUNK) * CHUNK;
+/// At most 9 shifted k-coherence sets of at most 8 pixels.
+const MAX_CANDIDATES: usize = 9 * 8;
+
+/// A loaded exemplar and its search: everything an entry's value depends on besides the
+/// values it reads.
+#[derive(Clone, Debug)]
+pub struct Synthesizer {
+    structure: Structure,
+    exemplar: Exemplar,
+    seed: u64,
+    search: Search,
+    generation0: Generation0,
+    /// For each same-level tap of the neighbourhood vector, its position in the `same` reads.
+    same_at: Vec<usize>,
+    /// Coarser-level taps of the neighbourhood vector (the `lower` reads, in order).
+    lower_taps: usize,
+    /// For each offset of the 3×3 window whose k-coherence sets give candidates: its index
+    /// in the 3×3 square and its position in the `same` reads. The centre comes first: the
+    /// pixel's own coherent match is usually near the best, so later sums are abandoned early.
+    coherent: Vec<(usize, usize)>,
+    /// Position of (0, 0) in the `same` reads: the previous generation of the pixel itself.
+    centre: Option<usize>,
+}
+
+/// The compared taps of each shape (centre excluded at the own level).
+pub fn same_taps(shape: SameShape) -> Taps {
+    match shape {
+        SameShape::Circle5 => circle5(),
+        SameShape::Square5 => without_centre(square(2)),
+        SameShape::Square3 => without_centre(square(1)),
+    }
+}
+
+pub fn lower_taps(shape: LowerShape) -> Taps {
+    match shape {
+        LowerShape::Square3 => square(1),
+        LowerShape::Square5 => square(2),
+    }
+}
+
+/// The dependency structure the parameters describe: what each entry reads.
+pub fn structure(p: &Params) -> Structure {
+    let compared = same_taps(p.neighbourhood.same);
+    let lower = lower_taps(p.neighbourhood.lower);
+    // k-coherence also reads the 3×3 window whose sets give the candidates.
+    let same = match p.search {
+        Search::Exhaustive => compared,
+        Search::Kcoherence => union(&compared, &square(1)),
+    };
+    let generation0_lower = match p.generation0() {
+        Generation0::Upsample => vec![(0, 0)],
+        Generation0::Search => lower.clone(),
+    };
+    Structure {
+        levels: p.levels,
+        generations: p.generations,
+        coarsest_generations: p.coarsest_generations,
+        coarsest_same: same.clone(),
+        same,
+        lower,
+        generation0_lower,
+        subpasses: p.subpasses,
+        torus: match p.domain {
+            super::params::DomainSpec::Plane => None,
+            super::params::DomainSpec::Torus => Some((p.width, p.height)),
+        },
+    }
+}
+
+impl Synthesizer {
+    /// Prepares the search over `sample` for valid parameters (see `Params::validate`); an
+    /// error names a neighbourhood that leaves a level with no candidate.
+    pub fn new(p: &Params, sample: &Rgba8Image) -> Result<Synthesizer> {
+        p.validate(sample.width, sample.height)?;
+        let structure = structure(p);
+        let compared = same_taps(p.neighbourhood.same);
+        let options = Options {
+            levels: p.levels,
+            same: compared.clone(),
+            lower: structure.lower.clone(),
+            wrap: p.exemplar_wrap,
+            k: if p.search == Search::Kcoherence { p.k as usize } else { 0 },
+            k_exclusion: p.k_exclusion as u32,
+            coarsest_search: p.coarsest_generations > 1,
+        };
+        let exemplar = Exemplar::build(sample, &options);
+        for (s, level) in exemplar.levels.iter().enumerate() {
+            let searched = s > 0 || p.coarsest_generations > 1;
+            let low = s > 0 && p.generation0() == Generation0::Search;
+            if (searched && level.valid.is_empty()) || (low && level.valid_low.is_empty()) {
+                return Err(Error::param(
+                    "neighbourhood",
+                    format!(
+                        "no pixel of the {}×{} sample level {s} has its whole neighbourhood inside it",
+                        level.w, level.h
+                    ),
+                ));
+            }
+        }
+        let position = |t: &(i8, i8)| structure.same.iter().position(|x| x == t);
+        let same_at = compared.iter().map(|t| position(t).expect("compared taps are read")).collect();
+        let coherent = match p.search {
+            Search::Exhaustive => Vec::new(),
+            Search::Kcoherence => {
+                let mut window: Vec<(usize, usize)> = square(1)
+                    .iter()
+                    .enumerate()
+                    .map(|(d, t)| (d, position(t).expect("the 3×3 window is read")))
+                    .collect();
+                window.swap(0, 4);
+                window
+            }
+        };
+        Ok(Synthesizer {
+            centre: position(&(0, 0)),
+            lower_taps: structure.lower.len(),
+            structure,
+            exemplar,
+            seed: p.seed,
+            search: p.search,
+            generation0: p.generation0(),
+            same_at,
+            coherent,
+        })
+    }
+
+    pub fn structure(&self) -> &Structure {
+        &self.structure
+    }
+
+    pub fn exemplar(&self) -> &Exemplar {
+        &self.exemplar
+    }
+
+    /// The output neighbourhood of an entry at level `s`, as a padded vector; generation 0
+    /// reads no `same` values and fills only the coarser part.
+    fn output_vector(&self, s: usize, same: &[u16], lower: &[u16], out: &mut [u8; MAX_STRIDE]) {
+        let level = &self.exemplar.levels[s];
+        if !same.is_empty() {
+            for (t, &i) in self.same_at.iter().enumerate() {
+                out[3 * t..3 * t + 3].copy_from_slice(&level.colour[same[i] as usize]);
+            }
+        }
+        if s > 0 {
+            let coarser = &self.exemplar.levels[s - 1];
+            let base = 3 * self.same_at.len();
+            for (t, &v) in lower.iter().enumerate() {
+                out[base + 3 * t..base + 3 * t + 3].copy_from_slice(&coarser.colour[v as usize]);
+            }
+        }
+    }
+
+    /// The k-coherence candidates of an entry: each set C(v) of its 3×3 window's previous
+    /// values v, shifted back by the window offset, kept when valid, without repeats.
+    fn candidates<'a>(&self, level: &Level, same: &[u16], buf: &'a mut [u16; MAX_CANDIDATES]) -> &'a [u16] {
+        let mut n = 0;
+        for &(d, i) in &self.coherent {
+            for &c in level.shifted(same[i] as usize, d, self.exemplar.k) {
+                if !buf[..n].contains(&c) {
+                    buf[n] = c;
+                    n += 1;
+                }
+            }
+        }
+        &buf[..n]
+    }
+}
+
+/// The pixel of `pixels` whose vector part `range` is nearest to `target`'s, the lowest
+/// index on a tie.
+fn argmin(level: &Level, pixels: &[u16], target: &[u8], range: std::ops::Range<usize>) -> Option<u16> {
+    let mut best: Option<(u32, u16)> = None;
+    let target = &target[range.clone()];
+    for &u in pixels {
+        let v = &level.vector(u as usize)[range.clone()];
+        // Abandoning a sum once it exceeds the best keeps it exact wherever it can win or tie.
+        let bound = best.map_or(u32::MAX, |b| b.0.saturating_add(1));
+        let d = if range.len() % CHUNK == 0 {
+            ssd_below(target, v, bound)
+        } else {
+            target.iter().zip(v).map(|(&a, &b)| (a as i32 - b as i32).pow(2) as u32).sum()
+        };
+        if best.is_none_or(|b| (d, u) < b) {
+            best = Some((d, u));
+        }
+    }
+    best.map(|b| b.1)
+}
+
+impl Synthesis for Synthesizer {
+    fn noise(&self, x: i64, y: i64) -> u16 {
+        let e = self.structure.canonical(Entry { s: 0, m: 0, x, y });
+        let level = &self.exemplar.levels[0];
+        below(hash4(self.seed, STREAM_NOISE, e.x, e.y), (level.w * level.h) as u64) as u16
+    }
+
+    fn entry(&self, e: Entry, same: &[u16], lower: &[u16]) -> u16 {
+        let s = e.s as usize;
+        let level = &self.exemplar.levels[s];
+        if e.m == 0 {
+            let coarser = &self.exemplar.levels[s - 1];
+            return match self.generation0 {
+                Generation0::Upsample => {
+                    let (px, py) = (lower[0] as u32 % coarser.w, lower[0] as u32 / coarser.w);
+                    let (x, y) = (2 * px + (e.x & 1) as u32, 2 * py + (e.y & 1) as u32);
+                    (y * level.w + x) as u16
+                }
+                Generation0::Search => {
+                    let mut target = [0u8; MAX_STRIDE];
+                    self.output_vector(s, &[], lower, &mut target);
+                    let base = 3 * self.same_at.len();
+                    let range = base..base + 3 * self.lower_taps;
+                    argmin(level, &level.valid_low, &target, range).expect("V^low is checked non-empty at load")
+                }
+            };
+        }
+        if !self.structure.updates(e.m, e.x, e.y) {
+            return same[0];
+        }
+        let mut target = [0u8; MAX_STRIDE];
+        self.output_vector(s, same, lower, &mut target);
+        let target = &target[..level.stride];
+        match self.search {
+            Search::Exhaustive => argmin(level, &level.valid, target, 0..level.stride),
+            Search::Kcoherence => {
+                let mut buf = [0u16; MAX_CANDIDATES];
+                let candidates = self.candidates(level, same, &mut buf);
+                argmin(level, candidates, target, 0..level.stride)
+            }
+        }
+        .unwrap_or_else(|| same[self.centre.expect("k-coherence reads the pixel itself")])
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use serde_json::json;
+
+    fn synthesizer(params: serde_json::Value) -> Synthesizer {
+        let p: Params = serde_json::from_value(params).unwrap();
+        Synthesizer::new(&p, &crate::samples::lichen(32, 1)).unwrap()
+    }
+
+    /// The noise is a pure function of (seed, x, y), covers the coarsest level, and is
+    /// periodic on a torus.
+    #[test]
+    fn the_noise_is_hashed_from_the_seed_and_the_pixel() {
+        let (a, b, c) = (
+            synthesizer(json!({"seed": 5, "levels": 3})),
+            synthesizer(json!({"seed": 5, "levels": 3})),
+            synthesizer(json!({"seed": 6, "levels": 3})),
+        );
+        let n = 8 * 8;
+        let mut seen = vec![false; n];
+        let mut differ = 0;
+        for y in -100..100i64 {
+            for x in [-(1i64 << 40), -3, 0, 7, 1 << 50].map(|o| o + y * 3) {
+                let v = a.noise(x, y);
+                assert_eq!(v, b.noise(x, y));
+                assert!((v as usize) < n);
+                seen[v as usize] = true;
+                differ += (v != c.noise(x, y)) as u32;
+                assert_eq!(v, below(hash4(5, STREAM_NOISE, x, y), n as u64) as u16);
+            }
+        }
+        assert!(seen.iter().all(|&s| s), "every coarsest pixel is drawn");
+        assert!(differ > 900, "another seed, other noise: {differ} of 1000 differ");
+        let t = synthesizer(json!({"seed": 5, "levels": 3, "domain": "torus", "width": 40, "height": 24}));
+        assert_eq!(t.noise(3, 4), t.noise(3 + 10, 4 - 6));
+        assert_ne!(t.noise(3, 4), t.noise(3 + 5, 4));
+    }
+}
