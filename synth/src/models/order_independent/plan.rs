@@ -16,12 +16,12 @@ use crate::{Domain, Error, Result};
 
 /// Per noise entry (a hash), per upsampled entry, per k-coherence entry (gathering, candidates
 /// and about a dozen 96-byte SSDs), and per byte an exhaustive scan compares.
-const NOISE: f64 = 8.0;
-const UPSAMPLE: f64 = 10.0;
-const COHERENT: f64 = 160.0;
+const NOISE: f64 = 12.0;
+const UPSAMPLE: f64 = 15.0;
+const COHERENT: f64 = 250.0;
 const SCAN_BYTE: f64 = 0.12;
 /// Per k-coherence-set comparison byte at load (the scan abandons most comparisons early).
-const KSET_BYTE: f64 = 0.05;
+const KSET_BYTE: f64 = 0.07;
 /// Per output pixel: colouring, and each box filter.
 const COLOUR: f64 = 2.0;
 const DOWNSAMPLE: f64 = 8.0;

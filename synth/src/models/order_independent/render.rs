@@ -4,7 +4,7 @@
 use super::cache::{cache_budget, Pyramid};
 use super::params::{DomainSpec, Params};
 use super::prefilter::{self, Calibration};
-use super::search::Synthesizer;
+use super::search::{Synthesizer, PLANE_BITS};
 use super::served::{evaluate, Counts, Rect};
 use super::MODEL;
 use crate::pixels::Rgba8Image;
@@ -86,6 +86,26 @@ impl OrderIndependent {
         Some(img)
     }
 
+    /// A level-`l` origin moved by a whole period of the texture to near 0, so that nothing
+    /// evaluated under a region overflows: by the torus's period, or the plane's 2^PLANE_BITS
+    /// (its signed representative).
+    fn reduce(&self, l: u32, x: i64, y: i64) -> (i64, i64) {
+        let fin = self.params.levels as u32 - 1;
+        match self.params.domain {
+            DomainSpec::Torus => {
+                // Beyond the pyramid a level's size may not divide the texture's; the coarsest
+                // synthesis level's period is a whole number of its pixels.
+                let shift = l.min(fin);
+                let (w, h) = ((self.params.width >> shift) as i64, (self.params.height >> shift) as i64);
+                (x.rem_euclid(w), y.rem_euclid(h))
+            }
+            DomainSpec::Plane => {
+                let bits = 64 - (PLANE_BITS - l);
+                ((x << bits) >> bits, (y << bits) >> bits)
+            }
+        }
+    }
+
     /// The calibration, kept once a render has computed it whole; `None` when `stop` is
     /// requested first.
     pub(super) fn calibration(&self, stop: &dyn Stop) -> Option<&Calibration> {
@@ -117,6 +137,8 @@ impl Texture for OrderIndependent {
     fn render(&self, region: &Region, out: &mut [u8], stop: &dyn Stop) {
         self.requested.fetch_add(region.pixel_count(), Ordering::Relaxed);
         let l = region.level;
+        let (x, y) = self.reduce(l, region.x, region.y);
+        let region = &Region { x, y, ..*region };
         // Each output pixel depends on its own block of finer pixels only, so chunking never
         // changes a pixel.
         let step = (CHUNK >> prefilter::span(&self.params, l).min(8)).max(1);
@@ -220,6 +242,24 @@ mod tests {
             }
         }
         set_cache_budget(0);
+    }
+
+    /// Regions at the ends of the i64 range render (no overflow in their cones), equal the crop
+    /// of a larger region across the plane's period, and repeat with it.
+    #[test]
+    fn the_plane_repeats_every_2_to_the_62_and_renders_at_the_ends_of_i64() {
+        let t = texture(json!({"seed": 3, "levels": 3}), crate::samples::lichen(32, 4));
+        let at = |l: u32, x: i64, y: i64, w: u32, h: u32| {
+            crate::texture::render_image(&t, &Region::new(l, x, y, w, h)).unwrap()
+        };
+        let period = 1i64 << PLANE_BITS;
+        for l in [0, 1, 3] {
+            let p = period >> l;
+            let big = at(l, p - 30, -p - 20, 60, 40);
+            assert_eq!(at(l, -30, -20, 60, 40), big, "level {l}: one period away");
+            assert_eq!(at(l, i64::MIN, -20, 30, 40), big.crop(30, 0, 30, 40), "level {l}: at i64::MIN");
+            assert_eq!(at(l, i64::MAX - 30, i64::MAX - 40, 30, 40), at(l, -31, -41, 30, 40), "level {l}: at i64::MAX");
+        }
     }
 
     /// The paper's computation ratio for an isolated cold 256² tile of the default structure:

@@ -10,6 +10,11 @@ use crate::hash::{below, hash4};
 use crate::pixels::Rgba8Image;
 use crate::{Error, Result};
 
+/// The plane is a torus of 2^PLANE_BITS level-0 pixels a side (2^58 coarsest pixels for four
+/// levels): far beyond any served extent (2^40), and far enough from the i64 range that the
+/// cone of any region, reduced into it, is evaluated without overflow.
+pub const PLANE_BITS: u32 = 62;
+
 /// Hash stream of the noise level.
 pub const STREAM_NOISE: u64 = 0x004e_4f49_5345;
 
@@ -207,8 +212,12 @@ fn argmin(level: &Level, pixels: &[u16], target: &[u8], range: std::ops::Range<u
 impl Synthesis for Synthesizer {
     fn noise(&self, x: i64, y: i64) -> u16 {
         let e = self.structure.canonical(Entry { s: 0, m: 0, x, y });
+        // The plane repeats every 2^PLANE_BITS pixels of level 0, so that no evaluation comes
+        // near the i64 wrap: the noise is hashed at its coordinates' signed representatives.
+        let bits = 64 - (PLANE_BITS - self.structure.finest() as u32);
+        let (x, y) = ((e.x << bits) >> bits, (e.y << bits) >> bits);
         let level = &self.exemplar.levels[0];
-        below(hash4(self.seed, STREAM_NOISE, e.x, e.y), (level.w * level.h) as u64) as u16
+        below(hash4(self.seed, STREAM_NOISE, x, y), (level.w * level.h) as u64) as u16
     }
 
     fn entry(&self, e: Entry, same: &[u16], lower: &[u16]) -> u16 {
