@@ -103,6 +103,8 @@ impl AppState {
         let cache = TileCache::new(cfg.cache_bytes(), cfg.send);
         metrics.cache_budget_bytes.set(cache.budget() as i64);
         metrics.textures_budget_bytes.set(store.bounds().limits.max_resident_bytes as i64);
+        vtex_synth::models::set_cache_budget(cfg.synth_cache_bytes());
+        metrics.model_cache_budget_bytes.set(cfg.synth_cache_bytes() as i64);
         let slots = Slots::new(cfg.syntheses(), cfg.syntheses_per_texture(), cfg.max_queued());
         Arc::new(AppState { store, cache, metrics, slots, stopping: Arc::new(AtomicBool::new(false)), cfg })
     }
@@ -280,6 +282,7 @@ async fn metrics(State(app): State<App>, _: Query<NoQuery>) -> Response {
     m.texture_loads.set(store.loads() as i64);
     m.texture_evictions.set(store.evictions() as i64);
     m.syntheses_queued.set(app.slots.queued() as i64);
+    m.read_models();
     ([(header::CONTENT_TYPE, "text/plain; version=0.0.4")], m.render()).into_response()
 }
 
