@@ -34,6 +34,11 @@ pub struct ServeConfig {
     /// Byte budget of the encoded-tile cache, in MiB (fractions allowed).
     #[arg(long, env = "VTEX_CACHE_MB", default_value_t = 512.0)]
     pub cache_mb: f64,
+    /// Byte budget, in MiB, of each model's process-wide synthesis cache (the pyramidal cache
+    /// of `order-independent`), shared by all its textures; 0 keeps nothing. It never changes
+    /// a tile, only how much of a tile's dependencies is computed again.
+    #[arg(long, env = "VTEX_SYNTH_CACHE_MB", default_value_t = 64.0)]
+    pub synth_cache_mb: f64,
     /// Directory of the static viewer, served at `/`.
     #[arg(long, env = "VTEX_WEB_DIR", default_value = "client-web/dist")]
     pub web_dir: PathBuf,
@@ -147,6 +152,9 @@ impl ServeConfig {
             }
         };
         positive(self.cache_mb, "cache-mb")?;
+        if !(self.synth_cache_mb.is_finite() && self.synth_cache_mb >= 0.0) {
+            return Err(format!("synth-cache-mb must be 0 or more, got {}", self.synth_cache_mb));
+        }
         positive(self.max_upload_mb, "max-upload-mb")?;
         positive(self.request_timeout_secs, "request-timeout-secs")?;
         positive(self.header_timeout_secs, "header-timeout-secs")?;
@@ -197,6 +205,10 @@ impl ServeConfig {
         let pixels = self.max_region_pixels.min(side * side) as u32;
         let region = crate::encode::peak_bytes(Format::Png, pixels, 1);
         region.max(vtex_synth::bundle::MAX_BUNDLE_BYTES as u64)
+    }
+
+    pub fn synth_cache_bytes(&self) -> u64 {
+        (self.synth_cache_mb * 1024.0 * 1024.0) as u64
     }
 
     pub fn max_upload_bytes(&self) -> usize {

@@ -54,6 +54,13 @@ pub struct Metrics {
     /// Bytes reserved by response bodies in flight.
     pub inflight_bytes: IntGauge,
     pub inflight_budget_bytes: IntGauge,
+    /// Bytes each model's process-wide synthesis cache holds, and their budget.
+    pub model_cache_bytes: IntGaugeVec,
+    pub model_cache_budget_bytes: IntGauge,
+    /// The models' own work counters (`Model::work_counters`), by model and kind.
+    model_work: IntCounterVec,
+    /// Serialises scrapes' updates of `model_work`, which catch up with the models' totals.
+    model_work_update: std::sync::Mutex<()>,
 }
 
 fn must<T>(r: prometheus::Result<T>) -> T {
@@ -150,6 +157,22 @@ impl Metrics {
         ));
         let inflight_budget_bytes =
             must(IntGauge::new("vtex_inflight_budget_bytes", "Byte budget of response bodies in flight"));
+        let model_cache_bytes = must(IntGaugeVec::new(
+            Opts::new("vtex_model_cache_bytes", "Bytes held by each model's process-wide synthesis cache"),
+            &["model"],
+        ));
+        let model_cache_budget_bytes = must(IntGauge::new(
+            "vtex_model_cache_budget_bytes",
+            "Byte budget of each model's process-wide synthesis cache (--synth-cache-mb)",
+        ));
+        let model_work = must(IntCounterVec::new(
+            Opts::new(
+                "vtex_model_work_total",
+                "Work the models count in their renders, by model and kind (order-independent: entries computed \
+                 and pixels requested, whose ratio is the paper's computation ratio)",
+            ),
+            &["model", "kind"],
+        ));
         for c in [
             Box::new(requests.clone()) as Box<dyn prometheus::core::Collector>,
             Box::new(request_seconds.clone()),
@@ -181,6 +204,9 @@ impl Metrics {
             Box::new(connections_refused.clone()),
             Box::new(inflight_bytes.clone()),
             Box::new(inflight_budget_bytes.clone()),
+            Box::new(model_cache_bytes.clone()),
+            Box::new(model_cache_budget_bytes.clone()),
+            Box::new(model_work.clone()),
         ] {
             must(registry.register(c));
         }
@@ -220,6 +246,22 @@ impl Metrics {
             connections_refused,
             inflight_bytes,
             inflight_budget_bytes,
+            model_cache_bytes,
+            model_cache_budget_bytes,
+            model_work,
+            model_work_update: std::sync::Mutex::new(()),
+        }
+    }
+
+    /// Reads every registered model's cache size and work counters into their metrics.
+    pub fn read_models(&self) {
+        let _serial = self.model_work_update.lock().unwrap_or_else(|e| e.into_inner());
+        for m in vtex_synth::models::REGISTRY {
+            self.model_cache_bytes.with_label_values(&[m.id()]).set(m.cache_bytes() as i64);
+            for (kind, total) in m.work_counters() {
+                let c = self.model_work.with_label_values(&[m.id(), kind]);
+                c.inc_by(total.saturating_sub(c.get()));
+            }
         }
     }
 
@@ -277,5 +319,15 @@ mod tests {
         assert_eq!(line("GET", "304"), None, "series never counted are not listed");
         assert!(text.contains(&format!("vtex_http_request_duration_seconds_count{{{tiles}}} 4")));
         assert!(text.contains("vtex_http_response_bytes_total 25"));
+    }
+
+    #[test]
+    fn every_model_reports_its_cache() {
+        let m = Metrics::new();
+        m.read_models();
+        let text = m.render();
+        for id in vtex_synth::models::ids() {
+            assert!(text.contains(&format!(r#"vtex_model_cache_bytes{{model="{id}"}}"#)), "{id}: {text}");
+        }
     }
 }

@@ -77,12 +77,6 @@ pub trait Texture: Send + Sync {
     /// work and returns early once it is requested, leaving `out` incomplete: the caller
     /// discards it. `stop` never changes a pixel that is written.
     fn render(&self, region: &Region, out: &mut [u8], stop: &dyn Stop);
-    /// Running totals of the work `render` has done since load, by kind (e.g. entries
-    /// computed and pixels requested, whose ratio is the paper's computation ratio for
-    /// `order-independent`), for the server's metrics. Empty for models that count nothing.
-    fn work_counters(&self) -> Vec<(&'static str, u64)> {
-        Vec::new()
-    }
 }
 
 /// A request to stop a render in progress: its client left, its deadline passed, or the

@@ -42,6 +42,19 @@ pub trait Model: Send + Sync + 'static {
     fn demos(&self) -> Vec<Bundle>;
     /// What its prefiltered coarse levels promise, held by the conformance suite.
     fn mip_guarantee(&self) -> MipGuarantee;
+    /// Sets the bytes the model's process-wide caches may hold (0: none); they never change a
+    /// result. Models without such caches have nothing to set.
+    fn set_cache_budget(&self, _bytes: u64) {}
+    /// Bytes its process-wide caches hold now.
+    fn cache_bytes(&self) -> u64 {
+        0
+    }
+    /// Running totals of the work its textures' renders have done in this process, by kind,
+    /// for the server's metrics (for `order-independent`, entries computed and pixels
+    /// requested: their ratio is the paper's computation ratio). Empty when it counts nothing.
+    fn work_counters(&self) -> Vec<(&'static str, u64)> {
+        Vec::new()
+    }
 }
 
 /// A model's self-description.
@@ -142,6 +155,13 @@ pub fn load_within(bundle: &Bundle, limits: &Limits) -> Result<Arc<dyn Texture>>
 pub fn plan(bundle: &Bundle) -> Result<Plan> {
     check_name(&bundle.manifest.name)?;
     get(&bundle.manifest.model)?.plan(bundle)
+}
+
+/// Gives every model's process-wide caches a budget of `bytes` each.
+pub fn set_cache_budget(bytes: u64) {
+    for m in REGISTRY {
+        m.set_cache_budget(bytes);
+    }
 }
 
 /// Every model's demo encodings, sorted by name.

@@ -88,4 +88,13 @@ impl Model for OrderIndependentModel {
     fn mip_guarantee(&self) -> MipGuarantee {
         MipGuarantee { min_psnr_db: 26.0, max_mean_error: 4.0 }
     }
+    fn set_cache_budget(&self, bytes: u64) {
+        cache::set_cache_budget(bytes)
+    }
+    fn cache_bytes(&self) -> u64 {
+        cache::cache_bytes()
+    }
+    fn work_counters(&self) -> Vec<(&'static str, u64)> {
+        render::PROCESS_WORK.counters()
+    }
 }

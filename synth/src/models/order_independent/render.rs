@@ -17,6 +17,37 @@ use std::sync::OnceLock;
 /// bounds the memory of one call (about 2 bytes an entry over the chunk's cone).
 pub const CHUNK: u32 = 256;
 
+/// Work counted by renders, by kind: the computation ratio is `entries_computed` (noise
+/// included) over `pixels_requested`.
+pub(super) struct Work {
+    computed: AtomicU64,
+    noise: AtomicU64,
+    requested: AtomicU64,
+}
+
+impl Work {
+    const fn new() -> Work {
+        Work { computed: AtomicU64::new(0), noise: AtomicU64::new(0), requested: AtomicU64::new(0) }
+    }
+
+    fn add(&self, computed: u64, noise: u64, requested: u64) {
+        self.computed.fetch_add(computed, Ordering::Relaxed);
+        self.noise.fetch_add(noise, Ordering::Relaxed);
+        self.requested.fetch_add(requested, Ordering::Relaxed);
+    }
+
+    pub(super) fn counters(&self) -> Vec<(&'static str, u64)> {
+        vec![
+            ("entries_computed", self.computed.load(Ordering::Relaxed)),
+            ("noise_entries", self.noise.load(Ordering::Relaxed)),
+            ("pixels_requested", self.requested.load(Ordering::Relaxed)),
+        ]
+    }
+}
+
+/// The work of every order-independent texture of the process, for the server's metrics.
+pub(super) static PROCESS_WORK: Work = Work::new();
+
 /// A loaded, validated order-independent texture.
 pub struct OrderIndependent {
     pub(super) params: Params,
@@ -25,9 +56,8 @@ pub struct OrderIndependent {
     /// The colours of coarse levels beyond the pyramid, measured on first use (a pure
     /// function of the encoding, so when it is computed never changes a result).
     calibration: OnceLock<Calibration>,
-    computed: AtomicU64,
-    noise: AtomicU64,
-    requested: AtomicU64,
+    /// This texture's share of [`PROCESS_WORK`], since it was loaded.
+    work: Work,
 }
 
 impl std::fmt::Debug for OrderIndependent {
@@ -46,14 +76,17 @@ impl OrderIndependent {
             synthesizer,
             pyramid: Pyramid::new(key),
             calibration: OnceLock::new(),
-            computed: AtomicU64::new(0),
-            noise: AtomicU64::new(0),
-            requested: AtomicU64::new(0),
+            work: Work::new(),
         })
     }
 
     pub fn params(&self) -> &Params {
         &self.params
+    }
+
+    /// The work this texture's renders have done since it was loaded, by kind.
+    pub fn work_counters(&self) -> Vec<(&'static str, u64)> {
+        self.work.counters()
     }
 
     /// The per-entry function, shared with the reference evaluator.
@@ -68,8 +101,9 @@ impl OrderIndependent {
         let mut counts = Counts::default();
         let st = self.synthesizer.structure();
         let values = evaluate(&self.synthesizer, st, cache, s, rect, &mut counts, stop);
-        self.computed.fetch_add(counts.computed, Ordering::Relaxed);
-        self.noise.fetch_add(counts.noise, Ordering::Relaxed);
+        for work in [&self.work, &PROCESS_WORK] {
+            work.add(counts.computed, counts.noise, 0);
+        }
         values
     }
 
@@ -84,6 +118,21 @@ impl OrderIndependent {
             px.copy_from_slice(&[c[0], c[1], c[2], 255]);
         }
         Some(img)
+    }
+
+    /// The sample pixel, as (column, row), that each level-0 pixel of a `w × h` window at
+    /// (x, y) copies, row-major: where neighbours in the output were not neighbours in the
+    /// sample there is a join (the quality report's seam mask, `Mask::from_sources`).
+    pub fn sources(&self, x: i64, y: i64, w: u32, h: u32) -> Vec<(u32, u32)> {
+        let fin = self.params.levels - 1;
+        let (x, y) = self.reduce(0, x, y);
+        let values = self.entries(fin, Rect { x, y, w: w as usize, h: h as usize }, &crate::Never);
+        let side = self.synthesizer.exemplar().levels[fin as usize].w;
+        values
+            .expect("a render that is never stopped completes")
+            .iter()
+            .map(|&v| (v as u32 % side, v as u32 / side))
+            .collect()
     }
 
     /// A level-`l` origin moved by a whole period of the texture to near 0, so that nothing
@@ -135,7 +184,9 @@ impl Texture for OrderIndependent {
     }
 
     fn render(&self, region: &Region, out: &mut [u8], stop: &dyn Stop) {
-        self.requested.fetch_add(region.pixel_count(), Ordering::Relaxed);
+        for work in [&self.work, &PROCESS_WORK] {
+            work.add(0, 0, region.pixel_count());
+        }
         let l = region.level;
         let (x, y) = self.reduce(l, region.x, region.y);
         let region = &Region { x, y, ..*region };
@@ -157,14 +208,6 @@ impl Texture for OrderIndependent {
                 }
             }
         }
-    }
-
-    fn work_counters(&self) -> Vec<(&'static str, u64)> {
-        vec![
-            ("entries_computed", self.computed.load(Ordering::Relaxed)),
-            ("noise_entries", self.noise.load(Ordering::Relaxed)),
-            ("pixels_requested", self.requested.load(Ordering::Relaxed)),
-        ]
     }
 }
 
