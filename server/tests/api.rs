@@ -555,3 +555,36 @@ async fn metrics_are_labelled_by_route_template() {
     want.sort();
     assert_eq!(routes(&after), want, "garbage paths added no label");
 }
+
+/// The models' own work and caches reach `/metrics`: one cold tile of an order-independent
+/// texture counts its pixels and the entries of its dependency cone (the paper's computation
+/// ratio, about 4.2 for an isolated 256² tile); `--synth-cache-mb 0` keeps no cache and serves
+/// the same bytes.
+#[tokio::test]
+async fn model_work_and_synthesis_cache_are_exported() {
+    let bundle = vtex_synth::models::order_independent::demos().remove(0);
+    let mut tiles = Vec::new();
+    for budget in ["64", "0"] {
+        let dir = tempdir();
+        let s = Server::start(dir.path(), &["--synth-cache-mb", budget]);
+        let c = client();
+        let id = put(&c, &s, &bundle).await;
+        let (status, _, body) = get_bytes(&c, &s.tile_url(&id, 0, 3, 5, "rgba")).await;
+        assert_eq!(status, 200);
+        tiles.push(body);
+        let m = metrics(&c, &s).await;
+        let oi = [("model", "order-independent")];
+        let work = |kind: &str| metric(&m, "vtex_model_work_total", &[oi[0], ("kind", kind)]);
+        assert_eq!(work("pixels_requested"), 65536.0, "{m}");
+        let ratio = work("entries_computed") / work("pixels_requested");
+        assert!((4.0..4.5).contains(&ratio), "computation ratio {ratio}");
+        let held = metric(&m, "vtex_model_cache_bytes", &oi);
+        assert_eq!(metric(&m, "vtex_model_cache_budget_bytes", &[]), budget.parse::<f64>().unwrap() * 1048576.0);
+        if budget == "0" {
+            assert_eq!(held, 0.0);
+        } else {
+            assert!(held > 0.0, "a cold tile fills the synthesis cache");
+        }
+    }
+    assert_eq!(tiles[0], tiles[1], "the synthesis cache never changes a tile");
+}
