@@ -4,7 +4,9 @@
 # tiles, four tiles apart so that no two share their synthesis, fetched by CONNECTIONS
 # concurrent clients; then the same for the 100k chaos mosaic as the baseline of the run.
 # Usage: flock /tmp/vtex-bench.lock bench/server/cold-rate.sh [TEXTURE, default order-independent]
-#        (a name, id or model); environment: TILES (60), CONNECTIONS (2, one a core here).
+#        (a name, id or model); environment: TILES (60), CONNECTIONS (2, one a core here),
+#        EXTRA_FLAGS (more `vtex serve` flags, e.g. "--max-syntheses-per-texture 2": by default
+#        one texture holds all synthesis slots but one, so on 2 cores it renders on one).
 set -euo pipefail
 ROOT=$(cd "$(dirname "$0")/../.." && pwd)
 TEXTURE=${1:-order-independent}
@@ -25,7 +27,9 @@ trap cleanup EXIT
 pass() {
   local key=$1 label=$2
   rm -rf "$WORK/data"
-  VTEX_LOG=warn "$BIN" serve --bind 127.0.0.1:0 --data-dir "$WORK/data" --web-dir "$WORK/none" > "$WORK/out" 2> "$WORK/err" &
+  # shellcheck disable=SC2086
+  VTEX_LOG=warn "$BIN" serve --bind 127.0.0.1:0 --data-dir "$WORK/data" --web-dir "$WORK/none" ${EXTRA_FLAGS:-} \
+    > "$WORK/out" 2> "$WORK/err" &
   PID=$!
   for _ in $(seq 1 600); do grep -q listening "$WORK/out" 2>/dev/null && break; sleep 0.1; done
   local url
@@ -53,6 +57,6 @@ print(t["id"], t["name"], sep="\t")' "$key")
     "$TILES" "$t0" "$t1" "$label $name" "$CONNECTIONS" "$codes"
 }
 
-echo "== $(date -u +%FT%TZ) $(git rev-parse --short HEAD) cold-rate, $(nproc) cores, load $(cut -d' ' -f1 /proc/loadavg)"
+echo "== $(date -u +%FT%TZ) $(git rev-parse --short HEAD) cold-rate, $(nproc) cores, load $(cut -d' ' -f1 /proc/loadavg), flags: ${EXTRA_FLAGS:-none}"
 pass "$TEXTURE" "texture"
 pass chaos-mosaic "baseline"
