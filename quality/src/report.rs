@@ -65,6 +65,20 @@ pub fn measure(output: &Rgba8Image, sample: &Rgba8Image, seams: &Mask, sw: &SwPa
     })
 }
 
+/// Images side by side on white, 16 pixels apart: the reports' comparison panels.
+pub fn side_by_side(images: &[&Rgba8Image]) -> Rgba8Image {
+    const GAP: u32 = 16;
+    let width = images.iter().map(|i| i.width + GAP).sum::<u32>().saturating_sub(GAP);
+    let mut out = Rgba8Image::new(width, images.iter().map(|i| i.height).max().unwrap_or(0));
+    out.data.fill(255);
+    let mut x = 0;
+    for img in images {
+        out.blit(img, x, 0);
+        x += img.width + GAP;
+    }
+    out
+}
+
 /// A markdown table of named outputs side by side (one column each), with the targets.
 pub fn comparison_table(columns: &[(&str, &Metrics)]) -> String {
     let mut s = String::from("| metric |");
@@ -128,6 +142,17 @@ mod tests {
         assert!(table.contains("| repetition (lag) | 1.000 ("), "{table}");
         assert_eq!(table.lines().count(), 2 + 7);
         assert!(table.lines().all(|l| l.matches('|').count() == 5), "{table}");
+    }
+
+    #[test]
+    fn panels_are_laid_out_left_to_right_16_pixels_apart() {
+        let (a, b) = (noise(3, 2, 1), noise(5, 4, 2));
+        let p = side_by_side(&[&a, &b]);
+        assert_eq!((p.width, p.height), (3 + 16 + 5, 4));
+        assert_eq!(p.crop(0, 0, 3, 2), a);
+        assert_eq!(p.crop(19, 0, 5, 4), b);
+        assert_eq!(p.pixel(10, 1), [255; 4]);
+        assert_eq!(p.pixel(0, 3), [255; 4]);
     }
 
     #[test]

@@ -15,6 +15,13 @@ pub const PHOTO_SIDE: u32 = 128;
 /// Largest pattern side the report accepts: at least four tiles across a 1024 canvas.
 pub const MAX_PATTERN_SIDE: u32 = 256;
 
+/// A sample's name in file names and tables: its file stem, every character other than an ASCII
+/// letter, a digit, `-` or `_` replaced by `-`.
+pub fn name_of(path: &std::path::Path) -> String {
+    let stem = path.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_default();
+    stem.chars().map(|c| if c.is_ascii_alphanumeric() || c == '-' || c == '_' { c } else { '-' }).collect()
+}
+
 /// A photo reduced and centre-cropped to `side × side`, as described in the module docs.
 /// Errors: a photo whose shorter side is below `side`.
 pub fn prepare_photo(img: &Rgba8Image, side: u32) -> Result<Rgba8Image> {
@@ -59,6 +66,12 @@ mod tests {
         assert_eq!(s, mip::downsample(&big).crop(86, 66, 128, 128));
         let small = noise(200, 130, 2);
         assert_eq!(prepare_photo(&small, 128).unwrap(), small.crop(36, 1, 128, 128));
+    }
+
+    #[test]
+    fn names_keep_letters_digits_dashes_and_underscores() {
+        assert_eq!(name_of(std::path::Path::new("/x/skimage-brick.png")), "skimage-brick");
+        assert_eq!(name_of(std::path::Path::new("a b/Stone 33 (old).pat")), "Stone-33--old-");
     }
 
     #[test]

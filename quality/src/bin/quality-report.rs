@@ -22,8 +22,8 @@ use vtex_quality::{
     gimp_pattern,
     patch_sw::SwParams,
     repetition::repetition,
-    report::{comparison_table, measure, Metrics},
-    sample::{prepare_pattern, prepare_photo, PHOTO_SIDE},
+    report::{comparison_table, measure, side_by_side, Metrics},
+    sample::{name_of, prepare_pattern, prepare_photo, PHOTO_SIDE},
     seam::Mask,
 };
 use vtex_synth::{
@@ -97,9 +97,7 @@ struct Sample {
 fn load_sample(path: &std::path::Path, photo_side: u32) -> std::result::Result<Sample, String> {
     let file = path.display().to_string();
     let bytes = std::fs::read(path).map_err(|e| format!("{file}: {e}"))?;
-    let stem = path.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_default();
-    let name: String =
-        stem.chars().map(|c| if c.is_ascii_alphanumeric() || c == '-' || c == '_' { c } else { '-' }).collect();
+    let name = name_of(path);
     let ext = path.extension().map(|e| e.to_string_lossy().to_ascii_lowercase()).unwrap_or_default();
     let (kind, source, image) = match ext.as_str() {
         "pat" => {
@@ -177,16 +175,6 @@ fn uncovered_fraction(mosaic: &chaos_mosaic::ChaosMosaic, size: u32) -> f64 {
     covered.iter().filter(|&&c| !c).count() as f64 / covered.len() as f64
 }
 
-/// Tiling | gap | chaos mosaic, on white.
-fn side_by_side(a: &Rgba8Image, b: &Rgba8Image) -> Rgba8Image {
-    const GAP: u32 = 16;
-    let mut img = Rgba8Image::new(a.width + GAP + b.width, a.height.max(b.height));
-    img.data.fill(255);
-    img.blit(a, 0, 0);
-    img.blit(b, a.width + GAP, 0);
-    img
-}
-
 struct Judged {
     sample: Sample,
     seamless: bool,
@@ -209,7 +197,7 @@ fn judge(sample: Sample, o: &Options) -> std::result::Result<Judged, String> {
         std::fs::write(dir.join(&file), img.to_png()).map_err(|e| format!("{file}: {e}"))
     };
     write(format!("{}-sample.png", sample.name), &sample.image)?;
-    write(format!("{}-side-by-side.png", sample.name), &side_by_side(&tiling.image, &mosaic.image))?;
+    write(format!("{}-side-by-side.png", sample.name), &side_by_side(&[&tiling.image, &mosaic.image]))?;
     let m = |out: &Output| measure(&out.image, &sample.image, &out.seams, &sw).map_err(err);
     // A sample that is not seamless also gets the tiling with its tile edges cross-edge
     // filtered (zero iterations, default filter): what filtering alone achieves.

@@ -28,8 +28,8 @@ use std::{collections::BTreeSet, path::PathBuf, process::ExitCode, time::Instant
 use vtex_quality::{
     gimp_pattern,
     patch_sw::SwParams,
-    report::{comparison_table, measure, Metrics, TARGET_CONTRAST, TARGET_REPETITION},
-    sample::prepare_photo,
+    report::{comparison_table, measure, side_by_side, Metrics, TARGET_CONTRAST, TARGET_REPETITION},
+    sample::{name_of, prepare_photo},
     seam::Mask,
 };
 use vtex_synth::{
@@ -95,9 +95,7 @@ struct Sample {
 fn load_sample(path: &std::path::Path, side: u32) -> std::result::Result<Sample, String> {
     let file = path.display().to_string();
     let bytes = std::fs::read(path).map_err(|e| format!("{file}: {e}"))?;
-    let stem = path.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_default();
-    let name: String =
-        stem.chars().map(|c| if c.is_ascii_alphanumeric() || c == '-' || c == '_' { c } else { '-' }).collect();
+    let name = name_of(path);
     let ext = path.extension().map(|e| e.to_string_lossy().to_ascii_lowercase()).unwrap_or_default();
     let (kind, image) = match ext.as_str() {
         "pat" => {
@@ -182,20 +180,6 @@ fn embark(bin: &std::path::Path, sample: &Sample, o: &Options) -> std::result::R
     let bytes = std::fs::read(&output).map_err(|e| format!("{}: {e}", output.display()))?;
     let image = decode_png("embark output", &bytes).map_err(|e| e.to_string())?;
     Ok(Output { seams: Mask::grid(image.width, image.height, o.exemplar, o.exemplar, 0, 0), image, ms })
-}
-
-/// Images side by side on white, 16 pixels apart.
-fn side_by_side(images: &[&Rgba8Image]) -> Rgba8Image {
-    const GAP: u32 = 16;
-    let width = images.iter().map(|i| i.width + GAP).sum::<u32>() - GAP;
-    let mut out = Rgba8Image::new(width, images.iter().map(|i| i.height).max().unwrap_or(0));
-    out.data.fill(255);
-    let mut x = 0;
-    for img in images {
-        out.blit(img, x, 0);
-        x += img.width + GAP;
-    }
-    out
 }
 
 struct Judged {
