@@ -1,4 +1,4 @@
-//! Coarse vtex levels from the synthesis pyramid itself (DESIGN §3.3, mip coherence): vtex
+//! Coarse vtex levels from the synthesis pyramid itself, for mip coherence: vtex
 //! level j must approximate the 2×2-box chain of level 0, which a 100k texture cannot afford.
 //!
 //! * Levels 1..=`exact_levels`: level 0 rendered and box-filtered j times (exact).

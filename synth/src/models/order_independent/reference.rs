@@ -15,45 +15,14 @@
 //! This evaluator exists to be obviously the paper: tests compare the served evaluator with it,
 //! and the paper's cache figures count its work (in structure-only mode, [`StructureOnly`]).
 
-use super::structure::{circle5, cross4, square, Entry, Structure, Synthesis};
+pub use super::structure::{paper, toy};
+use super::structure::{Entry, Structure, Synthesis};
 use crate::hash::fmix64;
 use std::collections::HashMap;
 use std::hash::{BuildHasherDefault, Hasher};
 
 /// The capacity of a cache that never evicts.
 pub const UNBOUNDED: usize = usize::MAX;
-
-/// The structure of the paper's Fig. 7 on a `side`² torus: 4 levels, 3 generations (1 at the
-/// coarsest), a circular 5×5 at the same level and a 3×3 at the next coarser one.
-pub fn paper(side: u64) -> Structure {
-    Structure {
-        levels: 4,
-        generations: 3,
-        coarsest_generations: 1,
-        same: circle5(),
-        coarsest_same: circle5(),
-        lower: square(1),
-        generation0_lower: square(1),
-        subpasses: 1,
-        torus: Some((side, side)),
-    }
-}
-
-/// The toy of the paper's Fig. 3: 2 levels × 3 generations, 4 edge neighbours and the parent
-/// at the fine level, the pixel's own previous generation at the coarse level.
-pub fn toy() -> Structure {
-    Structure {
-        levels: 2,
-        generations: 3,
-        coarsest_generations: 3,
-        same: cross4(),
-        coarsest_same: vec![(0, 0)],
-        lower: vec![(0, 0)],
-        generation0_lower: vec![(0, 0)],
-        subpasses: 1,
-        torus: None,
-    }
-}
 
 /// Every entry of a torus structure: Σ over levels of generations × pixels.
 pub fn entries(structure: &Structure) -> u64 {
@@ -400,6 +369,7 @@ impl<S: Synthesis> Reference<S> {
 
 #[cfg(test)]
 mod tests {
+    use super::super::structure::{cross4, square};
     use super::*;
     use crate::hash::hash4;
 

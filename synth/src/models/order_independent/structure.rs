@@ -189,6 +189,38 @@ impl Structure {
     }
 }
 
+/// The structure of the paper's Fig. 7 on a `side`² torus: 4 levels, 3 generations (1 at the
+/// coarsest), a circular 5×5 at the same level and a 3×3 at the next coarser one.
+pub fn paper(side: u64) -> Structure {
+    Structure {
+        levels: 4,
+        generations: 3,
+        coarsest_generations: 1,
+        same: circle5(),
+        coarsest_same: circle5(),
+        lower: square(1),
+        generation0_lower: square(1),
+        subpasses: 1,
+        torus: Some((side, side)),
+    }
+}
+
+/// The toy of the paper's Fig. 3: 2 levels × 3 generations, 4 edge neighbours and the parent
+/// at the fine level, the pixel's own previous generation at the coarse level.
+pub fn toy() -> Structure {
+    Structure {
+        levels: 2,
+        generations: 3,
+        coarsest_generations: 3,
+        same: cross4(),
+        coarsest_same: vec![(0, 0)],
+        lower: vec![(0, 0)],
+        generation0_lower: vec![(0, 0)],
+        subpasses: 1,
+        torus: None,
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -211,20 +243,6 @@ mod tests {
         seen
     }
 
-    fn paper() -> Structure {
-        Structure {
-            levels: 4,
-            generations: 3,
-            coarsest_generations: 1,
-            same: circle5(),
-            coarsest_same: circle5(),
-            lower: square(1),
-            generation0_lower: square(1),
-            subpasses: 1,
-            torus: Some((512, 512)),
-        }
-    }
-
     #[test]
     fn circle5_is_the_twenty_taps_of_a_disc_of_radius_two_and_a_half() {
         assert_eq!(disc5().len(), 21);
@@ -235,24 +253,14 @@ mod tests {
 
     #[test]
     fn one_pixel_touches_1148_entries_at_phase_3_3_as_in_fig_7a() {
-        let st = paper();
+        let st = paper(512);
         assert_eq!(footprint(&st, st.output(3, 3, 3)).len(), 1148);
         assert_eq!(footprint(&st, st.output(3, 0, 0)).len(), 1163);
     }
 
     #[test]
     fn the_fig_3_toy_touches_32_entries() {
-        let st = Structure {
-            levels: 2,
-            generations: 3,
-            coarsest_generations: 3,
-            same: cross4(),
-            coarsest_same: vec![(0, 0)],
-            lower: vec![(0, 0)],
-            generation0_lower: vec![(0, 0)],
-            subpasses: 1,
-            torus: None,
-        };
+        let st = toy();
         for (x, y) in [(0, 0), (5, -3), (-7, 2)] {
             assert_eq!(footprint(&st, st.output(1, x, y)).len(), 32);
         }
