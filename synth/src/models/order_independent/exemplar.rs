@@ -136,7 +136,7 @@ pub fn ssd(a: &[u8], b: &[u8]) -> u32 {
 /// The sum of squared differences of two padded vectors, abandoned once it reaches `bound`:
 /// exact below `bound`, otherwise some value ≥ `bound`. Fixed-size chunks let the compiler
 /// vectorise.
-#[inline]
+#[inline(always)]
 pub fn ssd_below(a: &[u8], b: &[u8], bound: u32) -> u32 {
     let mut total = 0u32;
     for (x, y) in a.chunks_exact(CHUNK).zip(b.chunks_exact(CHUNK)) {
@@ -247,44 +247,46 @@ fn fill_neighbourhoods(level: &mut Level, coarser: Option<&Level>, same: &[(i8, 
     level.vectors = vectors;
 }
 
-/// C_s(u) for every pixel u: u, then the k − 1 valid v ≠ u outside its exclusion square with
-/// the smallest (SSD(N(u), N(v)), index v).
-fn fill_ksets(level: &mut Level, k: usize, exclusion: u32) {
-    let n = (level.w * level.h) as usize;
-    let w = level.w as i64;
-    let mut kset = vec![0u16; n * k];
-    let mut kset_len = vec![0u8; n];
-    let mut best: Vec<(u32, u16)> = Vec::with_capacity(k);
-    let valid: Vec<(u16, i64, i64)> = level.valid.iter().map(|&v| (v, v as i64 % w, v as i64 / w)).collect();
-    for u in 0..n {
-        best.clear();
-        let a = level.vector(u);
-        let (ux, uy) = (u as i64 % w, u as i64 / w);
-        for &(v, vx, vy) in &valid {
-            if (vx - ux).abs().max((vy - uy).abs()) <= exclusion as i64 || v as usize == u {
-                continue;
+crate::simd::widest! {
+    /// C_s(u) for every pixel u: u, then the k − 1 valid v ≠ u outside its exclusion square with
+    /// the smallest (SSD(N(u), N(v)), index v); compiled for the CPU's widest vector unit.
+    fn fill_ksets(level: &mut Level, k: usize, exclusion: u32) {
+        let n = (level.w * level.h) as usize;
+        let w = level.w as i64;
+        let mut kset = vec![0u16; n * k];
+        let mut kset_len = vec![0u8; n];
+        let mut best: Vec<(u32, u16)> = Vec::with_capacity(k);
+        let valid: Vec<(u16, i64, i64)> = level.valid.iter().map(|&v| (v, v as i64 % w, v as i64 / w)).collect();
+        for u in 0..n {
+            best.clear();
+            let a = level.vector(u);
+            let (ux, uy) = (u as i64 % w, u as i64 / w);
+            for &(v, vx, vy) in &valid {
+                if (vx - ux).abs().max((vy - uy).abs()) <= exclusion as i64 || v as usize == u {
+                    continue;
+                }
+                // Scanning in index order, a tie never displaces an earlier pixel.
+                let full = best.len() == k - 1;
+                let bound = if full { best.last().map_or(0, |b| b.0) } else { u32::MAX };
+                let d = ssd_below(a, level.vector(v as usize), bound);
+                if d >= bound {
+                    continue;
+                }
+                if full {
+                    best.pop();
+                }
+                let at = best.partition_point(|b| b.0 <= d);
+                best.insert(at, (d, v));
             }
-            // Scanning in index order, a tie never displaces an earlier pixel.
-            let full = best.len() == k - 1;
-            let bound = if full { best.last().map_or(0, |b| b.0) } else { u32::MAX };
-            let d = ssd_below(a, level.vector(v as usize), bound);
-            if d >= bound {
-                continue;
+            kset[u * k] = u as u16;
+            for (i, b) in best.iter().enumerate() {
+                kset[u * k + 1 + i] = b.1;
             }
-            if full {
-                best.pop();
-            }
-            let at = best.partition_point(|b| b.0 <= d);
-            best.insert(at, (d, v));
+            kset_len[u] = 1 + best.len() as u8;
         }
-        kset[u * k] = u as u16;
-        for (i, b) in best.iter().enumerate() {
-            kset[u * k + 1 + i] = b.1;
-        }
-        kset_len[u] = 1 + best.len() as u8;
+        level.kset = kset;
+        level.kset_len = kset_len;
     }
-    level.kset = kset;
-    level.kset_len = kset_len;
 }
 
 /// The k-coherence sets shifted by each 3×3 offset, invalid pixels dropped.

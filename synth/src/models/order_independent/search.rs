@@ -156,6 +156,7 @@ impl Synthesizer {
 
     /// The output neighbourhood of an entry at level `s`, as a padded vector; generation 0
     /// reads no `same` values and fills only the coarser part.
+    #[inline(always)]
     fn output_vector(&self, s: usize, same: &[u16], lower: &[u16], out: &mut [u8; MAX_STRIDE]) {
         let level = &self.exemplar.levels[s];
         if !same.is_empty() {
@@ -174,6 +175,7 @@ impl Synthesizer {
 
     /// The k-coherence candidates of an entry: each set C(v) of its 3×3 window's previous
     /// values v, shifted back by the window offset, kept when valid, without repeats.
+    #[inline(always)]
     fn candidates<'a>(&self, level: &Level, same: &[u16], buf: &'a mut [u16; MAX_CANDIDATES]) -> &'a [u16] {
         let mut n = 0;
         for &(d, i) in &self.coherent {
@@ -190,6 +192,7 @@ impl Synthesizer {
 
 /// The pixel of `pixels` whose vector part `range` is nearest to `target`'s, the lowest
 /// index on a tie.
+#[inline(always)]
 fn argmin(level: &Level, pixels: &[u16], target: &[u8], range: std::ops::Range<usize>) -> Option<u16> {
     let mut best: Option<(u32, u16)> = None;
     let target = &target[range.clone()];
@@ -221,11 +224,18 @@ impl Synthesis for Synthesizer {
     }
 
     fn entry(&self, e: Entry, same: &[u16], lower: &[u16]) -> u16 {
+        entry(self, e, same, lower)
+    }
+}
+
+crate::simd::widest! {
+    /// Table 1's search for one entry, compiled for the CPU's widest vector unit.
+    fn entry(syn: &Synthesizer, e: Entry, same: &[u16], lower: &[u16]) -> u16 {
         let s = e.s as usize;
-        let level = &self.exemplar.levels[s];
+        let level = &syn.exemplar.levels[s];
         if e.m == 0 {
-            let coarser = &self.exemplar.levels[s - 1];
-            return match self.generation0 {
+            let coarser = &syn.exemplar.levels[s - 1];
+            return match syn.generation0 {
                 Generation0::Upsample => {
                     let (px, py) = (lower[0] as u32 % coarser.w, lower[0] as u32 / coarser.w);
                     let (x, y) = (2 * px + (e.x & 1) as u32, 2 * py + (e.y & 1) as u32);
@@ -233,28 +243,28 @@ impl Synthesis for Synthesizer {
                 }
                 Generation0::Search => {
                     let mut target = [0u8; MAX_STRIDE];
-                    self.output_vector(s, &[], lower, &mut target);
-                    let base = 3 * self.same_at.len();
-                    let range = base..base + 3 * self.lower_taps;
+                    syn.output_vector(s, &[], lower, &mut target);
+                    let base = 3 * syn.same_at.len();
+                    let range = base..base + 3 * syn.lower_taps;
                     argmin(level, &level.valid_low, &target, range).expect("V^low is checked non-empty at load")
                 }
             };
         }
-        if !self.structure.updates(e.m, e.x, e.y) {
+        if !syn.structure.updates(e.m, e.x, e.y) {
             return same[0];
         }
         let mut target = [0u8; MAX_STRIDE];
-        self.output_vector(s, same, lower, &mut target);
+        syn.output_vector(s, same, lower, &mut target);
         let target = &target[..level.stride];
-        match self.search {
+        match syn.search {
             Search::Exhaustive => argmin(level, &level.valid, target, 0..level.stride),
             Search::Kcoherence => {
                 let mut buf = [0u16; MAX_CANDIDATES];
-                let candidates = self.candidates(level, same, &mut buf);
+                let candidates = syn.candidates(level, same, &mut buf);
                 argmin(level, candidates, target, 0..level.stride)
             }
         }
-        .unwrap_or_else(|| same[self.centre.expect("k-coherence reads the pixel itself")])
+        .unwrap_or_else(|| same[syn.centre.expect("k-coherence reads the pixel itself")])
     }
 }
 
