@@ -1,17 +1,20 @@
-//! The cache figures of Wei & Levoy 2002, *Order-Independent Texture Synthesis* (spec §6: F3,
-//! F7a, F7bc, F4, F8, F9), as CSV files and PNG images, counted by the reference evaluator in
-//! structure-only mode (which entries are computed does not depend on the search):
+//! The figures of Wei & Levoy 2002, *Order-Independent Texture Synthesis* (spec §6), as CSV
+//! files and PNG images. The cache figures (F3, F7a, F7bc, F4, F8, F9) are counted by the
+//! reference evaluator in structure-only mode (which entries are computed does not depend on the
+//! search); Fig. 5's quality panel (F5) and the mip PSNR table (Fmip) render the served model.
 //!
-//! `cargo run --release -p vtex-synth --example oits_figures -- [OUT_DIR [FIGURE…]]`
+//! `cargo run --release -p vtex-quality --example oits_figures -- [OUT_DIR [FIGURE…]]`
 //!
-//! OUT_DIR defaults to `docs/models/oits-figures`; FIGURE (F3, F7, F4, F8, F9) limits the run to
-//! those figures. `docs/models/order-independent-figures.md`
-//! sets the numbers beside the paper's.
+//! OUT_DIR defaults to `docs/models/oits-figures`; FIGURE (F3, F7, F4, F8, F9, F9b, F5, Fmip) limits
+//! the run to those figures. `docs/models/order-independent-figures.md` sets the numbers beside
+//! the paper's.
 
 #[path = "oits_figures/plot.rs"]
 mod plot;
 #[path = "oits_figures/scenes.rs"]
 mod scenes;
+#[path = "oits_figures/served.rs"]
+mod served;
 
 use plot::{Axis, Canvas, Series, PALETTE};
 use std::collections::{BTreeMap, HashMap, HashSet};
@@ -49,7 +52,16 @@ fn main() {
     std::fs::create_dir_all(&dir).expect("creating the output directory");
     let out = Out(dir);
     let start = Instant::now();
-    let figures: [(&str, Figure); 5] = [("F3", fig3), ("F7", fig7), ("F4", fig4), ("F8", fig8), ("F9", fig9)];
+    let figures: [(&str, Figure); 8] = [
+        ("F3", fig3),
+        ("F7", fig7),
+        ("F4", fig4),
+        ("F8", fig8),
+        ("F9", fig9),
+        ("F9b", served::fig9b),
+        ("F5", served::fig5),
+        ("Fmip", served::fig_mip),
+    ];
     for (name, figure) in figures {
         if !only.is_empty() && !only.iter().any(|f| f == name) {
             continue;

@@ -1,6 +1,7 @@
-//! The pyramidal cache of the served evaluator (paper §3), shared by every order-independent
-//! texture of the process: blocks of 32 × 32 entries of one (texture, level, generation) with
-//! a validity bit each, in an LRU bounded in bytes and sharded against lock contention.
+//! The pyramidal cache of the served evaluator (paper §3): blocks of side × side entries of one
+//! (texture, level, generation) with a validity bit each, in an LRU bounded in bytes and sharded
+//! against lock contention. One cache of 32 × 32 blocks is shared by every order-independent
+//! texture of the process; figures make others to compare block sides.
 //!
 //! An entry's value is a pure function of its tag, so the cache never changes a result: with a
 //! budget of 0 (the default until [`set_cache_budget`] is called) nothing is kept at all.
@@ -12,39 +13,78 @@ use lru::LruCache;
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::{LazyLock, Mutex};
 
-/// Side of a block, in entries.
+/// Side of the shared cache's blocks, in entries.
 const SIDE: i64 = 32;
 const SHARDS: usize = 16;
-/// Bytes one block holds: values, validity bits, and the LRU's bookkeeping.
-pub const BLOCK_BYTES: u64 = (SIDE * SIDE) as u64 * 2 + (SIDE * SIDE) as u64 / 8 + 64;
+/// Bytes one block of the shared cache holds.
+pub const BLOCK_BYTES: u64 = block_bytes(SIDE);
 
-static BUDGET: AtomicU64 = AtomicU64::new(0);
-static CACHE: LazyLock<[Mutex<LruCache<Key, Block>>; SHARDS]> =
-    LazyLock::new(|| std::array::from_fn(|_| Mutex::new(LruCache::unbounded())));
+/// Bytes one block of `side` holds: values, validity bits, and the LRU's bookkeeping.
+const fn block_bytes(side: i64) -> u64 {
+    (side * side) as u64 * 2 + (side * side) as u64 / 8 + 64
+}
 
-/// Sets the bytes all order-independent textures of the process may keep in their pyramidal
-/// cache (0: none), evicting the least recently used blocks beyond it.
+static SHARED: LazyLock<BlockCache> = LazyLock::new(|| BlockCache::new(SIDE));
+
+/// Sets the bytes all order-independent textures of the process may keep in their shared
+/// pyramidal cache (0: none), evicting the least recently used blocks beyond it.
 pub fn set_cache_budget(bytes: u64) {
-    BUDGET.store(bytes, Ordering::Relaxed);
-    for shard in CACHE.iter() {
-        evict(&mut shard.lock().unwrap_or_else(|e| e.into_inner()));
-    }
+    SHARED.set_budget(bytes)
 }
 
 /// The budget last set.
 pub fn cache_budget() -> u64 {
-    BUDGET.load(Ordering::Relaxed)
+    SHARED.budget()
 }
 
-/// Bytes the cache holds now.
+/// Bytes the shared cache holds now.
 pub fn cache_bytes() -> u64 {
-    CACHE.iter().map(|s| s.lock().unwrap_or_else(|e| e.into_inner()).len() as u64 * BLOCK_BYTES).sum()
+    SHARED.bytes()
 }
 
-fn evict(lru: &mut LruCache<Key, Block>) {
-    let cap = cache_budget() / SHARDS as u64 / BLOCK_BYTES;
-    while lru.len() as u64 > cap {
-        lru.pop_lru();
+/// A pyramidal cache: blocks of `side` × `side` entries in a sharded LRU bounded in bytes.
+pub struct BlockCache {
+    side: i64,
+    budget: AtomicU64,
+    shards: [Mutex<LruCache<Key, Block>>; SHARDS],
+}
+
+impl BlockCache {
+    /// An empty cache of `side` × `side` blocks (`side` a multiple of 8), with no budget.
+    pub fn new(side: i64) -> BlockCache {
+        assert!(side > 0 && side % 8 == 0, "a block side is a positive multiple of 8");
+        BlockCache {
+            side,
+            budget: AtomicU64::new(0),
+            shards: std::array::from_fn(|_| Mutex::new(LruCache::unbounded())),
+        }
+    }
+
+    pub fn set_budget(&self, bytes: u64) {
+        self.budget.store(bytes, Ordering::Relaxed);
+        for shard in &self.shards {
+            self.evict(&mut shard.lock().unwrap_or_else(|e| e.into_inner()));
+        }
+    }
+
+    pub fn budget(&self) -> u64 {
+        self.budget.load(Ordering::Relaxed)
+    }
+
+    pub fn bytes(&self) -> u64 {
+        let blocks: usize = self.shards.iter().map(|s| s.lock().unwrap_or_else(|e| e.into_inner()).len()).sum();
+        blocks as u64 * block_bytes(self.side)
+    }
+
+    fn evict(&self, lru: &mut LruCache<Key, Block>) {
+        let cap = self.budget() / SHARDS as u64 / block_bytes(self.side);
+        while lru.len() as u64 > cap {
+            lru.pop_lru();
+        }
+    }
+
+    fn shard(&self, key: &Key) -> std::sync::MutexGuard<'_, LruCache<Key, Block>> {
+        self.shards[key.shard()].lock().unwrap_or_else(|e| e.into_inner())
     }
 }
 
@@ -68,7 +108,7 @@ impl Key {
 
 struct Block {
     values: Box<[u16]>,
-    valid: [u64; (SIDE * SIDE / 64) as usize],
+    valid: Box<[u64]>,
 }
 
 impl Block {
@@ -79,14 +119,14 @@ impl Block {
 
 /// Pixels of one axis of a rectangle grouped by block: (block index, [(offset in the
 /// rectangle, offset in the block)]), in the torus's reduced coordinates.
-fn groups(start: i64, n: usize, period: Option<u64>) -> Vec<(i64, Vec<(usize, usize)>)> {
+fn groups(side: i64, start: i64, n: usize, period: Option<u64>) -> Vec<(i64, Vec<(usize, usize)>)> {
     let mut out: Vec<(i64, Vec<(usize, usize)>)> = Vec::new();
     for i in 0..n {
         let mut v = start.wrapping_add(i as i64);
         if let Some(p) = period {
             v = v.rem_euclid(p as i64);
         }
-        let (b, o) = (v.div_euclid(SIDE), v.rem_euclid(SIDE) as usize);
+        let (b, o) = (v.div_euclid(side), v.rem_euclid(side) as usize);
         match out.last_mut() {
             Some((last, pixels)) if *last == b => pixels.push((i, o)),
             _ => out.push((b, vec![(i, o)])),
@@ -95,16 +135,34 @@ fn groups(start: i64, n: usize, period: Option<u64>) -> Vec<(i64, Vec<(usize, us
     out
 }
 
-/// One texture's view of the shared cache.
-#[derive(Clone, Copy, Debug)]
+/// One texture's view of a cache.
+#[derive(Clone, Copy)]
 pub struct Pyramid {
     texture: u64,
+    cache: &'static BlockCache,
+}
+
+impl std::fmt::Debug for Pyramid {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(f, "Pyramid({:016x}, blocks of {})", self.texture, self.cache.side)
+    }
 }
 
 impl Pyramid {
-    /// The view of the texture keyed `texture` (the start of its bundle's hash).
+    /// The view of the texture keyed `texture` (the start of its bundle's hash) of the shared
+    /// cache.
     pub fn new(texture: u64) -> Pyramid {
-        Pyramid { texture }
+        Pyramid { texture, cache: &SHARED }
+    }
+
+    /// The same texture's view of `cache` instead.
+    pub fn in_cache(self, cache: &'static BlockCache) -> Pyramid {
+        Pyramid { cache, ..self }
+    }
+
+    /// The cache this view reads and fills.
+    pub fn cache(&self) -> &'static BlockCache {
+        self.cache
     }
 
     /// Visits every block under `rect` of (s, m) with the rectangle pixels it holds.
@@ -117,8 +175,9 @@ impl Pyramid {
         mut f: impl FnMut(Key, &[(usize, usize)], &[(usize, usize)]),
     ) {
         let period = st.period(s);
-        let cols = groups(rect.x, rect.w, period.map(|p| p.0));
-        let rows = groups(rect.y, rect.h, period.map(|p| p.1));
+        let side = self.cache.side;
+        let cols = groups(side, rect.x, rect.w, period.map(|p| p.0));
+        let rows = groups(side, rect.y, rect.h, period.map(|p| p.1));
         for (by, ys) in &rows {
             for (bx, xs) in &cols {
                 f(Key { texture: self.texture, s, m, bx: *bx, by: *by }, xs, ys);
@@ -129,12 +188,13 @@ impl Pyramid {
     /// Copies the cached entries of (s, m) under `rect` that are `missing` into `values`, and
     /// clears their `missing` flag.
     pub fn load(&self, st: &Structure, s: u8, m: u8, rect: &Rect, missing: &mut [bool], values: &mut [u16]) {
+        let side = self.cache.side as usize;
         self.blocks(st, s, m, rect, |key, xs, ys| {
-            let mut lru = CACHE[key.shard()].lock().unwrap_or_else(|e| e.into_inner());
+            let mut lru = self.cache.shard(&key);
             let Some(block) = lru.get(&key) else { return };
             for &(j, oy) in ys {
                 for &(i, ox) in xs {
-                    let (at, k) = (j * rect.w + i, oy * SIDE as usize + ox);
+                    let (at, k) = (j * rect.w + i, oy * side + ox);
                     if missing[at] && block.has(k) {
                         values[at] = block.values[k];
                         missing[at] = false;
@@ -146,19 +206,20 @@ impl Pyramid {
 
     /// Merges the entries of (s, m) under `rect` that were `computed` (`None`: all).
     pub fn store(&self, st: &Structure, s: u8, m: u8, rect: &Rect, computed: Option<&[bool]>, values: &[u16]) {
+        let side = self.cache.side as usize;
         self.blocks(st, s, m, rect, |key, xs, ys| {
             let any = ys.iter().any(|&(j, _)| xs.iter().any(|&(i, _)| computed.is_none_or(|c| c[j * rect.w + i])));
             if !any {
                 return;
             }
-            let mut lru = CACHE[key.shard()].lock().unwrap_or_else(|e| e.into_inner());
+            let mut lru = self.cache.shard(&key);
             let block = lru.get_or_insert_mut(key, || Block {
-                values: vec![0; (SIDE * SIDE) as usize].into_boxed_slice(),
-                valid: [0; (SIDE * SIDE / 64) as usize],
+                values: vec![0; side * side].into_boxed_slice(),
+                valid: vec![0; (side * side).div_ceil(64)].into_boxed_slice(),
             });
             for &(j, oy) in ys {
                 for &(i, ox) in xs {
-                    let (at, k) = (j * rect.w + i, oy * SIDE as usize + ox);
+                    let (at, k) = (j * rect.w + i, oy * side + ox);
                     if computed.is_none_or(|c| c[at]) {
                         debug_assert!(!block.has(k) || block.values[k] == values[at], "two values for one entry");
                         block.values[k] = values[at];
@@ -166,7 +227,7 @@ impl Pyramid {
                     }
                 }
             }
-            evict(&mut lru);
+            self.cache.evict(&mut lru);
         });
     }
 }

@@ -1,7 +1,7 @@
 //! The loaded texture: vtex level 0 is the finest synthesis level's latest generation, coloured
 //! by the exemplar; coarser levels come from [`prefilter`](super::prefilter).
 
-use super::cache::{cache_budget, Pyramid};
+use super::cache::{BlockCache, Pyramid};
 use super::params::{DomainSpec, Params};
 use super::prefilter::{self, Calibration};
 use super::search::{Synthesizer, PLANE_BITS};
@@ -80,6 +80,12 @@ impl OrderIndependent {
         })
     }
 
+    /// This texture with its entries kept in `cache` instead of the process's shared cache
+    /// (the figures compare block sides and budgets with it).
+    pub fn in_cache(self, cache: &'static BlockCache) -> Self {
+        OrderIndependent { pyramid: self.pyramid.in_cache(cache), ..self }
+    }
+
     pub fn params(&self) -> &Params {
         &self.params
     }
@@ -97,7 +103,7 @@ impl OrderIndependent {
     /// The latest generation of synthesis level `s` over `rect` (exemplar indices), through
     /// the shared cache when it has a budget; `None` once `stop` is requested.
     pub fn entries(&self, s: u8, rect: Rect, stop: &dyn Stop) -> Option<Vec<u16>> {
-        let cache = (cache_budget() > 0).then_some(&self.pyramid);
+        let cache = (self.pyramid.cache().budget() > 0).then_some(&self.pyramid);
         let mut counts = Counts::default();
         let st = self.synthesizer.structure();
         let values = evaluate(&self.synthesizer, st, cache, s, rect, &mut counts, stop);

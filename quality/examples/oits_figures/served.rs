@@ -1,0 +1,194 @@
+//! The figures of the served model: the paper's Fig. 5 quality panel (spec F5), the mip PSNR
+//! table (spec Fmip) and a viewer session through the served cache (spec F9b), on the
+//! project's own exemplars (the demos'), so they need nothing fetched. `scripts/synthesis-report.sh` makes the same panel on real
+//! samples, with Embark beside it.
+
+use super::plot::{self, Axis, Series, PALETTE};
+use super::Out;
+use serde_json::json;
+use std::fmt::Write as _;
+use std::time::Instant;
+use vtex_quality::patch_sw::SwParams;
+use vtex_quality::report::measure;
+use vtex_quality::seam::Mask;
+use vtex_synth::bundle::Bundle;
+use vtex_synth::mip::{downsample_n, psnr};
+use vtex_synth::models::order_independent::cache::BlockCache;
+use vtex_synth::models::order_independent::{self, prefilter};
+use vtex_synth::models::{self, Inputs};
+use vtex_synth::texture::render_image;
+use vtex_synth::{samples, Region, Rgba8Image};
+
+/// Side of the Fig. 5 outputs.
+const SIDE: u32 = 256;
+
+/// The exemplars of the panel: the demos' samples, one stochastic, one of sparse discs.
+fn exemplars() -> Vec<(&'static str, Rgba8Image)> {
+    vec![("lichen", samples::lichen(64, 21)), ("pebbles", samples::pebbles(64, 9, 22, false))]
+}
+
+/// Fig. 5: exemplar | exhaustive (Table 1) | served (k-coherence), with the quality metrics of
+/// each output against its exemplar.
+pub fn fig5(out: &Out) {
+    let mut csv = String::from("exemplar,search,patch_sw,contrast,repetition,seam_ratio,ms\n");
+    let mut rows = Vec::new();
+    for (name, sample) in exemplars() {
+        let mut row = vec![plot::captioned(&sample, &name.to_uppercase())];
+        for search in ["exhaustive", "kcoherence"] {
+            let inputs = Inputs::from([("sample".to_string(), sample.to_png())]);
+            let params = json!({"seed": 1, "search": search, "exemplar_wrap": name == "lichen"});
+            let bundle = models::create(order_independent::MODEL, name, &params, &inputs).expect("a valid texture");
+            let texture = order_independent::load(&bundle).expect("a texture just created loads");
+            let started = Instant::now();
+            let image = render_image(&texture, &Region::new(0, 0, 0, SIDE, SIDE)).expect("a valid region");
+            let ms = started.elapsed().as_secs_f64() * 1e3;
+            let sources = texture.sources(0, 0, SIDE, SIDE);
+            let seams = Mask::from_sources(SIDE, SIDE, |x, y| sources[(y * SIDE + x) as usize]);
+            let m = measure(&image, &sample, &seams, &SwParams::default()).expect("metrics of a 256² output");
+            writeln!(
+                csv,
+                "{name},{search},{:.3},{:.3},{:.3},{:.3},{ms:.0}",
+                m.patch_sw.mean, m.contrast, m.repetition.value, m.seam_ratio
+            )
+            .unwrap();
+            let label = format!("{} SW {:.2} C {:.2}", search.to_uppercase(), m.patch_sw.mean, m.contrast);
+            row.push(plot::captioned(&image, &label));
+        }
+        rows.push(plot::beside(&row, 16, false));
+    }
+    out.write("fig5.csv", csv);
+    out.png("fig5.png", &plot::beside(&rows, 16, true));
+}
+
+/// Fmip: every coarse level of each demo against the exact box chain of a level-0 window, and
+/// point sampling (the aliasing baseline) beside it.
+pub fn fig_mip(out: &Out) {
+    const WINDOW: u32 = 2048;
+    const LEVELS: u32 = 7;
+    let mut csv = String::from("demo,level,source,psnr_served_db,psnr_point_db\n");
+    let mut lines = Vec::new();
+    for (i, bundle) in order_independent::demos().iter().enumerate() {
+        let name = demo_name(bundle);
+        let texture = models::load(bundle).expect("a demo loads");
+        let params = order_independent::load(bundle).expect("a demo loads").params().clone();
+        let level0 = render_image(texture.as_ref(), &Region::new(0, 0, 0, WINDOW, WINDOW)).expect("a valid region");
+        let mut points = Vec::new();
+        for l in 1..=LEVELS {
+            let side = WINDOW >> l;
+            let served = render_image(texture.as_ref(), &Region::new(l, 0, 0, side, side)).expect("a valid region");
+            let exact = downsample_n(&level0, l);
+            let point = point_sample(&level0, l);
+            let source = match prefilter::source(&params, l) {
+                prefilter::Source::Exact => "exact".to_string(),
+                prefilter::Source::Pyramid { r } => format!("pyramid r={r}"),
+                prefilter::Source::Mean => "mean".to_string(),
+            };
+            let (db, point_db) = (psnr(&served, &exact), psnr(&point, &exact));
+            writeln!(csv, "{name},{l},{source},{db:.2},{point_db:.2}").unwrap();
+            points.push((l as f64, db.min(60.0)));
+        }
+        lines.push(Series { name: name.to_uppercase(), color: PALETTE[i], points });
+    }
+    out.write("mip_psnr.csv", csv);
+    let x = Axis {
+        label: "VTEX LEVEL".into(),
+        min: 1.0,
+        max: LEVELS as f64,
+        log: false,
+        ticks: (1..=LEVELS).map(|l| (l as f64, l.to_string())).collect(),
+    };
+    let y = Axis {
+        label: "PSNR DB (60: EXACT)".into(),
+        min: 20.0,
+        max: 60.0,
+        log: false,
+        ticks: (2..=6).map(|t| (t as f64 * 10.0, (t * 10).to_string())).collect(),
+    };
+    out.png("mip_psnr.png", &plot::chart("MIP LEVELS AGAINST THE EXACT BOX CHAIN", &x, &y, &lines, 800, 520));
+}
+
+fn demo_name(bundle: &Bundle) -> String {
+    bundle.manifest.name.split(" — ").nth(1).unwrap_or(&bundle.manifest.name).to_string()
+}
+
+/// Every 2^l-th pixel of `img`: what a level looks like without prefiltering.
+fn point_sample(img: &Rgba8Image, l: u32) -> Rgba8Image {
+    let (w, h) = (img.width >> l, img.height >> l);
+    let mut out = Rgba8Image::new(w, h);
+    for y in 0..h {
+        for x in 0..w {
+            let from = (((y << l) * img.width + (x << l)) * 4) as usize;
+            let to = ((y * w + x) * 4) as usize;
+            out.data[to..to + 4].copy_from_slice(&img.data[from..from + 4]);
+        }
+    }
+    out
+}
+
+/// F9b: a viewer's session — zoom in from level 4 to level 0, pan at level 0, zoom out to
+/// level 1 and pan there — through the served evaluator of the lichen demo, for each block
+/// side and cache budget: entries computed per requested pixel and time per tile. The viewer
+/// keeps the tiles it has, so each tile is requested once.
+pub fn fig9b(out: &Out) {
+    const BUDGETS_MIB: [u64; 4] = [0, 8, 32, 128];
+    let bundle = &order_independent::demos()[0];
+    let tiles = viewer_trace();
+    let mut csv = String::from("block,cache_mib,tiles,entries_per_pixel,ms_per_tile\n");
+    let mut lines = Vec::new();
+    for (i, side) in [16i64, 32, 64].into_iter().enumerate() {
+        let mut points = Vec::new();
+        for (k, mib) in BUDGETS_MIB.into_iter().enumerate() {
+            let cache: &'static BlockCache = Box::leak(Box::new(BlockCache::new(side)));
+            cache.set_budget(mib << 20);
+            let texture = order_independent::load(bundle).expect("a demo loads").in_cache(cache);
+            let started = Instant::now();
+            for &(l, tx, ty) in &tiles {
+                render_image(&texture, &Region::new(l, tx * 256, ty * 256, 256, 256)).expect("a valid tile");
+            }
+            let ms = started.elapsed().as_secs_f64() * 1e3 / tiles.len() as f64;
+            let work: std::collections::HashMap<_, _> = texture.work_counters().into_iter().collect();
+            let ratio = (work["entries_computed"] + work["noise_entries"]) as f64 / work["pixels_requested"] as f64;
+            writeln!(csv, "{side},{mib},{},{ratio:.3},{ms:.1}", tiles.len()).unwrap();
+            points.push((k as f64, ratio));
+        }
+        lines.push(Series { name: format!("{side}X{side} BLOCKS"), color: PALETTE[i], points });
+    }
+    out.write("tiles.csv", csv);
+    let x = Axis {
+        label: "CACHE MIB".into(),
+        min: 0.0,
+        max: (BUDGETS_MIB.len() - 1) as f64,
+        log: false,
+        ticks: BUDGETS_MIB.iter().enumerate().map(|(k, m)| (k as f64, m.to_string())).collect(),
+    };
+    let y = Axis {
+        label: "ENTRIES PER PIXEL".into(),
+        min: 0.0,
+        max: 6.0,
+        log: false,
+        ticks: (0..=6).map(|t| (t as f64, t.to_string())).collect(),
+    };
+    out.png("tiles.png", &plot::chart("F9B: A VIEWER SESSION THROUGH THE SERVED CACHE", &x, &y, &lines, 800, 520));
+}
+
+/// The 256² tiles (level, column, row) a 1280×800 viewer requests, in order, each once.
+fn viewer_trace() -> Vec<(u32, i64, i64)> {
+    let (w, h) = (1280i64, 800i64);
+    let mut views: Vec<(u32, i64, i64)> = (0..=4).rev().map(|l| (l, 0, 0)).collect();
+    views.extend((1..=4).map(|k| (0, k * 256, k * 128)));
+    views.extend((1..=4).map(|k| (1, -k * 512, 0)));
+    let mut seen = std::collections::HashSet::new();
+    let mut tiles = Vec::new();
+    for (l, cx, cy) in views {
+        // The view's centre is given in level-0 pixels.
+        let (cx, cy) = (cx >> l, cy >> l);
+        for ty in (cy - h / 2).div_euclid(256)..=(cy + h / 2 - 1).div_euclid(256) {
+            for tx in (cx - w / 2).div_euclid(256)..=(cx + w / 2 - 1).div_euclid(256) {
+                if seen.insert((l, tx, ty)) {
+                    tiles.push((l, tx, ty));
+                }
+            }
+        }
+    }
+    tiles
+}
