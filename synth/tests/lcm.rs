@@ -9,7 +9,7 @@ use vtex_synth::models::lcm::{
     self, demos,
     event::{Event, Sign},
     table::Table,
-    CreateParams, LcmTexture, OpCount,
+    LcmTexture, OpCount, Params,
 };
 use vtex_synth::models::{self, Inputs};
 use vtex_synth::texture::render_image;
@@ -526,7 +526,7 @@ fn bad_encodings_are_refused_with_the_reason() {
 fn demo_parameters_round_trip_through_json() {
     for (_, p) in demos::all_params() {
         let v = serde_json::to_value(&p).unwrap();
-        let back: CreateParams = serde_json::from_value(v).unwrap();
+        let back: Params = serde_json::from_value(v).unwrap();
         assert_eq!(back, p);
     }
 }

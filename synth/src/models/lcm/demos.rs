@@ -47,7 +47,10 @@ pub fn table_brick() -> Table {
 fn params(element: &str, k: u32, layers: Vec<LayerParams>) -> Params {
     Params {
         element: Some(Builtin { builtin: element.into(), k }),
+        k: None,
+        planes: None,
         representation: Representation::Explicit,
+        stored_resolutions: Vec::new(),
         magnify: 0,
         background: None,
         order: Order::TopDown,

@@ -34,11 +34,8 @@ pub mod render;
 pub mod table;
 
 pub use demos::demos;
-pub use encoding::{create, load, StoredParams};
+pub use encoding::{create, load};
 pub use params::Params;
-
-/// Earlier name of [`Params`], kept for existing callers.
-pub type CreateParams = Params;
 pub use render::{LcmTexture, OpCount};
 
 use super::{InputInfo, Inputs, MipGuarantee, Model, ModelInfo, Plan};
@@ -74,6 +71,9 @@ impl Model for LcmModel {
     }
     fn create(&self, name: &str, params: &serde_json::Value, inputs: &Inputs) -> Result<Bundle> {
         create(name, params, inputs)
+    }
+    fn inputs_of(&self, bundle: &Bundle) -> Result<Inputs> {
+        encoding::inputs_of(bundle)
     }
     fn load(&self, bundle: &Bundle) -> Result<Arc<dyn Texture>> {
         Ok(Arc::new(load(bundle)?))
