@@ -5,7 +5,7 @@ mod common;
 use common::*;
 use serde_json::{json, Value};
 use vtex_synth::bundle::Bundle;
-use vtex_synth::models::{self, Inputs};
+use vtex_synth::models::{self, lcm, Inputs};
 
 async fn encoding(c: &reqwest::Client, s: &Server, id: &str) -> Bundle {
     let (status, _, bytes) = get_bytes(c, &s.url(&format!("/api/v1/textures/{id}/encoding"))).await;
@@ -87,11 +87,12 @@ async fn a_patched_seed_makes_the_texture_again_for_every_model() {
     }
 }
 
-/// An `lcm` demo of one 1 × 1 event table per layer.
+/// An `lcm` demo of one 1 × 1 event table per layer, one byte a mask point.
 fn cheese() -> Bundle {
-    let (name, p) = vtex_synth::models::lcm::demos::all_params().swap_remove(1);
+    let (name, mut p) = lcm::demos::all_params().swap_remove(1);
     assert_eq!(name, "LCM cheese");
-    vtex_synth::models::lcm::demos::make(name, &p).unwrap()
+    p.mask_coding = lcm::packing::MaskCoding::Raw;
+    lcm::demos::make(name, &p).unwrap()
 }
 
 #[tokio::test]

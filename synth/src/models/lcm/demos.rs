@@ -4,6 +4,7 @@
 //! 100,352 colour texture of pebbles (one element plane per channel).
 
 use super::encoding::{create, PEBBLE_SAND};
+use super::packing::MaskCoding;
 use super::params::{Builtin, LayerParams, Order, Params, Representation};
 use super::table::{Cell, Table};
 use crate::bundle::Bundle;
@@ -29,16 +30,26 @@ pub fn table_noise() -> Table {
     Table::single(Cell { sign: [0.33, 0.33, 0.34], rotation: UNIFORM, mirror: 0.5, operation: ADD })
 }
 
-/// Tab. 3: the "brick wall" model, non-zero application, rows as printed in the paper.
+/// Tab. 3: the "brick wall" model, non-zero application. The paper prints four event cells
+/// and, between them, the large "0" of zero cells, as in Tab. 1: a 4 × 2 table whose rows are
+/// (cell, 0, cell, 0) and (0, cell, 0, cell) — the staggered "regularly structured zero
+/// entries" §6 says Tab. 3's masks have. The cells in the order printed: the first row's two
+/// (mostly 0° / mostly 180°, "each two elements in any row are 180° rotated copies"), then
+/// the second row's two.
 pub fn table_brick() -> Table {
     let c = |r: [f64; 4]| Cell::positive(r, 0.0, NON_ZERO);
+    let o = Cell::none;
     Table {
-        width: 2,
+        width: 4,
         height: 2,
         cells: vec![
             c([0.8, 0.05, 0.15, 0.0]),
+            o(),
             c([0.2, 0.0, 0.8, 0.0]),
+            o(),
+            o(),
             c([0.75, 0.05, 0.2, 0.0]),
+            o(),
             c([0.1, 0.02, 0.88, 0.0]),
         ],
     }
@@ -56,6 +67,7 @@ fn params(element: &str, k: u32, layers: Vec<LayerParams>) -> Params {
         order: Order::TopDown,
         palette: Vec::new(),
         tiles: [1, 1],
+        mask_coding: MaskCoding::Zeros,
         seed: 1,
         layers,
     }

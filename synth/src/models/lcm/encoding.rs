@@ -6,13 +6,15 @@
 //! * `element.{p}.{r}` — plane p of the base element at resolution r, 4^r signed bytes
 //!   (explicit representation, one per stored resolution), or
 //! * `haar.{p}` — the Haar pyramid of plane p, 4^K little-endian i16;
-//! * `lcm.{n}` — the LCM of layer n, one event byte a point, row-major.
+//! * `lcm.{n}` — the LCM of layer n, row-major: one event byte a point, or with §6's zeros
+//!   left out ([`packing`]).
 
 use super::colour::{Colour, QI};
 use super::element::{self, Copies, Plane, Stored, MAX_K, MAX_TOP};
 use super::event::Event;
 use super::haar;
 use super::layer::{Layer, QW};
+use super::packing::{self, MaskCoding};
 use super::period::{lcm, mask_period};
 use super::render::LcmTexture;
 use super::{elements, MODEL};
@@ -110,8 +112,19 @@ pub fn create(name: &str, params: &serde_json::Value, inputs: &Inputs) -> Result
         None => image_planes(inputs, if p.palette.is_empty() { 3 } else { 1 })?,
     };
     let k = planes[0].k;
-    let mut sections: Vec<(String, Vec<u8>)> =
-        drawn_lcms(&p)?.into_iter().enumerate().filter_map(|(n, c)| Some((format!("lcm.{n}"), c?))).collect();
+    let mut sections: Vec<(String, Vec<u8>)> = drawn_lcms(&p)?
+        .into_iter()
+        .enumerate()
+        .filter_map(|(n, codes)| {
+            let codes = codes?;
+            let l = &p.layers[n];
+            let data = match (p.mask_coding, &l.table) {
+                (MaskCoding::Zeros, Some(t)) => packing::pack(&codes, t, l.lcm[0] as usize),
+                _ => codes,
+            };
+            Some((format!("lcm.{n}"), data))
+        })
+        .collect();
     let resolutions = stored_resolutions(&p, k);
     for (i, plane) in planes.iter().enumerate() {
         match p.representation {
@@ -354,6 +367,8 @@ pub(super) struct Checked {
     pub period: (u64, u64),
     pub size: (u64, u64),
     pub resolutions: Vec<u32>,
+    /// Each layer's own LCM, unpacked (`None` where it shares one).
+    pub masks: Vec<Option<Vec<u8>>>,
 }
 
 /// Checks a stored encoding's manifest and every section's length and LCM bytes, before any
@@ -407,18 +422,44 @@ pub(super) fn check(p: &Params, bundle: &Bundle) -> Result<Checked> {
     }
     check_layers(&p.layers, top)?;
     expected.extend(p.layers.iter().enumerate().filter(|(_, l)| l.share.is_none()).map(|(n, _)| format!("lcm.{n}")));
-    let period = period(&p.layers, top, |n| bundle.section(&format!("lcm.{n}")))?;
     if let Some(extra) = bundle.sections.iter().find(|s| !expected.contains(&s.name)) {
         return Err(Error::bundle(format!("unexpected section `{}` in an lcm encoding", extra.name)));
     }
+    let masks = masks(p, bundle)?;
+    let period = period(&p.layers, top, |n| {
+        Ok(masks[n].as_deref().expect("`check_layers` lets layers share only an earlier layer's own LCM"))
+    })?;
     let size = served_size(period, p.tiles)?;
-    Ok(Checked { k, planes, background, colour, period, size, resolutions })
+    Ok(Checked { k, planes, background, colour, period, size, resolutions, masks })
+}
+
+/// Each layer's own LCM as event bytes, from its section as `p.mask_coding` codes it (`None`
+/// for a layer that shares one).
+fn masks(p: &Params, bundle: &Bundle) -> Result<Vec<Option<Vec<u8>>>> {
+    p.layers
+        .iter()
+        .enumerate()
+        .map(|(n, l)| {
+            if l.share.is_some() {
+                return Ok(None);
+            }
+            let name = format!("lcm.{n}");
+            let data = bundle.section(&name)?;
+            Ok(Some(match (p.mask_coding, &l.table) {
+                (MaskCoding::Raw, _) => data.to_vec(),
+                (MaskCoding::Zeros, Some(t)) => packing::unpack(data, t, l.lcm[0] as usize, l.lcm[1] as usize, &name)?,
+                (MaskCoding::Zeros, None) => {
+                    return Err(Error::param(format!("layers[{n}].table"), "needed to decode a zero-coded LCM"))
+                }
+            }))
+        })
+        .collect()
 }
 
 /// Checks an encoding completely ([`check`]) and builds its texture.
 pub fn load(bundle: &Bundle) -> Result<LcmTexture> {
     let p: Params = bundle.params()?;
-    let Checked { k, planes, background, colour, period, size, resolutions } = check(&p, bundle)?;
+    let Checked { k, planes, background, colour, period, size, resolutions, masks } = check(&p, bundle)?;
     let planes = planes as usize;
     let copies = (0..planes)
         .map(|i| {
@@ -454,11 +495,12 @@ pub fn load(bundle: &Bundle) -> Result<LcmTexture> {
         .iter()
         .enumerate()
         .map(|(n, l)| {
-            let codes = bundle.section(&format!("lcm.{}", l.share.unwrap_or(n)))?;
+            let codes =
+                masks[l.share.unwrap_or(n)].as_deref().expect("checked: shared LCMs are an earlier layer's own");
             let (w, h) = (l.lcm[0] as usize, l.lcm[1] as usize);
-            Ok(Layer::new(l.layer, quantized_weight(l.weight), w, h, codes, planes))
+            Layer::new(l.layer, quantized_weight(l.weight), w, h, codes, planes)
         })
-        .collect::<Result<Vec<_>>>()?;
+        .collect::<Vec<_>>();
     if p.order == Order::BottomUp {
         layers.sort_by_key(|l| std::cmp::Reverse(l.index));
     } else {

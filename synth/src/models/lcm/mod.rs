@@ -13,6 +13,7 @@
 //! * [`layer`] — evaluation of one layer from its LCM, native or prefiltered.
 //! * [`render`] — the texture: layers, order, background, colour; operation counting.
 //! * [`period`] — the period that LCM sizes give the texture.
+//! * [`packing`] — §6's coding of the zeros of an LCM section.
 //! * [`colour`] — palette or per-channel planes.
 //! * [`params`] — the creation parameters; [`encoding`] — the stored parameters, sections,
 //!   `create` and `load`.
@@ -29,6 +30,7 @@ pub mod elements;
 pub mod event;
 pub mod haar;
 pub mod layer;
+pub mod packing;
 pub mod period;
 pub mod render;
 pub mod table;

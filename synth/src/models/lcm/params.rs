@@ -1,6 +1,7 @@
 //! The parameters of an `lcm` encoding as `create` takes them: the layers with their event
 //! tables, the background, order and colour, and where the base element comes from.
 
+use super::packing::MaskCoding;
 use super::table::Table;
 use schemars::JsonSchema;
 use serde::{Deserialize, Serialize};
@@ -99,6 +100,10 @@ pub struct Params {
     /// The served size is the period times this.
     #[serde(default = "one_tile")]
     pub tiles: [u32; 2],
+    /// How the LCM sections are stored: `raw`, or `zeros` (§6: the zeros the event tables
+    /// imply left out).
+    #[serde(default)]
+    pub mask_coding: MaskCoding,
     /// The seed the LCMs are drawn with.
     #[serde(default)]
     pub seed: u64,
