@@ -368,6 +368,27 @@ fn element_images_give_one_plane_with_a_palette_or_three_without() {
     assert_eq!(lcm::create("g", &grey, &inputs).unwrap().manifest.params["planes"], 1);
 }
 
+#[test]
+fn an_uploaded_element_is_recovered_from_the_sections_and_makes_the_bundle_again() {
+    let table = json!({"width": 1, "height": 1, "cells": [{"sign": [0.4, 0.3, 0.3]}]});
+    let mut img = Rgba8Image::new(16, 16);
+    for (i, px) in img.data.chunks_exact_mut(4).enumerate() {
+        let v = (i * 37 % 256) as u8;
+        px.copy_from_slice(&[v, v.wrapping_mul(3), v / 2, if i % 7 == 0 { 0 } else { 255 }]);
+    }
+    let inputs: Inputs = BTreeMap::from([("element".to_string(), img.to_png())]);
+    for (palette, representation) in [(json!(GREY), "explicit"), (json!([]), "explicit"), (json!(GREY), "haar")] {
+        let params = json!({"palette": palette, "representation": representation, "mask_coding": "zeros",
+                            "layers": [{"layer": 0, "lcm": [6, 4], "table": table}, {"layer": 2, "lcm": [5, 5], "table": table}]});
+        let b = lcm::create("uploaded", &params, &inputs).unwrap();
+        let model = models::get(lcm::MODEL).unwrap();
+        let recovered = model.inputs_of(&b).unwrap();
+        assert_ne!(recovered, inputs, "the element comes back as intensities, not as the PNG uploaded");
+        let again = model.create("uploaded", &b.manifest.params, &recovered).unwrap();
+        assert!(again == b, "{palette} {representation}: the recovered element made another bundle");
+    }
+}
+
 // ---------------------------------------------------------------- §6: size and operations
 
 #[test]
