@@ -9,11 +9,17 @@ use vtex_synth::models::lcm::{
     self, demos,
     event::{Event, Sign},
     table::Table,
-    CreateParams, LcmTexture, OpCount,
+    LcmTexture, OpCount, Params,
 };
 use vtex_synth::models::{self, Inputs};
 use vtex_synth::texture::render_image;
 use vtex_synth::{mip, Region, Rgba8Image, Texture};
+
+/// The encoding of `p` with one byte a mask point (the paper's §6 count).
+fn raw_masks(mut p: Params) -> Bundle {
+    p.mask_coding = lcm::packing::MaskCoding::Raw;
+    demos::make("raw", &p).unwrap()
+}
 
 fn demo(name: &str) -> (Bundle, LcmTexture) {
     let (n, p) = demos::all_params().into_iter().find(|(n, _)| *n == name).expect("demo exists");
@@ -152,11 +158,12 @@ fn non_commutative_operations_honour_the_order() {
     let bottom_up = two_layers([0.0, 1.0, 0.0], "bottom_up", 0.5, [0.0, 1.0, 0.0]);
     assert_eq!(grey(&top_down), 128 - 50, "non-zero: layer 1 applied last wins");
     assert_eq!(grey(&bottom_up), 128 + 100, "non-zero: layer 0 applied last wins");
-    // Maximum application: equal magnitudes keep what was there first.
+    // Maximum application, §2.2: a stays where |a| > |b|, else b — so of equal magnitudes
+    // the replication applied last wins.
     let top_down = two_layers([0.0, 0.0, 1.0], "top_down", 1.0, [0.0, 1.0, 0.0]);
     let bottom_up = two_layers([0.0, 0.0, 1.0], "bottom_up", 1.0, [0.0, 1.0, 0.0]);
-    assert_eq!(grey(&top_down), 128 + 100);
-    assert_eq!(grey(&bottom_up), 128 - 100);
+    assert_eq!(grey(&top_down), 128 - 100);
+    assert_eq!(grey(&bottom_up), 128 + 100);
     // Larger magnitude wins whatever the order.
     let a = two_layers([0.0, 0.0, 1.0], "top_down", 0.5, [0.0, 1.0, 0.0]);
     let b = two_layers([0.0, 0.0, 1.0], "bottom_up", 0.5, [0.0, 1.0, 0.0]);
@@ -206,7 +213,7 @@ fn chi_square(codes: &[u8], w: usize, table: &Table, ci: usize, cj: usize, again
 
 #[test]
 fn event_frequencies_match_their_tables() {
-    // Tab. 2 (17 events) over 240 × 240 points, and each cell of Tab. 3 over 2 × 2 tables.
+    // Tab. 2 (17 events) over 240 × 240 points, and each cell of Tab. 3 over 4 × 2 tables.
     for (table, size) in [(demos::table_noise(), 240u32), (demos::table_brick(), 300)] {
         table.check([size, size], "t").unwrap();
         let codes = table.generate([size, size], 42, 0);
@@ -219,18 +226,18 @@ fn event_frequencies_match_their_tables() {
             }
         }
     }
-    // The test can fail: the brick cells swapped do not fit.
+    // The test can fail: the brick cells of a row swapped do not fit.
     let t = demos::table_brick();
-    let swapped = Table {
-        cells: vec![t.cells[1].clone(), t.cells[0].clone(), t.cells[3].clone(), t.cells[2].clone()],
-        ..t.clone()
-    };
+    let mut swapped = t.clone();
+    swapped.cells.swap(0, 2);
     let codes = t.generate([300, 300], 42, 0);
     let (chi, df) = chi_square(&codes, 300, &t, 0, 0, &swapped);
     assert!(chi > chi_square_critical(df), "swapped cells fit: {chi}");
-    // The demo's stored LCM is the one its table gives.
+    // The demo's stored LCM is the one its table gives, its zeros coded (§6).
     let (b, _) = demo("LCM brick wall");
-    assert_eq!(b.section("lcm.0").unwrap(), demos::table_brick().generate([40, 40], 3, 0).as_slice());
+    let drawn = t.generate([40, 40], 3, 0);
+    assert_eq!(b.section("lcm.0").unwrap(), lcm::packing::pack(&drawn, &t, 40).as_slice());
+    assert_eq!(drawn.iter().filter(|&&c| c == 0).count(), 40 * 40 / 2, "the staggered zeros");
 }
 
 // ---------------------------------------------------------------- periods (§5)
@@ -300,7 +307,7 @@ fn reported_periods_are_the_true_ones() {
         p.tiles = [2, 2];
         let t = lcm::load(&demos::make(name, &p).unwrap()).unwrap();
         if name == "pebbles" {
-            assert_eq!(t.period(), (100_800, 100_800));
+            assert_eq!(t.period(), (100_352, 100_352));
         }
         eprintln!("{name}: period {:?}", t.period());
         check_period(&t, 0, 12_345, 678);
@@ -361,14 +368,41 @@ fn element_images_give_one_plane_with_a_palette_or_three_without() {
     assert_eq!(lcm::create("g", &grey, &inputs).unwrap().manifest.params["planes"], 1);
 }
 
+#[test]
+fn an_uploaded_element_is_recovered_from_the_sections_and_makes_the_bundle_again() {
+    let table = json!({"width": 1, "height": 1, "cells": [{"sign": [0.4, 0.3, 0.3]}]});
+    let mut img = Rgba8Image::new(16, 16);
+    for (i, px) in img.data.chunks_exact_mut(4).enumerate() {
+        let v = (i * 37 % 256) as u8;
+        px.copy_from_slice(&[v, v.wrapping_mul(3), v / 2, if i % 7 == 0 { 0 } else { 255 }]);
+    }
+    let inputs: Inputs = BTreeMap::from([("element".to_string(), img.to_png())]);
+    for (palette, representation) in [(json!(GREY), "explicit"), (json!([]), "explicit"), (json!(GREY), "haar")] {
+        let params = json!({"palette": palette, "representation": representation, "mask_coding": "zeros",
+                            "layers": [{"layer": 0, "lcm": [6, 4], "table": table}, {"layer": 2, "lcm": [5, 5], "table": table}]});
+        let b = lcm::create("uploaded", &params, &inputs).unwrap();
+        let model = models::get(lcm::MODEL).unwrap();
+        let recovered = model.inputs_of(&b).unwrap();
+        assert_ne!(recovered, inputs, "the element comes back as intensities, not as the PNG uploaded");
+        let again = model.create("uploaded", &b.manifest.params, &recovered).unwrap();
+        assert!(again == b, "{palette} {representation}: the recovered element made another bundle");
+    }
+}
+
 // ---------------------------------------------------------------- §6: size and operations
 
 #[test]
 fn brick_wall_encoding_size_beside_the_paper() {
-    let (b, t) = demo("LCM brick wall");
+    let (coded, t) = demo("LCM brick wall");
+    let b = raw_masks(demos::brick_wall());
     let payload: usize = b.sections.iter().map(|s| s.data.len()).sum();
     // 40² + 20² + 32² + 8² + 4² (layers 2 and 3 share one LCM).
     assert_eq!(payload, 3104);
+    // §6: the zeros of Tab. 3 and Tab. 2 coded, "approximately twice" smaller LCMs.
+    let lcm_bytes = |b: &Bundle| b.sections.iter().filter(|s| s.name.starts_with("lcm.")).map(|s| s.data.len()).sum();
+    let (raw_lcms, coded_lcms): (usize, usize) = (lcm_bytes(&b), lcm_bytes(&coded));
+    eprintln!("brick wall LCMs: {raw_lcms} B raw, {coded_lcms} B zero-coded");
+    assert!(coded_lcms * 10 <= raw_lcms * 6, "{coded_lcms} of {raw_lcms}");
     let total = b.to_bytes().len();
     let (pw, ph) = t.period();
     eprintln!(
@@ -473,7 +507,7 @@ fn bad_tables_sizes_and_elements_are_named() {
 
 #[test]
 fn bad_encodings_are_refused_with_the_reason() {
-    let (good, _) = demo("LCM brick wall");
+    let good = raw_masks(demos::brick_wall());
     let edit = |f: &dyn Fn(&mut Bundle)| {
         let mut b = good.clone();
         f(&mut b);
@@ -526,7 +560,7 @@ fn bad_encodings_are_refused_with_the_reason() {
 fn demo_parameters_round_trip_through_json() {
     for (_, p) in demos::all_params() {
         let v = serde_json::to_value(&p).unwrap();
-        let back: CreateParams = serde_json::from_value(v).unwrap();
+        let back: Params = serde_json::from_value(v).unwrap();
         assert_eq!(back, p);
     }
 }

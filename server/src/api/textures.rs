@@ -12,7 +12,7 @@ use axum::http::{header, HeaderMap, HeaderValue, StatusCode};
 use axum::response::{IntoResponse, Response};
 use axum::Json;
 use serde_json::Value;
-use vtex_synth::bundle::{Bundle, Manifest};
+use vtex_synth::bundle::Bundle;
 use vtex_synth::models::{self, Inputs, Limits};
 
 /// Most multipart fields an upload may carry (model, name, params and input images).
@@ -179,7 +179,9 @@ pub fn merge_patch(target: &mut Value, patch: &Value) {
 }
 
 /// `PATCH /api/v1/textures/{id}`: merge-patch `name` and `params` of the manifest; the
-/// result is validated and stored as a new texture (bundles are immutable).
+/// texture is made again by its model from the patched params (everything they derive
+/// follows them), or refused naming the field it cannot remake; the result is stored as a
+/// new texture (bundles are immutable).
 pub async fn patch(
     State(app): State<App>,
     Path(TextureId { id }): Path<TextureId>,
@@ -207,7 +209,10 @@ pub async fn patch(
         .await
         .map_err(|e| ApiError::internal("reading the stored bundle failed", e))?;
     let old = Bundle::from_bytes(&bytes)?;
-    let new = Bundle { manifest: Manifest { name, params, ..old.manifest }, sections: old.sections };
+    let limits = app.store.bounds().limits;
+    let new = tokio::task::spawn_blocking(move || models::remake_within(&old, &name, &params, &limits))
+        .await
+        .map_err(|e| ApiError::internal("remaking the encoding failed inside the model", e))??;
     store_bundle(&app, new.to_bytes()).await
 }
 

@@ -18,6 +18,9 @@ pub mod cost;
 pub mod lcm;
 pub mod order_independent;
 pub mod patterns;
+mod remake;
+
+pub use remake::remake_within;
 
 /// Input images by name (PNG bytes), e.g. `sample` for the chaos mosaic.
 pub type Inputs = BTreeMap<String, Vec<u8>>;
@@ -30,6 +33,10 @@ pub trait Model: Send + Sync + 'static {
     fn describe(&self) -> ModelInfo;
     /// Makes a new encoding from JSON parameters and named input images (PNG bytes).
     fn create(&self, name: &str, params: &serde_json::Value, inputs: &Inputs) -> Result<Bundle>;
+    /// The input images `create` made `bundle` from, recovered from its sections: `create`
+    /// with them and the manifest's params makes the bundle again, bit for bit (held for every
+    /// demo by the tests; [`remake_within`] checks it before it changes a parameter).
+    fn inputs_of(&self, bundle: &Bundle) -> Result<Inputs>;
     /// Validates a bundle of this model completely and returns its texture.
     fn load(&self, bundle: &Bundle) -> Result<Arc<dyn Texture>>;
     /// What `load(bundle)` would give and cost, from the manifest, section lengths and image
@@ -177,6 +184,15 @@ fn check_name(name: &str) -> Result<()> {
         return Err(Error::param("name", "1 to 200 printable characters"));
     }
     Ok(())
+}
+
+/// The sections of `bundle` that hold input images as given, by input name: `(input, section)`
+/// pairs, those present.
+pub fn section_inputs(bundle: &Bundle, pairs: &[(&str, &str)]) -> Inputs {
+    pairs
+        .iter()
+        .filter_map(|&(input, section)| Some((input.to_string(), bundle.section(section).ok()?.to_vec())))
+        .collect()
 }
 
 /// The input image called `name`, decoded, or an error naming it.

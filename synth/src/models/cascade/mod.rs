@@ -75,6 +75,12 @@ impl Model for CascadeModel {
     fn create(&self, name: &str, params: &serde_json::Value, inputs: &Inputs) -> Result<Bundle> {
         create(name, params, inputs)
     }
+    fn inputs_of(&self, bundle: &Bundle) -> Result<Inputs> {
+        Ok(super::section_inputs(
+            bundle,
+            &[("control", encoding::CONTROL_SECTION), ("initial", encoding::INITIAL_SECTION)],
+        ))
+    }
     fn load(&self, bundle: &Bundle) -> Result<Arc<dyn Texture>> {
         Ok(Arc::new(load(bundle)?))
     }

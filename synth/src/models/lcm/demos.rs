@@ -1,9 +1,10 @@
 //! The demo encodings of the paper's §3, from the project-made elements of [`super::elements`]:
 //! "random rotation" (Tab. 1), "cheese", "brick wall" simple and with the noise layers of
-//! Tab. 2 (Tab. 3, §6's 40 × 40 + 20 × 20 LCMs and 640 × 640 period), and a 100,800 ×
-//! 100,800 colour texture of pebbles (one element plane per channel).
+//! Tab. 2 (Tab. 3, §6's 40 × 40 + 20 × 20 LCMs and 640 × 640 period), and a 100,352 ×
+//! 100,352 colour texture of pebbles (one element plane per channel).
 
 use super::encoding::{create, PEBBLE_SAND};
+use super::packing::MaskCoding;
 use super::params::{Builtin, LayerParams, Order, Params, Representation};
 use super::table::{Cell, Table};
 use crate::bundle::Bundle;
@@ -29,16 +30,26 @@ pub fn table_noise() -> Table {
     Table::single(Cell { sign: [0.33, 0.33, 0.34], rotation: UNIFORM, mirror: 0.5, operation: ADD })
 }
 
-/// Tab. 3: the "brick wall" model, non-zero application, rows as printed in the paper.
+/// Tab. 3: the "brick wall" model, non-zero application. The paper prints four event cells
+/// and, between them, the large "0" of zero cells, as in Tab. 1: a 4 × 2 table whose rows are
+/// (cell, 0, cell, 0) and (0, cell, 0, cell) — the staggered "regularly structured zero
+/// entries" §6 says Tab. 3's masks have. The cells in the order printed: the first row's two
+/// (mostly 0° / mostly 180°, "each two elements in any row are 180° rotated copies"), then
+/// the second row's two.
 pub fn table_brick() -> Table {
     let c = |r: [f64; 4]| Cell::positive(r, 0.0, NON_ZERO);
+    let o = Cell::none;
     Table {
-        width: 2,
+        width: 4,
         height: 2,
         cells: vec![
             c([0.8, 0.05, 0.15, 0.0]),
+            o(),
             c([0.2, 0.0, 0.8, 0.0]),
+            o(),
+            o(),
             c([0.75, 0.05, 0.2, 0.0]),
+            o(),
             c([0.1, 0.02, 0.88, 0.0]),
         ],
     }
@@ -47,19 +58,25 @@ pub fn table_brick() -> Table {
 fn params(element: &str, k: u32, layers: Vec<LayerParams>) -> Params {
     Params {
         element: Some(Builtin { builtin: element.into(), k }),
+        k: None,
+        planes: None,
         representation: Representation::Explicit,
+        stored_resolutions: Vec::new(),
         magnify: 0,
         background: None,
         order: Order::TopDown,
         palette: Vec::new(),
         tiles: [1, 1],
+        mask_coding: MaskCoding::Zeros,
         seed: 1,
         layers,
     }
 }
 
-/// "Random rotation": 4 layers of the zero-mean stroke, Tab. 1 on each, weights 1. LCM sizes
-/// 50 × 60 and 76 × 46 (not multiples of each other, §5) give a period far beyond any layer's.
+/// "Random rotation": 4 layers of the zero-mean stroke, Tab. 1 on each, weights 1. The two
+/// large layers do not tile (§5): LCMs of 160 × 150 and 320 × 300 points at 64 and 32 px
+/// cover the 10,240 × 9,600 texture. The small layers tile with periods that are not
+/// multiples of each other, 2,048 × 1,920 and 1,280 × 1,200 px.
 pub fn random_rotation() -> Params {
     let t = table_random_rotation;
     Params {
@@ -69,16 +86,18 @@ pub fn random_rotation() -> Params {
             "stroke",
             7,
             vec![
-                layer(0, 1.0, [50, 60], t()),
-                layer(1, 1.0, [76, 46], t()),
-                layer(2, 1.0, [64, 64], t()),
-                layer(3, 1.0, [64, 64], t()),
+                layer(0, 1.0, [160, 150], t()),
+                layer(1, 1.0, [320, 300], t()),
+                layer(2, 1.0, [128, 120], t()),
+                layer(3, 1.0, [160, 150], t()),
             ],
         )
     }
 }
 
 /// "Cheese": one hole element at two scales, rarely replicated, holes painted over each other.
+/// Neither layer tiles: LCMs of 200 × 200 and 400 × 400 points at 32 and 16 px cover the
+/// 6,400² texture.
 pub fn cheese() -> Params {
     let holes =
         |p: f64| Table::single(Cell { sign: [p, 0.0, 1.0 - p], rotation: UNIFORM, mirror: 0.5, operation: NON_ZERO });
@@ -90,7 +109,7 @@ pub fn cheese() -> Params {
             [45.0, 254.0, 236.0, 168.0],
         ],
         seed: 5,
-        ..params("hole", 6, vec![layer(0, 1.0, [40, 40], holes(0.08)), layer(1, 1.0, [50, 50], holes(0.05))])
+        ..params("hole", 6, vec![layer(0, 1.0, [200, 200], holes(0.08)), layer(1, 1.0, [400, 400], holes(0.05))])
     }
 }
 
@@ -130,11 +149,11 @@ pub fn brick_wall() -> Params {
     }
 }
 
-/// Pebbles on sand, 100,800 × 100,800: five layers of a colour pebble (one plane per
-/// channel), small ones first and the largest on top, over a faint sand noise. The LCM sizes
-/// are chosen so that the layer periods (across: 64·225, 32·225, 16·100, 8·56, 4·36 px) have
-/// the least common multiple 64 · 1575 = 100,800 along each axis. The two largest layers get
-/// the largest LCMs: their own repetition is what shows when the whole texture is in view.
+/// Pebbles on sand, 100,352 × 100,352: five layers of a 256-px colour pebble (one plane per
+/// channel), small ones first and the largest on top, over a faint sand noise. The large layer
+/// does not tile (§5): its 784 × 784 LCM at 128-px spacing covers the whole texture. Layer 1
+/// (392 × 392 at 64 px) repeats every 25,088 px and the small layers every 2,048, 1,024 and
+/// 512 px, so no two of the two large layers' repetitions meet within the texture.
 pub fn pebbles() -> Params {
     let stones = |pos: f64, neg: f64| {
         Table::single(Cell { sign: [pos, neg, 1.0 - pos - neg], rotation: UNIFORM, mirror: 0.5, operation: NON_ZERO })
@@ -142,16 +161,16 @@ pub fn pebbles() -> Params {
     Params {
         background: Some(PEBBLE_SAND.to_vec()),
         order: Order::BottomUp,
-        seed: 100_800,
+        seed: 100_352,
         ..params(
             "pebble",
-            7,
+            8,
             vec![
-                layer(0, 1.0, [225, 175], stones(0.2, 0.1)),
-                layer(1, 0.9, [225, 350], stones(0.25, 0.12)),
-                layer(2, 0.8, [100, 36], stones(0.3, 0.15)),
-                layer(3, 0.7, [56, 56], stones(0.3, 0.2)),
-                layer(4, 0.25, [36, 28], table_noise()),
+                layer(0, 1.0, [784, 784], stones(0.2, 0.1)),
+                layer(1, 0.9, [392, 392], stones(0.25, 0.12)),
+                layer(2, 0.8, [64, 64], stones(0.3, 0.15)),
+                layer(3, 0.7, [64, 64], stones(0.3, 0.2)),
+                layer(4, 0.25, [64, 64], table_noise()),
             ],
         )
     }

@@ -67,40 +67,33 @@ pub fn hole(k: u32) -> Plane {
     })
 }
 
-/// The "brick wall" element (§3, Fig. 3): half a brick course pattern. Its top-left quadrant
-/// is the left half of a 2 × 1 cell of two running-bond courses, its bottom-right quadrant the
-/// right half turned 180°, so that points alternating 0° / 180° (Tab. 3) under non-zero
-/// application lay a regular wall, and any other orientation breaks the bond somewhere.
+/// The "brick wall" element (§3, Fig. 3): "half a brick". Tab. 3 replicates at every other
+/// point of a row, staggered from row to row, so a row's elements abut and the next row, half
+/// an element lower and shifted by half an element, paints over their lower halves: what shows
+/// of each element is its upper half, one course high. That upper half is the left half of a
+/// brick (mortar along its top and left edge); the lower half is the right half (mortar along
+/// its top) turned 180°, so that an element turned 180° shows it. Points alternating 0° / 180°
+/// lay a regular wall of bricks two elements long, and any other orientation breaks the bond.
 /// Bricks are positive, mortar negative, nothing transparent.
 pub fn brick(k: u32) -> Plane {
     let s = 1usize << k;
     let h = s / 2;
-    let course = h / 2;
     let mortar = (s / 32).max(1);
-    // The cell: s wide, h tall, two courses, the lower one shifted by half a brick.
-    let cell = |x: usize, y: usize| -> f64 {
-        let c = y / course;
-        let yy = y % course;
-        let shifted = (x + s - c * h) % s;
-        if yy < mortar || shifted < mortar {
-            return -62.0 + (hash::below(hash::hash4(5, 1, x as i64, y as i64), 9) as f64 - 4.0);
+    // Pixel (x, y) of the left (`right` false) or right half of a brick s wide, h tall.
+    let half = |x: usize, y: usize, right: bool| -> f64 {
+        let seed = (x + right as usize * s) as i64;
+        if y < mortar || (!right && x < mortar) {
+            return -62.0 + (hash::below(hash::hash4(5, 1, seed, y as i64), 9) as f64 - 4.0);
         }
-        let brick_id = (x + s - c * h) / s + 2 * c;
-        let shade = hash::below(hash::hash4(5, 2, brick_id as i64, c as i64), 17) as f64 - 8.0;
-        let grain = hash::below(hash::hash4(5, 3, x as i64, y as i64), 11) as f64 - 5.0;
+        let grain = hash::below(hash::hash4(5, 3, seed, y as i64), 11) as f64 - 5.0;
         // A touch of darkening towards the brick's lower edge.
-        50.0 + shade + grain - 6.0 * (yy as f64 / course as f64)
+        50.0 + grain - 6.0 * (y as f64 / h as f64)
     };
     let mut pixels = vec![0i8; s * s];
-    for yy in 0..s {
-        for xx in 0..s {
-            let v = match (xx < h, yy < h) {
-                (true, true) => cell(xx, yy),
-                (false, false) => cell(h + (s - 1 - xx), s - 1 - yy),
-                (false, true) => cell(xx, yy),
-                (true, false) => cell(xx, yy - h),
-            };
-            pixels[yy * s + xx] = libm::floor(v + 0.5).clamp(-128.0, 127.0) as i8;
+    for y in 0..s {
+        for x in 0..s {
+            let v = if y < h { half(x, y, false) } else { half(s - 1 - x, s - 1 - y, true) };
+            pixels[y * s + x] = libm::floor(v + 0.5).clamp(-128.0, 127.0) as i8;
         }
     }
     Plane { k, pixels }

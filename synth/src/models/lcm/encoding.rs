@@ -6,23 +6,23 @@
 //! * `element.{p}.{r}` — plane p of the base element at resolution r, 4^r signed bytes
 //!   (explicit representation, one per stored resolution), or
 //! * `haar.{p}` — the Haar pyramid of plane p, 4^K little-endian i16;
-//! * `lcm.{n}` — the LCM of layer n, one event byte a point, row-major.
+//! * `lcm.{n}` — the LCM of layer n, row-major: one event byte a point, or with §6's zeros
+//!   left out ([`packing`]).
 
 use super::colour::{Colour, QI};
 use super::element::{self, Copies, Plane, Stored, MAX_K, MAX_TOP};
 use super::event::Event;
+use super::haar;
 use super::layer::{Layer, QW};
+use super::packing::{self, MaskCoding};
 use super::period::{lcm, mask_period};
 use super::render::LcmTexture;
 use super::{elements, MODEL};
 
-use super::params::one_tile;
 pub use super::params::{Builtin, LayerParams, Order, Params, Representation};
 use crate::bundle::Bundle;
 use crate::models::{input_image, parse_params, Inputs};
-use crate::{Error, Result};
-use schemars::JsonSchema;
-use serde::{Deserialize, Serialize};
+use crate::{Error, Result, Rgba8Image};
 
 /// At most this many layers.
 pub const MAX_LAYERS: usize = 16;
@@ -35,39 +35,6 @@ pub const MAX_LCM_POINTS: u64 = 1 << 20;
 pub const MAX_SIZE: u64 = 1 << 40;
 /// Layer weights lie within ± this.
 pub const MAX_WEIGHT: f64 = 64.0;
-
-/// The manifest parameters of an `lcm` encoding: [`Params`] with the derived fields filled in
-/// and the base element stored in sections.
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, JsonSchema)]
-#[serde(deny_unknown_fields)]
-pub struct StoredParams {
-    /// The base element is 2^k pixels a side.
-    pub k: u32,
-    /// Magnification 2^magnify (§2.4): layer 0 at resolution K + magnify, elements stretched.
-    #[serde(default)]
-    pub magnify: u32,
-    /// 1 (intensity through `palette`) or 3 (one element plane per RGB channel).
-    pub planes: u32,
-    #[serde(default)]
-    pub representation: Representation,
-    /// Resolutions held explicitly (K and those the layers use).
-    #[serde(default, skip_serializing_if = "Vec::is_empty")]
-    pub stored_resolutions: Vec<u32>,
-    /// Background intensity per plane, added last.
-    pub background: Vec<f64>,
-    #[serde(default)]
-    pub order: Order,
-    /// `[intensity, r, g, b]` stops, for one plane.
-    #[serde(default, skip_serializing_if = "Vec::is_empty")]
-    pub palette: Vec<[f64; 4]>,
-    /// The served size is the period times this.
-    #[serde(default = "one_tile")]
-    pub tiles: [u32; 2],
-    /// The seed the LCMs were drawn with (for the record).
-    #[serde(default)]
-    pub seed: u64,
-    pub layers: Vec<LayerParams>,
-}
 
 /// The side exponent K and plane count of the element `create` would use, checked from the
 /// parameters and the input image's header, without drawing or decoding it.
@@ -139,20 +106,30 @@ fn image_planes(inputs: &Inputs, planes: usize) -> Result<Vec<Plane>> {
 /// parameter is checked ([`super::plan::plan_create`]) before anything is drawn.
 pub fn create(name: &str, params: &serde_json::Value, inputs: &Inputs) -> Result<Bundle> {
     super::plan::plan_create(params, inputs)?;
-    let p: Params = parse_params(params)?;
+    let mut p: Params = parse_params(params)?;
     let planes = match &p.element {
         Some(b) => builtin_planes(b),
         None => image_planes(inputs, if p.palette.is_empty() { 3 } else { 1 })?,
     };
     let k = planes[0].k;
-    let background = p.background.clone().unwrap_or_else(|| vec![0.0; planes.len()]);
-    let mut sections: Vec<(String, Vec<u8>)> =
-        drawn_lcms(&p)?.into_iter().enumerate().filter_map(|(n, c)| Some((format!("lcm.{n}"), c?))).collect();
-    let stored_resolutions = stored_resolutions(&p, k);
+    let mut sections: Vec<(String, Vec<u8>)> = drawn_lcms(&p)?
+        .into_iter()
+        .enumerate()
+        .filter_map(|(n, codes)| {
+            let codes = codes?;
+            let l = &p.layers[n];
+            let data = match (p.mask_coding, &l.table) {
+                (MaskCoding::Zeros, Some(t)) => packing::pack(&codes, t, l.lcm[0] as usize),
+                _ => codes,
+            };
+            Some((format!("lcm.{n}"), data))
+        })
+        .collect();
+    let resolutions = stored_resolutions(&p, k);
     for (i, plane) in planes.iter().enumerate() {
         match p.representation {
             Representation::Explicit => {
-                let Stored::Explicit(copies) = Stored::explicit(plane, &stored_resolutions) else { unreachable!() };
+                let Stored::Explicit(copies) = Stored::explicit(plane, &resolutions) else { unreachable!() };
                 for c in copies {
                     sections.push((format!("element.{i}.{}", c.k), c.pixels.iter().map(|&v| v as u8).collect()));
                 }
@@ -163,20 +140,11 @@ pub fn create(name: &str, params: &serde_json::Value, inputs: &Inputs) -> Result
             }
         }
     }
-    let manifest = StoredParams {
-        k,
-        magnify: p.magnify,
-        planes: planes.len() as u32,
-        representation: p.representation,
-        stored_resolutions: if p.representation == Representation::Explicit { stored_resolutions } else { vec![] },
-        background,
-        order: p.order,
-        palette: p.palette,
-        tiles: p.tiles,
-        seed: p.seed,
-        layers: p.layers,
-    };
-    let json = serde_json::to_value(&manifest).map_err(|e| Error::param("params", e.to_string()))?;
+    p.k = Some(k);
+    p.planes = Some(planes.len() as u32);
+    p.stored_resolutions = if p.representation == Representation::Explicit { resolutions } else { vec![] };
+    p.background.get_or_insert_with(|| vec![0.0; planes.len()]);
+    let json = serde_json::to_value(&p).map_err(|e| Error::param("params", e.to_string()))?;
     let mut bundle = Bundle::new(MODEL, name, json);
     sections.sort();
     for (n, d) in sections {
@@ -184,6 +152,58 @@ pub fn create(name: &str, params: &serde_json::Value, inputs: &Inputs) -> Result
     }
     load(&bundle)?;
     Ok(bundle)
+}
+
+/// The input images `create` made `bundle` from: none for a built-in element, else the image
+/// `element` rebuilt from the resolution-K plane(s), grey level − 128 the intensity.
+pub fn inputs_of(bundle: &Bundle) -> Result<Inputs> {
+    let p: Params = bundle.params()?;
+    if p.element.is_some() {
+        return Ok(Inputs::new());
+    }
+    let Checked { k, planes, .. } = check(&p, bundle)?;
+    let plane = |i: u32| -> Result<Vec<i8>> {
+        Ok(match p.representation {
+            Representation::Explicit => bundle.section(&format!("element.{i}.{k}"))?.iter().map(|&b| b as i8).collect(),
+            Representation::Haar => {
+                let data = bundle.section(&format!("haar.{i}"))?;
+                let coef: Vec<i32> = data.chunks_exact(2).map(|b| i16::from_le_bytes([b[0], b[1]]) as i32).collect();
+                let full = haar::low_passes(&coef, 1 << k).swap_remove(0);
+                full.into_iter().map(|v| v.clamp(-128, 127) as i8).collect()
+            }
+        })
+    };
+    let planes = (0..planes).map(plane).collect::<Result<Vec<_>>>()?;
+    let mut img = Rgba8Image::new(1 << k, 1 << k);
+    for (n, px) in img.data.chunks_exact_mut(4).enumerate() {
+        let grey = |i: usize| (planes[i.min(planes.len() - 1)][n] as i32 + 128) as u8;
+        px.copy_from_slice(&[grey(0), grey(1), grey(2), 255]);
+    }
+    Ok(Inputs::from([("element".to_string(), img.to_png())]))
+}
+
+/// Checks the derived fields `create` is given (a stored manifest posted back) against what
+/// it derives from the element of side 2^`k` with `planes` planes.
+pub(super) fn check_derived(p: &Params, k: u32, planes: u32) -> Result<()> {
+    let disagree = |name: &str, given: String, derived: String| {
+        Err(Error::param(name, format!("{given} disagrees with {derived}, what the element and layers give")))
+    };
+    if let Some(given) = p.k.filter(|&g| g != k) {
+        return disagree("k", given.to_string(), k.to_string());
+    }
+    if let Some(given) = p.planes.filter(|&g| g != planes) {
+        return disagree("planes", given.to_string(), planes.to_string());
+    }
+    let resolutions = if p.representation == Representation::Explicit { stored_resolutions(p, k) } else { Vec::new() };
+    if !p.stored_resolutions.is_empty() && p.stored_resolutions != resolutions {
+        return disagree("stored_resolutions", format!("{:?}", p.stored_resolutions), format!("{resolutions:?}"));
+    }
+    Ok(())
+}
+
+/// A derived field a stored manifest must carry.
+fn stored<T: Clone>(value: &Option<T>, name: &str) -> Result<T> {
+    value.clone().ok_or_else(|| Error::param(name, "must be set in a stored encoding"))
 }
 
 /// The resolutions an explicit element stores: K and those the layers use at level 0.
@@ -337,40 +357,47 @@ pub(super) fn colour(planes: u32, palette: &[[f64; 4]], background: &[f64]) -> R
     Ok(colour)
 }
 
-/// The checked shape of a stored encoding: its colour, period and served size, and the
+/// The checked shape of a stored encoding: its derived fields, colour, period and served size, and the
 /// element's stored resolutions (explicit only), from the manifest and section bytes.
 pub(super) struct Checked {
+    pub k: u32,
+    pub planes: u32,
+    pub background: Vec<f64>,
     pub colour: Colour,
     pub period: (u64, u64),
     pub size: (u64, u64),
     pub resolutions: Vec<u32>,
+    /// Each layer's own LCM, unpacked (`None` where it shares one).
+    pub masks: Vec<Option<Vec<u8>>>,
 }
 
 /// Checks a stored encoding's manifest and every section's length and LCM bytes, before any
 /// element copy or layer is built.
-pub(super) fn check(p: &StoredParams, bundle: &Bundle) -> Result<Checked> {
-    if !(1..=MAX_K).contains(&p.k) {
-        return Err(Error::param("k", format!("{}: the base element side must be 2^k with 1 ≤ k ≤ {MAX_K}", p.k)));
+pub(super) fn check(p: &Params, bundle: &Bundle) -> Result<Checked> {
+    let (k, planes) = (stored(&p.k, "k")?, stored(&p.planes, "planes")?);
+    if !(1..=MAX_K).contains(&k) {
+        return Err(Error::param("k", format!("{k}: the base element side must be 2^k with 1 ≤ k ≤ {MAX_K}")));
     }
-    if p.magnify > MAX_TOP - p.k {
+    if p.magnify > MAX_TOP - k {
         return Err(Error::param("magnify", format!("{}: k + magnify may not exceed {MAX_TOP}", p.magnify)));
     }
-    let top = p.k + p.magnify;
-    let colour = colour(p.planes, &p.palette, &p.background)?;
+    let top = k + p.magnify;
+    let background = stored(&p.background, "background")?;
+    let colour = colour(planes, &p.palette, &background)?;
     let mut expected: Vec<String> = Vec::new();
     let mut resolutions = p.stored_resolutions.clone();
     resolutions.sort_unstable_by(|a, b| b.cmp(a));
     resolutions.dedup();
-    for i in 0..p.planes {
+    for i in 0..planes {
         match p.representation {
             Representation::Explicit => {
                 if resolutions.len() != p.stored_resolutions.len()
-                    || resolutions.first() != Some(&p.k)
+                    || resolutions.first() != Some(&k)
                     || resolutions.contains(&0)
                 {
                     return Err(Error::param(
                         "stored_resolutions",
-                        format!("{:?}: distinct resolutions 1..=k that include k = {}", p.stored_resolutions, p.k),
+                        format!("{:?}: distinct resolutions 1..=k that include k = {k}", p.stored_resolutions),
                     ));
                 }
                 for &r in &resolutions {
@@ -385,9 +412,9 @@ pub(super) fn check(p: &StoredParams, bundle: &Bundle) -> Result<Checked> {
             Representation::Haar => {
                 let name = format!("haar.{i}");
                 let len = bundle.section(&name)?.len();
-                let n = 1usize << (2 * p.k);
+                let n = 1usize << (2 * k);
                 if len != 2 * n {
-                    return Err(Error::param(&name, format!("{len} bytes; 2^{0}×2^{0} i16 need {1}", p.k, 2 * n)));
+                    return Err(Error::param(&name, format!("{len} bytes; 2^{k}×2^{k} i16 need {}", 2 * n)));
                 }
                 expected.push(name);
             }
@@ -395,19 +422,45 @@ pub(super) fn check(p: &StoredParams, bundle: &Bundle) -> Result<Checked> {
     }
     check_layers(&p.layers, top)?;
     expected.extend(p.layers.iter().enumerate().filter(|(_, l)| l.share.is_none()).map(|(n, _)| format!("lcm.{n}")));
-    let period = period(&p.layers, top, |n| bundle.section(&format!("lcm.{n}")))?;
     if let Some(extra) = bundle.sections.iter().find(|s| !expected.contains(&s.name)) {
         return Err(Error::bundle(format!("unexpected section `{}` in an lcm encoding", extra.name)));
     }
+    let masks = masks(p, bundle)?;
+    let period = period(&p.layers, top, |n| {
+        Ok(masks[n].as_deref().expect("`check_layers` lets layers share only an earlier layer's own LCM"))
+    })?;
     let size = served_size(period, p.tiles)?;
-    Ok(Checked { colour, period, size, resolutions })
+    Ok(Checked { k, planes, background, colour, period, size, resolutions, masks })
+}
+
+/// Each layer's own LCM as event bytes, from its section as `p.mask_coding` codes it (`None`
+/// for a layer that shares one).
+fn masks(p: &Params, bundle: &Bundle) -> Result<Vec<Option<Vec<u8>>>> {
+    p.layers
+        .iter()
+        .enumerate()
+        .map(|(n, l)| {
+            if l.share.is_some() {
+                return Ok(None);
+            }
+            let name = format!("lcm.{n}");
+            let data = bundle.section(&name)?;
+            Ok(Some(match (p.mask_coding, &l.table) {
+                (MaskCoding::Raw, _) => data.to_vec(),
+                (MaskCoding::Zeros, Some(t)) => packing::unpack(data, t, l.lcm[0] as usize, l.lcm[1] as usize, &name)?,
+                (MaskCoding::Zeros, None) => {
+                    return Err(Error::param(format!("layers[{n}].table"), "needed to decode a zero-coded LCM"))
+                }
+            }))
+        })
+        .collect()
 }
 
 /// Checks an encoding completely ([`check`]) and builds its texture.
 pub fn load(bundle: &Bundle) -> Result<LcmTexture> {
-    let p: StoredParams = bundle.params()?;
-    let Checked { colour, period, size, resolutions } = check(&p, bundle)?;
-    let planes = p.planes as usize;
+    let p: Params = bundle.params()?;
+    let Checked { k, planes, background, colour, period, size, resolutions, masks } = check(&p, bundle)?;
+    let planes = planes as usize;
     let copies = (0..planes)
         .map(|i| {
             let stored = match p.representation {
@@ -434,7 +487,7 @@ pub fn load(bundle: &Bundle) -> Result<LcmTexture> {
                     Stored::Haar(coef)
                 }
             };
-            Ok(Copies::build(&stored, p.k, p.magnify))
+            Ok(Copies::build(&stored, k, p.magnify))
         })
         .collect::<Result<Vec<_>>>()?;
     let mut layers = p
@@ -442,16 +495,17 @@ pub fn load(bundle: &Bundle) -> Result<LcmTexture> {
         .iter()
         .enumerate()
         .map(|(n, l)| {
-            let codes = bundle.section(&format!("lcm.{}", l.share.unwrap_or(n)))?;
+            let codes =
+                masks[l.share.unwrap_or(n)].as_deref().expect("checked: shared LCMs are an earlier layer's own");
             let (w, h) = (l.lcm[0] as usize, l.lcm[1] as usize);
-            Ok(Layer::new(l.layer, quantized_weight(l.weight), w, h, codes, planes))
+            Layer::new(l.layer, quantized_weight(l.weight), w, h, codes, planes)
         })
-        .collect::<Result<Vec<_>>>()?;
+        .collect::<Vec<_>>();
     if p.order == Order::BottomUp {
         layers.sort_by_key(|l| std::cmp::Reverse(l.index));
     } else {
         layers.sort_by_key(|l| l.index);
     }
-    let background = p.background.iter().map(|b| libm::floor(b * (1u64 << QI) as f64 + 0.5) as i64).collect();
-    Ok(LcmTexture { k: p.k, magnify: p.magnify, copies, layers, background, colour, period, size })
+    let background = background.iter().map(|b| libm::floor(b * (1u64 << QI) as f64 + 0.5) as i64).collect();
+    Ok(LcmTexture { k, magnify: p.magnify, copies, layers, background, colour, period, size })
 }

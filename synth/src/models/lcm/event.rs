@@ -29,7 +29,7 @@ pub enum Operation {
     Add,
     /// a ← b where the element pixel is not transparent (non-zero), else a.
     NonZero,
-    /// a ← b where |b| > |a|, else a (ties keep a).
+    /// a ← a where |a| > |b|, else b (§2.2's two cases: a tie takes b).
     Maximum,
 }
 

@@ -175,7 +175,7 @@ impl Layer {
                         Operation::Maximum => {
                             for (a, &e) in dst.iter_mut().zip(line) {
                                 let b = e as i64 * sw;
-                                if b.abs() > a.abs() {
+                                if b.abs() >= a.abs() {
                                     *a = b;
                                 }
                             }

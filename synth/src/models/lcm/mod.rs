@@ -13,6 +13,7 @@
 //! * [`layer`] — evaluation of one layer from its LCM, native or prefiltered.
 //! * [`render`] — the texture: layers, order, background, colour; operation counting.
 //! * [`period`] — the period that LCM sizes give the texture.
+//! * [`packing`] — §6's coding of the zeros of an LCM section.
 //! * [`colour`] — palette or per-channel planes.
 //! * [`params`] — the creation parameters; [`encoding`] — the stored parameters, sections,
 //!   `create` and `load`.
@@ -29,16 +30,14 @@ pub mod elements;
 pub mod event;
 pub mod haar;
 pub mod layer;
+pub mod packing;
 pub mod period;
 pub mod render;
 pub mod table;
 
 pub use demos::demos;
-pub use encoding::{create, load, StoredParams};
+pub use encoding::{create, load};
 pub use params::Params;
-
-/// Earlier name of [`Params`], kept for existing callers.
-pub type CreateParams = Params;
 pub use render::{LcmTexture, OpCount};
 
 use super::{InputInfo, Inputs, MipGuarantee, Model, ModelInfo, Plan};
@@ -74,6 +73,9 @@ impl Model for LcmModel {
     }
     fn create(&self, name: &str, params: &serde_json::Value, inputs: &Inputs) -> Result<Bundle> {
         create(name, params, inputs)
+    }
+    fn inputs_of(&self, bundle: &Bundle) -> Result<Inputs> {
+        encoding::inputs_of(bundle)
     }
     fn load(&self, bundle: &Bundle) -> Result<Arc<dyn Texture>> {
         Ok(Arc::new(load(bundle)?))

@@ -1,6 +1,7 @@
 //! The parameters of an `lcm` encoding as `create` takes them: the layers with their event
 //! tables, the background, order and colour, and where the base element comes from.
 
+use super::packing::MaskCoding;
 use super::table::Table;
 use schemars::JsonSchema;
 use serde::{Deserialize, Serialize};
@@ -62,28 +63,48 @@ pub struct Builtin {
     pub k: u32,
 }
 
-/// The creation parameters: those of the manifest ([`StoredParams`](super::encoding::StoredParams)) less
-/// what is derived (k, planes, stored resolutions), plus where the base element comes from.
+/// The parameters of an `lcm` encoding: what `create` takes, and what the manifest stores with
+/// the derived fields (`k`, `planes`, `stored_resolutions`, `background`) filled in. A stored
+/// manifest posted back to `create` (with the element image when `element` names no built-in)
+/// makes the same encoding again; a derived field that is given must agree with what it derives.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize, JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct Params {
     /// A built-in element; without it the input image `element` is used: a square PNG of
     /// side 2^K whose grey level − 128 is the intensity (transparent pixels are 0), one plane
     /// with a palette, else one plane per channel.
-    #[serde(default)]
+    #[serde(default, skip_serializing_if = "Option::is_none")]
     pub element: Option<Builtin>,
-    #[serde(default)]
-    pub representation: Representation,
+    /// Derived: the base element is 2^k pixels a side.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub k: Option<u32>,
+    /// Magnification 2^magnify (§2.4): layer 0 at resolution K + magnify, elements stretched.
     #[serde(default)]
     pub magnify: u32,
+    /// Derived: 1 (intensity through `palette`) or 3 (one element plane per RGB channel).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub planes: Option<u32>,
+    #[serde(default)]
+    pub representation: Representation,
+    /// Derived (explicit representation): the resolutions held, K and those the layers use.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub stored_resolutions: Vec<u32>,
+    /// Background intensity per plane, added last; 0 when not given.
     #[serde(default)]
     pub background: Option<Vec<f64>>,
     #[serde(default)]
     pub order: Order,
-    #[serde(default)]
+    /// `[intensity, r, g, b]` stops, for one plane.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub palette: Vec<[f64; 4]>,
+    /// The served size is the period times this.
     #[serde(default = "one_tile")]
     pub tiles: [u32; 2],
+    /// How the LCM sections are stored: `raw`, or `zeros` (§6: the zeros the event tables
+    /// imply left out).
+    #[serde(default)]
+    pub mask_coding: MaskCoding,
+    /// The seed the LCMs are drawn with.
     #[serde(default)]
     pub seed: u64,
     pub layers: Vec<LayerParams>,

@@ -6,7 +6,7 @@
 //! work units (≈ 1 ns of one core) per item, calibrated by `examples/cost_calibration.rs`.
 
 use super::element::MAX_TOP;
-use super::encoding::{self, check, check_layers, colour, drawn_lcms, element_shape, LayerParams, StoredParams};
+use super::encoding::{self, check, check_derived, check_layers, colour, drawn_lcms, element_shape, LayerParams};
 use super::params::Params;
 use crate::bundle::Bundle;
 use crate::models::{cost, parse_params, Cost, Inputs, Measure, Plan};
@@ -35,15 +35,16 @@ const PALETTE_ENTRIES: f64 = 4096.0;
 
 /// What loading `bundle` gives and costs, from its manifest and section bytes.
 pub fn plan(bundle: &Bundle) -> Result<Plan> {
-    let p: StoredParams = bundle.params()?;
-    let checked = check(&p, bundle)?;
-    Ok(plan_of(&Texture { k: p.k, magnify: p.magnify, planes: p.planes, layers: &p.layers }, checked.size, false))
+    let p: Params = bundle.params()?;
+    let c = check(&p, bundle)?;
+    Ok(plan_of(&Texture { k: c.k, magnify: p.magnify, planes: c.planes, layers: &p.layers }, c.size, false))
 }
 
 /// What `create` gives and costs: the parameters checked, then the LCMs drawn for the period.
 pub fn plan_create(params: &serde_json::Value, inputs: &Inputs) -> Result<Plan> {
     let p: Params = parse_params(params)?;
     let (k, planes) = element_shape(&p, inputs)?;
+    check_derived(&p, k, planes)?;
     if p.magnify > MAX_TOP - k {
         return Err(Error::param("magnify", format!("{}: k + magnify may not exceed {MAX_TOP}", p.magnify)));
     }

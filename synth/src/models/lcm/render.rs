@@ -34,6 +34,22 @@ impl LcmTexture {
         self.period
     }
 
+    /// Each layer's own period in pixels at level 0 — its LCM's smallest period times its
+    /// replication spacing — by the paper's layer number, layer 0 (the largest elements) first.
+    pub fn layer_periods(&self) -> Vec<(u32, (u64, u64))> {
+        let mut periods: Vec<(u32, (u64, u64))> = self
+            .layers
+            .iter()
+            .map(|l| {
+                let spacing = 1u64 << (self.k + self.magnify - l.index - 1);
+                let (dx, dy) = super::period::mask_period(&l.codes, l.w, l.h);
+                (l.index, (dx * spacing, dy * spacing))
+            })
+            .collect();
+        periods.sort_by_key(|p| p.0);
+        periods
+    }
+
     /// Number of intensity planes (1 with a palette, 3 for RGB).
     pub fn planes(&self) -> usize {
         self.copies.len()

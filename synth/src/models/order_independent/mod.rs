@@ -73,6 +73,9 @@ impl Model for OrderIndependentModel {
     fn create(&self, name: &str, params: &serde_json::Value, inputs: &Inputs) -> Result<Bundle> {
         create(name, params, inputs)
     }
+    fn inputs_of(&self, bundle: &Bundle) -> Result<Inputs> {
+        Ok(super::section_inputs(bundle, &[("sample", encoding::SAMPLE_SECTION)]))
+    }
     fn load(&self, bundle: &Bundle) -> Result<Arc<dyn Texture>> {
         Ok(Arc::new(load(bundle)?))
     }

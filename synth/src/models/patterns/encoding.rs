@@ -52,6 +52,48 @@ pub(super) fn map_section(input: &str, bytes: &[u8], pixel_maps: &[(String, u32)
     }
 }
 
+/// The input images `create` made `bundle` from: the reference as stored, and every map
+/// section the params name (an object with `section`: a pixel map when it has a `block`,
+/// else a map of one byte a value) as a PNG whose red channel holds its values.
+pub fn inputs_of(bundle: &Bundle) -> Result<Inputs> {
+    let mut inputs = Inputs::from([("reference".to_string(), bundle.section("reference.png")?.to_vec())]);
+    let mut refs = Vec::new();
+    section_refs(&bundle.manifest.params, &mut refs);
+    for r in refs {
+        let (name, [w, h], values) = if r.get("block").is_some() {
+            let pm: params::PixelMapParams = parse_params(r)?;
+            let values = pixel_map::decode(pm.size[0], pm.size[1], pm.block, bundle.section(&pm.section)?)?;
+            (pm.section, pm.size, values)
+        } else {
+            let map: params::MapRef = parse_params(r)?;
+            let name = map.section.expect("found by its `section`");
+            if map.depth != 1 {
+                return Err(Error::param(name, "a map of 2 bytes a value is no PNG input of `create`"));
+            }
+            (name.clone(), map.size, bundle.section(&name)?.to_vec())
+        };
+        if values.len() != w as usize * h as usize {
+            return Err(Error::param(&name, format!("{} values for a {w}×{h} map", values.len())));
+        }
+        let mut img = crate::Rgba8Image::new(w, h);
+        for (px, v) in img.data.chunks_exact_mut(4).zip(values) {
+            px.copy_from_slice(&[v, 0, 0, 255]);
+        }
+        inputs.insert(name, img.to_png());
+    }
+    Ok(inputs)
+}
+
+/// Every object within `v` that names a `section`.
+fn section_refs<'a>(v: &'a serde_json::Value, out: &mut Vec<&'a serde_json::Value>) {
+    match v {
+        serde_json::Value::Object(m) if m.get("section").is_some_and(|s| s.is_string()) => out.push(v),
+        serde_json::Value::Object(m) => m.values().for_each(|v| section_refs(v, out)),
+        serde_json::Value::Array(a) => a.iter().for_each(|v| section_refs(v, out)),
+        _ => {}
+    }
+}
+
 /// Validates an encoding completely and builds the texture: its plan first, which checks
 /// what bounds the work before the reference is decoded.
 pub fn load(bundle: &Bundle) -> Result<PatternTexture> {

@@ -73,6 +73,9 @@ impl Model for PatternsModel {
     fn create(&self, name: &str, params: &serde_json::Value, inputs: &Inputs) -> Result<Bundle> {
         create(name, params, inputs)
     }
+    fn inputs_of(&self, bundle: &Bundle) -> Result<Inputs> {
+        encoding::inputs_of(bundle)
+    }
     fn load(&self, bundle: &Bundle) -> Result<Arc<dyn Texture>> {
         Ok(Arc::new(load(bundle)?))
     }

@@ -103,3 +103,29 @@ pub fn encode(w: u32, h: u32, block: u32, materials: &[u8]) -> Vec<u8> {
     top.extend_from_slice(&pool);
     top
 }
+
+/// The `w × h` material image (row-major, one byte a pixel) a section of [`encode`] holds.
+pub fn decode(w: u32, h: u32, block: u32, data: &[u8]) -> Result<Vec<u8>> {
+    let bad = || Error::param("pixel_map", format!("section is no {w}×{h} map of {block}-pixel blocks"));
+    if block == 0 || w % block != 0 || h % block != 0 {
+        return Err(bad());
+    }
+    let (bw, bh, b) = (w / block, h / block, block as usize);
+    let top_bytes = (bw * bh) as usize * 2;
+    let (top, pool) = (data.get(..top_bytes).ok_or_else(bad)?, &data[top_bytes..]);
+    let mut out = vec![0u8; (w * h) as usize];
+    for (i, e) in top.chunks_exact(2).map(|c| u16::from_le_bytes([c[0], c[1]])).enumerate() {
+        let (bx, by) = (i % bw as usize, i / bw as usize);
+        for y in 0..b {
+            let row = (by * b + y) * w as usize + bx * b;
+            let dst = &mut out[row..row + b];
+            if e & BLOCK_FLAG == 0 {
+                dst.fill(u8::try_from(e).map_err(|_| bad())?);
+            } else {
+                let at = (e & !BLOCK_FLAG) as usize * b * b + y * b;
+                dst.copy_from_slice(pool.get(at..at + b).ok_or_else(bad)?);
+            }
+        }
+    }
+    Ok(out)
+}

@@ -1,0 +1,147 @@
+//! A texture's params are its recipe: posted back they make it again bit for bit, and a PATCH
+//! that changes them makes the texture again from them — for every model, over HTTP.
+
+mod common;
+use common::*;
+use serde_json::{json, Value};
+use vtex_synth::bundle::Bundle;
+use vtex_synth::models::{self, lcm, Inputs};
+
+async fn encoding(c: &reqwest::Client, s: &Server, id: &str) -> Bundle {
+    let (status, _, bytes) = get_bytes(c, &s.url(&format!("/api/v1/textures/{id}/encoding"))).await;
+    assert_eq!(status, 200, "{id}");
+    Bundle::from_bytes(&bytes).unwrap()
+}
+
+/// `POST /api/v1/textures` as a multipart creation; returns (status, body).
+async fn post_recipe(
+    c: &reqwest::Client,
+    s: &Server,
+    model: &str,
+    name: &str,
+    params: &Value,
+    inputs: &Inputs,
+) -> (u16, Value) {
+    let mut form = reqwest::multipart::Form::new()
+        .text("model", model.to_string())
+        .text("name", name.to_string())
+        .text("params", params.to_string());
+    for (input, png) in inputs {
+        form = form.part(input.clone(), reqwest::multipart::Part::bytes(png.clone()).file_name(format!("{input}.png")));
+    }
+    let r = c.post(s.url("/api/v1/textures")).multipart(form).send().await.unwrap();
+    (r.status().as_u16(), r.json().await.unwrap())
+}
+
+async fn patch(c: &reqwest::Client, s: &Server, id: &str, body: Value) -> (u16, Value) {
+    let r = c.patch(s.url(&format!("/api/v1/textures/{id}"))).json(&body).send().await.unwrap();
+    (r.status().as_u16(), r.json().await.unwrap())
+}
+
+async fn tile(c: &reqwest::Client, s: &Server, id: &str) -> Vec<u8> {
+    let (status, _, bytes) = get_bytes(c, &s.tile_url(id, 0, 0, 0, "rgba")).await;
+    assert_eq!(status, 200, "{id}");
+    bytes
+}
+
+#[tokio::test]
+async fn every_demo_is_made_again_from_the_params_it_reports() {
+    let dir = tempdir();
+    let s = Server::start(dir.path(), &["--demos"]);
+    let c = client();
+    let list: Value = c.get(s.url("/api/v1/textures")).send().await.unwrap().json().await.unwrap();
+    let all = list["textures"].as_array().unwrap();
+    assert_eq!(all.len(), models::demos().len());
+    for t in all {
+        let id = t["id"].as_str().unwrap();
+        let b = encoding(&c, &s, id).await;
+        let inputs = models::get(&b.manifest.model).unwrap().inputs_of(&b).unwrap();
+        let (status, info) =
+            post_recipe(&c, &s, &b.manifest.model, &b.manifest.name, &b.manifest.params, &inputs).await;
+        assert_eq!(status, 200, "{}: {info}", b.manifest.name);
+        assert_eq!(info["id"], id, "{}: made again, it is another texture", b.manifest.name);
+    }
+    assert_eq!(store_files(dir.path()).len(), all.len(), "nothing new was stored");
+}
+
+#[tokio::test]
+async fn a_patched_seed_makes_the_texture_again_for_every_model() {
+    let dir = tempdir();
+    let s = Server::start(dir.path(), &[]);
+    let c = client();
+    for m in models::REGISTRY {
+        let b = m.demos().swap_remove(0);
+        let id = put(&c, &s, &b).await;
+        let seed = b.manifest.params["seed"].as_u64().expect("every model has a seed");
+        let (status, info) = patch(&c, &s, &id, json!({"params": {"seed": seed + 1}})).await;
+        assert_eq!(status, 201, "{}: {info}", m.id());
+        let new_id = info["id"].as_str().unwrap();
+        let patched = encoding(&c, &s, new_id).await;
+        assert_eq!(patched.manifest.params["seed"], seed + 1);
+        // What is stored is what the model makes of the patched params: the data agrees
+        // with the manifest.
+        let inputs = m.inputs_of(&b).unwrap();
+        let made = m.create(&b.manifest.name, &patched.manifest.params, &inputs).unwrap();
+        assert!(made == patched, "{}: the patched bundle is not what its params make", m.id());
+        assert_ne!(tile(&c, &s, &id).await, tile(&c, &s, new_id).await, "{}: a new seed changed no pixel", m.id());
+    }
+}
+
+/// An `lcm` demo of one 1 × 1 event table per layer, one byte a mask point.
+fn cheese() -> Bundle {
+    let (name, mut p) = lcm::demos::all_params().swap_remove(1);
+    assert_eq!(name, "LCM cheese");
+    p.mask_coding = lcm::packing::MaskCoding::Raw;
+    lcm::demos::make(name, &p).unwrap()
+}
+
+#[tokio::test]
+async fn a_patched_event_table_redraws_the_mask() {
+    let dir = tempdir();
+    let s = Server::start(dir.path(), &[]);
+    let c = client();
+    let b = cheese();
+    let id = put(&c, &s, &b).await;
+    let mut layers = b.manifest.params["layers"].clone();
+    layers[0]["table"]["cells"][0]["sign"] = json!([0.5, 0.0, 0.5]);
+    let (status, info) = patch(&c, &s, &id, json!({"params": {"layers": layers}})).await;
+    assert_eq!(status, 201, "{info}");
+    let patched = encoding(&c, &s, info["id"].as_str().unwrap()).await;
+    let holes = |b: &Bundle| b.section("lcm.0").unwrap().iter().filter(|&&e| e != 0).count();
+    let points = b.section("lcm.0").unwrap().len() as f64;
+    assert!((holes(&b) as f64 / points - 0.08).abs() < 0.03, "{}", holes(&b));
+    assert!((holes(&patched) as f64 / points - 0.5).abs() < 0.05, "{}", holes(&patched));
+    assert_eq!(patched.section("lcm.1").unwrap(), b.section("lcm.1").unwrap(), "layer 1 kept its table");
+}
+
+#[tokio::test]
+async fn a_patch_the_model_cannot_remake_is_refused_naming_the_field() {
+    let dir = tempdir();
+    let s = Server::start(dir.path(), &[]);
+    let c = client();
+    // A hand-edited mask: a valid event code where the table drew none.
+    let mut b = cheese();
+    let lcm0 = b.sections.iter_mut().find(|s| s.name == "lcm.0").unwrap();
+    let at = lcm0.data.iter().position(|&e| e == 0).unwrap();
+    lcm0.data[at] = 1;
+    let id = put(&c, &s, &b).await;
+    let before = store_files(dir.path());
+    let (status, e) = patch(&c, &s, &id, json!({"params": {"seed": 6}})).await;
+    assert_eq!(status, 400, "{e}");
+    let msg = e["error"].as_str().unwrap();
+    assert!(msg.contains("`seed`") && msg.contains("section `lcm.0`"), "{msg}");
+    assert_eq!(store_files(dir.path()), before);
+    // A rename changes nothing the params derive: allowed, the sections kept.
+    let (status, info) = patch(&c, &s, &id, json!({"name": "edited cheese"})).await;
+    assert_eq!(status, 201, "{info}");
+    let renamed = encoding(&c, &s, info["id"].as_str().unwrap()).await;
+    assert_eq!((renamed.manifest.name.as_str(), &renamed.sections), ("edited cheese", &b.sections));
+    // A mask uploaded without its table cannot be redrawn either.
+    let mut b = cheese();
+    b.manifest.params["layers"][0].as_object_mut().unwrap().remove("table");
+    let id = put(&c, &s, &b).await;
+    let (status, e) = patch(&c, &s, &id, json!({"params": {"seed": 6}})).await;
+    assert_eq!(status, 400, "{e}");
+    let msg = e["error"].as_str().unwrap();
+    assert!(msg.contains("`seed`") && msg.contains("layers[0].table"), "{msg}");
+}
