@@ -554,6 +554,159 @@ fn colliding_sprites_are_an_error() {
 }
 
 #[test]
+fn following_the_collision_advice_draws_both_sprites() {
+    let mut b = demos::sprites();
+    let clash = serde_json::json!({"pattern": 17, "x": 720, "y": 410});
+    b.manifest.params["sprites"].as_object_mut().unwrap().insert("clash".into(), clash.clone());
+    let e = err(&b);
+    assert!(e.contains("\"layer\"") && e.contains("sprites layer"), "the advice names the way out: {e}");
+    // The advice: a second sprites layer, and the clashing sprite on it.
+    let layers = b.manifest.params["layers"].as_array_mut().unwrap();
+    layers.push(layers[1].clone());
+    b.manifest.params["sprites"]["clash"]["layer"] = 2.into();
+    let both = load(&b);
+    let mut alone = b.clone();
+    alone.manifest.params["sprites"].as_object_mut().unwrap().remove("clash");
+    let at = |tex: &PatternTexture| render_image(tex, &Region::new(0, 700, 400, 96, 96)).unwrap();
+    let (both, maple) = (at(&both), at(&load(&alone)));
+    assert_ne!(both, maple, "the clashing sprite is drawn");
+    // Maple (700, 400) alone where the clash (720, 410) does not reach.
+    assert_eq!(both.pixel(5, 5), maple.pixel(5, 5));
+}
+
+/// Pattern 0: the gradient; pattern 1: half-transparent blue. 16-pixel patterns.
+fn sprite_reference() -> Rgba8Image {
+    let mut blue = Rgba8Image::new(16, 16);
+    for y in 0..16 {
+        for x in 0..16 {
+            blue.set_pixel(x, y, [0, 0, 255, 128]);
+        }
+    }
+    art::pack(&[gradient_reference(16), blue], 2, 1)
+}
+
+fn sprites_layer(cell: u32, transform: Option<TransformParams>) -> LayerParams {
+    LayerParams { kind: LayerKind::Sprites, cell, choice: None, transform, transitions: None, animation: None }
+}
+
+/// A 256² torus of sprites layers with cell 32 over a grey background.
+fn sprites_texture(layers: Vec<LayerParams>, sprites: Vec<(&str, SpriteParams)>) -> Bundle {
+    let mut p = params(256, 256, 16, [2, 1], layers);
+    p.background = [40, 40, 40, 255];
+    p.sprites = sprites.into_iter().map(|(n, s)| (n.to_string(), s)).collect();
+    if p.sprites.values().any(|s| s.velocity != [0, 0]) {
+        p.fps = Some(10.0);
+    }
+    build(&p, &sprite_reference())
+}
+
+fn on_layer(mut s: SpriteParams, layer: usize) -> SpriteParams {
+    s.layer = Some(layer);
+    s
+}
+
+#[test]
+fn every_sprites_layer_draws_only_its_own_sprites() {
+    let level0 = |b: &Bundle| render_image(&load(b), &Region::new(0, 0, 0, 128, 128)).unwrap();
+    // n grids for n patterns in a cell: two sprites in positioning cell (1, 1), one a layer.
+    let (a, blue) = (SpriteParams::at(0, 40, 40), SpriteParams::at(1, 48, 48));
+    let two = level0(&sprites_texture(
+        vec![sprites_layer(32, None), sprites_layer(32, None)],
+        vec![("a", a.clone()), ("b", on_layer(blue.clone(), 1))],
+    ));
+    let only = |s: SpriteParams| level0(&sprites_texture(vec![sprites_layer(32, None)], vec![("s", s)]));
+    let (alone_a, alone_b) = (only(a.clone()), only(blue.clone()));
+    assert_eq!(two.pixel(44, 44), alone_a.pixel(44, 44), "only the gradient");
+    assert_eq!(two.pixel(60, 60), alone_b.pixel(60, 60), "only the blue");
+    assert_eq!(two.pixel(70, 70), [40, 40, 40, 255], "neither");
+    let mixed = two.pixel(52, 52);
+    assert!(mixed != alone_a.pixel(52, 52) && mixed != alone_b.pixel(52, 52), "blue over the gradient: {mixed:?}");
+    // A sprites layer without sprites of its own draws nothing: the half-transparent blue is
+    // drawn once however many sprites layers there are.
+    let twice =
+        level0(&sprites_texture(vec![sprites_layer(32, None), sprites_layer(32, None)], vec![("b", blue.clone())]));
+    assert_eq!(twice, alone_b);
+    // A layer index that is not a sprites layer is named.
+    let mut p = params(256, 256, 16, [2, 1], vec![tiling(16, Choice::Virtual), sprites_layer(32, None)]);
+    p.sprites.insert("b".into(), on_layer(blue, 0));
+    let e = err(&build(&p, &sprite_reference()));
+    assert!(e.contains("sprites.b.layer") && e.contains("Tiling"), "{e}");
+}
+
+#[test]
+fn the_tile_transform_is_plugged_after_the_positioning() {
+    let level0 = |b: &Bundle| render_image(&load(b), &Region::new(0, 0, 0, 160, 160)).unwrap();
+    let grad = |u: f32, v: f32| [(u.floor() * 17.0) as i32, (v.floor() * 17.0) as i32];
+    let close = |got: [u8; 4], want: [i32; 2], at: (u32, u32)| {
+        assert!(
+            (got[0] as i32 - want[0]).abs() <= 17 && (got[1] as i32 - want[1]).abs() <= 17,
+            "pixel {at:?}: {got:?} against texel colour {want:?}"
+        );
+    };
+    // Explicit: a quarter turn clockwise about the centre (72, 72).
+    let mut turned = SpriteParams::at(0, 64, 64);
+    turned.rotation = 90.0;
+    let img = level0(&sprites_texture(vec![sprites_layer(32, None)], vec![("t", turned)]));
+    for y in 65..79 {
+        for x in 65..79 {
+            let (dx, dy) = (x as f32 + 0.5 - 72.0, y as f32 + 0.5 - 72.0);
+            close(img.pixel(x, y), grad(dy + 8.0, -dx + 8.0), (x, y));
+        }
+    }
+    // Explicit: twice the size, so 32 px about the same centre, over more than four cells.
+    let mut big = SpriteParams::at(0, 64, 64);
+    big.scale = 2.0;
+    let img = level0(&sprites_texture(vec![sprites_layer(32, None)], vec![("t", big)]));
+    let bg = [40, 40, 40, 255];
+    assert_ne!(img.pixel(57, 57), bg);
+    assert_ne!(img.pixel(86, 86), bg);
+    assert_eq!(img.pixel(55, 55), bg);
+    assert_eq!(img.pixel(89, 89), bg);
+    close(img.pixel(81, 61), grad((81.5 - 72.0) / 2.0 + 8.0, (61.5 - 72.0) / 2.0 + 8.0), (81, 61));
+    // Procedural: the layer's transform halves every sprite.
+    let half = Some(TransformParams { scale: [0.5, 0.5], rotate: false, overflow: false });
+    let img = level0(&sprites_texture(vec![sprites_layer(32, half)], vec![("t", SpriteParams::at(0, 64, 64))]));
+    assert_eq!(img.pixel(66, 66), bg);
+    assert_ne!(img.pixel(69, 69), bg);
+    assert_eq!(img.pixel(77, 77), bg);
+    // Too large once transformed is named.
+    let mut huge = SpriteParams::at(0, 64, 64);
+    huge.scale = 3.0;
+    let twice = Some(TransformParams { scale: [2.0, 2.0], rotate: false, overflow: false });
+    let e = err(&sprites_texture(vec![sprites_layer(32, twice)], vec![("h", huge)]));
+    assert!(e.contains("sprites.h.scale"), "{e}");
+}
+
+#[test]
+fn moving_sprites_move_with_the_frame_and_never_collide() {
+    let mut m = SpriteParams::at(0, 40, 40);
+    m.velocity = [8, 4];
+    let b = sprites_texture(vec![sprites_layer(32, None)], vec![("m", m.clone())]);
+    let t = load(&b);
+    let a = t.animation().expect("a moving sprite animates the texture");
+    assert_eq!(a.period_frames, 64, "256/8 = 32 and 256/4 = 64 frames");
+    let whole = |f: u32| render_image(&t, &Region::new(0, 0, 0, 256, 256).at_frame(f)).unwrap();
+    let (f0, f5) = (whole(0), whole(5));
+    assert_ne!(f0, f5);
+    for y in 0..256 {
+        for x in 0..256 {
+            assert_eq!(f5.pixel((x + 40) % 256, (y + 20) % 256), f0.pixel(x, y));
+        }
+    }
+    assert_eq!(whole(64), f0);
+    // Two sprites on one layer that meet at some frame are refused, naming the frame...
+    let mut n = SpriteParams::at(0, 200, 40);
+    n.velocity = [-8, 4];
+    let e = err(&sprites_texture(vec![sprites_layer(32, None)], vec![("m", m.clone()), ("n", n.clone())]));
+    assert!(e.contains("at frame"), "{e}");
+    // ...and drawn when each has its own grid.
+    load(&sprites_texture(
+        vec![sprites_layer(32, None), sprites_layer(32, None)],
+        vec![("m", m), ("n", on_layer(n, 1))],
+    ));
+}
+
+#[test]
 fn pixel_map_is_sharp_and_compressed() {
     let (w, h, block) = (256u32, 128u32, 16u32);
     let mask: Vec<u8> =

@@ -136,7 +136,7 @@ pub fn sprites() -> Bundle {
         ("ash", 20, 530, 3180),
     ];
     for (name, pattern, x, y) in spots {
-        p.sprites.insert(name.into(), SpriteParams { pattern, x, y });
+        p.sprites.insert(name.into(), SpriteParams::at(pattern, x, y));
     }
     bundle("Patterns: texture sprites on a tiled ground (4096²)", &p, &ground_and_leaves(), vec![])
 }

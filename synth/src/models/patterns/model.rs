@@ -16,7 +16,7 @@ use super::params::{Choice, LayerKind, LayerParams, Params};
 use super::random::LayerRng;
 use super::reference::{over_pm, over_u8, Reference};
 use super::sigma::{self, Sigma};
-use super::sprites::Positioning;
+use super::sprites::{self, Positioning};
 use super::transform::{Placed, TransformBlock};
 use super::transitions::{Pick, Transitions};
 use crate::texture::{level_size, wrap};
@@ -74,12 +74,15 @@ impl PatternTexture {
         if p.layers.is_empty() || p.layers.len() > MAX_LAYERS {
             return Err(Error::param("layers", format!("{} layers; 1..={MAX_LAYERS}", p.layers.len())));
         }
+        sprites::check_layers(&p.sprites, &p.layers)?;
         let mut layers = Vec::with_capacity(p.layers.len());
         for (i, lp) in p.layers.iter().enumerate() {
             layers.push(Layer::load(i, lp, &p, bundle, &reference, tables.clone()).map_err(|e| in_layer(i, e))?);
         }
-        let animated: Vec<&AnimationBlock> = layers.iter().filter_map(|l| l.animation.as_ref()).collect();
-        let animation = super::plan::animation(&animated, p.fps)?;
+        let mut periods: Vec<u64> =
+            layers.iter().filter_map(|l| l.animation.as_ref()).map(|a| a.period() as u64).collect();
+        periods.extend(sprites::moving_periods(&p.sprites, (p.width, p.height)));
+        let animation = super::plan::animation(&periods, p.fps)?;
         Ok(Self { width: p.width, height: p.height, reference, background: p.background, layers, animation })
     }
 
@@ -219,13 +222,24 @@ impl Layer {
             LayerKind::Sprites => {
                 for (what, present) in [
                     ("choice", lp.choice.is_some()),
-                    ("transform", lp.transform.is_some()),
                     ("transitions", lp.transitions.is_some()),
                     ("animation", lp.animation.is_some()),
                 ] {
                     unused(what, present)?;
                 }
-                layer.positioning = Some(Positioning::load(&p.sprites, lp.cell, texture, p.pattern_size, count)?);
+                let transform = lp.transform.as_ref().map(TransformBlock::for_sprites).transpose()?;
+                let first = p.layers.iter().position(|l| l.kind == LayerKind::Sprites) == Some(i);
+                layer.positioning = Some(Positioning::load(
+                    i,
+                    first,
+                    &p.sprites,
+                    transform.as_ref(),
+                    &layer.rng,
+                    lp.cell,
+                    texture,
+                    p.pattern_size,
+                    count,
+                )?);
             }
         }
         Ok(layer)
@@ -466,58 +480,51 @@ impl Layer {
     fn render_sprites(&self, tex: &PatternTexture, region: &Region, out: &mut [u8], stop: &dyn Stop) {
         let r = &tex.reference;
         let pos = self.positioning.as_ref().unwrap();
+        let t = region.frame;
         let level = region.level;
         let (lw, lh) = level_size(tex.width, tex.height, level);
         let w = region.width as usize;
-        let s = r.size as u64;
+        let f = (1u64 << level.min(62)) as f64;
+        let centres: Vec<(f64, f64)> = (0..pos.sprites.len()).map(|i| pos.centre(i, t)).collect();
         if level <= r.log2 {
-            let f = 1u64 << level;
-            let k = 1.0 / f as f32;
+            let map = pos.map(t);
             for row in 0..region.height as usize {
                 if stop.requested() {
                     return;
                 }
-                let py = wrap(region.y + row as i64, lh);
-                let y = (py * f + f / 2) % tex.height;
+                let y = (wrap(region.y + row as i64, lh) as f64 + 0.5) * f;
                 for col in 0..w {
-                    let px = wrap(region.x + col as i64, lw);
-                    let x = (px * f + f / 2) % tex.width;
-                    let Some(e) = pos.at(x, y) else { continue };
-                    let (dx, dy) = (wrap(x as i64 - e.x as i64, tex.width), wrap(y as i64 - e.y as i64, tex.height));
-                    if dx >= s || dy >= s {
-                        continue;
-                    }
-                    let (u, v) =
-                        (dx as f32 + if f == 1 { 0.5 } else { 0.0 }, dy as f32 + if f == 1 { 0.5 } else { 0.0 });
-                    let c = r.bilinear_pm(e.pattern, level, u * k, v * k);
+                    let x = (wrap(region.x + col as i64, lw) as f64 + 0.5) * f;
+                    let Some(i) = pos.at(&map, x, y) else { continue };
+                    let sprite = &pos.sprites[i];
+                    let Some((u, v)) = sprite.local(pos.offset((x, y), centres[i]), r.size) else { continue };
+                    let lvl = mip_for(level, 1.0 / sprite.scale, r.log2);
+                    let k = 1.0 / (1u32 << lvl) as f32;
+                    let c = r.bilinear_pm(sprite.pattern, lvl, u * k, v * k);
                     over_pm(&mut out[(row * w + col) * 4..][..4], c);
                 }
             }
             return;
         }
-        // Patterns smaller than a pixel: splat each sprite's coverage-weighted mean colour.
-        let f = 1u64 << level.min(62);
-        for (n, e) in pos.list.iter().enumerate() {
+        // Patterns smaller than a pixel: splat each sprite's mean colour over the pixels its
+        // box overlaps, weighted by the overlap and the share of the box the pattern fills.
+        for (n, (sprite, &(cx, cy))) in pos.sprites.iter().zip(&centres).enumerate() {
             if n % SPRITES_A_POLL == 0 && stop.requested() {
                 return;
             }
-            let pm = r.pm_mean(e.pattern);
-            let span = |v: u64| {
-                let (a, b) = (v / f, (v + s - 1) / f);
-                if a == b {
-                    vec![a]
-                } else {
-                    vec![a, b]
-                }
-            };
-            for sy in span(e.y) {
-                let cov_y = overlap(sy * f, f, e.y, s);
-                for sx in span(e.x) {
-                    let cov = cov_y * overlap(sx * f, f, e.x, s) / (f as f32 * f as f32);
-                    let (lx, ly) = (sx % lw, sy % lh);
-                    let mut row = (ly as i64 - region.y).rem_euclid(lh as i64);
+            let pm = r.pm_mean(sprite.pattern);
+            let e = sprite.half;
+            let side = r.size as f64 * sprite.scale as f64;
+            let fill = side * side / (4.0 * e * e);
+            let span = |c: f64| ((c - e) / f).floor() as i64..=((c + e) / f).ceil() as i64 - 1;
+            for sy in span(cy) {
+                let cov_y = overlap(sy as f64 * f, f, cy - e, 2.0 * e);
+                for sx in span(cx) {
+                    let cov = (cov_y * overlap(sx as f64 * f, f, cx - e, 2.0 * e) * fill / (f * f)) as f32;
+                    let (lx, ly) = (sx.rem_euclid(lw as i64), sy.rem_euclid(lh as i64));
+                    let mut row = (ly - region.y).rem_euclid(lh as i64);
                     while row < region.height as i64 {
-                        let mut col = (lx as i64 - region.x).rem_euclid(lw as i64);
+                        let mut col = (lx - region.x).rem_euclid(lw as i64);
                         while col < w as i64 {
                             over_pm(&mut out[(row as usize * w + col as usize) * 4..][..4], pm.map(|v| v * cov));
                             col += lw as i64;
@@ -530,11 +537,9 @@ impl Layer {
     }
 }
 
-/// Length of [a, a + la) ∩ [b, b + lb), as f32.
-fn overlap(a: u64, la: u64, b: u64, lb: u64) -> f32 {
-    let lo = a.max(b);
-    let hi = (a + la).min(b + lb);
-    hi.saturating_sub(lo) as f32
+/// Length of [a, a + la) ∩ [b, b + lb).
+fn overlap(a: f64, la: f64, b: f64, lb: f64) -> f64 {
+    ((a + la).min(b + lb) - a.max(b)).max(0.0)
 }
 
 /// The pattern mip level for a level-L pixel when one level-0 pixel spans

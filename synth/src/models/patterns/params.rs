@@ -198,11 +198,46 @@ pub struct ValueParams {
     pub random: u32,
 }
 
-/// A texture sprite: pattern `pattern` with its top-left corner at (x, y) level-0 pixels.
+/// A texture sprite: pattern `pattern` with its top-left corner at (x, y) level-0 pixels,
+/// drawn by one sprites layer (each layer is one positioning map: n grids for n patterns in
+/// a cell, §3.2), then transformed about its centre (the Tile Transform plugged after the
+/// Explicit Positioning) and, when it has a velocity, moving with time.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize, JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct SpriteParams {
     pub pattern: u32,
     pub x: i64,
     pub y: i64,
+    /// Index in `layers` of the sprites layer that draws it; the first sprites layer if absent.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub layer: Option<usize>,
+    /// Scale about the sprite's centre (1 = the pattern's own size), in (0, 4].
+    #[serde(default = "unit_scale", skip_serializing_if = "is_unit_scale")]
+    pub scale: f32,
+    /// Rotation about the sprite's centre, degrees (clockwise on screen).
+    #[serde(default, skip_serializing_if = "is_zero_f32")]
+    pub rotation: f32,
+    /// Level-0 pixels per frame: the sprite is at (x, y) + t · velocity at frame t (wrapping).
+    #[serde(default, skip_serializing_if = "is_still")]
+    pub velocity: [i64; 2],
+}
+
+impl SpriteParams {
+    /// Pattern `pattern` at (x, y), untransformed and still, on the first sprites layer.
+    pub fn at(pattern: u32, x: i64, y: i64) -> Self {
+        SpriteParams { pattern, x, y, layer: None, scale: 1.0, rotation: 0.0, velocity: [0, 0] }
+    }
+}
+
+fn unit_scale() -> f32 {
+    1.0
+}
+fn is_unit_scale(v: &f32) -> bool {
+    *v == 1.0
+}
+fn is_zero_f32(v: &f32) -> bool {
+    *v == 0.0
+}
+fn is_still(v: &[i64; 2]) -> bool {
+    *v == [0, 0]
 }

@@ -9,6 +9,7 @@ use super::model::{MAX_LAYERS, MAX_SIDE};
 use super::params::{LayerKind, LayerParams, Params, ValueParams};
 use super::random::LayerRng;
 use super::sigma::{self, Sigma};
+use super::sprites;
 use super::transform::TransformBlock;
 use crate::bundle::Bundle;
 use crate::models::{cost, parse_params, Cost, Inputs, Measure, Plan};
@@ -29,6 +30,8 @@ const CELL: f64 = 700.0;
 const BILINEAR: f64 = 60.0;
 /// The expected colour of a coarse sparse pixel, or a sprite's splat.
 const EXPECTED: f64 = 200.0;
+/// Recording one cell of a moving sprite in a positioning map.
+const MAP_CELL: f64 = 100.0;
 /// Decoding the reference and building its mip chains, per pixel; encoding it in `create`.
 const REFERENCE_PIXEL: f64 = 40.0;
 const ENCODE_PIXEL: f64 = 60.0;
@@ -94,15 +97,15 @@ pub(super) fn check_reference(width: u32, height: u32, size: u32, tx: u32, ty: u
     Ok(())
 }
 
-/// How the texture moves: every animated layer's period combined (0 when one never repeats
-/// or the least common multiple passes `u32`), at `fps` frames a second.
-pub(super) fn animation(animated: &[&AnimationBlock], fps: Option<f32>) -> Result<Option<Animation>> {
-    match (animated.is_empty(), fps) {
+/// How the texture moves: the periods of its animated layers and moving sprites combined
+/// (0 when one never repeats or the least common multiple passes `u32`), at `fps` frames a
+/// second.
+pub(super) fn animation(periods: &[u64], fps: Option<f32>) -> Result<Option<Animation>> {
+    match (periods.is_empty(), fps) {
         (true, _) => Ok(None),
         (false, Some(fps)) if fps > 0.0 && fps <= 240.0 => {
             let mut period = 1u64;
-            for a in animated {
-                let q = a.period() as u64;
+            for &q in periods {
                 period = if q == 0 || period == 0 { 0 } else { period / gcd(period, q) * q };
                 if period > u32::MAX as u64 {
                     period = 0;
@@ -110,7 +113,7 @@ pub(super) fn animation(animated: &[&AnimationBlock], fps: Option<f32>) -> Resul
             }
             Ok(Some(Animation { fps, period_frames: period as u32 }))
         }
-        (false, _) => Err(Error::param("fps", "animated layers need fps in (0, 240]")),
+        (false, _) => Err(Error::param("fps", "animated layers and moving sprites need fps in (0, 240]")),
     }
 }
 
@@ -163,9 +166,12 @@ fn plan_of(p: &Params, bundle: &Bundle, create: bool) -> Result<Plan> {
             let rng = LayerRng::new(tables.clone(), i, grid);
             animated.push(AnimationBlock::load(a, bundle, &rng, grid, count).map_err(|e| in_layer(i, e))?);
         }
-        transforms.push(lp.transform.as_ref().map(TransformBlock::load).transpose().map_err(|e| in_layer(i, e))?);
+        let load = if lp.kind == LayerKind::Sprites { TransformBlock::for_sprites } else { TransformBlock::load };
+        transforms.push(lp.transform.as_ref().map(load).transpose().map_err(|e| in_layer(i, e))?);
     }
-    let animation = animation(&animated.iter().collect::<Vec<_>>(), p.fps)?;
+    let mut periods: Vec<u64> = animated.iter().map(|a| a.period() as u64).collect();
+    periods.extend(sprites::moving_periods(&p.sprites, (p.width, p.height)));
+    let animation = animation(&periods, p.fps)?;
 
     let ref_px = rw as f64 * rh as f64;
     let log2 = p.pattern_size.trailing_zeros();
@@ -217,7 +223,20 @@ fn plan_of(p: &Params, bundle: &Bundle, create: bool) -> Result<Plan> {
                     TILE * BILINEAR * reach * reach
                 }
             }
-            LayerKind::Sprites => TILE * BILINEAR + EXPECTED * 4.0 * p.sprites.len() as f64,
+            LayerKind::Sprites => {
+                // A sprite's box is at most 4 √2 patterns wide once transformed; a positioning
+                // map is rebuilt a tile when sprites move.
+                let side = |unit: f64| 4.0 * std::f64::consts::SQRT_2 * p.pattern_size as f64 / unit + 2.0;
+                let n = p.sprites.len() as f64;
+                let moving = p.sprites.values().any(|s| s.velocity != [0, 0]);
+                let rebuild = if moving { MAP_CELL * n * side(lp.cell as f64).powi(2) } else { 0.0 };
+                let draw = if level <= log2 {
+                    TILE * BILINEAR
+                } else {
+                    EXPECTED * n * side((1u64 << level.min(62)) as f64).powi(2)
+                };
+                draw + rebuild
+            }
         }
     };
     let level_work = |level: u32| -> f64 {
