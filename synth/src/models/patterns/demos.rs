@@ -12,9 +12,10 @@ const S: u32 = 64;
 
 /// Assembles a bundle from params, the packed reference and extra sections.
 pub fn bundle(name: &str, p: &Params, reference: &Rgba8Image, sections: Vec<(&str, Vec<u8>)>) -> Bundle {
-    let mut b = Bundle::new(MODEL, name, serde_json::to_value(p).expect("params serialize"))
+    let b = Bundle::new(MODEL, name, serde_json::to_value(p).expect("params serialize"))
         .with_section("reference.png", reference.to_png())
         .with_section("sigma", sigma::to_bytes(&sigma::generate_all(p.reference[0], p.reference[1], p.seed)));
+    let mut b = super::plan::with_range_tables(b, p);
     for (n, d) in sections {
         b = b.with_section(n, d);
     }
@@ -167,11 +168,11 @@ pub fn led_board(transition: bool) -> Bundle {
         a: 1.0,
         phi: ValueParams { map: None, random: 256 },
         z: z("z-new"),
-        previous: None,
+        ..Default::default()
     };
     let mut sections = vec![("z-new", led_z("PATTERN TEXTURES", w, h))];
     let name = if transition {
-        anim.previous = Some(PreviousParams { a: 1.0, z: z("z-old"), t0: 120 });
+        anim.previous = Some(Previous::One(PreviousParams { a: 1.0, z: z("z-old"), t0: 120 }));
         sections.push(("z-old", led_z("LEFEBVRE NEYRET", w, h)));
         "Patterns: LED board, temporal transition at frame 120 (12288×1536)"
     } else {

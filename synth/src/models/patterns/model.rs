@@ -10,12 +10,12 @@
 //! (the law-of-large-numbers option of §5.1), or by a stratified 4 × 4 sample of cells where
 //! no expectation exists (explicit maps, animation, pixel maps).
 
-use super::animation::AnimationBlock;
+use super::animation::{AnimationBlock, Context};
 use super::materials::ChoiceBlock;
 use super::params::{Choice, LayerKind, LayerParams, Params};
 use super::random::LayerRng;
 use super::reference::{over_pm, over_u8, Reference};
-use super::sigma::{self, Sigma};
+use super::sigma::{self, RangeTable, Sigma};
 use super::sprites::{self, Positioning};
 use super::transform::{Placed, TransformBlock};
 use super::transitions::{Pick, Transitions};
@@ -65,6 +65,7 @@ impl PatternTexture {
         let img = crate::pixels::decode_png("reference", bundle.section("reference.png")?)?;
         let reference = Reference::new(&img, p.pattern_size, p.reference[0], p.reference[1])?;
         let tables: Arc<[Sigma]> = sigma::from_bytes(bundle.section("sigma")?)?.into();
+        let ranges = sigma::ranges_of(bundle)?;
         if (tables[0].tx, tables[0].ty) != (reference.tx, reference.ty) {
             return Err(Error::bundle(format!(
                 "section `sigma`: the pattern table is {}×{} but the reference packs {}×{} patterns",
@@ -77,10 +78,10 @@ impl PatternTexture {
         sprites::check_layers(&p.sprites, &p.layers)?;
         let mut layers = Vec::with_capacity(p.layers.len());
         for (i, lp) in p.layers.iter().enumerate() {
-            layers.push(Layer::load(i, lp, &p, bundle, &reference, tables.clone()).map_err(|e| in_layer(i, e))?);
+            let tables = (tables.clone(), ranges.clone());
+            layers.push(Layer::load(i, lp, &p, bundle, &reference, tables).map_err(|e| in_layer(i, e))?);
         }
-        let mut periods: Vec<u64> =
-            layers.iter().filter_map(|l| l.animation.as_ref()).map(|a| a.period() as u64).collect();
+        let mut periods: Vec<u64> = layers.iter().filter_map(|l| l.animation.as_ref()?.period()).collect();
         periods.extend(sprites::moving_periods(&p.sprites, (p.width, p.height)));
         let animation = super::plan::animation(&periods, p.fps)?;
         Ok(Self { width: p.width, height: p.height, reference, background: p.background, layers, animation })
@@ -126,7 +127,7 @@ impl Layer {
         p: &Params,
         bundle: &Bundle,
         reference: &Reference,
-        tables: Arc<[Sigma]>,
+        (tables, ranges): (Arc<[Sigma]>, Arc<[RangeTable]>),
     ) -> Result<Self> {
         let c = lp.cell as u64;
         if c == 0 || p.width % c != 0 || p.height % c != 0 {
@@ -140,7 +141,7 @@ impl Layer {
         }
         let grid = (p.width / c, p.height / c);
         let texture = (p.width, p.height);
-        let rng = LayerRng::new(tables, i, grid);
+        let rng = LayerRng::new(tables, i, grid).with_ranges(ranges);
         let count = reference.count();
         let unused = |what: &str, present: bool| {
             if present {
@@ -185,7 +186,9 @@ impl Layer {
                     }
                     (None, Some(a)) => {
                         unused("transitions", lp.transitions.is_some())?;
-                        layer.animation = Some(AnimationBlock::load(a, bundle, &layer.rng, grid, count)?);
+                        let cx =
+                            Context { params: p, bundle, cell: lp.cell, grid, patterns: count, allow_blank: false };
+                        layer.animation = Some(AnimationBlock::load(a, &cx, &layer.rng)?);
                     }
                     _ => {
                         return Err(Error::param(
@@ -197,22 +200,34 @@ impl Layer {
             }
             LayerKind::Sparse => {
                 unused("transitions", lp.transitions.is_some())?;
-                unused("animation", lp.animation.is_some())?;
-                let ch = lp.choice.as_ref().ok_or_else(|| Error::param("choice", "a sparse layer needs a choice"))?;
-                if let Choice::Explicit { .. } = ch {
-                    return Err(Error::param(
-                        "choice",
-                        "sparse layers choose virtually or by materials; explicit positions are sprites",
-                    ));
+                match (&lp.choice, &lp.animation) {
+                    (Some(ch), None) => {
+                        if let Choice::Explicit { .. } = ch {
+                            return Err(Error::param(
+                                "choice",
+                                "sparse layers choose virtually or by materials; explicit positions are sprites",
+                            ));
+                        }
+                        let choice = ChoiceBlock::load(ch, bundle, reference, &layer.rng, grid, texture, true)?;
+                        if choice.pixel_map().is_some() {
+                            return Err(Error::param(
+                                "choice.pixel_map",
+                                "sparse layers place materials per cell (areas maps)",
+                            ));
+                        }
+                        layer.choice = Some(choice);
+                    }
+                    (None, Some(a)) => {
+                        let cx = Context { params: p, bundle, cell: lp.cell, grid, patterns: count, allow_blank: true };
+                        layer.animation = Some(AnimationBlock::load(a, &cx, &layer.rng)?);
+                    }
+                    _ => {
+                        return Err(Error::param(
+                            "choice",
+                            "a sparse layer has exactly one of `choice` and `animation`",
+                        ))
+                    }
                 }
-                let choice = ChoiceBlock::load(ch, bundle, reference, &layer.rng, grid, texture, true)?;
-                if choice.pixel_map().is_some() {
-                    return Err(Error::param(
-                        "choice.pixel_map",
-                        "sparse layers place materials per cell (areas maps)",
-                    ));
-                }
-                layer.choice = Some(choice);
                 let t = lp
                     .transform
                     .as_ref()
@@ -249,7 +264,7 @@ impl Layer {
     #[inline]
     fn pick(&self, gx: u64, gy: u64, t: u32) -> Pick {
         if let Some(a) = &self.animation {
-            return Pick::single(Some(a.pattern(&self.rng, gx, gy, t)));
+            return Pick::single(a.pattern(&self.rng, gx, gy, t));
         }
         let choice = self.choice.as_ref().expect("tiling layers have a choice or an animation");
         match &self.transitions {
@@ -395,12 +410,41 @@ impl Layer {
         acc.map(|a| ((a + n / 2) / n) as u8)
     }
 
-    /// Placed pattern of sparse cell (unwrapped) u, if the cell is not blank.
-    fn placed(&self, tex: &PatternTexture, ux: i64, uy: i64) -> Option<Placed> {
+    /// Pattern of sparse cell g at frame t, if the cell is not blank.
+    #[inline]
+    fn sparse_pattern(&self, gx: u64, gy: u64, t: u32) -> Option<u32> {
+        match &self.animation {
+            Some(a) => a.pattern(&self.rng, gx, gy, t),
+            None => self.choice.as_ref().unwrap().pattern(&self.rng, gx, gy, self.grid),
+        }
+    }
+
+    /// Placed pattern of sparse cell (unwrapped) u at frame t, if the cell is not blank.
+    fn placed(&self, tex: &PatternTexture, ux: i64, uy: i64, t: u32) -> Option<Placed> {
         let (gx, gy) = (wrap(ux, self.grid.0), wrap(uy, self.grid.1));
-        let choice = self.choice.as_ref().unwrap();
-        let p = choice.pattern(&self.rng, gx, gy, self.grid)?;
+        let p = self.sparse_pattern(gx, gy, t)?;
         Some(self.transform.as_ref().unwrap().place(&self.rng, gx, gy, p, tex.reference.size))
+    }
+
+    /// Mean premultiplied colour of the animated sparse cells in the square of side `k` cells
+    /// at cell coordinates (x, y): every cell up to 4 × 4 of them, else a stratified 4 × 4
+    /// sample.
+    fn animated_mean(&self, r: &Reference, x: f64, y: f64, k: f64, t: u32) -> [f32; 4] {
+        let n = (k.ceil() as u64).clamp(1, OVERSAMPLE);
+        let (mut acc, step) = ([0f32; 4], k / n as f64);
+        for j in 0..n {
+            for i in 0..n {
+                let gx = wrap((x + (i as f64 + 0.5) * step) as i64, self.grid.0);
+                let gy = wrap((y + (j as f64 + 0.5) * step) as i64, self.grid.1);
+                if let Some(p) = self.sparse_pattern(gx, gy, t) {
+                    let m = r.pm_mean(p);
+                    for ch in 0..4 {
+                        acc[ch] += m[ch];
+                    }
+                }
+            }
+        }
+        acc.map(|v| v / (n * n) as f32)
     }
 
     fn render_sparse(&self, tex: &PatternTexture, region: &Region, out: &mut [u8], stop: &dyn Stop) {
@@ -412,8 +456,8 @@ impl Layer {
         let w = region.width as usize;
         let (lw, lh) = level_size(tex.width, tex.height, level);
         if f * 4.0 > c {
-            // Under four pixels per cell: expected premultiplied coverage (law of large numbers).
-            let choice = self.choice.as_ref().unwrap();
+            // Under four pixels per cell: expected premultiplied coverage (law of large numbers),
+            // or for animated cells the mean of the cells under the pixel at this frame.
             let area = tr.mean_area();
             for row in 0..region.height as usize {
                 if stop.requested() {
@@ -422,10 +466,15 @@ impl Layer {
                 let py = wrap(region.y + row as i64, lh) as f64;
                 for col in 0..w {
                     let px = wrap(region.x + col as i64, lw) as f64;
-                    let (cx, cy) = ((px + 0.5) * f / c, (py + 0.5) * f / c);
-                    let e = choice
-                        .expected(r, cx.min(self.grid.0 as f64), cy.min(self.grid.1 as f64), self.grid, true)
-                        .unwrap_or([0.0; 4]);
+                    let e = match &self.choice {
+                        Some(choice) => {
+                            let (cx, cy) = ((px + 0.5) * f / c, (py + 0.5) * f / c);
+                            choice
+                                .expected(r, cx.min(self.grid.0 as f64), cy.min(self.grid.1 as f64), self.grid, true)
+                                .unwrap_or([0.0; 4])
+                        }
+                        None => self.animated_mean(r, px * f / c, py * f / c, f / c, region.frame),
+                    };
                     over_pm(&mut out[(row * w + col) * 4..][..4], e.map(|v| v * area));
                 }
             }
@@ -449,7 +498,7 @@ impl Layer {
             let first = uy - left;
             if first != rows_y0 {
                 rows = (first..=uy + right)
-                    .map(|yy| (0..span).map(|i| self.placed(tex, ux0 + i as i64, yy)).collect())
+                    .map(|yy| (0..span).map(|i| self.placed(tex, ux0 + i as i64, yy, region.frame)).collect())
                     .collect();
                 rows_y0 = first;
             }

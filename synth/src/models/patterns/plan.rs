@@ -4,11 +4,11 @@
 //! its animation maps (small value maps, read as `load` reads them). Constants are work units
 //! (≈ 1 ns of one core) per item, calibrated by `examples/cost_calibration.rs`.
 
-use super::animation::AnimationBlock;
+use super::animation::{AnimationBlock, Context};
 use super::model::{MAX_LAYERS, MAX_SIDE};
-use super::params::{LayerKind, LayerParams, Params, ValueParams};
+use super::params::{Choice, LayerKind, LayerParams, Params, ValueParams};
 use super::random::LayerRng;
-use super::sigma::{self, Sigma};
+use super::sigma::{self, RangeTable, Sigma};
 use super::sprites;
 use super::transform::TransformBlock;
 use crate::bundle::Bundle;
@@ -55,13 +55,15 @@ pub fn plan(bundle: &Bundle) -> Result<Plan> {
 pub fn plan_create(params: &serde_json::Value, inputs: &Inputs) -> Result<Plan> {
     let p: Params = parse_params(params)?;
     let reference = inputs.get("reference").ok_or_else(|| Error::image("reference", "missing; this model needs it"))?;
-    let mut bundle = Bundle::new(super::MODEL, "plan", params.clone())
+    let bundle = Bundle::new(super::MODEL, "plan", params.clone())
         .with_section("reference.png", reference.clone())
         .with_section("sigma", sigma::to_bytes(&tables(&p)));
-    let maps = p.layers.iter().filter_map(|l| l.animation.as_ref()).flat_map(|a| {
-        let previous = a.previous.as_ref().map(|q| &q.z);
-        [Some(&a.phi), Some(&a.z), previous].into_iter().flatten().filter_map(|v: &ValueParams| v.map.as_ref())
-    });
+    let mut bundle = with_range_tables(bundle, &p);
+    let maps = p
+        .layers
+        .iter()
+        .filter_map(|l| l.animation.as_ref())
+        .flat_map(|a| a.values().filter_map(|v: &ValueParams| v.map.as_ref()));
     for section in maps.filter_map(|m| m.section.as_deref()) {
         if let Some(bytes) = inputs.get(section) {
             let data = super::encoding::map_section(section, bytes, &[])?;
@@ -74,6 +76,34 @@ pub fn plan_create(params: &serde_json::Value, inputs: &Inputs) -> Result<Plan> 
 /// The permutation tables `create` generates for `p`.
 pub(super) fn tables(p: &Params) -> Vec<Sigma> {
     sigma::generate_all(p.reference[0].clamp(1, 256), p.reference[1].clamp(1, 256), p.seed)
+}
+
+/// The range tables `create` stores for `p`: one per range its probability maps and random
+/// values draw from that does not divide the random tables (none for most encodings).
+pub(super) fn range_tables(p: &Params) -> Vec<RangeTable> {
+    let mut ranges: Vec<u32> = Vec::new();
+    for l in &p.layers {
+        if let Some(Choice::Materials { materials, .. }) = &l.choice {
+            ranges.extend(materials.iter().map(|m| m.patterns.len() as u32));
+        }
+        if let Some(a) = &l.animation {
+            ranges.extend(a.ranges());
+        }
+    }
+    ranges.retain(|&m| sigma::needs_range_table(m) && m <= sigma::MAX_RANGE);
+    ranges.sort_unstable();
+    ranges.dedup();
+    ranges.into_iter().map(|m| RangeTable::generate(m, p.seed)).collect()
+}
+
+/// `bundle` with the range tables `p` needs, when it needs any.
+pub(super) fn with_range_tables(bundle: Bundle, p: &Params) -> Bundle {
+    let ranges = range_tables(p);
+    if ranges.is_empty() {
+        bundle
+    } else {
+        bundle.with_section(sigma::RANGES_SECTION, sigma::ranges_to_bytes(&ranges))
+    }
 }
 
 /// Checks the reference's shape: `tx × ty` patterns of side `size` (a power of two up to
@@ -143,6 +173,7 @@ fn plan_of(p: &Params, bundle: &Bundle, create: bool) -> Result<Plan> {
     check_reference(rw, rh, p.pattern_size, p.reference[0], p.reference[1])?;
     let sigma_bytes = bundle.section("sigma")?;
     let tables: Arc<[Sigma]> = sigma::from_bytes(sigma_bytes)?.into();
+    let ranges = sigma::ranges_of(bundle)?;
     if p.layers.is_empty() || p.layers.len() > MAX_LAYERS {
         return Err(Error::param("layers", format!("{} layers; 1..={MAX_LAYERS}", p.layers.len())));
     }
@@ -163,13 +194,21 @@ fn plan_of(p: &Params, bundle: &Bundle, create: bool) -> Result<Plan> {
         }
         let grid = (p.width / c, p.height / c);
         if let Some(a) = &lp.animation {
-            let rng = LayerRng::new(tables.clone(), i, grid);
-            animated.push(AnimationBlock::load(a, bundle, &rng, grid, count).map_err(|e| in_layer(i, e))?);
+            let rng = LayerRng::new(tables.clone(), i, grid).with_ranges(ranges.clone());
+            let cx = Context {
+                params: p,
+                bundle,
+                cell: lp.cell,
+                grid,
+                patterns: count,
+                allow_blank: lp.kind == LayerKind::Sparse,
+            };
+            animated.push(AnimationBlock::load(a, &cx, &rng).map_err(|e| in_layer(i, e))?);
         }
         let load = if lp.kind == LayerKind::Sprites { TransformBlock::for_sprites } else { TransformBlock::load };
         transforms.push(lp.transform.as_ref().map(load).transpose().map_err(|e| in_layer(i, e))?);
     }
-    let mut periods: Vec<u64> = animated.iter().map(|a| a.period() as u64).collect();
+    let mut periods: Vec<u64> = animated.iter().filter_map(AnimationBlock::period).collect();
     periods.extend(sprites::moving_periods(&p.sprites, (p.width, p.height)));
     let animation = animation(&periods, p.fps)?;
 
@@ -217,7 +256,9 @@ fn plan_of(p: &Params, bundle: &Bundle, create: bool) -> Result<Plan> {
             LayerKind::Sparse => {
                 let f = (1u64 << level.min(62)) as f64;
                 if f * 4.0 > lp.cell as f64 {
-                    TILE * EXPECTED
+                    // Animated cells have no expectation: up to 4 × 4 of them are read.
+                    let cells = if lp.animation.is_some() { (OVERSAMPLE * OVERSAMPLE) as f64 } else { 1.0 };
+                    TILE * EXPECTED * cells
                 } else {
                     let reach = t.as_ref().map_or(1, |t| t.left + t.right + 1) as f64;
                     TILE * BILINEAR * reach * reach
