@@ -225,8 +225,18 @@ fn plan_of(p: &Params, bundle: &Bundle, create: bool) -> Result<Plan> {
         .filter(|s| s.name != "reference.png" && s.name != "sigma")
         .map(|s| s.data.len() as f64)
         .sum();
+    // Every use of a map in an animation holds its own 16-bit copy (a ramp reads one Z map
+    // in several segments).
+    let value_maps: f64 = p
+        .layers
+        .iter()
+        .filter_map(|l| l.animation.as_ref())
+        .flat_map(|a| a.values().filter_map(|v| v.map.as_ref()))
+        .map(|m| 2.0 * m.size[0] as f64 * m.size[1] as f64)
+        .sum();
     let manifest = serde_json::to_vec(&p).map_or(0, |m| m.len()) as f64;
     let resident = 4.0 * ref_px * 4.0 / 3.0
+        + value_maps
         + 16.0 * count as f64
         + 2.0 * sigma_bytes.len() as f64
         + 2.0 * maps
@@ -235,7 +245,10 @@ fn plan_of(p: &Params, bundle: &Bundle, create: bool) -> Result<Plan> {
         + 1024.0 * p.layers.len() as f64
         + 4096.0;
     let resident_why =
-        format!("reference {rw}×{rh} × 4 B × 4/3 (mip chains) + {maps} B of maps × 2 + {} layers", p.layers.len());
+        format!(
+        "reference {rw}×{rh} × 4 B × 4/3 (mip chains) + {maps} B of maps × 2 + {value_maps} B of animation maps + {} layers",
+        p.layers.len()
+    );
 
     // A tile: per pixel and layer, a tiling layer reads one texel (its transition overlays
     // too) while a pattern covers pixels, then up to 4 × 4 cell means; a sparse layer reads
