@@ -71,6 +71,22 @@ impl Sigma {
     pub fn hash(&self, mut gx: u64, mut gy: u64, steps: u32) -> (u32, u32) {
         let (tx, ty) = (self.tx as u64, self.ty as u64);
         let (mut sx, mut sy) = (0u64, 0u64);
+        if tx.is_power_of_two() && ty.is_power_of_two() {
+            // The same digits by masks and shifts: a division by a table side is most of a
+            // step's work otherwise.
+            let (bx, by) = (tx.trailing_zeros(), ty.trailing_zeros());
+            let (mx, my) = (tx - 1, ty - 1);
+            for _ in 0..steps {
+                let ix = ((gx & mx) + sx) & mx;
+                let iy = ((gy & my) + sy) & my;
+                let e = self.table[((iy << bx) | ix) as usize];
+                sx = e[0] as u64;
+                sy = e[1] as u64;
+                gx >>= bx;
+                gy >>= by;
+            }
+            return (sx as u32, sy as u32);
+        }
         for _ in 0..steps {
             let ix = (gx % tx + sx) % tx;
             let iy = (gy % ty + sy) % ty;
