@@ -13,7 +13,7 @@ use std::hint::black_box;
 use vtex_synth::bundle::Bundle;
 use vtex_synth::models::{self, patterns::demos};
 use vtex_synth::texture::{level_count, level_size};
-use vtex_synth::{Region, Texture};
+use vtex_synth::Region;
 
 /// The two-material demo with its transitions and/or dithering switched off.
 fn two_materials(dithered: bool, transitions: bool) -> Bundle {

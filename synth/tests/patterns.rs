@@ -702,6 +702,27 @@ fn sequences_can_follow_the_distance_to_moving_targets() {
 }
 
 #[test]
+fn a_period_over_too_many_rest_values_is_not_searched() {
+    // Z from a 512 × 256 map of 65536 distinct values plus a random 0..4096: 2.7 · 10^8
+    // possible rests. The period is not searched over them (that list alone would hold a
+    // gigabyte): the animation counts as aperiodic, period 0.
+    let (w, h) = (512u32, 256u32);
+    let z = ValueParams {
+        map: Some(MapRef {
+            size: [w, h],
+            values: Some((0..w * h).map(|i| i as u16).collect()),
+            section: None,
+            depth: 1,
+        }),
+        random: 4096,
+    };
+    let anim = AnimationParams { sequence: vec![0, 1], a: 1.0, z, ..Default::default() };
+    let mut p = params(w as u64 * 4, h as u64 * 4, 4, [2, 2], vec![animated(LayerKind::Tiling, 4, anim)]);
+    p.fps = Some(10.0);
+    assert_eq!(load(&build(&p, &flat_reference(2, 2, 4))).animation().unwrap().period_frames, 0);
+}
+
+#[test]
 fn led_board_is_animated_and_frames_differ() {
     let t = models::load(&demos::led_board(false)).unwrap();
     assert_eq!((t.width(), t.height()), (12288, 1536));

@@ -75,7 +75,18 @@ impl Value {
         m + r
     }
 
-    /// Every value this can take, for the period of the animation (None when unbounded).
+    /// How many values this can take at most: distinct map values × the random range.
+    fn count(&self) -> u64 {
+        let distinct = self.map.as_ref().map_or(1, |m| {
+            let mut v = m.values.clone();
+            v.sort_unstable();
+            v.dedup();
+            v.len() as u64
+        });
+        distinct * self.random.max(1) as u64
+    }
+
+    /// Every value this can take, for the period of the animation.
     fn values(&self) -> Vec<u32> {
         let base: Vec<u32> = match &self.map {
             Some(m) => {
@@ -89,6 +100,9 @@ impl Value {
         base.iter().flat_map(|&b| (0..self.random.max(1)).map(move |r| b + r)).collect()
     }
 }
+
+/// Most Z values a period is computed over; beyond, the animation is taken as aperiodic.
+const MAX_PERIOD_VALUES: u64 = 1 << 16;
 
 /// Most targets a distance-driven sequence measures.
 pub const MAX_TARGETS: usize = 64;
@@ -275,7 +289,8 @@ impl AnimationBlock {
     }
 
     /// Frames after which every cell repeats: lcm of all cycle lengths n + ⌊aZ⌋; 0 when
-    /// temporal transitions make the animation aperiodic or the lcm exceeds u32; `None` when
+    /// temporal transitions make the animation aperiodic, the lcm exceeds u32 or Z takes more
+    /// than [`MAX_PERIOD_VALUES`] values; `None` when
     /// the sequence follows target sprites (their motion gives the period).
     pub fn period(&self) -> Option<u64> {
         let Drive::Time { segments, t0s, .. } = &self.drive else { return None };
@@ -283,6 +298,9 @@ impl AnimationBlock {
             return Some(0);
         }
         let (a, z) = &segments[0];
+        if z.count() > MAX_PERIOD_VALUES {
+            return Some(0);
+        }
         let mut lengths: Vec<u64> = self.sequences.iter().map(|s| s.len() as u64).collect();
         lengths.sort_unstable();
         lengths.dedup();

@@ -177,6 +177,7 @@ fn plan_of(p: &Params, bundle: &Bundle, create: bool) -> Result<Plan> {
     if p.layers.is_empty() || p.layers.len() > MAX_LAYERS {
         return Err(Error::param("layers", format!("{} layers; 1..={MAX_LAYERS}", p.layers.len())));
     }
+    sprites::check_layers(&p.sprites, &p.layers)?;
     let count = p.reference[0] * p.reference[1];
     let mut animated = Vec::new();
     let mut transforms = Vec::new();

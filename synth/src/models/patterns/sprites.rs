@@ -78,7 +78,7 @@ impl Sprite {
     pub fn local(&self, d: (f64, f64), size: u32) -> Option<(f32, f32)> {
         let s = size as f32;
         let (dx, dy) = (d.0 as f32, d.1 as f32);
-        let (u, v) = if self.cos == 1.0 && self.scale == 1.0 {
+        let (u, v) = if self.cos == 1.0 && self.sin == 0.0 && self.scale == 1.0 {
             (dx + s * 0.5, dy + s * 0.5)
         } else {
             (
@@ -268,8 +268,11 @@ impl Positioning {
     }
 }
 
-/// Checks that every sprite naming a layer names a sprites layer.
+/// Checks the number of sprites and that every sprite naming a layer names a sprites layer.
 pub fn check_layers(sprites: &BTreeMap<String, SpriteParams>, layers: &[LayerParams]) -> Result<()> {
+    if sprites.len() > MAX_SPRITES {
+        return Err(Error::param("sprites", format!("{} sprites; at most {MAX_SPRITES}", sprites.len())));
+    }
     for (name, s) in sprites {
         let Some(l) = s.layer else { continue };
         match layers.get(l) {
