@@ -1,6 +1,8 @@
 //! Synthesis speed of each `patterns` composition, in pixels per second on one core:
 //! `cargo bench -p vtex-synth --bench patterns`. Each iteration renders one 256 × 256 tile of
 //! level 0 (frame 30 for animated textures); criterion reports elements (pixels) per second.
+//! A second group renders one tile of every level of the 100k demo (the cold tile cost per
+//! level behind the viewer bench's cold views).
 //! The paper's GeForceFX prototype did 320 × 200 at 113 / 73 / 36 / 5 fps for the basic /
 //! areas map / dithered areas map / dithered + transitions fragment programs.
 
@@ -10,6 +12,7 @@ use criterion::{criterion_group, criterion_main, Criterion, Throughput};
 use std::hint::black_box;
 use vtex_synth::bundle::Bundle;
 use vtex_synth::models::{self, patterns::demos};
+use vtex_synth::texture::{level_count, level_size};
 use vtex_synth::Region;
 
 /// The two-material demo with its transitions and/or dithering switched off.
@@ -44,12 +47,18 @@ fn compositions(c: &mut Criterion) {
         g.bench_function(name, |b| b.iter(|| tex.render(black_box(&region), &mut out, &vtex_synth::Never)));
     }
     g.finish();
-    let mut g = c.benchmark_group("patterns 256x256 tile, coarse levels");
+    // Every level of the 100k demo (the viewer bench's texture): a tile in the middle of the
+    // level, or the whole level once it is smaller than a tile. Nothing is cached between
+    // iterations, so each is a cold tile.
+    let mut g = c.benchmark_group("patterns 100k demo, 256x256 tile per level");
     g.throughput(Throughput::Elements(256 * 256));
     let tex = models::load(&demos::aperiodic(1563)).unwrap();
-    for level in [7u32, 9] {
-        let region = Region::new(level, 0, 0, 256, 256);
-        g.bench_function(format!("basic tiling level {level}"), |b| {
+    for level in 0..level_count(tex.width(), tex.height()) {
+        let (w, h) = level_size(tex.width(), tex.height(), level);
+        let (tw, th) = (w.min(256) as u32, h.min(256) as u32);
+        let region = Region::new(level, (w / 2 - tw as u64 / 2) as i64, (h / 2 - th as u64 / 2) as i64, tw, th);
+        let mut out = vec![0u8; region.byte_len()];
+        g.bench_function(format!("level {level}"), |b| {
             b.iter(|| tex.render(black_box(&region), &mut out, &vtex_synth::Never))
         });
     }

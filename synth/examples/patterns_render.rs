@@ -1,5 +1,5 @@
-//! Renders every `patterns` demo to PNG for looking at, and the LED board across its temporal
-//! transition: `cargo run --release -p vtex-synth --example patterns_render` writes into
+//! Renders every `patterns` demo to PNG for looking at, and the animated ones (the LED board
+//! across its temporal transition and its density ramp, the balls lighting LEDs) over time: `cargo run --release -p vtex-synth --example patterns_render` writes into
 //! `$VTEX_RENDER_DIR` (default `target/patterns-renders`).
 
 use vtex_synth::models::patterns::demos;
@@ -8,7 +8,7 @@ use vtex_synth::{models, Region};
 
 fn main() {
     render_demos();
-    render_led_transition_frames();
+    render_animated_frames();
 }
 
 fn render_demos() {
@@ -30,13 +30,21 @@ fn render_demos() {
     }
 }
 
-fn render_led_transition_frames() {
+fn render_animated_frames() {
     let dir = std::env::var("VTEX_RENDER_DIR")
         .unwrap_or_else(|_| concat!(env!("CARGO_MANIFEST_DIR"), "/../target/patterns-renders").into());
     std::fs::create_dir_all(&dir).unwrap();
-    let tex = models::load(&demos::led_board(true)).unwrap();
-    for frame in [100u32, 125, 140, 200] {
-        let img = render_image(&*tex, &Region::new(3, 0, 0, 1536, 192).at_frame(frame)).unwrap();
-        std::fs::write(format!("{dir}/led-transition-{frame}.png"), img.to_png()).unwrap();
+    let board = Region::new(3, 0, 0, 1536, 192);
+    let runs = [
+        ("led-transition", demos::led_board(true), board, vec![100u32, 125, 140, 200]),
+        ("led-ramp", demos::led_ramp(), board, vec![20, 70, 100, 130, 160, 190, 240]),
+        ("distance", demos::distance_triggered(), Region::new(2, 0, 0, 1024, 1024), vec![0, 20, 40]),
+    ];
+    for (name, bundle, region, frames) in runs {
+        let tex = models::load(&bundle).unwrap();
+        for frame in frames {
+            let img = render_image(&*tex, &region.at_frame(frame)).unwrap();
+            std::fs::write(format!("{dir}/{name}-{frame}.png"), img.to_png()).unwrap();
+        }
     }
 }

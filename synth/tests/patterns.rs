@@ -168,13 +168,50 @@ fn aliasing_of_fig_2_2_is_refused_and_power_of_two_ranges_are_exact() {
         }
     }
     assert!(counts.iter().all(|&c| c == 16), "{counts:?}");
-    // A probability map of 12 entries cannot be indexed without bias by a 256-entry σ.
+    // A probability map of 12 entries cannot be indexed without bias by a 256-entry σ: an
+    // encoding without a range table of 12 is refused...
     let m = vec![MaterialParams { patterns: (0..12).collect(), family: 0 }];
     let p =
-        params(64, 64, 8, [4, 4], vec![tiling(8, Choice::Materials { materials: m, areas: None, pixel_map: None })]);
-    let e = err(&build(&p, &flat_reference(4, 4, 8)));
+        params(96, 96, 8, [4, 4], vec![tiling(8, Choice::Materials { materials: m, areas: None, pixel_map: None })]);
+    let mut without = build(&p, &flat_reference(4, 4, 8));
+    without.sections.retain(|s| s.name != sigma::RANGES_SECTION);
+    let e = err(&without);
     assert!(e.contains("aliasing") && e.contains("12"), "{e}");
     assert_eq!(RANDOM_SIZE, 256);
+    // ...while `create` stores a permutation of 0..12 (a σ adapted to the range), and every
+    // aligned run of 12 cells then shows each of the 12 entries exactly once.
+    let t = load(&build(&p, &flat_reference(4, 4, 8)));
+    for gy in 0..12 {
+        let mut seen = [0u32; 12];
+        for gx in 0..12 {
+            seen[t.pick(0, gx, gy, 0).base.unwrap() as usize] += 1;
+        }
+        assert!(seen.iter().all(|&c| c == 1), "row {gy}: {seen:?}");
+    }
+}
+
+#[test]
+fn probability_maps_of_any_size_give_their_proportions() {
+    // 7 entries: pattern 3 five times, pattern 5 twice → 5/7 and 2/7, unbiased.
+    let m = vec![MaterialParams { patterns: vec![3, 3, 5, 3, 3, 5, 3], family: 0 }];
+    let p = params(
+        4 * 7 * 20,
+        4 * 7 * 20,
+        4,
+        [4, 4],
+        vec![tiling(4, Choice::Materials { materials: m, areas: None, pixel_map: None })],
+    );
+    let b = build(&p, &flat_reference(4, 4, 4));
+    assert!(b.sections.iter().any(|s| s.name == sigma::RANGES_SECTION));
+    let t = load(&b);
+    let n = 7 * 20;
+    let threes = (0..n).flat_map(|y| (0..n).map(move |x| (x, y))).filter(|&(x, y)| t.pick(0, x, y, 0).base == Some(3));
+    let share = threes.count() as f64 / (n * n) as f64;
+    assert!((share - 5.0 / 7.0).abs() < 1e-9, "pattern 3 in {share} of cells, exactly 5/7 expected");
+    // The encoding made through the registry stores the same table.
+    let inputs = models::Inputs::from([("reference".to_string(), flat_reference(4, 4, 4).to_png())]);
+    let made = models::create("patterns", "t", &serde_json::to_value(&p).unwrap(), &inputs).unwrap();
+    assert_eq!(made.section(sigma::RANGES_SECTION).unwrap(), b.section(sigma::RANGES_SECTION).unwrap());
 }
 
 // ---------------------------------------------------------------- probability, areas, dithering
@@ -438,7 +475,7 @@ fn animation_formula_holds() {
         a: 2.0,
         phi: ValueParams { map: Some(inline(w, h, phi.clone())), random: 0 },
         z: ValueParams { map: Some(inline(w, h, z.clone())), random: 0 },
-        previous: None,
+        ..Default::default()
     };
     let layer = LayerParams {
         kind: LayerKind::Tiling,
@@ -498,6 +535,193 @@ fn temporal_transitions_never_jump_to_a_mid_cycle_frame() {
     }
 }
 
+fn animated(kind: LayerKind, cell: u32, anim: AnimationParams) -> LayerParams {
+    LayerParams { kind, cell, choice: None, transform: None, transitions: None, animation: Some(anim) }
+}
+
+#[test]
+fn a_cell_plays_one_of_several_animated_patterns() {
+    // Fig. 20: the virtual random map picks the animated pattern of each cell; a probability
+    // map of 3 entries (sequence 0 twice, 1 once) makes sequence 0 exactly twice as likely
+    // in every aligned run of 3 cells.
+    let anim = AnimationParams {
+        sequences: vec![vec![0, 1, 2], vec![3, 4, 5, 6]],
+        probabilities: vec![0, 1, 0],
+        ..Default::default()
+    };
+    let mut p = params(4 * 48, 4 * 48, 4, [4, 2], vec![animated(LayerKind::Tiling, 4, anim)]);
+    p.fps = Some(10.0);
+    let t = load(&build(&p, &flat_reference(4, 2, 4)));
+    assert_eq!(t.animation().unwrap().period_frames, 12, "lcm of the lengths 3 and 4");
+    let mut first = 0;
+    for gy in 0..48 {
+        for gx in 0..48 {
+            let shown: Vec<u32> = (0..12).map(|f| t.pick(0, gx, gy, f).base.unwrap()).collect();
+            let expected: Vec<u32> =
+                if shown[0] == 0 { (0..12).map(|f| f % 3).collect() } else { (0..12).map(|f| 3 + f % 4).collect() };
+            assert_eq!(shown, expected, "cell ({gx}, {gy}) plays one sequence");
+            first += (shown[0] == 0) as u32;
+        }
+    }
+    assert_eq!(first, 48 * 48 * 2 / 3);
+    // Sequences of a tiling layer cannot rest on a blank; an unknown sequence is named.
+    for (anim, needle) in [
+        (AnimationParams { sequences: vec![vec![-1, 1]], ..Default::default() }, "cannot be blank"),
+        (
+            AnimationParams { sequences: vec![vec![1]], probabilities: vec![0, 1], ..Default::default() },
+            "sequence 1 is missing",
+        ),
+        (AnimationParams { sequence: vec![1], sequences: vec![vec![1]], ..Default::default() }, "exactly one of"),
+    ] {
+        let mut p = params(64, 64, 4, [4, 2], vec![animated(LayerKind::Tiling, 4, anim)]);
+        p.fps = Some(10.0);
+        let e = err(&build(&p, &flat_reference(4, 2, 4)));
+        assert!(e.contains(needle), "{e}");
+    }
+}
+
+#[test]
+fn animated_sparse_layers_blink_in_and_out() {
+    // Rest on a blank, then the pattern twice: a third of the cells are empty at any frame.
+    let anim =
+        AnimationParams { sequence: vec![-1, 0, 0], phi: ValueParams { map: None, random: 256 }, ..Default::default() };
+    let mut l = animated(LayerKind::Sparse, 8, anim);
+    l.transform = Some(TransformParams { scale: [1.0, 1.0], rotate: false, overflow: false });
+    let mut p = params(512, 512, 8, [1, 1], vec![l]);
+    p.background = [0, 0, 0, 255];
+    p.fps = Some(10.0);
+    let mut white = Rgba8Image::new(8, 8);
+    for y in 0..8 {
+        for x in 0..8 {
+            white.set_pixel(x, y, [255, 255, 255, 255]);
+        }
+    }
+    let t = load(&build(&p, &white));
+    assert_eq!(t.animation().unwrap().period_frames, 3);
+    let level0 = |f: u32| render_image(&t, &Region::new(0, 0, 0, 512, 512).at_frame(f)).unwrap();
+    let (f0, f1) = (level0(0), level0(1));
+    assert_ne!(f0, f1);
+    assert_eq!(level0(3), f0);
+    let empty =
+        (0..64).flat_map(|y| (0..64).map(move |x| (x, y))).filter(|&(x, y)| f0.pixel(x * 8 + 4, y * 8 + 4)[0] == 0);
+    let share = empty.count() as f64 / 4096.0;
+    assert!((share - 1.0 / 3.0).abs() < 0.03, "{share} of the cells are empty");
+    // Coarse levels read the cells under each pixel at the same frame: the mean matches level 0.
+    let mean = |img: &Rgba8Image| img.data.chunks(4).map(|p| p[0] as f64).sum::<f64>() / (img.data.len() / 4) as f64;
+    let coarse = render_image(&t, &Region::new(4, 0, 0, 32, 32)).unwrap();
+    assert!((mean(&coarse) - mean(&f0)).abs() < 2.0, "{} against {}", mean(&coarse), mean(&f0));
+}
+
+#[test]
+fn a_density_ramp_is_a_series_of_temporal_transitions() {
+    // The (a, Z) change at t0 = 20, 40 and 60; n = 4, so they are 2n apart as §3.4 asks.
+    let (w, h, n) = (8u32, 8u32, 4i64);
+    let phi: Vec<u16> = (0..w * h).map(|i| (i * 7 % 11) as u16).collect();
+    let z: Vec<u16> = (0..w * h).map(|i| 1 + (i % 3) as u16).collect();
+    let zmap = || ValueParams { map: Some(inline(w, h, z.clone())), random: 0 };
+    let ramp = [4.0, 2.0, 1.0, 0.0];
+    let t0s = [20u32, 40, 60];
+    let anim = AnimationParams {
+        sequence: vec![0, 1, 2, 3],
+        a: ramp[3],
+        phi: ValueParams { map: Some(inline(w, h, phi.clone())), random: 0 },
+        z: zmap(),
+        previous: Some(Previous::Many((0..3).map(|k| PreviousParams { a: ramp[k], z: zmap(), t0: t0s[k] }).collect())),
+        ..Default::default()
+    };
+    let mut p = params(w as u64 * 4, h as u64 * 4, 4, [2, 2], vec![animated(LayerKind::Tiling, 4, anim.clone())]);
+    p.fps = Some(10.0);
+    let t = load(&build(&p, &flat_reference(2, 2, 4)));
+    assert_eq!(t.animation().unwrap().period_frames, 0, "transitions make it aperiodic");
+    for i in 0..(w * h) as u64 {
+        let (gx, gy) = (i % w as u64, i / w as u64);
+        let (f, zi) = (phi[i as usize] as i64, z[i as usize] as i64);
+        let mut prev = t.pick(0, gx, gy, 0).base.unwrap() as i64;
+        for time in 1..100u32 {
+            let q = t.pick(0, gx, gy, time).base.unwrap() as i64;
+            assert!(
+                q == 0 && (prev == 0 || prev == n - 1) || q == prev + 1 || q == 1 && prev == n - 1,
+                "cell {i}: {prev} → {q} at t = {time}"
+            );
+            // Between transitions, once 2n frames have passed, the segment's own cycling runs.
+            let k = t0s.iter().filter(|&&t0| t0 <= time).count();
+            let settled = k == 0 || time >= t0s[k - 1] + 2 * n as u32;
+            if settled {
+                let r = (ramp[k] * zi as f64).floor() as i64;
+                assert_eq!(q, frame(time as i64, f, n, r), "cell {i} at t = {time}, segment {k}");
+            }
+            prev = q;
+        }
+    }
+    // Transitions closer than 2n frames are refused.
+    let mut close = anim;
+    close.previous = Some(Previous::Many(vec![
+        PreviousParams { a: 1.0, z: zmap(), t0: 20 },
+        PreviousParams { a: 2.0, z: zmap(), t0: 25 },
+    ]));
+    let mut p = params(w as u64 * 4, h as u64 * 4, 4, [2, 2], vec![animated(LayerKind::Tiling, 4, close)]);
+    p.fps = Some(10.0);
+    let e = err(&build(&p, &flat_reference(2, 2, 4)));
+    assert!(e.contains("previous[1].t0") && e.contains("2n"), "{e}");
+}
+
+#[test]
+fn sequences_can_follow_the_distance_to_moving_targets() {
+    // Fig. 21a: a ball (a sprite no layer draws) moves 16 px a frame; cells open as it nears.
+    let anim = AnimationParams {
+        sequence: vec![0, 1, 2, 3],
+        distance: Some(DistanceParams { targets: vec!["ball".into()], radius: 48.0 }),
+        ..Default::default()
+    };
+    let mut p = params(256, 256, 16, [4, 2], vec![animated(LayerKind::Tiling, 16, anim)]);
+    let mut ball = SpriteParams::at(4, 100, 100);
+    ball.velocity = [16, 0];
+    p.sprites.insert("ball".into(), ball);
+    p.fps = Some(10.0);
+    let t = load(&build(&p, &flat_reference(4, 2, 16)));
+    assert_eq!(t.animation().unwrap().period_frames, 16, "the ball's period");
+    for time in 0..5u32 {
+        let (bx, by) = ((108 + 16 * time) % 256, 108);
+        let mut open = 0;
+        for gy in 0..16u64 {
+            for gx in 0..16u64 {
+                let (cx, cy) = ((gx * 16 + 8) as f64, (gy * 16 + 8) as f64);
+                let dx = (cx - bx as f64).abs().min(256.0 - (cx - bx as f64).abs());
+                let d = (dx * dx + (cy - by as f64).powi(2)).sqrt();
+                let want = if d >= 48.0 { 0 } else { ((4.0 * (1.0 - d / 48.0)).floor() as u32).min(3) };
+                assert_eq!(t.pick(0, gx, gy, time).base, Some(want), "cell ({gx}, {gy}) at t = {time}");
+                open += (want == 3) as u32;
+            }
+        }
+        assert!(open >= 1, "the cell under the ball is open");
+    }
+    let mut p2 = p.clone();
+    p2.layers[0].animation.as_mut().unwrap().distance.as_mut().unwrap().targets = vec!["nobody".into()];
+    let e = err(&build(&p2, &flat_reference(4, 2, 16)));
+    assert!(e.contains("`nobody` is not in `sprites`"), "{e}");
+}
+
+#[test]
+fn a_period_over_too_many_rest_values_is_not_searched() {
+    // Z from a 512 × 256 map of 65536 distinct values plus a random 0..4096: 2.7 · 10^8
+    // possible rests. The period is not searched over them (that list alone would hold a
+    // gigabyte): the animation counts as aperiodic, period 0.
+    let (w, h) = (512u32, 256u32);
+    let z = ValueParams {
+        map: Some(MapRef {
+            size: [w, h],
+            values: Some((0..w * h).map(|i| i as u16).collect()),
+            section: None,
+            depth: 1,
+        }),
+        random: 4096,
+    };
+    let anim = AnimationParams { sequence: vec![0, 1], a: 1.0, z, ..Default::default() };
+    let mut p = params(w as u64 * 4, h as u64 * 4, 4, [2, 2], vec![animated(LayerKind::Tiling, 4, anim)]);
+    p.fps = Some(10.0);
+    assert_eq!(load(&build(&p, &flat_reference(2, 2, 4))).animation().unwrap().period_frames, 0);
+}
+
 #[test]
 fn led_board_is_animated_and_frames_differ() {
     let t = models::load(&demos::led_board(false)).unwrap();
@@ -551,6 +775,159 @@ fn colliding_sprites_are_an_error() {
     s.insert("clash".into(), serde_json::json!({"pattern": 17, "x": 720, "y": 410}));
     let e = err(&b);
     assert!(e.contains("positioning cell") && e.contains("maple"), "{e}");
+}
+
+#[test]
+fn following_the_collision_advice_draws_both_sprites() {
+    let mut b = demos::sprites();
+    let clash = serde_json::json!({"pattern": 17, "x": 720, "y": 410});
+    b.manifest.params["sprites"].as_object_mut().unwrap().insert("clash".into(), clash.clone());
+    let e = err(&b);
+    assert!(e.contains("\"layer\"") && e.contains("sprites layer"), "the advice names the way out: {e}");
+    // The advice: a second sprites layer, and the clashing sprite on it.
+    let layers = b.manifest.params["layers"].as_array_mut().unwrap();
+    layers.push(layers[1].clone());
+    b.manifest.params["sprites"]["clash"]["layer"] = 2.into();
+    let both = load(&b);
+    let mut alone = b.clone();
+    alone.manifest.params["sprites"].as_object_mut().unwrap().remove("clash");
+    let at = |tex: &PatternTexture| render_image(tex, &Region::new(0, 700, 400, 96, 96)).unwrap();
+    let (both, maple) = (at(&both), at(&load(&alone)));
+    assert_ne!(both, maple, "the clashing sprite is drawn");
+    // Maple (700, 400) alone where the clash (720, 410) does not reach.
+    assert_eq!(both.pixel(5, 5), maple.pixel(5, 5));
+}
+
+/// Pattern 0: the gradient; pattern 1: half-transparent blue. 16-pixel patterns.
+fn sprite_reference() -> Rgba8Image {
+    let mut blue = Rgba8Image::new(16, 16);
+    for y in 0..16 {
+        for x in 0..16 {
+            blue.set_pixel(x, y, [0, 0, 255, 128]);
+        }
+    }
+    art::pack(&[gradient_reference(16), blue], 2, 1)
+}
+
+fn sprites_layer(cell: u32, transform: Option<TransformParams>) -> LayerParams {
+    LayerParams { kind: LayerKind::Sprites, cell, choice: None, transform, transitions: None, animation: None }
+}
+
+/// A 256² torus of sprites layers with cell 32 over a grey background.
+fn sprites_texture(layers: Vec<LayerParams>, sprites: Vec<(&str, SpriteParams)>) -> Bundle {
+    let mut p = params(256, 256, 16, [2, 1], layers);
+    p.background = [40, 40, 40, 255];
+    p.sprites = sprites.into_iter().map(|(n, s)| (n.to_string(), s)).collect();
+    if p.sprites.values().any(|s| s.velocity != [0, 0]) {
+        p.fps = Some(10.0);
+    }
+    build(&p, &sprite_reference())
+}
+
+fn on_layer(mut s: SpriteParams, layer: usize) -> SpriteParams {
+    s.layer = Some(layer);
+    s
+}
+
+#[test]
+fn every_sprites_layer_draws_only_its_own_sprites() {
+    let level0 = |b: &Bundle| render_image(&load(b), &Region::new(0, 0, 0, 128, 128)).unwrap();
+    // n grids for n patterns in a cell: two sprites in positioning cell (1, 1), one a layer.
+    let (a, blue) = (SpriteParams::at(0, 40, 40), SpriteParams::at(1, 48, 48));
+    let two = level0(&sprites_texture(
+        vec![sprites_layer(32, None), sprites_layer(32, None)],
+        vec![("a", a.clone()), ("b", on_layer(blue.clone(), 1))],
+    ));
+    let only = |s: SpriteParams| level0(&sprites_texture(vec![sprites_layer(32, None)], vec![("s", s)]));
+    let (alone_a, alone_b) = (only(a.clone()), only(blue.clone()));
+    assert_eq!(two.pixel(44, 44), alone_a.pixel(44, 44), "only the gradient");
+    assert_eq!(two.pixel(60, 60), alone_b.pixel(60, 60), "only the blue");
+    assert_eq!(two.pixel(70, 70), [40, 40, 40, 255], "neither");
+    let mixed = two.pixel(52, 52);
+    assert!(mixed != alone_a.pixel(52, 52) && mixed != alone_b.pixel(52, 52), "blue over the gradient: {mixed:?}");
+    // A sprites layer without sprites of its own draws nothing: the half-transparent blue is
+    // drawn once however many sprites layers there are.
+    let twice =
+        level0(&sprites_texture(vec![sprites_layer(32, None), sprites_layer(32, None)], vec![("b", blue.clone())]));
+    assert_eq!(twice, alone_b);
+    // A layer index that is not a sprites layer is named.
+    let mut p = params(256, 256, 16, [2, 1], vec![tiling(16, Choice::Virtual), sprites_layer(32, None)]);
+    p.sprites.insert("b".into(), on_layer(blue, 0));
+    let e = err(&build(&p, &sprite_reference()));
+    assert!(e.contains("sprites.b.layer") && e.contains("Tiling"), "{e}");
+}
+
+#[test]
+fn the_tile_transform_is_plugged_after_the_positioning() {
+    let level0 = |b: &Bundle| render_image(&load(b), &Region::new(0, 0, 0, 160, 160)).unwrap();
+    let grad = |u: f32, v: f32| [(u.floor() * 17.0) as i32, (v.floor() * 17.0) as i32];
+    let close = |got: [u8; 4], want: [i32; 2], at: (u32, u32)| {
+        assert!(
+            (got[0] as i32 - want[0]).abs() <= 17 && (got[1] as i32 - want[1]).abs() <= 17,
+            "pixel {at:?}: {got:?} against texel colour {want:?}"
+        );
+    };
+    // Explicit: a quarter turn clockwise about the centre (72, 72).
+    let mut turned = SpriteParams::at(0, 64, 64);
+    turned.rotation = 90.0;
+    let img = level0(&sprites_texture(vec![sprites_layer(32, None)], vec![("t", turned)]));
+    for y in 65..79 {
+        for x in 65..79 {
+            let (dx, dy) = (x as f32 + 0.5 - 72.0, y as f32 + 0.5 - 72.0);
+            close(img.pixel(x, y), grad(dy + 8.0, -dx + 8.0), (x, y));
+        }
+    }
+    // Explicit: twice the size, so 32 px about the same centre, over more than four cells.
+    let mut big = SpriteParams::at(0, 64, 64);
+    big.scale = 2.0;
+    let img = level0(&sprites_texture(vec![sprites_layer(32, None)], vec![("t", big)]));
+    let bg = [40, 40, 40, 255];
+    assert_ne!(img.pixel(57, 57), bg);
+    assert_ne!(img.pixel(86, 86), bg);
+    assert_eq!(img.pixel(55, 55), bg);
+    assert_eq!(img.pixel(89, 89), bg);
+    close(img.pixel(81, 61), grad((81.5 - 72.0) / 2.0 + 8.0, (61.5 - 72.0) / 2.0 + 8.0), (81, 61));
+    // Procedural: the layer's transform halves every sprite.
+    let half = Some(TransformParams { scale: [0.5, 0.5], rotate: false, overflow: false });
+    let img = level0(&sprites_texture(vec![sprites_layer(32, half)], vec![("t", SpriteParams::at(0, 64, 64))]));
+    assert_eq!(img.pixel(66, 66), bg);
+    assert_ne!(img.pixel(69, 69), bg);
+    assert_eq!(img.pixel(77, 77), bg);
+    // Too large once transformed is named.
+    let mut huge = SpriteParams::at(0, 64, 64);
+    huge.scale = 3.0;
+    let twice = Some(TransformParams { scale: [2.0, 2.0], rotate: false, overflow: false });
+    let e = err(&sprites_texture(vec![sprites_layer(32, twice)], vec![("h", huge)]));
+    assert!(e.contains("sprites.h.scale"), "{e}");
+}
+
+#[test]
+fn moving_sprites_move_with_the_frame_and_never_collide() {
+    let mut m = SpriteParams::at(0, 40, 40);
+    m.velocity = [8, 4];
+    let b = sprites_texture(vec![sprites_layer(32, None)], vec![("m", m.clone())]);
+    let t = load(&b);
+    let a = t.animation().expect("a moving sprite animates the texture");
+    assert_eq!(a.period_frames, 64, "256/8 = 32 and 256/4 = 64 frames");
+    let whole = |f: u32| render_image(&t, &Region::new(0, 0, 0, 256, 256).at_frame(f)).unwrap();
+    let (f0, f5) = (whole(0), whole(5));
+    assert_ne!(f0, f5);
+    for y in 0..256 {
+        for x in 0..256 {
+            assert_eq!(f5.pixel((x + 40) % 256, (y + 20) % 256), f0.pixel(x, y));
+        }
+    }
+    assert_eq!(whole(64), f0);
+    // Two sprites on one layer that meet at some frame are refused, naming the frame...
+    let mut n = SpriteParams::at(0, 200, 40);
+    n.velocity = [-8, 4];
+    let e = err(&sprites_texture(vec![sprites_layer(32, None)], vec![("m", m.clone()), ("n", n.clone())]));
+    assert!(e.contains("at frame"), "{e}");
+    // ...and drawn when each has its own grid.
+    load(&sprites_texture(
+        vec![sprites_layer(32, None), sprites_layer(32, None)],
+        vec![("m", m), ("n", on_layer(n, 1))],
+    ));
 }
 
 #[test]

@@ -1,10 +1,14 @@
 //! Animation Sequence, Animation Map and Temporal Transitions (§3.4). Time t is the request's
 //! frame; the state of a cell is a pure function of (t, φ(g), Z(g), a) — no state variables.
+//! A cell may pick one of several animated patterns (Fig. 20), the (a, Z) may change several
+//! times (each change a temporal transition), and the sequence parameter may be the distance
+//! to moving target sprites instead of time (Fig. 21a).
 
 use super::maps::Map;
-use super::params::{AnimationParams, ValueParams};
+use super::params::{AnimationParams, DistanceParams, Params, ValueParams};
 use super::random::LayerRng;
 use super::sigma::Role;
+use super::sprites::Motion;
 use crate::{bundle::Bundle, Error, Result};
 
 /// p = max(0, (t + φ) mod (n + R) − R) with R = ⌊a Z⌋ rest frames: the sequence frame shown.
@@ -59,7 +63,7 @@ impl Value {
         let map =
             v.map.as_ref().map(|m| Map::load(what, m, bundle, grid, u16::MAX as u32, Some(u16::MAX))).transpose()?;
         if v.random > 0 {
-            rng.table(role).check_range(&format!("{what}.random"), v.random)?;
+            rng.check_range(&format!("{what}.random"), v.random)?;
         }
         Ok(Self { map, random: v.random, role })
     }
@@ -71,7 +75,18 @@ impl Value {
         m + r
     }
 
-    /// Every value this can take, for the period of the animation (None when unbounded).
+    /// How many values this can take at most: distinct map values × the random range.
+    fn count(&self) -> u64 {
+        let distinct = self.map.as_ref().map_or(1, |m| {
+            let mut v = m.values.clone();
+            v.sort_unstable();
+            v.dedup();
+            v.len() as u64
+        });
+        distinct * self.random.max(1) as u64
+    }
+
+    /// Every value this can take, for the period of the animation.
     fn values(&self) -> Vec<u32> {
         let base: Vec<u32> = match &self.map {
             Some(m) => {
@@ -86,76 +101,236 @@ impl Value {
     }
 }
 
+/// Most Z values a period is computed over; beyond, the animation is taken as aperiodic.
+const MAX_PERIOD_VALUES: u64 = 1 << 16;
+
+/// Most targets a distance-driven sequence measures.
+pub const MAX_TARGETS: usize = 64;
+
+/// What advances the sequence of a cell.
+enum Drive {
+    /// Time: φ, and the (a, Z) of each period of the schedule — the current one last — with
+    /// the frames `t0s` at which each earlier one gave way to the next.
+    Time { phi: Value, segments: Vec<(f64, Value)>, t0s: Vec<i64> },
+    /// The distance from the cell's centre to the nearest target sprite.
+    Distance { targets: Vec<Motion>, radius: f64, cell: f64, texture: (u64, u64), size: u32 },
+}
+
 pub struct AnimationBlock {
-    pub sequence: Vec<u32>,
-    a: f64,
-    phi: Value,
-    z: Value,
-    previous: Option<(f64, Value, u32)>,
+    /// The animated patterns (`None` = blank); one is chosen per cell.
+    sequences: Vec<Vec<Option<u32>>>,
+    /// Probability map over `sequences`; uniform when empty.
+    probabilities: Vec<u32>,
+    drive: Drive,
+}
+
+/// What an animation block reads besides its parameters.
+pub struct Context<'a> {
+    pub params: &'a Params,
+    pub bundle: &'a Bundle,
+    pub cell: u32,
+    pub grid: (u64, u64),
+    pub patterns: u32,
+    /// Sparse layers may rest on a blank.
+    pub allow_blank: bool,
 }
 
 impl AnimationBlock {
-    pub fn load(p: &AnimationParams, bundle: &Bundle, rng: &LayerRng, grid: (u64, u64), patterns: u32) -> Result<Self> {
-        if p.sequence.is_empty() || p.sequence.len() > 4096 {
-            return Err(Error::param("animation.sequence", "1 to 4096 patterns"));
+    pub fn load(p: &AnimationParams, cx: &Context, rng: &LayerRng) -> Result<Self> {
+        let lists: Vec<&Vec<i32>> = match (p.sequence.is_empty(), p.sequences.is_empty()) {
+            (false, true) => vec![&p.sequence],
+            (true, false) => p.sequences.iter().collect(),
+            _ => return Err(Error::param("animation", "give exactly one of `sequence` and `sequences`")),
+        };
+        if lists.len() > 256 {
+            return Err(Error::param("animation.sequences", format!("{}: at most 256 sequences", lists.len())));
         }
-        if let Some(q) = p.sequence.iter().find(|&&q| q >= patterns) {
+        let mut sequences = Vec::with_capacity(lists.len());
+        for (i, list) in lists.iter().enumerate() {
+            let what = if p.sequences.is_empty() {
+                "animation.sequence".to_string()
+            } else {
+                format!("animation.sequences[{i}]")
+            };
+            if list.is_empty() || list.len() > 4096 {
+                return Err(Error::param(&what, "1 to 4096 patterns"));
+            }
+            let mut seq = Vec::with_capacity(list.len());
+            for &q in list.iter() {
+                seq.push(match q {
+                    -1 if cx.allow_blank => None,
+                    q if q >= 0 && (q as u32) < cx.patterns => Some(q as u32),
+                    q => {
+                        return Err(Error::param(
+                            &what,
+                            format!(
+                                "pattern {q} is missing: the reference holds 0..{}{}",
+                                cx.patterns,
+                                if cx.allow_blank { " (-1 = blank)" } else { " and tiling layers cannot be blank" }
+                            ),
+                        ))
+                    }
+                });
+            }
+            sequences.push(seq);
+        }
+        if let Some(&q) = p.probabilities.iter().find(|&&q| q as usize >= sequences.len()) {
             return Err(Error::param(
-                "animation.sequence",
-                format!("pattern {q} is missing: the reference holds 0..{patterns}"),
+                "animation.probabilities",
+                format!("sequence {q} is missing: there are {}", sequences.len()),
             ));
         }
+        let choices = if p.probabilities.is_empty() { sequences.len() } else { p.probabilities.len() };
+        rng.check_range("animation.probabilities", choices as u32)?;
+        let drive = match &p.distance {
+            Some(d) => Self::distance(p, d, cx)?,
+            None => Self::time(p, cx, rng, sequences.iter().map(Vec::len).max().unwrap_or(1))?,
+        };
+        Ok(Self { sequences, probabilities: p.probabilities.clone(), drive })
+    }
+
+    fn time(p: &AnimationParams, cx: &Context, rng: &LayerRng, n: usize) -> Result<Drive> {
         let check_a = |what: &str, a: f64| {
             if !(0.0..=1e6).contains(&a) {
                 return Err(Error::param(what, format!("{a}: must be in 0..=1e6")));
             }
             Ok(())
         };
-        check_a("animation.a", p.a)?;
+        let (bundle, grid) = (cx.bundle, cx.grid);
         let phi = Value::load("animation.phi", &p.phi, bundle, rng, grid, Role::Phase)?;
-        let z = Value::load("animation.z", &p.z, bundle, rng, grid, Role::Rest)?;
-        let previous = match &p.previous {
-            Some(q) => {
-                check_a("animation.previous.a", q.a)?;
-                Some((q.a, Value::load("animation.previous.z", &q.z, bundle, rng, grid, Role::Rest)?, q.t0))
+        let mut segments = Vec::new();
+        let mut t0s: Vec<i64> = Vec::new();
+        for (i, q) in p.schedule().iter().enumerate() {
+            let what = format!("animation.previous[{i}]");
+            check_a(&format!("{what}.a"), q.a)?;
+            if let Some(&last) = t0s.last() {
+                if (q.t0 as i64) < last + 2 * n as i64 {
+                    return Err(Error::param(
+                        format!("{what}.t0"),
+                        format!(
+                            "{} is less than 2n = {} frames after the previous transition at {last}: a set of                              parameters must be kept 2n frames so transitions never collide (§3.4)",
+                            q.t0,
+                            2 * n
+                        ),
+                    ));
+                }
             }
-            None => None,
-        };
-        Ok(Self { sequence: p.sequence.clone(), a: p.a, phi, z, previous })
+            segments.push((q.a, Value::load(&format!("{what}.z"), &q.z, bundle, rng, grid, Role::Rest)?));
+            t0s.push(q.t0 as i64);
+        }
+        check_a("animation.a", p.a)?;
+        segments.push((p.a, Value::load("animation.z", &p.z, bundle, rng, grid, Role::Rest)?));
+        Ok(Drive::Time { phi, segments, t0s })
     }
 
-    /// The pattern cell g shows at frame t.
+    fn distance(p: &AnimationParams, d: &DistanceParams, cx: &Context) -> Result<Drive> {
+        if p.previous.is_some() {
+            return Err(Error::param("animation.previous", "a distance-driven sequence has no temporal transitions"));
+        }
+        if !(d.radius > 0.0 && d.radius <= 1e9) {
+            return Err(Error::param("animation.distance.radius", format!("{}: must be in (0, 1e9] pixels", d.radius)));
+        }
+        if d.targets.is_empty() || d.targets.len() > MAX_TARGETS {
+            return Err(Error::param("animation.distance.targets", format!("1 to {MAX_TARGETS} sprite names")));
+        }
+        let targets =
+            d.targets
+                .iter()
+                .map(|name| {
+                    cx.params.sprites.get(name).map(Motion::of).ok_or_else(|| {
+                        Error::param("animation.distance.targets", format!("`{name}` is not in `sprites`"))
+                    })
+                })
+                .collect::<Result<Vec<_>>>()?;
+        let texture = (cx.params.width, cx.params.height);
+        Ok(Drive::Distance { targets, radius: d.radius, cell: cx.cell as f64, texture, size: cx.params.pattern_size })
+    }
+
+    /// The sequence cell g plays.
     #[inline]
-    pub fn pattern(&self, rng: &LayerRng, gx: u64, gy: u64, t: u32) -> u32 {
-        let n = self.sequence.len() as i64;
-        let phi = self.phi.at(rng, gx, gy) as i64;
-        let new = rest(self.a, self.z.at(rng, gx, gy));
-        let p = match &self.previous {
-            None => frame(t as i64, phi, n, new),
-            Some((a_old, z_old, t0)) => {
-                transition_frame(t as i64, phi, n, rest(*a_old, z_old.at(rng, gx, gy)), new, *t0 as i64)
-            }
+    fn sequence(&self, rng: &LayerRng, gx: u64, gy: u64) -> &[Option<u32>] {
+        let i = match (self.sequences.len(), self.probabilities.len()) {
+            (1, _) => 0,
+            (n, 0) => rng.below(Role::Choice, gx, gy, n as u32) as usize,
+            (_, m) => self.probabilities[rng.below(Role::Choice, gx, gy, m as u32) as usize] as usize,
         };
-        self.sequence[p as usize]
+        &self.sequences[i]
     }
 
-    /// Frames after which every cell repeats: lcm of all cycle lengths n + ⌊aZ⌋; 0 when a
-    /// temporal transition makes the animation aperiodic or the lcm exceeds u32.
-    pub fn period(&self) -> u32 {
-        if self.previous.is_some() {
-            return 0;
+    /// The pattern cell g shows at frame t (`None`: blank).
+    #[inline]
+    pub fn pattern(&self, rng: &LayerRng, gx: u64, gy: u64, t: u32) -> Option<u32> {
+        let seq = self.sequence(rng, gx, gy);
+        let n = seq.len() as i64;
+        let p = match &self.drive {
+            Drive::Time { phi, segments, t0s } => {
+                let phi = phi.at(rng, gx, gy) as i64;
+                let rest_of = |k: usize| rest(segments[k].0, segments[k].1.at(rng, gx, gy));
+                let t = t as i64;
+                match t0s.iter().rposition(|&t0| t0 <= t) {
+                    None => frame(t, phi, n, rest_of(0)),
+                    Some(k) => transition_frame(t, phi, n, rest_of(k), rest_of(k + 1), t0s[k]),
+                }
+            }
+            Drive::Distance { targets, radius, cell, texture, size } => {
+                let c = ((gx as f64 + 0.5) * cell, (gy as f64 + 0.5) * cell);
+                let d = targets
+                    .iter()
+                    .map(|m| torus_distance(c, m.centre(t, *texture, *size), *texture))
+                    .fold(f64::INFINITY, f64::min);
+                if d >= *radius {
+                    0
+                } else {
+                    ((n as f64 * (1.0 - d / radius)).floor() as i64).min(n - 1)
+                }
+            }
+        };
+        seq[p as usize]
+    }
+
+    /// Frames after which every cell repeats: lcm of all cycle lengths n + ⌊aZ⌋; 0 when
+    /// temporal transitions make the animation aperiodic, the lcm exceeds u32 or Z takes more
+    /// than [`MAX_PERIOD_VALUES`] values; `None` when
+    /// the sequence follows target sprites (their motion gives the period).
+    pub fn period(&self) -> Option<u64> {
+        let Drive::Time { segments, t0s, .. } = &self.drive else { return None };
+        if !t0s.is_empty() {
+            return Some(0);
         }
-        let n = self.sequence.len() as u64;
+        let (a, z) = &segments[0];
+        if z.count() > MAX_PERIOD_VALUES {
+            return Some(0);
+        }
+        let mut lengths: Vec<u64> = self.sequences.iter().map(|s| s.len() as u64).collect();
+        lengths.sort_unstable();
+        lengths.dedup();
         let mut l = 1u64;
-        for z in self.z.values() {
-            let c = n + rest(self.a, z) as u64;
-            l = l / gcd(l, c) * c;
-            if l > u32::MAX as u64 {
-                return 0;
+        for n in lengths {
+            for &zv in &z.values() {
+                let c = n + rest(*a, zv) as u64;
+                l = l / gcd(l, c) * c;
+                if l > u32::MAX as u64 {
+                    return Some(0);
+                }
             }
         }
-        l as u32
+        Some(l)
     }
+
+    /// Every pattern some cell may show (for the expected colour of coarse levels).
+    pub fn patterns(&self) -> impl Iterator<Item = Option<u32>> + '_ {
+        self.sequences.iter().flatten().copied()
+    }
+}
+
+/// Distance between two points of the torus `texture`.
+fn torus_distance(a: (f64, f64), b: (f64, f64), texture: (u64, u64)) -> f64 {
+    let d = |p: f64, q: f64, n: u64| {
+        let d = (p - q).abs() % n as f64;
+        d.min(n as f64 - d)
+    };
+    let (dx, dy) = (d(a.0, b.0, texture.0), d(a.1, b.1, texture.1));
+    (dx * dx + dy * dy).sqrt()
 }
 
 fn gcd(a: u64, b: u64) -> u64 {

@@ -57,6 +57,8 @@ pub enum Family {
     Ground,
     /// Grass with flowers.
     Grass,
+    /// Sand with flowers: the ground's base, so its tiles match the ground's edges.
+    Meadow,
 }
 
 impl Family {
@@ -64,7 +66,7 @@ impl Family {
         let n = fbm(seed, x, y, s);
         let fine = noise(seed + 9, x, y, 2.0, s as i64 / 2);
         match self {
-            Family::Ground => mix([0.55, 0.43, 0.28], [0.78, 0.66, 0.45], n * 0.8 + fine * 0.2),
+            Family::Ground | Family::Meadow => mix([0.55, 0.43, 0.28], [0.78, 0.66, 0.45], n * 0.8 + fine * 0.2),
             Family::Grass => mix([0.16, 0.36, 0.10], [0.40, 0.62, 0.18], n * 0.6 + fine * 0.4),
         }
     }
@@ -80,8 +82,10 @@ impl Family {
                 let r = sf * (0.05 + 0.08 * h(2));
                 let colour = match self {
                     Family::Ground => mix([0.35, 0.33, 0.32], [0.70, 0.62, 0.55], h(3)),
-                    Family::Grass => [[0.95, 0.9, 0.2], [0.95, 0.95, 0.95], [0.85, 0.3, 0.6], [0.3, 0.5, 0.95]]
-                        [(h(4) * 4.0) as usize % 4],
+                    Family::Grass | Family::Meadow => {
+                        [[0.95, 0.9, 0.2], [0.95, 0.95, 0.95], [0.85, 0.3, 0.6], [0.3, 0.5, 0.95]]
+                            [(h(4) * 4.0) as usize % 4]
+                    }
                 };
                 (cx, cy, r, colour)
             })
@@ -196,6 +200,22 @@ pub fn led(level: f32, s: u32) -> Rgba8Image {
             col[0] += glow;
             col[1] += glow * 0.15;
             img.set_pixel(x, y, rgba(col, 1.0));
+        }
+    }
+    img
+}
+
+/// A shaded blue ball on a transparent background (the targets of Fig. 21a).
+pub fn ball(s: u32) -> Rgba8Image {
+    let mut img = Rgba8Image::new(s, s);
+    let (c, r) = (s as f32 / 2.0, s as f32 * 0.42);
+    for y in 0..s {
+        for x in 0..s {
+            let (dx, dy) = ((x as f32 + 0.5 - c) / r, (y as f32 + 0.5 - c) / r);
+            let d = (dx * dx + dy * dy).sqrt();
+            let light = (1.0 - ((dx + 0.35) * (dx + 0.35) + (dy + 0.35) * (dy + 0.35)).sqrt() * 0.7).clamp(0.15, 1.0);
+            let alpha = ((1.0 - d) * r + 0.5).clamp(0.0, 1.0);
+            img.set_pixel(x, y, rgba([0.2 * light, 0.45 * light, 0.95 * light], alpha));
         }
     }
     img

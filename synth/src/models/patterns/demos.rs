@@ -1,5 +1,5 @@
-//! The demo encodings (Fig. 10, 14, 15, 21c, 21d of the paper), every pattern drawn by
-//! [`super::art`]. Each demo is only data — params plus sections — for the one generic model.
+//! The demo encodings (Fig. 10a, 10c, 14a, 14c, 15, 21a, 21c, 21d and the second LED
+//! animation of the paper), every pattern drawn by [`super::art`]. Each demo is only data — params plus sections — for the one generic model.
 
 use super::art::{self, Family};
 use super::params::*;
@@ -12,9 +12,10 @@ const S: u32 = 64;
 
 /// Assembles a bundle from params, the packed reference and extra sections.
 pub fn bundle(name: &str, p: &Params, reference: &Rgba8Image, sections: Vec<(&str, Vec<u8>)>) -> Bundle {
-    let mut b = Bundle::new(MODEL, name, serde_json::to_value(p).expect("params serialize"))
+    let b = Bundle::new(MODEL, name, serde_json::to_value(p).expect("params serialize"))
         .with_section("reference.png", reference.to_png())
         .with_section("sigma", sigma::to_bytes(&sigma::generate_all(p.reference[0], p.reference[1], p.seed)));
+    let mut b = super::plan::with_range_tables(b, p);
     for (n, d) in sections {
         b = b.with_section(n, d);
     }
@@ -94,6 +95,49 @@ pub fn two_materials() -> Bundle {
     bundle("Patterns: two materials, dithered 8×8 areas map, transition tiles (4096²)", &p, &two_families(), vec![])
 }
 
+/// Fig. 10c: a non-stationary distribution over one family of matching tiles — an 8 × 8
+/// areas map (not dithered) of four materials, each a probability map over sand and
+/// flowered sand; the sparsest flowers come from a probability map of 12 entries.
+pub fn areas_map() -> Bundle {
+    let mut pats = family(Family::Ground, SEED);
+    pats.extend(family(Family::Meadow, SEED + 2));
+    let reference = art::pack(&pats, 8, 4);
+    let sand = MaterialParams { patterns: (0..16).collect(), family: 0 };
+    let flowers = MaterialParams { patterns: (16..32).collect(), family: 0 };
+    let mixed = MaterialParams { patterns: (0..8).chain(16..24).collect(), family: 0 };
+    let few = MaterialParams { patterns: (0..10).chain([16, 21]).collect(), family: 0 };
+    // Painted areas: flowers in a band, mixed around it, a few flowers elsewhere, sand at the corners.
+    let areas: Vec<u16> = (0..64i32)
+        .map(|i| {
+            let (x, y) = (i % 8, i / 8);
+            match (x - y).abs() {
+                0 => 1,
+                1 => 2,
+                2 | 3 => 3,
+                _ => 0,
+            }
+        })
+        .collect();
+    let choice = Choice::Materials {
+        materials: vec![sand, flowers, mixed, few],
+        areas: Some(AreasParams { map: inline(8, 8, areas), dithered: false }),
+        pixel_map: None,
+    };
+    let p = params(4096, 4096, [8, 4], vec![layer(LayerKind::Tiling, S, Some(choice))]);
+    bundle("Patterns: non-stationary tiling, 8×8 areas map of four materials (Fig. 10c, 4096²)", &p, &reference, vec![])
+}
+
+/// Fig. 14a: the basic sparse convolution — one leaf pattern (T = 1) at a random place,
+/// scale and rotation in every cell, overflowing into its neighbours, on a plain background.
+pub fn one_leaf() -> Bundle {
+    let reference = art::leaf(SEED, 3, S);
+    let mut l = layer(LayerKind::Sparse, S, Some(Choice::Virtual));
+    l.transform = Some(TransformParams { scale: [0.6, 0.9], rotate: true, overflow: true });
+    let mut p = params(4096, 4096, [1, 1], vec![l]);
+    p.background = [118, 80, 46, 255];
+    bundle("Patterns: sparse convolution of one leaf, random rotations (Fig. 14a, 4096²)", &p, &reference, vec![])
+}
+
 /// Ground (16) then leaves (8): the reference of the leaves and sprites demos.
 fn ground_and_leaves() -> Rgba8Image {
     let mut pats = family(Family::Ground, SEED);
@@ -136,7 +180,7 @@ pub fn sprites() -> Bundle {
         ("ash", 20, 530, 3180),
     ];
     for (name, pattern, x, y) in spots {
-        p.sprites.insert(name.into(), SpriteParams { pattern, x, y });
+        p.sprites.insert(name.into(), SpriteParams::at(pattern, x, y));
     }
     bundle("Patterns: texture sprites on a tiled ground (4096²)", &p, &ground_and_leaves(), vec![])
 }
@@ -167,11 +211,11 @@ pub fn led_board(transition: bool) -> Bundle {
         a: 1.0,
         phi: ValueParams { map: None, random: 256 },
         z: z("z-new"),
-        previous: None,
+        ..Default::default()
     };
     let mut sections = vec![("z-new", led_z("PATTERN TEXTURES", w, h))];
     let name = if transition {
-        anim.previous = Some(PreviousParams { a: 1.0, z: z("z-old"), t0: 120 });
+        anim.previous = Some(Previous::One(PreviousParams { a: 1.0, z: z("z-old"), t0: 120 }));
         sections.push(("z-old", led_z("LEFEBVRE NEYRET", w, h)));
         "Patterns: LED board, temporal transition at frame 120 (12288×1536)"
     } else {
@@ -183,6 +227,80 @@ pub fn led_board(transition: bool) -> Bundle {
     p.pattern_size = 32;
     p.fps = Some(12.0);
     bundle(name, &p, &led_reference(), sections)
+}
+
+/// The Z map of a message with rests `letters` in the letters and `background` elsewhere.
+fn led_z_of(text: &str, w: u32, h: u32, letters: u8, background: u8) -> Vec<u8> {
+    art::text_mask(text, w, h, 4).iter().map(|&on| if on { letters } else { background }).collect()
+}
+
+/// The paper's second LED animation (§6): three Z maps — two messages and a blank panel —
+/// and a density of animation `a` raised step by step to fade the first message out, then
+/// lowered to fade the second in; every change is a temporal transition (§3.4), 2n frames
+/// or more apart.
+pub fn led_ramp() -> Bundle {
+    let (w, h) = (384u32, 48u32);
+    let z = |section: &str| ValueParams {
+        map: Some(MapRef { size: [w, h], values: None, section: Some(section.into()), depth: 1 }),
+        random: 4,
+    };
+    let blank = ValueParams { map: Some(inline(1, 1, vec![240])), random: 4 };
+    // (a, Z) before each t0, in order; the second message at a = 1 after the last.
+    let ramp = [
+        (1.0, z("z-first"), 36),
+        (2.0, z("z-first"), 60),
+        (4.0, z("z-first"), 84),
+        (8.0, z("z-first"), 108),
+        (1.0, blank, 144),
+        (8.0, z("z-second"), 168),
+        (4.0, z("z-second"), 192),
+        (2.0, z("z-second"), 216),
+    ];
+    let previous = ramp.into_iter().map(|(a, z, t0)| PreviousParams { a, z, t0 }).collect();
+    let anim = AnimationParams {
+        sequence: (0..12).collect(),
+        a: 1.0,
+        phi: ValueParams { map: None, random: 256 },
+        z: z("z-second"),
+        previous: Some(Previous::Many(previous)),
+        ..Default::default()
+    };
+    let mut l = layer(LayerKind::Tiling, 32, None);
+    l.animation = Some(anim);
+    let mut p = params(w as u64 * 32, h as u64 * 32, [4, 3], vec![l]);
+    p.pattern_size = 32;
+    p.fps = Some(12.0);
+    let sections = vec![
+        ("z-first", led_z_of("PATTERN TEXTURES", w, h, 6, 240)),
+        ("z-second", led_z_of("LEFEBVRE NEYRET", w, h, 6, 240)),
+    ];
+    bundle("Patterns: LED board, density ramp between two messages (12288×1536)", &p, &led_reference(), sections)
+}
+
+/// Fig. 21a: sequence textures triggered by the distance to two moving balls — LEDs light
+/// up as a ball passes. The balls are texture sprites (scaled up after positioning) with a
+/// velocity; the LEDs' sequence parameter is the distance to the nearest.
+pub fn distance_triggered() -> Bundle {
+    let mut pats: Vec<Rgba8Image> = [0.0, 0.3, 0.65, 1.0].map(|l| art::led(l, 32)).into();
+    pats.push(art::ball(32));
+    pats.extend((0..3).map(|_| Rgba8Image::new(32, 32)));
+    let reference = art::pack(&pats, 4, 2);
+    let mut leds = layer(LayerKind::Tiling, 32, None);
+    leds.animation = Some(AnimationParams {
+        sequence: vec![0, 1, 2, 3],
+        distance: Some(DistanceParams { targets: vec!["east".into(), "south".into()], radius: 160.0 }),
+        ..Default::default()
+    });
+    let mut p = params(4096, 4096, [4, 2], vec![leds, layer(LayerKind::Sprites, 128, None)]);
+    p.pattern_size = 32;
+    p.fps = Some(24.0);
+    for (name, x, y, velocity) in [("east", 600, 900, [16, 4]), ("south", 2500, 300, [-4, 16])] {
+        let mut ball = SpriteParams::at(4, x, y);
+        ball.scale = 2.0;
+        ball.velocity = velocity;
+        p.sprites.insert(name.into(), ball);
+    }
+    bundle("Patterns: LEDs lit by the distance to two moving balls (Fig. 21a, 4096²)", &p, &reference, vec![])
 }
 
 /// A winding path of ground through grass at pixel precision: a pixel map (§3.3) at 1/4
@@ -223,5 +341,9 @@ pub fn demos() -> Vec<Bundle> {
         led_board(false),
         led_board(true),
         pixel_map_path(),
+        areas_map(),
+        one_leaf(),
+        led_ramp(),
+        distance_triggered(),
     ]
 }

@@ -15,9 +15,10 @@ pub fn create(name: &str, params: &serde_json::Value, inputs: &Inputs) -> Result
     super::plan::plan_create(params, inputs)?;
     let p: Params = parse_params(params)?;
     let reference = input_image(inputs, "reference")?;
-    let mut bundle = Bundle::new(MODEL, name, params.clone())
+    let bundle = Bundle::new(MODEL, name, params.clone())
         .with_section("reference.png", reference.to_png())
         .with_section("sigma", sigma::to_bytes(&super::plan::tables(&p)));
+    let mut bundle = super::plan::with_range_tables(bundle, &p);
     let pixel_maps: Vec<(String, u32)> = p
         .layers
         .iter()

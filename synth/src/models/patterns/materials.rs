@@ -220,7 +220,7 @@ fn material(
     allow_blank: bool,
 ) -> Result<Material> {
     let what = format!("materials[{i}].patterns");
-    rng.table(Role::Choice).check_range(&what, m.patterns.len() as u32)?;
+    rng.check_range(&what, m.patterns.len() as u32)?;
     let mut patterns = Vec::with_capacity(m.patterns.len());
     let (mut mean, mut pm_mean) = ([0f32; 4], [0f32; 4]);
     for &p in &m.patterns {

@@ -10,13 +10,13 @@
 //! (the law-of-large-numbers option of §5.1), or by a stratified 4 × 4 sample of cells where
 //! no expectation exists (explicit maps, animation, pixel maps).
 
-use super::animation::AnimationBlock;
+use super::animation::{AnimationBlock, Context};
 use super::materials::ChoiceBlock;
 use super::params::{Choice, LayerKind, LayerParams, Params};
 use super::random::LayerRng;
 use super::reference::{over_pm, over_u8, Reference};
-use super::sigma::{self, Sigma};
-use super::sprites::Positioning;
+use super::sigma::{self, RangeTable, Sigma};
+use super::sprites::{self, Positioning};
 use super::transform::{Placed, TransformBlock};
 use super::transitions::{Pick, Transitions};
 use crate::texture::{level_size, wrap};
@@ -65,6 +65,7 @@ impl PatternTexture {
         let img = crate::pixels::decode_png("reference", bundle.section("reference.png")?)?;
         let reference = Reference::new(&img, p.pattern_size, p.reference[0], p.reference[1])?;
         let tables: Arc<[Sigma]> = sigma::from_bytes(bundle.section("sigma")?)?.into();
+        let ranges = sigma::ranges_of(bundle)?;
         if (tables[0].tx, tables[0].ty) != (reference.tx, reference.ty) {
             return Err(Error::bundle(format!(
                 "section `sigma`: the pattern table is {}×{} but the reference packs {}×{} patterns",
@@ -74,12 +75,15 @@ impl PatternTexture {
         if p.layers.is_empty() || p.layers.len() > MAX_LAYERS {
             return Err(Error::param("layers", format!("{} layers; 1..={MAX_LAYERS}", p.layers.len())));
         }
+        sprites::check_layers(&p.sprites, &p.layers)?;
         let mut layers = Vec::with_capacity(p.layers.len());
         for (i, lp) in p.layers.iter().enumerate() {
-            layers.push(Layer::load(i, lp, &p, bundle, &reference, tables.clone()).map_err(|e| in_layer(i, e))?);
+            let tables = (tables.clone(), ranges.clone());
+            layers.push(Layer::load(i, lp, &p, bundle, &reference, tables).map_err(|e| in_layer(i, e))?);
         }
-        let animated: Vec<&AnimationBlock> = layers.iter().filter_map(|l| l.animation.as_ref()).collect();
-        let animation = super::plan::animation(&animated, p.fps)?;
+        let mut periods: Vec<u64> = layers.iter().filter_map(|l| l.animation.as_ref()?.period()).collect();
+        periods.extend(sprites::moving_periods(&p.sprites, (p.width, p.height)));
+        let animation = super::plan::animation(&periods, p.fps)?;
         Ok(Self { width: p.width, height: p.height, reference, background: p.background, layers, animation })
     }
 
@@ -123,7 +127,7 @@ impl Layer {
         p: &Params,
         bundle: &Bundle,
         reference: &Reference,
-        tables: Arc<[Sigma]>,
+        (tables, ranges): (Arc<[Sigma]>, Arc<[RangeTable]>),
     ) -> Result<Self> {
         let c = lp.cell as u64;
         if c == 0 || p.width % c != 0 || p.height % c != 0 {
@@ -137,7 +141,7 @@ impl Layer {
         }
         let grid = (p.width / c, p.height / c);
         let texture = (p.width, p.height);
-        let rng = LayerRng::new(tables, i, grid);
+        let rng = LayerRng::new(tables, i, grid).with_ranges(ranges);
         let count = reference.count();
         let unused = |what: &str, present: bool| {
             if present {
@@ -182,7 +186,9 @@ impl Layer {
                     }
                     (None, Some(a)) => {
                         unused("transitions", lp.transitions.is_some())?;
-                        layer.animation = Some(AnimationBlock::load(a, bundle, &layer.rng, grid, count)?);
+                        let cx =
+                            Context { params: p, bundle, cell: lp.cell, grid, patterns: count, allow_blank: false };
+                        layer.animation = Some(AnimationBlock::load(a, &cx, &layer.rng)?);
                     }
                     _ => {
                         return Err(Error::param(
@@ -194,22 +200,34 @@ impl Layer {
             }
             LayerKind::Sparse => {
                 unused("transitions", lp.transitions.is_some())?;
-                unused("animation", lp.animation.is_some())?;
-                let ch = lp.choice.as_ref().ok_or_else(|| Error::param("choice", "a sparse layer needs a choice"))?;
-                if let Choice::Explicit { .. } = ch {
-                    return Err(Error::param(
-                        "choice",
-                        "sparse layers choose virtually or by materials; explicit positions are sprites",
-                    ));
+                match (&lp.choice, &lp.animation) {
+                    (Some(ch), None) => {
+                        if let Choice::Explicit { .. } = ch {
+                            return Err(Error::param(
+                                "choice",
+                                "sparse layers choose virtually or by materials; explicit positions are sprites",
+                            ));
+                        }
+                        let choice = ChoiceBlock::load(ch, bundle, reference, &layer.rng, grid, texture, true)?;
+                        if choice.pixel_map().is_some() {
+                            return Err(Error::param(
+                                "choice.pixel_map",
+                                "sparse layers place materials per cell (areas maps)",
+                            ));
+                        }
+                        layer.choice = Some(choice);
+                    }
+                    (None, Some(a)) => {
+                        let cx = Context { params: p, bundle, cell: lp.cell, grid, patterns: count, allow_blank: true };
+                        layer.animation = Some(AnimationBlock::load(a, &cx, &layer.rng)?);
+                    }
+                    _ => {
+                        return Err(Error::param(
+                            "choice",
+                            "a sparse layer has exactly one of `choice` and `animation`",
+                        ))
+                    }
                 }
-                let choice = ChoiceBlock::load(ch, bundle, reference, &layer.rng, grid, texture, true)?;
-                if choice.pixel_map().is_some() {
-                    return Err(Error::param(
-                        "choice.pixel_map",
-                        "sparse layers place materials per cell (areas maps)",
-                    ));
-                }
-                layer.choice = Some(choice);
                 let t = lp
                     .transform
                     .as_ref()
@@ -219,13 +237,24 @@ impl Layer {
             LayerKind::Sprites => {
                 for (what, present) in [
                     ("choice", lp.choice.is_some()),
-                    ("transform", lp.transform.is_some()),
                     ("transitions", lp.transitions.is_some()),
                     ("animation", lp.animation.is_some()),
                 ] {
                     unused(what, present)?;
                 }
-                layer.positioning = Some(Positioning::load(&p.sprites, lp.cell, texture, p.pattern_size, count)?);
+                let transform = lp.transform.as_ref().map(TransformBlock::for_sprites).transpose()?;
+                let first = p.layers.iter().position(|l| l.kind == LayerKind::Sprites) == Some(i);
+                layer.positioning = Some(Positioning::load(
+                    i,
+                    first,
+                    &p.sprites,
+                    transform.as_ref(),
+                    &layer.rng,
+                    lp.cell,
+                    texture,
+                    p.pattern_size,
+                    count,
+                )?);
             }
         }
         Ok(layer)
@@ -235,7 +264,7 @@ impl Layer {
     #[inline]
     fn pick(&self, gx: u64, gy: u64, t: u32) -> Pick {
         if let Some(a) = &self.animation {
-            return Pick::single(Some(a.pattern(&self.rng, gx, gy, t)));
+            return Pick::single(a.pattern(&self.rng, gx, gy, t));
         }
         let choice = self.choice.as_ref().expect("tiling layers have a choice or an animation");
         match &self.transitions {
@@ -381,12 +410,41 @@ impl Layer {
         acc.map(|a| ((a + n / 2) / n) as u8)
     }
 
-    /// Placed pattern of sparse cell (unwrapped) u, if the cell is not blank.
-    fn placed(&self, tex: &PatternTexture, ux: i64, uy: i64) -> Option<Placed> {
+    /// Pattern of sparse cell g at frame t, if the cell is not blank.
+    #[inline]
+    fn sparse_pattern(&self, gx: u64, gy: u64, t: u32) -> Option<u32> {
+        match &self.animation {
+            Some(a) => a.pattern(&self.rng, gx, gy, t),
+            None => self.choice.as_ref().unwrap().pattern(&self.rng, gx, gy, self.grid),
+        }
+    }
+
+    /// Placed pattern of sparse cell (unwrapped) u at frame t, if the cell is not blank.
+    fn placed(&self, tex: &PatternTexture, ux: i64, uy: i64, t: u32) -> Option<Placed> {
         let (gx, gy) = (wrap(ux, self.grid.0), wrap(uy, self.grid.1));
-        let choice = self.choice.as_ref().unwrap();
-        let p = choice.pattern(&self.rng, gx, gy, self.grid)?;
+        let p = self.sparse_pattern(gx, gy, t)?;
         Some(self.transform.as_ref().unwrap().place(&self.rng, gx, gy, p, tex.reference.size))
+    }
+
+    /// Mean premultiplied colour of the animated sparse cells in the square of side `k` cells
+    /// at cell coordinates (x, y): every cell up to 4 × 4 of them, else a stratified 4 × 4
+    /// sample.
+    fn animated_mean(&self, r: &Reference, x: f64, y: f64, k: f64, t: u32) -> [f32; 4] {
+        let n = (k.ceil() as u64).clamp(1, OVERSAMPLE);
+        let (mut acc, step) = ([0f32; 4], k / n as f64);
+        for j in 0..n {
+            for i in 0..n {
+                let gx = wrap((x + (i as f64 + 0.5) * step) as i64, self.grid.0);
+                let gy = wrap((y + (j as f64 + 0.5) * step) as i64, self.grid.1);
+                if let Some(p) = self.sparse_pattern(gx, gy, t) {
+                    let m = r.pm_mean(p);
+                    for ch in 0..4 {
+                        acc[ch] += m[ch];
+                    }
+                }
+            }
+        }
+        acc.map(|v| v / (n * n) as f32)
     }
 
     fn render_sparse(&self, tex: &PatternTexture, region: &Region, out: &mut [u8], stop: &dyn Stop) {
@@ -398,8 +456,8 @@ impl Layer {
         let w = region.width as usize;
         let (lw, lh) = level_size(tex.width, tex.height, level);
         if f * 4.0 > c {
-            // Under four pixels per cell: expected premultiplied coverage (law of large numbers).
-            let choice = self.choice.as_ref().unwrap();
+            // Under four pixels per cell: expected premultiplied coverage (law of large numbers),
+            // or for animated cells the mean of the cells under the pixel at this frame.
             let area = tr.mean_area();
             for row in 0..region.height as usize {
                 if stop.requested() {
@@ -408,10 +466,15 @@ impl Layer {
                 let py = wrap(region.y + row as i64, lh) as f64;
                 for col in 0..w {
                     let px = wrap(region.x + col as i64, lw) as f64;
-                    let (cx, cy) = ((px + 0.5) * f / c, (py + 0.5) * f / c);
-                    let e = choice
-                        .expected(r, cx.min(self.grid.0 as f64), cy.min(self.grid.1 as f64), self.grid, true)
-                        .unwrap_or([0.0; 4]);
+                    let e = match &self.choice {
+                        Some(choice) => {
+                            let (cx, cy) = ((px + 0.5) * f / c, (py + 0.5) * f / c);
+                            choice
+                                .expected(r, cx.min(self.grid.0 as f64), cy.min(self.grid.1 as f64), self.grid, true)
+                                .unwrap_or([0.0; 4])
+                        }
+                        None => self.animated_mean(r, px * f / c, py * f / c, f / c, region.frame),
+                    };
                     over_pm(&mut out[(row * w + col) * 4..][..4], e.map(|v| v * area));
                 }
             }
@@ -435,7 +498,7 @@ impl Layer {
             let first = uy - left;
             if first != rows_y0 {
                 rows = (first..=uy + right)
-                    .map(|yy| (0..span).map(|i| self.placed(tex, ux0 + i as i64, yy)).collect())
+                    .map(|yy| (0..span).map(|i| self.placed(tex, ux0 + i as i64, yy, region.frame)).collect())
                     .collect();
                 rows_y0 = first;
             }
@@ -466,58 +529,51 @@ impl Layer {
     fn render_sprites(&self, tex: &PatternTexture, region: &Region, out: &mut [u8], stop: &dyn Stop) {
         let r = &tex.reference;
         let pos = self.positioning.as_ref().unwrap();
+        let t = region.frame;
         let level = region.level;
         let (lw, lh) = level_size(tex.width, tex.height, level);
         let w = region.width as usize;
-        let s = r.size as u64;
+        let f = (1u64 << level.min(62)) as f64;
+        let centres: Vec<(f64, f64)> = (0..pos.sprites.len()).map(|i| pos.centre(i, t)).collect();
         if level <= r.log2 {
-            let f = 1u64 << level;
-            let k = 1.0 / f as f32;
+            let map = pos.map(t);
             for row in 0..region.height as usize {
                 if stop.requested() {
                     return;
                 }
-                let py = wrap(region.y + row as i64, lh);
-                let y = (py * f + f / 2) % tex.height;
+                let y = (wrap(region.y + row as i64, lh) as f64 + 0.5) * f;
                 for col in 0..w {
-                    let px = wrap(region.x + col as i64, lw);
-                    let x = (px * f + f / 2) % tex.width;
-                    let Some(e) = pos.at(x, y) else { continue };
-                    let (dx, dy) = (wrap(x as i64 - e.x as i64, tex.width), wrap(y as i64 - e.y as i64, tex.height));
-                    if dx >= s || dy >= s {
-                        continue;
-                    }
-                    let (u, v) =
-                        (dx as f32 + if f == 1 { 0.5 } else { 0.0 }, dy as f32 + if f == 1 { 0.5 } else { 0.0 });
-                    let c = r.bilinear_pm(e.pattern, level, u * k, v * k);
+                    let x = (wrap(region.x + col as i64, lw) as f64 + 0.5) * f;
+                    let Some(i) = pos.at(&map, x, y) else { continue };
+                    let sprite = &pos.sprites[i];
+                    let Some((u, v)) = sprite.local(pos.offset((x, y), centres[i]), r.size) else { continue };
+                    let lvl = mip_for(level, 1.0 / sprite.scale, r.log2);
+                    let k = 1.0 / (1u32 << lvl) as f32;
+                    let c = r.bilinear_pm(sprite.pattern, lvl, u * k, v * k);
                     over_pm(&mut out[(row * w + col) * 4..][..4], c);
                 }
             }
             return;
         }
-        // Patterns smaller than a pixel: splat each sprite's coverage-weighted mean colour.
-        let f = 1u64 << level.min(62);
-        for (n, e) in pos.list.iter().enumerate() {
+        // Patterns smaller than a pixel: splat each sprite's mean colour over the pixels its
+        // box overlaps, weighted by the overlap and the share of the box the pattern fills.
+        for (n, (sprite, &(cx, cy))) in pos.sprites.iter().zip(&centres).enumerate() {
             if n % SPRITES_A_POLL == 0 && stop.requested() {
                 return;
             }
-            let pm = r.pm_mean(e.pattern);
-            let span = |v: u64| {
-                let (a, b) = (v / f, (v + s - 1) / f);
-                if a == b {
-                    vec![a]
-                } else {
-                    vec![a, b]
-                }
-            };
-            for sy in span(e.y) {
-                let cov_y = overlap(sy * f, f, e.y, s);
-                for sx in span(e.x) {
-                    let cov = cov_y * overlap(sx * f, f, e.x, s) / (f as f32 * f as f32);
-                    let (lx, ly) = (sx % lw, sy % lh);
-                    let mut row = (ly as i64 - region.y).rem_euclid(lh as i64);
+            let pm = r.pm_mean(sprite.pattern);
+            let e = sprite.half;
+            let side = r.size as f64 * sprite.scale as f64;
+            let fill = side * side / (4.0 * e * e);
+            let span = |c: f64| ((c - e) / f).floor() as i64..=((c + e) / f).ceil() as i64 - 1;
+            for sy in span(cy) {
+                let cov_y = overlap(sy as f64 * f, f, cy - e, 2.0 * e);
+                for sx in span(cx) {
+                    let cov = (cov_y * overlap(sx as f64 * f, f, cx - e, 2.0 * e) * fill / (f * f)) as f32;
+                    let (lx, ly) = (sx.rem_euclid(lw as i64), sy.rem_euclid(lh as i64));
+                    let mut row = (ly - region.y).rem_euclid(lh as i64);
                     while row < region.height as i64 {
-                        let mut col = (lx as i64 - region.x).rem_euclid(lw as i64);
+                        let mut col = (lx - region.x).rem_euclid(lw as i64);
                         while col < w as i64 {
                             over_pm(&mut out[(row as usize * w + col as usize) * 4..][..4], pm.map(|v| v * cov));
                             col += lw as i64;
@@ -530,11 +586,9 @@ impl Layer {
     }
 }
 
-/// Length of [a, a + la) ∩ [b, b + lb), as f32.
-fn overlap(a: u64, la: u64, b: u64, lb: u64) -> f32 {
-    let lo = a.max(b);
-    let hi = (a + la).min(b + lb);
-    hi.saturating_sub(lo) as f32
+/// Length of [a, a + la) ∩ [b, b + lb).
+fn overlap(a: f64, la: f64, b: f64, lb: f64) -> f64 {
+    ((a + la).min(b + lb) - a.max(b)).max(0.0)
 }
 
 /// The pattern mip level for a level-L pixel when one level-0 pixel spans

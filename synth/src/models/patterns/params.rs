@@ -164,19 +164,67 @@ pub struct TransitionParams {
     pub tiles: Vec<Vec<u32>>,
 }
 
-/// Animation sequence + animation map + temporal transition (§3.4).
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, JsonSchema)]
+/// Animation sequence + animation map + temporal transitions (§3.4), driven by time or by
+/// the distance to target sprites (Fig. 21a).
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize, JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct AnimationParams {
-    /// Pattern indices of the sequence; the first is the rest state.
-    pub sequence: Vec<u32>,
+    /// Pattern indices of the sequence; the first is the rest state; -1 = blank (sparse
+    /// layers only).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub sequence: Vec<i32>,
+    /// Several animated patterns instead of `sequence`, one chosen per cell by the virtual
+    /// random map (the aperiodic animated tiling, Fig. 20).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub sequences: Vec<Vec<i32>>,
+    /// A probability map over `sequences` (their indices, duplicated in proportion; any
+    /// size); each sequence equally likely when empty.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub probabilities: Vec<u32>,
     /// Global rate a (density of animation): the rest time of a cell is ⌊a Z⌋ frames.
+    #[serde(default)]
     pub a: f64,
+    #[serde(default)]
     pub phi: ValueParams,
+    #[serde(default)]
     pub z: ValueParams,
-    /// Parameters before a temporal transition at frame `t0`.
+    /// Parameters before a temporal transition at frame `t0`, or before each of several (a
+    /// list in increasing `t0`, at least 2n frames apart: a density ramp).
     #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub previous: Option<PreviousParams>,
+    pub previous: Option<Previous>,
+    /// The sequence is driven by the distance to target sprites instead of time.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub distance: Option<DistanceParams>,
+}
+
+impl AnimationParams {
+    /// The earlier parameter sets, in increasing `t0`.
+    pub fn schedule(&self) -> &[PreviousParams] {
+        match &self.previous {
+            None => &[],
+            Some(Previous::One(p)) => std::slice::from_ref(p),
+            Some(Previous::Many(v)) => v,
+        }
+    }
+
+    /// Every per-cell value it reads: φ, Z and the earlier Zs.
+    pub fn values(&self) -> impl Iterator<Item = &ValueParams> {
+        [&self.phi, &self.z].into_iter().chain(self.schedule().iter().map(|q| &q.z))
+    }
+
+    /// The integer ranges it draws at random (for the range tables).
+    pub fn ranges(&self) -> Vec<u32> {
+        let choice = if self.probabilities.is_empty() { self.sequences.len() } else { self.probabilities.len() };
+        self.values().map(|v| v.random).chain([choice as u32]).filter(|&m| m > 1).collect()
+    }
+}
+
+/// One earlier parameter set, or several.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, JsonSchema)]
+#[serde(untagged)]
+pub enum Previous {
+    One(PreviousParams),
+    Many(Vec<PreviousParams>),
 }
 
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize, JsonSchema)]
@@ -187,9 +235,21 @@ pub struct PreviousParams {
     pub t0: u32,
 }
 
-/// A per-cell integer: an explicit map (per cell, wrapping) plus a virtual random value in
-/// `0..random` (which must divide the σ size, 256, to avoid the bias of Fig. 2.2).
+/// The sequence parameter is the distance from a cell's centre to the nearest target: the
+/// last pattern at distance 0, the rest state at `radius` and beyond (Fig. 21a).
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct DistanceParams {
+    /// Names in `params.sprites`: their centres (moving with them) are the targets.
+    pub targets: Vec<String>,
+    /// Level-0 pixels.
+    pub radius: f64,
+}
+
+/// A per-cell integer: an explicit map (per cell, wrapping) plus a virtual random value in
+/// `0..random` (drawn without the bias of Fig. 2.2: from σ when it divides 256, else from a
+/// range table).
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize, JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct ValueParams {
     #[serde(default, skip_serializing_if = "Option::is_none")]
@@ -198,11 +258,46 @@ pub struct ValueParams {
     pub random: u32,
 }
 
-/// A texture sprite: pattern `pattern` with its top-left corner at (x, y) level-0 pixels.
+/// A texture sprite: pattern `pattern` with its top-left corner at (x, y) level-0 pixels,
+/// drawn by one sprites layer (each layer is one positioning map: n grids for n patterns in
+/// a cell, §3.2), then transformed about its centre (the Tile Transform plugged after the
+/// Explicit Positioning) and, when it has a velocity, moving with time.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize, JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct SpriteParams {
     pub pattern: u32,
     pub x: i64,
     pub y: i64,
+    /// Index in `layers` of the sprites layer that draws it; the first sprites layer if absent.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub layer: Option<usize>,
+    /// Scale about the sprite's centre (1 = the pattern's own size), in (0, 4].
+    #[serde(default = "unit_scale", skip_serializing_if = "is_unit_scale")]
+    pub scale: f32,
+    /// Rotation about the sprite's centre, degrees (clockwise on screen).
+    #[serde(default, skip_serializing_if = "is_zero_f32")]
+    pub rotation: f32,
+    /// Level-0 pixels per frame: the sprite is at (x, y) + t · velocity at frame t (wrapping).
+    #[serde(default, skip_serializing_if = "is_still")]
+    pub velocity: [i64; 2],
+}
+
+impl SpriteParams {
+    /// Pattern `pattern` at (x, y), untransformed and still, on the first sprites layer.
+    pub fn at(pattern: u32, x: i64, y: i64) -> Self {
+        SpriteParams { pattern, x, y, layer: None, scale: 1.0, rotation: 0.0, velocity: [0, 0] }
+    }
+}
+
+fn unit_scale() -> f32 {
+    1.0
+}
+fn is_unit_scale(v: &f32) -> bool {
+    *v == 1.0
+}
+fn is_zero_f32(v: &f32) -> bool {
+    *v == 0.0
+}
+fn is_still(v: &[i64; 2]) -> bool {
+    *v == [0, 0]
 }

@@ -4,11 +4,12 @@
 //! its animation maps (small value maps, read as `load` reads them). Constants are work units
 //! (≈ 1 ns of one core) per item, calibrated by `examples/cost_calibration.rs`.
 
-use super::animation::AnimationBlock;
+use super::animation::{AnimationBlock, Context};
 use super::model::{MAX_LAYERS, MAX_SIDE};
-use super::params::{LayerKind, LayerParams, Params, ValueParams};
+use super::params::{Choice, LayerKind, LayerParams, Params, ValueParams};
 use super::random::LayerRng;
-use super::sigma::{self, Sigma};
+use super::sigma::{self, RangeTable, Sigma};
+use super::sprites;
 use super::transform::TransformBlock;
 use crate::bundle::Bundle;
 use crate::models::{cost, parse_params, Cost, Inputs, Measure, Plan};
@@ -29,6 +30,8 @@ const CELL: f64 = 700.0;
 const BILINEAR: f64 = 60.0;
 /// The expected colour of a coarse sparse pixel, or a sprite's splat.
 const EXPECTED: f64 = 200.0;
+/// Recording one cell of a moving sprite in a positioning map.
+const MAP_CELL: f64 = 100.0;
 /// Decoding the reference and building its mip chains, per pixel; encoding it in `create`.
 const REFERENCE_PIXEL: f64 = 40.0;
 const ENCODE_PIXEL: f64 = 60.0;
@@ -52,13 +55,15 @@ pub fn plan(bundle: &Bundle) -> Result<Plan> {
 pub fn plan_create(params: &serde_json::Value, inputs: &Inputs) -> Result<Plan> {
     let p: Params = parse_params(params)?;
     let reference = inputs.get("reference").ok_or_else(|| Error::image("reference", "missing; this model needs it"))?;
-    let mut bundle = Bundle::new(super::MODEL, "plan", params.clone())
+    let bundle = Bundle::new(super::MODEL, "plan", params.clone())
         .with_section("reference.png", reference.clone())
         .with_section("sigma", sigma::to_bytes(&tables(&p)));
-    let maps = p.layers.iter().filter_map(|l| l.animation.as_ref()).flat_map(|a| {
-        let previous = a.previous.as_ref().map(|q| &q.z);
-        [Some(&a.phi), Some(&a.z), previous].into_iter().flatten().filter_map(|v: &ValueParams| v.map.as_ref())
-    });
+    let mut bundle = with_range_tables(bundle, &p);
+    let maps = p
+        .layers
+        .iter()
+        .filter_map(|l| l.animation.as_ref())
+        .flat_map(|a| a.values().filter_map(|v: &ValueParams| v.map.as_ref()));
     for section in maps.filter_map(|m| m.section.as_deref()) {
         if let Some(bytes) = inputs.get(section) {
             let data = super::encoding::map_section(section, bytes, &[])?;
@@ -71,6 +76,34 @@ pub fn plan_create(params: &serde_json::Value, inputs: &Inputs) -> Result<Plan> 
 /// The permutation tables `create` generates for `p`.
 pub(super) fn tables(p: &Params) -> Vec<Sigma> {
     sigma::generate_all(p.reference[0].clamp(1, 256), p.reference[1].clamp(1, 256), p.seed)
+}
+
+/// The range tables `create` stores for `p`: one per range its probability maps and random
+/// values draw from that does not divide the random tables (none for most encodings).
+pub(super) fn range_tables(p: &Params) -> Vec<RangeTable> {
+    let mut ranges: Vec<u32> = Vec::new();
+    for l in &p.layers {
+        if let Some(Choice::Materials { materials, .. }) = &l.choice {
+            ranges.extend(materials.iter().map(|m| m.patterns.len() as u32));
+        }
+        if let Some(a) = &l.animation {
+            ranges.extend(a.ranges());
+        }
+    }
+    ranges.retain(|&m| sigma::needs_range_table(m) && m <= sigma::MAX_RANGE);
+    ranges.sort_unstable();
+    ranges.dedup();
+    ranges.into_iter().map(|m| RangeTable::generate(m, p.seed)).collect()
+}
+
+/// `bundle` with the range tables `p` needs, when it needs any.
+pub(super) fn with_range_tables(bundle: Bundle, p: &Params) -> Bundle {
+    let ranges = range_tables(p);
+    if ranges.is_empty() {
+        bundle
+    } else {
+        bundle.with_section(sigma::RANGES_SECTION, sigma::ranges_to_bytes(&ranges))
+    }
 }
 
 /// Checks the reference's shape: `tx × ty` patterns of side `size` (a power of two up to
@@ -94,15 +127,15 @@ pub(super) fn check_reference(width: u32, height: u32, size: u32, tx: u32, ty: u
     Ok(())
 }
 
-/// How the texture moves: every animated layer's period combined (0 when one never repeats
-/// or the least common multiple passes `u32`), at `fps` frames a second.
-pub(super) fn animation(animated: &[&AnimationBlock], fps: Option<f32>) -> Result<Option<Animation>> {
-    match (animated.is_empty(), fps) {
+/// How the texture moves: the periods of its animated layers and moving sprites combined
+/// (0 when one never repeats or the least common multiple passes `u32`), at `fps` frames a
+/// second.
+pub(super) fn animation(periods: &[u64], fps: Option<f32>) -> Result<Option<Animation>> {
+    match (periods.is_empty(), fps) {
         (true, _) => Ok(None),
         (false, Some(fps)) if fps > 0.0 && fps <= 240.0 => {
             let mut period = 1u64;
-            for a in animated {
-                let q = a.period() as u64;
+            for &q in periods {
                 period = if q == 0 || period == 0 { 0 } else { period / gcd(period, q) * q };
                 if period > u32::MAX as u64 {
                     period = 0;
@@ -110,7 +143,7 @@ pub(super) fn animation(animated: &[&AnimationBlock], fps: Option<f32>) -> Resul
             }
             Ok(Some(Animation { fps, period_frames: period as u32 }))
         }
-        (false, _) => Err(Error::param("fps", "animated layers need fps in (0, 240]")),
+        (false, _) => Err(Error::param("fps", "animated layers and moving sprites need fps in (0, 240]")),
     }
 }
 
@@ -140,9 +173,11 @@ fn plan_of(p: &Params, bundle: &Bundle, create: bool) -> Result<Plan> {
     check_reference(rw, rh, p.pattern_size, p.reference[0], p.reference[1])?;
     let sigma_bytes = bundle.section("sigma")?;
     let tables: Arc<[Sigma]> = sigma::from_bytes(sigma_bytes)?.into();
+    let ranges = sigma::ranges_of(bundle)?;
     if p.layers.is_empty() || p.layers.len() > MAX_LAYERS {
         return Err(Error::param("layers", format!("{} layers; 1..={MAX_LAYERS}", p.layers.len())));
     }
+    sprites::check_layers(&p.sprites, &p.layers)?;
     let count = p.reference[0] * p.reference[1];
     let mut animated = Vec::new();
     let mut transforms = Vec::new();
@@ -160,12 +195,23 @@ fn plan_of(p: &Params, bundle: &Bundle, create: bool) -> Result<Plan> {
         }
         let grid = (p.width / c, p.height / c);
         if let Some(a) = &lp.animation {
-            let rng = LayerRng::new(tables.clone(), i, grid);
-            animated.push(AnimationBlock::load(a, bundle, &rng, grid, count).map_err(|e| in_layer(i, e))?);
+            let rng = LayerRng::new(tables.clone(), i, grid).with_ranges(ranges.clone());
+            let cx = Context {
+                params: p,
+                bundle,
+                cell: lp.cell,
+                grid,
+                patterns: count,
+                allow_blank: lp.kind == LayerKind::Sparse,
+            };
+            animated.push(AnimationBlock::load(a, &cx, &rng).map_err(|e| in_layer(i, e))?);
         }
-        transforms.push(lp.transform.as_ref().map(TransformBlock::load).transpose().map_err(|e| in_layer(i, e))?);
+        let load = if lp.kind == LayerKind::Sprites { TransformBlock::for_sprites } else { TransformBlock::load };
+        transforms.push(lp.transform.as_ref().map(load).transpose().map_err(|e| in_layer(i, e))?);
     }
-    let animation = animation(&animated.iter().collect::<Vec<_>>(), p.fps)?;
+    let mut periods: Vec<u64> = animated.iter().filter_map(AnimationBlock::period).collect();
+    periods.extend(sprites::moving_periods(&p.sprites, (p.width, p.height)));
+    let animation = animation(&periods, p.fps)?;
 
     let ref_px = rw as f64 * rh as f64;
     let log2 = p.pattern_size.trailing_zeros();
@@ -180,8 +226,18 @@ fn plan_of(p: &Params, bundle: &Bundle, create: bool) -> Result<Plan> {
         .filter(|s| s.name != "reference.png" && s.name != "sigma")
         .map(|s| s.data.len() as f64)
         .sum();
+    // Every use of a map in an animation holds its own 16-bit copy (a ramp reads one Z map
+    // in several segments).
+    let value_maps: f64 = p
+        .layers
+        .iter()
+        .filter_map(|l| l.animation.as_ref())
+        .flat_map(|a| a.values().filter_map(|v| v.map.as_ref()))
+        .map(|m| 2.0 * m.size[0] as f64 * m.size[1] as f64)
+        .sum();
     let manifest = serde_json::to_vec(&p).map_or(0, |m| m.len()) as f64;
     let resident = 4.0 * ref_px * 4.0 / 3.0
+        + value_maps
         + 16.0 * count as f64
         + 2.0 * sigma_bytes.len() as f64
         + 2.0 * maps
@@ -190,7 +246,10 @@ fn plan_of(p: &Params, bundle: &Bundle, create: bool) -> Result<Plan> {
         + 1024.0 * p.layers.len() as f64
         + 4096.0;
     let resident_why =
-        format!("reference {rw}×{rh} × 4 B × 4/3 (mip chains) + {maps} B of maps × 2 + {} layers", p.layers.len());
+        format!(
+        "reference {rw}×{rh} × 4 B × 4/3 (mip chains) + {maps} B of maps × 2 + {value_maps} B of animation maps + {} layers",
+        p.layers.len()
+    );
 
     // A tile: per pixel and layer, a tiling layer reads one texel (its transition overlays
     // too) while a pattern covers pixels, then up to 4 × 4 cell means; a sparse layer reads
@@ -211,13 +270,28 @@ fn plan_of(p: &Params, bundle: &Bundle, create: bool) -> Result<Plan> {
             LayerKind::Sparse => {
                 let f = (1u64 << level.min(62)) as f64;
                 if f * 4.0 > lp.cell as f64 {
-                    TILE * EXPECTED
+                    // Animated cells have no expectation: up to 4 × 4 of them are read.
+                    let cells = if lp.animation.is_some() { (OVERSAMPLE * OVERSAMPLE) as f64 } else { 1.0 };
+                    TILE * EXPECTED * cells
                 } else {
                     let reach = t.as_ref().map_or(1, |t| t.left + t.right + 1) as f64;
                     TILE * BILINEAR * reach * reach
                 }
             }
-            LayerKind::Sprites => TILE * BILINEAR + EXPECTED * 4.0 * p.sprites.len() as f64,
+            LayerKind::Sprites => {
+                // A sprite's box is at most 4 √2 patterns wide once transformed; a positioning
+                // map is rebuilt a tile when sprites move.
+                let side = |unit: f64| 4.0 * std::f64::consts::SQRT_2 * p.pattern_size as f64 / unit + 2.0;
+                let n = p.sprites.len() as f64;
+                let moving = p.sprites.values().any(|s| s.velocity != [0, 0]);
+                let rebuild = if moving { MAP_CELL * n * side(lp.cell as f64).powi(2) } else { 0.0 };
+                let draw = if level <= log2 {
+                    TILE * BILINEAR
+                } else {
+                    EXPECTED * n * side((1u64 << level.min(62)) as f64).powi(2)
+                };
+                draw + rebuild
+            }
         }
     };
     let level_work = |level: u32| -> f64 {

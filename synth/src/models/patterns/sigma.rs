@@ -71,6 +71,22 @@ impl Sigma {
     pub fn hash(&self, mut gx: u64, mut gy: u64, steps: u32) -> (u32, u32) {
         let (tx, ty) = (self.tx as u64, self.ty as u64);
         let (mut sx, mut sy) = (0u64, 0u64);
+        if tx.is_power_of_two() && ty.is_power_of_two() {
+            // The same digits by masks and shifts: a division by a table side is most of a
+            // step's work otherwise.
+            let (bx, by) = (tx.trailing_zeros(), ty.trailing_zeros());
+            let (mx, my) = (tx - 1, ty - 1);
+            for _ in 0..steps {
+                let ix = ((gx & mx) + sx) & mx;
+                let iy = ((gy & my) + sy) & my;
+                let e = self.table[((iy << bx) | ix) as usize];
+                sx = e[0] as u64;
+                sy = e[1] as u64;
+                gx >>= bx;
+                gy >>= by;
+            }
+            return (sx as u32, sy as u32);
+        }
         for _ in 0..steps {
             let ix = (gx % tx + sx) % tx;
             let iy = (gy % ty + sy) % ty;
@@ -101,22 +117,6 @@ impl Sigma {
     #[inline]
     pub fn below(&self, gx: u64, gy: u64, steps: u32, m: u32) -> u32 {
         (self.index(gx, gy, steps) as u64 * m as u64 / self.len() as u64) as u32
-    }
-
-    /// Checks that `m` values can be drawn from this table without aliasing.
-    pub fn check_range(&self, what: &str, m: u32) -> Result<()> {
-        if m == 0 || self.len() % m != 0 {
-            return Err(Error::param(
-                what,
-                format!(
-                    "a range of {m} values does not divide the σ table size {}; the random choice \
-                     would be biased (aliasing, Fig. 2.2) — use a power of two up to {}",
-                    self.len(),
-                    self.len()
-                ),
-            ));
-        }
-        Ok(())
     }
 }
 
@@ -181,4 +181,112 @@ pub fn generate_all(tx: u32, ty: u32, seed: u64) -> Vec<Sigma> {
     let mut v = vec![Sigma::generate(tx, ty, seed, 0)];
     v.extend((1..TABLES as u64).map(|i| Sigma::generate(RANDOM_SIDE, RANDOM_SIDE, seed, i)));
     v
+}
+
+/// Largest range a [`RangeTable`] draws from (a probability map's size, a random φ or Z).
+pub const MAX_RANGE: u32 = 4096;
+/// The bundle section holding the range tables, present when some range needs one.
+pub const RANGES_SECTION: &str = "sigma-ranges";
+
+/// A permutation σ of 0..m, for ranges m that do not divide the random tables' size: "it is
+/// better to use a permutation table σ adapted to the T' range" (§3.2, Fig. 2.2), so a
+/// probability map of any size is indexed without bias.
+#[derive(Clone, Debug)]
+pub struct RangeTable {
+    table: Vec<u16>,
+}
+
+impl RangeTable {
+    /// A uniformly random permutation of 0..m (Fisher–Yates on a counter hash).
+    pub fn generate(m: u32, seed: u64) -> Self {
+        let mut table: Vec<u16> = (0..m as u16).collect();
+        for i in (1..m as usize).rev() {
+            let j = hash::below(hash::hash4(seed, 0x5261_0000 + m as u64, i as i64, 0), i as u64 + 1) as usize;
+            table.swap(i, j);
+        }
+        Self { table }
+    }
+
+    pub fn range(&self) -> u32 {
+        self.table.len() as u32
+    }
+
+    /// Digits of base m needed to cover `n` cells per axis.
+    pub fn steps_for(&self, n: u64) -> u32 {
+        let m = self.range() as u128;
+        (1..=64).find(|&k| m.checked_pow(k).is_none_or(|p| p >= n as u128)).unwrap_or(64)
+    }
+
+    /// The σ series of the Virtual Indirection Map in base m, the 2D digits folded as
+    /// σ(x + σ(y + s)) (Perlin's way): sᵢ = σ(xᵢ + σ(yᵢ + sᵢ₋₁)) over the `steps` digits of g,
+    /// starting from s₋₁ = `stream` so the parameters sharing the table differ. Every step is
+    /// a bijection of xᵢ, so each aligned run of m cells takes every value once.
+    #[inline]
+    pub fn below(&self, mut gx: u64, mut gy: u64, stream: u64, steps: u32) -> u32 {
+        let m = self.table.len() as u64;
+        let mut s = stream % m;
+        for _ in 0..steps {
+            let inner = self.table[((gy % m + s) % m) as usize] as u64;
+            s = self.table[((gx % m + inner) % m) as usize] as u64;
+            gx /= m;
+            gy /= m;
+        }
+        s as u32
+    }
+}
+
+/// The range tables stored in `bundle` (none when it has no `sigma-ranges` section).
+pub fn ranges_of(bundle: &crate::bundle::Bundle) -> Result<std::sync::Arc<[RangeTable]>> {
+    match bundle.sections.iter().find(|s| s.name == RANGES_SECTION) {
+        Some(s) => Ok(ranges_from_bytes(&s.data)?.into()),
+        None => Ok(std::sync::Arc::from([])),
+    }
+}
+
+/// Whether drawing from `m` values needs a range table (m does not divide the random tables).
+pub fn needs_range_table(m: u32) -> bool {
+    m > 0 && RANDOM_SIZE % m != 0
+}
+
+/// Serialises range tables: u16 count, then per table u16 m and m u16 entries (LE).
+pub fn ranges_to_bytes(tables: &[RangeTable]) -> Vec<u8> {
+    let mut out = (tables.len() as u16).to_le_bytes().to_vec();
+    for t in tables {
+        out.extend_from_slice(&(t.range() as u16).to_le_bytes());
+        for &e in &t.table {
+            out.extend_from_slice(&e.to_le_bytes());
+        }
+    }
+    out
+}
+
+/// Parses and checks the range tables: each a permutation of 0..m, 2 ≤ m ≤ [`MAX_RANGE`].
+pub fn ranges_from_bytes(bytes: &[u8]) -> Result<Vec<RangeTable>> {
+    let bad = |m: String| Error::bundle(format!("section `{RANGES_SECTION}`: {m}"));
+    let u16_at = |b: &[u8], i: usize| b.get(i..i + 2).map(|c| u16::from_le_bytes([c[0], c[1]]) as usize);
+    let count = u16_at(bytes, 0).ok_or_else(|| bad("truncated".into()))?;
+    let mut at = 2;
+    let mut tables = Vec::with_capacity(count.min(64));
+    for i in 0..count {
+        let m = u16_at(bytes, at).ok_or_else(|| bad(format!("table {i} truncated")))?;
+        if !(2..=MAX_RANGE as usize).contains(&m) {
+            return Err(bad(format!("table {i} has {m} entries; 2..={MAX_RANGE}")));
+        }
+        at += 2;
+        let mut seen = vec![false; m];
+        let mut table = Vec::with_capacity(m);
+        for k in 0..m {
+            let e = u16_at(bytes, at + 2 * k).ok_or_else(|| bad(format!("table {i} truncated")))?;
+            if e >= m || std::mem::replace(&mut seen[e], true) {
+                return Err(bad(format!("table {i} is not a permutation of 0..{m}")));
+            }
+            table.push(e as u16);
+        }
+        at += 2 * m;
+        tables.push(RangeTable { table });
+    }
+    if at != bytes.len() {
+        return Err(bad(format!("{} unexpected bytes", bytes.len().saturating_sub(at))));
+    }
+    Ok(tables)
 }

@@ -35,11 +35,26 @@ pub struct Placed {
 }
 
 impl TransformBlock {
-    pub fn load(p: &TransformParams) -> Result<Self> {
+    /// The transform of sprites: never clipped to a cell (the positioning map records every
+    /// cell a sprite's box crosses), so any scale range and no `overflow`.
+    pub fn for_sprites(p: &TransformParams) -> Result<Self> {
+        let [smin, smax] = Self::scale_range(p)?;
+        if p.overflow {
+            return Err(Error::param("transform.overflow", "sprites are never clipped to a cell; leave it false"));
+        }
+        Ok(Self { smin, smax, rotate: p.rotate, overflow: false, left: 0, right: 0 })
+    }
+
+    fn scale_range(p: &TransformParams) -> Result<[f32; 2]> {
         let [smin, smax] = p.scale;
         if !(smin > 0.0 && smin <= smax && smax <= 4.0) {
             return Err(Error::param("transform.scale", format!("[{smin}, {smax}]: need 0 < min ≤ max ≤ 4")));
         }
+        Ok([smin, smax])
+    }
+
+    pub fn load(p: &TransformParams) -> Result<Self> {
+        let [smin, smax] = Self::scale_range(p)?;
         let half = |s: f32| if p.rotate { s * SQRT2_2 } else { s * 0.5 };
         if !p.overflow && half(smax) > 0.5 {
             return Err(Error::param(
@@ -61,7 +76,7 @@ impl TransformBlock {
 
     /// Places `pattern` in cell g with this cell's random translation, scale and rotation.
     pub fn place(&self, rng: &LayerRng, gx: u64, gy: u64, pattern: u32, pattern_size: u32) -> Placed {
-        let s = self.smin + rng.unit(Role::Scale, gx, gy) * (self.smax - self.smin);
+        let s = self.scale_at(rng, gx, gy);
         let e = if self.rotate { s * SQRT2_2 } else { s * 0.5 };
         let (dx, dy) = (rng.unit(Role::OffsetX, gx, gy), rng.unit(Role::OffsetY, gx, gy));
         let (cx, cy) = if self.overflow {
@@ -69,13 +84,28 @@ impl TransformBlock {
         } else {
             (e + (1.0 - 2.0 * e) * dx, e + (1.0 - 2.0 * e) * dy)
         };
-        let (cos, sin) = if self.rotate {
+        let (cos, sin) = self.rotation_at(rng, gx, gy);
+        Placed { pattern, cx, cy, cos, sin, texels: pattern_size as f32 / s, scale: s }
+    }
+
+    /// Cell g's random scale s = min + r (max − min).
+    pub fn scale_at(&self, rng: &LayerRng, gx: u64, gy: u64) -> f32 {
+        self.smin + rng.unit(Role::Scale, gx, gy) * (self.smax - self.smin)
+    }
+
+    /// Cell g's random rotation in [0, 2π) as (cos, sin); the identity without `rotate`.
+    pub fn rotation_at(&self, rng: &LayerRng, gx: u64, gy: u64) -> (f32, f32) {
+        if self.rotate {
             let theta = rng.unit(Role::Rotation, gx, gy) * (2.0 * core::f32::consts::PI);
             (libm::cosf(theta), libm::sinf(theta))
         } else {
             (1.0, 0.0)
-        };
-        Placed { pattern, cx, cy, cos, sin, texels: pattern_size as f32 / s, scale: s }
+        }
+    }
+
+    /// Largest scale and whether patterns turn: what bounds a transformed sprite's box.
+    pub fn largest(&self) -> (f32, bool) {
+        (self.smax, self.rotate)
     }
 
     /// Expected s² (area factor) of the random scale, for coarse-level filtering.
