@@ -161,12 +161,13 @@ pub fn fig9b(out: &Out) {
         log: false,
         ticks: BUDGETS_MIB.iter().enumerate().map(|(k, m)| (k as f64, m.to_string())).collect(),
     };
+    let top = lines.iter().flat_map(|l| l.points.iter().map(|p| p.1)).fold(1.0, f64::max).ceil() as u32 + 1;
     let y = Axis {
         label: "ENTRIES PER PIXEL".into(),
         min: 0.0,
-        max: 6.0,
+        max: top as f64,
         log: false,
-        ticks: (0..=6).map(|t| (t as f64, t.to_string())).collect(),
+        ticks: (0..=top).map(|t| (t as f64, t.to_string())).collect(),
     };
     out.png("tiles.png", &plot::chart("F9B: A VIEWER SESSION THROUGH THE SERVED CACHE", &x, &y, &lines, 800, 520));
 }
