@@ -80,9 +80,8 @@ pub fn demos() -> Vec<Bundle> {
     control.insert("control".into(), control_map(64).to_png());
     out.push(bundle(
         "Cascade C — dilation map",
-        json!({"seed": 13, "stages": [{"kernel": gauss5, "map": {"kind": "sine", "r": 0.96}, "iterations": 5},
-                                   {"upsample": 8, "kernel": gauss5, "map": {"kind": "logistic", "r": 3.8}, "iterations": 3}],
-               "dilation_map": {"max": 4, "cell": 32}, "palette": "earth", "exact_levels": 3}),
+        json!({"seed": 13, "stages": [{"kernel": {"size": 3, "preset": "gauss"}, "map": {"kind": "sine", "r": 0.97}, "iterations": 6}],
+               "dilation_map": {"max": 4, "cell": 16}, "palette": "earth"}),
         control,
     ));
     let mut initial = Inputs::new();

@@ -18,10 +18,10 @@ use crate::{Domain, Error, Result};
 /// A lattice point's hashed noise; upsampling a point from the coarser stage.
 const NOISE: f64 = 6.0;
 const UPSAMPLE: f64 = 4.0;
-/// One kernel tap of one iteration at one point: a multiply-add, or with a dilation map four
-/// bilinear reads.
+/// One kernel tap of one iteration at one point: a multiply-add over a row, or with a
+/// dilation map one per point (two kernels blended at most).
 const TAP: f64 = 1.2;
-const TAP_DILATED: f64 = 6.0;
+const TAP_DILATED: f64 = 2.0;
 /// The nonlinear map at one point of one iteration.
 const MAP: f64 = 4.0;
 /// Reading one point's value through the palette.
@@ -77,15 +77,13 @@ pub fn plan_create(params: &serde_json::Value, inputs: &Inputs) -> Result<Plan> 
 /// Work of the windows of one texture's stages.
 struct Windows<'a> {
     stages: &'a [Stage],
-    /// Largest tap spacing, per stage (its dilation times the control map's maximum).
-    dilation: Vec<u64>,
     dilated: bool,
     initial: bool,
 }
 
 impl Windows<'_> {
     fn step_margin(&self, s: usize) -> u64 {
-        self.stages[s].kernel.radius as u64 * self.dilation[s]
+        self.stages[s].kernels.iter().map(|k| k.reach).max().unwrap_or(0) as u64
     }
 
     /// Work of stage `s` on a `w × h` window, as `Engine::field` computes it: initial values
@@ -104,8 +102,12 @@ impl Windows<'_> {
             let jitter = if st.jitter > 0.0 { NOISE * points } else { 0.0 };
             self.field(s - 1, fp(iw), fp(ih)) + UPSAMPLE * points + jitter
         };
-        let tap = if self.dilated { TAP_DILATED } else { TAP };
-        let per_point = st.kernel.taps.len() as f64 * tap + MAP;
+        // Under a dilation map a point blends two kernels of the ladder: count the largest twice.
+        let per_point = if self.dilated {
+            2.0 * st.kernels.iter().map(|k| k.taps.len()).max().unwrap_or(0) as f64 * TAP_DILATED + MAP
+        } else {
+            st.kernel().taps.len() as f64 * TAP + MAP
+        };
         let iterations: f64 =
             (1..=st.iterations as u64).map(|i| ((iw - 2 * i * e) * (ih - 2 * i * e)) as f64 * per_point).sum();
         init + iterations
@@ -121,13 +123,7 @@ fn footprint(n: u64, up: u32) -> u64 {
 fn plan_params(p: &Params, control: Option<(u32, u32)>, initial: Option<(u32, u32)>, create: bool) -> Result<Plan> {
     let stages = check(p, control, initial)?;
     palette::build(&p.palette)?;
-    let control_max = p.dilation_map.as_ref().map_or(1, |d| d.max) as u64;
-    let win = Windows {
-        stages: &stages,
-        dilation: stages.iter().map(|s| s.dilation as u64 * control_max).collect(),
-        dilated: control.is_some(),
-        initial: initial.is_some(),
-    };
+    let win = Windows { stages: &stages, dilated: control.is_some(), initial: initial.is_some() };
     let last = stages.len() - 1;
     let px = |size: Option<(u32, u32)>| size.map_or(0.0, |(w, h)| w as f64 * h as f64);
     let images = px(control) + px(initial);
@@ -184,7 +180,7 @@ fn plan_params(p: &Params, control: Option<(u32, u32)>, initial: Option<(u32, u3
     let (tile_work, worst) = (0..levels)
         .map(|l| (if l <= p.exact_levels { exact(l) } else { prefiltered(l) }, l))
         .fold((0.0, 0), |a, b| if b.0 > a.0 { b } else { a });
-    let taps: Vec<String> = stages.iter().map(|s| s.kernel.taps.len().to_string()).collect();
+    let taps: Vec<String> = stages.iter().map(|s| s.kernel().taps.len().to_string()).collect();
     let iterations: Vec<String> = stages.iter().map(|s| s.iterations.to_string()).collect();
     let tile_why = format!(
         "{} stages × iterations [{}] × taps [{}] over margin-grown windows, level {worst} of a 256² tile",
@@ -195,7 +191,7 @@ fn plan_params(p: &Params, control: Option<(u32, u32)>, initial: Option<(u32, u3
 
     // Resident: the palette table, the calibration's tables, kernels and maps, the images as
     // one byte a texel.
-    let taps_total: f64 = stages.iter().map(|s| s.kernel.taps.len() as f64).sum();
+    let taps_total: f64 = stages.iter().flat_map(|s| &s.kernels).map(|k| k.taps.len() as f64).sum();
     let resident = 8.0 * palette::LUT_SIZE as f64
         + (stages.len() as f64 + 1.0) * BINS * 12.0
         + 32.0 * taps_total
