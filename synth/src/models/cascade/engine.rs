@@ -20,6 +20,8 @@ use crate::{Never, Stop};
 /// Hash streams (one per use of the seed).
 pub const STREAM_NOISE: u64 = 0x100;
 pub const STREAM_CALIBRATION: u64 = 0x300;
+/// The coarse levels' residual: one stream per level from here.
+pub const STREAM_RESIDUAL: u64 = 0x400;
 
 /// Steps per octave of dilation between the kernels a dilation map blends.
 pub const LADDER_STEPS: f64 = 8.0;

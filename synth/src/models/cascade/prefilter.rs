@@ -14,11 +14,19 @@
 //! * average the q² colours. When s is the final stage this is the exact block mean.
 //!
 //! Beyond the coarsest stage (2^L > 4 × its spacing) every block spans many independent
-//! dependency windows, so its mean is the texture's mean colour up to a deviation that
-//! shrinks like 1/2^L: those levels are the mean colour, flat. This is an approximation and
-//! the tests report how close it gets (PSNR against the exact downsample).
+//! dependency windows: the prediction there is a guide image's g, or the mean colour.
+//!
+//! A prediction is a conditional mean, so it varies less than the exact block means do (a
+//! single-stage texture's prediction is flat). What it cannot place, a residual supplies
+//! with the exact downsample's distribution: per level, the residuals (exact block mean −
+//! prediction) of the calibration's blocks, ranked by luminance, form a quantile table; a
+//! pixel takes the quantile of a Gaussian-like field z. That field is a Haar-like noise, each
+//! level's term summing to zero over the four children of a pixel of the next level, so z
+//! at level L + 1 is the box filter of z at level L (up to its normalisation): coarse and
+//! fine levels show the same grains. This is an approximation and the tests report how
+//! close it gets (σ and PSNR against the exact downsample).
 
-use super::engine::STREAM_CALIBRATION;
+use super::engine::{STREAM_CALIBRATION, STREAM_RESIDUAL};
 use super::lattice::{upsample, upsample_footprint};
 use super::Cascade;
 use crate::hash::hash4;
@@ -33,6 +41,9 @@ const WINDOW: u32 = 32;
 /// A bin needs this many samples to be trusted; others are interpolated.
 const MIN_COUNT: f64 = 4.0;
 
+/// The finest level whose blocks the calibration windows measure whole.
+const MEASURED_LEVELS: u32 = WINDOW.trailing_zeros();
+
 /// Measured statistics of a texture for its prefiltered levels.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Calibration {
@@ -42,7 +53,16 @@ pub struct Calibration {
     pub image: Option<Vec<[f32; 3]>>,
     /// Mean colour of the texture.
     pub mean: [f32; 3],
+    /// Per level k, the weight of the residual field's term of level k (zero up to the exact
+    /// levels and at the top).
+    pub weights: Vec<f32>,
+    /// Per level, the residual's RGB quantiles (`QUANTILES` of them, rising luminance);
+    /// empty up to the exact levels.
+    pub residuals: Vec<Vec<[f32; 3]>>,
 }
+
+/// Quantiles of a level's residual table.
+const QUANTILES: usize = 64;
 
 /// The image whose value predicts the local mean beyond the coarsest stage: the structured
 /// initial image, else the dilation control map.
@@ -113,8 +133,129 @@ impl Calibration {
         let mean = mean.map(|m| (m / count) as f32);
         let mut tables: Vec<Vec<[f32; 3]>> = sums.iter().map(|bins| fill(bins, mean)).collect();
         let image = tables.pop().filter(|_| guide(tex).is_some());
-        Some(Calibration { tables, image, mean })
+        let p = tex.params();
+        let levels = crate::texture::level_count(p.width, p.height) as usize;
+        let mut cal = Calibration { tables, image, mean, weights: vec![0.0; levels], residuals: vec![vec![]; levels] };
+        cal.measure_residuals(tex, stop)?;
+        Some(cal)
     }
+
+    /// The residuals: at each prefiltered level L up to the calibration window, the quantiles
+    /// of (exact block mean − prediction) over the blocks of the calibration windows. Beyond,
+    /// the exact σ_L is extrapolated at the ratio of the last two measured levels, the
+    /// predictions' σ_L measured (they are cheap), and the last table scaled to the
+    /// difference. The field's term of level k weighs 2^−k, the spectrum of box-filtered white
+    /// noise: at each level most of z's variance is its own level's term, as for the
+    /// short-range detail the residual stands for.
+    fn measure_residuals(&mut self, tex: &Cascade, stop: &dyn Stop) -> Option<()> {
+        let e = tex.engine();
+        let levels = self.weights.len() as u32;
+        let first = tex.params().exact_levels + 1;
+        // Luminance σ of the residual and of the exact block means, per level.
+        let (mut s, mut exact_sigma) = (vec![0.0f64; levels as usize], vec![0.0f64; levels as usize]);
+        let sigma = |v: &[f32]| {
+            let n = v.len() as f64;
+            let m = v.iter().map(|&x| x as f64).sum::<f64>() / n;
+            (v.iter().map(|&x| (x as f64 - m).powi(2)).sum::<f64>() / n).sqrt()
+        };
+        let lum = |img: &Rgba8Image| -> Vec<f32> {
+            img.data.chunks_exact(4).map(|p| luminance([p[0] as f32, p[1] as f32, p[2] as f32])).collect()
+        };
+        for l in first..levels.saturating_sub(1) {
+            let at = l as usize;
+            if l > MEASURED_LEVELS {
+                let ratio = (exact_sigma[at - 1] / exact_sigma[at - 2]).clamp(0.5, 1.0);
+                exact_sigma[at] = if ratio.is_finite() { exact_sigma[at - 1] * ratio } else { 0.0 };
+                const SIDE: u32 = 4;
+                let mut predicted = Vec::new();
+                for i in 0..WINDOWS {
+                    let h = hash4(e.seed, STREAM_CALIBRATION, i as i64, 3);
+                    predicted.extend(lum(&render(tex, self, l, h, h.rotate_left(29), SIDE, SIDE, stop)?));
+                }
+                let residual = (exact_sigma[at].powi(2) - sigma(&predicted).powi(2)).max(0.0).sqrt();
+                s[at] = residual;
+                let scale = if s[at - 1] > 0.0 { (s[at] / s[at - 1]) as f32 } else { 0.0 };
+                self.residuals[at] = self.residuals[at - 1].iter().map(|r| r.map(|v| v * scale)).collect();
+                continue;
+            }
+            let (mut res, mut exact_lum) = (Vec::new(), Vec::new());
+            for i in 0..WINDOWS {
+                let h = hash4(e.seed, STREAM_CALIBRATION, i as i64, 2);
+                let (x, y) = (h & !(WINDOW as u64 - 1), h.rotate_left(29) & !(WINDOW as u64 - 1));
+                let exact = crate::mip::downsample_n(&tex.level0(x, y, WINDOW, WINDOW, stop)?, l);
+                let side = WINDOW >> l;
+                let predicted = render(tex, self, l, x >> l, y >> l, side, side, stop)?;
+                exact_lum.extend(lum(&exact));
+                for (a, b) in exact.data.chunks_exact(4).zip(predicted.data.chunks_exact(4)) {
+                    res.push([0, 1, 2].map(|c| a[c] as f32 - b[c] as f32));
+                }
+            }
+            exact_sigma[at] = sigma(&exact_lum);
+            res.sort_by(|a, b| luminance(*a).total_cmp(&luminance(*b)));
+            s[at] = sigma(&res.iter().map(|r| luminance(*r)).collect::<Vec<_>>());
+            // Each quantile the mean of an equal share of the ranked residuals.
+            let n = res.len();
+            self.residuals[at] = (0..QUANTILES)
+                .map(|q| {
+                    let group = &res[q * n / QUANTILES..((q + 1) * n / QUANTILES).max(q * n / QUANTILES + 1)];
+                    let sum = group.iter().fold([0.0f64; 3], |acc, r| [0, 1, 2].map(|c| acc[c] + r[c] as f64));
+                    sum.map(|v| (v / group.len() as f64) as f32)
+                })
+                .collect();
+        }
+        for k in first as usize..levels as usize - 1 {
+            self.weights[k] = libm::exp2f(-(k as f32));
+        }
+        Some(())
+    }
+
+    /// The pixel (x, y) of level `l` whose prediction is `colour`: with its residual, rounded.
+    #[inline]
+    fn pixel(&self, colour: [f32; 3], seed: u64, l: u32, x: u64, y: u64) -> [u8; 4] {
+        let r = match self.residual_field(seed, l, x, y) {
+            Some(z) => quantile(&self.residuals[l as usize], z),
+            None => [0.0; 3],
+        };
+        let p = [0, 1, 2].map(|c| (colour[c] + r[c] + 0.5).floor().clamp(0.0, 255.0) as u8);
+        [p[0], p[1], p[2], 255]
+    }
+
+    /// The residual field z (unit variance) at pixel (x, y) of level `l`, or `None` where the
+    /// level has no residual: the weighted sum over levels k ≥ l of the term of level k — a
+    /// Haar pattern of the pixel's ancestor at level k among its three siblings, with three
+    /// weights hashed from their parent (each uniform in [−1, 1), so a term has unit variance).
+    fn residual_field(&self, seed: u64, l: u32, x: u64, y: u64) -> Option<f32> {
+        if self.residuals[l as usize].is_empty() {
+            return None;
+        }
+        let (mut z, mut var) = (0.0f32, 0.0f32);
+        for (k, &a) in self.weights.iter().enumerate().skip(l as usize) {
+            if a == 0.0 {
+                continue;
+            }
+            let shift = (k as u32 - l).min(63);
+            let (qx, qy) = (x >> shift, y >> shift);
+            let h = hash4(seed, STREAM_RESIDUAL + k as u64, (qx >> 1) as i64, (qy >> 1) as i64);
+            let w = [0, 21, 42].map(|b| ((h >> b) & 0x1f_ffff) as f32 * (2.0 / (1u32 << 21) as f32) - 1.0);
+            let (sx, sy) = (if qx & 1 == 0 { 1.0 } else { -1.0 }, if qy & 1 == 0 { 1.0 } else { -1.0 });
+            z += a * (w[0] * sy + w[1] * sx + w[2] * sx * sy);
+            var += a * a;
+        }
+        (var > 0.0).then(|| z / libm::sqrtf(var))
+    }
+}
+
+fn luminance(c: [f32; 3]) -> f32 {
+    0.299 * c[0] + 0.587 * c[1] + 0.114 * c[2]
+}
+
+/// The residual of `table` at the Gaussian quantile of z, interpolated between quantiles.
+fn quantile(table: &[[f32; 3]], z: f32) -> [f32; 3] {
+    let u = 0.5 * (1.0 + libm::erff(z * core::f32::consts::FRAC_1_SQRT_2));
+    let pos = (u * QUANTILES as f32 - 0.5).clamp(0.0, (QUANTILES - 1) as f32);
+    let i = (pos as usize).min(QUANTILES - 2);
+    let f = pos - i as f32;
+    [0, 1, 2].map(|c| table[i][c] + (table[i + 1][c] - table[i][c]) * f)
 }
 
 #[inline]
@@ -210,20 +351,21 @@ pub fn render(
                             (0..3).for_each(|k| acc[k] += c[k]);
                         }
                     }
-                    let p = acc.map(|v| (v * inv + 0.5).floor().clamp(0.0, 255.0) as u8);
-                    img.set_pixel(i as u32, j as u32, [p[0], p[1], p[2], 255]);
+                    let (px, py) = (x.wrapping_add(i), y.wrapping_add(j));
+                    img.set_pixel(i as u32, j as u32, cal.pixel(acc.map(|v| v * inv), e.seed, l, px, py));
                 }
             }
             return Some(img);
         }
-        // Flat, but still a row at a time: a region may be as large as a render allows.
-        let px = cal.mean.map(|m| (m + 0.5).floor() as u8);
-        for row in img.data.chunks_exact_mut(w as usize * 4) {
+        // The mean colour and the residual, a row at a time: a region may be as large as a
+        // render allows.
+        for j in 0..h {
             if stop.requested() {
                 return None;
             }
-            for p in row.chunks_exact_mut(4) {
-                p.copy_from_slice(&[px[0], px[1], px[2], 255]);
+            for i in 0..w {
+                let (px, py) = (x.wrapping_add(i as u64), y.wrapping_add(j as u64));
+                img.set_pixel(i, j, cal.pixel(cal.mean, e.seed, l, px, py));
             }
         }
         return Some(img);
@@ -265,8 +407,8 @@ pub fn render(
                     }
                 }
             }
-            let px = acc.map(|v| (v * inv_n + 0.5).floor().clamp(0.0, 255.0) as u8);
-            img.set_pixel(i as u32, j as u32, [px[0], px[1], px[2], 255]);
+            let (px, py) = (x.wrapping_add(i as u64), y.wrapping_add(j));
+            img.set_pixel(i as u32, j as u32, cal.pixel(acc.map(|v| v * inv_n), e.seed, l, px, py));
         }
     }
     Some(img)
