@@ -62,6 +62,7 @@ fn bundle(name: &str, params: serde_json::Value, inputs: Inputs) -> Bundle {
 /// The demo encodings (each well under a few kilobytes plus its input image).
 pub fn demos() -> Vec<Bundle> {
     let gauss5 = json!({"size": 5, "preset": "gauss", "sigma": 1.0});
+    let gauss3 = json!({"size": 3, "preset": "gauss", "sigma": 0.8});
     let mut out = vec![
         bundle(
             "Cascade A — logistic ripples",
@@ -118,8 +119,8 @@ pub fn demos() -> Vec<Bundle> {
     out.push(bundle(
         "Cascade G — wood grain",
         json!({"seed": 17, "stages": [
-                 {"kernel": gauss5, "map": {"kind": "sine", "r": 0.96}, "iterations": 5, "dilation": 1.5, "aspect": 4.0, "rotation": 8.0},
-                 {"upsample": 4, "jitter": 0.08, "kernel": gauss5, "map": {"kind": "circle", "omega": 0.05, "k": 1.5}, "iterations": 4, "aspect": 3.0, "rotation": 8.0},
+                 {"kernel": gauss3, "map": {"kind": "sine", "r": 0.96}, "iterations": 5, "aspect": 4.0, "rotation": 8.0},
+                 {"upsample": 4, "jitter": 0.08, "kernel": gauss3, "map": {"kind": "circle", "omega": 0.05, "k": 1.5}, "iterations": 4, "aspect": 3.0, "rotation": 8.0},
                  {"upsample": 2, "jitter": 0.03, "kernel": {"size": 3, "preset": "gauss", "sigma": 0.8}, "map": {"kind": "sine", "r": 0.9}, "iterations": 2, "aspect": 2.0, "rotation": 8.0}],
                "palette": [[0.0, "#3b2412"], [0.4, "#7a4a24"], [0.7, "#b07a45"], [1.0, "#e2b887"]]}),
         Inputs::new(),

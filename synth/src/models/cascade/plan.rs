@@ -41,6 +41,8 @@ const LOAD: f64 = 50_000.0;
 const CALIBRATION_WINDOWS: f64 = 256.0;
 const CALIBRATION_WINDOW: u64 = 32;
 const BINS: f64 = 64.0;
+/// As in `prefilter`: quantiles of a level's residual table.
+const QUANTILES: f64 = 64.0;
 /// As in `render::auto_range`: windows of the final stage and their side.
 const RANGE_WINDOWS: f64 = 8.0;
 const RANGE_WINDOW: u64 = 48;
@@ -128,7 +130,6 @@ fn plan_params(p: &Params, control: Option<(u32, u32)>, initial: Option<(u32, u3
     let px = |size: Option<(u32, u32)>| size.map_or(0.0, |(w, h)| w as f64 * h as f64);
     let images = px(control) + px(initial);
     let levels = level_count(p.width, p.height);
-    let tile = (TILE * TILE) as f64;
 
     // Level 0 and the exact levels: the final stage's window of each chunk, read through the
     // palette, box-filtered down to the level.
@@ -156,27 +157,39 @@ fn plan_params(p: &Params, control: Option<(u32, u32)>, initial: Option<(u32, u3
     // Coarser levels: the finest stage whose lattice is at most 4 × 4 points a pixel, its
     // window evaluated and sampled q² times a pixel; beyond the coarsest stage, a guide image
     // sampled n² times a pixel (n up to 64), or a flat colour.
-    let prefiltered = |l: u32| -> f64 {
-        let work = match (0..=last).rev().find(|&s| stages[s].shift + 2 >= l) {
-            Some(s) => {
-                let shift = stages[s].shift;
-                let q = 1u64 << l.saturating_sub(shift);
-                let span = (((TILE << l) + (1 << shift)) >> shift) + 3;
-                win.field(s, span, span) + tile * (q * q) as f64 * SAMPLE
-            }
-            None => match cell {
-                Some(cell) => {
-                    let per_texel = ((1u64 << l.min(40)) / cell).clamp(4, 64);
-                    let (lw, lh) = level_size(p.width, p.height, l);
-                    let budget = libm::sqrt((1u64 << 22) as f64 / (lw * lh).min(TILE * TILE) as f64) as u64;
-                    let n = per_texel.min(budget.max(4)).next_power_of_two().min(1 << (l - 1));
-                    tile * (n * n) as f64 * GUIDE_SAMPLE
+    // Each pixel also sums its residual's terms, a hash a level.
+    let predicted = |l: u32, side: u64| -> f64 {
+        let pixels = (side * side) as f64;
+        let residual = pixels * (levels - l) as f64 * NOISE;
+        residual
+            + match (0..=last).rev().find(|&s| stages[s].shift + 2 >= l) {
+                Some(s) => {
+                    let shift = stages[s].shift;
+                    let q = 1u64 << l.saturating_sub(shift);
+                    let span = (((side << l) + (1 << shift)) >> shift) + 3;
+                    win.field(s, span, span) + pixels * (q * q) as f64 * SAMPLE
                 }
-                None => tile,
-            },
-        };
-        work + calibration
+                None => match cell {
+                    Some(cell) => {
+                        let per_texel = ((1u64 << l.min(40)) / cell).clamp(4, 64);
+                        let (lw, lh) = level_size(p.width, p.height, l);
+                        let budget = libm::sqrt((1u64 << 22) as f64 / (lw * lh).min(TILE * TILE) as f64) as u64;
+                        let n = per_texel.min(budget.max(4)).next_power_of_two().min(1 << (l - 1));
+                        pixels * (n * n) as f64 * GUIDE_SAMPLE
+                    }
+                    None => pixels,
+                },
+            }
     };
+    // The calibration's residuals: predictions of the windows' blocks at the levels they hold,
+    // and of 4 × 4 pixels a window beyond.
+    let residuals: f64 = (p.exact_levels + 1..levels.saturating_sub(1))
+        .map(|l| {
+            let side = if l <= CALIBRATION_WINDOW.trailing_zeros() { CALIBRATION_WINDOW >> l } else { 4 };
+            CALIBRATION_WINDOWS * predicted(l, side)
+        })
+        .sum();
+    let prefiltered = |l: u32| predicted(l, TILE) + calibration + residuals;
     let (tile_work, worst) = (0..levels)
         .map(|l| (if l <= p.exact_levels { exact(l) } else { prefiltered(l) }, l))
         .fold((0.0, 0), |a, b| if b.0 > a.0 { b } else { a });
@@ -194,6 +207,7 @@ fn plan_params(p: &Params, control: Option<(u32, u32)>, initial: Option<(u32, u3
     let taps_total: f64 = stages.iter().flat_map(|s| &s.kernels).map(|k| k.taps.len() as f64).sum();
     let resident = 8.0 * palette::LUT_SIZE as f64
         + (stages.len() as f64 + 1.0) * BINS * 12.0
+        + levels as f64 * (QUANTILES * 12.0 + 4.0)
         + 32.0 * taps_total
         + 512.0 * stages.len() as f64
         + images

@@ -17,17 +17,14 @@
 //! dependency windows: the prediction there is a guide image's g, or the mean colour.
 //!
 //! A prediction is a conditional mean, so it varies less than the exact block means do (a
-//! single-stage texture's prediction is flat). What it cannot place, a residual supplies
-//! with the exact downsample's distribution: per level, the residuals (exact block mean −
-//! prediction) of the calibration's blocks, ranked by luminance, form a quantile table; a
-//! pixel takes the quantile of a Gaussian-like field z. That field is a Haar-like noise, each
-//! level's term summing to zero over the four children of a pixel of the next level, so z
-//! at level L + 1 is the box filter of z at level L (up to its normalisation): coarse and
-//! fine levels show the same grains. This is an approximation and the tests report how
-//! close it gets (σ and PSNR against the exact downsample).
+//! single-stage texture's prediction is flat): a [`residual`](super::residual) with the
+//! exact downsample's measured distribution supplies the rest, so each level keeps the
+//! exact downsample's σ. This is an approximation and the tests report how close it gets
+//! (σ and PSNR against the exact downsample).
 
-use super::engine::{STREAM_CALIBRATION, STREAM_RESIDUAL};
+use super::engine::STREAM_CALIBRATION;
 use super::lattice::{upsample, upsample_footprint};
+use super::residual::{self, luminance, Residual};
 use super::Cascade;
 use crate::hash::hash4;
 use crate::pixels::Rgba8Image;
@@ -56,13 +53,9 @@ pub struct Calibration {
     /// Per level k, the weight of the residual field's term of level k (zero up to the exact
     /// levels and at the top).
     pub weights: Vec<f32>,
-    /// Per level, the residual's RGB quantiles (`QUANTILES` of them, rising luminance);
-    /// empty up to the exact levels.
-    pub residuals: Vec<Vec<[f32; 3]>>,
+    /// Per level, the residual's distribution; none up to the exact levels.
+    pub residuals: Vec<Option<Residual>>,
 }
-
-/// Quantiles of a level's residual table.
-const QUANTILES: usize = 64;
 
 /// The image whose value predicts the local mean beyond the coarsest stage: the structured
 /// initial image, else the dilation control map.
@@ -97,9 +90,11 @@ impl Calibration {
         let mut sums = vec![vec![[0.0f64; 4]; BINS]; n + 1];
         let mut mean = [0.0f64; 3];
         let mut count = 0.0;
+        // The windows, aligned to whole blocks of the measured levels, are kept for the residuals.
+        let mut windows = Vec::with_capacity(WINDOWS as usize);
         for i in 0..WINDOWS {
             let h = hash4(e.seed, STREAM_CALIBRATION, i as i64, 1);
-            let (x, y) = (h, h.rotate_left(29));
+            let (x, y) = (h & !(WINDOW as u64 - 1), h.rotate_left(29) & !(WINDOW as u64 - 1));
             let img = tex.level0(x, y, WINDOW, WINDOW, stop)?;
             for p in img.data.chunks_exact(4) {
                 for c in 0..3 {
@@ -129,30 +124,29 @@ impl Calibration {
                     b[3] += 1.0;
                 }
             }
+            windows.push((x, y, img));
         }
         let mean = mean.map(|m| (m / count) as f32);
         let mut tables: Vec<Vec<[f32; 3]>> = sums.iter().map(|bins| fill(bins, mean)).collect();
         let image = tables.pop().filter(|_| guide(tex).is_some());
         let p = tex.params();
         let levels = crate::texture::level_count(p.width, p.height) as usize;
-        let mut cal = Calibration { tables, image, mean, weights: vec![0.0; levels], residuals: vec![vec![]; levels] };
-        cal.measure_residuals(tex, stop)?;
+        let mut cal = Calibration { tables, image, mean, weights: vec![0.0; levels], residuals: vec![None; levels] };
+        cal.measure_residuals(tex, &windows, stop)?;
         Some(cal)
     }
 
-    /// The residuals: at each prefiltered level L up to the calibration window, the quantiles
-    /// of (exact block mean − prediction) over the blocks of the calibration windows. Beyond,
-    /// the exact σ_L is extrapolated at the ratio of the last two measured levels, the
-    /// predictions' σ_L measured (they are cheap), and the last table scaled to the
-    /// difference. The field's term of level k weighs 2^−k, the spectrum of box-filtered white
-    /// noise: at each level most of z's variance is its own level's term, as for the
-    /// short-range detail the residual stands for.
-    fn measure_residuals(&mut self, tex: &Cascade, stop: &dyn Stop) -> Option<()> {
+    /// The residuals: at each prefiltered level L up to the calibration window, measured
+    /// from the blocks of the calibration windows. Beyond, σ(exact) is extrapolated at the
+    /// ratio of the last two measured levels, the predictions' σ measured (they are cheap),
+    /// and the last measured distribution scaled to the σ they lack:
+    /// s_L² = σ²(exact) − σ²(predictions). The field's term of level k weighs 2^−k, the
+    /// spectrum of box-filtered white noise: at each level most of z's variance is its own
+    /// level's term, as for the short-range detail the residual stands for.
+    fn measure_residuals(&mut self, tex: &Cascade, windows: &[(u64, u64, Rgba8Image)], stop: &dyn Stop) -> Option<()> {
         let e = tex.engine();
         let levels = self.weights.len() as u32;
         let first = tex.params().exact_levels + 1;
-        // Luminance σ of the residual and of the exact block means, per level.
-        let (mut s, mut exact_sigma) = (vec![0.0f64; levels as usize], vec![0.0f64; levels as usize]);
         let sigma = |v: &[f32]| {
             let n = v.len() as f64;
             let m = v.iter().map(|&x| x as f64).sum::<f64>() / n;
@@ -161,6 +155,10 @@ impl Calibration {
         let lum = |img: &Rgba8Image| -> Vec<f32> {
             img.data.chunks_exact(4).map(|p| luminance([p[0] as f32, p[1] as f32, p[2] as f32])).collect()
         };
+        let rgb = |p: &[u8]| [p[0] as f32, p[1] as f32, p[2] as f32];
+        // Luminance σ of the exact block means per level; the last measured residual at unit σ.
+        let mut exact_sigma = vec![0.0f64; levels as usize];
+        let mut shape: Option<Residual> = None;
         for l in first..levels.saturating_sub(1) {
             let at = l as usize;
             if l > MEASURED_LEVELS {
@@ -172,36 +170,26 @@ impl Calibration {
                     let h = hash4(e.seed, STREAM_CALIBRATION, i as i64, 3);
                     predicted.extend(lum(&render(tex, self, l, h, h.rotate_left(29), SIDE, SIDE, stop)?));
                 }
-                let residual = (exact_sigma[at].powi(2) - sigma(&predicted).powi(2)).max(0.0).sqrt();
-                s[at] = residual;
-                let scale = if s[at - 1] > 0.0 { (s[at] / s[at - 1]) as f32 } else { 0.0 };
-                self.residuals[at] = self.residuals[at - 1].iter().map(|r| r.map(|v| v * scale)).collect();
+                let s = (exact_sigma[at].powi(2) - sigma(&predicted).powi(2)).max(0.0).sqrt();
+                self.residuals[at] = shape.as_ref().map(|r| r.scaled(s as f32));
                 continue;
             }
-            let (mut res, mut exact_lum) = (Vec::new(), Vec::new());
-            for i in 0..WINDOWS {
-                let h = hash4(e.seed, STREAM_CALIBRATION, i as i64, 2);
-                let (x, y) = (h & !(WINDOW as u64 - 1), h.rotate_left(29) & !(WINDOW as u64 - 1));
-                let exact = crate::mip::downsample_n(&tex.level0(x, y, WINDOW, WINDOW, stop)?, l);
+            let (mut pairs, mut exact_lum) = (Vec::new(), Vec::new());
+            for (x, y, img) in windows {
+                let exact = crate::mip::downsample_n(img, l);
                 let side = WINDOW >> l;
                 let predicted = render(tex, self, l, x >> l, y >> l, side, side, stop)?;
                 exact_lum.extend(lum(&exact));
                 for (a, b) in exact.data.chunks_exact(4).zip(predicted.data.chunks_exact(4)) {
-                    res.push([0, 1, 2].map(|c| a[c] as f32 - b[c] as f32));
+                    let (a, b) = (rgb(a), rgb(b));
+                    pairs.push((b, [0, 1, 2].map(|c| a[c] - b[c])));
                 }
             }
             exact_sigma[at] = sigma(&exact_lum);
-            res.sort_by(|a, b| luminance(*a).total_cmp(&luminance(*b)));
-            s[at] = sigma(&res.iter().map(|r| luminance(*r)).collect::<Vec<_>>());
-            // Each quantile the mean of an equal share of the ranked residuals.
-            let n = res.len();
-            self.residuals[at] = (0..QUANTILES)
-                .map(|q| {
-                    let group = &res[q * n / QUANTILES..((q + 1) * n / QUANTILES).max(q * n / QUANTILES + 1)];
-                    let sum = group.iter().fold([0.0f64; 3], |acc, r| [0, 1, 2].map(|c| acc[c] + r[c] as f64));
-                    sum.map(|v| (v / group.len() as f64) as f32)
-                })
-                .collect();
+            if let Some((r, s)) = Residual::measure(pairs) {
+                shape = (s > 0.0).then(|| r.scaled((1.0 / s) as f32)).or(shape);
+                self.residuals[at] = Some(r);
+            }
         }
         for k in first as usize..levels as usize - 1 {
             self.weights[k] = libm::exp2f(-(k as f32));
@@ -212,50 +200,13 @@ impl Calibration {
     /// The pixel (x, y) of level `l` whose prediction is `colour`: with its residual, rounded.
     #[inline]
     fn pixel(&self, colour: [f32; 3], seed: u64, l: u32, x: u64, y: u64) -> [u8; 4] {
-        let r = match self.residual_field(seed, l, x, y) {
-            Some(z) => quantile(&self.residuals[l as usize], z),
-            None => [0.0; 3],
+        let r = match (&self.residuals[l as usize], residual::field(&self.weights, seed, l, x, y)) {
+            (Some(r), Some(z)) => r.at(luminance(colour), z),
+            _ => [0.0; 3],
         };
         let p = [0, 1, 2].map(|c| (colour[c] + r[c] + 0.5).floor().clamp(0.0, 255.0) as u8);
         [p[0], p[1], p[2], 255]
     }
-
-    /// The residual field z (unit variance) at pixel (x, y) of level `l`, or `None` where the
-    /// level has no residual: the weighted sum over levels k ≥ l of the term of level k — a
-    /// Haar pattern of the pixel's ancestor at level k among its three siblings, with three
-    /// weights hashed from their parent (each uniform in [−1, 1), so a term has unit variance).
-    fn residual_field(&self, seed: u64, l: u32, x: u64, y: u64) -> Option<f32> {
-        if self.residuals[l as usize].is_empty() {
-            return None;
-        }
-        let (mut z, mut var) = (0.0f32, 0.0f32);
-        for (k, &a) in self.weights.iter().enumerate().skip(l as usize) {
-            if a == 0.0 {
-                continue;
-            }
-            let shift = (k as u32 - l).min(63);
-            let (qx, qy) = (x >> shift, y >> shift);
-            let h = hash4(seed, STREAM_RESIDUAL + k as u64, (qx >> 1) as i64, (qy >> 1) as i64);
-            let w = [0, 21, 42].map(|b| ((h >> b) & 0x1f_ffff) as f32 * (2.0 / (1u32 << 21) as f32) - 1.0);
-            let (sx, sy) = (if qx & 1 == 0 { 1.0 } else { -1.0 }, if qy & 1 == 0 { 1.0 } else { -1.0 });
-            z += a * (w[0] * sy + w[1] * sx + w[2] * sx * sy);
-            var += a * a;
-        }
-        (var > 0.0).then(|| z / libm::sqrtf(var))
-    }
-}
-
-fn luminance(c: [f32; 3]) -> f32 {
-    0.299 * c[0] + 0.587 * c[1] + 0.114 * c[2]
-}
-
-/// The residual of `table` at the Gaussian quantile of z, interpolated between quantiles.
-fn quantile(table: &[[f32; 3]], z: f32) -> [f32; 3] {
-    let u = 0.5 * (1.0 + libm::erff(z * core::f32::consts::FRAC_1_SQRT_2));
-    let pos = (u * QUANTILES as f32 - 0.5).clamp(0.0, (QUANTILES - 1) as f32);
-    let i = (pos as usize).min(QUANTILES - 2);
-    let f = pos - i as f32;
-    [0, 1, 2].map(|c| table[i][c] + (table[i + 1][c] - table[i][c]) * f)
 }
 
 #[inline]
