@@ -41,8 +41,9 @@ const LOAD: f64 = 50_000.0;
 const CALIBRATION_WINDOWS: f64 = 256.0;
 const CALIBRATION_WINDOW: u64 = 32;
 const BINS: f64 = 64.0;
-/// As in `prefilter`: quantiles of a level's residual table.
+/// As in `residual`: quantiles of a band's table, bands of a level.
 const QUANTILES: f64 = 64.0;
+const RESIDUAL_BANDS: f64 = 4.0;
 /// As in `render::auto_range`: windows of the final stage and their side.
 const RANGE_WINDOWS: f64 = 8.0;
 const RANGE_WINDOW: u64 = 48;
@@ -207,7 +208,7 @@ fn plan_params(p: &Params, control: Option<(u32, u32)>, initial: Option<(u32, u3
     let taps_total: f64 = stages.iter().flat_map(|s| &s.kernels).map(|k| k.taps.len() as f64).sum();
     let resident = 8.0 * palette::LUT_SIZE as f64
         + (stages.len() as f64 + 1.0) * BINS * 12.0
-        + levels as f64 * (QUANTILES * 12.0 + 4.0)
+        + levels as f64 * (RESIDUAL_BANDS * (QUANTILES * 12.0 + 4.0 + 24.0) + 64.0)
         + 32.0 * taps_total
         + 512.0 * stages.len() as f64
         + images
