@@ -162,7 +162,8 @@ impl Engine {
             None => None,
         };
         for i in 0..st.iterations as usize {
-            g = self.step(s, &g, ladder.as_ref().map(|d| (d.as_slice(), iw - 2 * e, i * e)), stop)?;
+            let view = ladder.as_ref().map(|d| Positions { at: d, row: iw - 2 * e, offset: i * e });
+            g = self.step(s, &g, view, stop)?;
         }
         debug_assert_eq!((g.w, g.h, g.x0, g.y0), (w, h, x0 & mask, y0 & mask));
         Some(g)
@@ -273,15 +274,9 @@ impl Engine {
     }
 
     /// One iteration: convolve, then map. The output window is the input shrunk by the step
-    /// margin on each side. `ladder` = (per-point ladder positions, their row length, offset
-    /// of this iteration's output window inside them).
-    fn step(
-        &self,
-        s: usize,
-        g: &Grid,
-        ladder: Option<(&[(usize, f32)], usize, usize)>,
-        stop: &dyn Stop,
-    ) -> Option<Grid> {
+    /// margin on each side; under a dilation map each point blends the kernels at its
+    /// ladder position.
+    fn step(&self, s: usize, g: &Grid, ladder: Option<Positions>, stop: &dyn Stop) -> Option<Grid> {
         let st = &self.stages[s];
         let mask = lattice_mask(st.shift);
         let e = self.step_margin(s);
@@ -304,7 +299,7 @@ impl Engine {
                     st.map.apply(row);
                 }
             }
-            Some((positions, pw, off)) => {
+            Some(Positions { at: positions, row: pw, offset: off }) => {
                 // Each kernel's taps as offsets into this grid's rows.
                 let offsets: Vec<Vec<(isize, f32)>> = st
                     .kernels
@@ -341,6 +336,14 @@ impl Engine {
             v: out,
         })
     }
+}
+
+/// Per-point ladder positions (lower kernel, upper kernel's weight) of the first iteration's
+/// output window: `row` points a row, this iteration's output window `offset` points in.
+struct Positions<'a> {
+    at: &'a [(usize, f32)],
+    row: usize,
+    offset: usize,
 }
 
 /// Grows a `w × h` buffer by one point on each side, repeating the edge values.
