@@ -197,11 +197,18 @@ impl Calibration {
         Some(())
     }
 
-    /// The pixel (x, y) of level `l` whose prediction is `colour`: with its residual, rounded.
+    /// The residual field over `w × h` pixels of level `l` at (x, y), where the level has a residual.
+    fn field(&self, seed: u64, l: u32, x: u64, y: u64, w: u32, h: u32) -> Option<Vec<f32>> {
+        self.residuals[l as usize].as_ref()?;
+        residual::field(&self.weights, seed, l, x, y, w as usize, h as usize)
+    }
+
+    /// Pixel `at` of a region of level `l` whose prediction is `colour`, with its residual
+    /// from the region's field `z`, rounded.
     #[inline]
-    fn pixel(&self, colour: [f32; 3], seed: u64, l: u32, x: u64, y: u64) -> [u8; 4] {
-        let r = match (&self.residuals[l as usize], residual::field(&self.weights, seed, l, x, y)) {
-            (Some(r), Some(z)) => r.at(luminance(colour), z),
+    fn pixel(&self, colour: [f32; 3], l: u32, z: Option<&[f32]>, at: usize) -> [u8; 4] {
+        let r = match (&self.residuals[l as usize], z) {
+            (Some(r), Some(z)) => r.at(luminance(colour), z[at]),
             _ => [0.0; 3],
         };
         let p = [0, 1, 2].map(|c| (colour[c] + r[c] + 0.5).floor().clamp(0.0, 255.0) as u8);
@@ -267,6 +274,7 @@ pub fn render(
     let e = tex.engine();
     let last = e.stages.len() - 1;
     let mut img = Rgba8Image::new(w, h);
+    let z = cal.field(e.seed, l, x, y, w, h);
     let Some(s) = (0..=last).rev().find(|&s| e.stages[s].shift + 2 >= l) else {
         if let (Some(guide), Some(table)) = (guide(tex), &cal.image) {
             // A guide image (texture transfer, dilation map) carries structure at every
@@ -302,8 +310,8 @@ pub fn render(
                             (0..3).for_each(|k| acc[k] += c[k]);
                         }
                     }
-                    let (px, py) = (x.wrapping_add(i), y.wrapping_add(j));
-                    img.set_pixel(i as u32, j as u32, cal.pixel(acc.map(|v| v * inv), e.seed, l, px, py));
+                    let at = (j * w as u64 + i) as usize;
+                    img.set_pixel(i as u32, j as u32, cal.pixel(acc.map(|v| v * inv), l, z.as_deref(), at));
                 }
             }
             return Some(img);
@@ -315,8 +323,7 @@ pub fn render(
                 return None;
             }
             for i in 0..w {
-                let (px, py) = (x.wrapping_add(i as u64), y.wrapping_add(j as u64));
-                img.set_pixel(i, j, cal.pixel(cal.mean, e.seed, l, px, py));
+                img.set_pixel(i, j, cal.pixel(cal.mean, l, z.as_deref(), (j * w + i) as usize));
             }
         }
         return Some(img);
@@ -358,8 +365,8 @@ pub fn render(
                     }
                 }
             }
-            let (px, py) = (x.wrapping_add(i as u64), y.wrapping_add(j));
-            img.set_pixel(i as u32, j as u32, cal.pixel(acc.map(|v| v * inv_n), e.seed, l, px, py));
+            let at = j as usize * w as usize + i;
+            img.set_pixel(i as u32, j as u32, cal.pixel(acc.map(|v| v * inv_n), l, z.as_deref(), at));
         }
     }
     Some(img)

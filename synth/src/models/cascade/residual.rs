@@ -87,23 +87,51 @@ impl Residual {
     }
 }
 
-/// The field z (unit variance) at pixel (x, y) of level `l`: the sum over levels k ≥ l of
-/// `weights[k]` times the term of level k — a Haar pattern of the pixel's ancestor at level k
-/// among its three siblings, with three weights hashed from their parent (each uniform in
-/// [−1, 1), so a term has unit variance) — normalised. `None` when every weight is zero.
-pub fn field(weights: &[f32], seed: u64, l: u32, x: u64, y: u64) -> Option<f32> {
-    let (mut z, mut var) = (0.0f32, 0.0f32);
+/// The field z (unit variance) over the `w × h` pixels at (x, y) of level `l`, row-major:
+/// at each pixel the sum over levels k ≥ l of `weights[k]` times the term of level k — a Haar
+/// pattern of the pixel's ancestor at level k among its three siblings, with three weights
+/// hashed from their parent (each uniform in [−1, 1), so a term has unit variance) —
+/// normalised. Each ancestor's term is hashed once, and every pixel sums its terms in the
+/// same order whatever region it is in. `None` when every weight is zero.
+pub fn field(weights: &[f32], seed: u64, l: u32, x: u64, y: u64, w: usize, h: usize) -> Option<Vec<f32>> {
+    let (mut z, mut var) = (vec![0.0f32; w * h], 0.0f32);
+    let mut row = vec![0.0f32; w];
     for (k, &a) in weights.iter().enumerate().skip(l as usize) {
         if a == 0.0 {
             continue;
         }
         let shift = (k as u32 - l).min(63);
-        let (qx, qy) = (x >> shift, y >> shift);
-        let h = hash4(seed, STREAM_RESIDUAL + k as u64, (qx >> 1) as i64, (qy >> 1) as i64);
-        let w = [0, 21, 42].map(|b| ((h >> b) & 0x1f_ffff) as f32 * (2.0 / (1u32 << 21) as f32) - 1.0);
-        let (sx, sy) = (if qx & 1 == 0 { 1.0 } else { -1.0 }, if qy & 1 == 0 { 1.0 } else { -1.0 });
-        z += a * (w[0] * sy + w[1] * sx + w[2] * sx * sy);
+        let term = |qx: u64, qy: u64| {
+            let h = hash4(seed, STREAM_RESIDUAL + k as u64, (qx >> 1) as i64, (qy >> 1) as i64);
+            let r = [0, 21, 42].map(|b| ((h >> b) & 0x1f_ffff) as f32 * (2.0 / (1u32 << 21) as f32) - 1.0);
+            let (sx, sy) = (if qx & 1 == 0 { 1.0 } else { -1.0 }, if qy & 1 == 0 { 1.0 } else { -1.0 });
+            a * (r[0] * sy + r[1] * sx + r[2] * sx * sy)
+        };
+        let mut row_of = None;
+        for j in 0..h {
+            let qy = y.wrapping_add(j as u64) >> shift;
+            if row_of != Some(qy) {
+                let mut last: Option<(u64, f32)> = None;
+                for (i, t) in row.iter_mut().enumerate() {
+                    let qx = x.wrapping_add(i as u64) >> shift;
+                    *t = match last {
+                        Some((q, v)) if q == qx => v,
+                        _ => term(qx, qy),
+                    };
+                    last = Some((qx, *t));
+                }
+                row_of = Some(qy);
+            }
+            for (o, t) in z[j * w..(j + 1) * w].iter_mut().zip(&row) {
+                *o += *t;
+            }
+        }
         var += a * a;
     }
-    (var > 0.0).then(|| z / libm::sqrtf(var))
+    if var == 0.0 {
+        return None;
+    }
+    let norm = libm::sqrtf(var);
+    z.iter_mut().for_each(|v| *v /= norm);
+    Some(z)
 }
