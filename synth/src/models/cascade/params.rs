@@ -6,7 +6,7 @@
 //!  "stages": [{"kernel": {"size": 5, "preset": "gauss"}, "map": {"kind": "logistic", "r": 3.7},
 //!              "iterations": 5},
 //!             {"upsample": 2, "jitter": 0.1, "kernel": {"size": 3, "weights": [0,1,0,1,4,1,0,1,0]},
-//!              "map": {"kind": "sine", "r": 0.95}}],
+//!              "map": {"kind": "sine", "r": 0.95}, "dilation": 1.5, "aspect": 3, "rotation": 20}],
 //!  "palette": "earth", "range": [0.1, 0.9],
 //!  "dilation_map": {"max": 3, "cell": 64},          // needs input/section `control`
 //!  "initial": {"cell": 8, "strength": 0.7, "repeat": false},  // needs input/section `initial`
