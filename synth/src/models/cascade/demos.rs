@@ -1,5 +1,6 @@
-//! Demo encodings: two single-scale looks, a dilation-map look (image C), a texture-transfer
-//! look (image D) and cascades on several scales (images E–H). Their input images are drawn
+//! Demo encodings, one for each of the paper's images: two single-scale looks (A, B), a
+//! dilation-map look (C), a texture-transfer look (D) and cascades on several scales (E–H;
+//! G with stretched, rotated kernels, H with a dilated coarse stage). Their input images are drawn
 //! here procedurally (with `libm`, so the bundles — and their ids — are the same on every
 //! platform); nothing is downloaded.
 
@@ -61,6 +62,7 @@ fn bundle(name: &str, params: serde_json::Value, inputs: Inputs) -> Bundle {
 /// The demo encodings (each well under a few kilobytes plus its input image).
 pub fn demos() -> Vec<Bundle> {
     let gauss5 = json!({"size": 5, "preset": "gauss", "sigma": 1.0});
+    let gauss3 = json!({"size": 3, "preset": "gauss", "sigma": 0.8});
     let mut out = vec![
         bundle(
             "Cascade A — logistic ripples",
@@ -80,9 +82,8 @@ pub fn demos() -> Vec<Bundle> {
     control.insert("control".into(), control_map(64).to_png());
     out.push(bundle(
         "Cascade C — dilation map",
-        json!({"seed": 13, "stages": [{"kernel": gauss5, "map": {"kind": "sine", "r": 0.96}, "iterations": 5},
-                                   {"upsample": 8, "kernel": gauss5, "map": {"kind": "logistic", "r": 3.8}, "iterations": 3}],
-               "dilation_map": {"max": 4, "cell": 32}, "palette": "earth", "exact_levels": 3}),
+        json!({"seed": 13, "stages": [{"kernel": {"size": 3, "preset": "gauss"}, "map": {"kind": "sine", "r": 0.97}, "iterations": 6}],
+               "dilation_map": {"max": 4, "cell": 16}, "palette": "earth"}),
         control,
     ));
     let mut initial = Inputs::new();
@@ -113,6 +114,24 @@ pub fn demos() -> Vec<Bundle> {
                  {"upsample": 2, "jitter": 0.1, "kernel": gauss5, "map": {"kind": "logistic", "r": 3.7}, "iterations": 4},
                  {"upsample": 2, "jitter": 0.1, "kernel": gauss5, "map": {"kind": "logistic", "r": 3.7}, "iterations": 3}],
                "palette": "moss"}),
+        Inputs::new(),
+    ));
+    out.push(bundle(
+        "Cascade G — wood grain",
+        json!({"seed": 17, "stages": [
+                 {"kernel": gauss3, "map": {"kind": "sine", "r": 0.96}, "iterations": 5, "aspect": 4.0, "rotation": 8.0},
+                 {"upsample": 4, "jitter": 0.08, "kernel": gauss3, "map": {"kind": "circle", "omega": 0.05, "k": 1.5}, "iterations": 4, "aspect": 3.0, "rotation": 8.0},
+                 {"upsample": 2, "jitter": 0.03, "kernel": {"size": 3, "preset": "gauss", "sigma": 0.8}, "map": {"kind": "sine", "r": 0.9}, "iterations": 2, "aspect": 2.0, "rotation": 8.0}],
+               "palette": [[0.0, "#3b2412"], [0.4, "#7a4a24"], [0.7, "#b07a45"], [1.0, "#e2b887"]]}),
+        Inputs::new(),
+    ));
+    out.push(bundle(
+        "Cascade H — fire clouds",
+        json!({"seed": 18, "stages": [
+                 {"kernel": gauss5, "map": {"kind": "logistic", "r": 3.6}, "iterations": 5, "dilation": 2.5},
+                 {"upsample": 4, "jitter": 0.1, "kernel": gauss5, "map": {"kind": "tent", "mu": 1.6}, "iterations": 4},
+                 {"upsample": 4, "jitter": 0.05, "kernel": {"size": 3, "preset": "gauss", "sigma": 0.8}, "map": {"kind": "sine", "r": 0.98}, "iterations": 3}],
+               "palette": "fire"}),
         Inputs::new(),
     ));
     out

@@ -2,7 +2,7 @@
 //! `initial` images as sections, and their complete validation.
 
 use super::engine::{Control, Engine, Initial, Stage};
-use super::kernel::Kernel;
+use super::kernel::{Kernel, Shape};
 use super::lattice::ImageField;
 use super::maps::Map;
 use super::render::{auto_range, Cascade};
@@ -20,8 +20,8 @@ pub const MAX_STAGES: usize = 12;
 pub const MAX_ITERATIONS: u32 = 64;
 /// Largest dependency margin of one stage, in its lattice units.
 pub const MAX_MARGIN: usize = 512;
-/// Largest dilation (base × control map maximum).
-pub const MAX_DILATION: u32 = 16;
+/// Largest dilation (a stage's dilation × aspect × the control map's maximum).
+pub const MAX_DILATION: f64 = 16.0;
 /// Coarsest stage spacing: 2^20 pixels.
 pub const MAX_TOTAL_SHIFT: u32 = 20;
 /// Control maps are low resolution by definition.
@@ -73,12 +73,12 @@ pub fn check(p: &Params, control: Option<(u32, u32)>, initial: Option<(u32, u32)
         }
     }
     let control_max = match (&p.dilation_map, control) {
-        (None, None) => 1,
+        (None, None) => 1.0,
         (Some(_), None) => return Err(Error::image("control", "missing; `dilation_map` needs a control image")),
         (None, Some(_)) => return Err(Error::image("control", "given but `dilation_map` is not set")),
         (Some(d), Some((w, h))) => {
-            if !(1..=MAX_DILATION).contains(&d.max) {
-                return Err(Error::param("dilation_map.max", format!("{}: must be 1..={MAX_DILATION}", d.max)));
+            if !(d.max.is_finite() && (1.0..=MAX_DILATION).contains(&d.max)) {
+                return Err(Error::param("dilation_map.max", format!("{}: must be in [1, {MAX_DILATION}]", d.max)));
             }
             check_cell("dilation_map.cell", d.cell)?;
             let side = 2..=MAX_CONTROL_SIDE;
@@ -111,12 +111,20 @@ pub fn check(p: &Params, control: Option<(u32, u32)>, initial: Option<(u32, u32)
                 format!("{}: must be 1..={MAX_ITERATIONS} (the paper uses about 5)", sp.iterations),
             ));
         }
-        let max_d = sp.dilation * control_max;
-        if sp.dilation == 0 || max_d > MAX_DILATION {
+        for (name, v) in [("dilation", sp.dilation), ("aspect", sp.aspect)] {
+            if !(v.is_finite() && (1.0..=MAX_DILATION).contains(&v)) {
+                return Err(Error::param(format!("{at}.{name}"), format!("{v}: must be in [1, {MAX_DILATION}]")));
+            }
+        }
+        let max_d = sp.dilation * sp.aspect * control_max;
+        if max_d > MAX_DILATION {
             return Err(Error::param(
                 format!("{at}.dilation"),
-                format!("{}: dilation (times the control map's max) must be 1..={MAX_DILATION}", sp.dilation),
+                format!("dilation × aspect × the control map's max = {max_d}; at most {MAX_DILATION}"),
             ));
+        }
+        if !(sp.rotation.is_finite() && sp.rotation.abs() <= 360.0) {
+            return Err(Error::param(format!("{at}.rotation"), format!("{}: degrees in [−360, 360]", sp.rotation)));
         }
         let up = match (s, sp.upsample) {
             (0, None) => 0,
@@ -129,18 +137,21 @@ pub fn check(p: &Params, control: Option<(u32, u32)>, initial: Option<(u32, u32)
             return Err(Error::param(format!("{at}.jitter"), format!("{}: must be in [0, 1]", sp.jitter)));
         }
         let kernel = Kernel::build(&sp.kernel, &format!("{at}.kernel"))?;
-        let margin = sp.iterations as usize * kernel.radius as usize * max_d as usize;
+        let shape = Shape { sx: sp.dilation * sp.aspect, sy: sp.dilation, angle: sp.rotation.to_radians() };
+        let (kernels, gains) = Stage::kernels(&kernel, shape, control_max, &format!("{at}.kernel"))?;
+        let reach = kernels.iter().map(|k| k.reach).max().unwrap_or(0);
+        let margin = sp.iterations as usize * reach as usize;
         if margin > MAX_MARGIN {
             return Err(Error::param(
                 &at,
-                format!("iterations × kernel radius × dilation = {margin}; at most {MAX_MARGIN}"),
+                format!("iterations × the dilated kernel's reach = {margin}; at most {MAX_MARGIN}"),
             ));
         }
         stages.push(Stage {
-            kernel,
+            kernels,
+            gains,
             map: Map::build(&sp.map, &format!("{at}.map"))?,
             iterations: sp.iterations,
-            dilation: sp.dilation,
             shift: 0,
             up,
             jitter: sp.jitter as f32,

@@ -1,6 +1,10 @@
 //! Convolution kernels N of the cascade: at most 7 × 7, given as explicit weights or built
 //! from a named preset. Weights are normalised to sum 1 (in f64, then rounded once to f32)
 //! so that N keeps values near the unit interval the maps act on.
+//!
+//! A kernel can be scaled, stretched and rotated ([`Kernel::transformed`]): convolution is
+//! closed under linear transforms, so the transformed kernel is the same continuous function
+//! with its argument transformed, sampled at every lattice offset it covers.
 
 use crate::{Error, Result};
 use schemars::JsonSchema;
@@ -51,8 +55,30 @@ pub struct Tap {
 /// that every platform adds the same numbers in the same sequence).
 #[derive(Clone, Debug, PartialEq)]
 pub struct Kernel {
-    pub radius: u32,
+    /// Largest |dx| or |dy| of a tap: how far one convolution reaches.
+    pub reach: u32,
     pub taps: Vec<Tap>,
+    /// The weights as given, `side × side` row-major and not normalised: what transforms act on.
+    grid: Vec<f64>,
+    side: u32,
+}
+
+/// A linear transform of a kernel: its x axis stretched by `sx`, its y axis by `sy` (both
+/// ≥ 1), then rotated by `angle` radians anticlockwise.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Shape {
+    pub sx: f64,
+    pub sy: f64,
+    pub angle: f64,
+}
+
+impl Shape {
+    pub const IDENTITY: Shape = Shape { sx: 1.0, sy: 1.0, angle: 0.0 };
+
+    /// The same shape with both axes scaled by `f`.
+    pub fn scaled(self, f: f64) -> Shape {
+        Shape { sx: self.sx * f, sy: self.sy * f, ..self }
+    }
 }
 
 impl Kernel {
@@ -141,22 +167,73 @@ impl Kernel {
                 }
             },
         };
-        let sum: f64 = raw.iter().sum();
-        let abs: f64 = raw.iter().map(|v| v.abs()).sum();
+        let weights = (-r..=r).flat_map(|dy| (-r..=r).map(move |dx| (dx, dy))).zip(raw.iter().copied());
+        Self::normalised(weights, raw.clone(), n).map_err(|sum| {
+            Error::param(at, format!("weights sum to {sum}; they must not cancel (the kernel is normalised to sum 1)"))
+        })
+    }
+
+    /// The kernel of `(offset, weight)` pairs in row-major order, normalised to sum 1; `Err(sum)`
+    /// when the weights cancel.
+    fn normalised(
+        weights: impl Iterator<Item = ((i32, i32), f64)> + Clone,
+        grid: Vec<f64>,
+        side: u32,
+    ) -> std::result::Result<Self, f64> {
+        let sum: f64 = weights.clone().map(|(_, v)| v).sum();
+        let abs: f64 = weights.clone().map(|(_, v)| v.abs()).sum();
         if sum.abs() <= 1e-6 * abs.max(f64::MIN_POSITIVE) {
-            return Err(Error::param(
-                at,
-                format!("weights sum to {sum}; they must not cancel (the kernel is normalised to sum 1)"),
-            ));
+            return Err(sum);
         }
-        let mut taps = Vec::new();
-        for (i, v) in raw.iter().enumerate() {
-            let w = (v / sum) as f32;
-            if w != 0.0 {
-                taps.push(Tap { dx: (i as i32 % n as i32) - r, dy: (i as i32 / n as i32) - r, w });
+        let taps: Vec<Tap> =
+            weights.map(|((dx, dy), v)| Tap { dx, dy, w: (v / sum) as f32 }).filter(|t| t.w != 0.0).collect();
+        let reach = taps.iter().map(|t| t.dx.unsigned_abs().max(t.dy.unsigned_abs())).max().unwrap_or(0);
+        Ok(Kernel { reach, taps, grid, side })
+    }
+
+    /// The kernel as a continuous function: its weights interpolated bilinearly between the
+    /// grid points, zero one step beyond the outermost ones. At grid points it is the weight.
+    fn continuous(&self, u: f64, v: f64) -> f64 {
+        let n = self.side as i64;
+        let r = (n / 2) as f64;
+        let (gx, gy) = (u + r, v + r);
+        let (ix, iy) = (libm::floor(gx), libm::floor(gy));
+        let (fx, fy) = (gx - ix, gy - iy);
+        let (ix, iy) = (ix as i64, iy as i64);
+        let at = |x: i64, y: i64| {
+            if (0..n).contains(&x) && (0..n).contains(&y) {
+                self.grid[(y * n + x) as usize]
+            } else {
+                0.0
             }
+        };
+        let row = |y: i64| at(ix, y) * (1.0 - fx) + at(ix + 1, y) * fx;
+        row(iy) * (1.0 - fy) + row(iy + 1) * fy
+    }
+
+    /// The kernel transformed by `shape`: N'(o) ∝ N(M⁻¹·o) for every lattice offset o, where
+    /// M stretches then rotates. Tap t of the original lands on M·t with its relative weight,
+    /// and the offsets between the transformed taps carry the interpolated weights, so a
+    /// dilated kernel reads the whole lattice (integer dilation with holes would split it into
+    /// independent sub-lattices, and features would not grow). The identity returns the
+    /// kernel unchanged. `at` names the kernel in the error when the transformed weights cancel.
+    pub fn transformed(&self, shape: Shape, at: &str) -> Result<Kernel> {
+        if shape == Shape::IDENTITY {
+            return Ok(self.clone());
         }
-        Ok(Kernel { radius: r as u32, taps })
+        let (sin, cos) = (libm::sin(shape.angle), libm::cos(shape.angle));
+        let support = (self.side / 2 + 1) as f64;
+        let hx = libm::floor(support * (cos.abs() * shape.sx + sin.abs() * shape.sy)) as i32;
+        let hy = libm::floor(support * (sin.abs() * shape.sx + cos.abs() * shape.sy)) as i32;
+        let weights = (-hy..=hy).flat_map(|dy| (-hx..=hx).map(move |dx| (dx, dy))).map(|(dx, dy)| {
+            let (ox, oy) = (dx as f64, dy as f64);
+            let u = (cos * ox + sin * oy) / shape.sx;
+            let v = (cos * oy - sin * ox) / shape.sy;
+            ((dx, dy), self.continuous(u, v))
+        });
+        Self::normalised(weights, self.grid.clone(), self.side).map_err(|sum| {
+            Error::param(at, format!("transformed, the weights sum to {sum}: they cancel (make the surround weaker)"))
+        })
     }
 }
 
@@ -175,7 +252,7 @@ mod tests {
                 let k = Kernel::build(&spec(n, p), "k").unwrap();
                 let s: f32 = k.taps.iter().map(|t| t.w).sum();
                 assert!((s - 1.0).abs() < 1e-5, "{p} {n}: {s}");
-                assert_eq!(k.radius, n / 2);
+                assert_eq!(k.reach, n / 2);
             }
         }
     }

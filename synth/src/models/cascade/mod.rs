@@ -11,7 +11,7 @@
 //! * [`lattice`] — integer lattices, hashed noise, images sampled onto the plane;
 //! * [`engine`] — iteration and cascade over windows;
 //! * [`params`] — the parameters; [`encoding`] — input images, `create`, `load` and validation;
-//! * [`prefilter`] — coarse mip levels without brute force;
+//! * [`prefilter`] — coarse mip levels without brute force; [`residual`] — their residual;
 //! * [`demos`] — the demo encodings and their procedural input images.
 
 pub mod demos;
@@ -26,6 +26,7 @@ pub mod maps;
 pub mod palette;
 pub mod prefilter;
 mod render;
+pub mod residual;
 
 use super::{InputInfo, Inputs, MipGuarantee, Model, ModelInfo, Plan};
 use crate::bundle::Bundle;
@@ -94,6 +95,8 @@ impl Model for CascadeModel {
         demos()
     }
     fn mip_guarantee(&self) -> MipGuarantee {
-        MipGuarantee { min_psnr_db: 15.0, max_mean_error: 8.0 }
+        // Coarse levels carry a residual with the exact downsample's statistics but not its
+        // places: up to 3 dB below a smooth prediction's PSNR, bought for the right σ.
+        MipGuarantee { min_psnr_db: 10.0, max_mean_error: 8.0 }
     }
 }

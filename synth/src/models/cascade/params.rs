@@ -6,7 +6,7 @@
 //!  "stages": [{"kernel": {"size": 5, "preset": "gauss"}, "map": {"kind": "logistic", "r": 3.7},
 //!              "iterations": 5},
 //!             {"upsample": 2, "jitter": 0.1, "kernel": {"size": 3, "weights": [0,1,0,1,4,1,0,1,0]},
-//!              "map": {"kind": "sine", "r": 0.95}}],
+//!              "map": {"kind": "sine", "r": 0.95}, "dilation": 1.5, "aspect": 3, "rotation": 20}],
 //!  "palette": "earth", "range": [0.1, 0.9],
 //!  "dilation_map": {"max": 3, "cell": 64},          // needs input/section `control`
 //!  "initial": {"cell": 8, "strength": 0.7, "repeat": false},  // needs input/section `initial`
@@ -53,8 +53,15 @@ pub struct StageSpec {
     pub map: MapSpec,
     #[serde(default = "default_iterations")]
     pub iterations: u32,
-    #[serde(default = "one")]
-    pub dilation: u32,
+    /// Scale of the kernel (≥ 1, real): features grow by this factor.
+    #[serde(default = "one", skip_serializing_if = "is_one")]
+    pub dilation: f64,
+    /// Extra stretch of the kernel's x axis (≥ 1): features elongate along it.
+    #[serde(default = "one", skip_serializing_if = "is_one")]
+    pub aspect: f64,
+    /// Rotation of the (stretched) kernel, degrees anticlockwise.
+    #[serde(default, skip_serializing_if = "is_zero")]
+    pub rotation: f64,
     /// Factor from the previous stage's lattice; not allowed on the first stage.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub upsample: Option<u32>,
@@ -65,8 +72,8 @@ pub struct StageSpec {
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize, JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct DilationMapSpec {
-    /// Dilation where the control map is white (black is 1).
-    pub max: u32,
+    /// Dilation where the control map is white (black is 1), real.
+    pub max: f64,
     /// Pixels per control-map texel; the map repeats over the plane.
     pub cell: u64,
 }
@@ -89,8 +96,14 @@ fn default_extent() -> u64 {
 fn default_iterations() -> u32 {
     5
 }
-fn one() -> u32 {
-    1
+fn one() -> f64 {
+    1.0
+}
+fn is_one(v: &f64) -> bool {
+    *v == 1.0
+}
+fn is_zero(v: &f64) -> bool {
+    *v == 0.0
 }
 fn default_exact_levels() -> u32 {
     2

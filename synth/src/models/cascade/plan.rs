@@ -18,10 +18,10 @@ use crate::{Domain, Error, Result};
 /// A lattice point's hashed noise; upsampling a point from the coarser stage.
 const NOISE: f64 = 6.0;
 const UPSAMPLE: f64 = 4.0;
-/// One kernel tap of one iteration at one point: a multiply-add, or with a dilation map four
-/// bilinear reads.
+/// One kernel tap of one iteration at one point: a multiply-add over a row, or with a
+/// dilation map one per point (two kernels blended at most).
 const TAP: f64 = 1.2;
-const TAP_DILATED: f64 = 6.0;
+const TAP_DILATED: f64 = 2.0;
 /// The nonlinear map at one point of one iteration.
 const MAP: f64 = 4.0;
 /// Reading one point's value through the palette.
@@ -41,6 +41,9 @@ const LOAD: f64 = 50_000.0;
 const CALIBRATION_WINDOWS: f64 = 256.0;
 const CALIBRATION_WINDOW: u64 = 32;
 const BINS: f64 = 64.0;
+/// As in `residual`: quantiles of a band's table, bands of a level.
+const QUANTILES: f64 = 64.0;
+const RESIDUAL_BANDS: f64 = 4.0;
 /// As in `render::auto_range`: windows of the final stage and their side.
 const RANGE_WINDOWS: f64 = 8.0;
 const RANGE_WINDOW: u64 = 48;
@@ -77,15 +80,13 @@ pub fn plan_create(params: &serde_json::Value, inputs: &Inputs) -> Result<Plan> 
 /// Work of the windows of one texture's stages.
 struct Windows<'a> {
     stages: &'a [Stage],
-    /// Largest tap spacing, per stage (its dilation times the control map's maximum).
-    dilation: Vec<u64>,
     dilated: bool,
     initial: bool,
 }
 
 impl Windows<'_> {
     fn step_margin(&self, s: usize) -> u64 {
-        self.stages[s].kernel.radius as u64 * self.dilation[s]
+        self.stages[s].kernels.iter().map(|k| k.reach).max().unwrap_or(0) as u64
     }
 
     /// Work of stage `s` on a `w × h` window, as `Engine::field` computes it: initial values
@@ -104,8 +105,12 @@ impl Windows<'_> {
             let jitter = if st.jitter > 0.0 { NOISE * points } else { 0.0 };
             self.field(s - 1, fp(iw), fp(ih)) + UPSAMPLE * points + jitter
         };
-        let tap = if self.dilated { TAP_DILATED } else { TAP };
-        let per_point = st.kernel.taps.len() as f64 * tap + MAP;
+        // Under a dilation map a point blends two kernels of the ladder: count the largest twice.
+        let per_point = if self.dilated {
+            2.0 * st.kernels.iter().map(|k| k.taps.len()).max().unwrap_or(0) as f64 * TAP_DILATED + MAP
+        } else {
+            st.kernel().taps.len() as f64 * TAP + MAP
+        };
         let iterations: f64 =
             (1..=st.iterations as u64).map(|i| ((iw - 2 * i * e) * (ih - 2 * i * e)) as f64 * per_point).sum();
         init + iterations
@@ -121,18 +126,11 @@ fn footprint(n: u64, up: u32) -> u64 {
 fn plan_params(p: &Params, control: Option<(u32, u32)>, initial: Option<(u32, u32)>, create: bool) -> Result<Plan> {
     let stages = check(p, control, initial)?;
     palette::build(&p.palette)?;
-    let control_max = p.dilation_map.as_ref().map_or(1, |d| d.max) as u64;
-    let win = Windows {
-        stages: &stages,
-        dilation: stages.iter().map(|s| s.dilation as u64 * control_max).collect(),
-        dilated: control.is_some(),
-        initial: initial.is_some(),
-    };
+    let win = Windows { stages: &stages, dilated: control.is_some(), initial: initial.is_some() };
     let last = stages.len() - 1;
     let px = |size: Option<(u32, u32)>| size.map_or(0.0, |(w, h)| w as f64 * h as f64);
     let images = px(control) + px(initial);
     let levels = level_count(p.width, p.height);
-    let tile = (TILE * TILE) as f64;
 
     // Level 0 and the exact levels: the final stage's window of each chunk, read through the
     // palette, box-filtered down to the level.
@@ -160,31 +158,43 @@ fn plan_params(p: &Params, control: Option<(u32, u32)>, initial: Option<(u32, u3
     // Coarser levels: the finest stage whose lattice is at most 4 × 4 points a pixel, its
     // window evaluated and sampled q² times a pixel; beyond the coarsest stage, a guide image
     // sampled n² times a pixel (n up to 64), or a flat colour.
-    let prefiltered = |l: u32| -> f64 {
-        let work = match (0..=last).rev().find(|&s| stages[s].shift + 2 >= l) {
-            Some(s) => {
-                let shift = stages[s].shift;
-                let q = 1u64 << l.saturating_sub(shift);
-                let span = (((TILE << l) + (1 << shift)) >> shift) + 3;
-                win.field(s, span, span) + tile * (q * q) as f64 * SAMPLE
-            }
-            None => match cell {
-                Some(cell) => {
-                    let per_texel = ((1u64 << l.min(40)) / cell).clamp(4, 64);
-                    let (lw, lh) = level_size(p.width, p.height, l);
-                    let budget = libm::sqrt((1u64 << 22) as f64 / (lw * lh).min(TILE * TILE) as f64) as u64;
-                    let n = per_texel.min(budget.max(4)).next_power_of_two().min(1 << (l - 1));
-                    tile * (n * n) as f64 * GUIDE_SAMPLE
+    // Each pixel also sums its residual's terms, a hash a level.
+    let predicted = |l: u32, side: u64| -> f64 {
+        let pixels = (side * side) as f64;
+        let residual = pixels * (levels - l) as f64 * NOISE;
+        residual
+            + match (0..=last).rev().find(|&s| stages[s].shift + 2 >= l) {
+                Some(s) => {
+                    let shift = stages[s].shift;
+                    let q = 1u64 << l.saturating_sub(shift);
+                    let span = (((side << l) + (1 << shift)) >> shift) + 3;
+                    win.field(s, span, span) + pixels * (q * q) as f64 * SAMPLE
                 }
-                None => tile,
-            },
-        };
-        work + calibration
+                None => match cell {
+                    Some(cell) => {
+                        let per_texel = ((1u64 << l.min(40)) / cell).clamp(4, 64);
+                        let (lw, lh) = level_size(p.width, p.height, l);
+                        let budget = libm::sqrt((1u64 << 22) as f64 / (lw * lh).min(TILE * TILE) as f64) as u64;
+                        let n = per_texel.min(budget.max(4)).next_power_of_two().min(1 << (l - 1));
+                        pixels * (n * n) as f64 * GUIDE_SAMPLE
+                    }
+                    None => pixels,
+                },
+            }
     };
+    // The calibration's residuals: predictions of the windows' blocks at the levels they hold,
+    // and of 4 × 4 pixels a window beyond.
+    let residuals: f64 = (p.exact_levels + 1..levels.saturating_sub(1))
+        .map(|l| {
+            let side = if l <= CALIBRATION_WINDOW.trailing_zeros() { CALIBRATION_WINDOW >> l } else { 4 };
+            CALIBRATION_WINDOWS * predicted(l, side)
+        })
+        .sum();
+    let prefiltered = |l: u32| predicted(l, TILE) + calibration + residuals;
     let (tile_work, worst) = (0..levels)
         .map(|l| (if l <= p.exact_levels { exact(l) } else { prefiltered(l) }, l))
         .fold((0.0, 0), |a, b| if b.0 > a.0 { b } else { a });
-    let taps: Vec<String> = stages.iter().map(|s| s.kernel.taps.len().to_string()).collect();
+    let taps: Vec<String> = stages.iter().map(|s| s.kernel().taps.len().to_string()).collect();
     let iterations: Vec<String> = stages.iter().map(|s| s.iterations.to_string()).collect();
     let tile_why = format!(
         "{} stages × iterations [{}] × taps [{}] over margin-grown windows, level {worst} of a 256² tile",
@@ -195,9 +205,10 @@ fn plan_params(p: &Params, control: Option<(u32, u32)>, initial: Option<(u32, u3
 
     // Resident: the palette table, the calibration's tables, kernels and maps, the images as
     // one byte a texel.
-    let taps_total: f64 = stages.iter().map(|s| s.kernel.taps.len() as f64).sum();
+    let taps_total: f64 = stages.iter().flat_map(|s| &s.kernels).map(|k| k.taps.len() as f64).sum();
     let resident = 8.0 * palette::LUT_SIZE as f64
         + (stages.len() as f64 + 1.0) * BINS * 12.0
+        + levels as f64 * (RESIDUAL_BANDS * (QUANTILES * 12.0 + 4.0 + 24.0) + 64.0)
         + 32.0 * taps_total
         + 512.0 * stages.len() as f64
         + images

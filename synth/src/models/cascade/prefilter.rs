@@ -14,12 +14,17 @@
 //! * average the q² colours. When s is the final stage this is the exact block mean.
 //!
 //! Beyond the coarsest stage (2^L > 4 × its spacing) every block spans many independent
-//! dependency windows, so its mean is the texture's mean colour up to a deviation that
-//! shrinks like 1/2^L: those levels are the mean colour, flat. This is an approximation and
-//! the tests report how close it gets (PSNR against the exact downsample).
+//! dependency windows: the prediction there is a guide image's g, or the mean colour.
+//!
+//! A prediction is a conditional mean, so it varies less than the exact block means do (a
+//! single-stage texture's prediction is flat): a [`residual`](super::residual) with the
+//! exact downsample's measured distribution supplies the rest, so each level keeps the
+//! exact downsample's σ. This is an approximation and the tests report how close it gets
+//! (σ and PSNR against the exact downsample).
 
 use super::engine::STREAM_CALIBRATION;
 use super::lattice::{upsample, upsample_footprint};
+use super::residual::{self, luminance, Residual};
 use super::Cascade;
 use crate::hash::hash4;
 use crate::pixels::Rgba8Image;
@@ -33,6 +38,9 @@ const WINDOW: u32 = 32;
 /// A bin needs this many samples to be trusted; others are interpolated.
 const MIN_COUNT: f64 = 4.0;
 
+/// The finest level whose blocks the calibration windows measure whole.
+const MEASURED_LEVELS: u32 = WINDOW.trailing_zeros();
+
 /// Measured statistics of a texture for its prefiltered levels.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Calibration {
@@ -42,6 +50,11 @@ pub struct Calibration {
     pub image: Option<Vec<[f32; 3]>>,
     /// Mean colour of the texture.
     pub mean: [f32; 3],
+    /// Per level k, the weight of the residual field's term of level k (zero up to the exact
+    /// levels and at the top).
+    pub weights: Vec<f32>,
+    /// Per level, the residual's distribution; none up to the exact levels.
+    pub residuals: Vec<Option<Residual>>,
 }
 
 /// The image whose value predicts the local mean beyond the coarsest stage: the structured
@@ -77,9 +90,11 @@ impl Calibration {
         let mut sums = vec![vec![[0.0f64; 4]; BINS]; n + 1];
         let mut mean = [0.0f64; 3];
         let mut count = 0.0;
+        // The windows, aligned to whole blocks of the measured levels, are kept for the residuals.
+        let mut windows = Vec::with_capacity(WINDOWS as usize);
         for i in 0..WINDOWS {
             let h = hash4(e.seed, STREAM_CALIBRATION, i as i64, 1);
-            let (x, y) = (h, h.rotate_left(29));
+            let (x, y) = (h & !(WINDOW as u64 - 1), h.rotate_left(29) & !(WINDOW as u64 - 1));
             let img = tex.level0(x, y, WINDOW, WINDOW, stop)?;
             for p in img.data.chunks_exact(4) {
                 for c in 0..3 {
@@ -109,11 +124,95 @@ impl Calibration {
                     b[3] += 1.0;
                 }
             }
+            windows.push((x, y, img));
         }
         let mean = mean.map(|m| (m / count) as f32);
         let mut tables: Vec<Vec<[f32; 3]>> = sums.iter().map(|bins| fill(bins, mean)).collect();
         let image = tables.pop().filter(|_| guide(tex).is_some());
-        Some(Calibration { tables, image, mean })
+        let p = tex.params();
+        let levels = crate::texture::level_count(p.width, p.height) as usize;
+        let mut cal = Calibration { tables, image, mean, weights: vec![0.0; levels], residuals: vec![None; levels] };
+        cal.measure_residuals(tex, &windows, stop)?;
+        Some(cal)
+    }
+
+    /// The residuals: at each prefiltered level L up to the calibration window, measured
+    /// from the blocks of the calibration windows. Beyond, σ(exact) is extrapolated at the
+    /// ratio of the last two measured levels, the predictions' σ measured (they are cheap),
+    /// and the last measured distribution scaled to the σ they lack:
+    /// s_L² = σ²(exact) − σ²(predictions). The field's term of level k weighs 2^−k, the
+    /// spectrum of box-filtered white noise: at each level most of z's variance is its own
+    /// level's term, as for the short-range detail the residual stands for.
+    fn measure_residuals(&mut self, tex: &Cascade, windows: &[(u64, u64, Rgba8Image)], stop: &dyn Stop) -> Option<()> {
+        let e = tex.engine();
+        let levels = self.weights.len() as u32;
+        let first = tex.params().exact_levels + 1;
+        let sigma = |v: &[f32]| {
+            let n = v.len() as f64;
+            let m = v.iter().map(|&x| x as f64).sum::<f64>() / n;
+            (v.iter().map(|&x| (x as f64 - m).powi(2)).sum::<f64>() / n).sqrt()
+        };
+        let lum = |img: &Rgba8Image| -> Vec<f32> {
+            img.data.chunks_exact(4).map(|p| luminance([p[0] as f32, p[1] as f32, p[2] as f32])).collect()
+        };
+        let rgb = |p: &[u8]| [p[0] as f32, p[1] as f32, p[2] as f32];
+        // Luminance σ of the exact block means per level; the last measured residual at unit σ.
+        let mut exact_sigma = vec![0.0f64; levels as usize];
+        let mut shape: Option<Residual> = None;
+        for l in first..levels.saturating_sub(1) {
+            let at = l as usize;
+            if l > MEASURED_LEVELS {
+                let ratio = (exact_sigma[at - 1] / exact_sigma[at - 2]).clamp(0.5, 1.0);
+                exact_sigma[at] = if ratio.is_finite() { exact_sigma[at - 1] * ratio } else { 0.0 };
+                const SIDE: u32 = 4;
+                let mut predicted = Vec::new();
+                for i in 0..WINDOWS {
+                    let h = hash4(e.seed, STREAM_CALIBRATION, i as i64, 3);
+                    predicted.extend(lum(&render(tex, self, l, h, h.rotate_left(29), SIDE, SIDE, stop)?));
+                }
+                let s = (exact_sigma[at].powi(2) - sigma(&predicted).powi(2)).max(0.0).sqrt();
+                self.residuals[at] = shape.as_ref().map(|r| r.scaled(s as f32));
+                continue;
+            }
+            let (mut pairs, mut exact_lum) = (Vec::new(), Vec::new());
+            for (x, y, img) in windows {
+                let exact = crate::mip::downsample_n(img, l);
+                let side = WINDOW >> l;
+                let predicted = render(tex, self, l, x >> l, y >> l, side, side, stop)?;
+                exact_lum.extend(lum(&exact));
+                for (a, b) in exact.data.chunks_exact(4).zip(predicted.data.chunks_exact(4)) {
+                    let (a, b) = (rgb(a), rgb(b));
+                    pairs.push((b, [0, 1, 2].map(|c| a[c] - b[c])));
+                }
+            }
+            exact_sigma[at] = sigma(&exact_lum);
+            if let Some((r, s)) = Residual::measure(pairs) {
+                shape = (s > 0.0).then(|| r.scaled((1.0 / s) as f32)).or(shape);
+                self.residuals[at] = Some(r);
+            }
+        }
+        for k in first as usize..levels as usize - 1 {
+            self.weights[k] = libm::exp2f(-(k as f32));
+        }
+        Some(())
+    }
+
+    /// The residual field over `w × h` pixels of level `l` at (x, y), where the level has a residual.
+    fn field(&self, seed: u64, l: u32, x: u64, y: u64, w: u32, h: u32) -> Option<Vec<f32>> {
+        self.residuals[l as usize].as_ref()?;
+        residual::field(&self.weights, seed, l, x, y, w as usize, h as usize)
+    }
+
+    /// Pixel `at` of a region of level `l` whose prediction is `colour`, with its residual
+    /// from the region's field `z`, rounded.
+    #[inline]
+    fn pixel(&self, colour: [f32; 3], l: u32, z: Option<&[f32]>, at: usize) -> [u8; 4] {
+        let r = match (&self.residuals[l as usize], z) {
+            (Some(r), Some(z)) => r.at(luminance(colour), z[at]),
+            _ => [0.0; 3],
+        };
+        let p = [0, 1, 2].map(|c| (colour[c] + r[c] + 0.5).floor().clamp(0.0, 255.0) as u8);
+        [p[0], p[1], p[2], 255]
     }
 }
 
@@ -175,6 +274,7 @@ pub fn render(
     let e = tex.engine();
     let last = e.stages.len() - 1;
     let mut img = Rgba8Image::new(w, h);
+    let z = cal.field(e.seed, l, x, y, w, h);
     let Some(s) = (0..=last).rev().find(|&s| e.stages[s].shift + 2 >= l) else {
         if let (Some(guide), Some(table)) = (guide(tex), &cal.image) {
             // A guide image (texture transfer, dilation map) carries structure at every
@@ -210,20 +310,20 @@ pub fn render(
                             (0..3).for_each(|k| acc[k] += c[k]);
                         }
                     }
-                    let p = acc.map(|v| (v * inv + 0.5).floor().clamp(0.0, 255.0) as u8);
-                    img.set_pixel(i as u32, j as u32, [p[0], p[1], p[2], 255]);
+                    let at = (j * w as u64 + i) as usize;
+                    img.set_pixel(i as u32, j as u32, cal.pixel(acc.map(|v| v * inv), l, z.as_deref(), at));
                 }
             }
             return Some(img);
         }
-        // Flat, but still a row at a time: a region may be as large as a render allows.
-        let px = cal.mean.map(|m| (m + 0.5).floor() as u8);
-        for row in img.data.chunks_exact_mut(w as usize * 4) {
+        // The mean colour and the residual, a row at a time: a region may be as large as a
+        // render allows.
+        for j in 0..h {
             if stop.requested() {
                 return None;
             }
-            for p in row.chunks_exact_mut(4) {
-                p.copy_from_slice(&[px[0], px[1], px[2], 255]);
+            for i in 0..w {
+                img.set_pixel(i, j, cal.pixel(cal.mean, l, z.as_deref(), (j * w + i) as usize));
             }
         }
         return Some(img);
@@ -265,8 +365,8 @@ pub fn render(
                     }
                 }
             }
-            let px = acc.map(|v| (v * inv_n + 0.5).floor().clamp(0.0, 255.0) as u8);
-            img.set_pixel(i as u32, j as u32, [px[0], px[1], px[2], 255]);
+            let at = j as usize * w as usize + i;
+            img.set_pixel(i as u32, j as u32, cal.pixel(acc.map(|v| v * inv_n), l, z.as_deref(), at));
         }
     }
     Some(img)

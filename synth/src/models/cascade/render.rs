@@ -173,8 +173,9 @@ mod tests {
             let differ = full.v.iter().zip(&short.v).filter(|(a, b)| a != b).count();
             assert!(differ > 0, "stage {s}: a margin one point short went unnoticed");
         }
-        // The margins are the formula k·r·d: 5·2·1, 3·1·1, 2·3·2.
-        assert_eq!((0..=last).map(|s| e.margin(s)).collect::<Vec<_>>(), vec![10, 3, 12]);
+        // The margins are iterations × reach: 5·2, 3·1, and 2·7 for the 7×7 dilated by 2 (the
+        // continuous kernel spans 2·(3 + 1) = 8 points each side and vanishes at the 8th).
+        assert_eq!((0..=last).map(|s| e.margin(s)).collect::<Vec<_>>(), vec![10, 3, 14]);
     }
 
     #[test]
@@ -183,9 +184,11 @@ mod tests {
         let white = Rgba8Image::from_raw(2, 2, vec![255; 16]).unwrap();
         inputs.insert("control".into(), white.to_png());
         let params = json!({"seed": 2, "stages": [{"kernel": {"size": 3, "preset": "box"}, "map": {"kind": "logistic", "r": 3.9}, "iterations": 4}],
-                            "dilation_map": {"max": 3, "cell": 8}});
+                            "dilation_map": {"max": 2, "cell": 8}});
         let t = load(&create("d", &params, &inputs).unwrap()).unwrap();
         let e = t.engine();
+        // Dilated by 2 the 3×3 box spans 2·(1 + 1) = 4 points each side and vanishes at the
+        // 4th: it reaches 3.
         assert_eq!(e.margin(0), 4 * 3);
         let full = e.field(0, 5, 5, 30, 30);
         assert_ne!(e.field_with(0, 5, 5, 30, 30, Some(0), &Never), Some(full));
