@@ -11,6 +11,7 @@
 //! * [`histogram`] — per-channel 1-D Wasserstein (W1) distance between colour histograms.
 //! * [`patch_sw`] — sliced-Wasserstein distance between patch distributions at several
 //!   pyramid scales.
+//! * [`mip`] — PSNR of served coarse levels against the exact box chain, point sampling beside.
 //!
 //! [`report`] gathers them for one output; [`gimp_pattern`] and [`sample`] read and prepare the
 //! real samples the `quality-report` binary judges the models on.
@@ -24,6 +25,7 @@ pub mod contrast;
 pub mod gimp_pattern;
 pub mod histogram;
 pub mod luma;
+pub mod mip;
 pub mod patch_sw;
 pub mod repetition;
 pub mod report;

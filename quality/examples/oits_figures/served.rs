@@ -8,11 +8,11 @@ use super::Out;
 use serde_json::json;
 use std::fmt::Write as _;
 use std::time::Instant;
+use vtex_quality::mip::psnr_by_level;
 use vtex_quality::patch_sw::SwParams;
 use vtex_quality::report::measure;
 use vtex_quality::seam::Mask;
 use vtex_synth::bundle::Bundle;
-use vtex_synth::mip::{downsample_n, psnr};
 use vtex_synth::models::order_independent::cache::BlockCache;
 use vtex_synth::models::order_independent::{self, prefilter};
 use vtex_synth::models::{self, Inputs};
@@ -69,23 +69,16 @@ pub fn fig_mip(out: &Out) {
     let mut lines = Vec::new();
     for (i, bundle) in order_independent::demos().iter().enumerate() {
         let name = demo_name(bundle);
-        let texture = models::load(bundle).expect("a demo loads");
-        let params = order_independent::load(bundle).expect("a demo loads").params().clone();
-        let level0 = render_image(texture.as_ref(), &Region::new(0, 0, 0, WINDOW, WINDOW)).expect("a valid region");
+        let texture = order_independent::load(bundle).expect("a demo loads");
         let mut points = Vec::new();
-        for l in 1..=LEVELS {
-            let side = WINDOW >> l;
-            let served = render_image(texture.as_ref(), &Region::new(l, 0, 0, side, side)).expect("a valid region");
-            let exact = downsample_n(&level0, l);
-            let point = point_sample(&level0, l);
-            let source = match prefilter::source(&params, l) {
+        for m in psnr_by_level(&texture, WINDOW, LEVELS).expect("valid regions") {
+            let source = match prefilter::source(texture.params(), m.level) {
                 prefilter::Source::Exact => "exact".to_string(),
                 prefilter::Source::Pyramid { r } => format!("pyramid r={r}"),
                 prefilter::Source::Mean => "mean".to_string(),
             };
-            let (db, point_db) = (psnr(&served, &exact), psnr(&point, &exact));
-            writeln!(csv, "{name},{l},{source},{db:.2},{point_db:.2}").unwrap();
-            points.push((l as f64, db.min(60.0)));
+            writeln!(csv, "{name},{},{source},{:.2},{:.2}", m.level, m.served_db, m.point_db).unwrap();
+            points.push((m.level as f64, m.served_db.min(60.0)));
         }
         lines.push(Series { name: name.to_uppercase(), color: PALETTE[i], points });
     }
@@ -109,20 +102,6 @@ pub fn fig_mip(out: &Out) {
 
 fn demo_name(bundle: &Bundle) -> String {
     bundle.manifest.name.split(" — ").nth(1).unwrap_or(&bundle.manifest.name).to_string()
-}
-
-/// Every 2^l-th pixel of `img`: what a level looks like without prefiltering.
-fn point_sample(img: &Rgba8Image, l: u32) -> Rgba8Image {
-    let (w, h) = (img.width >> l, img.height >> l);
-    let mut out = Rgba8Image::new(w, h);
-    for y in 0..h {
-        for x in 0..w {
-            let from = (((y << l) * img.width + (x << l)) * 4) as usize;
-            let to = ((y * w + x) * 4) as usize;
-            out.data[to..to + 4].copy_from_slice(&img.data[from..from + 4]);
-        }
-    }
-    out
 }
 
 /// F9b: a viewer's session — zoom in from level 4 to level 0, pan at level 0, zoom out to
