@@ -4,7 +4,7 @@
 
 use std::time::Instant;
 use vtex_synth::models::{cascade, load};
-use vtex_synth::texture::{Region, Texture};
+use vtex_synth::texture::Region;
 use vtex_synth::Never;
 
 fn ms(t: Instant) -> f64 {
