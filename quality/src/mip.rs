@@ -1,6 +1,5 @@
 //! Mip coherence measured: how close a texture's served coarse levels are to the exact 2×2 box
-//! chain of its level 0 (DESIGN §3.3), with point sampling (no prefilter, the aliasing
-//! baseline) beside it.
+//! chain of its level 0, with point sampling (no prefilter, the aliasing baseline) beside it.
 
 use vtex_synth::mip::{downsample_n, psnr};
 use vtex_synth::texture::render_image;

@@ -50,9 +50,9 @@ pub struct BlockCache {
 }
 
 impl BlockCache {
-    /// An empty cache of `side` × `side` blocks (`side` a multiple of 8), with no budget.
+    /// An empty cache of `side` × `side` blocks, with no budget.
     pub fn new(side: i64) -> BlockCache {
-        assert!(side > 0 && side % 8 == 0, "a block side is a positive multiple of 8");
+        assert!(side > 0, "a block side is positive");
         BlockCache {
             side,
             budget: AtomicU64::new(0),
