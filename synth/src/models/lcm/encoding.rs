@@ -498,7 +498,7 @@ pub fn load(bundle: &Bundle) -> Result<LcmTexture> {
             let codes =
                 masks[l.share.unwrap_or(n)].as_deref().expect("checked: shared LCMs are an earlier layer's own");
             let (w, h) = (l.lcm[0] as usize, l.lcm[1] as usize);
-            Layer::new(l.layer, quantized_weight(l.weight), w, h, codes, planes)
+            Layer::new(l.layer, quantized_weight(l.weight), w, h, codes)
         })
         .collect::<Vec<_>>();
     if p.order == Order::BottomUp {

@@ -23,9 +23,10 @@ pub enum Sign {
 }
 
 /// How a replication pixel `b` updates the current intensity `a` (paper §2.2).
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
 pub enum Operation {
     /// a ← a + b.
+    #[default]
     Add,
     /// a ← b where the element pixel is not transparent (non-zero), else a.
     NonZero,

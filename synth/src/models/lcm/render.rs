@@ -91,24 +91,24 @@ impl LcmTexture {
             }
             let y = wrap(region.y + row as i64, lh);
             cnt.start_row(width);
-            for (p, acc) in planes.iter_mut().enumerate() {
-                acc.fill(0);
-                for (n, layer) in self.layers.iter().enumerate() {
-                    let r = self.resolution(layer, region.level);
-                    let mut cx = 0;
-                    for &(x0, len) in &runs {
-                        let seg = &mut acc[cx..cx + len];
-                        if r >= 1 {
-                            layer.apply_native(&self.copies[p], r as u32, y, x0, seg, None, n == 0, cnt, cx);
-                        } else {
-                            layer.apply_prefiltered(&self.copies[p], p, r, y, x0, seg);
-                        }
-                        cx += len;
+            planes.iter_mut().for_each(|p| p.fill(0));
+            for (n, layer) in self.layers.iter().enumerate() {
+                let r = self.resolution(layer, region.level);
+                let mut cx = 0;
+                for &(x0, len) in &runs {
+                    let mut seg: Vec<&mut [i64]> = planes.iter_mut().map(|p| &mut p[cx..cx + len]).collect();
+                    if r >= 1 {
+                        layer.apply_native(&self.copies, r as u32, y, x0, &mut seg, None, n == 0, cnt, cx);
+                    } else {
+                        layer.apply_prefiltered(&self.copies, r, y, x0, &mut seg);
                     }
+                    cx += len;
                 }
-                // The final step (§2.2): the background intensity.
+            }
+            // The final step (§2.2): the background intensity.
+            for (acc, &background) in planes.iter_mut().zip(&self.background) {
                 for (x, a) in acc.iter_mut().enumerate() {
-                    *a += self.background[p];
+                    *a += background;
                     cnt.add(x, 1);
                 }
             }
