@@ -194,9 +194,16 @@ export async function fetchServerTile(serverUrl, info, level, tx, ty, frame) {
 export async function compareScreenToServerTile(page, serverUrl, info, level, lx, ly, size = 32, frame) {
   const ts = info.tile_size;
   const tile = await fetchServerTile(serverUrl, info, level, Math.floor(lx / ts), Math.floor(ly / ts), frame);
-  const ox = lx % ts;
-  const oy = ly % ts;
-  if (!(ox + size <= tile.width && oy + size <= tile.height)) throw new Error('the patch is not inside one tile');
+  return compareScreenToImage(page, tile, lx % ts, ly % ts, level, lx, ly, size);
+}
+
+/**
+ * Compares a `size`² patch of the screen whose top-left shows level-`level` pixel (lx, ly) at
+ * 1:1 against `image` ({ width, height, data: RGBA rows }) from its pixel (ox, oy). Returns the
+ * largest channel difference (alpha ignored).
+ */
+export async function compareScreenToImage(page, image, ox, oy, level, lx, ly, size = 32) {
+  if (!(ox + size <= image.width && oy + size <= image.height)) throw new Error('the patch is not inside the image');
   const s = 2 ** level;
   const at = await screenPointOf(page, lx * s, ly * s);
   const shot = decodePng(await page.screenshot({ clip: { x: Math.round(at.px), y: Math.round(at.py), width: size, height: size } }));
@@ -204,8 +211,8 @@ export async function compareScreenToServerTile(page, serverUrl, info, level, lx
   for (let j = 0; j < size; j++) {
     for (let i = 0; i < size; i++) {
       const a = (j * size + i) * 4;
-      const b = ((oy + j) * tile.width + ox + i) * 4;
-      for (let c = 0; c < 3; c++) worst = Math.max(worst, Math.abs(shot.data[a + c] - tile.data[b + c]));
+      const b = ((oy + j) * image.width + ox + i) * 4;
+      for (let c = 0; c < 3; c++) worst = Math.max(worst, Math.abs(shot.data[a + c] - image.data[b + c]));
     }
   }
   return worst;
