@@ -19,11 +19,14 @@ export const CHROMIUM = process.env.CHROMIUM || '/usr/bin/chromium';
 // VTEX_WEB_DIR: another build of the viewer (the bench's A/B comparisons).
 export const WEB_DIR = process.env.VTEX_WEB_DIR || join(ROOT, 'client-web', 'dist');
 
-/** Starts `vtex serve` on 127.0.0.1:0 with a fresh data dir; resolves once it prints its URL. */
-export async function startServer({ extraArgs = [] } = {}) {
+/**
+ * Starts `vtex serve` on 127.0.0.1:0 with a fresh data dir (or `dataDir`, kept at stop);
+ * resolves once it prints its URL.
+ */
+export async function startServer({ extraArgs = [], dataDir: keptDir = null } = {}) {
   if (!existsSync(VTEX_BIN)) throw new Error(`${VTEX_BIN} not found: run cargo build --release -p vtex-server`);
   if (!existsSync(join(WEB_DIR, 'index.html'))) throw new Error(`${WEB_DIR} not built: run npm ci && npm run build in client-web/`);
-  const dataDir = mkdtempSync(join(tmpdir(), 'vtex-browser-data-'));
+  const dataDir = keptDir || mkdtempSync(join(tmpdir(), 'vtex-browser-data-'));
   const proc = spawn(
     VTEX_BIN,
     ['serve', '--bind', '127.0.0.1:0', '--data-dir', dataDir, '--web-dir', WEB_DIR, ...extraArgs],
@@ -51,13 +54,14 @@ export async function startServer({ extraArgs = [] } = {}) {
   return {
     url,
     dataDir,
+    pid: proc.pid,
     stderr: () => stderr,
     async stop() {
       if (proc.exitCode === null) {
         proc.kill('SIGTERM');
         await exited(proc);
       }
-      rmSync(dataDir, { recursive: true, force: true });
+      if (!keptDir) rmSync(dataDir, { recursive: true, force: true });
     },
   };
 }
@@ -102,6 +106,7 @@ export async function launchBrowser({ width = 1280, height = 800 } = {}) {
   });
   return {
     context,
+    profile,
     async close() {
       await context.close();
       rmSync(profile, { recursive: true, force: true });
