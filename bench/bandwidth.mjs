@@ -10,6 +10,7 @@
 //        [--modes png,webp,jpg,rgba,client] [--profiles loopback,10mbit,slow4g]
 //        [--slow-modes jpg,client] [--cap 150]
 //        [--samples 6] [--out docs] [--json bench/results/bandwidth.json]
+//   node bench/bandwidth.mjs --render bench/results/bandwidth.json   (tables and plot again)
 //
 // (It takes the lock itself when started without it.) Needs target/release/vtex, the viewer
 // built with the module (client-web/dist/vtex_synth.wasm) and Debian's Chromium, as the browser
@@ -30,7 +31,7 @@ import { parseArgs } from 'node:util';
 import { ROOT, CHROMIUM, launchBrowser, startServer, waitForIdle } from '../tests/browser/lib.mjs';
 
 const LOCK = '/tmp/vtex-bench.lock';
-if (!process.env.VTEX_BENCH_LOCKED) {
+if (!process.env.VTEX_BENCH_LOCKED && !process.argv.includes('--render')) {
   const r = spawnSync('flock', [LOCK, process.execPath, ...process.argv.slice(1)], {
     stdio: 'inherit',
     env: { ...process.env, VTEX_BENCH_LOCKED: '1' },
@@ -54,6 +55,8 @@ const { values: args } = parseArgs({
     height: { type: 'string', default: '640' },
     out: { type: 'string', default: join(ROOT, 'docs') },
     json: { type: 'string', default: join(ROOT, 'bench', 'results', 'bandwidth.json') },
+    // Writes the tables and the plot again from a JSON of an earlier run, running nothing.
+    render: { type: 'string' },
   },
 });
 const MODES = args.modes.split(',');
@@ -256,7 +259,7 @@ const sec = (ms) => (ms === undefined ? '–' : `${(ms / 1000).toFixed(2)} s`);
 const times = (a, b) => (b > 0 ? `${(a / b).toFixed(a / b >= 100 ? 0 : 1)}×` : '–');
 
 /** The paper's storage arithmetic (§3.1–3.3) beside the 100k chaos mosaic's encoding. */
-function paperSection(results, textures) {
+function paperSection(mosaic) {
   const m = 5000;
   const n = 128;
   const blocks = (12 * m * m) / (n * n);
@@ -267,7 +270,6 @@ function paperSection(results, textures) {
     `- One random block per tile costs 12 bytes, so an m × m texture from an n × n sample needs 12·m²/n² bytes of blocks: for m = ${m}, n = ${n}, ${Math.round(blocks).toLocaleString('en-US')} B; with the 24-bit sample (${sample.toLocaleString('en-US')} B) ${Math.round(blocks + sample).toLocaleString('en-US')} B — the paper's "about 67 Kb".`,
     `- The explicit ${m}² texture is ${(m * m * 3).toLocaleString('en-US')} B, n²/4 = ${((m * m * 3) / blocks).toFixed(0)} times the blocks (the paper's "4,000 times smaller"), ${((m * m * 3) / (blocks + sample)).toFixed(0)} times blocks and sample.`,
   ];
-  const mosaic = textures.find((t) => t.name === FLAGSHIPS['chaos-mosaic']);
   if (mosaic) {
     const mm = mosaic.width;
     const nn = mm / 625;
@@ -298,10 +300,10 @@ function modelSection(model, info, explicit, rows) {
 /** Per model: the best tile format's session bytes against client mode's, and the first views at 10 Mbit/s. */
 function summary(byModel) {
   const out = [
-    '| model | best tile format: session bytes | client mode: session bytes (module + encoding + viewer) | ratio | without the module (cached) | tile bytes : encoding | first complete view at 10 Mbit/s, best tile format / client |',
-    '|---|---|---|---|---|---|---|',
+    '| model | best tile format: session bytes | client mode: session bytes (module + encoding + viewer) | ratio | without the module (cached) | tile bytes : encoding | first complete view at 10 Mbit/s, best tile format / client | end of session at 10 Mbit/s, best tile format / client | explicit JPEG pyramid : encoding |',
+    '|---|---|---|---|---|---|---|---|---|',
   ];
-  for (const [model, { rows }] of byModel) {
+  for (const [model, { rows, info, explicit }] of byModel) {
     const ref = rows.filter((r) => r.profile === (rows.some((x) => x.profile === '10mbit') ? '10mbit' : rows[0].profile));
     const server = ref.filter((r) => r.mode !== 'client' && r.complete).sort((a, b) => a.total - b.total)[0];
     const client = ref.find((r) => r.mode === 'client');
@@ -310,8 +312,9 @@ function summary(byModel) {
       .filter((r) => r.profile === '10mbit' && r.mode !== 'client' && r.firstViewMs !== undefined)
       .sort((a, b) => a.firstViewMs - b.firstViewMs)[0];
     const clientFirst = rows.find((r) => r.profile === '10mbit' && r.mode === 'client');
+    const serverEnd = rows.find((r) => r.profile === '10mbit' && r.mode === server.mode);
     out.push(
-      `| ${model} | ${server.mode}: ${MB(server.total)} | ${MB(client.total)} | ${times(server.total, client.total)} | ${times(server.total, client.total - client.bytes.module)} | ${times(server.bytes.tiles, client.bytes.encoding)} | ${fastest ? `${fastest.mode} ${sec(fastest.firstViewMs)}` : '–'} / ${sec(clientFirst?.firstViewMs)} |`,
+      `| ${model} | ${server.mode}: ${MB(server.total)} | ${MB(client.total)} | ${times(server.total, client.total)} | ${times(server.total, client.total - client.bytes.module)} | ${times(server.bytes.tiles, client.bytes.encoding)} | ${fastest ? `${fastest.mode} ${sec(fastest.firstViewMs)}` : '–'} / ${sec(clientFirst?.firstViewMs)} | ${serverEnd ? `${serverEnd.mode} ${sec(serverEnd.endMs)}` : '–'} / ${sec(clientFirst?.endMs)} | ${times(explicit.jpg, info.encoding_bytes)} |`,
     );
   }
   return out.join('\n');
@@ -320,13 +323,15 @@ function summary(byModel) {
 /** A log-scale bar chart of session bytes, per model and mode (the 10 Mbit/s runs, else the first profile). */
 function plot(byModel) {
   const models = [...byModel.keys()];
+  const anyRows = [...byModel.values()][0].rows;
+  const profileNote = PROFILES[anyRows.some((r) => r.profile === '10mbit') ? '10mbit' : anyRows[0].profile].label;
   const colours = { png: '#4e79a7', webp: '#59a14f', jpg: '#f28e2b', rgba: '#bab0ac', client: '#e15759' };
-  const W = 860;
-  const H = 360;
+  const W = 980;
+  const H = 380;
   const left = 70;
   const bottom = 300;
   const top = 30;
-  const lo = 4; // 10 kB
+  const lo = 2; // 100 B: the smallest encodings
   const hi = 9; // 1 GB
   const y = (b) => bottom - ((Math.log10(Math.max(b, 10 ** lo)) - lo) / (hi - lo)) * (bottom - top);
   const group = (W - left - 20) / models.length;
@@ -337,7 +342,7 @@ function plot(byModel) {
     `<text x="${left}" y="18" font-size="14">Bytes on the wire for one pan-and-zoom session (log scale): server tiles by format vs client synthesis</text>`,
   ];
   for (let e = lo; e <= hi; e++) {
-    const label = ['10 kB', '100 kB', '1 MB', '10 MB', '100 MB', '1 GB'][e - lo];
+    const label = ['100 B', '1 kB', '10 kB', '100 kB', '1 MB', '10 MB', '100 MB', '1 GB'][e - lo];
     parts.push(`<line x1="${left}" x2="${W - 20}" y1="${y(10 ** e)}" y2="${y(10 ** e)}" stroke="#ddd"/>`);
     parts.push(`<text x="${left - 6}" y="${y(10 ** e) + 4}" text-anchor="end">${label}</text>`);
   }
@@ -349,13 +354,19 @@ function plot(byModel) {
       if (!r) return;
       const x = left + i * group + 10 + j * bar;
       parts.push(`<rect x="${x.toFixed(1)}" y="${y(r.total).toFixed(1)}" width="${(bar - 2).toFixed(1)}" height="${(bottom - y(r.total)).toFixed(1)}" fill="${colours[mode]}"><title>${model} ${mode}: ${MB(r.total)}</title></rect>`);
+      // Inside each bar: what the texture itself cost (its tiles, or its encoding).
+      const own = mode === 'client' ? r.bytes.encoding : r.bytes.tiles;
+      parts.push(`<line x1="${x.toFixed(1)}" x2="${(x + bar - 2).toFixed(1)}" y1="${y(own).toFixed(1)}" y2="${y(own).toFixed(1)}" stroke="#000" stroke-width="2" stroke-dasharray="4 2"><title>${model} ${mode}: ${mode === 'client' ? 'encoding' : 'tiles'} ${MB(own)}</title></line>`);
     });
     parts.push(`<text x="${left + i * group + group / 2}" y="${bottom + 18}" text-anchor="middle">${model}</text>`);
   });
   MODES.forEach((mode, j) => {
-    parts.push(`<rect x="${left + j * 110}" y="${H - 28}" width="12" height="12" fill="${colours[mode]}"/>`);
-    parts.push(`<text x="${left + j * 110 + 16}" y="${H - 18}">${mode === 'client' ? 'client synthesis' : `${mode} tiles`}</text>`);
+    parts.push(`<rect x="${left + j * 130}" y="${H - 48}" width="12" height="12" fill="${colours[mode]}"/>`);
+    parts.push(`<text x="${left + j * 130 + 16}" y="${H - 38}">${mode === 'client' ? 'client synthesis' : `${mode} tiles`}</text>`);
   });
+  parts.push(`<line x1="${left}" x2="${left + 18}" y1="${H - 16}" y2="${H - 16}" stroke="#000" stroke-width="2" stroke-dasharray="4 2"/>`);
+  parts.push(`<text x="${left + 24}" y="${H - 12}">in each bar: the texture's own bytes, its tiles or its encoding (the rest is the viewer's code, and the module in client mode)</text>`);
+  parts.push(`<text x="${W - 20}" y="${bottom + 34}" text-anchor="end" fill="#555">${profileNote}</text>`);
   parts.push('</svg>');
   return parts.join('\n');
 }
@@ -390,15 +401,31 @@ async function main() {
       byModel.set(model, { info, explicit, rows, load: [load0, loadavg()[0]] });
     }
     const when = new Date().toISOString().slice(0, 16).replace('T', ' ');
+    const run = { when, commit, chromium, args, argv: process.argv.slice(2), size: SIZE, cap: args.cap, results: Object.fromEntries(byModel) };
+    mkdirSync(dirname(args.json), { recursive: true });
+    writeFileSync(args.json, JSON.stringify(run, null, 1));
+    write(run);
+  } finally {
+    rmSync(dataDir, { recursive: true, force: true });
+  }
+}
+
+/** Writes docs/bandwidth.md and docs/bandwidth.svg from a run's figures. */
+function write(run) {
+  const { when, commit, chromium, results } = run;
+  // Runs written before the file recorded these: their defaults.
+  const { argv = ['--json', run.args.json.replace(`${ROOT}/`, '')], size = SIZE, cap = args.cap } = run;
+  const byModel = new Map(Object.entries(results));
+  {
     const loads = [...byModel].map(([m, v]) => `${m} ${v.load.map((l) => l.toFixed(1)).join('→')}`).join(', ');
     const md = [
       '# The bandwidth experiment: server tiles against client synthesis',
       '',
-      `Written by \`node bench/bandwidth.mjs ${process.argv.slice(2).join(' ')}\` (${when} UTC, commit ${commit}, ${chromium}, ${cpus().length} cores shared with other work; load average at the start → end of each model: ${loads}). How to read it and what it shows: \`docs/client-synthesis.md\`, "The bandwidth experiment".`,
+      `Written by \`node bench/bandwidth.mjs ${argv.join(' ')}\` (${when} UTC, commit ${commit}, ${chromium}, ${cpus().length} cores shared with other work; load average at the start → end of each model: ${loads}). How to read it and what it shows: \`docs/client-synthesis.md\`, "The bandwidth experiment".`,
       '',
-      `Session: the whole texture, then ${SESSION.length} views (zooms to level 0, pans there, jumps, zooms out and in elsewhere), each applied at once after the previous one was complete, in a ${SIZE.width} × ${SIZE.height} viewport. Fresh server and browser profile per session; sessions cut at ${args.cap} s.`,
+      `Session: the whole texture, then ${SESSION.length} views (zooms to level 0, pans there, jumps, zooms out and in elsewhere), each applied at once after the previous one was complete, in a ${size.width} × ${size.height} viewport. Fresh server and browser profile per session; sessions cut at ${cap} s.`,
       '',
-      paperSection(byModel, textures),
+      paperSection(byModel.get('chaos-mosaic')?.info),
       '',
       '## Summary',
       '',
@@ -414,12 +441,9 @@ async function main() {
     mkdirSync(args.out, { recursive: true });
     writeFileSync(join(args.out, 'bandwidth.md'), md);
     writeFileSync(join(args.out, 'bandwidth.svg'), plot(byModel));
-    mkdirSync(dirname(args.json), { recursive: true });
-    writeFileSync(args.json, JSON.stringify({ when, commit, chromium, args, results: Object.fromEntries(byModel) }, null, 1));
-    console.error(`wrote ${join(args.out, 'bandwidth.md')}, bandwidth.svg and ${args.json}`);
-  } finally {
-    rmSync(dataDir, { recursive: true, force: true });
+    console.error(`wrote ${join(args.out, 'bandwidth.md')} and bandwidth.svg`);
   }
 }
 
-await main();
+if (args.render) write(JSON.parse(readFileSync(args.render, 'utf8')));
+else await main();
