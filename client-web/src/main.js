@@ -7,6 +7,7 @@ import { FORMATS, parseView, formatView } from './view-url.js';
 import { DEFAULT_DETAIL, DETAIL, drawLevel, vtexLevel } from './pyramid.js';
 import { updateEarly } from './loader.js';
 import { fetchWantedLevels, keepBatchesOnDraw, vtexDrawer } from './osd-adapter.js';
+import { ClientSynth, staticExport } from './client-synth.js';
 
 const OSD = window.OpenSeadragon;
 const $ = (id) => document.getElementById(id);
@@ -30,6 +31,12 @@ const state = {
   format: DEFAULT_FORMAT,
   /** How fine a level is drawn (pyramid.js DETAIL). */
   detail: DEFAULT_DETAIL,
+  /** Where tiles are made: 'server', or 'client' (in this page from the encoding; client-synth.js). */
+  synthMode: 'server',
+  /** The ClientSynth of the open texture in client mode. */
+  synth: null,
+  /** A static export's description (no server: client mode only), else null. */
+  exported: null,
   /** A frame being loaded behind the visible one (invisible until fully loaded). */
   pending: null,
   playing: false,
@@ -141,10 +148,26 @@ function openTexture(info, view = {}) {
   if (view.detail) state.detail = view.detail;
   $('detail').value = state.detail;
   viewer.minPixelRatio = DETAIL[state.detail]; // read by every tiled image added from now on
-  const source = createTileSource(OSD, info, { frame: state.frame, format: state.format, stats });
+  if (view.synth) state.synthMode = view.synth;
+  $('synth').value = state.synthMode;
+  $('format').disabled = state.synthMode === 'client';
+  const source = createTileSource(OSD, info, { frame: state.frame, format: state.format, stats, synth: synthFor(info) });
   state.opening = { source, view, seq };
   state.item = null;
   viewer.open(source);
+}
+
+/** The ClientSynth of `info` in client mode (one per open texture, every frame's), else null. */
+function synthFor(info) {
+  if (state.synth && (state.synthMode !== 'client' || state.synth.info.id !== info.id)) {
+    state.synth.close();
+    state.synth = null;
+  }
+  if (state.synthMode !== 'client' || state.synth) return state.synth;
+  const synth = new ClientSynth(info, { stats, encodingUrl: state.exported?.encodings[info.id] });
+  synth.ready.catch((e) => state.synth === synth && showError(e.message));
+  state.synth = synth;
+  return synth;
 }
 
 // Only the most recent open counts: a texture picked while another was still opening wins.
@@ -176,6 +199,7 @@ function getView() {
     frame: state.frame,
     format: state.format === DEFAULT_FORMAT ? undefined : state.format,
     detail: state.detail === DEFAULT_DETAIL ? undefined : state.detail,
+    synth: state.synthMode === 'client' && !state.exported ? 'client' : undefined,
   };
 }
 
@@ -329,7 +353,7 @@ function showFrame(frame) {
   }
   const seq = state.openSeq;
   viewer.addTiledImage({
-    tileSource: createTileSource(OSD, info, { frame, format: state.format, stats }),
+    tileSource: createTileSource(OSD, info, { frame, format: state.format, stats, synth: state.synth }),
     opacity: 0,
     preload: true,
     success: ({ item }) => {
@@ -432,6 +456,12 @@ $('detail').addEventListener('change', (e) => {
   openTexture(state.info, { ...view, detail: e.target.value });
 });
 
+$('synth').addEventListener('change', (e) => {
+  if (!['server', 'client'].includes(e.target.value) || !state.info) return;
+  showError('');
+  openTexture(state.info, { ...(getView() || {}), synth: e.target.value });
+});
+
 $('texture-picker').addEventListener('change', (e) => {
   const info = findTexture(e.target.value);
   if (info) openTexture(info);
@@ -465,10 +495,15 @@ async function start() {
   renderStats();
   const view = parseView(location.search);
   try {
-    state.textures = (await getJson('/api/v1/textures')).textures;
+    state.exported = await staticExport();
+    state.textures = state.exported ? state.exported.textures : (await getJson('/api/v1/textures')).textures;
   } catch (e) {
     showError(`Could not list textures: ${e.message}`);
     return;
+  }
+  if (state.exported) {
+    state.synthMode = 'client';
+    $('synth').disabled = true;
   }
   if (state.textures.length === 0) {
     showError('The server has no textures yet. Upload one with POST /api/v1/textures.');

@@ -4,18 +4,22 @@
 // "imageBitmap", which the viewer's drawer draws as it is (osd-adapter.js). Each tile reports
 // what the server says about it (cache hit or miss) and how long it took. Formats: png / webp
 // (lossless), jpg (lossy, smallest) and rgba (raw: no decoding, the fastest on a fast link).
+// In client mode the tiles are synthesized in the page instead (client-synth.js): no request.
 
 import { inPyramid, tileUrl, vtexLevel } from './pyramid.js';
 import { MAX_BATCH, batchUrl, tileKey } from './batch.js';
 
 /**
  * Makes the tile source for texture `info` (the server's info JSON) at animation `frame`.
- * `stats` is a TileStats that every download reports to.
+ * `stats` is a TileStats that every download reports to. With `synth` (a ClientSynth of
+ * `info`), tiles are synthesized in the page and `format` is not used.
  */
-export function createTileSource(OSD, info, { frame = 0, format = 'png', stats }) {
-  const loader = tileLoader(stats);
+export function createTileSource(OSD, info, { frame = 0, format = 'png', stats, synth = null }) {
+  const loader = synth ? null : tileLoader(stats);
   const inFlight = new Set();
   const context = { loader, info, frame, format, stats, inFlight };
+  const load = synth ? (jobs, c) => synth.loadJobs(jobs, c) : loadBatch;
+  const abort = synth ? (job, c) => synth.abortJob(job, c) : abortJob;
   const source = new OSD.TileSource({
     width: info.width,
     height: info.height,
@@ -61,26 +65,26 @@ export function createTileSource(OSD, info, { frame = 0, format = 'png', stats }
     },
 
     downloadTileBatchStart(batchJob) {
-      loadBatch(batchJob.jobs, context);
+      load(batchJob.jobs, context);
     },
 
     downloadTileBatchAbort(batchJob) {
-      for (const job of batchJob.jobs) abortJob(job, context);
+      for (const job of batchJob.jobs) abort(job, context);
     },
 
     // One job on its own: OpenSeadragon retries a failed batch's tiles one by one.
     downloadTileStart(job) {
-      loadBatch([job], context);
+      load([job], context);
     },
 
     downloadTileAbort(job) {
-      abortJob(job, context);
+      abort(job, context);
     },
   });
   // Jobs started and neither finished, failed nor aborted.
   source.vtexInFlight = inFlight;
   // Resource Timing of the batches by URL (the Worker's; bench/viewer/trace.mjs).
-  source.vtexTimings = loader.timings;
+  source.vtexTimings = loader ? loader.timings : new Map();
   return source;
 }
 

@@ -1,4 +1,4 @@
-// The view in the URL: `?texture=<id or name>&zoom=<screen px per level-0 px>&x=<cx>&y=<cy>[&frame=N][&format=F][&detail=D]`.
+// The view in the URL: `?texture=<id or name>&zoom=<screen px per level-0 px>&x=<cx>&y=<cy>[&frame=N][&format=F][&detail=D][&synth=client]`.
 // x and y are the view centre in level-0 pixels, so a link means the same place at any window size.
 
 import { DETAIL } from './pyramid.js';
@@ -32,6 +32,7 @@ export function parseView(search) {
   if (FORMATS.includes(format)) view.format = format;
   const detail = q.get('detail');
   if (Object.hasOwn(DETAIL, detail)) view.detail = detail;
+  if (q.get('synth') === 'client') view.synth = 'client';
   return view;
 }
 
@@ -48,5 +49,6 @@ export function formatView(view) {
   if (view.frame > 0) q.set('frame', String(view.frame));
   if (view.format) q.set('format', view.format);
   if (view.detail) q.set('detail', view.detail);
+  if (view.synth) q.set('synth', view.synth);
   return `?${q}`;
 }

@@ -1,4 +1,4 @@
-//! The command line: `vtex serve | create | render | info`.
+//! The command line: `vtex serve | create | render | info | export-web`.
 
 use crate::config::ServeConfig;
 use crate::encode::{self, Format};
@@ -26,6 +26,9 @@ pub enum Command {
     Render(RenderArgs),
     /// Print a texture's info as JSON, or every texture in the data directory.
     Info(InfoArgs),
+    /// Write a folder any static file server can host: the viewer, the synthesis module and the
+    /// texture's encoding; the browser synthesizes every tile (no vtex needed).
+    ExportWeb(ExportWebArgs),
 }
 
 #[derive(Args, Debug)]
@@ -82,6 +85,22 @@ pub struct InfoArgs {
     pub tile_size: u32,
 }
 
+#[derive(Args, Debug)]
+pub struct ExportWebArgs {
+    /// A texture id in the data directory, or the path of a `.vtex` bundle.
+    pub texture: String,
+    /// The folder to write; it must not exist or be empty.
+    pub dir: PathBuf,
+    #[arg(long, env = "VTEX_DATA_DIR", default_value = "./vtex-data")]
+    pub data_dir: PathBuf,
+    /// The built viewer, with its synthesis module (`vtex_synth.wasm`).
+    #[arg(long, env = "VTEX_WEB_DIR", default_value = "client-web/dist")]
+    pub web_dir: PathBuf,
+    /// Tile side in pixels the viewer asks for.
+    #[arg(long, env = "VTEX_TILE_SIZE", default_value_t = 256)]
+    pub tile_size: u32,
+}
+
 /// `--model`'s help: the ids of the registered models, read from the registry so it never lags.
 fn model_help() -> String {
     let ids: Vec<&str> = models::ids().collect();
@@ -90,10 +109,16 @@ fn model_help() -> String {
 
 /// Loads and validates a texture named by id (in `data_dir`) or by path.
 fn open_texture(texture: &str, data_dir: &Path, tile_size: u32) -> anyhow::Result<Entry> {
+    Ok(open_texture_bytes(texture, data_dir, tile_size)?.0)
+}
+
+/// [`open_texture`], and its bundle's bytes.
+fn open_texture_bytes(texture: &str, data_dir: &Path, tile_size: u32) -> anyhow::Result<(Entry, Vec<u8>)> {
     let by_id = data_dir.join(format!("{texture}.{}", store::BUNDLE_EXT));
     let path = if vtex_synth::bundle::is_valid_id(texture) && by_id.is_file() { by_id } else { PathBuf::from(texture) };
     let bytes = std::fs::read(&path).with_context(|| format!("reading {}", path.display()))?;
-    Entry::from_bytes(&bytes, tile_size).with_context(|| format!("loading {}", path.display()))
+    let entry = Entry::from_bytes(&bytes, tile_size).with_context(|| format!("loading {}", path.display()))?;
+    Ok((entry, bytes))
 }
 
 pub fn create(args: CreateArgs) -> anyhow::Result<()> {
@@ -152,5 +177,24 @@ pub fn info(args: InfoArgs) -> anyhow::Result<()> {
         }
     };
     println!("{out}");
+    Ok(())
+}
+
+pub fn export_web(args: ExportWebArgs) -> anyhow::Result<()> {
+    if !crate::config::TILE_SIZES.contains(&args.tile_size) {
+        let sizes = crate::config::TILE_SIZES;
+        bail!("--tile-size {}: from {} to {}", args.tile_size, sizes.start(), sizes.end());
+    }
+    let (entry, bundle) = open_texture_bytes(&args.texture, &args.data_dir, args.tile_size)?;
+    let written = crate::export::export_web(&entry, &bundle, &args.web_dir, &args.dir)?;
+    println!(
+        "{}: {} files, {} bytes ({} the encoding); serve it with any static file server, e.g. \
+         python3 -m http.server -d {}",
+        args.dir.display(),
+        written.files,
+        written.bytes,
+        bundle.len(),
+        args.dir.display()
+    );
     Ok(())
 }

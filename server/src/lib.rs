@@ -14,7 +14,8 @@
 //! * [`inflight`] — the byte budget of response bodies in flight.
 //! * [`serve`] — the listener: connection timeouts and graceful shutdown.
 //! * [`transport`] — how bodies reach the socket (`--send copy|splice`); all platform-specific code.
-//! * [`cli`] — the offline subcommands `create`, `render`, `info`.
+//! * [`cli`] — the offline subcommands `create`, `render`, `info`, `export-web`.
+//! * [`export`] — `export-web`: the viewer, the synthesis module and an encoding as a static folder.
 
 // Unsafe code is denied in every module but `transport`, which holds the mappings and system
 // calls no safe crate covers (`forbid` could not be relaxed for that one module).
@@ -25,6 +26,7 @@ pub mod cache;
 pub mod cli;
 pub mod config;
 pub mod encode;
+pub mod export;
 pub mod inflight;
 pub mod metrics;
 pub mod serve;

@@ -18,5 +18,6 @@ fn main() -> anyhow::Result<()> {
         Command::Create(args) => cli::create(args),
         Command::Render(args) => cli::render(args),
         Command::Info(args) => cli::info(args),
+        Command::ExportWeb(args) => cli::export_web(args),
     }
 }

@@ -311,7 +311,7 @@ fn pinned(d: &Demo) -> Outcome {
 
 // ---------------------------------------------------------------- 6. native ≡ wasm32
 
-/// The bytes are compared with the WebAssembly build by `tests/wasm/parity.test.mjs`, over
+/// The bytes are compared with the WebAssembly build by `tests/wasm/api.test.mjs`, over
 /// the probe regions of every demo; here the probe is held to cover what the invariant needs.
 fn wasm_probe(d: &Demo) -> Outcome {
     let regions = probe::regions(&*d.tex);
@@ -323,7 +323,7 @@ fn wasm_probe(d: &Demo) -> Outcome {
     has("far coordinates", renderable.iter().any(|r| r.x.unsigned_abs().max(r.y.unsigned_abs()) > 1 << 32))?;
     has("negative coordinates", renderable.iter().any(|r| r.x < 0 && r.y < 0))?;
     has("a later frame", renderable.iter().any(|r| r.frame > 0))?;
-    Ok(format!("{} regions → tests/wasm/parity.test.mjs", regions.len()))
+    Ok(format!("{} regions → tests/wasm/api.test.mjs", regions.len()))
 }
 
 // ---------------------------------------------------------------- 7. bad parameters

@@ -19,11 +19,14 @@ export const CHROMIUM = process.env.CHROMIUM || '/usr/bin/chromium';
 // VTEX_WEB_DIR: another build of the viewer (the bench's A/B comparisons).
 export const WEB_DIR = process.env.VTEX_WEB_DIR || join(ROOT, 'client-web', 'dist');
 
-/** Starts `vtex serve` on 127.0.0.1:0 with a fresh data dir; resolves once it prints its URL. */
-export async function startServer({ extraArgs = [] } = {}) {
+/**
+ * Starts `vtex serve` on 127.0.0.1:0 with a fresh data dir (or `dataDir`, kept at stop);
+ * resolves once it prints its URL.
+ */
+export async function startServer({ extraArgs = [], dataDir: keptDir = null } = {}) {
   if (!existsSync(VTEX_BIN)) throw new Error(`${VTEX_BIN} not found: run cargo build --release -p vtex-server`);
   if (!existsSync(join(WEB_DIR, 'index.html'))) throw new Error(`${WEB_DIR} not built: run npm ci && npm run build in client-web/`);
-  const dataDir = mkdtempSync(join(tmpdir(), 'vtex-browser-data-'));
+  const dataDir = keptDir || mkdtempSync(join(tmpdir(), 'vtex-browser-data-'));
   const proc = spawn(
     VTEX_BIN,
     ['serve', '--bind', '127.0.0.1:0', '--data-dir', dataDir, '--web-dir', WEB_DIR, ...extraArgs],
@@ -51,13 +54,14 @@ export async function startServer({ extraArgs = [] } = {}) {
   return {
     url,
     dataDir,
+    pid: proc.pid,
     stderr: () => stderr,
     async stop() {
       if (proc.exitCode === null) {
         proc.kill('SIGTERM');
         await exited(proc);
       }
-      rmSync(dataDir, { recursive: true, force: true });
+      if (!keptDir) rmSync(dataDir, { recursive: true, force: true });
     },
   };
 }
@@ -102,6 +106,7 @@ export async function launchBrowser({ width = 1280, height = 800 } = {}) {
   });
   return {
     context,
+    profile,
     async close() {
       await context.close();
       rmSync(profile, { recursive: true, force: true });
@@ -144,6 +149,78 @@ export async function waitForIdle(page, timeout = 60_000) {
   // Let OpenSeadragon run at least one update after whatever the caller just did.
   await page.evaluate(() => new Promise((r) => requestAnimationFrame(() => requestAnimationFrame(r))));
   await page.waitForFunction(viewerIdle, null, { timeout, polling: 50 });
+}
+
+/** Where level-0 pixel (x, y)'s top-left corner is, in viewer-element and page coordinates. */
+export async function screenPointOf(page, x, y) {
+  return page.evaluate(
+    ([x, y]) => {
+      const { viewer, state } = window.vtexViewer;
+      const p = state.item.imageToViewerElementCoordinates(new OpenSeadragon.Point(x, y));
+      const r = viewer.element.getBoundingClientRect();
+      return { ex: p.x, ey: p.y, px: p.x + r.left, py: p.y + r.top };
+    },
+    [x, y],
+  );
+}
+
+/** Sets the view (zoom in screen px per level-0 px, centre in level-0 px) and moves it by a
+ * fraction of a screen pixel so that level-0 pixel (x, y) starts on a whole screen pixel. */
+export async function setAlignedView(page, zoom, x, y) {
+  await page.evaluate(
+    ([zoom, x, y]) => {
+      const { viewer, state, setView } = window.vtexViewer;
+      setView({ zoom, x, y }, true);
+      viewer.viewport.applyConstraints(true);
+      const p = state.item.imageToViewerElementCoordinates(new OpenSeadragon.Point(x, y));
+      const r = viewer.element.getBoundingClientRect();
+      const px = p.x + r.left;
+      const py = p.y + r.top;
+      const d = new OpenSeadragon.Point(px - Math.round(px), py - Math.round(py));
+      viewer.viewport.panBy(viewer.viewport.deltaPointsFromPixels(d, true), true);
+    },
+    [zoom, x, y],
+  );
+  await waitForIdle(page);
+}
+
+/** The server's tile as raw RGBA (the `.rgba` format, sized by X-Vtex-Width/Height). */
+export async function fetchServerTile(serverUrl, info, level, tx, ty, frame) {
+  const q = frame === undefined ? '' : `?frame=${frame}`;
+  const r = await fetch(`${serverUrl}/api/v1/textures/${info.id}/tiles/${level}/${tx}/${ty}.rgba${q}`);
+  if (r.status !== 200) throw new Error(`tile ${level}/${tx}/${ty} of ${info.name}: HTTP ${r.status}`);
+  return { width: +r.headers.get('x-vtex-width'), height: +r.headers.get('x-vtex-height'), data: Buffer.from(await r.arrayBuffer()) };
+}
+
+/**
+ * Compares a `size`² patch of the screen whose top-left shows level-`level` pixel (lx, ly) at
+ * 1:1 against the server's tile. Returns the largest channel difference (alpha ignored).
+ */
+export async function compareScreenToServerTile(page, serverUrl, info, level, lx, ly, size = 32, frame) {
+  const ts = info.tile_size;
+  const tile = await fetchServerTile(serverUrl, info, level, Math.floor(lx / ts), Math.floor(ly / ts), frame);
+  return compareScreenToImage(page, tile, lx % ts, ly % ts, level, lx, ly, size);
+}
+
+/**
+ * Compares a `size`² patch of the screen whose top-left shows level-`level` pixel (lx, ly) at
+ * 1:1 against `image` ({ width, height, data: RGBA rows }) from its pixel (ox, oy). Returns the
+ * largest channel difference (alpha ignored).
+ */
+export async function compareScreenToImage(page, image, ox, oy, level, lx, ly, size = 32) {
+  if (!(ox + size <= image.width && oy + size <= image.height)) throw new Error('the patch is not inside the image');
+  const s = 2 ** level;
+  const at = await screenPointOf(page, lx * s, ly * s);
+  const shot = decodePng(await page.screenshot({ clip: { x: Math.round(at.px), y: Math.round(at.py), width: size, height: size } }));
+  let worst = 0;
+  for (let j = 0; j < size; j++) {
+    for (let i = 0; i < size; i++) {
+      const a = (j * size + i) * 4;
+      const b = ((oy + j) * image.width + ox + i) * 4;
+      for (let c = 0; c < 3; c++) worst = Math.max(worst, Math.abs(shot.data[a + c] - image.data[b + c]));
+    }
+  }
+  return worst;
 }
 
 /** Decodes an 8-bit, non-interlaced RGB or RGBA PNG (what Chromium's screenshots are). */

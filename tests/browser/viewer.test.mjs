@@ -2,7 +2,17 @@
 // Run: node --test tests/browser/   (needs target/release/vtex and client-web/dist built)
 import test, { after, before } from 'node:test';
 import assert from 'node:assert/strict';
-import { decodePng, launchBrowser, openViewer, startServer, waitForIdle } from './lib.mjs';
+import {
+  compareScreenToServerTile,
+  decodePng,
+  fetchServerTile,
+  launchBrowser,
+  openViewer,
+  screenPointOf,
+  setAlignedView,
+  startServer,
+  waitForIdle,
+} from './lib.mjs';
 import { inPyramid } from '../../client-web/src/pyramid.js';
 
 let server;
@@ -66,70 +76,9 @@ function assertClean(log) {
   }
 }
 
-/** Where level-0 pixel (x, y)'s top-left corner is, in viewer-element and page coordinates. */
-async function screenPointOf(page, x, y) {
-  return page.evaluate(
-    ([x, y]) => {
-      const { viewer, state } = window.vtexViewer;
-      const p = state.item.imageToViewerElementCoordinates(new OpenSeadragon.Point(x, y));
-      const r = viewer.element.getBoundingClientRect();
-      return { ex: p.x, ey: p.y, px: p.x + r.left, py: p.y + r.top };
-    },
-    [x, y],
-  );
-}
-
-/** Sets the view (zoom in screen px per level-0 px, centre in level-0 px) and moves it by a
- * fraction of a screen pixel so that level-0 pixel (x, y) starts on a whole screen pixel. */
-async function setAlignedView(page, zoom, x, y) {
-  await page.evaluate(
-    ([zoom, x, y]) => {
-      const { viewer, state, setView } = window.vtexViewer;
-      setView({ zoom, x, y }, true);
-      viewer.viewport.applyConstraints(true);
-      const p = state.item.imageToViewerElementCoordinates(new OpenSeadragon.Point(x, y));
-      const r = viewer.element.getBoundingClientRect();
-      const px = p.x + r.left;
-      const py = p.y + r.top;
-      const d = new OpenSeadragon.Point(px - Math.round(px), py - Math.round(py));
-      viewer.viewport.panBy(viewer.viewport.deltaPointsFromPixels(d, true), true);
-    },
-    [zoom, x, y],
-  );
-  await waitForIdle(page);
-}
-
-/** The server's tile as raw RGBA (the `.rgba` format, sized by X-Vtex-Width/Height). */
-async function serverTile(info, level, tx, ty, frame) {
-  const q = frame === undefined ? '' : `?frame=${frame}`;
-  const r = await fetch(`${server.url}/api/v1/textures/${info.id}/tiles/${level}/${tx}/${ty}.rgba${q}`);
-  assert.equal(r.status, 200);
-  return { width: +r.headers.get('x-vtex-width'), height: +r.headers.get('x-vtex-height'), data: Buffer.from(await r.arrayBuffer()) };
-}
-
-/**
- * Compares a `size`² patch of the screen whose top-left shows level-`level` pixel (lx, ly) at
- * 1:1 against the server's tile. Returns the largest channel difference (alpha ignored).
- */
-async function compareScreenToTile(page, info, level, lx, ly, size = 32, frame) {
-  const ts = info.tile_size;
-  const tile = await serverTile(info, level, Math.floor(lx / ts), Math.floor(ly / ts), frame);
-  const ox = lx % ts;
-  const oy = ly % ts;
-  assert.ok(ox + size <= tile.width && oy + size <= tile.height, 'patch inside one tile');
-  const s = 2 ** level;
-  const at = await screenPointOf(page, lx * s, ly * s);
-  const shot = decodePng(await page.screenshot({ clip: { x: Math.round(at.px), y: Math.round(at.py), width: size, height: size } }));
-  let worst = 0;
-  for (let j = 0; j < size; j++) {
-    for (let i = 0; i < size; i++) {
-      const a = (j * size + i) * 4;
-      const b = ((oy + j) * tile.width + ox + i) * 4;
-      for (let c = 0; c < 3; c++) worst = Math.max(worst, Math.abs(shot.data[a + c] - tile.data[b + c]));
-    }
-  }
-  return worst;
-}
+const serverTile = (info, level, tx, ty, frame) => fetchServerTile(server.url, info, level, tx, ty, frame);
+const compareScreenToTile = (page, info, level, lx, ly, size, frame) =>
+  compareScreenToServerTile(page, server.url, info, level, lx, ly, size, frame);
 
 /**
  * Sets a magnified view (zoom > 1, at a fractional offset) and checks that every screen pixel

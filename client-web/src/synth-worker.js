@@ -1,0 +1,77 @@
+// One synthesis Worker of the viewer's client mode (client-synth.js starts several): opens the
+// texture's encoding in its own instance of the WebAssembly module and renders the tiles it is
+// given, one at a time, as opaque ImageBitmaps (the same path as raw RGBA tiles from the server,
+// tile-worker.js rgbaTile), or as raw bytes when asked for them (the tests compare those).
+//
+// Messages in:  { type: 'open', module (WebAssembly.Module), bundle (ArrayBuffer), tileSize }
+//               { type: 'tile', key, level, x, y, frame, raw }   { type: 'cancel', key }
+// Messages out: { type: 'opened', info } | { type: 'failed', error }
+//               { type: 'tile', key, ms, bitmap | bytes, width, height } | { type: 'tile', key, error }
+
+import { instantiate } from './vtex-synth.js';
+
+let texture = null;
+let tileSize = 0;
+/** Tiles waiting, in arrival order: key → message. Cancelling one deletes it. */
+const queue = new Map();
+let scheduled = false;
+/** The opaque canvas tiles pass through on their way to a bitmap, reused. */
+let canvas = null;
+
+self.onmessage = ({ data }) => {
+  if (data.type === 'open') open(data);
+  else if (data.type === 'tile') {
+    queue.set(data.key, data);
+    schedule();
+  } else if (data.type === 'cancel') queue.delete(data.key);
+};
+
+async function open({ module, bundle, tileSize: size }) {
+  try {
+    const synth = await instantiate(module);
+    texture = synth.open(new Uint8Array(bundle));
+    tileSize = size;
+    self.postMessage({ type: 'opened', info: texture.info });
+    schedule();
+  } catch (e) {
+    self.postMessage({ type: 'failed', error: e.message || String(e) });
+  }
+}
+
+/** Renders the next tile in a task of its own, so cancellations that arrive between tiles count. */
+function schedule() {
+  if (scheduled || !texture || queue.size === 0) return;
+  scheduled = true;
+  setTimeout(() => {
+    scheduled = false;
+    const [key, job] = queue.entries().next().value;
+    queue.delete(key);
+    render(job);
+    schedule();
+  }, 0);
+}
+
+function render({ key, level, x, y, frame, raw }) {
+  const t0 = performance.now();
+  let tile;
+  try {
+    tile = texture.renderTile(tileSize, level, x, y, frame);
+  } catch (e) {
+    self.postMessage({ type: 'tile', key, error: `tile ${level}/${x}/${y}: ${e.message}` });
+    return;
+  }
+  const { width, height, data } = tile;
+  if (raw) {
+    self.postMessage({ type: 'tile', key, ms: performance.now() - t0, bytes: data, width, height }, [data.buffer]);
+    return;
+  }
+  canvas = canvas || new OffscreenCanvas(width, height);
+  if (canvas.width !== width || canvas.height !== height) {
+    canvas.width = width;
+    canvas.height = height;
+  }
+  const pixels = new ImageData(new Uint8ClampedArray(data.buffer, data.byteOffset, data.length), width, height);
+  canvas.getContext('2d', { alpha: false }).putImageData(pixels, 0, 0);
+  const bitmap = canvas.transferToImageBitmap();
+  self.postMessage({ type: 'tile', key, ms: performance.now() - t0, bitmap, width, height }, [bitmap]);
+}
