@@ -359,10 +359,17 @@ pub fn declared_length(headers: &HeaderMap) -> Option<u64> {
     headers.get(header::CONTENT_LENGTH).and_then(|v| v.to_str().ok()?.parse::<u64>().ok())
 }
 
-/// The 413 for a body over `limit`, given after draining the rest of the body within
-/// [`DRAIN_BYTES`] and [`DRAIN_TIME`] — unless the client waits for `100 Continue` before
-/// sending it, or sends nothing for [`DRAIN_IDLE`].
+/// The 413 for a body over `limit`, given after [`drain`]ing the rest of the body.
 pub async fn refuse_oversized(req: Request, limit: usize) -> ApiError {
+    drain(req).await;
+    ApiError::PayloadTooLarge(format!("request body larger than the limit of {limit} bytes"))
+}
+
+/// Reads and throws away the body of a request about to be refused, within [`DRAIN_BYTES`]
+/// and [`DRAIN_TIME`] — unless the client waits for `100 Continue` before sending it, or
+/// sends nothing for [`DRAIN_IDLE`] — so that a client (or a proxy) still sending it receives
+/// the refusal rather than a reset connection.
+pub async fn drain(req: Request) {
     let waits_to_send =
         req.headers().get(header::EXPECT).is_some_and(|v| v.as_bytes().eq_ignore_ascii_case(b"100-continue"));
     let mut body = req.into_body();
@@ -379,7 +386,6 @@ pub async fn refuse_oversized(req: Request, limit: usize) -> ApiError {
     if !waits_to_send {
         let _ = tokio::time::timeout(DRAIN_TIME, drain).await;
     }
-    ApiError::PayloadTooLarge(format!("request body larger than the limit of {limit} bytes"))
 }
 
 /// A texture id from the path: checked before it can reach a file name.

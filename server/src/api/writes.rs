@@ -10,7 +10,7 @@
 //! without an `Origin` (curl, scripts, other servers) are not browsers' and pass that check.
 
 use super::error::{echo, ApiError};
-use super::App;
+use super::{drain, App};
 use crate::config::{ServeConfig, WriteToken};
 use axum::extract::{Request, State};
 use axum::http::{header, HeaderMap, HeaderValue, Method, StatusCode};
@@ -126,6 +126,7 @@ pub async fn guard(State(app): State<App>, req: Request, next: Next) -> Response
     } else if is_write(req.method()) {
         if let Err(e) = app.writes.admit(headers) {
             tracing::info!(method = %req.method(), path = %echo(req.uri().path()), reason = %e, "write refused");
+            drain(req).await;
             return refusal(e);
         }
     }
