@@ -21,6 +21,8 @@ export const WEB_DIR = process.env.VTEX_WEB_DIR || join(ROOT, 'client-web', 'dis
 
 /** Starts `vtex serve` on 127.0.0.1:0 with a fresh data dir; resolves once it prints its URL. */
 export async function startServer({ extraArgs = [] } = {}) {
+  // VTEX_URL: a server already running (e.g. nginx in front of replicas: bench/replicas).
+  if (process.env.VTEX_URL) return { url: process.env.VTEX_URL, dataDir: null, stderr: () => '', async stop() {} };
   if (!existsSync(VTEX_BIN)) throw new Error(`${VTEX_BIN} not found: run cargo build --release -p vtex-server`);
   if (!existsSync(join(WEB_DIR, 'index.html'))) throw new Error(`${WEB_DIR} not built: run npm ci && npm run build in client-web/`);
   const dataDir = mkdtempSync(join(tmpdir(), 'vtex-browser-data-'));
