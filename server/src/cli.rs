@@ -19,7 +19,7 @@ pub struct Cli {
 #[derive(Subcommand, Debug)]
 pub enum Command {
     /// Serve the HTTP API and the viewer.
-    Serve(ServeConfig),
+    Serve(Box<ServeConfig>),
     /// Make an encoding from model parameters and input images; prints its id.
     Create(CreateArgs),
     /// Render a region of a texture at a level to an image file.

@@ -4,6 +4,7 @@
 use crate::encode::Format;
 use crate::store::Bounds;
 use crate::transport::{SendLimits, Transport};
+pub use crate::watch::WatchMode;
 use clap::Args;
 use std::net::SocketAddr;
 use std::path::PathBuf;
@@ -120,6 +121,26 @@ pub struct ServeConfig {
     /// closed. 0 turns the check off.
     #[arg(long, env = "VTEX_MIN_SEND_RATE", default_value_t = 1024)]
     pub min_send_rate: u64,
+    /// Bearer token every write (POST, PATCH, DELETE) must carry in `Authorization`; unset,
+    /// writes need none. Prefer the environment or `--write-token-file`: a flag shows in `ps`.
+    #[arg(long, env = "VTEX_WRITE_TOKEN", hide_env_values = true)]
+    pub write_token: Option<WriteToken>,
+    /// File holding the write token (a container secret); its surrounding whitespace is ignored.
+    #[arg(long, env = "VTEX_WRITE_TOKEN_FILE", conflicts_with = "write_token")]
+    pub write_token_file: Option<PathBuf>,
+    /// Refuse every write (403): a replica that only serves what the data directory holds.
+    #[arg(long, env = "VTEX_READ_ONLY")]
+    pub read_only: bool,
+    /// Origins (`https://host[:port]`, comma-separated, or `*`) whose pages may write across
+    /// origins; by default only requests without an `Origin` or from the server's own origin
+    /// may write. Reads are open to every origin.
+    #[arg(long, env = "VTEX_CORS_WRITE_ORIGINS", value_delimiter = ',')]
+    pub cors_write_origins: Vec<String>,
+    /// How the store learns of bundles other processes add to or delete from the data
+    /// directory: `events` (inotify, else polling), `poll`, or `off` (then only a request for
+    /// an unknown id finds a new bundle).
+    #[arg(long, env = "VTEX_WATCH", value_enum, default_value_t = WatchMode::Events)]
+    pub watch: WatchMode,
 }
 
 /// The default of `--inflight-mb`: two of the largest regions rendering at once (one a
@@ -186,6 +207,24 @@ impl ServeConfig {
         positive(self.idle_timeout_secs, "idle-timeout-secs")?;
         if self.max_connections == Some(0) {
             return Err("max-connections must be at least 1".into());
+        }
+        for origin in &self.cors_write_origins {
+            if origin != "*" && !(origin.starts_with("http://") || origin.starts_with("https://")) {
+                return Err(format!(
+                    "cors-write-origins: `{origin}` is not `*` nor an origin like https://host[:port]"
+                ));
+            }
+        }
+        Ok(())
+    }
+
+    /// Reads `--write-token-file` into the write token, so that the rest of the server sees
+    /// one setting.
+    pub fn resolve_write_token(&mut self) -> Result<(), String> {
+        if let Some(path) = &self.write_token_file {
+            let text =
+                std::fs::read_to_string(path).map_err(|e| format!("write-token-file {}: {e}", path.display()))?;
+            self.write_token = Some(text.parse()?);
         }
         Ok(())
     }
@@ -274,5 +313,37 @@ impl ServeConfig {
             let per = self.send.descriptors_per_connection();
             usize::try_from(limit.saturating_sub(FD_RESERVE) / per).unwrap_or(usize::MAX).max(1)
         })
+    }
+}
+
+/// The write token: compared in constant time, never printed.
+#[derive(Clone)]
+pub struct WriteToken(String);
+
+impl WriteToken {
+    /// True when `presented` is the token. Both sides are hashed first, so the comparison takes
+    /// the same time whatever the presented value.
+    pub fn matches(&self, presented: &str) -> bool {
+        blake3::hash(self.0.as_bytes()) == blake3::hash(presented.as_bytes())
+    }
+}
+
+impl std::str::FromStr for WriteToken {
+    type Err = String;
+    fn from_str(s: &str) -> Result<Self, String> {
+        let token = s.trim();
+        if token.is_empty() {
+            return Err("the write token is empty".into());
+        }
+        if !token.bytes().all(|b| b.is_ascii_graphic()) {
+            return Err("the write token must be printable ASCII without spaces".into());
+        }
+        Ok(WriteToken(token.to_string()))
+    }
+}
+
+impl std::fmt::Debug for WriteToken {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str("WriteToken(…)")
     }
 }

@@ -14,6 +14,7 @@
 //! * [`inflight`] — the byte budget of response bodies in flight.
 //! * [`serve`] — the listener: connection timeouts and graceful shutdown.
 //! * [`transport`] — how bodies reach the socket (`--send copy|splice`); all platform-specific code.
+//! * [`watch`] — follows bundles other processes add to or delete from the data directory.
 //! * [`cli`] — the offline subcommands `create`, `render`, `info`, `export-web`.
 //! * [`export`] — `export-web`: the viewer, the synthesis module and an encoding as a static folder.
 
@@ -34,3 +35,4 @@ pub mod slots;
 pub mod store;
 #[allow(unsafe_code)]
 pub mod transport;
+pub mod watch;

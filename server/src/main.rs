@@ -14,7 +14,7 @@ fn main() -> anyhow::Result<()> {
         .unwrap_or_else(|_| EnvFilter::new("info"));
     tracing_subscriber::fmt().with_env_filter(filter).with_writer(std::io::stderr).init();
     match Cli::parse().command {
-        Command::Serve(cfg) => vtex_server::serve::main(cfg),
+        Command::Serve(cfg) => vtex_server::serve::main(*cfg),
         Command::Create(args) => cli::create(args),
         Command::Render(args) => cli::render(args),
         Command::Info(args) => cli::info(args),

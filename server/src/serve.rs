@@ -24,6 +24,7 @@ use crate::api::{self, AppState};
 use crate::config::ServeConfig;
 use crate::store::Store;
 use crate::transport::{Activity, SendLimits, Transport};
+use crate::watch::Watch;
 use hyper_util::rt::{TokioExecutor, TokioTimer};
 use hyper_util::server::conn::auto;
 use prometheus::{IntCounter, IntGauge};
@@ -52,11 +53,18 @@ pub fn main(cfg: ServeConfig) -> anyhow::Result<()> {
 }
 
 /// Runs the server until `shutdown` resolves.
-pub async fn run(cfg: ServeConfig, shutdown: impl Future<Output = ()>) -> anyhow::Result<()> {
+pub async fn run(mut cfg: ServeConfig, shutdown: impl Future<Output = ()>) -> anyhow::Result<()> {
     cfg.validate().map_err(anyhow::Error::msg)?;
+    cfg.resolve_write_token().map_err(anyhow::Error::msg)?;
     let t0 = Instant::now();
-    let (dir, bounds, demos) = (cfg.data_dir.clone(), cfg.store_bounds(), !cfg.no_demos);
-    let (store, report) = tokio::task::spawn_blocking(move || Store::open(&dir, bounds, demos)).await??;
+    let (dir, bounds, demos, watch) = (cfg.data_dir.clone(), cfg.store_bounds(), !cfg.no_demos, cfg.watch);
+    // The watch starts before the store lists the directory, so nothing added meanwhile is missed.
+    let (store, report, watch) = tokio::task::spawn_blocking(move || {
+        std::fs::create_dir_all(&dir)?;
+        let watch = Watch::start(&dir, watch).map_err(std::io::Error::other)?;
+        Store::open(&dir, bounds, demos).map(|(store, report)| (Arc::new(store), report, watch))
+    })
+    .await??;
     for (path, why) in &report.rejected {
         tracing::warn!(path = %path.display(), reason = %why, "not serving an invalid file in the data directory");
     }
@@ -71,19 +79,24 @@ pub async fn run(cfg: ServeConfig, shutdown: impl Future<Output = ()>) -> anyhow
         textures = store.len(),
         demos_written = report.demos_written,
         stale_temp_removed = report.stale_temp_removed,
+        watch = watch.as_ref().map_or("off", |w| w.how),
         ms = t0.elapsed().as_millis() as u64,
         "store opened"
     );
+    if let Some(watch) = watch {
+        watch.follow(store.clone())?;
+    }
     if !cfg.web_dir.join("index.html").is_file() {
         tracing::warn!(web_dir = %cfg.web_dir.display(), "no index.html in the web directory; the viewer is not served");
     }
-    let app = AppState::new(Arc::new(store), cfg.clone());
+    let app = AppState::new(store, cfg.clone());
     // Renders in flight at shutdown may finish during the drain; those that would outlast it
     // are stopped shortly before it ends, so their requests are answered 503 rather than cut.
     let shutdown = {
         let app = app.clone();
         async move {
             shutdown.await;
+            app.draining.store(true, std::sync::atomic::Ordering::Relaxed);
             tokio::spawn(async move {
                 tokio::time::sleep(DRAIN_TIMEOUT - STOP_BEFORE_END).await;
                 tracing::info!("stopping the syntheses still running");

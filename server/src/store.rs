@@ -12,15 +12,23 @@
 //! atomic — a temporary file in the same directory, fsync, rename, fsync of the directory — so
 //! a crash leaves either the whole bundle or nothing but a temporary file, which the next start
 //! removes. Bundles are immutable: an edit is a new bundle, a new id.
+//!
+//! Several processes may share one data directory (replicas behind a proxy). A bundle another
+//! process wrote, or one copied in, is found on the first request for its id ([`Store::find`],
+//! with a short memory of ids found absent) and by the directory watch ([`crate::watch`]), which
+//! calls [`Store::refresh`] for every bundle that appears or disappears. Temporary names are
+//! unique per process, and only temporaries older than [`STALE_TEMP_AGE`] are taken for crashed
+//! writes, so replicas starting together never remove each other's writes in progress.
 
 use lru::LruCache;
 use serde::Serialize;
-use std::collections::BTreeMap;
+use std::collections::{BTreeMap, HashMap};
 use std::io::Write;
 use std::ops::Deref;
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::{Arc, Condvar, Mutex, RwLock};
+use std::time::{Instant, SystemTime};
 use vtex_synth::bundle::{id_of, is_valid_id, Bundle, Manifest};
 use vtex_synth::models::{self, Limits, Plan};
 use vtex_synth::texture::level_size;
@@ -29,6 +37,13 @@ use vtex_synth::{Animation, Domain, Texture};
 pub const BUNDLE_EXT: &str = "vtex";
 /// Prefix of temporary files; anything carrying it at start-up is a crashed write.
 pub const TEMP_PREFIX: &str = ".tmp-";
+/// Age past which a temporary file is a crashed write: a write in progress (of another
+/// process sharing the directory) takes seconds.
+pub const STALE_TEMP_AGE: std::time::Duration = std::time::Duration::from_secs(15 * 60);
+/// How long an id found absent from the directory is answered absent without looking again.
+pub const ABSENT_TTL: std::time::Duration = std::time::Duration::from_secs(2);
+/// Most ids remembered absent; past it the memory starts over.
+const ABSENT_MAX: usize = 16_384;
 
 /// Number of served levels: 0..n-1, where level n-1 is the first that fits in one tile.
 pub fn served_levels(width: u64, height: u64, tile_size: u32) -> u32 {
@@ -213,6 +228,8 @@ pub struct Store {
     /// Held from the last check of the index and the caps to the index holding the new bundle,
     /// so that of identical uploads exactly one is new, and concurrent uploads cannot pass a cap.
     writing: Mutex<()>,
+    /// Ids recently found absent from the directory, and when.
+    absent: Mutex<HashMap<String, Instant>>,
 }
 
 /// What [`Store::open`] found, for the start-up log.
@@ -243,6 +260,7 @@ impl Store {
             loaded: Budgeted::new(bounds.limits.max_resident_bytes),
             loads: AtomicU64::new(0),
             writing: Mutex::new(()),
+            absent: Default::default(),
         };
         let mut report = OpenReport::default();
         let mut bundles = Vec::new();
@@ -250,6 +268,10 @@ impl Store {
             let item = item?;
             let name = item.file_name().to_string_lossy().into_owned();
             if name.starts_with(TEMP_PREFIX) {
+                let age = item.metadata().and_then(|m| m.modified()).map(|t| SystemTime::now().duration_since(t));
+                if !matches!(age, Ok(Ok(age)) if age >= STALE_TEMP_AGE) {
+                    continue; // a write in progress, perhaps another process's
+                }
                 match std::fs::remove_file(item.path()) {
                     Ok(()) => report.stale_temp_removed += 1,
                     Err(e) => report.stale_temp_kept.push((item.path(), e.to_string())),
@@ -302,6 +324,7 @@ impl Store {
     }
 
     fn insert(&self, record: Arc<Record>) {
+        self.absent.lock().unwrap().remove(&record.id);
         let mut index = self.index.write().unwrap();
         index.bytes += record.encoding_bytes;
         if let Some(old) = index.records.insert(record.id.clone(), record) {
@@ -312,12 +335,123 @@ impl Store {
     /// Stops serving `id`: its bundle failed validation when loaded, or vanished.
     fn drop_record(&self, id: &str, why: &dyn std::fmt::Display) {
         tracing::warn!(%id, reason = %why, "the stored bundle cannot be loaded; no longer serving it");
+        self.forget(id);
+    }
+
+    /// Drops `id` from the index and the loaded textures; true when it was indexed.
+    fn forget(&self, id: &str) -> bool {
         let mut index = self.index.write().unwrap();
-        if let Some(old) = index.records.remove(id) {
-            index.bytes -= old.encoding_bytes;
-        }
+        let Some(old) = index.records.remove(id) else { return false };
+        index.bytes -= old.encoding_bytes;
         drop(index);
         self.loaded.remove(id);
+        true
+    }
+
+    /// What the store knows of texture `id`, looking in the directory when it is not indexed
+    /// (another process may have written it): a cheap existence check on the caller's thread,
+    /// and only for a file that exists, reading and planning it on the blocking pool. An id
+    /// found absent is answered absent for [`ABSENT_TTL`] without looking again. `id` must be
+    /// a valid id.
+    pub async fn find(self: &Arc<Self>, id: &str) -> Option<Arc<Record>> {
+        if let Some(record) = self.record(id) {
+            return Some(record);
+        }
+        if self.known_absent(id) {
+            return None;
+        }
+        let path = self.path_of(id);
+        if !path.is_file() {
+            self.remember_absent(id);
+            return None;
+        }
+        let store = self.clone();
+        tokio::task::spawn_blocking(move || store.refresh(&path)).await.ok().flatten()
+    }
+
+    fn known_absent(&self, id: &str) -> bool {
+        let absent = self.absent.lock().unwrap();
+        absent.get(id).is_some_and(|since| since.elapsed() < ABSENT_TTL)
+    }
+
+    fn remember_absent(&self, id: &str) {
+        let mut absent = self.absent.lock().unwrap();
+        if absent.len() >= ABSENT_MAX {
+            absent.retain(|_, since| since.elapsed() < ABSENT_TTL);
+            if absent.len() >= ABSENT_MAX {
+                absent.clear();
+            }
+        }
+        absent.insert(id.to_string(), Instant::now());
+    }
+
+    /// Brings the index in line with the file at `path` (a bundle that appeared, changed or
+    /// vanished; anything else is ignored) and returns its record when it is served. Blocking.
+    /// A file that is not (yet) a valid bundle — one still being copied in — is not served
+    /// until a later refresh finds it whole.
+    pub fn refresh(&self, path: &Path) -> Option<Arc<Record>> {
+        let name = path.file_name()?.to_str()?;
+        let id = name.strip_suffix(&format!(".{BUNDLE_EXT}")).filter(|id| is_valid_id(id))?;
+        let path = &self.path_of(id);
+        if !path.is_file() {
+            if self.forget(id) {
+                tracing::info!(%id, "bundle gone from the data directory; no longer serving it");
+            }
+            self.remember_absent(id);
+            return None;
+        }
+        if let Some(record) = self.record(id) {
+            return Some(record);
+        }
+        match self.index_file(path) {
+            Ok(record) => {
+                let record = Arc::new(record);
+                self.insert(record.clone());
+                tracing::info!(%id, name = %record.manifest.name, "bundle found in the data directory; serving it");
+                Some(record)
+            }
+            Err(why) => {
+                tracing::debug!(%id, reason = %why, "not serving a bundle of the data directory (yet)");
+                self.remember_absent(id);
+                None
+            }
+        }
+    }
+
+    /// Lists the directory again: indexes bundles that appeared and forgets those that are
+    /// gone (after the watch lost events). Blocking.
+    pub fn rescan(&self) -> std::io::Result<()> {
+        let mut present = std::collections::HashSet::new();
+        for item in std::fs::read_dir(&self.dir)? {
+            let path = item?.path();
+            if let Some(record) = self.refresh(&path) {
+                present.insert(record.id.clone());
+            }
+        }
+        let gone: Vec<String> =
+            self.list().into_iter().map(|r| r.id.clone()).filter(|id| !present.contains(id)).collect();
+        for id in gone {
+            self.refresh(&self.path_of(&id));
+        }
+        Ok(())
+    }
+
+    /// Deletes texture `id`: its bundle leaves the directory (durably) and the index; requests
+    /// in flight finish with the texture they hold. False when no such bundle is stored.
+    /// Blocking.
+    pub fn remove(&self, id: &str) -> Result<bool, StoreError> {
+        let _writing = self.writing.lock().unwrap();
+        let existed = match std::fs::remove_file(self.path_of(id)) {
+            Ok(()) => {
+                sync_dir(&self.dir)?;
+                true
+            }
+            Err(e) if e.kind() == std::io::ErrorKind::NotFound => false,
+            Err(e) => return Err(e.into()),
+        };
+        let indexed = self.forget(id);
+        self.remember_absent(id);
+        Ok(existed || indexed)
     }
 
     pub fn dir(&self) -> &Path {
@@ -340,7 +474,7 @@ impl Store {
         if let Some(entry) = self.loaded.get(id) {
             return Ok(Some(entry));
         }
-        let Some(record) = self.record(id) else { return Ok(None) };
+        let Some(record) = self.find(id).await else { return Ok(None) };
         let turn = record.loading.clone().lock_owned().await;
         if let Some(entry) = self.loaded.get(id) {
             return Ok(Some(entry));
@@ -583,11 +717,16 @@ impl<V: Clone> Budgeted<V> {
 }
 
 /// Writes `bytes` to `path` so that readers and crashes see all of it or none of it.
+/// The temporary name is unique across processes sharing `dir` — even replicas in containers,
+/// which all run as pid 1 — by a random tag drawn once per process.
 pub fn write_atomic(dir: &Path, path: &Path, bytes: &[u8]) -> std::io::Result<()> {
+    use std::hash::{BuildHasher, RandomState};
     static COUNTER: AtomicU64 = AtomicU64::new(0);
+    static PROCESS_TAG: std::sync::OnceLock<u64> = std::sync::OnceLock::new();
+    let tag = PROCESS_TAG.get_or_init(|| RandomState::new().hash_one(std::process::id()));
     let n = COUNTER.fetch_add(1, Ordering::Relaxed);
     let file_name = path.file_name().and_then(|s| s.to_str()).unwrap_or("bundle");
-    let tmp = dir.join(format!("{TEMP_PREFIX}{}-{n}-{file_name}", std::process::id()));
+    let tmp = dir.join(format!("{TEMP_PREFIX}{tag:016x}-{n}-{file_name}"));
     let result = (|| {
         let mut f = std::fs::OpenOptions::new().write(true).create_new(true).open(&tmp)?;
         f.write_all(bytes)?;
@@ -637,16 +776,58 @@ mod tests {
         let _ = std::fs::remove_dir_all(&dir);
         std::fs::create_dir_all(&dir).unwrap();
         std::fs::write(dir.join(".tmp-1-0-abc.vtex"), b"half a bundle").unwrap();
+        let old = SystemTime::now() - STALE_TEMP_AGE - std::time::Duration::from_secs(1);
+        std::fs::File::options().write(true).open(dir.join(".tmp-1-0-abc.vtex")).unwrap().set_modified(old).unwrap();
+        // A fresh temporary may be another process's write in progress: left alone.
+        std::fs::write(dir.join(".tmp-2-0-def.vtex"), b"being written").unwrap();
         let bogus = dir.join(format!("{}.vtex", "ab".repeat(32)));
         std::fs::write(&bogus, b"not a bundle").unwrap();
         let (store, report) = Store::open(&dir, Bounds::unbounded(256), false).unwrap();
         assert_eq!(report.stale_temp_removed, 1);
         assert!(!dir.join(".tmp-1-0-abc.vtex").exists());
+        assert!(dir.join(".tmp-2-0-def.vtex").exists(), "a write in progress was removed");
         assert_eq!(report.rejected.len(), 1);
         assert!(report.rejected[0].1.contains("bad magic"), "{:?}", report.rejected);
         assert!(bogus.exists(), "invalid files are left alone, never deleted");
         assert!(store.is_empty());
         assert!(matches!(store.put(b"junk".to_vec()), Err(StoreError::Invalid(_))));
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+
+    #[test]
+    fn bundles_written_by_another_process_are_found_and_forgotten() {
+        let dir = std::env::temp_dir().join(format!("vtex-store-shared-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&dir);
+        let store = Store::open(&dir, Bounds::unbounded(256), false).unwrap().0;
+        let other = Store::open(&dir, Bounds::unbounded(256), false).unwrap().0;
+        let bundle = models::demos().into_iter().min_by_key(|b| b.to_bytes().len()).unwrap().to_bytes();
+        let (record, created) = other.put(bundle).unwrap();
+        assert!(created);
+        let path = store.path_of(&record.id);
+        assert!(store.record(&record.id).is_none(), "indexed only at open or on refresh");
+        // Refreshing is idempotent and follows the file both ways.
+        assert_eq!(store.refresh(&path).unwrap().id, record.id);
+        assert_eq!(store.refresh(&path).unwrap().id, record.id);
+        assert_eq!((store.len(), store.stored_bytes()), (1, record.encoding_bytes));
+        assert!(other.remove(&record.id).unwrap());
+        assert!(!other.remove(&record.id).unwrap(), "removed twice");
+        assert!(store.refresh(&path).is_none());
+        assert_eq!((store.len(), store.stored_bytes()), (0, 0));
+        // An id found absent is remembered briefly; indexing it forgets that.
+        assert!(store.known_absent(&record.id));
+        assert!(!store.known_absent(&"0".repeat(64)));
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+
+    #[test]
+    fn the_memory_of_absent_ids_is_bounded() {
+        let dir = std::env::temp_dir().join(format!("vtex-store-absent-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&dir);
+        let store = Store::open(&dir, Bounds::unbounded(256), false).unwrap().0;
+        for i in 0..ABSENT_MAX + 10 {
+            store.remember_absent(&format!("{i:064x}"));
+        }
+        assert!(store.absent.lock().unwrap().len() <= ABSENT_MAX);
         std::fs::remove_dir_all(&dir).unwrap();
     }
 
@@ -658,6 +839,7 @@ mod tests {
         let stuck = dir.join(".tmp-1-0-stuck.vtex");
         std::fs::create_dir_all(&stuck).unwrap();
         std::fs::write(stuck.join("inside"), b"x").unwrap();
+        std::fs::File::open(&stuck).unwrap().set_modified(SystemTime::now() - STALE_TEMP_AGE * 2).unwrap();
         let (store, report) = Store::open(&dir, Bounds::unbounded(256), false).unwrap();
         assert_eq!(report.stale_temp_kept.len(), 1, "{report:?}");
         assert_eq!(report.stale_temp_kept[0].0, stuck);

@@ -486,7 +486,9 @@ async fn unknown_query_parameters_are_refused_on_every_route() {
         (reqwest::Method::GET, format!("{t}/tiles/0/0/0.png"), "frame=1&"),
         (reqwest::Method::GET, format!("{t}/region"), "level=0&x=0&y=0&w=8&h=8&"),
         (reqwest::Method::GET, "/healthz".into(), ""),
+        (reqwest::Method::GET, "/readyz".into(), ""),
         (reqwest::Method::GET, "/metrics".into(), ""),
+        (reqwest::Method::DELETE, t.clone(), ""),
     ];
     let send = |method: &reqwest::Method, url: String| {
         let req = c.request(method.clone(), url);

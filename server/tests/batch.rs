@@ -80,7 +80,7 @@ async fn frames_equal_single_tiles_hits_first() {
             get_bytes(&c, &batch_url(&s, &id, &format!("format={fmt}&tiles={}", q.join(",")))).await;
         assert_eq!(status, 200);
         assert_eq!(h["content-type"], "application/x-vtex-tile-batch");
-        assert_eq!(h["cache-control"], "no-store");
+        assert_eq!(h["cache-control"], "no-store", "a batch with misses");
         assert_eq!(h["access-control-allow-origin"], "*");
         let got = frames(&body);
         assert_eq!(got.len(), list.len(), "one frame per tile");
@@ -259,4 +259,34 @@ async fn a_batch_past_the_deadline_is_cut_off() {
     assert_eq!(batches_timed(&c, &s, "timeout", 1.0).await, 1.0);
     let (st, _, body) = get_bytes(&c, &batch_url(&s, &id, "tiles=0/0/0&format=rgba")).await;
     assert_eq!((st, frames(&body).len()), (200, 1), "the server serves on");
+}
+
+/// A batch of tiles all in the cache is as immutable as its tiles: cacheable by a proxy, with
+/// a weak ETag naming its texture, list, format and frame, answered 304 on revalidation. A
+/// batch with a miss is not (a render may still fail into an error frame).
+#[tokio::test]
+async fn batches_of_cached_tiles_are_cacheable() {
+    let dir = tempdir();
+    let s = Server::start(dir.path(), &[]);
+    let c = client();
+    let id = put(&c, &s, &mosaic(30, 40, 5)).await;
+    let url = batch_url(&s, &id, "format=png&tiles=0/1/1,1/0/1,2/0/0");
+    let (status, cold, _) = get_bytes(&c, &url).await;
+    assert_eq!(status, 200);
+    assert_eq!(cold["cache-control"], "no-store", "a batch with misses");
+    assert!(cold.get("etag").is_none());
+    let (status, warm, body) = get_bytes(&c, &url).await;
+    assert_eq!(status, 200);
+    assert_eq!(warm["cache-control"], "public, max-age=31536000, immutable");
+    let etag = warm["etag"].to_str().unwrap().to_string();
+    assert!(etag.starts_with("W/\""), "{etag}");
+    assert!(frames(&body).iter().all(|f| f.status == 200 && f.cache == 1));
+    let r = c.get(&url).header("if-none-match", &etag).send().await.unwrap();
+    assert_eq!(r.status(), 304);
+    assert_eq!(r.headers()["etag"].to_str().unwrap(), etag);
+    // Another list, format or order is another batch.
+    for other in ["format=png&tiles=1/0/1,0/1/1,2/0/0", "format=rgba&tiles=0/1/1,1/0/1,2/0/0"] {
+        let r = c.get(batch_url(&s, &id, other)).header("if-none-match", &etag).send().await.unwrap();
+        assert_eq!(r.status(), 200, "{other}");
+    }
 }

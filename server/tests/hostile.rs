@@ -324,7 +324,11 @@ async fn sigkill_mid_upload_leaves_no_partial_bundle() {
     s.kill9();
     assert_eq!(store_files(dir.path()), files, "no partial bundle after SIGKILL");
     // A crash during a write leaves at most a temporary file: the next start removes it.
-    std::fs::write(dir.path().join(".tmp-4242-0-crashed.vtex"), &bundle[..bundle.len() / 3]).unwrap();
+    // (It is old: a young one may be another replica's write in progress, and is left alone.)
+    let crashed = dir.path().join(".tmp-4242-0-crashed.vtex");
+    std::fs::write(&crashed, &bundle[..bundle.len() / 3]).unwrap();
+    let long_ago = std::time::SystemTime::now() - vtex_server::store::STALE_TEMP_AGE * 2;
+    std::fs::File::options().write(true).open(&crashed).unwrap().set_modified(long_ago).unwrap();
     let s = Server::start(dir.path(), &[]);
     assert_eq!(store_files(dir.path()), files, "stale temporary file removed at start");
     assert!(s.log_text().contains("stale_temp_removed=1") || s.log_text().contains("stale_temp_removed"));

@@ -237,6 +237,8 @@ async fn start_up_survives_a_stale_temp_it_cannot_remove() {
     let stuck = dir.path().join(".tmp-4242-0-stuck.vtex");
     std::fs::create_dir(&stuck).unwrap();
     std::fs::write(stuck.join("inside"), b"x").unwrap();
+    let long_ago = std::time::SystemTime::now() - vtex_server::store::STALE_TEMP_AGE * 2;
+    std::fs::File::open(&stuck).unwrap().set_modified(long_ago).unwrap();
     let s = Server::start(dir.path(), &[]);
     let id = put(&client(), &s, &mosaic(32, 8, 1)).await;
     let (status, _, _) = get_bytes(&client(), &s.tile_url(&id, 0, 0, 0, "png")).await;

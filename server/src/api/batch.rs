@@ -34,13 +34,13 @@ use super::error::{echo, ApiError};
 use super::extract::{Path, Query};
 use super::params::{de, u32_value};
 use super::tiles::{self, frame_for};
-use super::{lookup, App, TextureId};
+use super::{lookup, not_modified, not_modified_response, App, TextureId, CACHE_IMMUTABLE};
 use crate::cache::{Source, Tile, TileKey};
 use crate::encode::Format;
 use crate::inflight::Reservation;
 use axum::body::Body;
 use axum::extract::State;
-use axum::http::{header, HeaderValue};
+use axum::http::{header, HeaderMap, HeaderValue};
 use axum::response::Response;
 use bytes::{BufMut, Bytes, BytesMut};
 use http_body::Frame;
@@ -166,12 +166,40 @@ pub struct BatchQuery {
     pub frame: Option<u32>,
 }
 
+/// Version of the batch validator scheme, part of every batch ETag.
+const BATCH_ETAG_SCHEME: &[u8] = b"vtex-batch/1";
+
+/// A weak validator of a batch: the frames it holds are a pure function of everything hashed
+/// here, though their order (and hit or miss) may differ from one response to the next.
+fn batch_etag(texture: &[u8; 32], tile_size: u32, frame: u32, format: Format, tiles: &[TileRef]) -> HeaderValue {
+    let mut h = blake3::Hasher::new();
+    h.update(BATCH_ETAG_SCHEME);
+    h.update(texture);
+    for v in [tile_size, frame] {
+        h.update(&v.to_le_bytes());
+    }
+    h.update(format.ext().as_bytes());
+    for t in tiles {
+        for v in [t.level, t.x, t.y] {
+            h.update(&v.to_le_bytes());
+        }
+    }
+    let hex = h.finalize().to_hex();
+    HeaderValue::from_str(&format!("W/\"{}\"", &hex[..32])).expect("hex is a valid header value")
+}
+
 /// The handler. Tiles in the cache are framed at once; each other tile is a task of its own
 /// (they wait for synthesis slots like single tiles do), framed as it finishes.
+///
+/// A batch whose every tile is in the cache when it starts cannot hold an error frame, so it is
+/// marked cacheable like a single tile (`public, immutable`, with a weak ETag: a shared cache
+/// may answer the same URL with it for ever); a batch with misses is `no-store`, since a render
+/// may still fail or be shed into an error frame.
 pub async fn batch(
     State(app): State<App>,
     Path(TextureId { id }): Path<TextureId>,
     Query(BatchQuery { tiles, format, frame }): Query<BatchQuery>,
+    headers: HeaderMap,
 ) -> Result<Response, ApiError> {
     let started = Instant::now();
     let entry = lookup(&app, &id).await?;
@@ -179,6 +207,10 @@ pub async fn batch(
         tiles::check_tile(&entry, t.level, t.x, t.y)?;
     }
     let frame = frame_for(&entry, frame);
+    let etag = batch_etag(&entry.key, entry.tile_size, frame, format, &tiles);
+    if not_modified(&headers, etag.to_str().unwrap_or_default()) {
+        return Ok(not_modified_response(etag));
+    }
     let reservation = app.inflight.reserve(tiles.len() as u64 * FRAME_RESERVE)?;
     let mut ready = VecDeque::new();
     let mut pending = JoinSet::new();
@@ -206,11 +238,16 @@ pub async fn batch(
     let deadline = Box::pin(tokio::time::sleep(app.cfg.request_timeout()));
     let body =
         BatchBody { ready, pending, deadline, app: app.clone(), started, timed_out: false, _reservation: reservation };
+    let every_tile_cached = body.pending.is_empty();
     let mut resp = Response::new(Body::new(body));
     let h = resp.headers_mut();
     h.insert(header::CONTENT_TYPE, HeaderValue::from_static(CONTENT_TYPE));
-    // The frames' order (and hit or miss) differs from one response to the next.
-    h.insert(header::CACHE_CONTROL, HeaderValue::from_static("no-store"));
+    if every_tile_cached {
+        h.insert(header::CACHE_CONTROL, CACHE_IMMUTABLE);
+        h.insert(header::ETAG, etag);
+    } else {
+        h.insert(header::CACHE_CONTROL, HeaderValue::from_static("no-store"));
+    }
     Ok(resp)
 }
 

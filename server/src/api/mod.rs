@@ -2,12 +2,15 @@
 //! table of routes: requests are matched there and nowhere else.
 
 pub mod batch;
+mod deletion;
 pub mod error;
 pub mod extract;
 mod front;
+mod health;
 pub mod params;
 mod textures;
 pub mod tiles;
+pub mod writes;
 
 use crate::cache::TileCache;
 use crate::config::ServeConfig;
@@ -21,7 +24,7 @@ use axum::extract::{DefaultBodyLimit, MatchedPath, Request, State};
 use axum::http::{header, HeaderMap, HeaderName, HeaderValue, Method, StatusCode};
 use axum::middleware::{self, Next};
 use axum::response::{IntoResponse, Response};
-use axum::routing::{any, get};
+use axum::routing::{any, delete, get};
 use axum::{BoxError, Router};
 use error::ApiError;
 use extract::{NoQuery, Query};
@@ -73,6 +76,10 @@ pub struct AppState {
     pub inflight: Inflight,
     /// Set when shutdown stops the renders still running.
     pub stopping: Arc<AtomicBool>,
+    /// Set when shutdown begins: no longer ready (`/readyz`).
+    pub draining: AtomicBool,
+    /// Who may write (`VTEX_WRITE_TOKEN`, `--read-only`, `--cors-write-origins`).
+    pub writes: writes::WritePolicy,
     pub cfg: ServeConfig,
 }
 
@@ -112,7 +119,8 @@ impl AppState {
         metrics.model_cache_budget_bytes.set(cfg.synth_cache_bytes() as i64);
         let slots = Slots::new(cfg.syntheses(), cfg.syntheses_per_texture(), cfg.max_queued());
         let stopping = Arc::new(AtomicBool::new(false));
-        Arc::new(AppState { store, cache, metrics, slots, inflight, stopping, cfg })
+        let (draining, writes) = (AtomicBool::new(false), writes::WritePolicy::new(&cfg));
+        Arc::new(AppState { store, cache, metrics, slots, inflight, stopping, draining, writes, cfg })
     }
 
     /// Shutdown: stops every render in progress and refuses every miss waiting or to come.
@@ -203,8 +211,9 @@ pub struct TextureId {
 }
 
 /// The routes, the static viewer as the fallback, and the layers every request passes:
-/// metrics and the log outermost (so they see every answer, a timeout's too), then CORS, then
-/// the request deadline, then the body limit.
+/// metrics and the log outermost (so they see every answer, a timeout's too), then the write
+/// policy (it answers write preflights itself), then CORS, then the request deadline, then the
+/// body limit.
 pub fn router(app: App) -> Router {
     let web = ServeDir::new(&app.cfg.web_dir).append_index_html_on_directories(true);
     let limit = app.cfg.request_timeout();
@@ -216,6 +225,7 @@ pub fn router(app: App) -> Router {
                 .on_response(DefaultOnResponse::new().level(tracing::Level::INFO).latency_unit(LatencyUnit::Micros)),
         )
         .layer(middleware::from_fn_with_state(app.clone(), observe))
+        .layer(middleware::from_fn_with_state(app.clone(), writes::guard))
         .layer(cors_layer())
         .layer(HandleErrorLayer::new(on_timeout))
         .timeout(limit)
@@ -227,7 +237,10 @@ pub fn router(app: App) -> Router {
         .route(BATCH, get(batch::batch))
         .route(TILE, get(tiles::tile))
         .route("/api/v1/textures/{id}/region", get(tiles::region))
-        .route("/healthz", get(healthz))
+        // Deployment: deleting textures, liveness and readiness.
+        .route("/api/v1/textures/{id}", delete(deletion::delete))
+        .route("/healthz", get(health::healthz))
+        .route("/readyz", get(health::readyz))
         .route("/metrics", get(metrics))
         .route("/api", any(api_not_found))
         .route("/api/{*rest}", any(api_not_found))
@@ -242,12 +255,12 @@ fn timed_out(limit: std::time::Duration) -> ApiError {
     ApiError::Timeout(format!("request not completed within {} s (slow client or overload)", limit.as_secs_f64()))
 }
 
-/// The CORS policy: any origin, the API's methods, any request header, and the response
-/// headers the viewer reads exposed.
+/// The CORS policy of reads: any origin, the read methods, any request header, and the
+/// response headers the viewer reads exposed. Writes have their own ([`writes::guard`]).
 fn cors_layer() -> CorsLayer {
     CorsLayer::new()
         .allow_origin(Any)
-        .allow_methods([Method::GET, Method::HEAD, Method::POST, Method::PATCH, Method::OPTIONS])
+        .allow_methods([Method::GET, Method::HEAD, Method::OPTIONS])
         .allow_headers(Any)
         .expose_headers([header::ETAG, X_VTEX_CACHE.clone(), X_VTEX_WIDTH.clone(), X_VTEX_HEIGHT.clone()])
 }
@@ -268,10 +281,6 @@ async fn observe(State(app): State<App>, req: Request, next: Next) -> Response {
 fn count(app: &AppState, route: &str, method: &Method, start: Instant, resp: &Response) {
     let bytes = http_body::Body::size_hint(resp.body()).exact().unwrap_or(0);
     app.metrics.request_done(route, method, resp.status(), start.elapsed().as_secs_f64(), bytes);
-}
-
-async fn healthz(_: Query<NoQuery>) -> Response {
-    ([(header::CONTENT_TYPE, "application/json")], r#"{"status":"ok"}"#).into_response()
 }
 
 async fn metrics(State(app): State<App>, _: Query<NoQuery>) -> Response {
@@ -350,10 +359,17 @@ pub fn declared_length(headers: &HeaderMap) -> Option<u64> {
     headers.get(header::CONTENT_LENGTH).and_then(|v| v.to_str().ok()?.parse::<u64>().ok())
 }
 
-/// The 413 for a body over `limit`, given after draining the rest of the body within
-/// [`DRAIN_BYTES`] and [`DRAIN_TIME`] — unless the client waits for `100 Continue` before
-/// sending it, or sends nothing for [`DRAIN_IDLE`].
+/// The 413 for a body over `limit`, given after [`drain`]ing the rest of the body.
 pub async fn refuse_oversized(req: Request, limit: usize) -> ApiError {
+    drain(req).await;
+    ApiError::PayloadTooLarge(format!("request body larger than the limit of {limit} bytes"))
+}
+
+/// Reads and throws away the body of a request about to be refused, within [`DRAIN_BYTES`]
+/// and [`DRAIN_TIME`] — unless the client waits for `100 Continue` before sending it, or
+/// sends nothing for [`DRAIN_IDLE`] — so that a client (or a proxy) still sending it receives
+/// the refusal rather than a reset connection.
+pub async fn drain(req: Request) {
     let waits_to_send =
         req.headers().get(header::EXPECT).is_some_and(|v| v.as_bytes().eq_ignore_ascii_case(b"100-continue"));
     let mut body = req.into_body();
@@ -370,11 +386,10 @@ pub async fn refuse_oversized(req: Request, limit: usize) -> ApiError {
     if !waits_to_send {
         let _ = tokio::time::timeout(DRAIN_TIME, drain).await;
     }
-    ApiError::PayloadTooLarge(format!("request body larger than the limit of {limit} bytes"))
 }
 
 /// A texture id from the path: checked before it can reach a file name.
-fn check_id(id: &str) -> Result<(), ApiError> {
+pub(crate) fn check_id(id: &str) -> Result<(), ApiError> {
     if vtex_synth::bundle::is_valid_id(id) {
         return Ok(());
     }
@@ -384,14 +399,15 @@ fn check_id(id: &str) -> Result<(), ApiError> {
     )))
 }
 
-fn no_texture(id: &str) -> ApiError {
+pub(crate) fn no_texture(id: &str) -> ApiError {
     ApiError::not_found(format!("no texture with id {id}"))
 }
 
-/// What the store knows of texture `id`, without loading it.
-pub fn record(app: &AppState, id: &str) -> Result<Arc<Record>, ApiError> {
+/// What the store knows of texture `id`, without loading it (found in the data directory when
+/// another process wrote it).
+pub async fn record(app: &AppState, id: &str) -> Result<Arc<Record>, ApiError> {
     check_id(id)?;
-    app.store.record(id).ok_or_else(|| no_texture(id))
+    app.store.find(id).await.ok_or_else(|| no_texture(id))
 }
 
 /// Texture `id`, loaded: on its first use (or after its eviction) off the I/O threads.

@@ -30,7 +30,7 @@ pub async fn info(
     Path(TextureId { id }): Path<TextureId>,
     _: Query<NoQuery>,
 ) -> Result<Json<TextureInfo>, ApiError> {
-    Ok(Json(record(&app, &id)?.info()))
+    Ok(Json(record(&app, &id).await?.info()))
 }
 
 /// The bundle bytes exactly as stored, read whole once their length is reserved from the
@@ -41,7 +41,7 @@ pub async fn encoding(
     _: Query<NoQuery>,
     headers: HeaderMap,
 ) -> Result<Response, ApiError> {
-    let entry = record(&app, &id)?;
+    let entry = record(&app, &id).await?;
     let tag = HeaderValue::from_str(&format!("\"{}\"", entry.id)).expect("hex id");
     if not_modified(&headers, tag.to_str().unwrap_or_default()) {
         return Ok(not_modified_response(tag));
@@ -188,7 +188,7 @@ pub async fn patch(
     _: Query<NoQuery>,
     req: Request,
 ) -> Result<(StatusCode, Json<TextureInfo>), ApiError> {
-    let entry = record(&app, &id)?;
+    let entry = record(&app, &id).await?;
     let body = read_body(req, MAX_PATCH_BYTES).await?;
     let patch: Value =
         serde_json::from_slice(&body).map_err(|e| ApiError::bad_request(format!("patch is not JSON: {e}")))?;

@@ -1,0 +1,30 @@
+//! `DELETE /api/v1/textures/{id}`: removes a texture's bundle from the data directory.
+
+use super::error::ApiError;
+use super::extract::{NoQuery, Path, Query};
+use super::{check_id, no_texture, App, TextureId};
+use axum::extract::State;
+use axum::http::StatusCode;
+
+/// 204 once the bundle is gone from the directory (durably) and from this server's index;
+/// other servers sharing the directory stop serving it when their watch sees it go, or on
+/// their next miss. Requests in flight finish with the texture they hold. Tiles cached by
+/// proxies in front are not recalled: tile URLs are immutable.
+pub async fn delete(
+    State(app): State<App>,
+    Path(TextureId { id }): Path<TextureId>,
+    _: Query<NoQuery>,
+) -> Result<StatusCode, ApiError> {
+    check_id(&id)?;
+    let store = app.store.clone();
+    let target = id.clone();
+    let removed = tokio::task::spawn_blocking(move || store.remove(&target))
+        .await
+        .map_err(|e| ApiError::internal("deleting the bundle failed", e))?
+        .map_err(|e| ApiError::internal("deleting the bundle failed", e))?;
+    if !removed {
+        return Err(no_texture(&id));
+    }
+    tracing::info!(%id, "texture deleted");
+    Ok(StatusCode::NO_CONTENT)
+}

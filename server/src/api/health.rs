@@ -1,0 +1,32 @@
+//! Liveness (`/healthz`: the process answers) and readiness (`/readyz`: it should be sent
+//! traffic). The store is opened before the server listens, so a server that answers has its
+//! store loaded; it is not ready while its data directory cannot be read (a shared volume gone)
+//! or once it drains for shutdown, so a balancer sends new requests elsewhere.
+
+use super::extract::{NoQuery, Query};
+use super::App;
+use axum::extract::State;
+use axum::http::{header, StatusCode};
+use axum::response::{IntoResponse, Response};
+use std::sync::atomic::Ordering;
+
+pub async fn healthz(_: Query<NoQuery>) -> Response {
+    ([(header::CONTENT_TYPE, "application/json")], r#"{"status":"ok"}"#).into_response()
+}
+
+pub async fn readyz(State(app): State<App>, _: Query<NoQuery>) -> Response {
+    let not_ready = |why: &str| {
+        let body = serde_json::json!({ "status": "not ready", "error": why }).to_string();
+        (StatusCode::SERVICE_UNAVAILABLE, [(header::CONTENT_TYPE, "application/json")], body).into_response()
+    };
+    if app.draining.load(Ordering::Relaxed) {
+        return not_ready("the server is shutting down");
+    }
+    let dir = app.store.dir().to_path_buf();
+    let readable = tokio::task::spawn_blocking(move || std::fs::read_dir(&dir).is_ok()).await.unwrap_or(false);
+    if !readable {
+        return not_ready("the data directory cannot be read");
+    }
+    let body = serde_json::json!({ "status": "ready", "textures": app.store.len() }).to_string();
+    ([(header::CONTENT_TYPE, "application/json")], body).into_response()
+}

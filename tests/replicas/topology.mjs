@@ -1,0 +1,136 @@
+// The topology of docker/compose.yaml on loopback: N `vtex serve` processes on one data
+// directory behind Debian's nginx, run from docker/nginx.conf itself with only its upstream
+// addresses, listen address and paths rewritten. Used by the replicas test and the benchmark.
+import { spawn } from 'node:child_process';
+import { chmodSync, mkdirSync, mkdtempSync, readFileSync, rmSync, writeFileSync, existsSync } from 'node:fs';
+import { createServer } from 'node:net';
+import { tmpdir } from 'node:os';
+import { dirname, join, resolve } from 'node:path';
+import { createInterface } from 'node:readline';
+import { fileURLToPath } from 'node:url';
+
+export const ROOT = resolve(dirname(fileURLToPath(import.meta.url)), '..', '..');
+export const VTEX_BIN = process.env.VTEX_BIN || join(ROOT, 'target', 'release', 'vtex');
+export const NGINX = process.env.NGINX || '/usr/sbin/nginx';
+export const NGINX_CONF = join(ROOT, 'docker', 'nginx.conf');
+
+/** A free loopback port (closed again before it is used: a brief race, loopback only). */
+async function freePort() {
+  return new Promise((resolvePort, reject) => {
+    const srv = createServer();
+    srv.listen(0, '127.0.0.1', () => {
+      const { port } = srv.address();
+      srv.close(() => resolvePort(port));
+    });
+    srv.on('error', reject);
+  });
+}
+
+/** Replaces `pattern` in `text`, requiring exactly `count` matches: a config that drifted
+ * from what the test rewrites fails loudly instead of running something else. */
+function rewrite(text, pattern, replace, count) {
+  const found = text.match(new RegExp(pattern.source, 'g')) || [];
+  if (found.length !== count) throw new Error(`docker/nginx.conf: expected ${count} × ${pattern}, found ${found.length}`);
+  return text.replace(new RegExp(pattern.source, 'g'), replace);
+}
+
+/** docker/nginx.conf with its upstream servers at `upstreams` (host:port), listening on
+ * `listen`, its paths under `dir`. */
+export function nginxConf(upstreams, listen, dir) {
+  let conf = readFileSync(NGINX_CONF, 'utf8');
+  // Compose's replicas vtex-1…vtex-3: the first `upstreams.length` take these addresses, the
+  // others are left out (a topology of fewer replicas, for the benchmark's baseline).
+  let i = 0;
+  conf = rewrite(conf, /\n\s*server vtex-\d+:8080/, (line) => {
+    const addr = upstreams[i++];
+    return addr ? line.replace(/vtex-\d+:8080/, addr) : '\n    #';
+  }, 3);
+  if (upstreams.length > 3) throw new Error('docker/nginx.conf names 3 replicas');
+  conf = rewrite(conf, /listen 80;/, `listen ${listen};`, 1);
+  conf = rewrite(conf, /\/var\/run\/nginx\.pid/, join(dir, 'nginx.pid'), 1);
+  conf = rewrite(conf, /\/var\/cache\/nginx/, join(dir, 'cache'), 6);
+  conf = rewrite(conf, /access_log \/dev\/stdout/, `access_log ${join(dir, 'access.log')}`, 1);
+  return conf;
+}
+
+/** Starts one `vtex serve`; resolves with { url, addr, proc, stderr(), exited } once it listens. */
+export async function startReplica(dataDir, { args = [], env = {} } = {}) {
+  if (!existsSync(VTEX_BIN)) throw new Error(`${VTEX_BIN} not found: run cargo build --release -p vtex-server`);
+  const proc = spawn(VTEX_BIN, ['serve', '--bind', '127.0.0.1:0', '--data-dir', dataDir, ...args], {
+    stdio: ['ignore', 'pipe', 'pipe'],
+    env: { ...process.env, VTEX_LOG: 'warn', ...env },
+  });
+  let stderr = '';
+  proc.stderr.on('data', (d) => {
+    stderr = (stderr + d).slice(-8000);
+  });
+  const exited = new Promise((res) => proc.on('exit', (code, signal) => res({ code, signal })));
+  const url = await new Promise((resolveUrl, reject) => {
+    const timer = setTimeout(() => reject(new Error(`vtex did not listen within 120 s:\n${stderr}`)), 120_000);
+    createInterface({ input: proc.stdout }).on('line', (line) => {
+      const m = line.match(/^vtex listening on (http:\/\/\S+)/);
+      if (m) {
+        clearTimeout(timer);
+        resolveUrl(m[1]);
+      }
+    });
+    exited.then(({ code }) => {
+      clearTimeout(timer);
+      reject(new Error(`vtex exited with ${code} before listening:\n${stderr}`));
+    });
+  });
+  return { url, addr: url.replace('http://', ''), proc, exited, stderr: () => stderr };
+}
+
+/** Starts `replicas` vtex processes on one fresh data directory (the first alone, writing the
+ * demos; then the others) and nginx in front. `stop()` ends them all and removes the files. */
+export async function startTopology({ replicas = 3, env = {}, args = [] } = {}) {
+  const dir = mkdtempSync(join(tmpdir(), 'vtex-replicas-'));
+  // nginx's workers run as an unprivileged user when started as root: they write the cache here.
+  chmodSync(dir, 0o755);
+  const dataDir = join(dir, 'data');
+  const nginxDir = join(dir, 'nginx');
+  mkdirSync(join(nginxDir, 'cache'), { recursive: true });
+  chmodSync(join(nginxDir, 'cache'), 0o777);
+  const started = [await startReplica(dataDir, { args, env })];
+  started.push(
+    ...(await Promise.all(
+      Array.from({ length: replicas - 1 }, () => startReplica(dataDir, { args: [...args, '--no-demos'], env })),
+    )),
+  );
+  const port = await freePort();
+  const confPath = join(nginxDir, 'nginx.conf');
+  writeFileSync(confPath, nginxConf(started.map((r) => r.addr), `127.0.0.1:${port}`, nginxDir));
+  const nginx = spawn(NGINX, ['-p', nginxDir, '-c', confPath, '-e', 'stderr', '-g', 'daemon off;'], {
+    stdio: ['ignore', 'ignore', 'pipe'],
+  });
+  let nginxErr = '';
+  nginx.stderr.on('data', (d) => {
+    nginxErr = (nginxErr + d).slice(-8000);
+  });
+  const nginxExited = new Promise((res) => nginx.on('exit', (code) => res(code)));
+  const url = `http://127.0.0.1:${port}`;
+  for (let t = 0; ; t++) {
+    try {
+      if ((await fetch(`${url}/nginx-health`)).ok) break;
+    } catch {
+      // not listening yet
+    }
+    if (nginx.exitCode !== null || t > 200) throw new Error(`nginx did not start:\n${nginxErr}`);
+    await new Promise((r) => setTimeout(r, 25));
+  }
+  return {
+    url,
+    dataDir,
+    replicas: started,
+    accessLog: () => readFileSync(join(nginxDir, 'access.log'), 'utf8'),
+    nginxStderr: () => nginxErr,
+    async stop() {
+      for (const r of started) if (r.proc.exitCode === null && r.proc.signalCode === null) r.proc.kill('SIGKILL');
+      await Promise.all(started.map((r) => r.exited));
+      if (nginx.exitCode === null) nginx.kill('SIGQUIT');
+      await nginxExited;
+      rmSync(dir, { recursive: true, force: true });
+    },
+  };
+}
