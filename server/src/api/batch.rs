@@ -1,4 +1,6 @@
-//! Many tiles in one response: `GET /api/v1/textures/{id}/tiles?tiles=L/x/y,…&format=F[&frame=N]`.
+//! Many tiles in one response: `GET /api/v1/textures/{id}/tiles?tiles=L/x/y,…&format=F[&frame=N]`,
+//! or many pages: `…/tiles?pages=L/x/y,…&format=F[&size=S&border=B&codec=C&supercompression=Z&frame=N]`
+//! (the parameters of a single page, [`pages`](super::pages)).
 //!
 //! Why: a browser spends a fixed amount of CPU on every request, whatever its size, so a view
 //! of a few dozen tiles paid it a few dozen times before a pixel was drawn. One request for the
@@ -32,11 +34,11 @@
 
 use super::error::{echo, ApiError};
 use super::extract::{Path, Query};
+use super::pages::{self, page_format_value, PageFormat};
 use super::params::{de, u32_value};
 use super::tiles::{self, frame_for};
 use super::{lookup, App, TextureId};
-use crate::cache::{Source, Tile, TileKey};
-use crate::encode::Format;
+use crate::cache::{Shape, Source, Tile, TileKey};
 use crate::inflight::Reservation;
 use axum::body::Body;
 use axum::extract::State;
@@ -150,20 +152,68 @@ pub fn parse_tiles(list: &str) -> Result<Vec<TileRef>, String> {
     Ok(out)
 }
 
-fn de_tiles<'de, D: Deserializer<'de>>(d: D) -> Result<Vec<TileRef>, D::Error> {
-    parse_tiles(&String::deserialize(d)?).map_err(serde::de::Error::custom)
+fn de_tiles<'de, D: Deserializer<'de>>(d: D) -> Result<Option<Vec<TileRef>>, D::Error> {
+    parse_tiles(&String::deserialize(d)?).map(Some).map_err(serde::de::Error::custom)
 }
 
-/// The query of a batch.
+fn de_format<'de, D: Deserializer<'de>>(d: D) -> Result<PageFormat, D::Error> {
+    page_format_value(&String::deserialize(d)?).map_err(serde::de::Error::custom)
+}
+
+/// The query of a batch: `tiles` or `pages`, and the parameters of a single tile or page.
 #[derive(Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct BatchQuery {
-    #[serde(deserialize_with = "de_tiles")]
-    pub tiles: Vec<TileRef>,
-    #[serde(deserialize_with = "de::format")]
-    pub format: Format,
+    #[serde(default, deserialize_with = "de_tiles")]
+    pub tiles: Option<Vec<TileRef>>,
+    #[serde(default, deserialize_with = "de_tiles")]
+    pub pages: Option<Vec<TileRef>>,
+    #[serde(deserialize_with = "de_format")]
+    pub format: PageFormat,
+    #[serde(default, deserialize_with = "de::opt_u32")]
+    pub size: Option<u32>,
+    #[serde(default, deserialize_with = "de::opt_u32")]
+    pub border: Option<u32>,
+    #[serde(default, deserialize_with = "pages::de_codec")]
+    pub codec: Option<crate::ktx2::Codec>,
+    #[serde(default, deserialize_with = "pages::de_supercompression")]
+    pub supercompression: Option<crate::ktx2::Supercompression>,
     #[serde(default, deserialize_with = "de::opt_u32")]
     pub frame: Option<u32>,
+}
+
+impl BatchQuery {
+    /// The list, the format and the shape: tiles take no page parameter and no ktx2.
+    fn items(self) -> Result<(Vec<TileRef>, crate::encode::Format, Shape), ApiError> {
+        let BatchQuery { tiles, pages, format, size, border, codec, supercompression, .. } = self;
+        match (tiles, pages) {
+            (Some(tiles), None) => {
+                let page_params = [
+                    ("size", size.is_some()),
+                    ("border", border.is_some()),
+                    ("codec", codec.is_some()),
+                    ("supercompression", supercompression.is_some()),
+                ];
+                if let Some((name, _)) = page_params.into_iter().find(|(_, given)| *given) {
+                    return Err(ApiError::bad_request(format!(
+                        "`{name}` applies to pages only; this batch lists tiles"
+                    )));
+                }
+                let PageFormat::Image(format) = format else {
+                    return Err(ApiError::bad_request(format!(
+                        "`format` ktx2 is served for pages only; tiles: {}",
+                        crate::encode::Format::EXPECTED
+                    )));
+                };
+                Ok((tiles, format, Shape::Tile))
+            }
+            (None, Some(pages)) => {
+                let (format, shape) = pages::page_spec(format, size, border, codec, supercompression)?;
+                Ok((pages, format, shape))
+            }
+            _ => Err(ApiError::bad_request("a batch takes exactly one of `tiles` and `pages`")),
+        }
+    }
 }
 
 /// The handler. Tiles in the cache are framed at once; each other tile is a task of its own
@@ -171,12 +221,17 @@ pub struct BatchQuery {
 pub async fn batch(
     State(app): State<App>,
     Path(TextureId { id }): Path<TextureId>,
-    Query(BatchQuery { tiles, format, frame }): Query<BatchQuery>,
+    Query(query): Query<BatchQuery>,
 ) -> Result<Response, ApiError> {
     let started = Instant::now();
+    let frame = query.frame;
+    let (tiles, format, shape) = query.items()?;
     let entry = lookup(&app, &id).await?;
     for t in &tiles {
-        tiles::check_tile(&entry, t.level, t.x, t.y)?;
+        match shape {
+            Shape::Tile => tiles::check_tile(&entry, t.level, t.x, t.y)?,
+            Shape::Page { size, .. } => pages::check_page(&entry, t.level, t.x, t.y, size)?,
+        }
     }
     let frame = frame_for(&entry, frame);
     let reservation = app.inflight.reserve(tiles.len() as u64 * FRAME_RESERVE)?;
@@ -187,7 +242,7 @@ pub async fn batch(
     // (to be shed tile by tile) nor asks for more than its texture's share of the slots.
     let turns = Arc::new(Semaphore::new(app.cfg.syntheses_per_texture()));
     for tile in tiles {
-        let key = TileKey { texture: entry.key, level: tile.level, x: tile.x, y: tile.y, frame, format };
+        let key = TileKey { texture: entry.key, level: tile.level, x: tile.x, y: tile.y, frame, format, shape };
         match app.cache.get(&key) {
             Some(hit) => {
                 app.metrics.cache_hit(tile.level);
@@ -197,7 +252,7 @@ pub async fn batch(
                 let (app, entry, turns) = (app.clone(), entry.clone(), turns.clone());
                 pending.spawn(async move {
                     let _turn = turns.acquire().await.expect("the semaphore is never closed");
-                    let tag = tiles::tile_etag(&entry, &key);
+                    let tag = tiles::key_etag(&entry, &key);
                     (tile, tiles::obtain(&app, &entry, key, None, tag).await)
                 });
             }

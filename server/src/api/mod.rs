@@ -5,6 +5,7 @@ pub mod batch;
 pub mod error;
 pub mod extract;
 mod front;
+pub mod pages;
 pub mod params;
 mod textures;
 pub mod tiles;
@@ -227,6 +228,9 @@ pub fn router(app: App) -> Router {
         .route(BATCH, get(batch::batch))
         .route(TILE, get(tiles::tile))
         .route("/api/v1/textures/{id}/region", get(tiles::region))
+        // Virtual-texture pages with borders and KTX2 mip chains for game engines (pages.rs).
+        .route("/api/v1/textures/{id}/pages/{level}/{x}/{file}", get(pages::page))
+        .route("/api/v1/textures/{id}/mips.ktx2", get(pages::mip_chain))
         .route("/healthz", get(healthz))
         .route("/metrics", get(metrics))
         .route("/api", any(api_not_found))
