@@ -26,7 +26,7 @@ pub const ENTRY_OVERHEAD: u64 = 320;
 const MIN_SHARD_BYTES: u64 = 8 << 20;
 const MAX_SHARDS: u64 = 16;
 
-/// Identifies an encoded tile: everything its bytes depend on.
+/// Identifies an encoded tile or page: everything its bytes depend on.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub struct TileKey {
     pub texture: [u8; 32],
@@ -35,6 +35,17 @@ pub struct TileKey {
     pub y: u32,
     pub frame: u32,
     pub format: Format,
+    pub shape: Shape,
+}
+
+/// What (`level`, `x`, `y`) of a [`TileKey`] addresses.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum Shape {
+    /// A map tile of the server's `--tile-size`, clipped at the level's edges.
+    Tile,
+    /// A `size`² page of the page grid with `border` pixels of its neighbours on every side
+    /// (`api/pages.rs`).
+    Page { size: u32, border: u32 },
 }
 
 /// An encoded tile as served.
@@ -244,7 +255,7 @@ mod tests {
     use std::sync::atomic::{AtomicBool, AtomicUsize};
 
     fn key(x: u32) -> TileKey {
-        TileKey { texture: [7; 32], level: 0, x, y: 0, frame: 0, format: Format::Png }
+        TileKey { texture: [7; 32], level: 0, x, y: 0, frame: 0, format: Format::Png, shape: Shape::Tile }
     }
 
     fn tile(n: usize) -> Arc<Tile> {

@@ -1,6 +1,7 @@
-//! Tile formats. Every encoder here is deterministic, so a tile's bytes are a pure function
-//! of its pixels and format — the property that lets tiles carry strong ETags.
+//! Tile and page formats. Every encoder here is deterministic, so a tile's bytes are a pure
+//! function of its pixels and format — the property that lets tiles carry strong ETags.
 
+use crate::ktx2::{self, Ktx2};
 use image::codecs::{jpeg::JpegEncoder, png, webp::WebPEncoder};
 use image::{ExtendedColorType, ImageEncoder};
 use vtex_synth::Rgba8Image;
@@ -17,12 +18,14 @@ pub enum Format {
     Jpg,
     /// Raw row-major RGBA8; width and height travel in `X-Vtex-Width`/`X-Vtex-Height`.
     Rgba,
+    /// A GPU-ready KTX2 file of one level ([`crate::ktx2`]); served for pages, not tiles.
+    Ktx2(Ktx2),
 }
 
 impl Format {
     pub const ALL: [Format; 4] = [Format::Png, Format::Webp, Format::Jpg, Format::Rgba];
 
-    /// The format for a file extension or `format=` value.
+    /// The tile format for a file extension or `format=` value.
     pub fn parse(s: &str) -> Option<Format> {
         match s {
             "png" => Some(Format::Png),
@@ -39,6 +42,7 @@ impl Format {
             Format::Webp => "webp",
             Format::Jpg => "jpg",
             Format::Rgba => "rgba",
+            Format::Ktx2(_) => "ktx2",
         }
     }
 
@@ -48,6 +52,7 @@ impl Format {
             Format::Webp => "image/webp",
             Format::Jpg => "image/jpeg",
             Format::Rgba => "application/octet-stream",
+            Format::Ktx2(_) => "image/ktx2",
         }
     }
 
@@ -66,7 +71,7 @@ pub fn peak_bytes(format: Format, width: u32, height: u32) -> u64 {
     let pixels = width as u64 * height as u64 * 4;
     match format {
         Format::Rgba => pixels,
-        Format::Png | Format::Webp | Format::Jpg => 2 * pixels + ENCODING_SLACK,
+        Format::Png | Format::Webp | Format::Jpg | Format::Ktx2(_) => 2 * pixels + ENCODING_SLACK,
     }
 }
 
@@ -78,6 +83,7 @@ pub fn encode(img: Rgba8Image, format: Format) -> Result<Vec<u8>, String> {
     let mut out = Vec::with_capacity(img.data.len() / 2);
     let res = match format {
         Format::Rgba => return Ok(img.data),
+        Format::Ktx2(k) => return ktx2::encode(&[img], k),
         Format::Png => {
             // Fast deflate keeps a cold 256² tile within a few milliseconds; still lossless.
             let enc =

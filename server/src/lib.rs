@@ -8,6 +8,7 @@
 //! * [`store`] — the data directory of content-addressed bundles, written atomically.
 //! * [`cache`] — the sharded, byte-bounded tile LRU with coalesced misses.
 //! * [`encode`] — tile formats (PNG, WebP, JPEG, raw RGBA).
+//! * [`ktx2`] — GPU-ready pages: BC7, BC1 or RGBA8 in KTX2, optionally zstd-supercompressed.
 //! * [`metrics`] — Prometheus counters, gauges and histograms.
 //! * [`api`] — the HTTP API v1 (axum).
 //! * [`slots`] — synthesis slots shared fairly between textures, with a bounded queue.
@@ -29,6 +30,7 @@ pub mod config;
 pub mod encode;
 pub mod export;
 pub mod inflight;
+pub mod ktx2;
 pub mod metrics;
 pub mod serve;
 pub mod slots;

@@ -485,6 +485,8 @@ async fn unknown_query_parameters_are_refused_on_every_route() {
         (reqwest::Method::GET, format!("{t}/tiles"), "tiles=0/0/0&format=png&"),
         (reqwest::Method::GET, format!("{t}/tiles/0/0/0.png"), "frame=1&"),
         (reqwest::Method::GET, format!("{t}/region"), "level=0&x=0&y=0&w=8&h=8&"),
+        (reqwest::Method::GET, format!("{t}/pages/0/0/0.ktx2"), "size=64&"),
+        (reqwest::Method::GET, format!("{t}/mips.ktx2"), "level=2&"),
         (reqwest::Method::GET, "/healthz".into(), ""),
         (reqwest::Method::GET, "/readyz".into(), ""),
         (reqwest::Method::GET, "/metrics".into(), ""),
@@ -500,11 +502,11 @@ async fn unknown_query_parameters_are_refused_on_every_route() {
         .send()
     };
     for (method, path, known) in &routes {
-        let r = send(method, s.url(&format!("{path}?{known}border=4"))).await.unwrap();
+        let r = send(method, s.url(&format!("{path}?{known}gutter=4"))).await.unwrap();
         assert_eq!(r.status(), 400, "{method} {path}");
         assert_eq!(r.headers()["content-type"], "application/json", "{method} {path}");
         let msg = r.json::<Value>().await.unwrap()["error"].as_str().unwrap().to_string();
-        assert!(msg.starts_with("unknown query parameter `border`"), "{method} {path}: {msg}");
+        assert!(msg.starts_with("unknown query parameter `gutter`"), "{method} {path}: {msg}");
         let ok = send(method, s.url(&format!("{path}?{}", known.trim_end_matches('&')))).await.unwrap();
         assert!(ok.status().is_success(), "{method} {path} without the parameter: {}", ok.status());
     }

@@ -142,7 +142,7 @@ async fn bad_batches_are_refused_naming_the_problem() {
     let many = (0..257).map(|i| format!("0/{}/{}", i % 5, i / 5)).collect::<Vec<_>>().join(",");
     let long = format!("format=rgba&tiles={}", "0/0/0,".repeat(1500));
     let cases: Vec<(String, u16, &str)> = vec![
-        ("format=rgba".into(), 400, "missing query parameter `tiles`"),
+        ("format=rgba".into(), 400, "a batch takes exactly one of `tiles` and `pages`"),
         ("tiles=0/0/0".into(), 400, "missing query parameter `format`"),
         ("tiles=0/0/0&format=gif".into(), 400, "unknown format `gif`"),
         ("tiles=&format=rgba".into(), 400, "`tiles` is empty"),

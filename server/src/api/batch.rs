@@ -1,4 +1,6 @@
-//! Many tiles in one response: `GET /api/v1/textures/{id}/tiles?tiles=L/x/y,…&format=F[&frame=N]`.
+//! Many tiles in one response: `GET /api/v1/textures/{id}/tiles?tiles=L/x/y,…&format=F[&frame=N]`,
+//! or many pages: `…/tiles?pages=L/x/y,…&format=F[&size=S&border=B&codec=C&supercompression=Z&frame=N]`
+//! (the parameters of a single page, [`pages`](super::pages)).
 //!
 //! Why: a browser spends a fixed amount of CPU on every request, whatever its size, so a view
 //! of a few dozen tiles paid it a few dozen times before a pixel was drawn. One request for the
@@ -32,10 +34,11 @@
 
 use super::error::{echo, ApiError};
 use super::extract::{Path, Query};
+use super::pages::{self, page_format_value, PageFormat};
 use super::params::{de, u32_value};
 use super::tiles::{self, frame_for};
 use super::{lookup, not_modified, not_modified_response, App, TextureId, CACHE_IMMUTABLE};
-use crate::cache::{Source, Tile, TileKey};
+use crate::cache::{Shape, Source, Tile, TileKey};
 use crate::encode::Format;
 use crate::inflight::Reservation;
 use axum::body::Body;
@@ -150,18 +153,32 @@ pub fn parse_tiles(list: &str) -> Result<Vec<TileRef>, String> {
     Ok(out)
 }
 
-fn de_tiles<'de, D: Deserializer<'de>>(d: D) -> Result<Vec<TileRef>, D::Error> {
-    parse_tiles(&String::deserialize(d)?).map_err(serde::de::Error::custom)
+fn de_tiles<'de, D: Deserializer<'de>>(d: D) -> Result<Option<Vec<TileRef>>, D::Error> {
+    parse_tiles(&String::deserialize(d)?).map(Some).map_err(serde::de::Error::custom)
 }
 
-/// The query of a batch.
+fn de_format<'de, D: Deserializer<'de>>(d: D) -> Result<PageFormat, D::Error> {
+    page_format_value(&String::deserialize(d)?).map_err(serde::de::Error::custom)
+}
+
+/// The query of a batch: `tiles` or `pages`, and the parameters of a single tile or page.
 #[derive(Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct BatchQuery {
-    #[serde(deserialize_with = "de_tiles")]
-    pub tiles: Vec<TileRef>,
-    #[serde(deserialize_with = "de::format")]
-    pub format: Format,
+    #[serde(default, deserialize_with = "de_tiles")]
+    pub tiles: Option<Vec<TileRef>>,
+    #[serde(default, deserialize_with = "de_tiles")]
+    pub pages: Option<Vec<TileRef>>,
+    #[serde(deserialize_with = "de_format")]
+    pub format: PageFormat,
+    #[serde(default, deserialize_with = "de::opt_u32")]
+    pub size: Option<u32>,
+    #[serde(default, deserialize_with = "de::opt_u32")]
+    pub border: Option<u32>,
+    #[serde(default, deserialize_with = "pages::de_codec")]
+    pub codec: Option<crate::ktx2::Codec>,
+    #[serde(default, deserialize_with = "pages::de_supercompression")]
+    pub supercompression: Option<crate::ktx2::Supercompression>,
     #[serde(default, deserialize_with = "de::opt_u32")]
     pub frame: Option<u32>,
 }
@@ -171,14 +188,15 @@ const BATCH_ETAG_SCHEME: &[u8] = b"vtex-batch/1";
 
 /// A weak validator of a batch: the frames it holds are a pure function of everything hashed
 /// here, though their order (and hit or miss) may differ from one response to the next.
-fn batch_etag(texture: &[u8; 32], tile_size: u32, frame: u32, format: Format, tiles: &[TileRef]) -> HeaderValue {
+fn batch_etag(texture: &[u8; 32], tile_size: u32, frame: u32, format: Format, shape: Shape, tiles: &[TileRef]) -> HeaderValue {
     let mut h = blake3::Hasher::new();
     h.update(BATCH_ETAG_SCHEME);
     h.update(texture);
     for v in [tile_size, frame] {
         h.update(&v.to_le_bytes());
     }
-    h.update(format.ext().as_bytes());
+    // The format with its codec options, and the page shape.
+    h.update(format!("{format:?} {shape:?}").as_bytes());
     for t in tiles {
         for v in [t.level, t.x, t.y] {
             h.update(&v.to_le_bytes());
@@ -186,6 +204,40 @@ fn batch_etag(texture: &[u8; 32], tile_size: u32, frame: u32, format: Format, ti
     }
     let hex = h.finalize().to_hex();
     HeaderValue::from_str(&format!("W/\"{}\"", &hex[..32])).expect("hex is a valid header value")
+}
+
+impl BatchQuery {
+    /// The list, the format and the shape: tiles take no page parameter and no ktx2.
+    fn items(self) -> Result<(Vec<TileRef>, crate::encode::Format, Shape), ApiError> {
+        let BatchQuery { tiles, pages, format, size, border, codec, supercompression, .. } = self;
+        match (tiles, pages) {
+            (Some(tiles), None) => {
+                let page_params = [
+                    ("size", size.is_some()),
+                    ("border", border.is_some()),
+                    ("codec", codec.is_some()),
+                    ("supercompression", supercompression.is_some()),
+                ];
+                if let Some((name, _)) = page_params.into_iter().find(|(_, given)| *given) {
+                    return Err(ApiError::bad_request(format!(
+                        "`{name}` applies to pages only; this batch lists tiles"
+                    )));
+                }
+                let PageFormat::Image(format) = format else {
+                    return Err(ApiError::bad_request(format!(
+                        "`format` ktx2 is served for pages only; tiles: {}",
+                        crate::encode::Format::EXPECTED
+                    )));
+                };
+                Ok((tiles, format, Shape::Tile))
+            }
+            (None, Some(pages)) => {
+                let (format, shape) = pages::page_spec(format, size, border, codec, supercompression)?;
+                Ok((pages, format, shape))
+            }
+            _ => Err(ApiError::bad_request("a batch takes exactly one of `tiles` and `pages`")),
+        }
+    }
 }
 
 /// The handler. Tiles in the cache are framed at once; each other tile is a task of its own
@@ -198,16 +250,21 @@ fn batch_etag(texture: &[u8; 32], tile_size: u32, frame: u32, format: Format, ti
 pub async fn batch(
     State(app): State<App>,
     Path(TextureId { id }): Path<TextureId>,
-    Query(BatchQuery { tiles, format, frame }): Query<BatchQuery>,
+    Query(query): Query<BatchQuery>,
     headers: HeaderMap,
 ) -> Result<Response, ApiError> {
     let started = Instant::now();
+    let frame = query.frame;
+    let (tiles, format, shape) = query.items()?;
     let entry = lookup(&app, &id).await?;
     for t in &tiles {
-        tiles::check_tile(&entry, t.level, t.x, t.y)?;
+        match shape {
+            Shape::Tile => tiles::check_tile(&entry, t.level, t.x, t.y)?,
+            Shape::Page { size, .. } => pages::check_page(&entry, t.level, t.x, t.y, size)?,
+        }
     }
     let frame = frame_for(&entry, frame);
-    let etag = batch_etag(&entry.key, entry.tile_size, frame, format, &tiles);
+    let etag = batch_etag(&entry.key, entry.tile_size, frame, format, shape, &tiles);
     if not_modified(&headers, etag.to_str().unwrap_or_default()) {
         return Ok(not_modified_response(etag));
     }
@@ -219,7 +276,7 @@ pub async fn batch(
     // (to be shed tile by tile) nor asks for more than its texture's share of the slots.
     let turns = Arc::new(Semaphore::new(app.cfg.syntheses_per_texture()));
     for tile in tiles {
-        let key = TileKey { texture: entry.key, level: tile.level, x: tile.x, y: tile.y, frame, format };
+        let key = TileKey { texture: entry.key, level: tile.level, x: tile.x, y: tile.y, frame, format, shape };
         match app.cache.get(&key) {
             Some(hit) => {
                 app.metrics.cache_hit(tile.level);
@@ -229,7 +286,7 @@ pub async fn batch(
                 let (app, entry, turns) = (app.clone(), entry.clone(), turns.clone());
                 pending.spawn(async move {
                     let _turn = turns.acquire().await.expect("the semaphore is never closed");
-                    let tag = tiles::tile_etag(&entry, &key);
+                    let tag = tiles::key_etag(&entry, &key);
                     (tile, tiles::obtain(&app, &entry, key, None, tag).await)
                 });
             }

@@ -220,9 +220,19 @@ mod tests {
     /// route's query.
     #[test]
     fn the_key_bound_is_the_largest_query() {
+        use crate::api::pages::{ChainQuery, PageQuery};
         use crate::api::{batch::BatchQuery, tiles::RegionQuery, tiles::TileQuery};
-        let counts = [fields::<NoQuery>(), fields::<TileQuery>(), fields::<BatchQuery>(), fields::<RegionQuery>()];
-        assert_eq!(counts, [0, 1, 3, 7]);
+        // A batch names `tiles` or `pages`, never both.
+        let batch = fields::<BatchQuery>() - 1;
+        let counts = [
+            fields::<NoQuery>(),
+            fields::<TileQuery>(),
+            batch,
+            fields::<RegionQuery>(),
+            fields::<PageQuery>(),
+            fields::<ChainQuery>(),
+        ];
+        assert_eq!(counts, [0, 1, 7, 7, 5, 4]);
         assert_eq!(counts.iter().max(), Some(&MAX_QUERY_KEYS));
     }
 

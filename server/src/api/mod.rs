@@ -7,6 +7,7 @@ pub mod error;
 pub mod extract;
 mod front;
 mod health;
+pub mod pages;
 pub mod params;
 mod textures;
 pub mod tiles;
@@ -241,6 +242,9 @@ pub fn router(app: App) -> Router {
         .route("/api/v1/textures/{id}", delete(deletion::delete))
         .route("/healthz", get(health::healthz))
         .route("/readyz", get(health::readyz))
+        // Virtual-texture pages with borders and KTX2 mip chains for game engines (pages.rs).
+        .route("/api/v1/textures/{id}/pages/{level}/{x}/{file}", get(pages::page))
+        .route("/api/v1/textures/{id}/mips.ktx2", get(pages::mip_chain))
         .route("/metrics", get(metrics))
         .route("/api", any(api_not_found))
         .route("/api/{*rest}", any(api_not_found))

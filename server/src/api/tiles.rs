@@ -2,12 +2,13 @@
 
 use super::error::{echo, ApiError};
 use super::extract::{Path, Query};
+use super::pages;
 use super::params::{de, format_value, named, u32_value};
 use super::{
     lookup, not_modified, not_modified_response, App, TextureId, CACHE_IMMUTABLE, X_VTEX_CACHE, X_VTEX_HEIGHT,
     X_VTEX_WIDTH,
 };
-use crate::cache::{Source, Tile, TileKey};
+use crate::cache::{Shape, Source, Tile, TileKey};
 use crate::config::MAX_REGION_SIDE;
 use crate::encode::{self, Format};
 use crate::store::Entry;
@@ -39,7 +40,7 @@ pub(super) fn frame_for(entry: &Entry, frame: Option<u32>) -> u32 {
 }
 
 /// A strong validator: the bytes are a pure function of everything hashed here.
-fn etag(texture: &[u8; 32], what: &[u64], format: Format) -> HeaderValue {
+pub(super) fn etag(texture: &[u8; 32], what: &[u64], format: Format) -> HeaderValue {
     let mut h = blake3::Hasher::new();
     h.update(ETAG_SCHEME);
     h.update(texture);
@@ -51,7 +52,7 @@ fn etag(texture: &[u8; 32], what: &[u64], format: Format) -> HeaderValue {
     HeaderValue::from_str(&format!("\"{}\"", &hex[..32])).expect("hex is a valid header value")
 }
 
-fn image_response(body: Bytes, format: Format, etag: HeaderValue, width: u32, height: u32) -> Response {
+pub(super) fn image_response(body: Bytes, format: Format, etag: HeaderValue, width: u32, height: u32) -> Response {
     let mut resp = Response::new(Body::from(body));
     let h = resp.headers_mut();
     h.reserve(RESPONSE_HEADERS);
@@ -129,12 +130,12 @@ pub(super) async fn answer(
     let y = named("y", y, u32_value)?;
     check_tile(&entry, level, x, y)?;
     let frame = frame_for(&entry, frame);
-    let key = TileKey { texture: entry.key, level, x, y, frame, format };
+    let key = TileKey { texture: entry.key, level, x, y, frame, format, shape: Shape::Tile };
     // A cached tile carries its ETag; only a tile not in the cache needs it hashed.
     let cached = app.cache.get(&key);
     let tag = match &cached {
         Some(tile) => tile.etag.clone(),
-        None => tile_etag(&entry, &key),
+        None => key_etag(&entry, &key),
     };
     if not_modified(headers, tag.to_str().unwrap_or_default()) {
         return Ok(not_modified_response(tag));
@@ -146,13 +147,32 @@ pub(super) async fn answer(
     Ok(resp)
 }
 
-/// The strong ETag of tile `key` of `entry`.
-pub(super) fn tile_etag(entry: &Entry, key: &TileKey) -> HeaderValue {
-    let what = [key.level as u64, key.x as u64, key.y as u64, key.frame as u64, entry.tile_size as u64];
-    etag(&entry.key, &what, key.format)
+/// The strong ETag of tile or page `key` of `entry`.
+pub(super) fn key_etag(entry: &Entry, key: &TileKey) -> HeaderValue {
+    match key.shape {
+        Shape::Tile => {
+            let what = [key.level as u64, key.x as u64, key.y as u64, key.frame as u64, entry.tile_size as u64];
+            etag(&entry.key, &what, key.format)
+        }
+        Shape::Page { size, border } => pages::page_etag(entry, key, size, border),
+    }
 }
 
-/// Tile `key` (inside `entry`'s pyramid): `cached` when the caller found it in the cache, else
+/// The region tile or page `key` of `entry` renders.
+fn key_region(entry: &Entry, key: &TileKey) -> Region {
+    match key.shape {
+        Shape::Tile => {
+            let ts = entry.tile_size as u64;
+            let (lw, lh) = level_size(entry.texture.width(), entry.texture.height(), key.level);
+            let (px, py) = (key.x as u64 * ts, key.y as u64 * ts);
+            let (w, h) = ((lw - px).min(ts) as u32, (lh - py).min(ts) as u32);
+            Region::new(key.level, px as i64, py as i64, w, h).at_frame(key.frame)
+        }
+        Shape::Page { size, border } => pages::page_region(key, size, border),
+    }
+}
+
+/// Tile or page `key` (inside `entry`'s pyramid or page grid): `cached` when the caller found it in the cache, else
 /// from the cache or synthesized, one computation shared by every concurrent request for it
 /// (holding a synthesis slot, and stopped once none of them waits any more). Counted as a hit or a miss. Single tiles and batches
 /// (`batch.rs`) both come through here, so they share the cache, coalescing and bounds.
@@ -169,15 +189,11 @@ pub(super) async fn obtain(
             let (owner, entry) = (app.clone(), entry.clone());
             app.cache
                 .get_or_compute(key, move || async move {
-                    let TileKey { level, x, y, frame, format, .. } = key;
-                    let ts = entry.tile_size as u64;
-                    let (lw, lh) = level_size(entry.texture.width(), entry.texture.height(), level);
-                    let (px, py) = (x as u64 * ts, y as u64 * ts);
-                    let (w, h) = ((lw - px).min(ts) as u32, (lh - py).min(ts) as u32);
-                    let region = Region::new(level, px as i64, py as i64, w, h).at_frame(frame);
+                    let region = key_region(&entry, &key);
+                    let (width, height) = (region.width, region.height);
                     let send = owner.cfg.send;
-                    let body = owner.synthesize_then(entry, region, format, move |b| send.seal(b)).await?;
-                    Ok(Tile { body, etag: tag, width: w, height: h })
+                    let body = owner.synthesize_then(entry, region, key.format, move |b| send.seal(b)).await?;
+                    Ok(Tile { body, etag: tag, width, height })
                 })
                 .await?
         }

@@ -1,0 +1,404 @@
+//! vtex-client: what a game engine needs to stream virtual-texture pages from a vtex server.
+//!
+//! * discovery of textures ([`Client::textures`]) and the URLs of pages and tiles;
+//! * pages fetched many at a time through the batch endpoint ([`Client::pages`]), its frames
+//!   parsed by [`frames`], pages already held answered from a byte-bounded LRU ([`cache`]);
+//! * retries with exponential back-off (honouring `Retry-After`) of what can succeed later:
+//!   connection failures, 408, 429 and 5xx, a batch's failed frames included;
+//! * ETag revalidation of a held page ([`Client::revalidate`]): a 304 keeps the bytes.
+
+pub mod cache;
+pub mod frames;
+
+use bytes::Bytes;
+use cache::PageCache;
+use serde::Deserialize;
+use std::sync::Mutex;
+use std::time::Duration;
+
+#[derive(Debug, thiserror::Error)]
+pub enum Error {
+    #[error("request failed: {0}")]
+    Http(#[from] reqwest::Error),
+    /// The server answered an error that retrying will not change (a 4xx), or retries ran out.
+    #[error("the server answered {status}: {message}")]
+    Status { status: u16, message: String },
+    #[error("unexpected answer: {0}")]
+    Protocol(String),
+}
+
+pub type Result<T> = std::result::Result<T, Error>;
+
+/// A texture as the server lists it (the fields a client needs).
+#[derive(Clone, Debug, Deserialize)]
+pub struct TextureInfo {
+    pub id: String,
+    pub name: String,
+    pub model: String,
+    pub width: u64,
+    pub height: u64,
+    pub domain: String,
+}
+
+impl TextureInfo {
+    /// Levels pages are served at, down to 1×1.
+    pub fn page_levels(&self) -> u32 {
+        let side = self.width.max(self.height).max(1);
+        (64 - (side - 1).leading_zeros()) + 1
+    }
+
+    /// Pages of side `size` across and down `level`.
+    pub fn page_grid(&self, level: u32, size: u32) -> (u64, u64) {
+        let d = |v: u64| v.div_ceil(1u64 << level.min(63)).max(1).div_ceil(size as u64);
+        (d(self.width), d(self.height))
+    }
+}
+
+/// A page's place: level and column, row of the level's page grid.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
+pub struct PageAddr {
+    pub level: u32,
+    pub x: u32,
+    pub y: u32,
+}
+
+/// How pages are encoded: the server's `format` and its KTX2 options.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum PageFormat {
+    Rgba,
+    Png,
+    /// KTX2 with `codec` (`bc7`, `bc1`, `rgba8`), zstd-supercompressed or not.
+    Ktx2 {
+        codec: &'static str,
+        zstd: bool,
+    },
+}
+
+/// A page's size, border and format.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub struct PageSpec {
+    pub size: u32,
+    pub border: u32,
+    pub format: PageFormat,
+}
+
+impl Default for PageSpec {
+    /// 128² pages with a 4-pixel border in BC7.
+    fn default() -> Self {
+        PageSpec { size: 128, border: 4, format: PageFormat::Ktx2 { codec: "bc7", zstd: false } }
+    }
+}
+
+impl PageSpec {
+    fn ext(&self) -> &'static str {
+        match self.format {
+            PageFormat::Rgba => "rgba",
+            PageFormat::Png => "png",
+            PageFormat::Ktx2 { .. } => "ktx2",
+        }
+    }
+
+    /// The query parameters besides the format.
+    fn query(&self) -> String {
+        let mut q = format!("size={}&border={}", self.size, self.border);
+        if let PageFormat::Ktx2 { codec, zstd } = self.format {
+            q += &format!("&codec={codec}");
+            if zstd {
+                q += "&supercompression=zstd";
+            }
+        }
+        q
+    }
+}
+
+/// A page held by the client.
+#[derive(Clone, Debug)]
+pub struct Page {
+    pub addr: PageAddr,
+    /// Pixels across and down, border included.
+    pub width: u32,
+    pub height: u32,
+    pub bytes: Bytes,
+    /// The server's validator, when the page came from the single-page endpoint.
+    pub etag: Option<String>,
+}
+
+/// A page's key in the client's cache.
+#[derive(Clone, Debug, PartialEq, Eq, Hash)]
+pub struct PageKey {
+    pub texture: String,
+    pub addr: PageAddr,
+    pub spec: PageSpec,
+}
+
+/// How failed requests are retried: up to `attempts` tries, waiting `first_delay`, then twice
+/// as long each time up to `max_delay` (or what `Retry-After` asks, if longer).
+#[derive(Clone, Copy, Debug)]
+pub struct Retry {
+    pub attempts: u32,
+    pub first_delay: Duration,
+    pub max_delay: Duration,
+}
+
+impl Default for Retry {
+    fn default() -> Self {
+        Retry { attempts: 5, first_delay: Duration::from_millis(50), max_delay: Duration::from_secs(2) }
+    }
+}
+
+impl Retry {
+    fn delay(&self, attempt: u32, retry_after: Option<Duration>) -> Duration {
+        let backoff = self.first_delay.saturating_mul(1 << attempt.min(16)).min(self.max_delay);
+        retry_after.map_or(backoff, |r| r.max(backoff))
+    }
+}
+
+/// What one call of [`Client::pages`] did.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct FetchStats {
+    /// Pages answered from the client's cache.
+    pub hits: usize,
+    /// Pages requested from the server.
+    pub requested: usize,
+    /// Bytes of page bodies received.
+    pub bytes: u64,
+    /// Requests retried.
+    pub retries: u32,
+}
+
+/// Most pages one batch request names (the server's limit).
+pub const MAX_BATCH: usize = 256;
+
+/// A client of one vtex server.
+pub struct Client {
+    http: reqwest::Client,
+    base: String,
+    cache: Mutex<PageCache>,
+    retry: Retry,
+}
+
+impl Client {
+    /// A client of the server at `base` (`http://host:port`) with a page cache of
+    /// `cache_bytes` and the default [`Retry`].
+    pub fn new(base: &str, cache_bytes: u64) -> Client {
+        let http = reqwest::Client::builder().timeout(Duration::from_secs(60)).build().expect("a plain HTTP client");
+        Client {
+            http,
+            base: base.trim_end_matches('/').to_string(),
+            cache: Mutex::new(PageCache::new(cache_bytes)),
+            retry: Retry::default(),
+        }
+    }
+
+    pub fn with_retry(mut self, retry: Retry) -> Client {
+        self.retry = retry;
+        self
+    }
+
+    /// Every texture the server serves.
+    pub async fn textures(&self) -> Result<Vec<TextureInfo>> {
+        #[derive(Deserialize)]
+        struct List {
+            textures: Vec<TextureInfo>,
+        }
+        let body = self.get(&format!("{}/api/v1/textures", self.base), None).await?.1;
+        let list: List = serde_json::from_slice(&body).map_err(|e| Error::Protocol(format!("texture list: {e}")))?;
+        Ok(list.textures)
+    }
+
+    pub fn page_url(&self, texture: &str, addr: PageAddr, spec: &PageSpec) -> String {
+        let PageAddr { level, x, y } = addr;
+        format!("{}/api/v1/textures/{texture}/pages/{level}/{x}/{y}.{}?{}", self.base, spec.ext(), spec.query())
+    }
+
+    pub fn tile_url(&self, texture: &str, level: u32, x: u32, y: u32, ext: &str) -> String {
+        format!("{}/api/v1/textures/{texture}/tiles/{level}/{x}/{y}.{ext}", self.base)
+    }
+
+    /// The URL of a batch of `addrs` (at most [`MAX_BATCH`]).
+    pub fn batch_url(&self, texture: &str, addrs: &[PageAddr], spec: &PageSpec) -> String {
+        let list: Vec<String> = addrs.iter().map(|a| format!("{}/{}/{}", a.level, a.x, a.y)).collect();
+        format!(
+            "{}/api/v1/textures/{texture}/tiles?pages={}&format={}&{}",
+            self.base,
+            list.join(","),
+            spec.ext(),
+            spec.query()
+        )
+    }
+
+    /// Pages held by the client's cache now.
+    pub fn cached_pages(&self) -> usize {
+        self.cache.lock().unwrap().len()
+    }
+
+    /// Bytes held by the client's cache now.
+    pub fn cached_bytes(&self) -> u64 {
+        self.cache.lock().unwrap().bytes()
+    }
+
+    /// Pages `addrs` of `texture` in `spec`, in the order asked: from the cache, the others in
+    /// batches of at most [`MAX_BATCH`], retried (the whole batch on a failed request, the
+    /// failed frames on a batch that answered some) until [`Retry::attempts`] run out.
+    pub async fn pages(&self, texture: &str, addrs: &[PageAddr], spec: &PageSpec) -> Result<(Vec<Page>, FetchStats)> {
+        let mut stats = FetchStats::default();
+        let key = |addr: PageAddr| PageKey { texture: texture.to_string(), addr, spec: *spec };
+        let mut found: std::collections::HashMap<PageAddr, Page> = std::collections::HashMap::new();
+        let mut missing = Vec::new();
+        {
+            let mut cache = self.cache.lock().unwrap();
+            for &a in addrs {
+                match cache.get(&key(a)) {
+                    Some(p) => {
+                        stats.hits += 1;
+                        found.insert(a, p);
+                    }
+                    None if !missing.contains(&a) => missing.push(a),
+                    None => {}
+                }
+            }
+        }
+        stats.requested = missing.len();
+        for chunk in missing.chunks(MAX_BATCH) {
+            let mut want: Vec<PageAddr> = chunk.to_vec();
+            let mut attempt = 0;
+            loop {
+                // The request itself is retried inside `get`; here, the frames that failed.
+                let body = self.get(&self.batch_url(texture, &want, spec), None).await?.1;
+                let mut failed = Vec::new();
+                for f in frames::parse(&body)? {
+                    let addr = PageAddr { level: f.level, x: f.x, y: f.y };
+                    if f.status != 200 {
+                        if !retryable(f.status) {
+                            return Err(Error::Status { status: f.status, message: error_message(&f.body) });
+                        }
+                        failed.push(addr);
+                        continue;
+                    }
+                    stats.bytes += f.body.len() as u64;
+                    let page = Page { addr, width: f.width, height: f.height, bytes: f.body, etag: None };
+                    self.cache.lock().unwrap().insert(key(addr), page.clone());
+                    found.insert(addr, page);
+                }
+                if failed.is_empty() {
+                    break;
+                }
+                attempt += 1;
+                if attempt >= self.retry.attempts {
+                    return Err(Error::Status {
+                        status: 503,
+                        message: format!("{} pages still failing", failed.len()),
+                    });
+                }
+                stats.retries += 1;
+                tokio::time::sleep(self.retry.delay(attempt - 1, None)).await;
+                want = failed;
+            }
+        }
+        addrs
+            .iter()
+            .map(|a| found.get(a).cloned().ok_or_else(|| Error::Protocol(format!("page {a:?} missing from the batch"))))
+            .collect::<Result<Vec<_>>>()
+            .map(|pages| (pages, stats))
+    }
+
+    /// Page `addr` from the single-page endpoint, asking the server whether the copy held is
+    /// still current (`If-None-Match`): the held copy on a 304, the new one otherwise. Returns
+    /// the page and whether the server answered 304.
+    pub async fn revalidate(&self, texture: &str, addr: PageAddr, spec: &PageSpec) -> Result<(Page, bool)> {
+        let key = PageKey { texture: texture.to_string(), addr, spec: *spec };
+        let held = self.cache.lock().unwrap().get(&key);
+        let etag = held.as_ref().and_then(|p| p.etag.clone());
+        let (headers, body) = self.get(&self.page_url(texture, addr, spec), etag.as_deref()).await?;
+        if let (Some(held), None) = (held, &body_if_modified(&headers, &body)) {
+            return Ok((held, true));
+        }
+        let dim = |name: &str| headers.get(name).and_then(|v| v.to_str().ok()?.parse().ok()).unwrap_or(0);
+        let page = Page {
+            addr,
+            width: dim("x-vtex-width"),
+            height: dim("x-vtex-height"),
+            bytes: body,
+            etag: headers.get("etag").and_then(|v| v.to_str().ok()).map(String::from),
+        };
+        self.cache.lock().unwrap().insert(key, page.clone());
+        Ok((page, false))
+    }
+
+    /// GET with retries; `if_none_match` makes a 304 an answer (empty body, `x-vtex-304` set).
+    async fn get(&self, url: &str, if_none_match: Option<&str>) -> Result<(reqwest::header::HeaderMap, Bytes)> {
+        let mut attempt = 0;
+        loop {
+            match self.try_get(url, if_none_match).await {
+                Ok(ok) => return Ok(ok),
+                Err(Retryable { error, retry_after }) => {
+                    attempt += 1;
+                    if attempt >= self.retry.attempts || retry_after.is_none() && !matches!(error, Error::Http(_)) {
+                        return Err(error);
+                    }
+                    tokio::time::sleep(self.retry.delay(attempt - 1, retry_after)).await;
+                }
+            }
+        }
+    }
+
+    async fn try_get(
+        &self,
+        url: &str,
+        if_none_match: Option<&str>,
+    ) -> std::result::Result<(reqwest::header::HeaderMap, Bytes), Retryable> {
+        let mut req = self.http.get(url);
+        if let Some(tag) = if_none_match {
+            req = req.header("if-none-match", tag);
+        }
+        let resp = req.send().await.map_err(|e| Retryable { error: e.into(), retry_after: None })?;
+        let status = resp.status().as_u16();
+        let mut headers = resp.headers().clone();
+        let retry_after = headers
+            .get("retry-after")
+            .and_then(|v| v.to_str().ok()?.parse::<u64>().ok())
+            .map(Duration::from_secs)
+            .or(Some(Duration::ZERO));
+        let body = resp.bytes().await.map_err(|e| Retryable { error: e.into(), retry_after: None })?;
+        match status {
+            200 => Ok((headers, body)),
+            304 => {
+                headers.insert(NOT_MODIFIED, reqwest::header::HeaderValue::from_static("1"));
+                Ok((headers, body))
+            }
+            s if retryable(s) => {
+                Err(Retryable { error: Error::Status { status: s, message: error_message(&body) }, retry_after })
+            }
+            s => {
+                Err(Retryable { error: Error::Status { status: s, message: error_message(&body) }, retry_after: None })
+            }
+        }
+    }
+}
+
+/// Set on the headers of a 304 by [`Client::try_get`].
+const NOT_MODIFIED: &str = "x-vtex-client-not-modified";
+
+/// The body, unless the answer was a 304.
+fn body_if_modified(headers: &reqwest::header::HeaderMap, body: &Bytes) -> Option<Bytes> {
+    (!headers.contains_key(NOT_MODIFIED)).then(|| body.clone())
+}
+
+/// A failure, with the wait the server asked for when it is worth retrying (`None`: a 4xx,
+/// or a connection failure, which is retried on the back-off alone).
+struct Retryable {
+    error: Error,
+    retry_after: Option<Duration>,
+}
+
+/// Statuses that may succeed later: the request timed out, too many requests, server errors.
+fn retryable(status: u16) -> bool {
+    status == 408 || status == 429 || status >= 500
+}
+
+fn error_message(body: &[u8]) -> String {
+    serde_json::from_slice::<serde_json::Value>(body)
+        .ok()
+        .and_then(|v| v["error"].as_str().map(String::from))
+        .unwrap_or_else(|| String::from_utf8_lossy(&body[..body.len().min(200)]).into_owned())
+}

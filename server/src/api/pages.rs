@@ -1,0 +1,305 @@
+//! Pages for virtual texturing in game engines, and whole mip chains of small textures.
+//!
+//! A page is the `S`² square (`x`·S, `y`·S) of a level's page grid with `B` pixels of its
+//! neighbours on every side, so a GPU atlas of bordered pages filters (bilinear, anisotropic)
+//! without bleeding. Every pixel of a page, border included, is the texture's pixel at its
+//! level coordinates — wrapped on a torus, the plane's own beyond the served extent — so a
+//! border is bit for bit the neighbouring page's pixels, across a torus's wrap too, and pages
+//! are always (S + 2B)² even where the grid runs past the level's edge (every texture vtex
+//! serves is a torus or a plane: none has an edge where pixels would stop). Pages exist at
+//! every level down to 1×1. They share the tile cache, its coalescing and the synthesis slots
+//! with tiles (`tiles::obtain`), carry strong ETags and are immutable.
+
+use super::error::{echo, ApiError};
+use super::extract::{Path, Query};
+use super::params::{de, named, u32_value};
+use super::tiles::{self, frame_for};
+use super::{lookup, not_modified, not_modified_response, App, TextureId, X_VTEX_CACHE};
+use crate::cache::{Shape, TileKey};
+use crate::encode::Format;
+use crate::ktx2::{self, Codec, Ktx2, Supercompression};
+use crate::store::Entry;
+use axum::extract::State;
+use axum::http::{HeaderMap, HeaderValue};
+use axum::response::Response;
+use serde::de::Error as _;
+use serde::{Deserialize, Deserializer};
+use vtex_synth::texture::{level_count, level_size};
+use vtex_synth::{Region, Rgba8Image};
+
+/// Page sides served: the sizes engines' virtual texturing uses.
+pub const PAGE_SIZES: [u32; 4] = [64, 128, 256, 512];
+/// Defaults: Unreal's virtual texture page, 128 pixels with a 4-pixel border.
+pub const DEFAULT_SIZE: u32 = 128;
+pub const DEFAULT_BORDER: u32 = 4;
+/// Largest side of a mip chain's first level.
+pub const MAX_CHAIN_SIDE: u64 = 2048;
+/// ETag fields that set pages apart from tiles and regions.
+const PAGE_MARK: u64 = 2 << 61;
+const CHAIN_MARK: u64 = 3 << 61;
+
+const FORMATS_EXPECTED: &str = "expected png, webp, jpg, rgba or ktx2";
+
+/// The path of a page: `/api/v1/textures/{id}/pages/{level}/{x}/{file}`, `file` being
+/// `{y}.{format}`.
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct PagePath {
+    pub id: String,
+    #[serde(deserialize_with = "de::u32")]
+    pub level: u32,
+    #[serde(deserialize_with = "de::u32")]
+    pub x: u32,
+    pub file: String,
+}
+
+/// The query of a page: `[?size=S][&border=B][&codec=C][&supercompression=Z][&frame=N]`.
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct PageQuery {
+    #[serde(default, deserialize_with = "de::opt_u32")]
+    pub size: Option<u32>,
+    #[serde(default, deserialize_with = "de::opt_u32")]
+    pub border: Option<u32>,
+    #[serde(default, deserialize_with = "de_codec")]
+    pub codec: Option<Codec>,
+    #[serde(default, deserialize_with = "de_supercompression")]
+    pub supercompression: Option<Supercompression>,
+    #[serde(default, deserialize_with = "de::opt_u32")]
+    pub frame: Option<u32>,
+}
+
+pub(super) fn de_codec<'de, D: Deserializer<'de>>(d: D) -> Result<Option<Codec>, D::Error> {
+    let s = String::deserialize(d)?;
+    Codec::parse(&s)
+        .map(Some)
+        .ok_or_else(|| D::Error::custom(format!("names unknown codec `{}`; {}", echo(&s), Codec::EXPECTED)))
+}
+
+pub(super) fn de_supercompression<'de, D: Deserializer<'de>>(d: D) -> Result<Option<Supercompression>, D::Error> {
+    let s = String::deserialize(d)?;
+    Supercompression::parse(&s)
+        .map(Some)
+        .ok_or_else(|| D::Error::custom(format!("names unknown scheme `{}`; {}", echo(&s), Supercompression::EXPECTED)))
+}
+
+/// A page format by its extension: the tile formats and `ktx2`.
+pub fn page_format_value(s: &str) -> Result<PageFormat, String> {
+    match s {
+        "ktx2" => Ok(PageFormat::Ktx2),
+        _ => Format::parse(s)
+            .map(PageFormat::Image)
+            .ok_or_else(|| format!("names unknown format `{}`; {FORMATS_EXPECTED}", echo(s))),
+    }
+}
+
+/// A page format before its KTX2 options are known.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum PageFormat {
+    Image(Format),
+    Ktx2,
+}
+
+/// What a page request asks for, checked: its format and its shape.
+pub fn page_spec(
+    format: PageFormat,
+    size: Option<u32>,
+    border: Option<u32>,
+    codec: Option<Codec>,
+    supercompression: Option<Supercompression>,
+) -> Result<(Format, Shape), ApiError> {
+    let size = size.unwrap_or(DEFAULT_SIZE);
+    if !PAGE_SIZES.contains(&size) {
+        return Err(ApiError::bad_request(format!("`size` must be one of 64, 128, 256 or 512 (got {size})")));
+    }
+    let border = border.unwrap_or(DEFAULT_BORDER);
+    if border > size / 8 {
+        return Err(ApiError::bad_request(format!(
+            "`border` must be at most size / 8 = {} for size {size} (got {border})",
+            size / 8
+        )));
+    }
+    let format = match format {
+        PageFormat::Image(f) => {
+            let ktx2_params = [("codec", codec.is_some()), ("supercompression", supercompression.is_some())];
+            if let Some((name, _)) = ktx2_params.into_iter().find(|(_, given)| *given) {
+                return Err(ApiError::bad_request(format!(
+                    "`{name}` applies to ktx2 pages only; this page is {}",
+                    f.ext()
+                )));
+            }
+            f
+        }
+        PageFormat::Ktx2 => {
+            let k = ktx2_options(codec, supercompression);
+            if k.codec.is_block_compressed() && border % 2 == 1 {
+                return Err(ApiError::bad_request(format!(
+                    "`border` must be even for {} pages (got {border}): a block-compressed page's side, \
+                     size + 2 × border, must be a multiple of 4",
+                    k.codec.name()
+                )));
+            }
+            Format::Ktx2(k)
+        }
+    };
+    Ok((format, Shape::Page { size, border }))
+}
+
+/// The KTX2 options: `codec` (default bc7) and `supercompression` (default none).
+fn ktx2_options(codec: Option<Codec>, supercompression: Option<Supercompression>) -> Ktx2 {
+    Ktx2 { codec: codec.unwrap_or(Codec::Bc7), supercompression: supercompression.unwrap_or(Supercompression::None) }
+}
+
+/// Whether `entry` serves page (`level`, `x`, `y`) of side `size`: a level it does not have is
+/// a 400, a page outside the level's grid a 404.
+pub(super) fn check_page(entry: &Entry, level: u32, x: u32, y: u32, size: u32) -> Result<(), ApiError> {
+    let (w, h) = (entry.texture.width(), entry.texture.height());
+    let levels = level_count(w, h);
+    if level >= levels {
+        return Err(ApiError::bad_request(format!(
+            "page {level}/{x}/{y}: level {level} does not exist; pages are served at levels 0..={} (down to 1×1)",
+            levels - 1
+        )));
+    }
+    let (cols, rows) = page_grid(w, h, level, size);
+    if x as u64 >= cols || y as u64 >= rows {
+        return Err(ApiError::not_found(format!(
+            "page {level}/{x}/{y} is outside level {level}, which has {cols}×{rows} pages of {size}²"
+        )));
+    }
+    Ok(())
+}
+
+/// Columns and rows of pages of side `size` covering `level`.
+pub fn page_grid(width: u64, height: u64, level: u32, size: u32) -> (u64, u64) {
+    let (lw, lh) = level_size(width, height, level);
+    (lw.div_ceil(size as u64), lh.div_ceil(size as u64))
+}
+
+/// The region a page renders: its square and its border.
+pub(super) fn page_region(key: &TileKey, size: u32, border: u32) -> Region {
+    let at = |v: u32| v as i64 * size as i64 - border as i64;
+    let side = size + 2 * border;
+    Region::new(key.level, at(key.x), at(key.y), side, side).at_frame(key.frame)
+}
+
+/// The strong ETag of page `key`.
+pub(super) fn page_etag(entry: &Entry, key: &TileKey, size: u32, border: u32) -> HeaderValue {
+    let (codec, sc) = match key.format {
+        Format::Ktx2(k) => (1 + k.codec as u64, 1 + k.supercompression as u64),
+        _ => (0, 0),
+    };
+    let what = [PAGE_MARK, key.level as u64, key.x as u64, key.y as u64, key.frame as u64, size as u64, border as u64];
+    tiles::etag(&entry.key, &[&what[..], &[codec, sc]].concat(), key.format)
+}
+
+/// `GET /api/v1/textures/{id}/pages/{level}/{x}/{y}.{format}[?size=S&border=B&codec=C&supercompression=Z&frame=N]`
+pub async fn page(
+    State(app): State<App>,
+    Path(PagePath { id, level, x, file }): Path<PagePath>,
+    Query(q): Query<PageQuery>,
+    headers: HeaderMap,
+) -> Result<Response, ApiError> {
+    let entry = lookup(&app, &id).await?;
+    let (y, ext) = file.rsplit_once('.').ok_or_else(|| {
+        ApiError::bad_request(format!("page `{}` has no format extension; {FORMATS_EXPECTED}", echo(&file)))
+    })?;
+    let format = named("format", ext, page_format_value)?;
+    let y = named("y", y, u32_value)?;
+    let (format, shape) = page_spec(format, q.size, q.border, q.codec, q.supercompression)?;
+    let Shape::Page { size, .. } = shape else { unreachable!("page_spec gives pages") };
+    check_page(&entry, level, x, y, size)?;
+    let frame = frame_for(&entry, q.frame);
+    let key = TileKey { texture: entry.key, level, x, y, frame, format, shape };
+    let cached = app.cache.get(&key);
+    let tag = match &cached {
+        Some(page) => page.etag.clone(),
+        None => tiles::key_etag(&entry, &key),
+    };
+    if not_modified(&headers, tag.to_str().unwrap_or_default()) {
+        return Ok(not_modified_response(tag));
+    }
+    let (page, source) = tiles::obtain(&app, &entry, key, cached, tag).await?;
+    let mut resp = tiles::image_response(page.body.clone(), format, page.etag.clone(), page.width, page.height);
+    let cache_state = if source == crate::cache::Source::Hit { "hit" } else { "miss" };
+    resp.headers_mut().insert(X_VTEX_CACHE.clone(), HeaderValue::from_static(cache_state));
+    Ok(resp)
+}
+
+/// The query of a mip chain: `[?level=L][&codec=C][&supercompression=Z][&frame=N]`.
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ChainQuery {
+    #[serde(default, deserialize_with = "de::opt_u32")]
+    pub level: Option<u32>,
+    #[serde(default, deserialize_with = "de_codec")]
+    pub codec: Option<Codec>,
+    #[serde(default, deserialize_with = "de_supercompression")]
+    pub supercompression: Option<Supercompression>,
+    #[serde(default, deserialize_with = "de::opt_u32")]
+    pub frame: Option<u32>,
+}
+
+/// `GET /api/v1/textures/{id}/mips.ktx2[?level=L&codec=C&supercompression=Z&frame=N]`: one KTX2
+/// holding level `L` (by default the finest of at most [`MAX_CHAIN_SIDE`] a side) and every
+/// coarser level to 1×1, for textures small enough to upload whole (or the tail of a large
+/// one's pyramid, kept resident under its pages).
+///
+/// The file's level `i` is sized as a GPU's mip chain is, `max(1, ⌊w / 2^i⌋)`, and holds the
+/// top-left of vtex level `L + i` — that whole level when the sides are powers of two. Chains
+/// are rendered, not cached; each reserves its bytes from the in-flight budget first.
+pub async fn mip_chain(
+    State(app): State<App>,
+    Path(TextureId { id }): Path<TextureId>,
+    Query(q): Query<ChainQuery>,
+    headers: HeaderMap,
+) -> Result<Response, ApiError> {
+    let entry = lookup(&app, &id).await?;
+    let k = ktx2_options(q.codec, q.supercompression);
+    let (w, h) = (entry.texture.width(), entry.texture.height());
+    let levels = level_count(w, h);
+    let fits = |l: u32| {
+        let (lw, lh) = level_size(w, h, l);
+        lw.max(lh) <= MAX_CHAIN_SIDE
+    };
+    let first_fit = (0..levels).find(|&l| fits(l)).expect("the last level is 1×1");
+    let level = q.level.unwrap_or(first_fit);
+    if level >= levels {
+        return Err(ApiError::bad_request(format!("level {level} does not exist; levels are 0..={}", levels - 1)));
+    }
+    if !fits(level) {
+        let (lw, lh) = level_size(w, h, level);
+        return Err(ApiError::bad_request(format!(
+            "level {level} is {lw}×{lh}; a mip chain starts at a level of at most {MAX_CHAIN_SIDE} a side \
+             (level {first_fit} or coarser)"
+        )));
+    }
+    let frame = frame_for(&entry, q.frame);
+    let (codec, sc) = (1 + k.codec as u64, 1 + k.supercompression as u64);
+    let tag = tiles::etag(&entry.key, &[CHAIN_MARK, level as u64, frame as u64, codec, sc], Format::Ktx2(k));
+    if not_modified(&headers, tag.to_str().unwrap_or_default()) {
+        return Ok(not_modified_response(tag));
+    }
+    let (bw, bh) = level_size(w, h, level);
+    let (bw, bh) = (bw as u32, bh as u32);
+    let sizes: Vec<(u32, u32)> = (0..chain_len(bw, bh)).map(|i| ((bw >> i).max(1), (bh >> i).max(1))).collect();
+    let pixels: u64 = sizes.iter().map(|&(a, b)| a as u64 * b as u64).sum();
+    let mut reservation = app.inflight.reserve(2 * pixels * 4 + (64 << 10))?;
+    let mut images = Vec::with_capacity(sizes.len());
+    for (i, &(lw, lh)) in sizes.iter().enumerate() {
+        let region = Region::new(level + i as u32, 0, 0, lw, lh).at_frame(frame);
+        let data = app.synthesize(entry.clone(), region, Format::Rgba).await?;
+        images.push(Rgba8Image::from_raw(lw, lh, data).map_err(|e| ApiError::internal("a chain level", e))?);
+    }
+    let body = tokio::task::spawn_blocking(move || ktx2::encode(&images, k))
+        .await
+        .map_err(|e| ApiError::internal("encoding the mip chain failed", e))?
+        .map_err(|e| ApiError::internal("encoding the mip chain failed", e))?;
+    app.inflight.resize(&mut reservation, body.len() as u64)?;
+    Ok(tiles::image_response(reservation.hold(body), Format::Ktx2(k), tag, bw, bh))
+}
+
+/// Levels of a GPU mip chain whose first level is `w` × `h`: down to 1×1.
+fn chain_len(w: u32, h: u32) -> usize {
+    (32 - w.max(h).leading_zeros()) as usize
+}

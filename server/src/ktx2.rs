@@ -1,0 +1,361 @@
+//! GPU-ready images: BC7, BC1 or plain RGBA8 in a KTX2 container (Khronos KTX 2.0), optionally
+//! zstd-supercompressed, with one mip level or a whole chain.
+//!
+//! Every byte is a pure function of the pixels and [`Ktx2`]: the block encoder
+//! (`block_compression`, a scalar Rust port of Intel's ISPC kernels, used without its GPU
+//! path) runs on one thread with IEEE `f32` arithmetic and `sqrt` only — no SIMD dispatch on
+//! the CPU it meets, no platform maths library — and zstd is libzstd at a fixed version
+//! (vendored by `zstd-sys`, pinned by the lock file), single-threaded, at a fixed level. So a
+//! page is the same bytes on every run, thread count, replica and machine; the tests pin them.
+//!
+//! Colours are sRGB-encoded, as the models produce them, so the formats are the `_SRGB` ones:
+//! a GPU samples and filters them in linear light.
+
+use block_compression::decode::decompress_blocks_as_rgba8;
+use block_compression::{encode::compress_rgba8, BC7Settings, CompressionVariant};
+use vtex_synth::Rgba8Image;
+
+/// The texel encoding inside the container.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum Codec {
+    /// BC7 (BPTC), 16 bytes per 4×4 block: near-lossless colour and alpha ([`encode_bc7`]).
+    Bc7,
+    /// BC1 (DXT1), 8 bytes per 4×4 block: opaque colour, twice BC7's compression.
+    Bc1,
+    /// Uncompressed RGBA8, for GPUs without BC formats (WebGL on most phones).
+    Rgba8,
+}
+
+impl Codec {
+    pub const EXPECTED: &'static str = "expected bc7, bc1 or rgba8";
+
+    pub fn parse(s: &str) -> Option<Codec> {
+        match s {
+            "bc7" => Some(Codec::Bc7),
+            "bc1" => Some(Codec::Bc1),
+            "rgba8" => Some(Codec::Rgba8),
+            _ => None,
+        }
+    }
+
+    pub fn name(self) -> &'static str {
+        match self {
+            Codec::Bc7 => "bc7",
+            Codec::Bc1 => "bc1",
+            Codec::Rgba8 => "rgba8",
+        }
+    }
+
+    /// Whether texels come in 4×4 blocks (so an atlas slot must be a multiple of 4).
+    pub fn is_block_compressed(self) -> bool {
+        self != Codec::Rgba8
+    }
+
+    /// `VkFormat` of the container header.
+    fn vk_format(self) -> u32 {
+        match self {
+            Codec::Bc7 => 146,  // VK_FORMAT_BC7_SRGB_BLOCK
+            Codec::Bc1 => 132,  // VK_FORMAT_BC1_RGB_SRGB_BLOCK
+            Codec::Rgba8 => 43, // VK_FORMAT_R8G8B8A8_SRGB
+        }
+    }
+
+    /// Bytes of one texel block (4×4 texels, or one texel for RGBA8).
+    fn block_bytes(self) -> usize {
+        match self {
+            Codec::Bc7 => 16,
+            Codec::Bc1 => 8,
+            Codec::Rgba8 => 4,
+        }
+    }
+
+    /// The bytes of one level: blocks in row-major order (edge blocks padded by repeating the
+    /// last column and row, as the format requires whole blocks), or the pixels themselves.
+    fn encode_level(self, img: &Rgba8Image) -> Vec<u8> {
+        match self {
+            Codec::Rgba8 => img.data.clone(),
+            Codec::Bc1 => compress(CompressionVariant::BC1, &pad_to_blocks(img)),
+            Codec::Bc7 => encode_bc7(&pad_to_blocks(img)),
+        }
+    }
+}
+
+/// The blocks of `img` (sides multiples of 4) in `variant`.
+fn compress(variant: CompressionVariant, img: &Rgba8Image) -> Vec<u8> {
+    let mut out = vec![0u8; variant.blocks_byte_size(img.width, img.height)];
+    compress_rgba8(variant, &img.data, &mut out, img.width, img.height, img.width * 4);
+    out
+}
+
+/// Squared error of a 4×4 block's decoded texels against its source, all four channels, over
+/// which a BC7 block is encoded again with a wider mode search: 6 × 16 × 4, a mean squared
+/// error of 6 a channel (40 dB for the block).
+const BC7_RETRY_ERROR: u64 = 6 * 16 * 4;
+
+/// BC7 in two passes: every block with the encoder's fastest mode search, then blocks whose
+/// error is over [`BC7_RETRY_ERROR`] again with its very fast search, keeping the better. Most
+/// blocks of a texture take the first; those with sharp colour edges get the second, which
+/// costs some 30 times as much. Both passes are pure functions of the pixels.
+fn encode_bc7(img: &Rgba8Image) -> Vec<u8> {
+    let opaque = img.data.chunks_exact(4).all(|p| p[3] == 255);
+    let (fast, wide) = if opaque {
+        (BC7Settings::opaque_ultra_fast(), BC7Settings::opaque_very_fast())
+    } else {
+        (BC7Settings::alpha_ultrafast(), BC7Settings::alpha_very_fast())
+    };
+    let mut blocks = compress(CompressionVariant::BC7(fast), img);
+    let cols = img.width as usize / 4;
+    for (i, block) in blocks.chunks_exact_mut(16).enumerate() {
+        let src = img.crop((i % cols) as u32 * 4, (i / cols) as u32 * 4, 4, 4);
+        let err = block_error(block, &src);
+        if err <= BC7_RETRY_ERROR {
+            continue;
+        }
+        let again = compress(CompressionVariant::BC7(wide), &src);
+        if block_error(&again, &src) < err {
+            block.copy_from_slice(&again);
+        }
+    }
+    blocks
+}
+
+/// Squared error of one decoded BC7 block against its 4×4 source.
+fn block_error(block: &[u8], src: &Rgba8Image) -> u64 {
+    let mut texels = [0u8; 64];
+    decompress_blocks_as_rgba8(CompressionVariant::BC7(BC7Settings::opaque_ultra_fast()), 4, 4, block, &mut texels);
+    texels.iter().zip(&src.data).map(|(&a, &b)| (a as i64 - b as i64).pow(2) as u64).sum()
+}
+
+/// Whether each level's bytes are zstd-compressed (KTX2 supercompression scheme 2).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum Supercompression {
+    None,
+    Zstd,
+}
+
+impl Supercompression {
+    pub const EXPECTED: &'static str = "expected none or zstd";
+
+    pub fn parse(s: &str) -> Option<Supercompression> {
+        match s {
+            "none" => Some(Supercompression::None),
+            "zstd" => Some(Supercompression::Zstd),
+            _ => None,
+        }
+    }
+
+    pub fn name(self) -> &'static str {
+        match self {
+            Supercompression::None => "none",
+            Supercompression::Zstd => "zstd",
+        }
+    }
+}
+
+/// The zstd level: near the best ratio on block-compressed data at a few ms a page.
+const ZSTD_LEVEL: i32 = 9;
+
+/// A KTX2 encoding: its codec and supercompression.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub struct Ktx2 {
+    pub codec: Codec,
+    pub supercompression: Supercompression,
+}
+
+/// The image `img` padded to whole 4×4 blocks by repeating its last column and row.
+fn pad_to_blocks(img: &Rgba8Image) -> Rgba8Image {
+    let (w, h) = (img.width.next_multiple_of(4), img.height.next_multiple_of(4));
+    if (w, h) == (img.width, img.height) {
+        return img.clone();
+    }
+    let mut out = Rgba8Image::new(w, h);
+    for y in 0..h {
+        for x in 0..w {
+            out.set_pixel(x, y, img.pixel(x.min(img.width - 1), y.min(img.height - 1)));
+        }
+    }
+    out
+}
+
+/// The file's first bytes, «KTX 20».
+const IDENTIFIER: [u8; 12] = [0xAB, 0x4B, 0x54, 0x58, 0x20, 0x32, 0x30, 0xBB, 0x0D, 0x0A, 0x1A, 0x0A];
+/// Identifier, header (9 × u32) and index (4 × u32 + 2 × u64).
+const HEADER_BYTES: usize = 12 + 36 + 32;
+const LEVEL_INDEX_ENTRY: usize = 24;
+const WRITER: &[u8] = b"KTXwriter\0vtex\0";
+
+/// One sample of a descriptor: bit offset, bit length − 1, channel with its qualifier bits,
+/// upper value.
+type Sample = (u16, u8, u8, u32);
+
+/// The Data Format Descriptor (Khronos Data Format 1.3, one basic block) of `codec`, sRGB
+/// transfer, BT.709 primaries, straight alpha.
+fn dfd(codec: Codec) -> Vec<u8> {
+    // Colour model, block dimensions − 1, bytes per plane 0, samples.
+    let (model, dim, plane, samples): (u8, u8, u8, &[Sample]) = match codec {
+        Codec::Bc7 => (134, 3, 16, &[(0, 127, 0, u32::MAX)]),
+        Codec::Bc1 => (128, 3, 8, &[(0, 63, 0, u32::MAX)]),
+        // R, G, B, then alpha marked linear (0x10): sRGB applies to colour only.
+        Codec::Rgba8 => (1, 0, 4, &[(0, 7, 0, 255), (8, 7, 1, 255), (16, 7, 2, 255), (24, 7, 0x1F, 255)]),
+    };
+    let block_size = 24 + 16 * samples.len();
+    let mut d = Vec::with_capacity(4 + block_size);
+    d.extend_from_slice(&((4 + block_size) as u32).to_le_bytes());
+    d.extend_from_slice(&0u32.to_le_bytes()); // vendor 0 (Khronos), descriptor type 0
+    d.extend_from_slice(&2u16.to_le_bytes()); // version 1.3
+    d.extend_from_slice(&(block_size as u16).to_le_bytes());
+    d.extend_from_slice(&[model, 1, 2, 0]); // model, BT.709, sRGB, straight alpha
+    d.extend_from_slice(&[dim, dim, 0, 0]);
+    d.extend_from_slice(&[plane, 0, 0, 0, 0, 0, 0, 0]);
+    for &(offset, len, channel, upper) in samples {
+        d.extend_from_slice(&offset.to_le_bytes());
+        d.extend_from_slice(&[len, channel]);
+        d.extend_from_slice(&[0, 0, 0, 0]); // sample position
+        d.extend_from_slice(&0u32.to_le_bytes()); // lower
+        d.extend_from_slice(&upper.to_le_bytes());
+    }
+    d
+}
+
+/// A KTX2 file of `levels`, level 0 (the largest) first, each half the size of the one before
+/// (`max(1, w >> i)`), as a GPU's mip chain is.
+pub fn encode(levels: &[Rgba8Image], k: Ktx2) -> Result<Vec<u8>, String> {
+    let base = levels.first().ok_or("a KTX2 file needs at least one level")?;
+    for (i, l) in levels.iter().enumerate() {
+        let want = ((base.width >> i).max(1), (base.height >> i).max(1));
+        if (l.width, l.height) != want {
+            return Err(format!("mip level {i} is {}×{}, expected {}×{}", l.width, l.height, want.0, want.1));
+        }
+    }
+    // Each level's bytes, and what they decompress to.
+    let mut data: Vec<(Vec<u8>, usize)> = Vec::with_capacity(levels.len());
+    for l in levels {
+        let raw = k.codec.encode_level(l);
+        let n = raw.len();
+        data.push(match k.supercompression {
+            Supercompression::None => (raw, n),
+            Supercompression::Zstd => {
+                (zstd::bulk::compress(&raw, ZSTD_LEVEL).map_err(|e| format!("zstd compression failed: {e}"))?, n)
+            }
+        });
+    }
+    let dfd = dfd(k.codec);
+    let dfd_offset = HEADER_BYTES + LEVEL_INDEX_ENTRY * levels.len();
+    let kvd_offset = dfd_offset + dfd.len();
+    let kvd_len = 4 + WRITER.len();
+    // Levels are stored smallest first, each aligned to lcm(block bytes, 4) unless
+    // supercompressed (then 1).
+    let align = match k.supercompression {
+        Supercompression::None => k.codec.block_bytes().max(4),
+        Supercompression::Zstd => 1,
+    };
+    let mut offsets = vec![0usize; levels.len()];
+    let mut end = kvd_offset + kvd_len;
+    for i in (0..levels.len()).rev() {
+        end = end.next_multiple_of(align);
+        offsets[i] = end;
+        end += data[i].0.len();
+    }
+    let mut out = Vec::with_capacity(end);
+    out.extend_from_slice(&IDENTIFIER);
+    let scheme = match k.supercompression {
+        Supercompression::None => 0u32,
+        Supercompression::Zstd => 2,
+    };
+    let header = [k.codec.vk_format(), 1, base.width, base.height, 0, 0, 1, levels.len() as u32, scheme];
+    for v in header {
+        out.extend_from_slice(&v.to_le_bytes());
+    }
+    for v in [dfd_offset as u32, dfd.len() as u32, kvd_offset as u32, kvd_len as u32] {
+        out.extend_from_slice(&v.to_le_bytes());
+    }
+    out.extend_from_slice(&[0u8; 16]); // no supercompression global data
+    for (i, (bytes, raw_len)) in data.iter().enumerate() {
+        for v in [offsets[i] as u64, bytes.len() as u64, *raw_len as u64] {
+            out.extend_from_slice(&v.to_le_bytes());
+        }
+    }
+    out.extend_from_slice(&dfd);
+    out.extend_from_slice(&(WRITER.len() as u32).to_le_bytes());
+    out.extend_from_slice(WRITER);
+    for i in (0..levels.len()).rev() {
+        out.resize(offsets[i], 0);
+        out.extend_from_slice(&data[i].0);
+    }
+    Ok(out)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn noise(w: u32, h: u32, seed: u32) -> Rgba8Image {
+        let mut img = Rgba8Image::new(w, h);
+        for y in 0..h {
+            for x in 0..w {
+                let v = (x.wrapping_mul(2654435761) ^ y.wrapping_mul(40503) ^ seed).wrapping_mul(2246822519);
+                img.set_pixel(x, y, [(v >> 24) as u8, (v >> 16) as u8, (x * 4) as u8, 255]);
+            }
+        }
+        img
+    }
+
+    fn u32_at(b: &[u8], i: usize) -> u32 {
+        u32::from_le_bytes(b[i..i + 4].try_into().unwrap())
+    }
+
+    fn u64_at(b: &[u8], i: usize) -> u64 {
+        u64::from_le_bytes(b[i..i + 8].try_into().unwrap())
+    }
+
+    #[test]
+    fn header_and_level_index_describe_the_data() {
+        let chain = [noise(8, 6, 1), noise(4, 3, 2), noise(2, 1, 3), noise(1, 1, 4)];
+        for codec in [Codec::Bc7, Codec::Bc1, Codec::Rgba8] {
+            for sc in [Supercompression::None, Supercompression::Zstd] {
+                let f = encode(&chain, Ktx2 { codec, supercompression: sc }).unwrap();
+                assert_eq!(f[..12], IDENTIFIER);
+                assert_eq!(u32_at(&f, 12), codec.vk_format());
+                assert_eq!((u32_at(&f, 20), u32_at(&f, 24), u32_at(&f, 40)), (8, 6, 4));
+                let mut end = 0;
+                for (i, level) in chain.iter().enumerate() {
+                    let e = HEADER_BYTES + 24 * i;
+                    let (off, len, raw) = (u64_at(&f, e) as usize, u64_at(&f, e + 8), u64_at(&f, e + 16));
+                    let (w, h) = (level.width, level.height);
+                    let want_raw = match codec {
+                        Codec::Rgba8 => w * h * 4,
+                        _ => w.div_ceil(4) * h.div_ceil(4) * codec.block_bytes() as u32,
+                    };
+                    assert_eq!(raw, want_raw as u64, "{codec:?} level {i}");
+                    if sc == Supercompression::None {
+                        assert_eq!(len, raw);
+                        assert_eq!(off % codec.block_bytes().max(4), 0);
+                    }
+                    end = end.max(off + len as usize);
+                }
+                assert_eq!(end, f.len(), "the smallest level comes first, the largest last");
+            }
+        }
+    }
+
+    #[test]
+    fn a_chain_must_halve() {
+        let e = encode(
+            &[noise(8, 8, 1), noise(3, 4, 1)],
+            Ktx2 { codec: Codec::Bc1, supercompression: Supercompression::None },
+        );
+        assert!(e.unwrap_err().contains("mip level 1 is 3×4, expected 4×4"));
+    }
+
+    #[test]
+    fn same_bytes_on_every_thread() {
+        let img = noise(136, 136, 9);
+        let k = Ktx2 { codec: Codec::Bc7, supercompression: Supercompression::Zstd };
+        let first = encode(std::slice::from_ref(&img), k).unwrap();
+        let others: Vec<Vec<u8>> = std::thread::scope(|s| {
+            let hs: Vec<_> = (0..4).map(|_| s.spawn(|| encode(std::slice::from_ref(&img), k).unwrap())).collect();
+            hs.into_iter().map(|h| h.join().unwrap()).collect()
+        });
+        assert!(others.iter().all(|o| *o == first));
+    }
+}
