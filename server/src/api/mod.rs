@@ -2,12 +2,15 @@
 //! table of routes: requests are matched there and nowhere else.
 
 pub mod batch;
+mod dzi;
 pub mod error;
 pub mod extract;
 mod front;
+mod iiif;
 pub mod params;
 mod textures;
 pub mod tiles;
+mod view;
 
 use crate::cache::TileCache;
 use crate::config::ServeConfig;
@@ -227,6 +230,14 @@ pub fn router(app: App) -> Router {
         .route(BATCH, get(batch::batch))
         .route(TILE, get(tiles::tile))
         .route("/api/v1/textures/{id}/region", get(tiles::region))
+        // Deep Zoom and IIIF Image API 3 (dzi.rs, iiif.rs), over the same tiles and renders.
+        .route("/dzi/{file}", get(dzi::descriptor))
+        .route("/dzi/{dir}/{level}/{file}", get(dzi::tile))
+        .route("/iiif/3/{ident}", get(iiif::base))
+        .route("/iiif/3/{ident}/info.json", get(iiif::info))
+        .route("/iiif/3/{ident}/{region}/{size}/{rotation}/{file}", get(iiif::image))
+        .route("/iiif", any(iiif::not_found))
+        .route("/iiif/{*rest}", any(iiif::not_found))
         .route("/healthz", get(healthz))
         .route("/metrics", get(metrics))
         .route("/api", any(api_not_found))
