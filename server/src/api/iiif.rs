@@ -119,6 +119,9 @@ pub async fn info(
         "tiles": [{"width": entry.tile_size, "scaleFactors": (0..entry.levels).map(|l| 1u64 << l).collect::<Vec<_>>()}],
         "extraQualities": ["gray", "bitonal"],
         "extraFormats": ["webp"],
+        // Tiles are lossless by default; clients that honour this (OpenSeadragon) then show
+        // the texture's exact pixels.
+        "preferredFormats": ["png"],
         "extraFeatures": ["mirroring", "sizeUpscaling", "profileLinkHeader", "canonicalLinkHeader"],
     });
     let ld =
