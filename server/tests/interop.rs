@@ -196,3 +196,50 @@ async fn iiif_and_deep_zoom_serve_animation_frames() {
     let dz = get_bytes(&c, &s.url(&format!("/dzi/{id}_files/{top}/0_0.png?frame=3"))).await.2;
     assert_eq!(dz, f3);
 }
+
+#[tokio::test]
+async fn tilejson_and_xyz_tiles() {
+    let dir = tempdir();
+    let s = Server::start(dir.path(), &[]);
+    let c = client();
+    let id = put(&c, &s, &mosaic(64, 16, 1)).await; // 1024²: levels 0..=2, so zooms 0..=2
+    let tj: Value =
+        c.get(s.url(&format!("/api/v1/textures/{id}/tilejson.json"))).send().await.unwrap().json().await.unwrap();
+    assert_eq!(tj["tilejson"], "3.0.0");
+    assert_eq!(tj["scheme"], "xyz");
+    assert_eq!(tj["tiles"][0], s.url(&format!("/api/v1/textures/{id}/xyz/{{z}}/{{x}}/{{y}}.png")));
+    assert_eq!((tj["minzoom"].as_u64(), tj["maxzoom"].as_u64()), (Some(0), Some(2)));
+    let bounds: Vec<f64> = tj["bounds"].as_array().unwrap().iter().map(|v| v.as_f64().unwrap()).collect();
+    // 1024 texels are the whole 4 × 256 px world at zoom 2.
+    for (got, want) in bounds.iter().zip([-180.0, -85.0511287798066, 180.0, 85.0511287798066]) {
+        assert!((got - want).abs() < 1e-9, "{bounds:?}");
+    }
+    let tj: Value = c
+        .get(s.url(&format!("/api/v1/textures/{id}/tilejson.json?format=webp&frame=3")))
+        .send()
+        .await
+        .unwrap()
+        .json()
+        .await
+        .unwrap();
+    assert!(tj["tiles"][0].as_str().unwrap().ends_with("{y}.webp?frame=3"), "{tj}");
+
+    for (z, x, y, level, fmt) in [(0, 0, 0, 2, "png"), (1, 1, 0, 1, "webp"), (2, 3, 1, 0, "jpg")] {
+        let (st, xh, xyz) = get_bytes(&c, &s.url(&format!("/api/v1/textures/{id}/xyz/{z}/{x}/{y}.{fmt}"))).await;
+        assert_eq!(st, 200);
+        let (_, th, tile) = get_bytes(&c, &s.tile_url(&id, level, x, y, fmt)).await;
+        assert_eq!(xyz, tile, "XYZ {z}/{x}/{y} is tile {level}/{x}/{y}");
+        assert_eq!(xh["etag"], th["etag"]);
+    }
+    for (path, status, words) in [
+        (format!("/api/v1/textures/{id}/xyz/3/0/0.png"), 404, "zooms 0..=2"),
+        (format!("/api/v1/textures/{id}/xyz/2/4/0.png"), 404, "outside the texture"),
+        (format!("/api/v1/textures/{id}/xyz/0/0/0.gif"), 400, "unknown format"),
+        (format!("/api/v1/textures/{id}/xyz/0/0/0.png?zoom=1"), 400, "unknown query parameter"),
+        (format!("/api/v1/textures/{id}/tilejson.json?format=rgba"), 400, "images"),
+        (format!("/api/v1/textures/{}/tilejson.json", "0".repeat(64)), 404, "no texture"),
+    ] {
+        let msg = expect_error(&c, &s.url(&path), status).await;
+        assert!(msg.contains(words), "{path}: {msg}");
+    }
+}

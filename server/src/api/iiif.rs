@@ -65,15 +65,8 @@ async fn image_of(app: &App, ident: &str) -> Result<(Arc<Entry>, u32), ApiError>
 
 /// The URL of the image service of `ident`, as the client reached this server.
 fn service_url(headers: &HeaderMap, uri: &Uri, ident: &str) -> String {
-    let host = headers
-        .get(header::HOST)
-        .and_then(|h| h.to_str().ok())
-        .map(str::to_string)
-        .or_else(|| uri.authority().map(|a| a.to_string()))
-        .unwrap_or_else(|| "localhost".into());
-    let https = headers.get("x-forwarded-proto").is_some_and(|p| p.as_bytes().eq_ignore_ascii_case(b"https"));
     let ident: String = form_urlencoded::byte_serialize(ident.as_bytes()).collect();
-    format!("{}://{host}{PREFIX}/{ident}", if https { "https" } else { "http" })
+    format!("{}{PREFIX}/{ident}", super::origin::origin(headers, uri))
 }
 
 /// `GET /iiif/3/{identifier}`: the base URI redirects to its image information.

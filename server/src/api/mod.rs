@@ -7,8 +7,10 @@ pub mod error;
 pub mod extract;
 mod front;
 mod iiif;
+mod origin;
 pub mod params;
 mod textures;
+mod tilejson;
 pub mod tiles;
 mod view;
 
@@ -238,6 +240,9 @@ pub fn router(app: App) -> Router {
         .route("/iiif/3/{ident}/{region}/{size}/{rotation}/{file}", get(iiif::image))
         .route("/iiif", any(iiif::not_found))
         .route("/iiif/{*rest}", any(iiif::not_found))
+        // TileJSON 3 and XYZ tiles (tilejson.rs).
+        .route("/api/v1/textures/{id}/tilejson.json", get(tilejson::tilejson))
+        .route(tilejson::XYZ, get(tilejson::xyz))
         .route("/healthz", get(healthz))
         .route("/metrics", get(metrics))
         .route("/api", any(api_not_found))
