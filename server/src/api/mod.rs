@@ -36,6 +36,8 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
 use std::time::Instant;
 use tower::ServiceBuilder;
+use tower_http::compression::predicate::{DefaultPredicate, NotForContentType, Predicate};
+use tower_http::compression::{CompressionLayer, CompressionLevel};
 use tower_http::cors::{Any, CorsLayer};
 use tower_http::services::ServeDir;
 use tower_http::trace::{DefaultMakeSpan, DefaultOnResponse, TraceLayer};
@@ -208,8 +210,8 @@ pub struct TextureId {
 }
 
 /// The routes, the static viewer as the fallback, and the layers every request passes:
-/// metrics and the log outermost (so they see every answer, a timeout's too), then CORS, then
-/// the request deadline, then the body limit.
+/// the log outermost (so it sees every answer, a timeout's too), then compression, metrics
+/// (which count bytes before compression), CORS, the request deadline and the body limit.
 pub fn router(app: App) -> Router {
     let web = ServeDir::new(&app.cfg.web_dir).append_index_html_on_directories(true);
     let limit = app.cfg.request_timeout();
@@ -220,6 +222,8 @@ pub fn router(app: App) -> Router {
                 .make_span_with(DefaultMakeSpan::new().level(tracing::Level::INFO))
                 .on_response(DefaultOnResponse::new().level(tracing::Level::INFO).latency_unit(LatencyUnit::Micros)),
         )
+        .layer(middleware::map_response(weaken_encoded_etag))
+        .layer(compression_layer())
         .layer(middleware::from_fn_with_state(app.clone(), observe))
         .layer(cors_layer())
         .layer(HandleErrorLayer::new(on_timeout))
@@ -253,15 +257,49 @@ pub fn router(app: App) -> Router {
         .with_state(app)
 }
 
+/// gzip, Brotli or zstd, as the client accepts (`Vary: Accept-Encoding` on what may be
+/// compressed), for everything but images (already compressed), bodies under 32 bytes and the
+/// streamed tile batch (compression would hold its frames back). The fastest level: raw tiles
+/// are compressed on the fly, per request.
+fn compression_layer() -> CompressionLayer<impl Predicate> {
+    let predicate = DefaultPredicate::new().and(NotForContentType::const_new(batch::CONTENT_TYPE));
+    CompressionLayer::new().quality(CompressionLevel::Fastest).compress_when(predicate)
+}
+
+/// Whether `Accept-Encoding` names an encoding [`compression_layer`] might apply.
+pub fn accepts_compression(headers: &HeaderMap) -> bool {
+    headers.get_all(header::ACCEPT_ENCODING).iter().any(|v| {
+        v.to_str().is_ok_and(|v| {
+            v.split(',').any(|e| matches!(e.split(';').next().unwrap_or("").trim(), "gzip" | "br" | "zstd" | "*"))
+        })
+    })
+}
+
+/// A compressed body is another representation of the same resource: its strong ETag becomes
+/// weak (as nginx does), so `If-None-Match` still matches and byte ranges never mix them.
+async fn weaken_encoded_etag<B>(mut resp: Response<B>) -> Response<B> {
+    if resp.headers().contains_key(header::CONTENT_ENCODING) {
+        if let Some(tag) = resp.headers().get(header::ETAG).filter(|t| !t.as_bytes().starts_with(b"W/")) {
+            let weak = [b"W/".as_slice(), tag.as_bytes()].concat();
+            if let Ok(weak) = HeaderValue::from_bytes(&weak) {
+                resp.headers_mut().insert(header::ETAG, weak);
+            }
+        }
+    }
+    resp
+}
+
 /// The answer to a request not done within the deadline `limit`.
 fn timed_out(limit: std::time::Duration) -> ApiError {
     ApiError::Timeout(format!("request not completed within {} s (slow client or overload)", limit.as_secs_f64()))
 }
 
 /// The CORS policy: any origin, the API's methods, any request header, and the response
-/// headers the viewer reads exposed.
+/// headers the viewer reads exposed. The answers do not depend on the request's `Origin` or
+/// preflight headers, so they carry no `Vary` for them (caches keep one copy).
 fn cors_layer() -> CorsLayer {
     CorsLayer::new()
+        .vary([])
         .allow_origin(Any)
         .allow_methods([Method::GET, Method::HEAD, Method::POST, Method::PATCH, Method::OPTIONS])
         .allow_headers(Any)
