@@ -13,6 +13,7 @@ mod textures;
 mod tilejson;
 pub mod tiles;
 mod view;
+mod web;
 
 use crate::cache::TileCache;
 use crate::config::ServeConfig;
@@ -46,6 +47,7 @@ use vtex_synth::{Region, Stop};
 
 pub use error::ApiError as Error;
 pub use front::{Front, MAX_HEAD_BYTES};
+pub use web::Web;
 
 /// The route of a single tile: [`router`] serves it, and [`Front`] answers plain GETs of it
 /// directly, matching paths against this same template.
@@ -213,7 +215,6 @@ pub struct TextureId {
 /// the log outermost (so it sees every answer, a timeout's too), then compression, metrics
 /// (which count bytes before compression), CORS, the request deadline and the body limit.
 pub fn router(app: App) -> Router {
-    let web = ServeDir::new(&app.cfg.web_dir).append_index_html_on_directories(true);
     let limit = app.cfg.request_timeout();
     let on_timeout = move |_: BoxError| async move { timed_out(limit) };
     let layers = ServiceBuilder::new()
@@ -252,9 +253,18 @@ pub fn router(app: App) -> Router {
         .route("/api", any(api_not_found))
         .route("/api/{*rest}", any(api_not_found))
         .method_not_allowed_fallback(method_not_allowed)
-        .fallback_service(web)
+        .merge(viewer(&app))
         .layer(layers)
         .with_state(app)
+}
+
+/// The viewer at `/` and every path no route takes: from `--web-dir` when given, else the copy
+/// built into the binary ([`web`]).
+fn viewer(app: &App) -> Router<App> {
+    match &app.cfg.web_dir {
+        Some(dir) => Router::new().fallback_service(ServeDir::new(dir).append_index_html_on_directories(true)),
+        None => Router::new().fallback(web::serve),
+    }
 }
 
 /// gzip, Brotli or zstd, as the client accepts (`Vary: Accept-Encoding` on what may be
