@@ -6,6 +6,7 @@ import { TileStats, formatBytes, formatRatio } from './stats.js';
 import { FORMATS, parseView, formatView } from './view-url.js';
 import { DEFAULT_DETAIL, DETAIL, drawLevel, vtexLevel } from './pyramid.js';
 import { updateEarly } from './loader.js';
+import { findTexture as lookupTexture } from './texture-lookup.js';
 import { fetchWantedLevels, keepBatchesOnDraw, vtexDrawer } from './osd-adapter.js';
 import { ClientSynth, staticExport } from './client-synth.js';
 
@@ -129,8 +130,7 @@ function fillPicker(textures, selectedId) {
 }
 
 function findTexture(key) {
-  if (!key) return null;
-  return state.textures.find((t) => t.id === key) || state.textures.find((t) => t.name === key) || null;
+  return lookupTexture(state.textures, key);
 }
 
 /** Opens `info`; `view` (zoom, x, y, frame) is applied once it is open, else the whole texture shows. */
@@ -509,12 +509,12 @@ async function start() {
     showError('The server has no textures yet. Upload one with POST /api/v1/textures.');
     return;
   }
-  let info = findTexture(view.texture);
-  if (view.texture && !info) {
-    showError(`No texture "${view.texture}" on this server; showing ${state.textures[0].name}.`);
-  }
+  const named = findTexture(view.texture);
   // Without a texture in the link, open the largest: vtex is about textures too big to store.
-  info = info || state.textures.reduce((a, b) => (b.width * b.height > a.width * a.height ? b : a));
+  const info = named || state.textures.reduce((a, b) => (b.width * b.height > a.width * a.height ? b : a));
+  if (view.texture && !named) {
+    showError(`No texture "${view.texture}" on this server (or more than one starts so); showing ${info.name}.`);
+  }
   fillPicker(state.textures, info.id);
   openTexture(info, view);
   $('osd').querySelector('.openseadragon-canvas')?.focus();

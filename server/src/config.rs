@@ -40,9 +40,10 @@ pub struct ServeConfig {
     /// a tile, only how much of a tile's dependencies is computed again.
     #[arg(long, env = "VTEX_SYNTH_CACHE_MB", default_value_t = 64.0)]
     pub synth_cache_mb: f64,
-    /// Directory of the static viewer, served at `/`.
-    #[arg(long, env = "VTEX_WEB_DIR", default_value = "client-web/dist")]
-    pub web_dir: PathBuf,
+    /// Serve the viewer from this directory (a `client-web/dist` build) instead of the copy
+    /// built into the binary.
+    #[arg(long, env = "VTEX_WEB_DIR")]
+    pub web_dir: Option<PathBuf>,
     /// Tile side in pixels (16..=2048).
     #[arg(long, env = "VTEX_TILE_SIZE", default_value_t = 256)]
     pub tile_size: u32,

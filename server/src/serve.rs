@@ -86,8 +86,14 @@ pub async fn run(mut cfg: ServeConfig, shutdown: impl Future<Output = ()>) -> an
     if let Some(watch) = watch {
         watch.follow(store.clone())?;
     }
-    if !cfg.web_dir.join("index.html").is_file() {
-        tracing::warn!(web_dir = %cfg.web_dir.display(), "no index.html in the web directory; the viewer is not served");
+    match &cfg.web_dir {
+        Some(dir) if !dir.join("index.html").is_file() => {
+            tracing::warn!(web_dir = %dir.display(), "no index.html in the web directory; the viewer is not served")
+        }
+        None if crate::api::Web::embedded().is_none() => {
+            tracing::warn!("this binary was built without the viewer (client-web/dist); it is not served")
+        }
+        _ => {}
     }
     let app = AppState::new(store, cfg.clone());
     // Renders in flight at shutdown may finish during the drain; those that would outlast it

@@ -16,7 +16,7 @@
 
 use super::error::{echo, ApiError};
 use super::extract::{check_query, path_params, query_params, MAX_BATCH_QUERY_BYTES, MAX_QUERY_BYTES};
-use super::{cors_layer, count, router, tiles, timed_out, App, BATCH, TILE};
+use super::{accepts_compression, cors_layer, count, router, tiles, timed_out, App, BATCH, TILE};
 use crate::transport::{Activity, InFlight};
 use axum::body::Body;
 use axum::http::uri::Authority;
@@ -125,8 +125,11 @@ impl Inner {
         if let Err(e) = this.check_head(&req) {
             return this.refuse(&req, e);
         }
-        // Percent-encoded segments need decoding, which the router's extractor does.
-        let plain = req.method() == Method::GET && !req.uri().path().contains('%');
+        // Percent-encoded segments need decoding, which the router's extractor does; raw tiles
+        // for a client that accepts compression, the router's compression layer.
+        let path = req.uri().path();
+        let compressible = path.ends_with(".rgba") && accepts_compression(req.headers());
+        let plain = req.method() == Method::GET && !path.contains('%') && !compressible;
         if let Some(m) = plain.then(|| this.tile.at(req.uri().path()).ok()).flatten() {
             let start = Instant::now();
             let limit = this.app.cfg.request_timeout();
@@ -262,6 +265,6 @@ mod tests {
         for name in ["etag", "x-vtex-cache", "x-vtex-width", "x-vtex-height"] {
             assert!(exposed.contains(name), "{exposed}");
         }
-        assert!(h.contains_key(header::VARY));
+        assert!(!h.contains_key(header::VARY), "answers do not depend on the origin");
     }
 }

@@ -3,14 +3,20 @@
 
 pub mod batch;
 mod deletion;
+mod dzi;
 pub mod error;
 pub mod extract;
 mod front;
 mod health;
+mod iiif;
+mod origin;
 pub mod pages;
 pub mod params;
 mod textures;
+mod tilejson;
 pub mod tiles;
+mod view;
+mod web;
 pub mod writes;
 
 use crate::cache::TileCache;
@@ -35,6 +41,8 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
 use std::time::Instant;
 use tower::ServiceBuilder;
+use tower_http::compression::predicate::{DefaultPredicate, NotForContentType, Predicate};
+use tower_http::compression::{CompressionLayer, CompressionLevel};
 use tower_http::cors::{Any, CorsLayer};
 use tower_http::services::ServeDir;
 use tower_http::trace::{DefaultMakeSpan, DefaultOnResponse, TraceLayer};
@@ -43,6 +51,7 @@ use vtex_synth::{Region, Stop};
 
 pub use error::ApiError as Error;
 pub use front::{Front, MAX_HEAD_BYTES};
+pub use web::Web;
 
 /// The route of a single tile: [`router`] serves it, and [`Front`] answers plain GETs of it
 /// directly, matching paths against this same template.
@@ -212,11 +221,10 @@ pub struct TextureId {
 }
 
 /// The routes, the static viewer as the fallback, and the layers every request passes:
-/// metrics and the log outermost (so they see every answer, a timeout's too), then the write
-/// policy (it answers write preflights itself), then CORS, then the request deadline, then the
-/// body limit.
+/// the log outermost (so it sees every answer, a timeout's too), then compression, metrics
+/// (which count bytes before compression), the write policy (it answers write preflights
+/// itself), CORS, the request deadline and the body limit.
 pub fn router(app: App) -> Router {
-    let web = ServeDir::new(&app.cfg.web_dir).append_index_html_on_directories(true);
     let limit = app.cfg.request_timeout();
     let on_timeout = move |_: BoxError| async move { timed_out(limit) };
     let layers = ServiceBuilder::new()
@@ -225,6 +233,8 @@ pub fn router(app: App) -> Router {
                 .make_span_with(DefaultMakeSpan::new().level(tracing::Level::INFO))
                 .on_response(DefaultOnResponse::new().level(tracing::Level::INFO).latency_unit(LatencyUnit::Micros)),
         )
+        .layer(middleware::map_response(weaken_encoded_etag))
+        .layer(compression_layer())
         .layer(middleware::from_fn_with_state(app.clone(), observe))
         .layer(middleware::from_fn_with_state(app.clone(), writes::guard))
         .layer(cors_layer())
@@ -245,13 +255,65 @@ pub fn router(app: App) -> Router {
         // Virtual-texture pages with borders and KTX2 mip chains for game engines (pages.rs).
         .route("/api/v1/textures/{id}/pages/{level}/{x}/{file}", get(pages::page))
         .route("/api/v1/textures/{id}/mips.ktx2", get(pages::mip_chain))
+        // Deep Zoom and IIIF Image API 3 (dzi.rs, iiif.rs), over the same tiles and renders.
+        .route("/dzi/{file}", get(dzi::descriptor))
+        .route("/dzi/{dir}/{level}/{file}", get(dzi::tile))
+        .route("/iiif/3/{ident}", get(iiif::base))
+        .route("/iiif/3/{ident}/info.json", get(iiif::info))
+        .route("/iiif/3/{ident}/{region}/{size}/{rotation}/{file}", get(iiif::image))
+        .route("/iiif", any(iiif::not_found))
+        .route("/iiif/{*rest}", any(iiif::not_found))
+        // TileJSON 3 and XYZ tiles (tilejson.rs).
+        .route("/api/v1/textures/{id}/tilejson.json", get(tilejson::tilejson))
+        .route(tilejson::XYZ, get(tilejson::xyz))
         .route("/metrics", get(metrics))
         .route("/api", any(api_not_found))
         .route("/api/{*rest}", any(api_not_found))
         .method_not_allowed_fallback(method_not_allowed)
-        .fallback_service(web)
+        .merge(viewer(&app))
         .layer(layers)
         .with_state(app)
+}
+
+/// The viewer at `/` and every path no route takes: from `--web-dir` when given, else the copy
+/// built into the binary ([`web`]).
+fn viewer(app: &App) -> Router<App> {
+    match &app.cfg.web_dir {
+        Some(dir) => Router::new().fallback_service(ServeDir::new(dir).append_index_html_on_directories(true)),
+        None => Router::new().fallback(web::serve),
+    }
+}
+
+/// gzip, Brotli or zstd, as the client accepts (`Vary: Accept-Encoding` on what may be
+/// compressed), for everything but images (already compressed), bodies under 32 bytes and the
+/// streamed tile batch (compression would hold its frames back). The fastest level: raw tiles
+/// are compressed on the fly, per request.
+fn compression_layer() -> CompressionLayer<impl Predicate> {
+    let predicate = DefaultPredicate::new().and(NotForContentType::const_new(batch::CONTENT_TYPE));
+    CompressionLayer::new().quality(CompressionLevel::Fastest).compress_when(predicate)
+}
+
+/// Whether `Accept-Encoding` names an encoding [`compression_layer`] might apply.
+pub fn accepts_compression(headers: &HeaderMap) -> bool {
+    headers.get_all(header::ACCEPT_ENCODING).iter().any(|v| {
+        v.to_str().is_ok_and(|v| {
+            v.split(',').any(|e| matches!(e.split(';').next().unwrap_or("").trim(), "gzip" | "br" | "zstd" | "*"))
+        })
+    })
+}
+
+/// A compressed body is another representation of the same resource: its strong ETag becomes
+/// weak (as nginx does), so `If-None-Match` still matches and byte ranges never mix them.
+async fn weaken_encoded_etag<B>(mut resp: Response<B>) -> Response<B> {
+    if resp.headers().contains_key(header::CONTENT_ENCODING) {
+        if let Some(tag) = resp.headers().get(header::ETAG).filter(|t| !t.as_bytes().starts_with(b"W/")) {
+            let weak = [b"W/".as_slice(), tag.as_bytes()].concat();
+            if let Ok(weak) = HeaderValue::from_bytes(&weak) {
+                resp.headers_mut().insert(header::ETAG, weak);
+            }
+        }
+    }
+    resp
 }
 
 /// The answer to a request not done within the deadline `limit`.
@@ -260,9 +322,12 @@ fn timed_out(limit: std::time::Duration) -> ApiError {
 }
 
 /// The CORS policy of reads: any origin, the read methods, any request header, and the
-/// response headers the viewer reads exposed. Writes have their own ([`writes::guard`]).
+/// response headers the viewer reads exposed. Writes have their own ([`writes::guard`]). The
+/// answers do not depend on the request's `Origin` or preflight headers, so they carry no
+/// `Vary` for them (caches keep one copy).
 fn cors_layer() -> CorsLayer {
     CorsLayer::new()
+        .vary([])
         .allow_origin(Any)
         .allow_methods([Method::GET, Method::HEAD, Method::OPTIONS])
         .allow_headers(Any)

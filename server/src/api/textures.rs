@@ -20,17 +20,33 @@ const MAX_FIELDS: usize = 16;
 /// Largest PATCH body: a merge patch of names and parameters.
 const MAX_PATCH_BYTES: usize = 1 << 20;
 
-pub async fn list(State(app): State<App>, _: Query<NoQuery>) -> Json<Value> {
+pub async fn list(State(app): State<App>, _: Query<NoQuery>, headers: HeaderMap) -> Response {
     let textures: Vec<TextureInfo> = app.store.list().iter().map(|e| e.info()).collect();
-    Json(serde_json::json!({ "textures": textures }))
+    json_validated(&headers, &serde_json::json!({ "textures": textures }))
 }
 
 pub async fn info(
     State(app): State<App>,
     Path(TextureId { id }): Path<TextureId>,
     _: Query<NoQuery>,
-) -> Result<Json<TextureInfo>, ApiError> {
-    Ok(Json(record(&app, &id).await?.info()))
+    headers: HeaderMap,
+) -> Result<Response, ApiError> {
+    Ok(json_validated(&headers, &record(&app, &id).await?.info()))
+}
+
+/// `value` as JSON with a strong ETag (a hash of the body), revalidated on every use
+/// (`no-cache`): a 304 when `If-None-Match` names it. The list changes with the store, so it is
+/// never cached unchecked.
+fn json_validated(headers: &HeaderMap, value: &impl serde::Serialize) -> Response {
+    let body = serde_json::to_vec(value).expect("plain data serializes");
+    let tag = format!("\"{}\"", &blake3::hash(&body).to_hex()[..32]);
+    let tag = HeaderValue::from_str(&tag).expect("hex is a valid header value");
+    let no_cache = HeaderValue::from_static("no-cache");
+    if not_modified(headers, tag.to_str().unwrap_or_default()) {
+        return (StatusCode::NOT_MODIFIED, [(header::ETAG, tag), (header::CACHE_CONTROL, no_cache)]).into_response();
+    }
+    let json = HeaderValue::from_static("application/json");
+    ([(header::CONTENT_TYPE, json), (header::ETAG, tag), (header::CACHE_CONTROL, no_cache)], body).into_response()
 }
 
 /// The bundle bytes exactly as stored, read whole once their length is reserved from the

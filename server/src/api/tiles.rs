@@ -131,17 +131,28 @@ pub(super) async fn answer(
     check_tile(&entry, level, x, y)?;
     let frame = frame_for(&entry, frame);
     let key = TileKey { texture: entry.key, level, x, y, frame, format, shape: Shape::Tile };
+    respond(app, &entry, key, headers).await
+}
+
+/// The response for tile `key` of `entry` (inside its pyramid): 304, or the tile from the
+/// cache or synthesized — for every route that serves tiles (tiles, Deep Zoom, IIIF, XYZ).
+pub(super) async fn respond(
+    app: &App,
+    entry: &Arc<Entry>,
+    key: TileKey,
+    headers: &HeaderMap,
+) -> Result<Response, ApiError> {
     // A cached tile carries its ETag; only a tile not in the cache needs it hashed.
     let cached = app.cache.get(&key);
     let tag = match &cached {
         Some(tile) => tile.etag.clone(),
-        None => key_etag(&entry, &key),
+        None => key_etag(entry, &key),
     };
     if not_modified(headers, tag.to_str().unwrap_or_default()) {
         return Ok(not_modified_response(tag));
     }
-    let (tile, source) = obtain(app, &entry, key, cached, tag).await?;
-    let mut resp = image_response(tile.body.clone(), format, tile.etag.clone(), tile.width, tile.height);
+    let (tile, source) = obtain(app, entry, key, cached, tag).await?;
+    let mut resp = image_response(tile.body.clone(), key.format, tile.etag.clone(), tile.width, tile.height);
     let cache_state = if source == Source::Hit { "hit" } else { "miss" };
     resp.headers_mut().insert(X_VTEX_CACHE.clone(), HeaderValue::from_static(cache_state));
     Ok(resp)

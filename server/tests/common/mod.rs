@@ -151,8 +151,9 @@ pub fn tempdir() -> tempfile::TempDir {
     tempfile::Builder::new().prefix("vtex-test-").tempdir().unwrap()
 }
 
+/// A client that asks for no compression and decodes none (the suites compare exact bytes).
 pub fn client() -> reqwest::Client {
-    reqwest::Client::builder().timeout(Duration::from_secs(120)).build().unwrap()
+    reqwest::Client::builder().timeout(Duration::from_secs(120)).no_gzip().no_brotli().no_zstd().build().unwrap()
 }
 
 /// A chaos mosaic bundle from a project-made sample: `tiles`² tiles of a `side`² sample.

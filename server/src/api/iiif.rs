@@ -1,0 +1,536 @@
+//! IIIF Image API 3.0 at compliance level 2: `/iiif/3/{identifier}/info.json` and
+//! `/iiif/3/{identifier}/{region}/{size}/{rotation}/{quality}.{format}`, over the same tiles
+//! and bounded renders as the rest of the API ([`super::view`]).
+//!
+//! The identifier is a texture id; `{id};{frame}` names a frame of an animated texture (the
+//! meta-identifier form Cantaloupe uses for pages). Errors follow the specification's rules: a
+//! request that cannot be parsed is a 400, an identifier that names no image a 404, a valid
+//! request for something not offered (a rotation other than a multiple of 90°) a 501. Beyond
+//! level 2: mirroring, upscaling (`^`), WebP, `bitonal`, and the profile and canonical `Link`
+//! headers.
+
+use super::error::{echo, ApiError};
+use super::extract::{NoQuery, Path, Query};
+use super::tiles::{self, frame_for};
+use super::view::{self, View};
+use super::App;
+use crate::cache::{Shape, TileKey};
+use crate::config::MAX_REGION_SIDE;
+use crate::encode::Format;
+use crate::store::Entry;
+use axum::extract::State;
+use axum::http::{header, HeaderMap, HeaderValue, StatusCode, Uri};
+use axum::response::{IntoResponse, Response};
+use serde::Deserialize;
+use serde_json::json;
+use std::sync::Arc;
+use vtex_synth::Rgba8Image;
+
+/// Where the service lives: `{base}/{identifier}/…`.
+pub const PREFIX: &str = "/iiif/3";
+const CONTEXT: &str = "http://iiif.io/api/image/3/context.json";
+const PROFILE_LINK: &str = "<http://iiif.io/api/image/3/level2.json>;rel=\"profile\"";
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct IdentPath {
+    ident: String,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ImagePath {
+    ident: String,
+    region: String,
+    size: String,
+    rotation: String,
+    file: String,
+}
+
+/// A texture and the frame an identifier names. An identifier that is not a stored texture's
+/// id (with an optional `;frame`) names no image: 404.
+async fn image_of(app: &App, ident: &str) -> Result<(Arc<Entry>, u32), ApiError> {
+    let none = || ApiError::not_found(format!("no image with identifier `{}`", echo(ident)));
+    let (id, frame) = match ident.split_once(';') {
+        Some((id, f)) => (id, Some(f.parse::<u32>().map_err(|_| none())?)),
+        None => (ident, None),
+    };
+    if !vtex_synth::bundle::is_valid_id(id) || app.store.record(id).is_none() {
+        return Err(none());
+    }
+    let entry = super::lookup(app, id).await?;
+    let frame = frame_for(&entry, frame);
+    Ok((entry, frame))
+}
+
+/// The URL of the image service of `ident`, as the client reached this server.
+fn service_url(headers: &HeaderMap, uri: &Uri, ident: &str) -> String {
+    let ident: String = form_urlencoded::byte_serialize(ident.as_bytes()).collect();
+    format!("{}{PREFIX}/{ident}", super::origin::origin(headers, uri))
+}
+
+/// `GET /iiif/3/{identifier}`: the base URI redirects to its image information.
+pub async fn base(
+    Path(IdentPath { ident }): Path<IdentPath>,
+    _: Query<NoQuery>,
+    headers: HeaderMap,
+    uri: Uri,
+) -> Response {
+    let to = format!("{}/info.json", service_url(&headers, &uri, &ident));
+    (StatusCode::SEE_OTHER, [(header::LOCATION, to)]).into_response()
+}
+
+/// `GET /iiif/3/{identifier}/info.json`: JSON-LD when asked for, JSON otherwise.
+pub async fn info(
+    State(app): State<App>,
+    Path(IdentPath { ident }): Path<IdentPath>,
+    _: Query<NoQuery>,
+    headers: HeaderMap,
+    uri: Uri,
+) -> Result<Response, ApiError> {
+    let (entry, _) = image_of(&app, &ident).await?;
+    let (w, h) = (entry.texture.width(), entry.texture.height());
+    let max_area = app.cfg.max_region_pixels;
+    let sizes: Vec<_> = (0..vtex_synth::texture::level_count(w, h))
+        .rev()
+        .map(|l| vtex_synth::texture::level_size(w, h, l))
+        .take_while(|&(lw, lh)| lw <= MAX_REGION_SIDE as u64 && lh <= MAX_REGION_SIDE as u64 && lw * lh <= max_area)
+        .map(|(lw, lh)| json!({"width": lw, "height": lh}))
+        .collect();
+    let body = json!({
+        "@context": CONTEXT,
+        "id": service_url(&headers, &uri, &ident),
+        "type": "ImageService3",
+        "protocol": "http://iiif.io/api/image",
+        "profile": "level2",
+        "width": w,
+        "height": h,
+        "maxWidth": MAX_REGION_SIDE,
+        "maxHeight": MAX_REGION_SIDE,
+        "maxArea": max_area,
+        "sizes": sizes,
+        "tiles": [{"width": entry.tile_size, "scaleFactors": (0..entry.levels).map(|l| 1u64 << l).collect::<Vec<_>>()}],
+        "extraQualities": ["gray", "bitonal"],
+        "extraFormats": ["webp"],
+        // Tiles are lossless by default; clients that honour this (OpenSeadragon) then show
+        // the texture's exact pixels.
+        "preferredFormats": ["png"],
+        "extraFeatures": ["mirroring", "sizeUpscaling", "profileLinkHeader", "canonicalLinkHeader"],
+    });
+    let ld =
+        headers.get_all(header::ACCEPT).iter().any(|a| a.to_str().is_ok_and(|a| a.contains("application/ld+json")));
+    let content_type =
+        if ld { format!("application/ld+json;profile=\"{CONTEXT}\"") } else { "application/json".to_string() };
+    Ok(([(header::CONTENT_TYPE, content_type)], body.to_string()).into_response())
+}
+
+/// Any other path under `/iiif`: an image or a service that does not exist.
+pub async fn not_found(req: axum::extract::Request) -> ApiError {
+    ApiError::not_found(format!("no IIIF image or service at {}", echo(req.uri().path())))
+}
+
+/// A parsed image request, resolved against its image.
+#[derive(Clone, Copy, Debug, PartialEq)]
+struct Request {
+    view: View,
+    /// Mirrored before rotating (`!` in the rotation).
+    mirror: bool,
+    /// Clockwise quarter turns.
+    turns: u8,
+    quality: Quality,
+    format: Format,
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Quality {
+    Default,
+    Color,
+    Gray,
+    Bitonal,
+}
+
+impl Quality {
+    fn name(self) -> &'static str {
+        match self {
+            Quality::Default => "default",
+            Quality::Color => "color",
+            Quality::Gray => "gray",
+            Quality::Bitonal => "bitonal",
+        }
+    }
+}
+
+/// The limits a size must respect: `maxWidth`, `maxHeight`, `maxArea`.
+#[derive(Clone, Copy)]
+struct Limits {
+    side: u64,
+    area: u64,
+}
+
+fn bad(what: &str, value: &str, expected: &str) -> ApiError {
+    ApiError::bad_request(format!("IIIF {what} `{}` is not valid; expected {expected}", echo(value)))
+}
+
+/// A non-negative decimal number as IIIF writes them (no sign, no exponent).
+fn decimal(s: &str) -> Option<f64> {
+    let ok = !s.is_empty()
+        && s.bytes().all(|b| b.is_ascii_digit() || b == b'.')
+        && s.bytes().filter(|&b| b == b'.').count() <= 1;
+    ok.then(|| s.parse::<f64>().ok()).flatten().filter(|v| v.is_finite())
+}
+
+fn integer(s: &str) -> Option<u64> {
+    (!s.is_empty() && s.len() <= 19 && s.bytes().all(|b| b.is_ascii_digit())).then(|| s.parse().ok()).flatten()
+}
+
+/// `full`, `square`, `x,y,w,h` or `pct:x,y,w,h`, as a rectangle of level 0 cropped to the image.
+fn parse_region(s: &str, width: u64, height: u64) -> Result<(u64, u64, u64, u64), ApiError> {
+    const EXPECTED: &str = "full, square, x,y,w,h or pct:x,y,w,h";
+    let (x, y, w, h) = match s {
+        "full" => (0, 0, width, height),
+        "square" => {
+            let side = width.min(height);
+            ((width - side) / 2, (height - side) / 2, side, side)
+        }
+        _ => {
+            let (pct, list) = match s.strip_prefix("pct:") {
+                Some(rest) => (true, rest),
+                None => (false, s),
+            };
+            let parts: Vec<&str> = list.split(',').collect();
+            if parts.len() != 4 {
+                return Err(bad("region", s, EXPECTED));
+            }
+            if pct {
+                let v: Vec<f64> = parts
+                    .iter()
+                    .map(|p| decimal(p))
+                    .collect::<Option<_>>()
+                    .ok_or_else(|| bad("region", s, EXPECTED))?;
+                let at = |p: f64, of: u64| (p * of as f64 / 100.0).round().min(u64::MAX as f64) as u64;
+                let (x, y) = (at(v[0], width), at(v[1], height));
+                (x, y, at(v[0] + v[2], width).saturating_sub(x), at(v[1] + v[3], height).saturating_sub(y))
+            } else {
+                let v: Vec<u64> = parts
+                    .iter()
+                    .map(|p| integer(p))
+                    .collect::<Option<_>>()
+                    .ok_or_else(|| bad("region", s, EXPECTED))?;
+                (v[0], v[1], v[2], v[3])
+            }
+        }
+    };
+    if w == 0 || h == 0 {
+        return Err(ApiError::bad_request(format!("IIIF region `{}` has a zero width or height", echo(s))));
+    }
+    if x >= width || y >= height {
+        return Err(ApiError::bad_request(format!(
+            "IIIF region `{}` lies outside the image, which is {width}×{height}",
+            echo(s)
+        )));
+    }
+    Ok((x, y, w.min(width - x), h.min(height - y)))
+}
+
+/// The output size a size parameter asks for a `rw` × `rh` region: `max`, `w,`, `,h`, `pct:n`,
+/// `w,h` or `!w,h`, each optionally after `^` (which alone allows upscaling).
+fn parse_size(s: &str, rw: u64, rh: u64, limits: Limits) -> Result<(u64, u64), ApiError> {
+    const EXPECTED: &str = "max, w,, ,h, pct:n, w,h or !w,h, each optionally prefixed by ^";
+    let (up, rest) = match s.strip_prefix('^') {
+        Some(r) => (true, r),
+        None => (false, s),
+    };
+    let scaled = |v: u64, num: f64, den: f64| ((v as f64 * num / den).round() as u64).max(1);
+    let (w, h) = if rest == "max" {
+        let (side, area) = (limits.side as f64, limits.area as f64);
+        let mut k = (side / rw as f64).min(side / rh as f64).min((area / (rw as f64 * rh as f64)).sqrt());
+        if !up {
+            k = k.min(1.0);
+        }
+        let fit = |v: u64| ((v as f64 * k).floor() as u64).max(1);
+        (fit(rw), fit(rh))
+    } else if let Some(p) = rest.strip_prefix("pct:") {
+        let p = decimal(p).ok_or_else(|| bad("size", s, EXPECTED))?;
+        if p == 0.0 {
+            return Err(ApiError::bad_request(format!("IIIF size `{}` is zero", echo(s))));
+        }
+        (scaled(rw, p, 100.0), scaled(rh, p, 100.0))
+    } else {
+        let (confined, list) = match rest.strip_prefix('!') {
+            Some(r) => (true, r),
+            None => (false, rest),
+        };
+        let (a, b) = list.split_once(',').ok_or_else(|| bad("size", s, EXPECTED))?;
+        let (a, b) = (
+            if a.is_empty() { None } else { Some(integer(a).ok_or_else(|| bad("size", s, EXPECTED))?) },
+            if b.is_empty() { None } else { Some(integer(b).ok_or_else(|| bad("size", s, EXPECTED))?) },
+        );
+        if a == Some(0) || b == Some(0) {
+            return Err(ApiError::bad_request(format!("IIIF size `{}` has a zero width or height", echo(s))));
+        }
+        match (confined, a, b) {
+            (false, Some(w), None) => (w, scaled(rh, w as f64, rw as f64)),
+            (false, None, Some(h)) => (scaled(rw, h as f64, rh as f64), h),
+            (false, Some(w), Some(h)) => (w, h),
+            (true, Some(w), Some(h)) => {
+                let k = (w as f64 / rw as f64).min(h as f64 / rh as f64);
+                (scaled(rw, k, 1.0).min(w), scaled(rh, k, 1.0).min(h))
+            }
+            _ => return Err(bad("size", s, EXPECTED)),
+        }
+    };
+    if !up && (w > rw || h > rh) {
+        return Err(ApiError::bad_request(format!(
+            "IIIF size `{}` is {w}×{h}, larger than the {rw}×{rh} region; upscaling needs the ^ prefix",
+            echo(s)
+        )));
+    }
+    if w > limits.side || h > limits.side || w.saturating_mul(h) > limits.area {
+        return Err(ApiError::bad_request(format!(
+            "IIIF size `{}` is {w}×{h}, over this service's maxWidth/maxHeight {} or maxArea {}",
+            echo(s),
+            limits.side,
+            limits.area
+        )));
+    }
+    Ok((w, h))
+}
+
+/// `n` or `!n` (mirrored first), `n` a multiple of 90 in 0..=360: (mirror, quarter turns).
+fn parse_rotation(s: &str) -> Result<(bool, u8), ApiError> {
+    let (mirror, deg) = match s.strip_prefix('!') {
+        Some(r) => (true, r),
+        None => (false, s),
+    };
+    let deg = decimal(deg)
+        .filter(|d| *d <= 360.0)
+        .ok_or_else(|| bad("rotation", s, "a number of degrees 0..=360, optionally prefixed by !"))?;
+    if deg % 90.0 != 0.0 {
+        return Err(ApiError::NotImplemented(format!(
+            "IIIF rotation `{}` is not implemented; this service rotates by multiples of 90°",
+            echo(s)
+        )));
+    }
+    Ok((mirror, ((deg / 90.0) as u8) % 4))
+}
+
+fn parse_file(s: &str) -> Result<(Quality, Format), ApiError> {
+    let (q, f) = s.rsplit_once('.').ok_or_else(|| bad("quality and format", s, "{quality}.{format}"))?;
+    let quality = match q {
+        "default" => Quality::Default,
+        "color" => Quality::Color,
+        "gray" => Quality::Gray,
+        "bitonal" => Quality::Bitonal,
+        _ => return Err(bad("quality", q, "default, color, gray or bitonal")),
+    };
+    let format = match f {
+        "png" => Format::Png,
+        "jpg" => Format::Jpg,
+        "webp" => Format::Webp,
+        _ => return Err(bad("format", f, "png, jpg or webp")),
+    };
+    Ok((quality, format))
+}
+
+impl Request {
+    fn parse(path: &ImagePath, width: u64, height: u64, limits: Limits, frame: u32) -> Result<Request, ApiError> {
+        let (x, y, w, h) = parse_region(&path.region, width, height)?;
+        let (out_w, out_h) = parse_size(&path.size, w, h, limits)?;
+        let (mirror, turns) = parse_rotation(&path.rotation)?;
+        let (quality, format) = parse_file(&path.file)?;
+        let view = View { x, y, w, h, out_w: out_w as u32, out_h: out_h as u32, frame };
+        Ok(Request { view, mirror, turns, quality, format })
+    }
+
+    /// Whether the pixels are the view's own (no mirroring, rotation or change of colour).
+    fn untransformed(&self) -> bool {
+        !self.mirror && self.turns == 0 && matches!(self.quality, Quality::Default | Quality::Color)
+    }
+
+    /// The canonical form of this request's path after the identifier (spec §4.7).
+    fn canonical(&self, width: u64, height: u64) -> String {
+        let v = &self.view;
+        let region = if (v.x, v.y, v.w, v.h) == (0, 0, width, height) {
+            "full".into()
+        } else {
+            format!("{},{},{},{}", v.x, v.y, v.w, v.h)
+        };
+        let up = if v.out_w as u64 > v.w || v.out_h as u64 > v.h { "^" } else { "" };
+        let rotation = format!("{}{}", if self.mirror { "!" } else { "" }, self.turns as u32 * 90);
+        format!("{region}/{up}{},{}/{rotation}/{}.{}", v.out_w, v.out_h, self.quality.name(), self.format.ext())
+    }
+}
+
+/// `GET /iiif/3/{identifier}/{region}/{size}/{rotation}/{quality}.{format}`
+pub async fn image(
+    State(app): State<App>,
+    Path(path): Path<ImagePath>,
+    _: Query<NoQuery>,
+    headers: HeaderMap,
+    uri: Uri,
+) -> Result<Response, ApiError> {
+    let (entry, frame) = image_of(&app, &path.ident).await?;
+    let (width, height) = (entry.texture.width(), entry.texture.height());
+    let limits = Limits { side: MAX_REGION_SIDE as u64, area: app.cfg.max_region_pixels };
+    let req = Request::parse(&path, width, height, limits, frame)?;
+    req.view.check(app.cfg.max_region_pixels)?;
+    // One header with both links: some clients read only the first `Link` header.
+    let links = format!(
+        "{PROFILE_LINK}, <{}/{}>;rel=\"canonical\"",
+        service_url(&headers, &uri, &path.ident),
+        req.canonical(width, height)
+    );
+    let mut resp = answer(&app, entry, req, &headers).await?;
+    if let Ok(v) = HeaderValue::from_str(&links) {
+        resp.headers_mut().insert(header::LINK, v);
+    }
+    Ok(resp)
+}
+
+/// The image of `req`: the cached tile when the request is exactly one, else rendered.
+async fn answer(app: &App, entry: Arc<Entry>, req: Request, headers: &HeaderMap) -> Result<Response, ApiError> {
+    let v = req.view;
+    let max_pixels = app.cfg.max_region_pixels;
+    if let Some((level, x, y)) = req.view.as_tile(&entry, max_pixels).filter(|_| req.untransformed()) {
+        let key = TileKey { texture: entry.key, level, x, y, frame: v.frame, format: req.format, shape: Shape::Tile };
+        return tiles::respond(app, &entry, key, headers).await;
+    }
+    let what = [
+        3 << 62,
+        v.x,
+        v.y,
+        v.w,
+        v.h,
+        v.out_w as u64,
+        v.out_h as u64,
+        v.frame as u64,
+        req.mirror as u64,
+        req.turns as u64,
+        req.quality as u64,
+    ];
+    let tag = tiles::etag(&entry.key, &what, req.format);
+    if super::not_modified(headers, tag.to_str().unwrap_or_default()) {
+        return Ok(super::not_modified_response(tag));
+    }
+    let reservation = app
+        .inflight
+        .reserve(v.peak_bytes(&entry, max_pixels) + crate::encode::peak_bytes(req.format, v.out_w, v.out_h))?;
+    let img = view::render(app, entry, v).await?;
+    let img = tokio::task::spawn_blocking(move || transform(img, req.mirror, req.turns, req.quality))
+        .await
+        .map_err(|e| ApiError::internal("transforming the image failed", e))?;
+    let (w, h) = (img.width, img.height);
+    let body = view::encode_held(app, img, req.format, reservation).await?;
+    Ok(tiles::image_response(body, req.format, tag, w, h))
+}
+
+/// Mirrors (left–right), then rotates clockwise by quarter turns, then maps the colours.
+fn transform(img: Rgba8Image, mirror: bool, turns: u8, quality: Quality) -> Rgba8Image {
+    let (w, h) = (img.width, img.height);
+    let mut out = if mirror || turns != 0 {
+        let (ow, oh) = if turns % 2 == 1 { (h, w) } else { (w, h) };
+        let mut out = Rgba8Image::new(ow, oh);
+        for y in 0..oh {
+            for x in 0..ow {
+                // The source pixel that lands at (x, y) after mirroring then turning.
+                let (sx, sy) = match turns {
+                    0 => (x, y),
+                    1 => (y, h - 1 - x),
+                    2 => (w - 1 - x, h - 1 - y),
+                    _ => (w - 1 - y, x),
+                };
+                let sx = if mirror { w - 1 - sx } else { sx };
+                out.set_pixel(x, y, img.pixel(sx, sy));
+            }
+        }
+        out
+    } else {
+        img
+    };
+    if matches!(quality, Quality::Gray | Quality::Bitonal) {
+        for p in out.data.chunks_exact_mut(4) {
+            // Rec. 601 luma, in integers.
+            let luma = ((p[0] as u32 * 299 + p[1] as u32 * 587 + p[2] as u32 * 114 + 500) / 1000) as u8;
+            let v = if quality == Quality::Bitonal {
+                if luma >= 128 {
+                    255
+                } else {
+                    0
+                }
+            } else {
+                luma
+            };
+            p[..3].fill(v);
+        }
+    }
+    out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    const LIMITS: Limits = Limits { side: 16383, area: 4096 * 4096 };
+
+    #[test]
+    fn regions() {
+        assert_eq!(parse_region("full", 1000, 600).unwrap(), (0, 0, 1000, 600));
+        assert_eq!(parse_region("square", 1000, 600).unwrap(), (200, 0, 600, 600));
+        assert_eq!(parse_region("square", 600, 1000).unwrap(), (0, 200, 600, 600));
+        assert_eq!(parse_region("10,20,30,40", 1000, 600).unwrap(), (10, 20, 30, 40));
+        assert_eq!(parse_region("900,500,300,300", 1000, 600).unwrap(), (900, 500, 100, 100), "cropped to the image");
+        assert_eq!(parse_region("pct:10,50,20,50", 1000, 600).unwrap(), (100, 300, 200, 300));
+        for bad in ["", "a,b,c,d", "1,2,3", "1,2,3,4,5", "-1,0,5,5", "pct:1,2,3", "1.5,0,4,4", "pct:-1,0,4,4"] {
+            assert_eq!(parse_region(bad, 1000, 600).unwrap_err().status(), StatusCode::BAD_REQUEST, "{bad}");
+        }
+        assert!(parse_region("0,0,0,5", 1000, 600).is_err(), "zero width");
+        assert!(parse_region("1000,0,5,5", 1000, 600).is_err(), "outside");
+    }
+
+    #[test]
+    fn sizes() {
+        assert_eq!(parse_size("max", 1000, 600, LIMITS).unwrap(), (1000, 600));
+        assert_eq!(parse_size("500,", 1000, 600, LIMITS).unwrap(), (500, 300));
+        assert_eq!(parse_size(",300", 1000, 600, LIMITS).unwrap(), (500, 300));
+        assert_eq!(parse_size("pct:50", 1000, 600, LIMITS).unwrap(), (500, 300));
+        assert_eq!(parse_size("100,100", 1000, 600, LIMITS).unwrap(), (100, 100));
+        assert_eq!(parse_size("!500,500", 1000, 600, LIMITS).unwrap(), (500, 300));
+        assert_eq!(parse_size("^2000,", 1000, 600, LIMITS).unwrap(), (2000, 1200));
+        assert_eq!(parse_size("^!3000,3000", 1000, 600, LIMITS).unwrap(), (3000, 1800));
+        for up in ["2000,", ",700", "pct:101", "1001,600", "!2000,3000", "full"] {
+            assert_eq!(parse_size(up, 1000, 600, LIMITS).unwrap_err().status(), StatusCode::BAD_REQUEST, "{up}");
+        }
+        let huge = parse_size("max", 100_000, 100_000, LIMITS).unwrap();
+        assert_eq!(huge, (4096, 4096), "max is confined to maxArea");
+        assert!(parse_size("^10000,10000", 1000, 1000, LIMITS).is_err(), "over maxArea");
+        assert!(parse_size("0,", 1000, 600, LIMITS).is_err());
+        assert!(parse_size("pct:0", 1000, 600, LIMITS).is_err());
+    }
+
+    #[test]
+    fn rotations() {
+        assert_eq!(parse_rotation("0").unwrap(), (false, 0));
+        assert_eq!(parse_rotation("!90").unwrap(), (true, 1));
+        assert_eq!(parse_rotation("270.0").unwrap(), (false, 3));
+        assert_eq!(parse_rotation("360").unwrap(), (false, 0));
+        assert_eq!(parse_rotation("45").unwrap_err().status(), StatusCode::NOT_IMPLEMENTED);
+        for bad in ["", "-90", "abc", "400", "!!90"] {
+            assert_eq!(parse_rotation(bad).unwrap_err().status(), StatusCode::BAD_REQUEST, "{bad}");
+        }
+    }
+
+    #[test]
+    fn transforms_move_the_corners() {
+        let mut img = Rgba8Image::new(3, 2);
+        img.set_pixel(0, 0, [1, 1, 1, 255]); // top left
+        img.set_pixel(2, 0, [2, 2, 2, 255]); // top right
+        let r = transform(img.clone(), false, 1, Quality::Default);
+        assert_eq!((r.width, r.height), (2, 3));
+        assert_eq!(r.pixel(1, 0)[0], 1, "a clockwise turn takes the top left to the top right");
+        assert_eq!(r.pixel(1, 2)[0], 2);
+        let m = transform(img.clone(), true, 0, Quality::Default);
+        assert_eq!(m.pixel(2, 0)[0], 1);
+        let m180 = transform(img, true, 2, Quality::Default);
+        assert_eq!(m180.pixel(0, 1)[0], 1, "mirrored then turned twice: top left to bottom left");
+    }
+}

@@ -1,0 +1,125 @@
+//! TileJSON 3.0.0 and XYZ tiles, so web-map clients (Leaflet, OpenLayers, MapLibre) take a
+//! texture as a raster tile layer.
+//!
+//! XYZ zoom z is vtex level `levels − 1 − z`: zoom 0 is the whole texture in one tile, the
+//! highest zoom full resolution, and the tiles are the tile API's own (same cache, bytes and
+//! ETags). In a Web Mercator map the texture fills the world from its north-west corner at
+//! one texel a map pixel at the highest zoom; the TileJSON `bounds` say where it ends.
+
+use super::error::{echo, ApiError};
+use super::extract::{Path, Query};
+use super::params::{de, format_value, named, u32_value};
+use super::tiles::{self, frame_for};
+use super::{lookup, record, App, TextureId};
+use crate::cache::{Shape, TileKey};
+use crate::encode::Format;
+use axum::extract::State;
+use axum::http::{HeaderMap, Uri};
+use axum::response::Response;
+use axum::Json;
+use serde::Deserialize;
+use serde_json::{json, Value};
+use std::f64::consts::PI;
+
+/// The route of an XYZ tile.
+pub const XYZ: &str = "/api/v1/textures/{id}/xyz/{z}/{x}/{file}";
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct TileJsonQuery {
+    #[serde(default, deserialize_with = "de::opt_format")]
+    format: Option<Format>,
+    #[serde(default, deserialize_with = "de::opt_u32")]
+    frame: Option<u32>,
+}
+
+/// Latitude (degrees) of the Web Mercator world's row at fraction `t` of its height from the top.
+fn latitude(t: f64) -> f64 {
+    (PI * (1.0 - 2.0 * t)).sinh().atan().to_degrees()
+}
+
+/// `GET /api/v1/textures/{id}/tilejson.json[?format=png|webp|jpg][&frame=N]`
+pub async fn tilejson(
+    State(app): State<App>,
+    Path(TextureId { id }): Path<TextureId>,
+    Query(q): Query<TileJsonQuery>,
+    headers: HeaderMap,
+    uri: Uri,
+) -> Result<Json<Value>, ApiError> {
+    let rec = record(&app, &id).await?;
+    let format = q.format.unwrap_or(Format::Png);
+    if format == Format::Rgba {
+        return Err(ApiError::bad_request("XYZ tiles are images: `format` must be png, webp or jpg"));
+    }
+    let maxzoom = rec.levels - 1;
+    let frame = q.frame.map(|f| format!("?frame={f}")).unwrap_or_default();
+    let template = format!(
+        "{}/api/v1/textures/{id}/xyz/{{z}}/{{x}}/{{y}}.{}{frame}",
+        super::origin::origin(&headers, &uri),
+        format.ext()
+    );
+    // The texture's share of the world: texels over map pixels at the highest zoom.
+    let world = (rec.tile_size as u64 * (1u64 << maxzoom)) as f64;
+    let (fx, fy) = (rec.plan.width as f64 / world, rec.plan.height as f64 / world);
+    let (west, east) = (-180.0, -180.0 + 360.0 * fx);
+    let (north, south) = (latitude(0.0), latitude(fy));
+    Ok(Json(json!({
+        "tilejson": "3.0.0",
+        "name": rec.manifest.name,
+        "description": format!("vtex texture {id} ({} model, {}×{} texels)", rec.manifest.model, rec.plan.width, rec.plan.height),
+        "scheme": "xyz",
+        "tiles": [template],
+        "minzoom": 0,
+        "maxzoom": maxzoom,
+        "bounds": [west, south, east, north],
+        "center": [(west + east) / 2.0, latitude(fy / 2.0), maxzoom.min(2)],
+        "tile_size": rec.tile_size,
+    })))
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct XyzPath {
+    id: String,
+    #[serde(deserialize_with = "de::u32")]
+    z: u32,
+    #[serde(deserialize_with = "de::u32")]
+    x: u32,
+    file: String,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct XyzQuery {
+    #[serde(default, deserialize_with = "de::opt_u32")]
+    frame: Option<u32>,
+}
+
+/// `GET /api/v1/textures/{id}/xyz/{z}/{x}/{y}.{format}[?frame=N]`: a zoom or tile outside the
+/// texture is a 404, as map clients expect at the edge of a layer.
+pub async fn xyz(
+    State(app): State<App>,
+    Path(XyzPath { id, z, x, file }): Path<XyzPath>,
+    Query(XyzQuery { frame }): Query<XyzQuery>,
+    headers: HeaderMap,
+) -> Result<Response, ApiError> {
+    let entry = lookup(&app, &id).await?;
+    let (y, ext) = file.rsplit_once('.').ok_or_else(|| {
+        ApiError::bad_request(format!("tile `{}` has no format extension; {}", echo(&file), Format::EXPECTED))
+    })?;
+    let format = named("format", ext, format_value)?;
+    let y = named("y", y, u32_value)?;
+    let maxzoom = entry.levels - 1;
+    if z > maxzoom {
+        return Err(ApiError::not_found(format!("zoom {z} does not exist; this texture has zooms 0..={maxzoom}")));
+    }
+    let level = maxzoom - z;
+    let (cols, rows) = entry.tiles_at(level);
+    if x as u64 >= cols || y as u64 >= rows {
+        return Err(ApiError::not_found(format!(
+            "tile {z}/{x}/{y} is outside the texture, which has {cols}×{rows} tiles at zoom {z}"
+        )));
+    }
+    let key = TileKey { texture: entry.key, level, x, y, frame: frame_for(&entry, frame), format, shape: Shape::Tile };
+    tiles::respond(&app, &entry, key, &headers).await
+}

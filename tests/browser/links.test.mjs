@@ -1,0 +1,38 @@
+// Links to the viewer: a unique id prefix opens its texture; a link naming none says which
+// texture it shows instead.
+import test, { after, before } from 'node:test';
+import assert from 'node:assert/strict';
+import { launchBrowser, openViewer, startServer } from './lib.mjs';
+
+let server;
+let browser;
+let textures;
+
+before(async () => {
+  server = await startServer();
+  browser = await launchBrowser();
+  textures = (await (await fetch(`${server.url}/api/v1/textures`)).json()).textures;
+});
+
+after(async () => {
+  await browser?.close();
+  await server?.stop();
+});
+
+test('a unique prefix of an id opens that texture', async () => {
+  const smallest = textures.reduce((a, b) => (b.width * b.height < a.width * a.height ? b : a));
+  const prefix = smallest.id.slice(0, 8);
+  assert.equal(textures.filter((t) => t.id.startsWith(prefix)).length, 1, 'the prefix is unique among the demos');
+  const { page } = await openViewer(browser.context, `${server.url}/?texture=${prefix}`);
+  assert.equal(await page.evaluate(() => window.vtexViewer.state.info.id), smallest.id);
+  assert.equal(await page.locator('#error').isHidden(), true);
+  await page.close();
+});
+
+test('a link naming no texture says which texture it shows', async () => {
+  const { page } = await openViewer(browser.context, `${server.url}/?texture=no-such-texture`);
+  const shown = await page.evaluate(() => window.vtexViewer.state.info.name);
+  const message = await page.locator('#error').textContent();
+  assert.ok(message.includes('no-such-texture') && message.includes(`showing ${shown}.`), message);
+  await page.close();
+});
