@@ -188,7 +188,14 @@ const BATCH_ETAG_SCHEME: &[u8] = b"vtex-batch/1";
 
 /// A weak validator of a batch: the frames it holds are a pure function of everything hashed
 /// here, though their order (and hit or miss) may differ from one response to the next.
-fn batch_etag(texture: &[u8; 32], tile_size: u32, frame: u32, format: Format, shape: Shape, tiles: &[TileRef]) -> HeaderValue {
+fn batch_etag(
+    texture: &[u8; 32],
+    tile_size: u32,
+    frame: u32,
+    format: Format,
+    shape: Shape,
+    tiles: &[TileRef],
+) -> HeaderValue {
     let mut h = blake3::Hasher::new();
     h.update(BATCH_ETAG_SCHEME);
     h.update(texture);
