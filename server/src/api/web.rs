@@ -5,25 +5,41 @@
 //! file. The page itself (`/`, `/index.html`) is revalidated and names its stylesheet and
 //! scripts by their `/assets/{build}/` URLs, so a browser fetches them once per build; the
 //! modules they import relatively resolve inside the same fingerprinted directory.
+//!
+//! Files come with brotli and gzip copies made at build time; a client that accepts one gets
+//! it (`Vary: Accept-Encoding`), others the file as it is.
 
 use super::not_modified;
 use axum::body::Body;
 use axum::extract::Request;
-use axum::http::{header, HeaderValue, Method, StatusCode};
+use axum::http::{header, HeaderMap, HeaderValue, Method, StatusCode};
 use axum::response::{IntoResponse, Response};
 use bytes::Bytes;
 use std::collections::HashMap;
 use std::sync::LazyLock;
 
 mod embedded {
+    /// One file of the viewer's build, with its compressed copies (empty when compressing
+    /// does not pay, or for the page, which is rewritten at run time).
+    pub struct File {
+        pub path: &'static str,
+        pub bytes: &'static [u8],
+        pub br: &'static [u8],
+        pub gzip: &'static [u8],
+    }
+
     include!(concat!(env!("OUT_DIR"), "/web_files.rs"));
 }
+use embedded::File;
 
 /// Where the fingerprinted copies live: `/assets/{build}/…`.
 const ASSETS: &str = "/assets/";
 
 struct Asset {
     body: Bytes,
+    /// The body as brotli and as gzip; empty when there is no such copy.
+    br: Bytes,
+    gzip: Bytes,
     content_type: HeaderValue,
     etag: HeaderValue,
 }
@@ -43,16 +59,14 @@ impl Web {
         EMBEDDED.as_ref()
     }
 
-    fn from_files(files: &[(&str, &[u8])]) -> Option<Web> {
-        if !files.iter().any(|(p, _)| *p == "index.html") {
-            return None;
-        }
+    fn from_files(files: &[File]) -> Option<Web> {
+        let index = files.iter().find(|f| f.path == "index.html")?;
         let mut all = blake3::Hasher::new();
-        for (path, bytes) in files {
-            all.update(path.as_bytes()).update(&(bytes.len() as u64).to_le_bytes()).update(bytes);
+        for f in files {
+            all.update(f.path.as_bytes()).update(&(f.bytes.len() as u64).to_le_bytes()).update(f.bytes);
         }
         let build = all.finalize().to_hex()[..16].to_string();
-        let asset = |path: &str, body: Vec<u8>| {
+        let asset = |path: &str, body: Vec<u8>, br: &'static [u8], gzip: &'static [u8]| {
             let etag = format!("\"{}\"", &blake3::hash(&body).to_hex()[..32]);
             let mime = mime_guess::from_path(path).first_or_octet_stream();
             let content_type = match mime.type_() {
@@ -61,18 +75,20 @@ impl Web {
             };
             Asset {
                 body: Bytes::from(body),
+                br: Bytes::from_static(br),
+                gzip: Bytes::from_static(gzip),
                 content_type: HeaderValue::from_str(&content_type).expect("a media type is a valid header value"),
                 etag: HeaderValue::from_str(&etag).expect("hex is a valid header value"),
             }
         };
         let mut out: HashMap<String, Asset> =
-            files.iter().map(|(path, bytes)| (path.to_string(), asset(path, bytes.to_vec()))).collect();
-        let index = files.iter().find(|(p, _)| *p == "index.html").expect("checked above").1;
-        let mut page = String::from_utf8_lossy(index).into_owned();
-        for (path, _) in files.iter().filter(|(p, _)| *p != "index.html") {
+            files.iter().map(|f| (f.path.to_string(), asset(f.path, f.bytes.to_vec(), f.br, f.gzip))).collect();
+        let mut page = String::from_utf8_lossy(index.bytes).into_owned();
+        for f in files.iter().filter(|f| f.path != "index.html") {
+            let path = f.path;
             page = page.replace(&format!("=\"{path}\""), &format!("=\"{ASSETS}{build}/{path}\""));
         }
-        out.insert(String::new(), asset("index.html", page.into_bytes()));
+        out.insert(String::new(), asset("index.html", page.into_bytes(), &[], &[]));
         Some(Web { files: out, build })
     }
 
@@ -98,11 +114,55 @@ impl Web {
             (header::ETAG, asset.etag.clone()),
             (header::CACHE_CONTROL, cache),
         ];
-        let body = if req.method() == Method::HEAD { Body::empty() } else { Body::from(asset.body.clone()) };
+        let (encoding, bytes) = asset.representation(req.headers());
+        let length = bytes.len();
+        let body = if req.method() == Method::HEAD { Body::empty() } else { Body::from(bytes) };
         let mut resp = (headers, body).into_response();
-        resp.headers_mut().insert(header::CONTENT_LENGTH, HeaderValue::from(asset.body.len()));
+        let h = resp.headers_mut();
+        h.insert(header::CONTENT_LENGTH, HeaderValue::from(length));
+        if !asset.br.is_empty() || !asset.gzip.is_empty() {
+            h.insert(header::VARY, HeaderValue::from_static("accept-encoding"));
+        }
+        if let Some(encoding) = encoding {
+            h.insert(header::CONTENT_ENCODING, HeaderValue::from_static(encoding));
+        }
         resp
     }
+}
+
+impl Asset {
+    /// The copy to send to a client with `headers`: brotli, else gzip, when accepted and made;
+    /// else the file itself (and the compression layer may still compress it, e.g. as zstd).
+    fn representation(&self, headers: &HeaderMap) -> (Option<&'static str>, Bytes) {
+        for (encoding, bytes) in [("br", &self.br), ("gzip", &self.gzip)] {
+            if !bytes.is_empty() && accepts(headers, encoding) {
+                return (Some(encoding), bytes.clone());
+            }
+        }
+        (None, self.body.clone())
+    }
+}
+
+/// Whether `Accept-Encoding` accepts `encoding`: named, or `*`, with a quality above 0.
+fn accepts(headers: &HeaderMap, encoding: &str) -> bool {
+    let mut named = None;
+    let mut any = None;
+    for value in headers.get_all(header::ACCEPT_ENCODING).iter().filter_map(|v| v.to_str().ok()) {
+        for item in value.split(',') {
+            let mut parts = item.split(';');
+            let name = parts.next().unwrap_or("").trim();
+            let q = parts
+                .filter_map(|p| p.trim().strip_prefix("q="))
+                .find_map(|q| q.trim().parse::<f32>().ok())
+                .unwrap_or(1.0);
+            if name.eq_ignore_ascii_case(encoding) {
+                named = Some(q > 0.0);
+            } else if name == "*" {
+                any = Some(q > 0.0);
+            }
+        }
+    }
+    named.or(any).unwrap_or(false)
 }
 
 fn not_found() -> Response {
@@ -135,12 +195,16 @@ mod tests {
         web.answer(path, &Request::get(path).body(Body::empty()).unwrap())
     }
 
+    fn file(path: &'static str, bytes: &'static [u8]) -> File {
+        File { path, bytes, br: &[], gzip: &[] }
+    }
+
     #[test]
     fn the_page_names_fingerprinted_assets() {
-        let files: &[(&str, &[u8])] = &[
-            ("index.html", b"<link href=\"viewer.css\"><script src=\"main.js\"></script><a href=\"other\">"),
-            ("main.js", b"import './lib.js';"),
-            ("viewer.css", b"body{}"),
+        let files = &[
+            file("index.html", b"<link href=\"viewer.css\"><script src=\"main.js\"></script><a href=\"other\">"),
+            file("main.js", b"import './lib.js';"),
+            file("viewer.css", b"body{}"),
         ];
         let web = Web::from_files(files).unwrap();
         let page = String::from_utf8(web.files[""].body.to_vec()).unwrap();
@@ -159,8 +223,43 @@ mod tests {
         assert_eq!(r.headers()[header::CACHE_CONTROL], "no-cache");
         assert_eq!(get(&web, "/assets/0000000000000000/main.js").status(), StatusCode::NOT_FOUND);
         assert_eq!(get(&web, "/nothing.js").status(), StatusCode::NOT_FOUND);
-        let other = Web::from_files(&[files[0], ("main.js", b"changed"), files[2]]).unwrap();
+        let other = Web::from_files(&[
+            file("index.html", files[0].bytes),
+            file("main.js", b"changed"),
+            file("viewer.css", files[2].bytes),
+        ])
+        .unwrap();
         assert_ne!(other.build, web.build, "another build, another fingerprint");
         assert!(Web::from_files(&files[1..]).is_none(), "no page, no viewer");
+    }
+
+    #[test]
+    fn compressed_copies_are_sent_to_clients_that_accept_them() {
+        let web = Web::from_files(&[
+            file("index.html", b"<script src=\"main.js\"></script>"),
+            File { path: "main.js", bytes: b"raw", br: b"BR", gzip: b"GZ" },
+            File { path: "only-gzip.js", bytes: b"raw", br: &[], gzip: b"GZ" },
+        ])
+        .unwrap();
+        let ask = |path: &str, accept: &str| {
+            let r = web
+                .answer(path, &Request::get(path).header(header::ACCEPT_ENCODING, accept).body(Body::empty()).unwrap());
+            let encoding = r.headers().get(header::CONTENT_ENCODING).map(|v| v.to_str().unwrap().to_string());
+            let vary = r.headers().get(header::VARY).map(|v| v.to_str().unwrap().to_string());
+            let length: usize = r.headers()[header::CONTENT_LENGTH].to_str().unwrap().parse().unwrap();
+            (encoding, vary, length)
+        };
+        let br = (Some("br".to_string()), Some("accept-encoding".to_string()), 2);
+        let gz = (Some("gzip".to_string()), Some("accept-encoding".to_string()), 2);
+        let raw = (None, Some("accept-encoding".to_string()), 3);
+        assert_eq!(ask("/main.js", "gzip, deflate, br, zstd"), br);
+        assert_eq!(ask("/main.js", "gzip"), gz);
+        assert_eq!(ask("/main.js", "br;q=0, gzip;q=0.5"), gz);
+        assert_eq!(ask("/main.js", "*"), br);
+        assert_eq!(ask("/main.js", "*;q=0, identity"), raw);
+        assert_eq!(ask("/main.js", "zstd"), raw, "no zstd copy: the compression layer's business");
+        assert_eq!(ask("/only-gzip.js", "br, gzip"), gz);
+        let (encoding, vary, _) = ask("/", "br, gzip");
+        assert_eq!((encoding, vary), (None, None), "the page is rewritten, never precompressed");
     }
 }
