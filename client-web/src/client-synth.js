@@ -17,34 +17,54 @@ export const WORKERS = Math.max(1, Math.min(4, globalThis.navigator?.hardwareCon
 /** The module compiled once per page, for every texture and Worker. */
 let compiled = null;
 
-function compileModule(stats) {
-  compiled =
-    compiled ||
-    fetchBytes(new URL(WASM_URL, document.baseURI).href, 'the synthesis module', stats).then((bytes) => WebAssembly.compile(bytes));
-  compiled.catch(() => (compiled = null)); // a failed fetch may be retried by the next texture
+/**
+ * The synthesis module, compiled; fetched once per page. The viewer calls it as soon as it knows
+ * it will synthesize (before listing textures), so the download overlaps the rest of start-up.
+ */
+export function loadModule(stats) {
+  if (!compiled) {
+    const url = new URL(WASM_URL, document.baseURI).href;
+    compiled = fetchOk(url, 'the synthesis module').then(async (response) => {
+      // Streaming compilation compiles while the bytes arrive; it needs the wasm media type,
+      // which a static file server may not send.
+      const streaming = response.headers.get('content-type')?.startsWith('application/wasm');
+      const module = await (streaming ? WebAssembly.compileStreaming(response) : response.arrayBuffer().then((b) => WebAssembly.compile(b)));
+      count(url, stats);
+      return module;
+    });
+    compiled.catch(() => (compiled = null)); // a failed fetch may be retried by the next texture
+  }
   return compiled;
 }
 
-/** Fetches `url`'s bytes, counting them in `stats`; an HTTP error names `what` and the server's message. */
-async function fetchBytes(url, what, stats) {
+/** Fetches `url`; a failure or an HTTP error names `what` and the server's message. */
+async function fetchOk(url, what) {
   let response;
   try {
     response = await fetch(url);
   } catch (e) {
     throw new Error(`${what} could not be fetched from ${url}: ${e.message}`);
   }
-  const bytes = await response.arrayBuffer();
-  if (!response.ok) {
-    let reason = new TextDecoder().decode(bytes.slice(0, 200));
-    try {
-      reason = JSON.parse(reason).error || reason;
-    } catch {
-      // not JSON: the start of the body as text
-    }
-    throw new Error(`${what}: HTTP ${response.status} for ${url}${reason ? ` – ${reason}` : ''}`);
+  if (response.ok) return response;
+  let reason = new TextDecoder().decode((await response.arrayBuffer()).slice(0, 200));
+  try {
+    reason = JSON.parse(reason).error || reason;
+  } catch {
+    // not JSON: the start of the body as text
   }
+  throw new Error(`${what}: HTTP ${response.status} for ${url}${reason ? ` – ${reason}` : ''}`);
+}
+
+/** Counts the transfer of `url` (its Resource Timing entry; `bytes` when there is none) in `stats`. */
+function count(url, stats, bytes = 0) {
   const timing = performance.getEntriesByName(url).at(-1);
-  stats.resource(timing || { transferSize: bytes.byteLength, decodedBodySize: bytes.byteLength });
+  stats.resource(timing || { transferSize: bytes, decodedBodySize: bytes });
+}
+
+/** Fetches `url`'s bytes, counting them in `stats`. */
+async function fetchBytes(url, what, stats) {
+  const bytes = await (await fetchOk(url, what)).arrayBuffer();
+  count(url, stats, bytes.byteLength);
   return bytes;
 }
 
@@ -68,7 +88,7 @@ export class ClientSynth {
   }
 
   async start(encodingUrl, stats) {
-    const [bundle, module] = await Promise.all([fetchBytes(encodingUrl, 'the encoding', stats), compileModule(stats)]);
+    const [bundle, module] = await Promise.all([fetchBytes(encodingUrl, 'the encoding', stats), loadModule(stats)]);
     if (this.closed) throw new Error('closed');
     const opened = [];
     for (let i = 0; i < WORKERS; i++) {

@@ -8,7 +8,7 @@ import { DEFAULT_DETAIL, DETAIL, drawLevel, vtexLevel } from './pyramid.js';
 import { updateEarly } from './loader.js';
 import { findTexture as lookupTexture } from './texture-lookup.js';
 import { fetchWantedLevels, keepBatchesOnDraw, vtexDrawer } from './osd-adapter.js';
-import { ClientSynth, staticExport } from './client-synth.js';
+import { ClientSynth, loadModule, staticExport } from './client-synth.js';
 
 const OSD = window.OpenSeadragon;
 const $ = (id) => document.getElementById(id);
@@ -494,6 +494,7 @@ window.vtexViewer = { viewer, stats, state, getView, setView, drawnLevels, openT
 async function start() {
   renderStats();
   const view = parseView(location.search);
+  if (view.synth === 'client' || document.querySelector('meta[name="vtex-export"]')) loadModule(stats).catch(() => {});
   try {
     state.exported = await staticExport();
     state.textures = state.exported ? state.exported.textures : (await getJson('/api/v1/textures')).textures;
