@@ -2,9 +2,14 @@
 // copied from node_modules (the server serves this directory at `/`; nothing comes from a CDN),
 // and the synthesis module for client mode (`vtex_synth.wasm`, built by
 // `cargo build -p vtex-synth-wasm --lib --target wasm32-unknown-unknown --profile wasm`).
-import { cpSync, existsSync, mkdirSync, readdirSync, rmSync } from 'node:fs';
-import { dirname, join } from 'node:path';
+// Every text file and the module get a brotli (quality 11) and a gzip (level 9) copy beside
+// them, `X.br` and `X.gz`, which vtex (embedded or --web-dir) and any static server that looks
+// for such copies (nginx's gzip_static) send to clients that accept them. Not the page: vtex
+// and `vtex export-web` rewrite it.
+import { cpSync, existsSync, mkdirSync, readdirSync, readFileSync, rmSync, statSync, writeFileSync } from 'node:fs';
+import { dirname, extname, join } from 'node:path';
 import { fileURLToPath } from 'node:url';
+import { brotliCompressSync, constants, gzipSync } from 'node:zlib';
 
 const here = dirname(fileURLToPath(import.meta.url));
 const src = join(here, 'src');
@@ -25,4 +30,25 @@ const license = ['LICENSE.txt', 'LICENSE'].map((n) => join(here, 'node_modules',
 if (license) cpSync(license, join(dist, 'osd', 'LICENSE.txt'));
 if (existsSync(wasm)) cpSync(wasm, join(dist, 'vtex_synth.wasm'));
 else console.warn(`${wasm} is not built: the viewer's client mode (?synth=client) will say so`);
+
+const COMPRESSIBLE = new Set(['.html', '.js', '.mjs', '.css', '.wasm', '.json', '.svg', '.map', '.txt']);
+
+/** Writes the compressed copies of `path`, each only where it saves at least a tenth. */
+function precompress(path) {
+  const bytes = readFileSync(path);
+  const br = brotliCompressSync(bytes, {
+    params: { [constants.BROTLI_PARAM_QUALITY]: 11, [constants.BROTLI_PARAM_LGWIN]: 24, [constants.BROTLI_PARAM_SIZE_HINT]: bytes.length },
+  });
+  const gz = gzipSync(bytes, { level: 9 });
+  for (const [ext, copy] of [['.br', br], ['.gz', gz]]) if (copy.length * 10 < bytes.length * 9) writeFileSync(path + ext, copy);
+}
+
+function precompressTree(dir) {
+  for (const name of readdirSync(dir)) {
+    const path = join(dir, name);
+    if (statSync(path).isDirectory()) precompressTree(path);
+    else if (COMPRESSIBLE.has(extname(name)) && path !== join(dist, 'index.html')) precompress(path);
+  }
+}
+precompressTree(dist);
 console.log(`built ${dist}`);

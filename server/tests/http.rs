@@ -77,6 +77,27 @@ async fn compression_is_negotiated_and_decodes_to_the_same_bytes() {
 }
 
 #[tokio::test]
+async fn the_viewer_builds_compressed_copies_are_sent_as_they_are() {
+    use std::io::Write as _;
+    let dir = tempdir();
+    let web = tempdir();
+    let script: String = (0..4000).map(|i| format!("export const w{i} = {i};\n")).collect();
+    std::fs::write(web.path().join("pre.js"), &script).unwrap();
+    let mut gz = flate2::write::GzEncoder::new(Vec::new(), flate2::Compression::best());
+    gz.write_all(script.as_bytes()).unwrap();
+    let gz = gz.finish().unwrap();
+    std::fs::write(web.path().join("pre.js.gz"), &gz).unwrap();
+    let s = Server::start(dir.path(), &["--web-dir", web.path().to_str().unwrap()]);
+    let url = s.url("/pre.js");
+    let (st, h, body) = get_with(&client(), &url, &[("accept-encoding", "gzip")]).await;
+    assert_eq!(st, 200);
+    assert_eq!(h["content-encoding"], "gzip");
+    assert!(body == gz, "the build's copy, not one compressed on the fly");
+    let (_, _, decoded) = get_with(&decoding_client(), &url, &[("accept-encoding", "gzip")]).await;
+    assert!(decoded == script.as_bytes());
+}
+
+#[tokio::test]
 async fn no_vary_on_origin_any_origin_is_allowed() {
     let dir = tempdir();
     let s = Server::start(dir.path(), &[]);

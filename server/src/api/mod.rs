@@ -279,7 +279,9 @@ pub fn router(app: App) -> Router {
 /// built into the binary ([`web`]).
 fn viewer(app: &App) -> Router<App> {
     match &app.cfg.web_dir {
-        Some(dir) => Router::new().fallback_service(ServeDir::new(dir).append_index_html_on_directories(true)),
+        Some(dir) => Router::new().fallback_service(
+            ServeDir::new(dir).append_index_html_on_directories(true).precompressed_br().precompressed_gzip(),
+        ),
         None => Router::new().fallback(web::serve),
     }
 }

@@ -6,8 +6,8 @@
 //! scripts by their `/assets/{build}/` URLs, so a browser fetches them once per build; the
 //! modules they import relatively resolve inside the same fingerprinted directory.
 //!
-//! Files come with brotli and gzip copies made at build time; a client that accepts one gets
-//! it (`Vary: Accept-Encoding`), others the file as it is.
+//! Files come with the brotli and gzip copies the viewer's build made; a client that accepts
+//! one gets it (`Vary: Accept-Encoding`), others the file as it is.
 
 use super::not_modified;
 use axum::body::Body;
