@@ -12,9 +12,9 @@
 //        [--samples 6] [--out docs] [--json bench/results/bandwidth.json]
 //   node bench/bandwidth.mjs --render bench/results/bandwidth.json   (tables and plot again)
 //
-// (It takes the lock itself when started without it.) Needs target/release/vtex, the viewer
-// built with the module (client-web/dist/vtex_synth.wasm) and Debian's Chromium, as the browser
-// tests do.
+// (It takes the lock itself when started without it.) Needs the viewer built with the module
+// (client-web/dist/vtex_synth.wasm), then target/release/vtex built (it embeds the viewer, whose
+// files it serves as deployed: brotli copies from the viewer's build), and Debian's Chromium.
 //
 // For each session: bytes on the wire (DevTools' encodedDataLength of the page's requests — the
 // viewer's code, the texture list, the encoding, the module — plus the Resource Timing
@@ -154,7 +154,7 @@ function category(url) {
 
 /** Runs the session on `info` in `mode` under `profile`. */
 async function session(dataDir, info, mode, profile) {
-  const server = await startServer({ dataDir });
+  const server = await startServer({ dataDir, embeddedViewer: true });
   const browser = await launchBrowser(SIZE);
   const result = { model: info.model, mode, profile, views: 0, complete: false };
   try {
@@ -300,8 +300,8 @@ function modelSection(model, info, explicit, rows) {
 /** Per model: the best tile format's session bytes against client mode's, and the first views at 10 Mbit/s. */
 function summary(byModel) {
   const out = [
-    '| model | best tile format: session bytes | client mode: session bytes (module + encoding + viewer) | ratio | without the module (cached) | tile bytes : encoding | first complete view at 10 Mbit/s, best tile format / client | end of session at 10 Mbit/s, best tile format / client | explicit JPEG pyramid : encoding |',
-    '|---|---|---|---|---|---|---|---|---|',
+    '| model | best tile format: session bytes | client mode: session bytes (module + encoding + viewer) | ratio | without the module (cached) | tile bytes : encoding | first complete view at 10 Mbit/s, best tile format / client | end of session at 10 Mbit/s, best tile format / client | views for 100× (extrapolated) | explicit JPEG pyramid : encoding |',
+    '|---|---|---|---|---|---|---|---|---|---|',
   ];
   for (const [model, { rows, info, explicit }] of byModel) {
     const ref = rows.filter((r) => r.profile === (rows.some((x) => x.profile === '10mbit') ? '10mbit' : rows[0].profile));
@@ -314,10 +314,20 @@ function summary(byModel) {
     const clientFirst = rows.find((r) => r.profile === '10mbit' && r.mode === 'client');
     const serverEnd = rows.find((r) => r.profile === '10mbit' && r.mode === server.mode);
     out.push(
-      `| ${model} | ${server.mode}: ${MB(server.total)} | ${MB(client.total)} | ${times(server.total, client.total)} | ${times(server.total, client.total - client.bytes.module)} | ${times(server.bytes.tiles, client.bytes.encoding)} | ${fastest ? `${fastest.mode} ${sec(fastest.firstViewMs)}` : '–'} / ${sec(clientFirst?.firstViewMs)} | ${serverEnd ? `${serverEnd.mode} ${sec(serverEnd.endMs)}` : '–'} / ${sec(clientFirst?.endMs)} | ${times(explicit.jpg, info.encoding_bytes)} |`,
+      `| ${model} | ${server.mode}: ${MB(server.total)} | ${MB(client.total)} | ${times(server.total, client.total)} | ${times(server.total, client.total - client.bytes.module)} | ${times(server.bytes.tiles, client.bytes.encoding)} | ${fastest ? `${fastest.mode} ${sec(fastest.firstViewMs)}` : '–'} / ${sec(clientFirst?.firstViewMs)} | ${serverEnd ? `${serverEnd.mode} ${sec(serverEnd.endMs)}` : '–'} / ${sec(clientFirst?.endMs)} | ${viewsFor100(server, client)} | ${times(explicit.jpg, info.encoding_bytes)} |`,
     );
   }
   return out.join('\n');
+}
+
+/**
+ * How long a session must be for client mode to move 100× fewer bytes than `server`: the
+ * server's tile bytes grow with every view (at this session's mean per view), client mode's
+ * bytes are paid once (module, encoding, viewer code). Views, rounded up.
+ */
+function viewsFor100(server, client) {
+  const perView = server.bytes.tiles / (SESSION.length + 1);
+  return Math.ceil((100 * client.total - server.bytes.viewer) / perView).toLocaleString('en-US');
 }
 
 /** A log-scale bar chart of session bytes, per model and mode (the 10 Mbit/s runs, else the first profile). */
@@ -377,9 +387,13 @@ async function main() {
   const dataDir = mkdtempSync(join(tmpdir(), 'vtex-bandwidth-data-'));
   try {
     // One start writes the demos into the data directory every session then reuses.
-    const first = await startServer({ dataDir });
+    const first = await startServer({ dataDir, embeddedViewer: true });
     const textures = (await (await fetch(`${first.url}/api/v1/textures`)).json()).textures;
+    const served = Buffer.from(await (await fetch(`${first.url}/vtex_synth.wasm`)).arrayBuffer());
     await first.stop();
+    if (!served.equals(readFileSync(join(ROOT, 'client-web', 'dist', 'vtex_synth.wasm')))) {
+      throw new Error('target/release/vtex embeds another viewer build than client-web/dist: build it again (cargo build --release -p vtex-server)');
+    }
     const commit = spawnSync('git', ['rev-parse', '--short', 'HEAD'], { cwd: ROOT, encoding: 'utf8' }).stdout.trim();
     const chromium = spawnSync(CHROMIUM, ['--version'], { encoding: 'utf8' }).stdout.trim();
     const byModel = new Map();
