@@ -186,6 +186,27 @@ export async function setAlignedView(page, zoom, x, y) {
   await waitForIdle(page);
 }
 
+/**
+ * Every tile asked for in `urls`, parsed: single-tile URLs and each tile listed by a batched
+ * request (`/tiles?format=…&tiles=L/x/y,…`, what the viewer sends).
+ */
+export function tileRequests(urls) {
+  const out = [];
+  for (const u of urls) {
+    const url = new URL(u);
+    const m = url.pathname.match(/^\/api\/v1\/textures\/([^/]+)\/tiles\/(\d+)\/(\d+)\/(\d+)\.(\w+)$/);
+    if (m) out.push({ id: m[1], level: +m[2], x: +m[3], y: +m[4], format: m[5], frame: url.searchParams.get('frame') });
+    const b = url.pathname.match(/^\/api\/v1\/textures\/([^/]+)\/tiles$/);
+    if (b) {
+      for (const t of url.searchParams.get('tiles').split(',')) {
+        const [level, x, y] = t.split('/').map(Number);
+        out.push({ id: b[1], level, x, y, format: url.searchParams.get('format'), frame: url.searchParams.get('frame'), batch: true });
+      }
+    }
+  }
+  return out;
+}
+
 /** The server's tile as raw RGBA (the `.rgba` format, sized by X-Vtex-Width/Height). */
 export async function fetchServerTile(serverUrl, info, level, tx, ty, frame) {
   const q = frame === undefined ? '' : `?frame=${frame}`;
