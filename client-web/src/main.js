@@ -10,6 +10,7 @@ import { findTexture as lookupTexture } from './texture-lookup.js';
 import { firstView } from './first-view.js';
 import { fetchWantedLevels, keepBatchesOnDraw, vtexDrawer } from './osd-adapter.js';
 import { ClientSynth, staticExport } from './client-synth.js';
+import { setupCreatePanel } from './create-panel.js';
 
 const OSD = window.OpenSeadragon;
 const $ = (id) => document.getElementById(id);
@@ -509,6 +510,15 @@ setInterval(renderStats, 250);
 // Hooks for the end-to-end tests (tests/browser/) and the viewer bench (bench/viewer/).
 window.vtexViewer = { viewer, stats, state, getView, setView, drawnLevels, openTexture, findTexture, showFrame };
 
+/** Lists the textures again and opens `info`, one just created (create-panel.js). */
+async function openCreated(info) {
+  state.textures = (await getJson('/api/v1/textures')).textures;
+  const listed = findTexture(info.id) || info;
+  fillPicker(state.textures, listed.id);
+  showError('');
+  openTexture(listed);
+}
+
 async function start() {
   renderStats();
   const view = parseView(location.search);
@@ -522,9 +532,12 @@ async function start() {
   if (state.exported) {
     state.synthMode = 'client';
     $('synth').disabled = true;
+    $('create-toggle').hidden = true; // a static export has no server to create on
+  } else {
+    setupCreatePanel({ onCreated: openCreated });
   }
   if (state.textures.length === 0) {
-    showError('The server has no textures yet. Upload one with POST /api/v1/textures.');
+    showError('The server has no textures yet: create one (Create a texture…) or upload one with POST /api/v1/textures.');
     return;
   }
   const { info, view: opened, message } = firstView(state.textures, view);
