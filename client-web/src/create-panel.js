@@ -21,7 +21,6 @@ export function setupCreatePanel({ onCreated }) {
   toggle.addEventListener('click', async () => {
     panel.hidden = !panel.hidden;
     toggle.setAttribute('aria-expanded', String(!panel.hidden));
-    window.dispatchEvent(new Event('resize')); // the view's width changed
     if (!panel.hidden && !state.models) await loadModels();
   });
 
