@@ -171,6 +171,7 @@ export function setupCreatePanel({ onCreated }) {
 
   async function submit() {
     status('');
+    for (const f of $('create-params').querySelectorAll('.refused')) f.classList.remove('refused');
     let params;
     try {
       params = readParams();
@@ -220,7 +221,21 @@ export function setupCreatePanel({ onCreated }) {
       status(`The server refuses writes (HTTP 403): ${why}`, 'error');
     } else {
       status(`The server refused it (HTTP ${code}): ${why}`, 'error');
+      markNamedFields(why);
     }
+  }
+
+  /**
+   * Marks the fields a refusal names (the models say "invalid parameter `c_lambda/c_mu`" or
+   * "`layers[2].weight`", paths as in the parameters' JSON) and brings the first into view.
+   */
+  function markNamedFields(why) {
+    const named = /invalid parameter `([^`]+)`/.exec(why);
+    if (!named || !state.params) return;
+    const paths = named[1].split('/').map((p) => `params.${p}`);
+    const fields = [...$('create-params').querySelectorAll('[data-path]')].filter((f) => paths.includes(f.dataset.path));
+    for (const f of fields) f.classList.add('refused');
+    if (fields.length) fields[0].scrollIntoView({ block: 'center' });
   }
 
   function status(message, kind = '') {

@@ -197,6 +197,8 @@ test("a bad parameter shows the server's error in the panel; a field that is not
   assert.equal(status.kind, 'error');
   assert.equal(status.text, `The server refused it (HTTP ${byHand.status}): ${byHand.body.error}`);
   assert.match(byHand.body.error, /c_lambda/, 'the error names the parameter');
+  const marked = await page.evaluate(() => [...document.querySelectorAll('#create-params .refused')].map((f) => f.dataset.path));
+  assert.deepEqual(marked.sort(), ['params.c_lambda', 'params.c_mu'], 'the fields the error names are marked');
   assert.equal(await page.evaluate(() => window.vtexViewer.state.info.id), before, 'the view stays');
 
   const posts = () => log.requests.filter((u) => u.endsWith('/api/v1/textures')).length;
