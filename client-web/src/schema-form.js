@@ -373,10 +373,7 @@ function listEditor(c, value, path, ctx, required) {
   // Long lists (an event table's cells) start folded, under their count.
   const summary = el(ctx, 'summary', {});
   const entries = [];
-  const changed = () => {
-    entries.forEach((e, i) => (e.li.dataset.index = String(i)));
-    summary.textContent = `${entries.length} ${entries.length === 1 ? 'entry' : 'entries'}`;
-  };
+  const changed = () => (summary.textContent = `${entries.length} ${entries.length === 1 ? 'entry' : 'entries'}`);
   const add = (v) => {
     const sub = editor(c.schema.items, v, `${path}[${entries.length}]`, ctx, true);
     const remove = el(ctx, 'button', { type: 'button', class: 'schema-remove', title: 'Remove this entry' }, '×');
@@ -385,10 +382,24 @@ function listEditor(c, value, path, ctx, required) {
     remove.addEventListener('click', () => {
       entries.splice(entries.indexOf(entry), 1);
       li.remove();
-      changed();
+      renumber();
     });
     entries.push(entry);
     list.append(li);
+    changed();
+  };
+  // After a removal the entries are made again, so their paths (in labels and in the errors
+  // that name them) follow their new places; while one cannot be read they stay as they are.
+  const renumber = () => {
+    let values;
+    try {
+      values = entries.map((e) => e.sub.read());
+    } catch (e) {
+      if (!(e instanceof FormError)) throw e;
+      return changed();
+    }
+    entries.splice(0).forEach((e) => e.li.remove());
+    values.forEach(add);
     changed();
   };
   if (Array.isArray(value)) value.forEach(add);

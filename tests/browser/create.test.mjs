@@ -185,6 +185,21 @@ test("the panel creates a texture of a model without input images from its edite
   await page.close();
 });
 
+test('entries added to and removed from a list keep paths that follow their places', async () => {
+  const m = model('cascade');
+  const stages = m.example.params.stages;
+  const { page } = await openPanel(server.url, m.id);
+  const paths = () => page.evaluate(() => [...document.querySelectorAll('#create-params [data-path^="params.stages["]')].map((f) => f.dataset.path.match(/^params\.stages\[\d+\]/)[0]));
+  const list = page.locator('#create-params [data-path="params.stages"]');
+  await list.locator(':scope > .schema-add').click();
+  assert.ok((await paths()).includes(`params.stages[${stages.length}]`), 'the added entry is the last');
+  await list.locator(':scope > .schema-list > li').first().locator(':scope > .schema-remove').click();
+  const after = new Set(await paths());
+  assert.deepEqual([...after], stages.map((_, i) => `params.stages[${i}]`), 'numbered from 0 again');
+  assert.deepEqual((await panelParams(page)).stages.slice(0, -1), withoutNulls(stages.slice(1)), 'the entries after the removed one, moved up');
+  await page.close();
+});
+
 test("a bad parameter shows the server's error in the panel; a field that is not a number is named before sending", async () => {
   const m = model('chaos-mosaic');
   const { page, log } = await openPanel(server.url, m.id);
