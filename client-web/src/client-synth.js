@@ -6,7 +6,7 @@
 // A ClientSynth serves the tile sources of one texture (every animation frame): tilesource.js
 // hands it OpenSeadragon's jobs (loadJobs, abortJob) instead of sending them to the server.
 
-import { vtexLevel } from './pyramid.js';
+import { sourceTile } from './pyramid.js';
 
 /** The synthesis module, beside the viewer's files (client-web/build.mjs copies it there). */
 export const WASM_URL = 'vtex_synth.wasm';
@@ -177,7 +177,8 @@ export class ClientSynth {
       stats.started();
       inFlight.add(job);
       const t0 = performance.now();
-      const request = this.tile(vtexLevel(info, job.tile.level), job.tile.x, job.tile.y, frame);
+      const t = sourceTile(info, job.tile);
+      const request = this.tile(t.level, t.x, t.y, frame);
       job.userData = { ...job.userData, cancel: request.cancel };
       request.promise.then(
         ({ bitmap }) => {

@@ -4,11 +4,13 @@
 import { createTileSource } from './tilesource.js';
 import { TileStats, formatBytes, formatRatio } from './stats.js';
 import { FORMATS, parseView, formatView } from './view-url.js';
-import { DEFAULT_DETAIL, DETAIL, drawLevel, vtexLevel } from './pyramid.js';
+import { DEFAULT_DETAIL, DETAIL, drawLevel, modulo, vtexLevel } from './pyramid.js';
 import { updateEarly } from './loader.js';
 import { findTexture as lookupTexture } from './texture-lookup.js';
+import { firstView } from './first-view.js';
 import { fetchWantedLevels, keepBatchesOnDraw, vtexDrawer } from './osd-adapter.js';
 import { ClientSynth, loadModule, staticExport } from './client-synth.js';
+import { setupCreatePanel } from './create-panel.js';
 
 const OSD = window.OpenSeadragon;
 const $ = (id) => document.getElementById(id);
@@ -148,6 +150,9 @@ function openTexture(info, view = {}) {
   if (view.detail) state.detail = view.detail;
   $('detail').value = state.detail;
   viewer.minPixelRatio = DETAIL[state.detail]; // read by every tiled image added from now on
+  // A torus repeats past its edges (its tiles wrap: pyramid.js sourceTile), so pans are unbounded.
+  viewer.wrapHorizontal = viewer.wrapVertical = info.wraps; // read by every tiled image too
+  viewer.viewport.wrapHorizontal = viewer.viewport.wrapVertical = info.wraps;
   if (view.synth) state.synthMode = view.synth;
   $('synth').value = state.synthMode;
   $('format').disabled = state.synthMode === 'client';
@@ -178,6 +183,7 @@ viewer.addHandler('open', (e) => {
   state.item = viewer.world.getItemAt(0);
   const view = opening.view;
   if (view.zoom > 0 && Number.isFinite(view.x) && Number.isFinite(view.y)) setView(view, true);
+  bringBackTorusView();
   updateSmoothing();
   updateUrl();
   updateReadouts();
@@ -304,8 +310,9 @@ function updateReadouts() {
   setText($('zoom-readout'), `zoom ${zoom >= 1 ? zoom.toFixed(2) : `1/${(1 / zoom).toFixed(1)}`} · ${shown}`);
   if (pointer) {
     const p = item.viewerElementToImageCoordinates(new OSD.Point(pointer.x, pointer.y));
-    const x = Math.floor(p.x);
-    const y = Math.floor(p.y);
+    const wrap = (v, n) => (info.wraps ? modulo(v, n) : v);
+    const x = wrap(Math.floor(p.x), info.width);
+    const y = wrap(Math.floor(p.y), info.height);
     $('coords').textContent = x >= 0 && y >= 0 && x < info.width && y < info.height ? `x ${num(x)}, y ${num(y)}` : 'outside';
   }
 }
@@ -426,7 +433,19 @@ $('frame-slider').addEventListener('input', (e) => {
 // ---------------------------------------------------------------------------------------
 // Wiring
 
-viewer.addHandler('animation-finish', updateUrl);
+viewer.addHandler('animation-finish', () => {
+  bringBackTorusView();
+  updateUrl();
+});
+// A torus view panned past the edges is moved back by whole periods, to the same pixels, so
+// the navigator's box and the link's coordinates stay on the texture.
+function bringBackTorusView() {
+  const view = getView();
+  if (!view || !state.info.wraps) return;
+  const x = modulo(view.x, state.info.width);
+  const y = modulo(view.y, state.info.height);
+  if (x !== view.x || y !== view.y) setView({ x, y }, true);
+}
 // After the frame's OpenSeadragon work, not inside it: the navigator reads the viewer's size
 // right after this event, and a readout changed before that read makes it lay the page out
 // there and then, a second layout in the frame.
@@ -491,6 +510,15 @@ setInterval(renderStats, 250);
 // Hooks for the end-to-end tests (tests/browser/) and the viewer bench (bench/viewer/).
 window.vtexViewer = { viewer, stats, state, getView, setView, drawnLevels, openTexture, findTexture, showFrame };
 
+/** Lists the textures again and opens `info`, one just created (create-panel.js). */
+async function openCreated(info) {
+  state.textures = (await getJson('/api/v1/textures')).textures;
+  const listed = findTexture(info.id) || info;
+  fillPicker(state.textures, listed.id);
+  showError('');
+  openTexture(listed);
+}
+
 async function start() {
   renderStats();
   const view = parseView(location.search);
@@ -505,19 +533,18 @@ async function start() {
   if (state.exported) {
     state.synthMode = 'client';
     $('synth').disabled = true;
+    $('create-toggle').hidden = true; // a static export has no server to create on
+  } else {
+    setupCreatePanel({ onCreated: openCreated });
   }
   if (state.textures.length === 0) {
-    showError('The server has no textures yet. Upload one with POST /api/v1/textures.');
+    showError('The server has no textures yet: create one (Create a texture…) or upload one with POST /api/v1/textures.');
     return;
   }
-  const named = findTexture(view.texture);
-  // Without a texture in the link, open the largest: vtex is about textures too big to store.
-  const info = named || state.textures.reduce((a, b) => (b.width * b.height > a.width * a.height ? b : a));
-  if (view.texture && !named) {
-    showError(`No texture "${view.texture}" on this server (or more than one starts so); showing ${info.name}.`);
-  }
+  const { info, view: opened, message } = firstView(state.textures, view);
+  showError(message);
   fillPicker(state.textures, info.id);
-  openTexture(info, view);
+  openTexture(info, opened);
   $('osd').querySelector('.openseadragon-canvas')?.focus();
 }
 

@@ -36,6 +36,22 @@ export function inPyramid(info, level, x, y) {
 }
 
 /**
+ * The vtex tile (level, x, y) that OpenSeadragon's tile `tile` ({ level, x, y } in its numbering)
+ * shows. Past the edge of a texture that wraps (a torus, `info.wraps`), OpenSeadragon numbers
+ * the repeated copies' tiles on (x + k × columns, y + j × rows); they show the tile at the
+ * coordinates taken modulo the level's grid. Elsewhere the coordinates are left as they are.
+ */
+export function sourceTile(info, tile) {
+  const level = vtexLevel(info, tile.level);
+  if (!info.wraps) return { level, x: tile.x, y: tile.y };
+  const n = tileCount(info, level);
+  return { level, x: modulo(tile.x, n.x), y: modulo(tile.y, n.y) };
+}
+
+/** `a` modulo `n`, in [0, n) also for a negative `a`. */
+export const modulo = (a, n) => ((a % n) + n) % n;
+
+/**
  * URL of one tile, or null when (level, x, y) lies outside the pyramid. `frame` is sent only
  * for animated textures (the server normalises it to 0 otherwise, so sending it would only
  * split the browser's cache).

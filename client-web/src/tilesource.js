@@ -6,7 +6,7 @@
 // (lossless), jpg (lossy, smallest) and rgba (raw: no decoding, the fastest on a fast link).
 // In client mode the tiles are synthesized in the page instead (client-synth.js): no request.
 
-import { inPyramid, tileUrl, vtexLevel } from './pyramid.js';
+import { inPyramid, sourceTile, tileUrl, vtexLevel } from './pyramid.js';
 import { MAX_BATCH, batchUrl, tileKey } from './batch.js';
 
 /**
@@ -169,7 +169,7 @@ function loadBatch(jobs, { loader, info, frame, format, stats, inFlight }) {
     Object.assign(job.userData, { t0, done: false, settled: false, batch });
     inFlight.add(job);
     stats.started();
-    const t = { level: vtexLevel(info, job.tile.level), x: job.tile.x, y: job.tile.y };
+    const t = sourceTile(info, job.tile);
     const key = tileKey(t.level, t.x, t.y);
     if (byKey.has(key)) byKey.get(key).push(job);
     else {
@@ -201,7 +201,8 @@ function loadBatch(jobs, { loader, info, frame, format, stats, inFlight }) {
   const settle = (job) => {
     if (job.userData.settled) return;
     job.userData.settled = true;
-    const key = tileKey(vtexLevel(info, job.tile.level), job.tile.x, job.tile.y);
+    const t = sourceTile(info, job.tile);
+    const key = tileKey(t.level, t.x, t.y);
     const left = (byKey.get(key) || []).filter((j) => j !== job);
     if (left.length) byKey.set(key, left);
     else byKey.delete(key);

@@ -1,5 +1,6 @@
-//! The command line: `vtex serve | create | render | info | export-web`.
+//! The command line: `vtex serve | create | models | render | info | export-web`.
 
+use crate::api::models as api_models;
 use crate::config::ServeConfig;
 use crate::encode::{self, Format};
 use crate::store::{self, Bounds, Entry, Store};
@@ -22,6 +23,8 @@ pub enum Command {
     Serve(Box<ServeConfig>),
     /// Make an encoding from model parameters and input images; prints its id.
     Create(CreateArgs),
+    /// List the models: parameters (JSON Schema), input images and an example of each.
+    Models(ModelsArgs),
     /// Render a region of a texture at a level to an image file.
     Render(RenderArgs),
     /// Print a texture's info as JSON, or every texture in the data directory.
@@ -38,7 +41,7 @@ pub struct CreateArgs {
     /// Display name.
     #[arg(long)]
     pub name: String,
-    /// Model parameters: JSON text, or `@file.json`.
+    /// Model parameters: JSON text, or `@file.json` (their schema and an example: `vtex models MODEL`).
     #[arg(long, default_value = "{}")]
     pub params: String,
     /// An input image, `NAME=PATH.png` (e.g. `sample=stones.png`); repeatable.
@@ -50,6 +53,18 @@ pub struct CreateArgs {
     /// Write the bundle to this file instead of the data directory.
     #[arg(long)]
     pub out: Option<PathBuf>,
+}
+
+#[derive(Args, Debug)]
+pub struct ModelsArgs {
+    /// One model's id; every model when absent.
+    pub model: Option<String>,
+    /// Print the JSON document `GET /api/v1/models[/{id}]` answers.
+    #[arg(long)]
+    pub json: bool,
+    /// Write the examples' input images into this directory, as `<model>-<input>.png`.
+    #[arg(long, value_name = "DIR")]
+    pub example_dir: Option<PathBuf>,
 }
 
 #[derive(Args, Debug)]
@@ -104,7 +119,7 @@ pub struct ExportWebArgs {
 /// `--model`'s help: the ids of the registered models, read from the registry so it never lags.
 fn model_help() -> String {
     let ids: Vec<&str> = models::ids().collect();
-    format!("Model id: {}", ids.join(", "))
+    format!("Model id: {} (their parameters and examples: `vtex models`)", ids.join(", "))
 }
 
 /// Loads and validates a texture named by id (in `data_dir`) or by path.
@@ -151,6 +166,69 @@ pub fn create(args: CreateArgs) -> anyhow::Result<()> {
     }
     println!("{id}");
     Ok(())
+}
+
+pub fn models(args: ModelsArgs) -> anyhow::Result<()> {
+    let docs = match &args.model {
+        Some(id) => vec![api_models::one(id).map_err(|e| anyhow!("{e}"))?],
+        None => api_models::list().models,
+    };
+    if let Some(dir) = &args.example_dir {
+        std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
+        for doc in &docs {
+            for name in doc.example.inputs.keys() {
+                let path = dir.join(example_file(&doc.id, name));
+                let png = api_models::example_input(&doc.id, name).map_err(|e| anyhow!("{e}"))?;
+                std::fs::write(&path, png).with_context(|| format!("writing {}", path.display()))?;
+            }
+        }
+    }
+    if args.json {
+        let out = match &args.model {
+            Some(_) => serde_json::to_string_pretty(&docs[0])?,
+            None => serde_json::to_string_pretty(&api_models::ModelList { models: docs })?,
+        };
+        println!("{out}");
+        return Ok(());
+    }
+    let dir = args.example_dir.as_deref().unwrap_or(Path::new("."));
+    for doc in &docs {
+        println!("{}", describe_model(doc, dir));
+    }
+    if args.example_dir.is_none() && docs.iter().any(|d| !d.example.inputs.is_empty()) {
+        println!("Write the examples' input images with `vtex models --example-dir DIR`.");
+    }
+    Ok(())
+}
+
+/// The file `vtex models --example-dir` writes input `name` of model `id`'s example to.
+fn example_file(id: &str, name: &str) -> String {
+    format!("{id}-{name}.png")
+}
+
+/// One model for people: what it is, its parameters and inputs, and its example as a
+/// `vtex create` command whose inputs are in `dir`.
+fn describe_model(doc: &api_models::ModelDoc, dir: &Path) -> String {
+    let schema = &doc.params_schema;
+    let required: Vec<&str> = schema["required"].as_array().into_iter().flatten().filter_map(|v| v.as_str()).collect();
+    let params: Vec<String> = schema["properties"]
+        .as_object()
+        .into_iter()
+        .flatten()
+        .map(|(k, _)| if required.contains(&k.as_str()) { format!("{k} (required)") } else { k.clone() })
+        .collect();
+    let mut out = format!("{} — {}\n  {}\n  {}\n", doc.id, doc.title, doc.paper, doc.summary);
+    out += &format!("  params: {}\n", params.join(", "));
+    for i in &doc.inputs {
+        out += &format!("  input {}{}: {}\n", i.name, if i.required { " (required)" } else { "" }, i.what);
+    }
+    let params = serde_json::to_string(&doc.example.params).expect("JSON values serialize");
+    let mut command = format!("vtex create --model {} --name \"{} example\" --params '{params}'", doc.id, doc.id);
+    for name in doc.example.inputs.keys() {
+        command += &format!(" --input {name}={}", dir.join(example_file(&doc.id, name)).display());
+    }
+    out += &format!("  example: {command}\n");
+    out
 }
 
 pub fn render(args: RenderArgs) -> anyhow::Result<()> {

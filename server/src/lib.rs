@@ -16,7 +16,7 @@
 //! * [`serve`] — the listener: connection timeouts and graceful shutdown.
 //! * [`transport`] — how bodies reach the socket (`--send copy|splice`); all platform-specific code.
 //! * [`watch`] — follows bundles other processes add to or delete from the data directory.
-//! * [`cli`] — the offline subcommands `create`, `render`, `info`, `export-web`.
+//! * [`cli`] — the offline subcommands `create`, `models`, `render`, `info`, `export-web`.
 //! * [`export`] — `export-web`: the viewer, the synthesis module and an encoding as a static folder.
 
 // Unsafe code is denied in every module but `transport`, which holds the mappings and system

@@ -16,6 +16,7 @@ fn main() -> anyhow::Result<()> {
     match Cli::parse().command {
         Command::Serve(cfg) => vtex_server::serve::main(*cfg),
         Command::Create(args) => cli::create(args),
+        Command::Models(args) => cli::models(args),
         Command::Render(args) => cli::render(args),
         Command::Info(args) => cli::info(args),
         Command::ExportWeb(args) => cli::export_web(args),

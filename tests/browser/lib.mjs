@@ -7,7 +7,7 @@ import { tmpdir } from 'node:os';
 import { dirname, join, resolve } from 'node:path';
 import { createInterface } from 'node:readline';
 import { fileURLToPath } from 'node:url';
-import { inflateSync } from 'node:zlib';
+import { deflateSync, inflateSync } from 'node:zlib';
 
 export const ROOT = resolve(dirname(fileURLToPath(import.meta.url)), '..', '..');
 // playwright-core is a dependency of client-web (one `npm ci` installs the viewer and its tests).
@@ -187,6 +187,27 @@ export async function setAlignedView(page, zoom, x, y) {
   await waitForIdle(page);
 }
 
+/**
+ * Every tile asked for in `urls`, parsed: single-tile URLs and each tile listed by a batched
+ * request (`/tiles?format=…&tiles=L/x/y,…`, what the viewer sends).
+ */
+export function tileRequests(urls) {
+  const out = [];
+  for (const u of urls) {
+    const url = new URL(u);
+    const m = url.pathname.match(/^\/api\/v1\/textures\/([^/]+)\/tiles\/(\d+)\/(\d+)\/(\d+)\.(\w+)$/);
+    if (m) out.push({ id: m[1], level: +m[2], x: +m[3], y: +m[4], format: m[5], frame: url.searchParams.get('frame') });
+    const b = url.pathname.match(/^\/api\/v1\/textures\/([^/]+)\/tiles$/);
+    if (b) {
+      for (const t of url.searchParams.get('tiles').split(',')) {
+        const [level, x, y] = t.split('/').map(Number);
+        out.push({ id: b[1], level, x, y, format: url.searchParams.get('format'), frame: url.searchParams.get('frame'), batch: true });
+      }
+    }
+  }
+  return out;
+}
+
 /** The server's tile as raw RGBA (the `.rgba` format, sized by X-Vtex-Width/Height). */
 export async function fetchServerTile(serverUrl, info, level, tx, ty, frame) {
   const q = frame === undefined ? '' : `?frame=${frame}`;
@@ -283,4 +304,36 @@ export function decodePng(buf) {
     prev = line;
   }
   return { width, height, data: out };
+}
+
+const CRC_TABLE = Array.from({ length: 256 }, (_, n) => {
+  let c = n;
+  for (let k = 0; k < 8; k++) c = c & 1 ? 0xedb88320 ^ (c >>> 1) : c >>> 1;
+  return c >>> 0;
+});
+
+function crc32(buf) {
+  let c = 0xffffffff;
+  for (const b of buf) c = CRC_TABLE[(c ^ b) & 255] ^ (c >>> 8);
+  return (c ^ 0xffffffff) >>> 0;
+}
+
+/** Encodes RGBA rows (`data`, width × height × 4 bytes) as an 8-bit RGBA PNG. */
+export function encodePng(width, height, data) {
+  const chunk = (type, body) => {
+    const head = Buffer.alloc(8);
+    head.writeUInt32BE(body.length, 0);
+    head.write(type, 4, 'latin1');
+    const crc = Buffer.alloc(4);
+    crc.writeUInt32BE(crc32(Buffer.concat([head.subarray(4), body])), 0);
+    return Buffer.concat([head, body, crc]);
+  };
+  const ihdr = Buffer.alloc(13);
+  ihdr.writeUInt32BE(width, 0);
+  ihdr.writeUInt32BE(height, 4);
+  ihdr.set([8, 6, 0, 0, 0], 8);
+  const raw = Buffer.alloc(height * (width * 4 + 1));
+  for (let y = 0; y < height; y++) Buffer.from(data.buffer, data.byteOffset + y * width * 4, width * 4).copy(raw, y * (width * 4 + 1) + 1);
+  const sig = Buffer.from('89504e470d0a1a0a', 'hex');
+  return Buffer.concat([sig, chunk('IHDR', ihdr), chunk('IDAT', deflateSync(raw)), chunk('IEND', Buffer.alloc(0))]);
 }

@@ -2,7 +2,7 @@
 // texture it shows instead.
 import test, { after, before } from 'node:test';
 import assert from 'node:assert/strict';
-import { launchBrowser, openViewer, startServer } from './lib.mjs';
+import { launchBrowser, openViewer, startServer, tileRequests, waitForIdle } from './lib.mjs';
 
 let server;
 let browser;
@@ -29,10 +29,14 @@ test('a unique prefix of an id opens that texture', async () => {
   await page.close();
 });
 
-test('a link naming no texture says which texture it shows', async () => {
-  const { page } = await openViewer(browser.context, `${server.url}/?texture=no-such-texture`);
-  const shown = await page.evaluate(() => window.vtexViewer.state.info.name);
+test('a link naming no texture says which texture it shows: the one whose tiles are drawn', async () => {
+  const { page, log } = await openViewer(browser.context, `${server.url}/?texture=no-such-texture`);
+  await waitForIdle(page);
   const message = await page.locator('#error').textContent();
-  assert.ok(message.includes('no-such-texture') && message.includes(`showing ${shown}.`), message);
+  const drawn = new Set(tileRequests(log.requests).map((t) => t.id));
+  assert.equal(drawn.size, 1, 'tiles of one texture were fetched');
+  const shown = textures.find((t) => t.id === [...drawn][0]);
+  assert.ok(message.includes('"no-such-texture"') && message.includes(`showing ${shown.name}.`), message);
+  assert.equal(await page.locator('#texture-picker').inputValue(), shown.id, 'the picker shows it too');
   await page.close();
 });

@@ -11,6 +11,7 @@ import {
   screenPointOf,
   setAlignedView,
   startServer,
+  tileRequests,
   waitForIdle,
 } from './lib.mjs';
 import { inPyramid } from '../../client-web/src/pyramid.js';
@@ -32,27 +33,6 @@ after(async () => {
   await browser?.close();
   await server?.stop();
 });
-
-/**
- * Every tile asked for in `urls`, parsed: single-tile URLs and each tile listed by a batched
- * request (`/tiles?format=…&tiles=L/x/y,…`, what the viewer sends).
- */
-function tileRequests(urls) {
-  const out = [];
-  for (const u of urls) {
-    const url = new URL(u);
-    const m = url.pathname.match(/^\/api\/v1\/textures\/([^/]+)\/tiles\/(\d+)\/(\d+)\/(\d+)\.(\w+)$/);
-    if (m) out.push({ id: m[1], level: +m[2], x: +m[3], y: +m[4], format: m[5], frame: url.searchParams.get('frame') });
-    const b = url.pathname.match(/^\/api\/v1\/textures\/([^/]+)\/tiles$/);
-    if (b) {
-      for (const t of url.searchParams.get('tiles').split(',')) {
-        const [level, x, y] = t.split('/').map(Number);
-        out.push({ id: b[1], level, x, y, format: url.searchParams.get('format'), frame: url.searchParams.get('frame'), batch: true });
-      }
-    }
-  }
-  return out;
-}
 
 /** The viewer's batched tile requests among `urls`. */
 const batchRequests = (urls) => urls.filter((u) => /\/api\/v1\/textures\/[^/]+\/tiles\?/.test(u));

@@ -9,6 +9,7 @@ pub mod extract;
 mod front;
 mod health;
 mod iiif;
+pub mod models;
 mod origin;
 pub mod pages;
 pub mod params;
@@ -266,6 +267,10 @@ pub fn router(app: App) -> Router {
         // TileJSON 3 and XYZ tiles (tilejson.rs).
         .route("/api/v1/textures/{id}/tilejson.json", get(tilejson::tilejson))
         .route(tilejson::XYZ, get(tilejson::xyz))
+        // The model catalogue: parameter schemas and examples (models.rs).
+        .route("/api/v1/models", get(models::list_models))
+        .route("/api/v1/models/{id}", get(models::model))
+        .route(models::EXAMPLE_INPUT, get(models::example_image))
         .route("/metrics", get(metrics))
         .route("/api", any(api_not_found))
         .route("/api/{*rest}", any(api_not_found))

@@ -37,16 +37,23 @@ pub async fn info(
 /// `value` as JSON with a strong ETag (a hash of the body), revalidated on every use
 /// (`no-cache`): a 304 when `If-None-Match` names it. The list changes with the store, so it is
 /// never cached unchecked.
-fn json_validated(headers: &HeaderMap, value: &impl serde::Serialize) -> Response {
+pub(super) fn json_validated(headers: &HeaderMap, value: &impl serde::Serialize) -> Response {
     let body = serde_json::to_vec(value).expect("plain data serializes");
+    validated(headers, "application/json", body.into())
+}
+
+/// `body` of `content_type` with a strong ETag (a hash of the body), revalidated on every use
+/// (`no-cache`): a 304 when `If-None-Match` names it.
+pub(super) fn validated(headers: &HeaderMap, content_type: &'static str, body: bytes::Bytes) -> Response {
     let tag = format!("\"{}\"", &blake3::hash(&body).to_hex()[..32]);
     let tag = HeaderValue::from_str(&tag).expect("hex is a valid header value");
     let no_cache = HeaderValue::from_static("no-cache");
     if not_modified(headers, tag.to_str().unwrap_or_default()) {
         return (StatusCode::NOT_MODIFIED, [(header::ETAG, tag), (header::CACHE_CONTROL, no_cache)]).into_response();
     }
-    let json = HeaderValue::from_static("application/json");
-    ([(header::CONTENT_TYPE, json), (header::ETAG, tag), (header::CACHE_CONTROL, no_cache)], body).into_response()
+    let content_type = HeaderValue::from_static(content_type);
+    ([(header::CONTENT_TYPE, content_type), (header::ETAG, tag), (header::CACHE_CONTROL, no_cache)], body)
+        .into_response()
 }
 
 /// The bundle bytes exactly as stored, read whole once their length is reserved from the

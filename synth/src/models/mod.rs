@@ -47,6 +47,9 @@ pub trait Model: Send + Sync + 'static {
     fn plan_create(&self, params: &serde_json::Value, inputs: &Inputs) -> Result<Plan>;
     /// Its demo encodings, from project-made inputs only.
     fn demos(&self) -> Vec<Bundle>;
+    /// Parameters and project-made inputs that `create` turns into a small texture quickly:
+    /// what a newcomer starts from (`GET /api/v1/models`, `vtex models`).
+    fn example(&self) -> Example;
     /// What its prefiltered coarse levels promise, held by the conformance suite.
     fn mip_guarantee(&self) -> MipGuarantee;
     /// Sets the bytes the model's process-wide caches may hold (0: none); they never change a
@@ -88,6 +91,33 @@ pub struct InputInfo {
     pub required: bool,
     /// What the image holds and how it is read.
     pub what: &'static str,
+}
+
+/// A small, quick creation of a model ([`Model::example`]).
+#[derive(Clone, Debug, PartialEq)]
+pub struct Example {
+    /// `create`'s parameters.
+    pub params: serde_json::Value,
+    /// Every input image `params` needs, in the order of [`ModelInfo::inputs`].
+    pub inputs: Vec<ExampleInput>,
+}
+
+/// One input image of an [`Example`].
+#[derive(Clone, Debug, PartialEq)]
+pub struct ExampleInput {
+    /// The key in [`Inputs`].
+    pub name: String,
+    /// What the image shows and how it was made.
+    pub what: String,
+    /// PNG bytes.
+    pub png: Vec<u8>,
+}
+
+impl Example {
+    /// The inputs as `create` takes them.
+    pub fn inputs(&self) -> Inputs {
+        self.inputs.iter().map(|i| (i.name.clone(), i.png.clone())).collect()
+    }
 }
 
 /// What a model's prefiltered coarse levels promise.
@@ -253,6 +283,25 @@ mod tests {
             assert!(info.params_schema["properties"].is_object(), "{}: {}", m.id(), info.params_schema);
         }
         assert_eq!(*MODELS, ids().collect::<Vec<_>>());
+    }
+
+    /// Every model's example is small and quick: it names every input the model requires, is
+    /// planned within half a second to make and a second a tile, and `create`
+    /// makes exactly what was planned.
+    #[test]
+    fn every_example_creates_a_small_texture_quickly() {
+        let quick = Limits { max_resident_bytes: 64 << 20, max_tile_work: 1_000_000_000, max_build_work: 500_000_000 };
+        for m in REGISTRY {
+            let ex = m.example();
+            for required in m.describe().inputs.iter().filter(|i| i.required) {
+                assert!(ex.inputs.iter().any(|i| i.name == required.name), "{}: no `{}`", m.id(), required.name);
+            }
+            let plan = m.plan_create(&ex.params, &ex.inputs()).unwrap();
+            quick.check(m.id(), &plan).unwrap_or_else(|e| panic!("{}: {e}", m.id()));
+            assert!(plan.width <= 4096 && plan.height <= 4096, "{}: {}×{}", m.id(), plan.width, plan.height);
+            let texture = load(&create_within(m.id(), "example", &ex.params, &ex.inputs(), &quick).unwrap()).unwrap();
+            assert_eq!((texture.width(), texture.height()), (plan.width, plan.height), "{}", m.id());
+        }
     }
 
     #[test]

@@ -136,3 +136,13 @@ pub fn demos() -> Vec<Bundle> {
     ));
     out
 }
+
+/// A 4096² single-stage look (demo A's) without input images.
+pub fn example() -> crate::models::Example {
+    crate::models::Example {
+        params: json!({"seed": 1, "width": 4096, "height": 4096, "palette": "ocean",
+                       "stages": [{"kernel": {"size": 5, "preset": "gauss", "sigma": 1.0},
+                                   "map": {"kind": "logistic", "r": 3.9}, "iterations": 5}]}),
+        inputs: Vec::new(),
+    }
+}

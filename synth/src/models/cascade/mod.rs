@@ -94,6 +94,9 @@ impl Model for CascadeModel {
     fn demos(&self) -> Vec<Bundle> {
         demos()
     }
+    fn example(&self) -> super::Example {
+        demos::example()
+    }
     fn mip_guarantee(&self) -> MipGuarantee {
         // Coarse levels carry a residual with the exact downsample's statistics but not its
         // places: up to 3 dB below a smooth prediction's PSNR, bought for the right σ.

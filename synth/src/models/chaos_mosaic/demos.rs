@@ -39,3 +39,15 @@ pub fn demos() -> Vec<Bundle> {
     .inspect(|b| debug_assert_eq!(b.manifest.model, MODEL))
     .collect()
 }
+
+/// A 1024² mosaic of a 64² pebble sample: 16 × 16 tiles, the paper's defaults otherwise.
+pub fn example() -> crate::models::Example {
+    crate::models::Example {
+        params: json!({"tiles_x": 16, "tiles_y": 16, "seed": 1}),
+        inputs: vec![crate::models::ExampleInput {
+            name: "sample".into(),
+            what: "a 64 × 64 seamless pebble sample, drawn by vtex (samples::pebbles)".into(),
+            png: samples::pebbles(64, 10, 3, true).to_png(),
+        }],
+    }
+}

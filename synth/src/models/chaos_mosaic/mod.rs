@@ -79,6 +79,9 @@ impl Model for ChaosMosaicModel {
     fn demos(&self) -> Vec<Bundle> {
         demos()
     }
+    fn example(&self) -> super::Example {
+        demos::example()
+    }
     fn mip_guarantee(&self) -> MipGuarantee {
         MipGuarantee { min_psnr_db: 34.0, max_mean_error: 2.0 }
     }

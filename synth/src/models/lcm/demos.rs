@@ -197,3 +197,11 @@ pub fn make(name: &str, p: &Params) -> Result<Bundle> {
 pub fn demos() -> Vec<Bundle> {
     all_params().iter().map(|(n, p)| make(n, p).expect("the demos are valid encodings")).collect()
 }
+
+/// The simple brick wall (a built-in element, one 40 × 40 LCM): no input images.
+pub fn example() -> crate::models::Example {
+    crate::models::Example {
+        params: serde_json::to_value(brick_wall_simple()).expect("demo parameters serialize"),
+        inputs: Vec::new(),
+    }
+}

@@ -89,6 +89,9 @@ impl Model for LcmModel {
     fn demos(&self) -> Vec<Bundle> {
         demos()
     }
+    fn example(&self) -> super::Example {
+        demos::example()
+    }
     fn mip_guarantee(&self) -> MipGuarantee {
         MipGuarantee { min_psnr_db: 30.0, max_mean_error: 4.0 }
     }

@@ -28,3 +28,15 @@ pub fn demos() -> Vec<Bundle> {
         ),
     ]
 }
+
+/// A 4096² texture from a 64² lichen exemplar, the paper's defaults otherwise.
+pub fn example() -> crate::models::Example {
+    crate::models::Example {
+        params: json!({"seed": 1, "width": 4096, "height": 4096, "exemplar_wrap": true}),
+        inputs: vec![crate::models::ExampleInput {
+            name: "sample".into(),
+            what: "a 64 × 64 seamless lichen exemplar, drawn by vtex (samples::lichen)".into(),
+            png: samples::lichen(64, 21).to_png(),
+        }],
+    }
+}

@@ -63,10 +63,29 @@ fn island(w: u32, h: u32) -> Vec<u16> {
 
 /// Fig. 10a: basic aperiodic tiling of 16 ground patterns over an `n × n` cell grid.
 pub fn aperiodic(n: u64) -> Bundle {
-    let reference = art::pack(&family(Family::Ground, SEED), 4, 4);
-    let p = params(n * S as u64, n * S as u64, [4, 4], vec![layer(LayerKind::Tiling, S, Some(Choice::Virtual))]);
+    let (p, reference) = aperiodic_parts(n);
     let side = n * S as u64;
     bundle(&format!("Patterns: aperiodic tiling of 16 patterns ({side}²)"), &p, &reference, vec![])
+}
+
+/// The params and reference of [`aperiodic`].
+fn aperiodic_parts(n: u64) -> (Params, Rgba8Image) {
+    let reference = art::pack(&family(Family::Ground, SEED), 4, 4);
+    let p = params(n * S as u64, n * S as u64, [4, 4], vec![layer(LayerKind::Tiling, S, Some(Choice::Virtual))]);
+    (p, reference)
+}
+
+/// Fig. 10a's aperiodic tiling over 16 × 16 cells (1024²).
+pub fn example() -> crate::models::Example {
+    let (p, reference) = aperiodic_parts(16);
+    crate::models::Example {
+        params: serde_json::to_value(p).expect("params serialize"),
+        inputs: vec![crate::models::ExampleInput {
+            name: "reference".into(),
+            what: "4 × 4 ground patterns of 64 × 64 pixels packed row-major, drawn by vtex (patterns::art)".into(),
+            png: reference.to_png(),
+        }],
+    }
 }
 
 /// Ground (16) then grass (16) tiles, then 14 grass transition tiles: the Fig. 15 reference.
