@@ -93,6 +93,7 @@ async function start() {
       state.log.push({ frame: state.frame, event: 'request', key: p.key });
     }
     state.stats.requested += pages.length;
+    const arrived = new Set();
     const url = `/api/v1/textures/${info.id}/tiles?pages=${pages.map((p) => p.key).join(',')}&${query}`;
     try {
       const r = await fetch(url);
@@ -100,15 +101,20 @@ async function start() {
       const reader = new FrameReader((f) => {
         if (f.status !== 200) throw new Error(`page ${f.level}/${f.x}/${f.y}: status ${f.status}`);
         const body = f.body.slice();
+        const key = pageKey(f.level, f.x, f.y);
         state.stats.bytes += body.length;
-        state.arrived.push({ key: pageKey(f.level, f.x, f.y), level: f.level, x: f.x, y: f.y, body });
+        arrived.add(key);
+        state.arrived.push({ key, level: f.level, x: f.x, y: f.y, body });
       });
       await readChunks(r.body, (c) => reader.push(c));
     } catch (e) {
       state.error = String(e);
       overlay.classList.add('error');
     } finally {
-      for (const p of pages) if (!state.arrived.some((a) => a.key === p.key)) state.inFlight.delete(p.key);
+      // Pages this batch failed to bring are no longer in flight (and may be asked again).
+      for (const p of pages) {
+        if (!arrived.has(p.key) && state.inFlight.delete(p.key)) state.log.push({ frame: state.frame, event: 'drop', key: p.key });
+      }
     }
   }
 
@@ -156,13 +162,14 @@ async function start() {
     const height = canvas.height;
     const needed = decodeFeedback(renderer.feedback(camera, width, height));
     state.frame++;
-    let missing = 0;
-    for (const key of needed.keys()) if (!cache.touch(key, state.frame)) missing++;
+    const missing = cache.use(needed, state.frame, pyr.maxLevel);
     makeResident(false);
     state.stats.missing = missing;
+    // No more in flight than the atlas could take now: a page that finds no slot is dropped.
+    const room = Math.min(BATCH_PAGES * BATCHES_IN_FLIGHT, cache.available(state.frame));
     const queue = plan(needed, (k) => cache.has(k), (k) => state.inFlight.has(k), pyr.maxLevel);
-    while (queue.length && state.inFlight.size < BATCH_PAGES * BATCHES_IN_FLIGHT) {
-      stream(queue.splice(0, Math.min(BATCH_PAGES, BATCH_PAGES * BATCHES_IN_FLIGHT - state.inFlight.size)));
+    while (queue.length && state.inFlight.size < room) {
+      stream(queue.splice(0, Math.min(BATCH_PAGES, room - state.inFlight.size)));
     }
     renderer.draw(camera, width, height);
     state.needed = needed.size;

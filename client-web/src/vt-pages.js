@@ -92,6 +92,30 @@ export class PageCache {
   }
 
   /**
+   * Marks the `needed` pages of `frame` (decodeFeedback's Map) as used, and every resident
+   * coarser ancestor up to `maxLevel` (fragments fall back to them). Returns how many needed
+   * pages are not resident.
+   */
+  use(needed, frame, maxLevel) {
+    let missing = 0;
+    for (const { level, x, y } of needed.values()) {
+      if (!this.touch(pageKey(level, x, y), frame)) missing++;
+      for (let l = level + 1; l <= maxLevel; l++) {
+        const [ax, ay] = ancestor(level, x, y, l);
+        this.touch(pageKey(l, ax, ay), frame);
+      }
+    }
+    return missing;
+  }
+
+  /** Slots a page arriving in `frame` could take: free ones and those of unpinned pages not used in it. */
+  available(frame) {
+    let n = this.free.length;
+    for (const s of this.slots) if (s && !s.pinned && s.used < frame) n++;
+    return n;
+  }
+
+  /**
    * A slot for page `page` ({ key, level, x, y }) in `frame`: a free one, or the least recently
    * used unpinned page's, which is evicted and returned as `evicted`. Null when every slot is
    * pinned or used in this frame.
