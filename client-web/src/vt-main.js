@@ -4,8 +4,8 @@
 // pages, and the colour pass samples the atlas through the page table.
 //
 // URL parameters: texture (id, name or id prefix; default the 100k chaos mosaic),
-// camera=x,y,height,yaw,pitch (a fixed camera; without it the camera flies), frames=N (stop
-// after N frames), format=rgba|bc7 (default bc7 where the GPU has BPTC), aniso=N (at most 4),
+// camera=x,y,height,yaw,pitch (a fixed camera, drawn until every page it needs is resident;
+// without it the camera flies, the same path at any frame rate), frames=N (draw N frames), format=rgba|bc7 (default bc7 where the GPU has BPTC), aniso=N (at most 4),
 // slots=N (atlas slots a side), feedback=N (feedback buffer N times smaller than the view).
 // `window.vtDemo` exposes the state and a log of every page requested, made resident or evicted.
 
@@ -19,8 +19,8 @@ const FLAGSHIP = 'Pebbles — chaos mosaic 100k';
 /** Pages a batch request asks for, and batches in flight at once. */
 const BATCH_PAGES = 32;
 const BATCHES_IN_FLIGHT = 2;
-/** The fly-through: height above the ground and speed, in level-0 texels. */
-const FLIGHT = { height: 220, pitch: 20, speed: 1200, fov: 60 };
+/** The fly-through: height above the ground and distance a frame, in level-0 texels. */
+const FLIGHT = { height: 220, pitch: 20, step: 20, fov: 60 };
 
 const params = new URLSearchParams(location.search);
 const overlay = document.getElementById('overlay');
@@ -80,7 +80,8 @@ async function start() {
     arrived: [],
     log: [], // { frame, event: 'request' | 'resident' | 'evict' | 'drop', key }
     stats: { requested: 0, resident: 0, evicted: 0, bytes: 0, missing: 0 },
-    frameMs: [],
+    frameMs: [], // from one frame's start to the next's
+    cpuMs: [], // each frame's own work: feedback, read back, uploads, draw
     settled: false,
     done: false,
     error: null,
@@ -154,10 +155,10 @@ async function start() {
   let last = performance.now();
   let idleFrames = 0;
   function step(now) {
-    const dt = Math.min(0.1, (now - last) / 1000);
+    const t0 = performance.now();
     state.frameMs.push(now - last);
     last = now;
-    if (!fixed) fly(camera, dt, now / 1000);
+    if (!fixed) fly(camera, state.frame);
     const width = canvas.width;
     const height = canvas.height;
     const needed = decodeFeedback(renderer.feedback(camera, width, height));
@@ -173,10 +174,12 @@ async function start() {
     }
     renderer.draw(camera, width, height);
     state.needed = needed.size;
-    showOverlay(performance.now() - now);
+    state.cpuMs.push(performance.now() - t0);
+    showOverlay(state.cpuMs.at(-1));
     idleFrames = missing === 0 && state.inFlight.size === 0 && state.arrived.length === 0 ? idleFrames + 1 : 0;
-    // A fixed camera stops drawing once every page it needs is resident and drawn.
-    state.settled = fixed !== null && idleFrames >= 2;
+    // A fixed camera stops drawing once every page it needs is resident and drawn (unless a
+    // number of frames is asked for).
+    state.settled = fixed !== null && idleFrames >= 2 && frames === Infinity;
     if (state.frame >= frames) state.done = true;
     if (!state.settled && !state.done) requestAnimationFrame(step);
   }
@@ -216,12 +219,12 @@ function blocks(ktx2) {
   return k.data(0);
 }
 
-/** The fly-through: forward at a constant speed, turning slowly from side to side. */
-function fly(camera, dt, t) {
-  camera.yaw = 35 * Math.sin(t / 9);
+/** The fly-through at `frame`: forward a constant step a frame, turning slowly from side to side. */
+function fly(camera, frame) {
+  camera.yaw = 35 * Math.sin(frame / 540);
   const yaw = (camera.yaw * Math.PI) / 180;
-  camera.x += Math.sin(yaw) * FLIGHT.speed * dt;
-  camera.y -= Math.cos(yaw) * FLIGHT.speed * dt;
+  camera.x += Math.sin(yaw) * FLIGHT.step;
+  camera.y -= Math.cos(yaw) * FLIGHT.step;
 }
 
 start().catch((e) => {
