@@ -5,8 +5,10 @@
 //
 // URL parameters: texture (id, name or id prefix; default the 100k chaos mosaic),
 // camera=x,y,height,yaw,pitch (a fixed camera, drawn until every page it needs is resident;
-// without it the camera flies, the same path at any frame rate), frames=N (draw N frames), format=rgba|bc7 (default bc7 where the GPU has BPTC), aniso=N (at most 4),
-// slots=N (atlas slots a side), feedback=N (feedback buffer N times smaller than the view).
+// without it the camera flies, the same path at any frame rate), frames=N (draw N frames),
+// format=rgba|bc7 (default bc7 where the GPU has BPTC), aniso=N (at most 4), slots=N (atlas
+// slots a side, at least 5: the 21 pinned pages fit), feedback=N (the feedback buffer N times
+// smaller than the view).
 // `window.vtDemo` exposes the state and a log of every page requested, made resident or evicted.
 
 import { FrameReader, readChunks } from './batch.js';
@@ -51,7 +53,7 @@ async function start() {
   const format = params.get('format') || (bptc ? 'bc7' : 'rgba');
   if (format !== 'rgba' && format !== 'bc7') fail('?format= must be rgba or bc7');
   if (format === 'bc7' && !bptc) fail('this GPU has no BC7 (EXT_texture_compression_bptc): use ?format=rgba');
-  const slotsPerSide = number('slots', 16, 4, Math.floor(gl.getParameter(gl.MAX_TEXTURE_SIZE) / (PAGE_SIZE + 2 * BORDER)));
+  const slotsPerSide = number('slots', 16, 5, Math.floor(gl.getParameter(gl.MAX_TEXTURE_SIZE) / (PAGE_SIZE + 2 * BORDER)));
   const frames = number('frames', Infinity, 1, 1e9);
   const pyr = pyramid(info);
   const renderer = new VtRenderer(gl, pyr, {
