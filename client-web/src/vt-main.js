@@ -1,0 +1,234 @@
+// The virtual-texturing demo (vt.html): a camera flies over a virtual texture lying on the ground
+// plane; each frame a feedback pass names the pages the visible fragments need, the missing ones
+// (and their coarser ancestors) stream from vtex's batch endpoint into an atlas of bordered
+// pages, and the colour pass samples the atlas through the page table.
+//
+// URL parameters: texture (id, name or id prefix; default the 100k chaos mosaic),
+// camera=x,y,height,yaw,pitch (a fixed camera, drawn until every page it needs is resident;
+// without it the camera flies, the same path at any frame rate), frames=N (draw N frames),
+// format=rgba|bc7 (default bc7 where the GPU has BPTC), aniso=N (at most 4), slots=N (atlas
+// slots a side, at least 5: the 21 pinned pages fit), feedback=N (the feedback buffer N times
+// smaller than the view).
+// `window.vtDemo` exposes the state and a log of every page requested, made resident or evicted.
+
+import { FrameReader, readChunks } from './batch.js';
+import { MAX_ANISOTROPY, VtRenderer } from './vt-gl.js';
+import { parseKtx2, VK_FORMAT_BC7_SRGB } from './vt-ktx2.js';
+import { BORDER, PAGE_SIZE, PINNED_LEVELS, PageCache, decodeFeedback, pageKey, plan, pyramid } from './vt-pages.js';
+import { findTexture } from './texture-lookup.js';
+
+const FLAGSHIP = 'Pebbles — chaos mosaic 100k';
+/** Pages a batch request asks for, and batches in flight at once. */
+const BATCH_PAGES = 32;
+const BATCHES_IN_FLIGHT = 2;
+/** The fly-through: height above the ground and distance a frame, in level-0 texels. */
+const FLIGHT = { height: 220, pitch: 20, step: 20, fov: 60 };
+
+const params = new URLSearchParams(location.search);
+const overlay = document.getElementById('overlay');
+
+function fail(message) {
+  overlay.textContent = message;
+  overlay.classList.add('error');
+  window.vtDemo = { error: message };
+  throw new Error(message);
+}
+
+function number(name, fallback, min, max) {
+  if (!params.has(name)) return fallback;
+  const v = Number(params.get(name));
+  if (!Number.isFinite(v) || v < min || v > max) fail(`?${name}= must be a number from ${min} to ${max}`);
+  return v;
+}
+
+async function start() {
+  const canvas = document.getElementById('view');
+  const gl = canvas.getContext('webgl2', { antialias: false, preserveDrawingBuffer: true });
+  if (!gl) fail('This browser has no WebGL2.');
+  const list = await (await fetch('/api/v1/textures')).json();
+  const info = findTexture(list.textures, params.get('texture') || FLAGSHIP) || (!params.has('texture') && list.textures[0]);
+  if (!info) fail(`no texture named ${params.get('texture')}`);
+
+  const bptc = gl.getExtension('EXT_texture_compression_bptc');
+  const format = params.get('format') || (bptc ? 'bc7' : 'rgba');
+  if (format !== 'rgba' && format !== 'bc7') fail('?format= must be rgba or bc7');
+  if (format === 'bc7' && !bptc) fail('this GPU has no BC7 (EXT_texture_compression_bptc): use ?format=rgba');
+  const slotsPerSide = number('slots', 16, 5, Math.floor(gl.getParameter(gl.MAX_TEXTURE_SIZE) / (PAGE_SIZE + 2 * BORDER)));
+  const frames = number('frames', Infinity, 1, 1e9);
+  const pyr = pyramid(info);
+  const renderer = new VtRenderer(gl, pyr, {
+    slotsPerSide,
+    bc7: format === 'bc7' ? bptc : null,
+    feedbackScale: number('feedback', 8, 1, 32),
+    anisotropy: number('aniso', MAX_ANISOTROPY, 1, MAX_ANISOTROPY),
+  });
+  const cache = new PageCache(slotsPerSide * slotsPerSide);
+
+  let fixed = null;
+  if (params.has('camera')) {
+    const c = params.get('camera').split(',').map(Number);
+    if (c.length !== 5 || c.some((v) => !Number.isFinite(v)) || c[2] <= 0) fail('?camera= must be x,y,height,yaw,pitch (height > 0)');
+    fixed = { x: c[0], y: c[1], height: c[2], yaw: c[3], pitch: c[4], fov: FLIGHT.fov };
+  }
+  const camera = fixed || { x: info.width / 2, y: info.height / 2, height: FLIGHT.height, yaw: 0, pitch: FLIGHT.pitch, fov: FLIGHT.fov };
+
+  const query = `size=${PAGE_SIZE}&border=${BORDER}&format=${format === 'bc7' ? 'ktx2&codec=bc7' : 'rgba'}`;
+  const state = {
+    texture: info,
+    format,
+    anisotropy: renderer.anisotropy,
+    frame: 0,
+    inFlight: new Set(),
+    arrived: [],
+    log: [], // { frame, event: 'request' | 'resident' | 'evict' | 'drop', key }
+    stats: { requested: 0, resident: 0, evicted: 0, bytes: 0, missing: 0 },
+    frameMs: [], // from one frame's start to the next's
+    cpuMs: [], // each frame's own work: feedback, read back, uploads, draw
+    settled: false,
+    done: false,
+    error: null,
+  };
+
+  /** Streams `pages` through one batch request; each arrives in `state.arrived`. */
+  async function stream(pages) {
+    for (const p of pages) {
+      state.inFlight.add(p.key);
+      state.log.push({ frame: state.frame, event: 'request', key: p.key });
+    }
+    state.stats.requested += pages.length;
+    const arrived = new Set();
+    const url = `/api/v1/textures/${info.id}/tiles?pages=${pages.map((p) => p.key).join(',')}&${query}`;
+    try {
+      const r = await fetch(url);
+      if (!r.ok) throw new Error(`${url}: HTTP ${r.status} ${await r.text()}`);
+      const reader = new FrameReader((f) => {
+        if (f.status !== 200) throw new Error(`page ${f.level}/${f.x}/${f.y}: status ${f.status}`);
+        const body = f.body.slice();
+        const key = pageKey(f.level, f.x, f.y);
+        state.stats.bytes += body.length;
+        arrived.add(key);
+        state.arrived.push({ key, level: f.level, x: f.x, y: f.y, body });
+      });
+      await readChunks(r.body, (c) => reader.push(c));
+    } catch (e) {
+      state.error = String(e);
+      overlay.classList.add('error');
+    } finally {
+      // Pages this batch failed to bring are no longer in flight (and may be asked again).
+      for (const p of pages) {
+        if (!arrived.has(p.key) && state.inFlight.delete(p.key)) state.log.push({ frame: state.frame, event: 'drop', key: p.key });
+      }
+    }
+  }
+
+  /** Puts arrived pages into the atlas and the page table, evicting least recently used ones. */
+  function makeResident(pinned) {
+    for (const page of state.arrived.splice(0)) {
+      state.inFlight.delete(page.key);
+      const placed = cache.insert(page, state.frame, pinned);
+      if (!placed) {
+        state.log.push({ frame: state.frame, event: 'drop', key: page.key });
+        continue;
+      }
+      if (placed.evicted) {
+        const e = placed.evicted;
+        renderer.map(e.level, e.x, e.y, null);
+        state.stats.evicted++;
+        state.log.push({ frame: state.frame, event: 'evict', key: e.key });
+      }
+      const body = format === 'bc7' ? blocks(page.body) : page.body;
+      renderer.upload(placed.slot, body);
+      renderer.map(page.level, page.x, page.y, placed.slot);
+      state.stats.resident++;
+      state.log.push({ frame: state.frame, event: 'resident', key: page.key });
+    }
+  }
+
+  // The coarsest levels first, pinned: a fragment whose page is not resident falls back to them.
+  const pinned = [];
+  for (let l = Math.max(0, pyr.maxLevel - PINNED_LEVELS + 1); l <= pyr.maxLevel; l++) {
+    const [cols, rows] = pyr.grid(l);
+    for (let y = 0; y < rows; y++) for (let x = 0; x < cols; x++) pinned.push({ key: pageKey(l, x, y), level: l, x, y });
+  }
+  for (let i = 0; i < pinned.length; i += BATCH_PAGES) await stream(pinned.slice(i, i + BATCH_PAGES));
+  if (state.error) fail(state.error);
+  makeResident(true);
+
+  let last = performance.now();
+  let idleFrames = 0;
+  function step(now) {
+    const t0 = performance.now();
+    state.frameMs.push(now - last);
+    last = now;
+    if (!fixed) fly(camera, state.frame);
+    const width = canvas.width;
+    const height = canvas.height;
+    const needed = decodeFeedback(renderer.feedback(camera, width, height));
+    state.frame++;
+    const missing = cache.use(needed, state.frame, pyr.maxLevel);
+    makeResident(false);
+    state.stats.missing = missing;
+    // No more in flight than the atlas could take now: a page that finds no slot is dropped.
+    const room = Math.min(BATCH_PAGES * BATCHES_IN_FLIGHT, cache.available(state.frame));
+    const queue = plan(needed, (k) => cache.has(k), (k) => state.inFlight.has(k), pyr.maxLevel);
+    while (queue.length && state.inFlight.size < room) {
+      stream(queue.splice(0, Math.min(BATCH_PAGES, room - state.inFlight.size)));
+    }
+    renderer.draw(camera, width, height);
+    state.needed = needed.size;
+    state.cpuMs.push(performance.now() - t0);
+    showOverlay(state.cpuMs.at(-1));
+    idleFrames = missing === 0 && state.inFlight.size === 0 && state.arrived.length === 0 ? idleFrames + 1 : 0;
+    // A fixed camera stops drawing once every page it needs is resident and drawn (unless a
+    // number of frames is asked for).
+    state.settled = fixed !== null && idleFrames >= 2 && frames === Infinity;
+    if (state.frame >= frames) state.done = true;
+    if (!state.settled && !state.done) requestAnimationFrame(step);
+  }
+
+  function showOverlay(cpuMs) {
+    const recent = state.frameMs.slice(-30);
+    const mean = recent.reduce((a, b) => a + b, 0) / recent.length;
+    overlay.textContent = [
+      `${info.name} · ${format.toUpperCase()} pages ${PAGE_SIZE}² + ${BORDER} px border · aniso ${renderer.anisotropy}×`,
+      `resident ${cache.size}/${cache.slots.length} · needed ${state.needed} (missing ${state.stats.missing})`,
+      `requested ${state.stats.requested} · in flight ${state.inFlight.size} · evicted ${state.stats.evicted} · ${(state.stats.bytes / 1e6).toFixed(1)} MB`,
+      `frame ${mean.toFixed(1)} ms (${(1000 / mean).toFixed(0)} fps) · CPU ${cpuMs.toFixed(1)} ms · frame #${state.frame}`,
+      state.error ? `error: ${state.error}` : '',
+    ].join('\n');
+  }
+
+  function resize() {
+    canvas.width = Math.max(1, Math.round(canvas.clientWidth));
+    canvas.height = Math.max(1, Math.round(canvas.clientHeight));
+    if (state.settled) {
+      state.settled = false;
+      idleFrames = 0;
+      requestAnimationFrame(step);
+    }
+  }
+  window.addEventListener('resize', resize);
+  resize();
+
+  window.vtDemo = { state, cache, pyramid: pyr, camera, resident: (key) => cache.has(key) };
+  requestAnimationFrame(step);
+}
+
+/** BC7 blocks of a KTX2 page. */
+function blocks(ktx2) {
+  const k = parseKtx2(ktx2);
+  if (k.vkFormat !== VK_FORMAT_BC7_SRGB) throw new Error(`page is vkFormat ${k.vkFormat}, not BC7 sRGB`);
+  return k.data(0);
+}
+
+/** The fly-through at `frame`: forward a constant step a frame, turning slowly from side to side. */
+function fly(camera, frame) {
+  camera.yaw = 35 * Math.sin(frame / 540);
+  const yaw = (camera.yaw * Math.PI) / 180;
+  camera.x += Math.sin(yaw) * FLIGHT.step;
+  camera.y -= Math.cos(yaw) * FLIGHT.step;
+}
+
+start().catch((e) => {
+  if (!window.vtDemo?.error) fail(String(e));
+});

@@ -1,0 +1,184 @@
+// The WebGL virtual-texturing demo (client-web/src/vt.html) in headless Chromium's software
+// WebGL against a real vtex serve: at a fixed camera, once every page it needs is resident, its
+// frame equals a reference render computed here from the server's regions (not its pages); no
+// page is requested while resident or in flight, also in a fly-through that evicts.
+// Run: node --test tests/browser/   (needs target/release/vtex and client-web/dist built)
+import test, { after, before } from 'node:test';
+import assert from 'node:assert/strict';
+import { mkdirSync, writeFileSync } from 'node:fs';
+import { join } from 'node:path';
+import { decodePng, launchBrowser, ROOT, startServer } from './lib.mjs';
+
+const VIEW = { width: 640, height: 400 };
+// Pitched 35° down: levels 0 to 4 and beyond in one frame, the page grid crossed many times.
+const CAMERA = { x: 50_000.25, y: 50_000.75, height: 220, yaw: 17, pitch: 35, fov: 60 };
+const FLAGSHIP = 'Pebbles — chaos mosaic 100k';
+
+let server;
+let browser;
+let info;
+
+before(async () => {
+  server = await startServer();
+  browser = await launchBrowser(VIEW);
+  const { textures } = await (await fetch(`${server.url}/api/v1/textures`)).json();
+  info = textures.find((t) => t.name === FLAGSHIP);
+  assert.ok(info, `the demo textures include ${FLAGSHIP}`);
+});
+
+after(async () => {
+  await browser?.close();
+  await server?.stop();
+});
+
+/** Opens the demo with `query`, recording every page the network is asked for, in order. */
+async function openDemo(query) {
+  const page = await browser.context.newPage();
+  const log = { errors: [], bad: [], pages: [] };
+  page.on('pageerror', (e) => log.errors.push(String(e)));
+  page.on('console', (m) => m.type() === 'error' && log.errors.push(m.text()));
+  page.on('response', (r) => r.status() >= 400 && log.bad.push(`${r.status()} ${r.url()}`));
+  page.on('request', (r) => {
+    const u = new URL(r.url());
+    if (u.pathname.endsWith('/tiles') && u.searchParams.has('pages')) log.pages.push(...u.searchParams.get('pages').split(','));
+  });
+  await page.goto(`${server.url}/vt.html?${query}`);
+  await page.waitForFunction(() => window.vtDemo && (window.vtDemo.error || window.vtDemo.state.settled || window.vtDemo.state.done), null, {
+    timeout: 120_000,
+    polling: 100,
+  });
+  const error = await page.evaluate(() => window.vtDemo.error || window.vtDemo.state.error);
+  assert.equal(error, null, 'the demo reports no error');
+  return { page, log };
+}
+
+/**
+ * Replays the demo's log ({ event, key }, in order): a page is requested only when it is neither
+ * resident nor in flight. Returns the number of evictions.
+ */
+function checkNoRequestWhileHeld(events) {
+  const resident = new Set();
+  const inFlight = new Set();
+  let evictions = 0;
+  for (const { event, key, frame } of events) {
+    if (event === 'request') {
+      assert.ok(!resident.has(key), `page ${key} requested at frame ${frame} while resident`);
+      assert.ok(!inFlight.has(key), `page ${key} requested at frame ${frame} while in flight`);
+      inFlight.add(key);
+    } else if (event === 'resident') {
+      assert.ok(inFlight.delete(key), `page ${key} became resident without a request`);
+      resident.add(key);
+    } else if (event === 'drop') {
+      inFlight.delete(key);
+    } else if (event === 'evict') {
+      assert.ok(resident.delete(key), `page ${key} evicted while not resident`);
+      evictions++;
+    }
+  }
+  return evictions;
+}
+
+const toLinear = (c) => {
+  const v = c / 255;
+  return v <= 0.04045 ? v / 12.92 : ((v + 0.055) / 1.055) ** 2.4;
+};
+const toSrgb = (v) => 255 * (v <= 0.0031308 ? v * 12.92 : 1.055 * v ** (1 / 2.4) - 0.055);
+
+/** Level-0 texel coordinates where the ray through screen point (sx, sy) (GL: y up) meets the ground. */
+function groundAt(c, sx, sy) {
+  const [yaw, pitch] = [(c.yaw * Math.PI) / 180, (c.pitch * Math.PI) / 180];
+  const tan = Math.tan((c.fov * Math.PI) / 360);
+  const nx = (sx / VIEW.width) * 2 - 1;
+  const ny = (sy / VIEW.height) * 2 - 1;
+  const f = [Math.sin(yaw) * Math.cos(pitch), -Math.cos(yaw) * Math.cos(pitch), -Math.sin(pitch)];
+  const r = [Math.cos(yaw), Math.sin(yaw), 0];
+  const u = [Math.sin(yaw) * Math.sin(pitch), -Math.cos(yaw) * Math.sin(pitch), Math.cos(pitch)];
+  const ax = (nx * tan * VIEW.width) / VIEW.height;
+  const d = [0, 1, 2].map((i) => f[i] + ax * r[i] + ny * tan * u[i]);
+  if (d[2] >= -1e-6) return null;
+  const t = -c.height / d[2];
+  return [c.x + t * d[0], c.y + t * d[1]];
+}
+
+test('at a fixed camera the frame equals a render from the server’s regions', async () => {
+  const camera = [CAMERA.x, CAMERA.y, CAMERA.height, CAMERA.yaw, CAMERA.pitch].join(',');
+  // RGBA pages and bilinear filtering (aniso=1): the reference is exact up to the GPU's filtering.
+  const { page, log } = await openDemo(`texture=${info.id}&camera=${camera}&format=rgba&aniso=1`);
+  const demo = await page.evaluate(() => ({ maxLevel: window.vtDemo.pyramid.maxLevel, log: window.vtDemo.state.log }));
+  await page.evaluate(() => {
+    document.getElementById('overlay').hidden = true;
+    document.getElementById('back').hidden = true;
+  });
+  const shot = decodePng(await page.locator('#view').screenshot());
+  mkdirSync(join(ROOT, 'target', 'browser'), { recursive: true });
+  writeFileSync(join(ROOT, 'target', 'browser', 'vt-demo-fixed.png'), await page.locator('#view').screenshot());
+  assert.equal(shot.width, VIEW.width);
+
+  // A grid of screen pixels on the ground; the texel and the level each shows, as the shader
+  // chooses it (log2 of the larger screen-space derivative, rounded), skipping pixels within
+  // 0.15 of a level change, where the GPU's per-quad derivatives may round the other way.
+  const samples = [];
+  for (let py = 3; py < VIEW.height; py += 12) {
+    for (let px = 5; px < VIEW.width; px += 12) {
+      const sx = px + 0.5;
+      const sy = VIEW.height - py - 0.5;
+      const [p, pdx, pdy] = [groundAt(CAMERA, sx, sy), groundAt(CAMERA, sx + 1, sy), groundAt(CAMERA, sx, sy + 1)];
+      if (!p || !pdx || !pdy) continue;
+      const major = Math.max(Math.hypot(pdx[0] - p[0], pdx[1] - p[1]), Math.hypot(pdy[0] - p[0], pdy[1] - p[1]));
+      const lod = Math.log2(major);
+      if (Math.abs(lod - Math.round(lod)) > 0.35) continue;
+      const level = Math.min(demo.maxLevel, Math.max(0, Math.round(lod)));
+      samples.push({ px, py, level, u: p[0] / 2 ** level - 0.5, v: p[1] / 2 ** level - 0.5 });
+    }
+  }
+  const levels = new Set(samples.map((s) => s.level));
+  assert.ok(samples.length >= 300 && levels.size >= 4, `${samples.length} samples over levels ${[...levels]}`);
+
+  let worst = 0;
+  let sum = 0;
+  for (const s of samples) {
+    const [i, j] = [Math.floor(s.u), Math.floor(s.v)];
+    const [fx, fy] = [s.u - i, s.v - j];
+    const q = `level=${s.level}&x=${i}&y=${j}&w=2&h=2&format=rgba`;
+    const r = await fetch(`${server.url}/api/v1/textures/${info.id}/region?${q}`);
+    assert.equal(r.status, 200, q);
+    const px4 = new Uint8Array(await r.arrayBuffer());
+    for (let c = 0; c < 3; c++) {
+      const at = (k) => toLinear(px4[k * 4 + c]);
+      const lin = (at(0) * (1 - fx) + at(1) * fx) * (1 - fy) + (at(2) * (1 - fx) + at(3) * fx) * fy;
+      const d = Math.abs(shot.data[(s.py * shot.width + s.px) * 4 + c] - toSrgb(lin));
+      worst = Math.max(worst, d);
+      sum += d;
+    }
+  }
+  const mean = sum / (samples.length * 3);
+  console.log(`# ${samples.length} pixels over levels ${[...levels].sort()}: mean |Δ| ${mean.toFixed(2)}, max ${worst.toFixed(1)} of 255`);
+  // Tolerance: the GPU's bilinear weights are quantized (8 fractional bits in SwiftShader, so a
+  // weight is off by up to 1/512), the texel coordinates are float32 (about 0.004 texel at
+  // 50,000), and its sRGB decoding and the shader's encoding round; where neighbouring texels
+  // differ by up to 255 these give a few levels. A page from the wrong place, a border ignored
+  // or a wrong level gives tens.
+  assert.ok(mean <= 0.5, `mean difference ${mean.toFixed(2)}`);
+  assert.ok(worst <= 2, `largest difference ${worst.toFixed(1)}`);
+
+  checkNoRequestWhileHeld(demo.log);
+  const logged = demo.log.filter((e) => e.event === 'request').map((e) => e.key);
+  assert.deepEqual(log.pages, logged, 'the demo’s log holds every page the network was asked for');
+  assert.deepEqual(log.errors, []);
+  assert.deepEqual(log.bad, []);
+  await page.close();
+});
+
+test('a fly-through through a small atlas evicts, and never asks for a page it holds', async () => {
+  // 7² slots: fewer than the pages a moving view touches, so pages are evicted and asked again.
+  const { page, log } = await openDemo(`texture=${info.id}&format=bc7&slots=7&frames=90`);
+  const demo = await page.evaluate(() => ({ log: window.vtDemo.state.log, slots: window.vtDemo.cache.slots.length, size: window.vtDemo.cache.size }));
+  writeFileSync(join(ROOT, 'target', 'browser', 'vt-demo-flight.png'), await page.locator('#view').screenshot());
+  const evictions = checkNoRequestWhileHeld(demo.log);
+  assert.ok(evictions > 0, 'the flight overflows the atlas');
+  assert.ok(demo.size <= demo.slots);
+  assert.deepEqual(log.pages, demo.log.filter((e) => e.event === 'request').map((e) => e.key));
+  assert.deepEqual(log.errors, []);
+  assert.deepEqual(log.bad, []);
+  await page.close();
+});
