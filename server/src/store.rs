@@ -75,6 +75,9 @@ pub struct TextureInfo {
     pub domain: Domain,
     pub animated: bool,
     pub animation: Option<Animation>,
+    /// The parameters it was created with (its manifest's): posted back to the upload with
+    /// its model and input images, they make this very texture again.
+    pub params: serde_json::Value,
 }
 
 /// What the store knows of a stored bundle without loading its texture: its manifest and plan.
@@ -137,6 +140,7 @@ impl Record {
             domain: p.domain,
             animated: p.animation.is_some(),
             animation: p.animation,
+            params: self.manifest.params.clone(),
         }
     }
 
