@@ -59,7 +59,7 @@ pub fn served_levels(width: u64, height: u64, tile_size: u32) -> u32 {
 }
 
 /// What clients see of a texture: the items of the texture list and `GET /api/v1/textures/{id}`.
-#[derive(Clone, Debug, Serialize, serde::Deserialize, PartialEq)]
+#[derive(Clone, Debug, Serialize, serde::Deserialize, PartialEq, utoipa::ToSchema)]
 pub struct TextureInfo {
     pub id: String,
     pub name: String,
@@ -72,9 +72,17 @@ pub struct TextureInfo {
     /// Bytes of the explicit 24-bit level 0 the encoding stands for.
     pub explicit_bytes: u64,
     pub wraps: bool,
+    /// `torus` (wraps) or `plane` (defined everywhere, served over its extent).
+    #[schema(value_type = String)]
     pub domain: Domain,
     pub animated: bool,
+    /// The animation's period and frame rate, for animated textures.
+    #[schema(value_type = Option<Object>)]
     pub animation: Option<Animation>,
+    /// The parameters it was created with (its manifest's): posted back to the upload with
+    /// its model and input images, they make this very texture again.
+    #[schema(value_type = Object)]
+    pub params: serde_json::Value,
 }
 
 /// What the store knows of a stored bundle without loading its texture: its manifest and plan.
@@ -137,6 +145,7 @@ impl Record {
             domain: p.domain,
             animated: p.animation.is_some(),
             animation: p.animation,
+            params: self.manifest.params.clone(),
         }
     }
 

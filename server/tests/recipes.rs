@@ -1,4 +1,5 @@
-//! A texture's params are its recipe: posted back they make it again bit for bit, and a PATCH
+//! A texture's params, as its info reports them, are its recipe: posted back they make it again
+//! bit for bit, and a PATCH
 //! that changes them makes the texture again from them — for every model, over HTTP.
 
 mod common;
@@ -54,12 +55,16 @@ async fn every_demo_is_made_again_from_the_params_it_reports() {
     assert_eq!(all.len(), models::demos().len());
     for t in all {
         let id = t["id"].as_str().unwrap();
+        let one: Value = c.get(s.url(&format!("/api/v1/textures/{id}"))).send().await.unwrap().json().await.unwrap();
+        assert_eq!(&one, t, "the list's item is the texture's info");
+        // The info's model, name and params, with the input images the bundle holds.
+        let (model, name, params) = (t["model"].as_str().unwrap(), t["name"].as_str().unwrap(), &t["params"]);
         let b = encoding(&c, &s, id).await;
-        let inputs = models::get(&b.manifest.model).unwrap().inputs_of(&b).unwrap();
-        let (status, info) =
-            post_recipe(&c, &s, &b.manifest.model, &b.manifest.name, &b.manifest.params, &inputs).await;
-        assert_eq!(status, 200, "{}: {info}", b.manifest.name);
-        assert_eq!(info["id"], id, "{}: made again, it is another texture", b.manifest.name);
+        assert_eq!(params, &b.manifest.params, "{name}: the info's params are the manifest's");
+        let inputs = models::get(model).unwrap().inputs_of(&b).unwrap();
+        let (status, info) = post_recipe(&c, &s, model, name, params, &inputs).await;
+        assert_eq!(status, 200, "{name}: {info}");
+        assert_eq!(info["id"], id, "{name}: made again, it is another texture");
     }
     assert_eq!(store_files(dir.path()).len(), all.len(), "nothing new was stored");
 }

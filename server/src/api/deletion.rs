@@ -2,6 +2,7 @@
 
 use super::error::ApiError;
 use super::extract::{NoQuery, Path, Query};
+use super::openapi::ErrorBody;
 use super::{check_id, no_texture, App, TextureId};
 use axum::extract::State;
 use axum::http::StatusCode;
@@ -10,6 +11,11 @@ use axum::http::StatusCode;
 /// other servers sharing the directory stop serving it when their watch sees it go, or on
 /// their next miss. Requests in flight finish with the texture they hold. Tiles cached by
 /// proxies in front are not recalled: tile URLs are immutable.
+#[utoipa::path(delete,
+    path = "/api/v1/textures/{id}",
+    tag = "textures",
+    params(("id" = String, Path, description = "texture id: 64 lowercase hex characters, the BLAKE3 of its bundle")),
+    responses((status = 204, description = "deleted"), (status = 400, description = "a malformed path or query, named in the message", body = ErrorBody), (status = 404, description = "no such texture, or a tile outside its level", body = ErrorBody)))]
 pub async fn delete(
     State(app): State<App>,
     Path(TextureId { id }): Path<TextureId>,

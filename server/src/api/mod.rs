@@ -1,5 +1,6 @@
-//! The HTTP API v1, the static viewer, and the layers around them. [`router`] is the one
-//! table of routes: requests are matched there and nowhere else.
+//! The HTTP API v1, the static viewer, and the layers around them. [`routes`] is the one
+//! table of routes: requests are matched there and nowhere else ([`router`] wraps it in the
+//! layers, and the OpenAPI description is checked against it).
 
 pub mod batch;
 mod deletion;
@@ -10,6 +11,7 @@ mod front;
 mod health;
 mod iiif;
 pub mod models;
+pub mod openapi;
 mod origin;
 pub mod pages;
 pub mod params;
@@ -32,7 +34,7 @@ use axum::extract::{DefaultBodyLimit, MatchedPath, Request, State};
 use axum::http::{header, HeaderMap, HeaderName, HeaderValue, Method, StatusCode};
 use axum::middleware::{self, Next};
 use axum::response::{IntoResponse, Response};
-use axum::routing::{any, delete, get};
+use axum::routing::{any, delete, get, MethodRouter};
 use axum::{BoxError, Router};
 use error::ApiError;
 use extract::{NoQuery, Query};
@@ -242,7 +244,33 @@ pub fn router(app: App) -> Router {
         .layer(HandleErrorLayer::new(on_timeout))
         .timeout(limit)
         .layer(DefaultBodyLimit::max(app.cfg.max_upload_bytes()));
-    Router::new()
+    routes().router.method_not_allowed_fallback(method_not_allowed).merge(viewer(&app)).layer(layers).with_state(app)
+}
+
+/// The route table as it is built: the router, and the path of every route in it.
+#[derive(Default)]
+struct Table {
+    router: Router<App>,
+    paths: Vec<&'static str>,
+}
+
+impl Table {
+    fn route(mut self, path: &'static str, method_router: MethodRouter<App>) -> Table {
+        self.router = self.router.route(path, method_router);
+        self.paths.push(path);
+        self
+    }
+}
+
+/// The path of every route, in table order, once per `route` (the OpenAPI description is
+/// checked against them).
+pub fn route_paths() -> Vec<&'static str> {
+    routes().paths
+}
+
+/// The table of routes.
+fn routes() -> Table {
+    Table::default()
         .route("/api/v1/textures", get(textures::list).post(textures::upload))
         .route("/api/v1/textures/{id}", get(textures::info).patch(textures::patch))
         .route("/api/v1/textures/{id}/encoding", get(textures::encoding))
@@ -272,12 +300,10 @@ pub fn router(app: App) -> Router {
         .route("/api/v1/models/{id}", get(models::model))
         .route(models::EXAMPLE_INPUT, get(models::example_image))
         .route("/metrics", get(metrics))
+        // The OpenAPI 3.1 description of this table (openapi.rs).
+        .route("/api/v1/openapi.json", get(openapi::openapi_json))
         .route("/api", any(api_not_found))
         .route("/api/{*rest}", any(api_not_found))
-        .method_not_allowed_fallback(method_not_allowed)
-        .merge(viewer(&app))
-        .layer(layers)
-        .with_state(app)
 }
 
 /// The viewer at `/` and every path no route takes: from `--web-dir` when given, else the copy
@@ -359,6 +385,10 @@ fn count(app: &AppState, route: &str, method: &Method, start: Instant, resp: &Re
     app.metrics.request_done(route, method, resp.status(), start.elapsed().as_secs_f64(), bytes);
 }
 
+#[utoipa::path(get,
+    path = "/metrics",
+    tag = "operations",
+    responses((status = 200, description = "Prometheus text format", content(("text/plain")))))]
 async fn metrics(State(app): State<App>, _: Query<NoQuery>) -> Response {
     let m = &app.metrics;
     m.cache_bytes.set(app.cache.bytes() as i64);

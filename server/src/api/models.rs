@@ -5,6 +5,7 @@
 
 use super::error::{echo, ApiError};
 use super::extract::{NoQuery, Path, Query};
+use super::openapi::ErrorBody;
 use super::textures::{json_validated, validated};
 use axum::http::HeaderMap;
 use axum::response::Response;
@@ -15,13 +16,13 @@ use std::sync::LazyLock;
 use vtex_synth::models::{self, Example, Model};
 
 /// `GET /api/v1/models`.
-#[derive(Clone, Debug, Serialize)]
+#[derive(Clone, Debug, Serialize, utoipa::ToSchema)]
 pub struct ModelList {
     pub models: Vec<ModelDoc>,
 }
 
 /// One model: what it is, what `create` takes, and an example of it.
-#[derive(Clone, Debug, Serialize)]
+#[derive(Clone, Debug, Serialize, utoipa::ToSchema)]
 pub struct ModelDoc {
     /// The id uploads and bundles name (`model` of a multipart upload).
     pub id: String,
@@ -30,6 +31,7 @@ pub struct ModelDoc {
     pub paper: String,
     pub summary: String,
     /// JSON Schema (draft 2020-12) of the `params` of an upload.
+    #[schema(value_type = Object)]
     pub params_schema: Value,
     /// The input images an upload may carry, as multipart fields of these names.
     pub inputs: Vec<InputDoc>,
@@ -37,7 +39,7 @@ pub struct ModelDoc {
 }
 
 /// One input image of a model.
-#[derive(Clone, Debug, Serialize)]
+#[derive(Clone, Debug, Serialize, utoipa::ToSchema)]
 pub struct InputDoc {
     /// The multipart field name; `*` stands for any name the parameters give an input.
     pub name: String,
@@ -47,15 +49,16 @@ pub struct InputDoc {
 
 /// Parameters and input images that create a small texture of the model quickly when posted
 /// as a multipart upload (`model`, `params`, one field per input).
-#[derive(Clone, Debug, Serialize)]
+#[derive(Clone, Debug, Serialize, utoipa::ToSchema)]
 pub struct ExampleDoc {
+    #[schema(value_type = Object)]
     pub params: Value,
     /// Every input image `params` needs, by multipart field name.
     pub inputs: BTreeMap<String, ExampleInputDoc>,
 }
 
 /// Where to get an example's input image.
-#[derive(Clone, Debug, Serialize)]
+#[derive(Clone, Debug, Serialize, utoipa::ToSchema)]
 pub struct ExampleInputDoc {
     /// What the image is and how vtex drew it.
     pub what: String,
@@ -145,11 +148,20 @@ pub struct ExampleFile {
 }
 
 /// `GET /api/v1/models`
+#[utoipa::path(get,
+    path = "/api/v1/models",
+    tag = "models",
+    responses((status = 200, description = "every model (strong ETag, `no-cache`)", body = ModelList), (status = 400, description = "a malformed path or query, named in the message", body = ErrorBody)))]
 pub async fn list_models(_: Query<NoQuery>, headers: HeaderMap) -> Response {
     json_validated(&headers, &list())
 }
 
 /// `GET /api/v1/models/{id}`
+#[utoipa::path(get,
+    path = "/api/v1/models/{id}",
+    tag = "models",
+    params(("id" = String, Path, description = "model id, e.g. `chaos-mosaic`")),
+    responses((status = 200, description = "the model", body = ModelDoc), (status = 404, description = "no such model; the message names the models", body = ErrorBody)))]
 pub async fn model(
     Path(ModelId { id }): Path<ModelId>,
     _: Query<NoQuery>,
@@ -160,6 +172,11 @@ pub async fn model(
 
 /// `GET /api/v1/models/{id}/example/{input}.png`: revalidated like the JSON (another build may
 /// draw another example).
+#[utoipa::path(get,
+    path = "/api/v1/models/{id}/example/{file}",
+    tag = "models",
+    params(("id" = String, Path, description = "model id"), ("file" = String, Path, description = "`{input}.png`, an input of the model's example")),
+    responses((status = 200, description = "the example's input image", content(("image/png"))), (status = 404, description = "no such model or example input", body = ErrorBody)))]
 pub async fn example_image(
     Path(ExampleFile { id, file }): Path<ExampleFile>,
     _: Query<NoQuery>,

@@ -2,6 +2,7 @@
 
 use super::error::{echo, ApiError};
 use super::extract::{NoQuery, Path, Query};
+use super::openapi::ErrorBody;
 use super::{
     declared_length, not_modified, not_modified_response, read_body, record, refuse_oversized, App, TextureId,
     CACHE_IMMUTABLE,
@@ -15,16 +16,31 @@ use serde_json::Value;
 use vtex_synth::bundle::Bundle;
 use vtex_synth::models::{self, Inputs, Limits};
 
+/// `GET /api/v1/textures`: every texture, sorted by name.
+#[derive(serde::Serialize, utoipa::ToSchema)]
+pub struct TextureList {
+    pub textures: Vec<TextureInfo>,
+}
+
 /// Most multipart fields an upload may carry (model, name, params and input images).
 const MAX_FIELDS: usize = 16;
 /// Largest PATCH body: a merge patch of names and parameters.
 const MAX_PATCH_BYTES: usize = 1 << 20;
 
+#[utoipa::path(get,
+    path = "/api/v1/textures",
+    tag = "textures",
+    responses((status = 200, description = "every texture, by name (strong ETag, `no-cache`)", body = TextureList), (status = 400, description = "a malformed path or query, named in the message", body = ErrorBody)))]
 pub async fn list(State(app): State<App>, _: Query<NoQuery>, headers: HeaderMap) -> Response {
     let textures: Vec<TextureInfo> = app.store.list().iter().map(|e| e.info()).collect();
-    json_validated(&headers, &serde_json::json!({ "textures": textures }))
+    json_validated(&headers, &TextureList { textures })
 }
 
+#[utoipa::path(get,
+    path = "/api/v1/textures/{id}",
+    tag = "textures",
+    params(("id" = String, Path, description = "texture id: 64 lowercase hex characters, the BLAKE3 of its bundle")),
+    responses((status = 200, description = "the texture's info (strong ETag, `no-cache`)", body = TextureInfo), (status = 400, description = "a malformed path or query, named in the message", body = ErrorBody), (status = 404, description = "no such texture, or a tile outside its level", body = ErrorBody)))]
 pub async fn info(
     State(app): State<App>,
     Path(TextureId { id }): Path<TextureId>,
@@ -58,6 +74,11 @@ pub(super) fn validated(headers: &HeaderMap, content_type: &'static str, body: b
 
 /// The bundle bytes exactly as stored, read whole once their length is reserved from the
 /// in-flight budget. The id is the content hash: a perfect strong ETag.
+#[utoipa::path(get,
+    path = "/api/v1/textures/{id}/encoding",
+    tag = "textures",
+    params(("id" = String, Path, description = "texture id: 64 lowercase hex characters, the BLAKE3 of its bundle")),
+    responses((status = 200, description = "the bundle bytes exactly as stored (ETag: the id)", content(("application/octet-stream"))), (status = 400, description = "a malformed path or query, named in the message", body = ErrorBody), (status = 404, description = "no such texture, or a tile outside its level", body = ErrorBody), (status = 503, description = "synthesis queue full, in-flight budget spent or shutting down (`Retry-After`)", body = ErrorBody)))]
 pub async fn encoding(
     State(app): State<App>,
     Path(TextureId { id }): Path<TextureId>,
@@ -106,6 +127,11 @@ async fn store_bundle(app: &App, bytes: Vec<u8>) -> Result<(StatusCode, Json<Tex
 }
 
 /// `POST /api/v1/textures`: a raw bundle, or multipart `model`, `name`, `params` + input images.
+#[utoipa::path(post,
+    path = "/api/v1/textures",
+    tag = "textures",
+    request_body(description = "a bundle (`application/octet-stream`), or multipart fields `model`, `name`, `params` (JSON text) and one per input image (see `GET /api/v1/models`)", content(("application/octet-stream"), ("multipart/form-data"))),
+    responses((status = 201, description = "stored", body = TextureInfo), (status = 200, description = "the identical bundle was already stored", body = TextureInfo), (status = 400, description = "invalid bundle, model, parameters or input image, named", body = ErrorBody), (status = 413, description = "body over `--max-upload-mb`", body = ErrorBody), (status = 415, description = "neither a bundle nor multipart", body = ErrorBody), (status = 422, description = "over a cost bound of the server", body = ErrorBody), (status = 507, description = "the store is full", body = ErrorBody)))]
 pub async fn upload(
     State(app): State<App>,
     _: Query<NoQuery>,
@@ -205,6 +231,12 @@ pub fn merge_patch(target: &mut Value, patch: &Value) {
 /// texture is made again by its model from the patched params (everything they derive
 /// follows them), or refused naming the field it cannot remake; the result is stored as a
 /// new texture (bundles are immutable).
+#[utoipa::path(patch,
+    path = "/api/v1/textures/{id}",
+    tag = "textures",
+    params(("id" = String, Path, description = "texture id: 64 lowercase hex characters, the BLAKE3 of its bundle")),
+    request_body(description = "JSON merge patch (RFC 7396) of `name` and `params`", content(("application/json"))),
+    responses((status = 201, description = "the new texture made from the patched name and params", body = TextureInfo), (status = 400, description = "not a patch of `name` and `params`, or params its model cannot remake, named", body = ErrorBody), (status = 404, description = "no such texture, or a tile outside its level", body = ErrorBody), (status = 422, description = "over a cost bound of the server", body = ErrorBody)))]
 pub async fn patch(
     State(app): State<App>,
     Path(TextureId { id }): Path<TextureId>,

@@ -1,0 +1,90 @@
+//! The OpenAPI 3.1 description of the whole API, `GET /api/v1/openapi.json`, generated from the
+//! handlers' `#[utoipa::path]` annotations and the response types' schemas. The route table
+//! ([`super::router`]) is where routes are declared; `server/tests/openapi.rs` holds the two
+//! equal: every route of the table is described here, and every path described here answers.
+
+use super::extract::{NoQuery, Query};
+use super::textures::json_validated;
+use super::{batch, deletion, dzi, health, iiif, models, pages, textures, tilejson, tiles};
+use axum::http::HeaderMap;
+use axum::response::Response;
+use serde::Serialize;
+use std::sync::LazyLock;
+use utoipa::{OpenApi, ToSchema};
+
+/// Every error's body.
+#[derive(Serialize, ToSchema)]
+pub struct ErrorBody {
+    /// What is wrong, naming the parameter, limit or resource.
+    pub error: String,
+}
+
+#[derive(OpenApi)]
+#[openapi(
+    info(
+        title = "vtex",
+        description = "Virtual textures: compact encodings stored, any tile of any mip level synthesized on \
+                       demand, identical every time. Errors are JSON `{\"error\": …}` with a 4xx status for \
+                       anything the client got wrong."
+    ),
+    paths(
+        textures::list,
+        textures::upload,
+        textures::info,
+        textures::patch,
+        deletion::delete,
+        textures::encoding,
+        batch::batch,
+        tiles::tile,
+        tiles::region,
+        health::healthz,
+        health::readyz,
+        pages::page,
+        pages::mip_chain,
+        dzi::descriptor,
+        dzi::tile,
+        iiif::base,
+        iiif::info,
+        iiif::image,
+        tilejson::tilejson,
+        tilejson::xyz,
+        models::list_models,
+        models::model,
+        models::example_image,
+        super::metrics,
+        openapi_json,
+    ),
+    components(schemas(ErrorBody)),
+    tags(
+        (name = "textures", description = "Texture resources: list, info, upload, edit, delete, encoding"),
+        (name = "tiles", description = "Tiles, tile batches and regions of any level"),
+        (name = "pages", description = "Virtual-texturing pages with borders, KTX2 mip chains"),
+        (name = "interop", description = "Deep Zoom, IIIF Image API 3, TileJSON and XYZ over the same tiles"),
+        (name = "models", description = "The texture models: parameter schemas and examples"),
+        (name = "operations", description = "Liveness, readiness, metrics and this description"),
+    )
+)]
+struct ApiDoc;
+
+/// Routes of the table that answer only errors (the JSON 404 of unknown API and IIIF paths):
+/// not part of the description.
+pub const UNDESCRIBED: &[&str] = &["/iiif", "/iiif/{*rest}", "/api", "/api/{*rest}"];
+
+/// The description, built once.
+static DOCUMENT: LazyLock<utoipa::openapi::OpenApi> = LazyLock::new(|| {
+    let mut doc = ApiDoc::openapi();
+    doc.info.version = env!("CARGO_PKG_VERSION").into();
+    doc
+});
+
+/// The OpenAPI document of the API.
+pub fn document() -> &'static utoipa::openapi::OpenApi {
+    &DOCUMENT
+}
+
+/// `GET /api/v1/openapi.json`
+#[utoipa::path(get, path = "/api/v1/openapi.json", tag = "operations",
+    responses((status = 200, description = "This OpenAPI 3.1 document (strong ETag, `no-cache`)", content_type = "application/json")))]
+pub async fn openapi_json(_: Query<NoQuery>, headers: HeaderMap) -> Response {
+    json_validated(&headers, document())
+}
