@@ -5,23 +5,23 @@
 // the wasm module; see scripts/test)
 import test, { after, before } from 'node:test';
 import assert from 'node:assert/strict';
-import { compareScreenToServerTile, launchBrowser, openViewer, setAlignedView, startServer, waitForIdle } from './lib.mjs';
+import {
+  closeSession,
+  compareScreenToServerTile,
+  openViewer,
+  setAlignedView,
+  startServer,
+  startSession,
+  waitForIdle,
+} from './lib.mjs';
 
 let server;
 let browser;
 let textures;
 
-before(async () => {
-  server = await startServer();
-  // A small window: fewer tiles to synthesize per view, the same checks.
-  browser = await launchBrowser({ width: 800, height: 520 });
-  textures = (await (await fetch(`${server.url}/api/v1/textures`)).json()).textures;
-});
-
-after(async () => {
-  await browser?.close();
-  await server?.stop();
-});
+// A small window: fewer tiles to synthesize per view, the same checks.
+before(async () => ({ server, browser, textures } = await startSession({ browserSize: { width: 800, height: 520 } })));
+after(() => closeSession({ server, browser }));
 
 const tileRequests = (urls) => urls.filter((u) => /\/api\/v1\/textures\/[^/]+\/tiles/.test(u));
 const encodingRequests = (urls) => urls.filter((u) => /\/api\/v1\/textures\/[^/]+\/encoding$/.test(u));

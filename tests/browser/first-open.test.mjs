@@ -6,13 +6,13 @@ import { mkdirSync, writeFileSync } from 'node:fs';
 import { join } from 'node:path';
 import {
   ROOT,
+  closeSession,
   compareScreenToImage,
   decodePng,
   fetchServerTile,
-  launchBrowser,
   openViewer,
   setAlignedView,
-  startServer,
+  startSession,
   tileRequests,
   waitForIdle,
 } from './lib.mjs';
@@ -25,16 +25,8 @@ let server;
 let browser;
 let textures;
 
-before(async () => {
-  server = await startServer();
-  browser = await launchBrowser();
-  textures = (await (await fetch(`${server.url}/api/v1/textures`)).json()).textures;
-});
-
-after(async () => {
-  await browser?.close();
-  await server?.stop();
-});
+before(async () => ({ server, browser, textures } = await startSession()));
+after(() => closeSession({ server, browser }));
 
 /**
  * How much a screenshot shows: colours at 5 bits a channel that each cover at least 0.1 % of

@@ -118,6 +118,23 @@ export async function launchBrowser({ width = 1280, height = 800 } = {}) {
 }
 
 /**
+ * What most browser test files start with: a server with the demos, a browser (`browserSize`,
+ * launchBrowser's default if none) and the server's texture list. Close with closeSession.
+ */
+export async function startSession({ browserSize } = {}) {
+  const server = await startServer();
+  const browser = await launchBrowser(browserSize);
+  const { textures } = await (await fetch(`${server.url}/api/v1/textures`)).json();
+  return { server, browser, textures };
+}
+
+/** Closes what startSession started (either may be missing if it failed part-way). */
+export async function closeSession({ server, browser }) {
+  await browser?.close();
+  await server?.stop();
+}
+
+/**
  * Opens `url` in a new page that records console errors, page errors, failed requests and
  * every request made, so tests can assert on all of them.
  */

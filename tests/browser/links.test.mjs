@@ -2,22 +2,14 @@
 // texture it shows instead.
 import test, { after, before } from 'node:test';
 import assert from 'node:assert/strict';
-import { launchBrowser, openViewer, startServer, tileRequests, waitForIdle } from './lib.mjs';
+import { closeSession, openViewer, startSession, tileRequests, waitForIdle } from './lib.mjs';
 
 let server;
 let browser;
 let textures;
 
-before(async () => {
-  server = await startServer();
-  browser = await launchBrowser();
-  textures = (await (await fetch(`${server.url}/api/v1/textures`)).json()).textures;
-});
-
-after(async () => {
-  await browser?.close();
-  await server?.stop();
-});
+before(async () => ({ server, browser, textures } = await startSession()));
+after(() => closeSession({ server, browser }));
 
 test('a unique prefix of an id opens that texture', async () => {
   const smallest = textures.reduce((a, b) => (b.width * b.height < a.width * a.height ? b : a));

@@ -3,14 +3,14 @@
 import test, { after, before } from 'node:test';
 import assert from 'node:assert/strict';
 import {
+  closeSession,
   compareScreenToServerTile,
   decodePng,
   fetchServerTile,
-  launchBrowser,
   openViewer,
   screenPointOf,
   setAlignedView,
-  startServer,
+  startSession,
   tileRequests,
   waitForIdle,
 } from './lib.mjs';
@@ -22,17 +22,12 @@ let textures;
 let big;
 
 before(async () => {
-  server = await startServer();
-  browser = await launchBrowser();
-  textures = (await (await fetch(`${server.url}/api/v1/textures`)).json()).textures;
+  ({ server, browser, textures } = await startSession());
   big = textures.find((t) => t.width >= 100_000 && t.height >= 100_000);
   assert.ok(big, `the demo textures include a 100k × 100k one: ${textures.map((t) => `${t.name} ${t.width}×${t.height}`)}`);
 });
 
-after(async () => {
-  await browser?.close();
-  await server?.stop();
-});
+after(() => closeSession({ server, browser }));
 
 /** The viewer's batched tile requests among `urls`. */
 const batchRequests = (urls) => urls.filter((u) => /\/api\/v1\/textures\/[^/]+\/tiles\?/.test(u));
