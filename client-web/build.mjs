@@ -4,8 +4,8 @@
 // `cargo build -p vtex-synth-wasm --lib --target wasm32-unknown-unknown --profile wasm`).
 // Every text file and the module get a brotli (quality 11) and a gzip (level 9) copy beside
 // them, `X.br` and `X.gz`, which vtex (embedded or --web-dir) and any static server that looks
-// for such copies (nginx's gzip_static) send to clients that accept them. Not the page: vtex
-// and `vtex export-web` rewrite it.
+// for such copies (nginx's gzip_static) send to clients that accept them. Not the pages: vtex
+// (and `vtex export-web`, the viewer's) rewrite them.
 import { cpSync, existsSync, mkdirSync, readdirSync, readFileSync, rmSync, statSync, writeFileSync } from 'node:fs';
 import { dirname, extname, join } from 'node:path';
 import { fileURLToPath } from 'node:url';
@@ -31,7 +31,7 @@ if (license) cpSync(license, join(dist, 'osd', 'LICENSE.txt'));
 if (existsSync(wasm)) cpSync(wasm, join(dist, 'vtex_synth.wasm'));
 else console.warn(`${wasm} is not built: the viewer's client mode (?synth=client) will say so`);
 
-const COMPRESSIBLE = new Set(['.html', '.js', '.mjs', '.css', '.wasm', '.json', '.svg', '.map', '.txt']);
+const COMPRESSIBLE = new Set(['.js', '.mjs', '.css', '.wasm', '.json', '.svg', '.map', '.txt']);
 
 /** Writes the compressed copies of `path`, each only where it saves at least a tenth. */
 function precompress(path) {
@@ -47,7 +47,7 @@ function precompressTree(dir) {
   for (const name of readdirSync(dir)) {
     const path = join(dir, name);
     if (statSync(path).isDirectory()) precompressTree(path);
-    else if (COMPRESSIBLE.has(extname(name)) && path !== join(dist, 'index.html')) precompress(path);
+    else if (COMPRESSIBLE.has(extname(name))) precompress(path);
   }
 }
 precompressTree(dist);

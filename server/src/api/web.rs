@@ -2,9 +2,10 @@
 //!
 //! Every file is served twice: at `/{path}`, revalidated (`no-cache` and an ETag), and at
 //! `/assets/{build}/{path}`, cached for a year (`immutable`), `build` being a hash of every
-//! file. The page itself (`/`, `/index.html`) is revalidated and names its stylesheet and
-//! scripts by their `/assets/{build}/` URLs, so a browser fetches them once per build; the
-//! modules they import relatively resolve inside the same fingerprinted directory.
+//! file. The pages (`/` or `/index.html`, the viewer; `/vt.html`, the virtual-texturing demo)
+//! are revalidated and name their stylesheets and scripts by their `/assets/{build}/` URLs, so a
+//! browser fetches those once per build; the modules they import relatively resolve inside the
+//! same fingerprinted directory.
 //!
 //! Files come with the brotli and gzip copies the viewer's build made; a client that accepts
 //! one gets it (`Vary: Accept-Encoding`), others the file as it is.
@@ -60,7 +61,9 @@ impl Web {
     }
 
     fn from_files(files: &[File]) -> Option<Web> {
-        let index = files.iter().find(|f| f.path == "index.html")?;
+        if !files.iter().any(|f| f.path == "index.html") {
+            return None;
+        }
         let mut all = blake3::Hasher::new();
         for f in files {
             all.update(f.path.as_bytes()).update(&(f.bytes.len() as u64).to_le_bytes()).update(f.bytes);
@@ -83,12 +86,14 @@ impl Web {
         };
         let mut out: HashMap<String, Asset> =
             files.iter().map(|f| (f.path.to_string(), asset(f.path, f.bytes.to_vec(), f.br, f.gzip))).collect();
-        let mut page = String::from_utf8_lossy(index.bytes).into_owned();
-        for f in files.iter().filter(|f| f.path != "index.html") {
-            let path = f.path;
-            page = page.replace(&format!("=\"{path}\""), &format!("=\"{ASSETS}{build}/{path}\""));
+        for page in files.iter().filter(|f| is_page(f.path)) {
+            let mut html = String::from_utf8_lossy(page.bytes).into_owned();
+            for f in files.iter().filter(|f| !is_page(f.path)) {
+                let path = f.path;
+                html = html.replace(&format!("=\"{path}\""), &format!("=\"{ASSETS}{build}/{path}\""));
+            }
+            out.insert(page.path.to_string(), asset(page.path, html.into_bytes(), &[], &[]));
         }
-        out.insert(String::new(), asset("index.html", page.into_bytes(), &[], &[]));
         Some(Web { files: out, build })
     }
 
@@ -98,7 +103,7 @@ impl Web {
             Some((build, rest)) if build == self.build => (rest, true),
             Some(_) => return not_found(),
             None => match path.trim_start_matches('/') {
-                "index.html" => ("", false),
+                "" => ("index.html", false),
                 p => (p, false),
             },
         };
@@ -165,6 +170,12 @@ fn accepts(headers: &HeaderMap, encoding: &str) -> bool {
     named.or(any).unwrap_or(false)
 }
 
+/// A page of the build: its references to the other files are rewritten to their fingerprinted
+/// URLs (so it is never sent as a compressed copy the build made).
+fn is_page(path: &str) -> bool {
+    path.ends_with(".html") && !path.contains('/')
+}
+
 fn not_found() -> Response {
     (StatusCode::NOT_FOUND, [(header::CONTENT_TYPE, "text/plain; charset=utf-8")], "not found\n").into_response()
 }
@@ -207,7 +218,7 @@ mod tests {
             file("viewer.css", b"body{}"),
         ];
         let web = Web::from_files(files).unwrap();
-        let page = String::from_utf8(web.files[""].body.to_vec()).unwrap();
+        let page = String::from_utf8(web.files["index.html"].body.to_vec()).unwrap();
         let b = &web.build;
         assert_eq!(
             page,
@@ -231,6 +242,24 @@ mod tests {
         .unwrap();
         assert_ne!(other.build, web.build, "another build, another fingerprint");
         assert!(Web::from_files(&files[1..]).is_none(), "no page, no viewer");
+    }
+
+    #[test]
+    fn every_page_names_fingerprinted_assets_and_the_root_is_the_viewer() {
+        let web = Web::from_files(&[
+            file("index.html", b"<script src=\"main.js\"></script>"),
+            File { path: "vt.html", bytes: b"<script src=\"vt.js\"></script>", br: b"stale", gzip: b"stale" },
+            file("main.js", b""),
+            file("vt.js", b""),
+        ])
+        .unwrap();
+        let b = &web.build;
+        let body = |path: &str| web.files[path].body.clone();
+        assert_eq!(body("vt.html"), format!("<script src=\"/assets/{b}/vt.js\"></script>"));
+        assert!(web.files["vt.html"].br.is_empty(), "a rewritten page has no copy the build compressed");
+        let r = web.answer("/", &Request::get("/").header(header::ACCEPT_ENCODING, "br").body(Body::empty()).unwrap());
+        assert_eq!(r.headers()[header::ETAG], web.files["index.html"].etag);
+        assert_eq!(r.headers()[header::CACHE_CONTROL], "no-cache");
     }
 
     #[test]
