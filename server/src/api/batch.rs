@@ -34,6 +34,7 @@
 
 use super::error::{echo, ApiError};
 use super::extract::{Path, Query};
+use super::openapi::text;
 use super::openapi::ErrorBody;
 use super::pages::{self, page_format_value, PageFormat};
 use super::params::{de, u32_value};
@@ -258,8 +259,8 @@ impl BatchQuery {
 #[utoipa::path(get,
     path = "/api/v1/textures/{id}/tiles",
     tag = "tiles",
-    params(("id" = String, Path, description = "texture id: 64 lowercase hex characters, the BLAKE3 of its bundle"), ("format" = String, Query, description = "png, webp, jpg or rgba (ktx2 with `pages`)"), ("tiles" = Option<String>, Query, description = "`L/x/y,L/x/y,…`, at most 256 tiles"), ("pages" = Option<String>, Query, description = "`L/x/y,…` pages instead of tiles, with `size`, `border`, `codec`, `supercompression`"), ("size" = Option<u32>, Query, description = "page side (pages only)"), ("border" = Option<u32>, Query, description = "page border (pages only)"), ("codec" = Option<String>, Query, description = "KTX2 codec (pages only)"), ("supercompression" = Option<String>, Query, description = "KTX2 supercompression (pages only)"), ("frame" = Option<u32>, Query, description = "frame of an animated texture (reduced modulo its period); ignored for still ones")),
-    responses((status = 200, description = "a stream of frames, one per tile in completion order: a 32-byte header then the tile's bytes", content(("application/x-vtex-tile-batch"))), (status = 400, description = "a malformed path or query, named in the message", body = ErrorBody), (status = 404, description = "no such texture, or a tile outside its level", body = ErrorBody), (status = 503, description = "synthesis queue full, in-flight budget spent or shutting down (`Retry-After`)", body = ErrorBody)))]
+    params(("id" = String, Path, description = text::TEXTURE_ID), ("format" = String, Query, description = "png, webp, jpg or rgba (ktx2 with `pages`)"), ("tiles" = Option<String>, Query, description = "`L/x/y,L/x/y,…`, at most 256 tiles"), ("pages" = Option<String>, Query, description = "`L/x/y,…` pages instead of tiles, with `size`, `border`, `codec`, `supercompression`"), ("size" = Option<u32>, Query, description = "page side (pages only)"), ("border" = Option<u32>, Query, description = "page border (pages only)"), ("codec" = Option<String>, Query, description = "KTX2 codec (pages only)"), ("supercompression" = Option<String>, Query, description = "KTX2 supercompression (pages only)"), ("frame" = Option<u32>, Query, description = text::FRAME)),
+    responses((status = 200, description = "a stream of frames, one per tile in completion order: a 32-byte header then the tile's bytes", content(("application/x-vtex-tile-batch"))), (status = 400, description = text::BAD_REQUEST, body = ErrorBody), (status = 404, description = text::NOT_FOUND, body = ErrorBody), (status = 503, description = text::UNAVAILABLE, body = ErrorBody)))]
 pub async fn batch(
     State(app): State<App>,
     Path(TextureId { id }): Path<TextureId>,

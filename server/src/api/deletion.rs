@@ -2,6 +2,7 @@
 
 use super::error::ApiError;
 use super::extract::{NoQuery, Path, Query};
+use super::openapi::text;
 use super::openapi::ErrorBody;
 use super::{check_id, no_texture, App, TextureId};
 use axum::extract::State;
@@ -14,8 +15,8 @@ use axum::http::StatusCode;
 #[utoipa::path(delete,
     path = "/api/v1/textures/{id}",
     tag = "textures",
-    params(("id" = String, Path, description = "texture id: 64 lowercase hex characters, the BLAKE3 of its bundle")),
-    responses((status = 204, description = "deleted"), (status = 400, description = "a malformed path or query, named in the message", body = ErrorBody), (status = 404, description = "no such texture, or a tile outside its level", body = ErrorBody)))]
+    params(("id" = String, Path, description = text::TEXTURE_ID)),
+    responses((status = 204, description = "deleted"), (status = 400, description = text::BAD_REQUEST, body = ErrorBody), (status = 404, description = text::NOT_FOUND, body = ErrorBody)))]
 pub async fn delete(
     State(app): State<App>,
     Path(TextureId { id }): Path<TextureId>,

@@ -11,6 +11,7 @@
 
 use super::error::{echo, ApiError};
 use super::extract::{NoQuery, Path, Query};
+use super::openapi::text;
 use super::openapi::ErrorBody;
 use super::tiles::{self, frame_for};
 use super::view::{self, View};
@@ -74,8 +75,8 @@ fn service_url(headers: &HeaderMap, uri: &Uri, ident: &str) -> String {
 #[utoipa::path(get, operation_id = "iiif_base",
     path = "/iiif/3/{ident}",
     tag = "interop",
-    params(("ident" = String, Path, description = "a texture id, optionally `;frame`")),
-    responses((status = 303, description = "to its `info.json`"), (status = 404, description = "no such texture, or a tile outside its level", body = ErrorBody)))]
+    params(("ident" = String, Path, description = text::ID_AND_FRAME)),
+    responses((status = 303, description = "to its `info.json`"), (status = 404, description = text::NOT_FOUND, body = ErrorBody)))]
 pub async fn base(
     Path(IdentPath { ident }): Path<IdentPath>,
     _: Query<NoQuery>,
@@ -90,8 +91,8 @@ pub async fn base(
 #[utoipa::path(get, operation_id = "iiif_info",
     path = "/iiif/3/{ident}/info.json",
     tag = "interop",
-    params(("ident" = String, Path, description = "a texture id, optionally `;frame`")),
-    responses((status = 200, description = "IIIF Image API 3 image information (JSON-LD when asked for)", content(("application/json"))), (status = 404, description = "no such texture, or a tile outside its level", body = ErrorBody)))]
+    params(("ident" = String, Path, description = text::ID_AND_FRAME)),
+    responses((status = 200, description = "IIIF Image API 3 image information (JSON-LD when asked for)", content(("application/json"))), (status = 404, description = text::NOT_FOUND, body = ErrorBody)))]
 pub async fn info(
     State(app): State<App>,
     Path(IdentPath { ident }): Path<IdentPath>,
@@ -376,8 +377,8 @@ impl Request {
 #[utoipa::path(get, operation_id = "iiif_image",
     path = "/iiif/3/{ident}/{region}/{size}/{rotation}/{file}",
     tag = "interop",
-    params(("ident" = String, Path, description = "a texture id, optionally `;frame`"), ("region" = String, Path, description = "full, square, x,y,w,h or pct:x,y,w,h"), ("size" = String, Path, description = "max, ^max, w,, ,h, pct:n, w,h, !w,h (and ^ forms)"), ("rotation" = String, Path, description = "0, 90, 180, 270, optionally mirrored (!)"), ("file" = String, Path, description = "`{quality}.{format}`: default, color or gray; png, jpg or webp")),
-    responses((status = 200, description = "the image", content(("image/png"), ("image/webp"), ("image/jpeg"))), (status = 400, description = "a malformed path or query, named in the message", body = ErrorBody), (status = 404, description = "no such texture, or a tile outside its level", body = ErrorBody), (status = 501, description = "a well-formed request for a feature not offered", body = ErrorBody), (status = 503, description = "synthesis queue full, in-flight budget spent or shutting down (`Retry-After`)", body = ErrorBody)))]
+    params(("ident" = String, Path, description = text::ID_AND_FRAME), ("region" = String, Path, description = "full, square, x,y,w,h or pct:x,y,w,h"), ("size" = String, Path, description = "max, ^max, w,, ,h, pct:n, w,h, !w,h (and ^ forms)"), ("rotation" = String, Path, description = "0, 90, 180, 270, optionally mirrored (!)"), ("file" = String, Path, description = "`{quality}.{format}`: default, color or gray; png, jpg or webp")),
+    responses((status = 200, description = "the image", content(("image/png"), ("image/webp"), ("image/jpeg"))), (status = 400, description = text::BAD_REQUEST, body = ErrorBody), (status = 404, description = text::NOT_FOUND, body = ErrorBody), (status = 501, description = "a well-formed request for a feature not offered", body = ErrorBody), (status = 503, description = text::UNAVAILABLE, body = ErrorBody)))]
 pub async fn image(
     State(app): State<App>,
     Path(path): Path<ImagePath>,

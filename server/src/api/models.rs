@@ -5,6 +5,7 @@
 
 use super::error::{echo, ApiError};
 use super::extract::{NoQuery, Path, Query};
+use super::openapi::text;
 use super::openapi::ErrorBody;
 use super::textures::{json_validated, validated};
 use axum::http::HeaderMap;
@@ -151,7 +152,7 @@ pub struct ExampleFile {
 #[utoipa::path(get,
     path = "/api/v1/models",
     tag = "models",
-    responses((status = 200, description = "every model (strong ETag, `no-cache`)", body = ModelList), (status = 400, description = "a malformed path or query, named in the message", body = ErrorBody)))]
+    responses((status = 200, description = "every model (strong ETag, `no-cache`)", body = ModelList), (status = 400, description = text::BAD_REQUEST, body = ErrorBody)))]
 pub async fn list_models(_: Query<NoQuery>, headers: HeaderMap) -> Response {
     json_validated(&headers, &list())
 }

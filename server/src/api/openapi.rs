@@ -12,6 +12,17 @@ use serde::Serialize;
 use std::sync::LazyLock;
 use utoipa::{OpenApi, ToSchema};
 
+/// Descriptions many operations share, written once.
+pub mod text {
+    pub const TEXTURE_ID: &str = "texture id: 64 lowercase hex characters, the BLAKE3 of its bundle";
+    pub const ID_AND_FRAME: &str = "a texture id, optionally `;frame`";
+    pub const FRAME: &str = "frame of an animated texture (reduced modulo its period); ignored for still ones";
+    pub const BAD_REQUEST: &str = "a malformed path or query, named in the message";
+    pub const NOT_FOUND: &str = "no such texture, or a tile outside its level";
+    pub const OVER_BOUND: &str = "over a cost bound of the server";
+    pub const UNAVAILABLE: &str = "synthesis queue full, in-flight budget spent or shutting down (`Retry-After`)";
+}
+
 /// Every error's body.
 #[derive(Serialize, ToSchema)]
 pub struct ErrorBody {

@@ -2,6 +2,7 @@
 
 use super::error::{echo, ApiError};
 use super::extract::{NoQuery, Path, Query};
+use super::openapi::text;
 use super::openapi::ErrorBody;
 use super::{
     declared_length, not_modified, not_modified_response, read_body, record, refuse_oversized, App, TextureId,
@@ -30,7 +31,7 @@ const MAX_PATCH_BYTES: usize = 1 << 20;
 #[utoipa::path(get,
     path = "/api/v1/textures",
     tag = "textures",
-    responses((status = 200, description = "every texture, by name (strong ETag, `no-cache`)", body = TextureList), (status = 400, description = "a malformed path or query, named in the message", body = ErrorBody)))]
+    responses((status = 200, description = "every texture, by name (strong ETag, `no-cache`)", body = TextureList), (status = 400, description = text::BAD_REQUEST, body = ErrorBody)))]
 pub async fn list(State(app): State<App>, _: Query<NoQuery>, headers: HeaderMap) -> Response {
     let textures: Vec<TextureInfo> = app.store.list().iter().map(|e| e.info()).collect();
     json_validated(&headers, &TextureList { textures })
@@ -39,8 +40,8 @@ pub async fn list(State(app): State<App>, _: Query<NoQuery>, headers: HeaderMap)
 #[utoipa::path(get,
     path = "/api/v1/textures/{id}",
     tag = "textures",
-    params(("id" = String, Path, description = "texture id: 64 lowercase hex characters, the BLAKE3 of its bundle")),
-    responses((status = 200, description = "the texture's info (strong ETag, `no-cache`)", body = TextureInfo), (status = 400, description = "a malformed path or query, named in the message", body = ErrorBody), (status = 404, description = "no such texture, or a tile outside its level", body = ErrorBody)))]
+    params(("id" = String, Path, description = text::TEXTURE_ID)),
+    responses((status = 200, description = "the texture's info (strong ETag, `no-cache`)", body = TextureInfo), (status = 400, description = text::BAD_REQUEST, body = ErrorBody), (status = 404, description = text::NOT_FOUND, body = ErrorBody)))]
 pub async fn info(
     State(app): State<App>,
     Path(TextureId { id }): Path<TextureId>,
@@ -77,8 +78,8 @@ pub(super) fn validated(headers: &HeaderMap, content_type: &'static str, body: b
 #[utoipa::path(get,
     path = "/api/v1/textures/{id}/encoding",
     tag = "textures",
-    params(("id" = String, Path, description = "texture id: 64 lowercase hex characters, the BLAKE3 of its bundle")),
-    responses((status = 200, description = "the bundle bytes exactly as stored (ETag: the id)", content(("application/octet-stream"))), (status = 400, description = "a malformed path or query, named in the message", body = ErrorBody), (status = 404, description = "no such texture, or a tile outside its level", body = ErrorBody), (status = 503, description = "synthesis queue full, in-flight budget spent or shutting down (`Retry-After`)", body = ErrorBody)))]
+    params(("id" = String, Path, description = text::TEXTURE_ID)),
+    responses((status = 200, description = "the bundle bytes exactly as stored (ETag: the id)", content(("application/octet-stream"))), (status = 400, description = text::BAD_REQUEST, body = ErrorBody), (status = 404, description = text::NOT_FOUND, body = ErrorBody), (status = 503, description = text::UNAVAILABLE, body = ErrorBody)))]
 pub async fn encoding(
     State(app): State<App>,
     Path(TextureId { id }): Path<TextureId>,
@@ -131,7 +132,7 @@ async fn store_bundle(app: &App, bytes: Vec<u8>) -> Result<(StatusCode, Json<Tex
     path = "/api/v1/textures",
     tag = "textures",
     request_body(description = "a bundle (`application/octet-stream`), or multipart fields `model`, `name`, `params` (JSON text) and one per input image (see `GET /api/v1/models`)", content(("application/octet-stream"), ("multipart/form-data"))),
-    responses((status = 201, description = "stored", body = TextureInfo), (status = 200, description = "the identical bundle was already stored", body = TextureInfo), (status = 400, description = "invalid bundle, model, parameters or input image, named", body = ErrorBody), (status = 413, description = "body over `--max-upload-mb`", body = ErrorBody), (status = 415, description = "neither a bundle nor multipart", body = ErrorBody), (status = 422, description = "over a cost bound of the server", body = ErrorBody), (status = 507, description = "the store is full", body = ErrorBody)))]
+    responses((status = 201, description = "stored", body = TextureInfo), (status = 200, description = "the identical bundle was already stored", body = TextureInfo), (status = 400, description = "invalid bundle, model, parameters or input image, named", body = ErrorBody), (status = 413, description = "body over `--max-upload-mb`", body = ErrorBody), (status = 415, description = "neither a bundle nor multipart", body = ErrorBody), (status = 422, description = text::OVER_BOUND, body = ErrorBody), (status = 507, description = "the store is full", body = ErrorBody)))]
 pub async fn upload(
     State(app): State<App>,
     _: Query<NoQuery>,
@@ -234,9 +235,9 @@ pub fn merge_patch(target: &mut Value, patch: &Value) {
 #[utoipa::path(patch,
     path = "/api/v1/textures/{id}",
     tag = "textures",
-    params(("id" = String, Path, description = "texture id: 64 lowercase hex characters, the BLAKE3 of its bundle")),
+    params(("id" = String, Path, description = text::TEXTURE_ID)),
     request_body(description = "JSON merge patch (RFC 7396) of `name` and `params`", content(("application/json"))),
-    responses((status = 201, description = "the new texture made from the patched name and params", body = TextureInfo), (status = 400, description = "not a patch of `name` and `params`, or params its model cannot remake, named", body = ErrorBody), (status = 404, description = "no such texture, or a tile outside its level", body = ErrorBody), (status = 422, description = "over a cost bound of the server", body = ErrorBody)))]
+    responses((status = 201, description = "the new texture made from the patched name and params", body = TextureInfo), (status = 400, description = "not a patch of `name` and `params`, or params its model cannot remake, named", body = ErrorBody), (status = 404, description = text::NOT_FOUND, body = ErrorBody), (status = 422, description = text::OVER_BOUND, body = ErrorBody)))]
 pub async fn patch(
     State(app): State<App>,
     Path(TextureId { id }): Path<TextureId>,

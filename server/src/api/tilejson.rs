@@ -8,6 +8,7 @@
 
 use super::error::{echo, ApiError};
 use super::extract::{Path, Query};
+use super::openapi::text;
 use super::openapi::ErrorBody;
 use super::params::{de, format_value, named, u32_value};
 use super::tiles::{self, frame_for};
@@ -43,8 +44,8 @@ fn latitude(t: f64) -> f64 {
 #[utoipa::path(get,
     path = "/api/v1/textures/{id}/tilejson.json",
     tag = "interop",
-    params(("id" = String, Path, description = "texture id: 64 lowercase hex characters, the BLAKE3 of its bundle"), ("format" = Option<String>, Query, description = "png (default), webp or jpg"), ("frame" = Option<u32>, Query, description = "frame of an animated texture (reduced modulo its period); ignored for still ones")),
-    responses((status = 200, description = "TileJSON 3.0.0", content(("application/json"))), (status = 400, description = "a malformed path or query, named in the message", body = ErrorBody), (status = 404, description = "no such texture, or a tile outside its level", body = ErrorBody)))]
+    params(("id" = String, Path, description = text::TEXTURE_ID), ("format" = Option<String>, Query, description = "png (default), webp or jpg"), ("frame" = Option<u32>, Query, description = text::FRAME)),
+    responses((status = 200, description = "TileJSON 3.0.0", content(("application/json"))), (status = 400, description = text::BAD_REQUEST, body = ErrorBody), (status = 404, description = text::NOT_FOUND, body = ErrorBody)))]
 pub async fn tilejson(
     State(app): State<App>,
     Path(TextureId { id }): Path<TextureId>,
@@ -106,8 +107,8 @@ pub struct XyzQuery {
 #[utoipa::path(get,
     path = "/api/v1/textures/{id}/xyz/{z}/{x}/{file}",
     tag = "interop",
-    params(("id" = String, Path, description = "texture id: 64 lowercase hex characters, the BLAKE3 of its bundle"), ("z" = u32, Path, description = "zoom, 0 the whole texture in one tile"), ("x" = u32, Path), ("file" = String, Path, description = "`{y}.{format}`, format png, webp or jpg"), ("frame" = Option<u32>, Query, description = "frame of an animated texture (reduced modulo its period); ignored for still ones")),
-    responses((status = 200, description = "the tile of vtex level `levels − 1 − z`", content(("image/png"), ("image/webp"), ("image/jpeg"))), (status = 400, description = "a malformed path or query, named in the message", body = ErrorBody), (status = 404, description = "no such texture, or a tile outside its level", body = ErrorBody), (status = 503, description = "synthesis queue full, in-flight budget spent or shutting down (`Retry-After`)", body = ErrorBody)))]
+    params(("id" = String, Path, description = text::TEXTURE_ID), ("z" = u32, Path, description = "zoom, 0 the whole texture in one tile"), ("x" = u32, Path), ("file" = String, Path, description = "`{y}.{format}`, format png, webp or jpg"), ("frame" = Option<u32>, Query, description = text::FRAME)),
+    responses((status = 200, description = "the tile of vtex level `levels − 1 − z`", content(("image/png"), ("image/webp"), ("image/jpeg"))), (status = 400, description = text::BAD_REQUEST, body = ErrorBody), (status = 404, description = text::NOT_FOUND, body = ErrorBody), (status = 503, description = text::UNAVAILABLE, body = ErrorBody)))]
 pub async fn xyz(
     State(app): State<App>,
     Path(XyzPath { id, z, x, file }): Path<XyzPath>,

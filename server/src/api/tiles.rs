@@ -2,6 +2,7 @@
 
 use super::error::{echo, ApiError};
 use super::extract::{Path, Query};
+use super::openapi::text;
 use super::openapi::ErrorBody;
 use super::pages;
 use super::params::{de, format_value, named, u32_value};
@@ -109,8 +110,8 @@ pub(super) fn check_tile(entry: &Entry, level: u32, x: u32, y: u32) -> Result<()
 #[utoipa::path(get,
     path = "/api/v1/textures/{id}/tiles/{level}/{x}/{file}",
     tag = "tiles",
-    params(("id" = String, Path, description = "texture id: 64 lowercase hex characters, the BLAKE3 of its bundle"), ("level" = u32, Path, description = "mip level, 0 full resolution"), ("x" = u32, Path, description = "tile column"), ("file" = String, Path, description = "`{y}.{format}`, format png, webp, jpg or rgba (raw RGBA8)"), ("frame" = Option<u32>, Query, description = "frame of an animated texture (reduced modulo its period); ignored for still ones")),
-    responses((status = 200, description = "the tile (edge tiles clipped; strong ETag, immutable)", content(("image/png"), ("image/webp"), ("image/jpeg"), ("application/octet-stream"))), (status = 304, description = "`If-None-Match` names its ETag"), (status = 400, description = "a malformed path or query, named in the message", body = ErrorBody), (status = 404, description = "no such texture, or a tile outside its level", body = ErrorBody), (status = 503, description = "synthesis queue full, in-flight budget spent or shutting down (`Retry-After`)", body = ErrorBody)))]
+    params(("id" = String, Path, description = text::TEXTURE_ID), ("level" = u32, Path, description = "mip level, 0 full resolution"), ("x" = u32, Path, description = "tile column"), ("file" = String, Path, description = "`{y}.{format}`, format png, webp, jpg or rgba (raw RGBA8)"), ("frame" = Option<u32>, Query, description = text::FRAME)),
+    responses((status = 200, description = "the tile (edge tiles clipped; strong ETag, immutable)", content(("image/png"), ("image/webp"), ("image/jpeg"), ("application/octet-stream"))), (status = 304, description = "`If-None-Match` names its ETag"), (status = 400, description = text::BAD_REQUEST, body = ErrorBody), (status = 404, description = text::NOT_FOUND, body = ErrorBody), (status = 503, description = text::UNAVAILABLE, body = ErrorBody)))]
 pub async fn tile(
     State(app): State<App>,
     Path(path): Path<TilePath>,
@@ -252,8 +253,8 @@ pub struct RegionQuery {
 #[utoipa::path(get,
     path = "/api/v1/textures/{id}/region",
     tag = "tiles",
-    params(("id" = String, Path, description = "texture id: 64 lowercase hex characters, the BLAKE3 of its bundle"), ("level" = u32, Query), ("x" = i64, Query, description = "any integer: a torus wraps, a plane is defined everywhere"), ("y" = i64, Query), ("w" = u32, Query), ("h" = u32, Query, description = "w × h at most `--max-region-pixels`, 16383 a side"), ("format" = Option<String>, Query, description = "png (default), webp, jpg or rgba"), ("frame" = Option<u32>, Query, description = "frame of an animated texture (reduced modulo its period); ignored for still ones")),
-    responses((status = 200, description = "the region, rendered", content(("image/png"))), (status = 400, description = "a malformed path or query, named in the message", body = ErrorBody), (status = 404, description = "no such texture, or a tile outside its level", body = ErrorBody), (status = 503, description = "synthesis queue full, in-flight budget spent or shutting down (`Retry-After`)", body = ErrorBody)))]
+    params(("id" = String, Path, description = text::TEXTURE_ID), ("level" = u32, Query), ("x" = i64, Query, description = "any integer: a torus wraps, a plane is defined everywhere"), ("y" = i64, Query), ("w" = u32, Query), ("h" = u32, Query, description = "w × h at most `--max-region-pixels`, 16383 a side"), ("format" = Option<String>, Query, description = "png (default), webp, jpg or rgba"), ("frame" = Option<u32>, Query, description = text::FRAME)),
+    responses((status = 200, description = "the region, rendered", content(("image/png"))), (status = 400, description = text::BAD_REQUEST, body = ErrorBody), (status = 404, description = text::NOT_FOUND, body = ErrorBody), (status = 503, description = text::UNAVAILABLE, body = ErrorBody)))]
 pub async fn region(
     State(app): State<App>,
     Path(TextureId { id }): Path<TextureId>,
