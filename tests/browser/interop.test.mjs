@@ -5,7 +5,7 @@
 import test, { after, before } from 'node:test';
 import assert from 'node:assert/strict';
 import { join } from 'node:path';
-import { decodePng, launchBrowser, ROOT, startServer } from './lib.mjs';
+import { compareScreenToTexels, launchBrowser, ROOT, startServer } from './lib.mjs';
 
 // OpenSeadragon as the viewer's build ships it; Leaflet from client-web's node_modules.
 const OSD = '<script src="/osd/openseadragon.min.js"></script>';
@@ -89,13 +89,6 @@ async function show(page, source, x, y, scale) {
   );
 }
 
-/** The server's level-0 tile (tx, ty) of `info`, raw RGBA. */
-async function serverTile(info, tx, ty) {
-  const r = await fetch(`${server.url}/api/v1/textures/${info.id}/tiles/0/${tx}/${ty}.rgba`);
-  assert.equal(r.status, 200);
-  return { width: +r.headers.get('x-vtex-width'), data: Buffer.from(await r.arrayBuffer()) };
-}
-
 /**
  * Every screen pixel of a `size`² box shows the level-0 texel under its centre, exactly as the
  * server's tile has it. The box is centred on image point (x, y), or starts there when
@@ -106,30 +99,7 @@ async function checkAgainstTiles(page, info, x, y, { size = 200, corner = false 
   const at = await page.evaluate(([x, y]) => window.screenOf(x, y), [x, y]);
   const half = corner ? 0 : size / 2;
   const clip = { x: Math.round(at.ax - half), y: Math.round(at.ay - half), width: size, height: size };
-  const shot = decodePng(await page.screenshot({ clip }));
-  const ts = info.tile_size;
-  const tiles = new Map();
-  let compared = 0;
-  for (let j = 0; j < size; j++) {
-    for (let i = 0; i < size; i++) {
-      const ix = x + (clip.x + i + 0.5 - at.ax) / at.sx;
-      const iy = y + (clip.y + j + 0.5 - at.ay) / at.sy;
-      const fx = ix - Math.floor(ix);
-      const fy = iy - Math.floor(iy);
-      if (fx < 0.01 || fx > 0.99 || fy < 0.01 || fy > 0.99) continue;
-      const [tx, ty] = [Math.floor(ix), Math.floor(iy)];
-      const key = `${Math.floor(tx / ts)},${Math.floor(ty / ts)}`;
-      if (!tiles.has(key)) tiles.set(key, await serverTile(info, Math.floor(tx / ts), Math.floor(ty / ts)));
-      const tile = tiles.get(key);
-      const t = ((ty % ts) * tile.width + (tx % ts)) * 4;
-      const p = (j * size + i) * 4;
-      for (let c = 0; c < 3; c++) {
-        assert.equal(shot.data[p + c], tile.data[t + c], `screen (${clip.x + i}, ${clip.y + j}) shows texel (${tx}, ${ty})`);
-      }
-      compared++;
-    }
-  }
-  return { compared, tiles: tiles.size };
+  return compareScreenToTexels(page, server.url, info, x, y, at, clip);
 }
 
 // A spot deep inside the texture: the corner of four level-0 tiles.

@@ -5,8 +5,8 @@ import assert from 'node:assert/strict';
 import {
   closeSession,
   compareScreenToServerTile,
+  compareScreenToTexels,
   decodePng,
-  fetchServerTile,
   openViewer,
   screenPointOf,
   setAlignedView,
@@ -51,7 +51,6 @@ function assertClean(log) {
   }
 }
 
-const serverTile = (info, level, tx, ty, frame) => fetchServerTile(server.url, info, level, tx, ty, frame);
 const compareScreenToTile = (page, info, level, lx, ly, size, frame) =>
   compareScreenToServerTile(page, server.url, info, level, lx, ly, size, frame);
 
@@ -74,32 +73,8 @@ async function checkMagnified(page, info, zoom, x, y, size = 240) {
   const sx = (b.px - a.px) / 100;
   const sy = (b.py - a.py) / 100;
   const clip = { x: Math.round(a.px - size / 2), y: Math.round(a.py - size / 2), width: size, height: size };
-  const shot = decodePng(await page.screenshot({ clip }));
-  const ts = info.tile_size;
-  const tiles = new Map();
-  let compared = 0;
-  for (let j = 0; j < size; j++) {
-    for (let i = 0; i < size; i++) {
-      const ix = x + (clip.x + i + 0.5 - a.px) / sx;
-      const iy = y + (clip.y + j + 0.5 - a.py) / sy;
-      // A pixel centre within 1 % of a texel edge may round either way.
-      const fx = ix - Math.floor(ix);
-      const fy = iy - Math.floor(iy);
-      if (fx < 0.01 || fx > 0.99 || fy < 0.01 || fy > 0.99) continue;
-      const tx = Math.floor(ix);
-      const ty = Math.floor(iy);
-      const key = `${Math.floor(tx / ts)},${Math.floor(ty / ts)}`;
-      if (!tiles.has(key)) tiles.set(key, await serverTile(info, 0, Math.floor(tx / ts), Math.floor(ty / ts)));
-      const tile = tiles.get(key);
-      const t = ((ty % ts) * tile.width + (tx % ts)) * 4;
-      const p = (j * size + i) * 4;
-      for (let c = 0; c < 3; c++) {
-        assert.equal(shot.data[p + c], tile.data[t + c], `screen (${clip.x + i}, ${clip.y + j}) shows texel (${tx}, ${ty})`);
-      }
-      compared++;
-    }
-  }
-  assert.ok(tiles.size >= 2, 'the box spans a tile boundary');
+  const { compared, tiles } = await compareScreenToTexels(page, server.url, info, x, y, { ax: a.px, ay: a.py, sx, sy }, clip);
+  assert.ok(tiles >= 2, 'the box spans a tile boundary');
   return compared;
 }
 
