@@ -1,13 +1,14 @@
 // One synthesis Worker of the viewer's client mode (client-synth.js starts several): opens the
 // texture's encoding in its own instance of the WebAssembly module and renders the tiles it is
-// given, one at a time, as opaque ImageBitmaps (the same path as raw RGBA tiles from the server,
-// tile-worker.js rgbaTile), or as raw bytes when asked for them (the tests compare those).
+// given, one at a time, as opaque ImageBitmaps (opaque-bitmap.js, as raw RGBA tiles from the
+// server), or as raw bytes when asked for them (the tests compare those).
 //
 // Messages in:  { type: 'open', module (WebAssembly.Module), bundle (ArrayBuffer), tileSize }
 //               { type: 'tile', key, level, x, y, frame, raw }   { type: 'cancel', key }
 // Messages out: { type: 'opened', info } | { type: 'failed', error }
 //               { type: 'tile', key, ms, bitmap | bytes, width, height } | { type: 'tile', key, error }
 
+import { opaqueBitmap } from './opaque-bitmap.js';
 import { instantiate } from './vtex-synth.js';
 
 let texture = null;
@@ -15,8 +16,6 @@ let tileSize = 0;
 /** Tiles waiting, in arrival order: key → message. Cancelling one deletes it. */
 const queue = new Map();
 let scheduled = false;
-/** The opaque canvas tiles pass through on their way to a bitmap, reused. */
-let canvas = null;
 
 self.onmessage = ({ data }) => {
   if (data.type === 'open') open(data);
@@ -65,13 +64,6 @@ function render({ key, level, x, y, frame, raw }) {
     self.postMessage({ type: 'tile', key, ms: performance.now() - t0, bytes: data, width, height }, [data.buffer]);
     return;
   }
-  canvas = canvas || new OffscreenCanvas(width, height);
-  if (canvas.width !== width || canvas.height !== height) {
-    canvas.width = width;
-    canvas.height = height;
-  }
-  const pixels = new ImageData(new Uint8ClampedArray(data.buffer, data.byteOffset, data.length), width, height);
-  canvas.getContext('2d', { alpha: false }).putImageData(pixels, 0, 0);
-  const bitmap = canvas.transferToImageBitmap();
+  const bitmap = opaqueBitmap(data, width, height);
   self.postMessage({ type: 'tile', key, ms: performance.now() - t0, bitmap, width, height }, [bitmap]);
 }

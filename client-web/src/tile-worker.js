@@ -14,6 +14,7 @@
 // the epoch (performance.timeOrigin + now); the page shifts them back to its own.
 
 import { FrameReader, readChunks } from './batch.js';
+import { opaqueBitmap } from './opaque-bitmap.js';
 
 /** Read buffers of the batches that finished, for the next ones (batch.js readChunks). */
 const readBuffers = [];
@@ -122,30 +123,11 @@ function encodedTile(f, format) {
   return createImageBitmap(new Blob([f.body], { type: MIME[format] })); // the Blob copies the bytes
 }
 
-/** The canvas raw tiles pass through on their way to a bitmap (rgbaTile), reused. */
-let opaqueCanvas = null;
-
-/**
- * A raw RGBA tile as an ImageBitmap, its size from the frame header, its bytes copied at the
- * call: put into an opaque canvas (`alpha: false`) and taken out as its bitmap. The page's
- * canvas draws an opaque (or premultiplied) bitmap as fast as it can: a bitmap marked
- * unpremultiplied is converted at every draw, and an opaque bitmap is cheaper for the Worker
- * to make than a premultiplied `createImageBitmap` (`bench/viewer/ingest.mjs` compares them).
- * The viewer treats tiles as opaque anyway (tilesource.js `hasTransparency`); these opaque
- * pixels reach the screen exactly (the browser tests compare them), a pixel with alpha would
- * show over black.
- */
+/** A raw RGBA tile as an opaque ImageBitmap (opaque-bitmap.js), its size from the frame header. */
 function rgbaTile(f) {
   const { width: w, height: h, body } = f;
   if (!(w > 0 && h > 0) || body.length !== w * h * 4) {
     throw new Error(`raw tile of ${body.length} bytes does not match ${w} × ${h} RGBA`);
   }
-  opaqueCanvas = opaqueCanvas || new OffscreenCanvas(w, h);
-  if (opaqueCanvas.width !== w || opaqueCanvas.height !== h) {
-    opaqueCanvas.width = w;
-    opaqueCanvas.height = h;
-  }
-  const pixels = new ImageData(new Uint8ClampedArray(body.buffer, body.byteOffset, body.length), w, h);
-  opaqueCanvas.getContext('2d', { alpha: false }).putImageData(pixels, 0, 0);
-  return Promise.resolve(opaqueCanvas.transferToImageBitmap());
+  return Promise.resolve(opaqueBitmap(body, w, h));
 }
