@@ -30,6 +30,7 @@ use hyper_util::server::conn::auto;
 use prometheus::{IntCounter, IntGauge};
 use std::future::Future;
 use std::io::Write;
+use std::net::SocketAddr;
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 use tokio::io::{AsyncReadExt, AsyncWriteExt};
@@ -211,9 +212,11 @@ impl Conns {
     /// meanwhile (the acceptor counted it already).
     fn serve(&self, stream: TcpStream) {
         let _ = stream.set_nodelay(true);
+        // A socket already closed has no peer: unspecified, so never taken for loopback.
+        let peer = stream.peer_addr().unwrap_or_else(|_| SocketAddr::from(([0, 0, 0, 0], 0)));
         let activity = Arc::new(Activity::default());
         let io = self.send.wrap(stream, activity.clone(), self.send_limits);
-        let service = self.front.connection(activity.clone());
+        let service = self.front.connection(activity.clone(), peer);
         let conn = self.builder.serve_connection_with_upgrades(io, service).into_owned();
         let conn = self.graceful.watch(conn);
         let (live, idle) = (LiveGuard(self.live.clone()), self.idle_timeout);

@@ -19,6 +19,7 @@ use super::extract::{check_query, path_params, query_params, MAX_BATCH_QUERY_BYT
 use super::{accepts_compression, cors_layer, count, router, tiles, timed_out, App, BATCH, TILE};
 use crate::transport::{Activity, InFlight};
 use axum::body::Body;
+use axum::extract::ConnectInfo;
 use axum::http::uri::Authority;
 use axum::http::{header, HeaderMap, HeaderValue, Method, Request, Version};
 use axum::response::{IntoResponse, Response};
@@ -27,6 +28,7 @@ use bytes::Bytes;
 use hyper::body::Incoming;
 use std::convert::Infallible;
 use std::future::Future;
+use std::net::SocketAddr;
 use std::pin::Pin;
 use std::sync::Arc;
 use std::task::{Context, Poll};
@@ -67,8 +69,10 @@ impl Front {
     }
 
     /// The service of one connection, counting its requests in flight in `activity`.
-    pub fn connection(&self, activity: Arc<Activity>) -> Connection {
-        Connection { front: self.clone(), activity }
+    /// The service of one connection from `peer`, which every request of it carries as the
+    /// extension [`ConnectInfo`] (who may write, which proxies are trusted).
+    pub fn connection(&self, activity: Arc<Activity>, peer: SocketAddr) -> Connection {
+        Connection { front: self.clone(), activity, peer }
     }
 }
 
@@ -76,6 +80,7 @@ impl Front {
 pub struct Connection {
     front: Front,
     activity: Arc<Activity>,
+    peer: SocketAddr,
 }
 
 impl hyper::service::Service<Request<Incoming>> for Connection {
@@ -83,7 +88,8 @@ impl hyper::service::Service<Request<Incoming>> for Connection {
     type Error = Infallible;
     type Future = Pin<Box<dyn Future<Output = Result<Response<Tracked>, Infallible>> + Send>>;
 
-    fn call(&self, req: Request<Incoming>) -> Self::Future {
+    fn call(&self, mut req: Request<Incoming>) -> Self::Future {
+        req.extensions_mut().insert(ConnectInfo(self.peer));
         let in_flight = self.activity.start();
         let this = self.front.0.clone();
         Box::pin(async move {
