@@ -242,7 +242,9 @@ pub fn encode(levels: &[Rgba8Image], k: Ktx2) -> Result<Vec<u8>, String> {
     let dfd = dfd(k.codec);
     let dfd_offset = HEADER_BYTES + LEVEL_INDEX_ENTRY * levels.len();
     let kvd_offset = dfd_offset + dfd.len();
-    let kvd_len = 4 + WRITER.len();
+    // One key/value pair, its length field and its valuePadding to 4 bytes: the padding is part
+    // of kvdByteLength.
+    let kvd_len = (4 + WRITER.len()).next_multiple_of(4);
     // Levels are stored smallest first, each aligned to lcm(block bytes, 4) unless
     // supercompressed (then 1).
     let align = match k.supercompression {
@@ -278,6 +280,7 @@ pub fn encode(levels: &[Rgba8Image], k: Ktx2) -> Result<Vec<u8>, String> {
     out.extend_from_slice(&dfd);
     out.extend_from_slice(&(WRITER.len() as u32).to_le_bytes());
     out.extend_from_slice(WRITER);
+    out.resize(kvd_offset + kvd_len, 0);
     for i in (0..levels.len()).rev() {
         out.resize(offsets[i], 0);
         out.extend_from_slice(&data[i].0);

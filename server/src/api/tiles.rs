@@ -28,7 +28,7 @@ use vtex_synth::Region;
 const RESPONSE_HEADERS: usize = 12;
 
 /// Version of the tile encoding scheme, part of every ETag: bump it when encoders change.
-const ETAG_SCHEME: &[u8] = b"vtex-tile/1";
+const ETAG_SCHEME: &[u8] = b"vtex-tile/2";
 
 /// The frame a request renders: animated textures reduce it modulo their period (frames
 /// one period apart are identical), still textures ignore it.
