@@ -87,7 +87,7 @@ fn format_def(vk_format: u32) -> Option<FormatDef> {
     })
 }
 
-/// The keys this version of the specification defines (§4.2 "keyAndValue": other keys starting
+/// The keys this version of the specification defines ("keyAndValue": other keys starting
 /// with `KTX` or `ktx` are reserved).
 const DEFINED_KEYS: [&str; 10] = [
     "KTXcubemapIncomplete",
@@ -129,7 +129,7 @@ fn violations(f: &[u8]) -> Vec<String> {
     let Some(def) = format_def(vk_format) else {
         return vec![format!("vkFormat: {vk_format} is not a format vtex writes")];
     };
-    // Header (§3).
+    // Header fields.
     rule(type_size == 1, format!("typeSize: must be 1 for {} (got {type_size})", def.name));
     rule(width > 0, "pixelWidth: must not be 0".into());
     rule(height > 0, "pixelHeight: must not be 0 for block-compressed formats (and 2D textures)".into());
@@ -145,7 +145,7 @@ fn violations(f: &[u8]) -> Vec<String> {
     );
     rule(scheme == 0 || scheme == 2, format!("supercompressionScheme: vtex writes 0 or 2 (Zstandard), got {scheme}"));
     let levels = level_count.max(1) as usize;
-    // Index (§3.9).
+    // Index.
     let (dfd_off, dfd_len, kvd_off, kvd_len) =
         (u32_at(f, 48) as usize, u32_at(f, 52) as usize, u32_at(f, 56) as usize, u32_at(f, 60) as usize);
     let (sgd_off, sgd_len) = (u64_at(f, 64), u64_at(f, 72));
@@ -157,7 +157,7 @@ fn violations(f: &[u8]) -> Vec<String> {
     rule(sgd_len == 0, "sgdByteLength: must be 0 for schemes with no global data (none, Zstandard)".into());
     rule(sgd_len > 0 || sgd_off == 0, "sgdByteOffset: must be 0 when sgdByteLength is 0".into());
     rule(kvd_len > 0 || kvd_off == 0, "kvdByteOffset: must be 0 when kvdByteLength is 0".into());
-    // Data Format Descriptor (§3.10, one basic descriptor block, Khronos Data Format §5).
+    // Data Format Descriptor: one basic descriptor block (Khronos Data Format).
     let dfd_total = u32_at(f, dfd_off) as usize;
     rule(dfd_len == dfd_total, format!("dfdByteLength: must equal dfdTotalSize ({dfd_len} ≠ {dfd_total})"));
     if kvd_len > 0 {
@@ -210,7 +210,7 @@ fn violations(f: &[u8]) -> Vec<String> {
         );
         rule(u32_at(f, s + 4) == 0, format!("DFD: sample {i}'s samplePosition is 0 for a block-sized sample"));
     }
-    // Key/Value Data (§3.11).
+    // Key/Value Data.
     let mut at = kvd_off;
     let (mut count, mut keys) = (0, Vec::<String>::new());
     while at < kvd_off + kvd_len && at + 4 <= f.len() {
@@ -251,9 +251,13 @@ fn violations(f: &[u8]) -> Vec<String> {
         at = padded;
         count += 1;
     }
-    rule(at == kvd_off + kvd_len, format!("kvdByteLength: Σ ⌈keyAndValueByteLength/4⌉·4 + 4n = {} for these {count} pairs, but kvdByteLength is {kvd_len}", at - kvd_off));
+    let counted = at - kvd_off;
+    rule(
+        counted == kvd_len,
+        format!("kvdByteLength: Σ ⌈keyAndValueByteLength/4⌉·4 + 4n = {counted} for {count} pairs, not {kvd_len}"),
+    );
     rule(keys.windows(2).all(|w| w[0] < w[1]), "Key/Value Data: sorted by the keys' code points, no key twice".into());
-    // Mip Level Array and Level Index (§3.9.7, §3.13): smallest level first, each after the
+    // Mip Level Array and Level Index: smallest level first, each after the
     // minimal mipPadding of zeros, every byte of the file accounted for.
     let align = if scheme == 0 { def.block_bytes * 4 / gcd(def.block_bytes, 4) } else { 1 };
     let mut end = kvd_off + kvd_len;
@@ -261,7 +265,10 @@ fn violations(f: &[u8]) -> Vec<String> {
         let e = 80 + 24 * p;
         let (off, len, raw) = (u64_at(f, e) as usize, u64_at(f, e + 8) as usize, u64_at(f, e + 16) as usize);
         let start = end.next_multiple_of(align);
-        rule(off == start, format!("mipPadding: level {p} starts at {start}, the next {align}-byte boundary after what precedes it (got {off})"));
+        rule(
+            off == start,
+            format!("mipPadding: level {p} starts at the next {align}-byte boundary, {start} (got {off})"),
+        );
         rule(
             f.get(end..off.min(f.len())).is_some_and(|pad| pad.iter().all(|&z| z == 0)),
             format!("mipPadding: before level {p}, bytes of 0x00"),
