@@ -232,7 +232,9 @@ impl NetNs {
     /// The namespace, or `None` where it cannot be made (not root, no `ip`): then the tests
     /// that need one say so, and fail under CI, where `scripts/test` runs as root with iproute2.
     fn new() -> Option<NetNs> {
-        let ns = NetNs(format!("vtex-writes-{}", std::process::id()));
+        static MADE: std::sync::atomic::AtomicU32 = std::sync::atomic::AtomicU32::new(0);
+        let n = MADE.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+        let ns = NetNs(format!("vtex-writes-{}-{n}", std::process::id()));
         let ip = |args: &[&str]| {
             std::process::Command::new("ip").args(args).output().is_ok_and(|o| o.status.success())
         };
