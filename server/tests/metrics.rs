@@ -97,7 +97,8 @@ async fn process_metrics_describe_the_server() {
     }
     let value = |name| metric(&text, name, &[]);
     let status = std::fs::read_to_string(format!("/proc/{}/status", s.child.id())).unwrap();
-    let rss_kib: f64 = status.lines().find_map(|l| l.strip_prefix("VmRSS:")).unwrap().trim().trim_end_matches(" kB").parse().unwrap();
+    let rss_kib: f64 =
+        status.lines().find_map(|l| l.strip_prefix("VmRSS:")).unwrap().trim().trim_end_matches(" kB").parse().unwrap();
     let rss = value("process_resident_memory_bytes");
     assert!(rss > 1e6 && (rss / (rss_kib * 1024.0) - 1.0).abs() < 0.5, "RSS {rss} against /proc's {rss_kib} KiB");
     let (open, max) = (value("process_open_fds"), value("process_max_fds"));

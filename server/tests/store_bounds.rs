@@ -102,7 +102,11 @@ async fn textures_load_on_first_use_once() {
     let answers = futures::future::join_all(urls.iter().map(|u| get_bytes(&c, u))).await;
     assert!(answers.iter().all(|(status, _, _)| *status == 200));
     let m = metrics(&c, &s).await;
-    assert_eq!((metric(&m, "vtex_textures_loaded", &[]), metric(&m, "vtex_texture_loads_total", &[])), (1.0, 1.0), "{m}");
+    assert_eq!(
+        (metric(&m, "vtex_textures_loaded", &[]), metric(&m, "vtex_texture_loads_total", &[])),
+        (1.0, 1.0),
+        "{m}"
+    );
 }
 
 /// A bundle that fails validation when it is first loaded is logged, dropped from the index, and

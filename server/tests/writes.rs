@@ -235,9 +235,7 @@ impl NetNs {
         static MADE: std::sync::atomic::AtomicU32 = std::sync::atomic::AtomicU32::new(0);
         let n = MADE.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
         let ns = NetNs(format!("vtex-writes-{}-{n}", std::process::id()));
-        let ip = |args: &[&str]| {
-            std::process::Command::new("ip").args(args).output().is_ok_and(|o| o.status.success())
-        };
+        let ip = |args: &[&str]| std::process::Command::new("ip").args(args).output().is_ok_and(|o| o.status.success());
         let made = ip(&["netns", "add", &ns.0])
             && ip(&["-n", &ns.0, "link", "set", "lo", "up"])
             && ip(&["-n", &ns.0, "addr", "add", &format!("{OUTSIDE}/32"), "dev", "lo"]);
@@ -258,7 +256,15 @@ impl NetNs {
 
     /// One raw HTTP/1.1 exchange with `s` from inside the namespace, from `from` (an address of
     /// the namespace); returns the status and the whole response.
-    fn send(&self, s: &Server, from: &str, method: &str, path: &str, headers: &[(&str, &str)], body: &[u8]) -> (u16, String) {
+    fn send(
+        &self,
+        s: &Server,
+        from: &str,
+        method: &str,
+        path: &str,
+        headers: &[(&str, &str)],
+        body: &[u8],
+    ) -> (u16, String) {
         let port = s.addr.rsplit_once(':').unwrap().1;
         let mut req = format!("{method} {path} HTTP/1.1\r\nhost: {from}:{port}\r\nconnection: close\r\n");
         for (k, v) in headers {
@@ -339,7 +345,8 @@ fn the_token_lets_any_client_write() {
         assert_eq!(status, 401, "{from}: {resp}");
         assert!(resp.contains("write token"), "{resp}");
     }
-    let (status, resp) = ns.send(&s, OUTSIDE, "POST", "/api/v1/textures", &[BUNDLE, ("authorization", &bearer)], &bundle);
+    let (status, resp) =
+        ns.send(&s, OUTSIDE, "POST", "/api/v1/textures", &[BUNDLE, ("authorization", &bearer)], &bundle);
     assert_eq!(status, 201, "{resp}");
     assert!(s.log_text().contains("writes: with the write token"), "{}", s.log_text());
 }

@@ -213,7 +213,8 @@ pub async fn expect_error(c: &reqwest::Client, url: &str, status: u16) -> String
 /// line), so that a misspelt or renamed metric fails rather than reads as 0.
 pub fn metric(text: &str, name: &str, labels: &[(&str, &str)]) -> f64 {
     let family = ["_bucket", "_sum", "_count"].iter().find_map(|s| name.strip_suffix(s));
-    let typed = |n: &str| text.lines().any(|l| l.strip_prefix("# TYPE ").is_some_and(|t| t.split(' ').next() == Some(n)));
+    let typed =
+        |n: &str| text.lines().any(|l| l.strip_prefix("# TYPE ").is_some_and(|t| t.split(' ').next() == Some(n)));
     assert!(typed(name) || family.is_some_and(typed), "no metric {name} in the exposition:\n{text}");
     let mut total = 0.0;
     let mut found = false;
