@@ -122,13 +122,19 @@ pub struct ServeConfig {
     /// closed. 0 turns the check off.
     #[arg(long, env = "VTEX_MIN_SEND_RATE", default_value_t = 1024)]
     pub min_send_rate: u64,
-    /// Bearer token every write (POST, PATCH, DELETE) must carry in `Authorization`; unset,
-    /// writes need none. Prefer the environment or `--write-token-file`: a flag shows in `ps`.
+    /// Bearer token every write (POST, PATCH, DELETE) must carry in `Authorization`; unset, only
+    /// loopback clients may write (see `--open-writes`). Prefer the environment or
+    /// `--write-token-file`: a flag shows in `ps`.
     #[arg(long, env = "VTEX_WRITE_TOKEN", hide_env_values = true)]
     pub write_token: Option<WriteToken>,
     /// File holding the write token (a container secret); its surrounding whitespace is ignored.
     #[arg(long, env = "VTEX_WRITE_TOKEN_FILE", conflicts_with = "write_token")]
     pub write_token_file: Option<PathBuf>,
+    /// Without a write token, accept writes from every client, not only loopback ones: anyone
+    /// who reaches the port can upload, rename and delete. Only behind a proxy that
+    /// authenticates writes itself.
+    #[arg(long, env = "VTEX_OPEN_WRITES", conflicts_with_all = ["write_token", "write_token_file"])]
+    pub open_writes: bool,
     /// Refuse every write (403): a replica that only serves what the data directory holds.
     #[arg(long, env = "VTEX_READ_ONLY")]
     pub read_only: bool,

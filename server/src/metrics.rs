@@ -1,4 +1,6 @@
-//! Prometheus metrics, served as text at `/metrics`.
+//! Prometheus metrics, served as text at `/metrics`, named as Prometheus asks: counters end in
+//! `_total`, quantities carry their base unit (`_seconds`, `_bytes`), and the process's own
+//! `process_*` family (memory, CPU, descriptors, start time) is collected on Linux.
 
 use axum::http::{Method, StatusCode};
 use prometheus::{
@@ -36,15 +38,17 @@ pub struct Metrics {
     /// Memory mapped for cached tile bodies (their whole pages, and arena pages between them).
     pub cache_mapped_bytes: IntGauge,
     pub cache_entries: IntGauge,
-    pub cache_evictions: IntGauge,
+    /// Read from the cache's own total at each scrape, with [`Metrics::catch_up`].
+    pub cache_evictions: IntCounter,
     pub textures: IntGauge,
     pub store_bytes: IntGauge,
     pub textures_loaded: IntGauge,
     /// Bytes charged against the texture budget: loaded textures and loads in progress.
     pub textures_loaded_bytes: IntGauge,
     pub textures_budget_bytes: IntGauge,
-    pub texture_loads: IntGauge,
-    pub texture_evictions: IntGauge,
+    /// Read from the store's own totals at each scrape, with [`Metrics::catch_up`].
+    pub texture_loads: IntCounter,
+    pub texture_evictions: IntCounter,
     /// Open connections by the I/O runtime serving them (`runtime` = 0, 1, …).
     pub connections: IntGaugeVec,
     /// The limit on open connections (`--max-connections`).
@@ -59,8 +63,9 @@ pub struct Metrics {
     pub model_cache_budget_bytes: IntGauge,
     /// The models' own work counters (`Model::work_counters`), by model and kind.
     model_work: IntCounterVec,
-    /// Serialises scrapes' updates of `model_work`, which catch up with the models' totals.
-    model_work_update: std::sync::Mutex<()>,
+    /// Serialises the counters' catching up with the totals they mirror, so that two scrapes
+    /// at once do not both add the same difference.
+    catch_up: std::sync::Mutex<()>,
 }
 
 fn must<T>(r: prometheus::Result<T>) -> T {
@@ -128,7 +133,7 @@ impl Metrics {
             "Memory mapped for tile bodies (whole pages; huge-page arenas with their free pages)",
         ));
         let cache_entries = must(IntGauge::new("vtex_tile_cache_entries", "Tiles held by the tile cache"));
-        let cache_evictions = must(IntGauge::new("vtex_tile_cache_evictions", "Tiles evicted since start"));
+        let cache_evictions = must(IntCounter::new("vtex_tile_cache_evictions_total", "Tiles evicted from the cache"));
         let textures = must(IntGauge::new("vtex_textures", "Textures in the store (indexed and served)"));
         let store_bytes = must(IntGauge::new("vtex_store_bytes", "Bytes of the stored bundles on disk"));
         let textures_loaded = must(IntGauge::new("vtex_textures_loaded", "Textures loaded in memory"));
@@ -137,9 +142,9 @@ impl Metrics {
             "Bytes loaded textures hold (as their plans state), loads in progress included",
         ));
         let textures_budget_bytes = must(IntGauge::new("vtex_textures_budget_bytes", "Byte budget of loaded textures"));
-        let texture_loads = must(IntGauge::new("vtex_texture_loads", "Textures loaded since start, uploads included"));
+        let texture_loads = must(IntCounter::new("vtex_texture_loads_total", "Textures loaded, uploads included"));
         let texture_evictions =
-            must(IntGauge::new("vtex_texture_evictions", "Loaded textures evicted to stay within the budget"));
+            must(IntCounter::new("vtex_texture_evictions_total", "Loaded textures evicted to stay within the budget"));
         let connections = must(IntGaugeVec::new(
             Opts::new("vtex_http_connections", "Open connections by the I/O runtime (thread) serving them"),
             &["runtime"],
@@ -210,6 +215,8 @@ impl Metrics {
         ] {
             must(registry.register(c));
         }
+        #[cfg(target_os = "linux")]
+        must(registry.register(Box::new(prometheus::process_collector::ProcessCollector::for_self())));
         // Label lookups hash strings; tiles are the hot path, so resolve them once.
         let levels: Vec<String> = (0..LEVEL_SERIES).map(|l| l.to_string()).collect();
         let hits = levels.iter().map(|l| hits_vec.with_label_values(&[l.as_str()])).collect();
@@ -249,18 +256,23 @@ impl Metrics {
             model_cache_bytes,
             model_cache_budget_bytes,
             model_work,
-            model_work_update: std::sync::Mutex::new(()),
+            catch_up: std::sync::Mutex::new(()),
         }
+    }
+
+    /// Advances `counter` to `total`, a count kept elsewhere since start: a counter mirrors
+    /// it, so that it is exposed as one (`_total`, only ever rising).
+    pub fn catch_up(&self, counter: &IntCounter, total: u64) {
+        let _serial = self.catch_up.lock().unwrap_or_else(|e| e.into_inner());
+        counter.inc_by(total.saturating_sub(counter.get()));
     }
 
     /// Reads every registered model's cache size and work counters into their metrics.
     pub fn read_models(&self) {
-        let _serial = self.model_work_update.lock().unwrap_or_else(|e| e.into_inner());
         for m in vtex_synth::models::REGISTRY {
             self.model_cache_bytes.with_label_values(&[m.id()]).set(m.cache_bytes() as i64);
             for (kind, total) in m.work_counters() {
-                let c = self.model_work.with_label_values(&[m.id(), kind]);
-                c.inc_by(total.saturating_sub(c.get()));
+                self.catch_up(&self.model_work.with_label_values(&[m.id(), kind]), total);
             }
         }
     }

@@ -97,6 +97,7 @@ pub async fn run(mut cfg: ServeConfig, shutdown: impl Future<Output = ()>) -> an
         _ => {}
     }
     let app = AppState::new(store, cfg.clone());
+    app.writes.announce();
     // Renders in flight at shutdown may finish during the drain; those that would outlast it
     // are stopped shortly before it ends, so their requests are answered 503 rather than cut.
     let shutdown = {

@@ -69,7 +69,7 @@ async fn identical_bytes_across_order_cache_state_eviction_and_restart() {
         assert_eq!(got, cold, "round {round} after restart/eviction differs (bytes or ETags)");
     }
     let m = metrics(&c, &s).await;
-    assert!(metric(&m, "vtex_tile_cache_evictions", &[]) > 0.0, "the small cache evicted");
+    assert!(metric(&m, "vtex_tile_cache_evictions_total", &[]) > 0.0, "the small cache evicted");
     assert!(metric(&m, "vtex_syntheses_total", &[]) > keys.len() as f64, "evicted tiles were synthesized again");
 
     // Concurrently, from many connections, in another order: same bytes.
@@ -160,7 +160,7 @@ async fn cache_budget_holds_after_filling_it_many_times_over() {
     let held = metric(&m, "vtex_tile_cache_bytes", &[]);
     assert!(peak <= budget, "cache held {peak} bytes over a budget of {budget}");
     assert!(held > budget / 2.0, "the cache is in use: {held}");
-    assert!(metric(&m, "vtex_tile_cache_evictions", &[]) >= 240.0);
+    assert!(metric(&m, "vtex_tile_cache_evictions_total", &[]) >= 240.0);
     // The first tile, long evicted, is synthesized again, then served from the cache: the same
     // bytes and ETag each time as before the load.
     let (x, y) = keys[0];

@@ -52,7 +52,7 @@ async fn loaded_textures_stay_within_the_budget() {
         }
     }
     let m = metrics(&c, &s).await;
-    assert!(metric(&m, "vtex_texture_evictions", &[]) >= 4.0, "{m}");
+    assert!(metric(&m, "vtex_texture_evictions_total", &[]) >= 4.0, "{m}");
     assert!(metric(&m, "vtex_textures_loaded", &[]) < 4.0, "{m}");
     assert_eq!(metric(&m, "vtex_textures", &[]), 4.0);
 }
@@ -92,17 +92,21 @@ async fn textures_load_on_first_use_once() {
     let s = Server::start(dir.path(), &[]);
     let m = metrics(&c, &s).await;
     assert_eq!(metric(&m, "vtex_textures", &[]), 2.0);
-    assert_eq!((metric(&m, "vtex_textures_loaded", &[]), metric(&m, "vtex_texture_loads", &[])), (0.0, 0.0));
+    assert_eq!((metric(&m, "vtex_textures_loaded", &[]), metric(&m, "vtex_texture_loads_total", &[])), (0.0, 0.0));
     // Info, lists and encodings are answered from the index.
     let (status, _, _) = get_bytes(&c, &s.url(&format!("/api/v1/textures/{}", ids[0]))).await;
     assert_eq!(status, 200);
     get_bytes(&c, &s.url("/api/v1/textures")).await;
-    assert_eq!(gauge(&c, &s, "vtex_texture_loads").await, 0.0);
+    assert_eq!(gauge(&c, &s, "vtex_texture_loads_total").await, 0.0);
     let urls: Vec<String> = (0..4).map(|i| s.tile_url(&ids[0], 0, i % 2, i / 2, "png")).collect();
     let answers = futures::future::join_all(urls.iter().map(|u| get_bytes(&c, u))).await;
     assert!(answers.iter().all(|(status, _, _)| *status == 200));
     let m = metrics(&c, &s).await;
-    assert_eq!((metric(&m, "vtex_textures_loaded", &[]), metric(&m, "vtex_texture_loads", &[])), (1.0, 1.0), "{m}");
+    assert_eq!(
+        (metric(&m, "vtex_textures_loaded", &[]), metric(&m, "vtex_texture_loads_total", &[])),
+        (1.0, 1.0),
+        "{m}"
+    );
 }
 
 /// A bundle that fails validation when it is first loaded is logged, dropped from the index, and

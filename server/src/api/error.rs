@@ -20,7 +20,9 @@ pub enum ApiError {
     /// A write without the write token, or with a wrong one: answered with `WWW-Authenticate`.
     #[error("{0}")]
     Unauthorized(String),
-    /// A write this server refuses whatever the token: read-only, or from an origin not allowed.
+    /// A write this server refuses whatever the token: read-only, from an origin not allowed,
+    /// or, with no token set, from a client not on loopback. No credential would change the
+    /// answer, so 403 (RFC 9110 §15.5.4), not a 401 whose challenge could not be met.
     #[error("{0}")]
     Forbidden(String),
     #[error("{0}")]

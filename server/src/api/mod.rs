@@ -394,14 +394,14 @@ async fn metrics(State(app): State<App>, _: Query<NoQuery>) -> Response {
     m.cache_bytes.set(app.cache.bytes() as i64);
     m.cache_mapped_bytes.set(app.cfg.send.mapped_bytes() as i64);
     m.cache_entries.set(app.cache.len() as i64);
-    m.cache_evictions.set(app.cache.evictions() as i64);
+    m.catch_up(&m.cache_evictions, app.cache.evictions());
     let store = &app.store;
     m.textures.set(store.len() as i64);
     m.store_bytes.set(store.stored_bytes() as i64);
     m.textures_loaded.set(store.loaded() as i64);
     m.textures_loaded_bytes.set(store.loaded_bytes() as i64);
-    m.texture_loads.set(store.loads() as i64);
-    m.texture_evictions.set(store.evictions() as i64);
+    m.catch_up(&m.texture_loads, store.loads());
+    m.catch_up(&m.texture_evictions, store.evictions());
     m.syntheses_queued.set(app.slots.queued() as i64);
     m.inflight_bytes.set(app.inflight.reserved_bytes() as i64);
     m.read_models();

@@ -2,7 +2,9 @@
 //! (`--read-only`) and the origins whose pages may write (`--cors-write-origins`), enforced by
 //! [`guard`] in front of every route, before CORS answers anything.
 //!
-//! A write is any method but GET, HEAD and OPTIONS. Reads stay open to every origin. A write
+//! A write is any method but GET, HEAD and OPTIONS. Reads stay open to every origin. With no
+//! token set, only loopback clients may write (a server reachable from elsewhere is not open
+//! to writes by accident), unless the operator opens writes to all (`--open-writes`). A write
 //! preflight (`OPTIONS` asking for a write method) is answered here: allowed for the configured
 //! origins only, so a browser on any other page never sends the write. Browsers send some
 //! writes without a preflight (a multipart form POST), so the write itself is checked too: an
@@ -12,10 +14,11 @@
 use super::error::{echo, ApiError};
 use super::{drain, App};
 use crate::config::{ServeConfig, WriteToken};
-use axum::extract::{Request, State};
+use axum::extract::{ConnectInfo, Request, State};
 use axum::http::{header, HeaderMap, HeaderValue, Method, StatusCode};
 use axum::middleware::Next;
 use axum::response::{IntoResponse, Response};
+use std::net::{IpAddr, Ipv4Addr, SocketAddr};
 
 /// How long a browser may keep a write preflight's answer.
 const PREFLIGHT_MAX_AGE_SECS: u32 = 600;
@@ -24,6 +27,8 @@ const PREFLIGHT_MAX_AGE_SECS: u32 = 600;
 pub struct WritePolicy {
     token: Option<WriteToken>,
     read_only: bool,
+    /// Without a token, writes from every client, not only loopback ones (`--open-writes`).
+    open: bool,
     /// Lowercase origins allowed to write across origins; `*` allows every origin.
     origins: Vec<String>,
 }
@@ -33,6 +38,7 @@ impl WritePolicy {
         WritePolicy {
             token: cfg.write_token.clone(),
             read_only: cfg.read_only,
+            open: cfg.open_writes,
             origins: cfg.cors_write_origins.iter().map(|o| o.trim_end_matches('/').to_ascii_lowercase()).collect(),
         }
     }
@@ -41,9 +47,25 @@ impl WritePolicy {
         self.origins.iter().any(|o| o == "*" || o.eq_ignore_ascii_case(origin))
     }
 
-    /// Whether a write carrying `headers` may proceed: read-only first, then the origin, then
-    /// the token.
-    fn admit(&self, headers: &HeaderMap) -> Result<(), ApiError> {
+    /// Logs at start-up who may write, warning when anyone may.
+    pub fn announce(&self) {
+        if self.read_only {
+            tracing::info!("writes: refused (--read-only)");
+        } else if self.token.is_some() {
+            tracing::info!("writes: with the write token");
+        } else if self.open {
+            tracing::warn!(
+                "writes: OPEN to every client that reaches the port (--open-writes): anyone can upload, rename \
+                 and delete textures; set VTEX_WRITE_TOKEN instead unless a proxy in front authenticates writes"
+            );
+        } else {
+            tracing::info!("writes: from loopback clients only (no write token set; see VTEX_WRITE_TOKEN)");
+        }
+    }
+
+    /// Whether a write from `client` carrying `headers` may proceed: read-only first, then the
+    /// origin, then the token, or without one the client's address.
+    fn admit(&self, headers: &HeaderMap, client: IpAddr) -> Result<(), ApiError> {
         if self.read_only {
             return Err(ApiError::Forbidden("this server is read-only (--read-only): writes are refused".into()));
         }
@@ -56,7 +78,18 @@ impl WritePolicy {
                 )));
             }
         }
-        let Some(token) = &self.token else { return Ok(()) };
+        let Some(token) = &self.token else {
+            return if self.open || client.to_canonical().is_loopback() {
+                Ok(())
+            } else {
+                Err(ApiError::Forbidden(format!(
+                    "writes from {client} are refused: with no write token set, only loopback clients may write. \
+                     Set a token (VTEX_WRITE_TOKEN, --write-token or --write-token-file) and send \
+                     `Authorization: Bearer <token>`, or start the server with --open-writes to accept writes \
+                     from anyone"
+                )))
+            };
+        };
         let presented = headers.get(header::AUTHORIZATION).and_then(|v| v.to_str().ok());
         match presented.map(|v| v.split_once(' ')) {
             None => Err(ApiError::Unauthorized(
@@ -105,6 +138,14 @@ fn same_origin(origin: &str, headers: &HeaderMap) -> bool {
     !authority.is_empty() && authority.eq_ignore_ascii_case(host)
 }
 
+/// The address of the client that sent `req`: the connection's peer. A request without one
+/// (never the case over a socket) counts as no particular address, which is not loopback.
+fn client_ip(req: &Request) -> IpAddr {
+    req.extensions()
+        .get::<ConnectInfo<SocketAddr>>()
+        .map_or(IpAddr::V4(Ipv4Addr::UNSPECIFIED), |ConnectInfo(peer)| peer.ip())
+}
+
 /// A refused write: the JSON error, readable by any page like every other answer.
 fn refusal(e: ApiError) -> Response {
     let mut resp = e.into_response();
@@ -124,7 +165,7 @@ pub async fn guard(State(app): State<App>, req: Request, next: Next) -> Response
             return app.writes.preflight(headers.get(header::ORIGIN).and_then(|v| v.to_str().ok()));
         }
     } else if is_write(req.method()) {
-        if let Err(e) = app.writes.admit(headers) {
+        if let Err(e) = app.writes.admit(headers, client_ip(&req)) {
             tracing::info!(method = %req.method(), path = %echo(req.uri().path()), reason = %e, "write refused");
             drain(req).await;
             return refusal(e);

@@ -25,8 +25,9 @@ pub struct Server {
 }
 
 impl Server {
-    /// Starts `vtex serve` on a free port over `data_dir` with `extra` flags (no demos unless
-    /// `--demos` is among them), and waits for its `vtex listening on` line.
+    /// Starts `vtex serve` on a free port of 127.0.0.1 (unless `extra` has a `--bind`) over
+    /// `data_dir` with `extra` flags (no demos unless `--demos` is among them), and waits for
+    /// its `vtex listening on` line.
     pub fn start(data_dir: &Path, extra: &[&str]) -> Server {
         Self::start_env(data_dir, extra, &[])
     }
@@ -40,7 +41,10 @@ impl Server {
     /// process (e.g. `prlimit --nofile=128:128 --`), so the pid stays the server's.
     pub fn start_under(wrapper: &[&str], data_dir: &Path, extra: &[&str], env: &[(&str, &str)]) -> Server {
         let log = data_dir.with_extension(format!("log-{}", std::process::id()));
-        let mut args = vec!["serve", "--bind", "127.0.0.1:0", "--data-dir", data_dir.to_str().unwrap()];
+        let mut args = vec!["serve", "--data-dir", data_dir.to_str().unwrap()];
+        if !extra.contains(&"--bind") {
+            args.extend(["--bind", "127.0.0.1:0"]);
+        }
         let demos = extra.contains(&"--demos");
         args.extend(extra.iter().filter(|a| **a != "--demos"));
         if !demos {
@@ -204,8 +208,14 @@ pub async fn expect_error(c: &reqwest::Client, url: &str, status: u16) -> String
     v["error"].as_str().unwrap_or_else(|| panic!("no error message in {v}")).to_string()
 }
 
-/// The value of one Prometheus series, e.g. `metric(&text, "vtex_syntheses_total", &[])`.
+/// The value of one Prometheus series, e.g. `metric(&text, "vtex_syntheses_total", &[])`, summed
+/// over the series matching `labels`; 0 when none does. The family must be exposed (a `# TYPE`
+/// line), so that a misspelt or renamed metric fails rather than reads as 0.
 pub fn metric(text: &str, name: &str, labels: &[(&str, &str)]) -> f64 {
+    let family = ["_bucket", "_sum", "_count"].iter().find_map(|s| name.strip_suffix(s));
+    let typed =
+        |n: &str| text.lines().any(|l| l.strip_prefix("# TYPE ").is_some_and(|t| t.split(' ').next() == Some(n)));
+    assert!(typed(name) || family.is_some_and(typed), "no metric {name} in the exposition:\n{text}");
     let mut total = 0.0;
     let mut found = false;
     for line in text.lines().filter(|l| !l.starts_with('#')) {
