@@ -61,7 +61,6 @@ test('a texture picked in the list opens as the first one does, where its struct
     const s = structure(await viewCentre(page));
     const view = await page.evaluate(() => window.vtexViewer.getView());
     assert.ok(Math.abs(view.zoom - FIRST_ZOOM) < 1e-9, `${info.name} opens at the first view's zoom, not ${view.zoom}`);
-    console.log(info.name, s);
     assert.ok(s.colours >= 50, `${info.name}: ${s.colours} common colours in the view`);
     assert.ok(s.sd >= 12, `${info.name}: luma standard deviation ${s.sd.toFixed(1)}`);
   }
