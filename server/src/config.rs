@@ -192,7 +192,9 @@ pub struct ServeConfig {
     /// Reads are open to every origin.
     #[arg(long, value_name = "ORIGINS", env = "VTEX_CORS_WRITE_ORIGINS", value_delimiter = ',', help_heading = heading::WRITES)]
     pub cors_write_origins: Vec<String>,
-    /// How the store follows bundles other processes add or delete.
+    /// Follow other processes' bundles.
+    ///
+    /// How the store learns of bundles other processes add to or delete from the data directory.
     ///
     /// `off`: only a request for an unknown id finds a new bundle.
     #[arg(long, value_name = "HOW", env = "VTEX_WATCH", value_enum, default_value_t = WatchMode::Events, help_heading = heading::STORE)]
