@@ -1,6 +1,7 @@
-// What the viewer opens: the texture a link names, else a showcase at a zoom where its structure
-// shows. Zoomed fully out, a 100k texture is one tile of its mean colour, a flat square that
-// says nothing of what vtex does.
+// Where the viewer opens a texture: at the link's view when it gives a zoom, else where the
+// texture's structure shows. Zoomed fully out, a 100k texture is one tile of its mean colour,
+// a flat square that says nothing of what vtex does. The first texture opened, one picked in
+// the list and one just created all open through `openingView`.
 
 import { findTexture } from './texture-lookup.js';
 
@@ -14,23 +15,31 @@ export const SHOWCASE = 'Pebbles — chaos mosaic 100k';
 export const FIRST_ZOOM = 0.5;
 
 /**
- * The texture to open among `textures` for the link's `view` (view-url.js parseView), the view
- * to open it at, and the message to show (or '' when the link is fine):
- * - the texture the link names, at the link's view (the whole texture when it gives none, as
- *   when a texture is picked);
- * - else the showcase when the server has it, else the largest texture, at its centre and the
- *   FIRST_ZOOM, unless the link gives a view; a link naming no texture says which one
- *   is shown instead.
+ * The view `info` opens at given `view` (view-url.js parseView: a link's, or {} when the
+ * texture is picked): the link's when it gives a zoom; else its centre at FIRST_ZOOM, or at
+ * `fit` (the zoom that fits the whole texture on the screen) when that is larger, since then
+ * the whole texture shows at least as much. Fields of `view` besides the place (frame,
+ * format…) are kept.
  */
-export function firstView(textures, view) {
+export function openingView(info, view = {}, fit = 0) {
+  if (view.zoom > 0) return { ...view, texture: info.id };
+  return { x: info.width / 2, y: info.height / 2, ...view, zoom: Math.max(FIRST_ZOOM, fit), texture: info.id };
+}
+
+/**
+ * The texture to open among `textures` for the link's `view` (view-url.js parseView), the view
+ * to open it at (openingView, with `fit` computed by `fitOf(info)`), and the message to show
+ * ('' when the link is fine): the texture the link names; else the showcase when the server
+ * has it, else the largest texture; a link naming no texture says which one is shown instead.
+ */
+export function firstView(textures, view, fitOf = () => 0) {
   const named = findTexture(textures, view.texture);
-  if (named) return { info: named, view, message: '' };
+  if (named) return { info: named, view: openingView(named, view, fitOf(named)), message: '' };
   const info =
     textures.find((t) => t.name === SHOWCASE) ||
     textures.reduce((a, b) => (b.width * b.height > a.width * a.height ? b : a));
-  const opened = { zoom: FIRST_ZOOM, x: info.width / 2, y: info.height / 2, ...view, texture: info.id };
   const message = view.texture
     ? `No texture "${view.texture}" on this server (or more than one starts so); showing ${info.name}.`
     : '';
-  return { info, view: opened, message };
+  return { info, view: openingView(info, view, fitOf(info)), message };
 }

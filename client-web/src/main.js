@@ -7,7 +7,7 @@ import { FORMATS, parseView, formatView } from './view-url.js';
 import { DEFAULT_DETAIL, DETAIL, drawLevel, modulo, vtexLevel } from './pyramid.js';
 import { updateEarly } from './loader.js';
 import { findTexture as lookupTexture } from './texture-lookup.js';
-import { firstView } from './first-view.js';
+import { firstView, openingView } from './first-view.js';
 import { fetchWantedLevels, keepBatchesOnDraw, vtexDrawer } from './osd-adapter.js';
 import { ClientSynth, loadModule, staticExport } from './client-synth.js';
 import { setupCreatePanel } from './create-panel.js';
@@ -133,6 +133,12 @@ function fillPicker(textures, selectedId) {
 
 function findTexture(key) {
   return lookupTexture(state.textures, key);
+}
+
+/** The zoom at which `info` fits the view whole, as OpenSeadragon's home shows it. */
+function fitZoom(info) {
+  const size = viewer.viewport.getContainerSize();
+  return Math.min(size.x / info.width, size.y / info.height);
 }
 
 /** Opens `info`; `view` (zoom, x, y, frame) is applied once it is open, else the whole texture shows. */
@@ -483,7 +489,7 @@ $('synth').addEventListener('change', (e) => {
 
 $('texture-picker').addEventListener('change', (e) => {
   const info = findTexture(e.target.value);
-  if (info) openTexture(info);
+  if (info) openTexture(info, openingView(info, {}, fitZoom(info)));
 });
 
 $('copy-link').addEventListener('click', async () => {
@@ -516,7 +522,7 @@ async function openCreated(info) {
   const listed = findTexture(info.id) || info;
   fillPicker(state.textures, listed.id);
   showError('');
-  openTexture(listed);
+  openTexture(listed, openingView(listed, {}, fitZoom(listed)));
 }
 
 async function start() {
@@ -541,7 +547,7 @@ async function start() {
     showError('The server has no textures yet: create one (Create a texture…) or upload one with POST /api/v1/textures.');
     return;
   }
-  const { info, view: opened, message } = firstView(state.textures, view);
+  const { info, view: opened, message } = firstView(state.textures, view, fitZoom);
   showError(message);
   fillPicker(state.textures, info.id);
   openTexture(info, opened);

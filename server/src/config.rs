@@ -24,130 +24,193 @@ pub const FD_RESERVE: u64 = 64;
 /// The open-file limit assumed where the system does not report one.
 const DEFAULT_FD_LIMIT: u64 = 1024;
 
+/// The headings `vtex serve --help` groups its options under, in the order they first appear.
+pub mod heading {
+    pub const NETWORK: &str = "Network";
+    pub const STORE: &str = "Store";
+    pub const BUDGETS: &str = "Budgets";
+    pub const VIEWER: &str = "Tiles and viewer";
+    pub const CONNECTIONS: &str = "Connections";
+    pub const WRITES: &str = "Writes";
+    pub const LOGGING: &str = "Logging";
+}
+
+// `vtex serve`'s options. Each doc comment's first paragraph is the option's line in `-h`; the
+// whole comment, and its environment variable, is its `--help`.
 #[derive(Args, Clone, Debug)]
+#[command(mut_args = env_in_long_help)]
 pub struct ServeConfig {
-    /// Address to listen on; port 0 picks a free one (the chosen address is printed).
-    #[arg(long, env = "VTEX_BIND", default_value = "127.0.0.1:8080")]
+    /// Address to listen on.
+    ///
+    /// Port 0 picks a free one (the chosen address is printed).
+    #[arg(long, value_name = "ADDR", env = "VTEX_BIND", default_value = "127.0.0.1:8080", help_heading = heading::NETWORK)]
     pub bind: SocketAddr,
-    /// Directory of content-addressed bundles (`<id>.vtex`); created if missing.
-    #[arg(long, env = "VTEX_DATA_DIR", default_value = "./vtex-data")]
+    /// Directory of the texture bundles (`<id>.vtex`).
+    ///
+    /// Bundles are content-addressed. Created if missing; it must be readable, and writable unless `--read-only`.
+    #[arg(long, value_name = "DIR", env = "VTEX_DATA_DIR", default_value = "./vtex-data", help_heading = heading::STORE)]
     pub data_dir: PathBuf,
-    /// Byte budget of the encoded-tile cache, in MiB (fractions allowed).
-    #[arg(long, env = "VTEX_CACHE_MB", default_value_t = 512.0)]
+    /// Byte budget of the encoded-tile cache, in MiB.
+    ///
+    /// Fractions allowed.
+    #[arg(long, value_name = "MIB", env = "VTEX_CACHE_MB", default_value_t = 512.0, help_heading = heading::BUDGETS)]
     pub cache_mb: f64,
-    /// Byte budget, in MiB, of each model's process-wide synthesis cache (the pyramidal cache
-    /// of `order-independent`), shared by all its textures; 0 keeps nothing. It never changes
-    /// a tile, only how much of a tile's dependencies is computed again.
-    #[arg(long, env = "VTEX_SYNTH_CACHE_MB", default_value_t = 64.0)]
+    /// Byte budget of each model's synthesis cache, in MiB.
+    ///
+    /// The process-wide pyramidal cache of `order-independent`, shared by all its textures; 0
+    /// keeps nothing. It never changes a tile, only how much of a tile's dependencies is
+    /// computed again.
+    #[arg(long, value_name = "MIB", env = "VTEX_SYNTH_CACHE_MB", default_value_t = 64.0, help_heading = heading::BUDGETS)]
     pub synth_cache_mb: f64,
-    /// Serve the viewer from this directory (a `client-web/dist` build) instead of the copy
-    /// built into the binary.
-    #[arg(long, env = "VTEX_WEB_DIR")]
+    /// Serve the viewer from this directory, not the built-in copy.
+    ///
+    /// A `client-web/dist` build, instead of the copy built into the binary.
+    #[arg(long, value_name = "DIR", env = "VTEX_WEB_DIR", help_heading = heading::VIEWER)]
     pub web_dir: Option<PathBuf>,
     /// Tile side in pixels (16..=2048).
-    #[arg(long, env = "VTEX_TILE_SIZE", default_value_t = 256)]
+    #[arg(long, value_name = "PX", env = "VTEX_TILE_SIZE", default_value_t = 256, help_heading = heading::VIEWER)]
     pub tile_size: u32,
-    /// Syntheses running at once; further misses wait (back-pressure). Default: CPU count.
-    #[arg(long, env = "VTEX_MAX_SYNTHESES")]
+    /// Syntheses running at once [default: CPU count].
+    ///
+    /// Further misses wait (back-pressure).
+    #[arg(long, value_name = "N", env = "VTEX_MAX_SYNTHESES", help_heading = heading::BUDGETS)]
     pub max_syntheses: Option<usize>,
     /// Largest accepted request body (uploads, patches), in MiB.
-    #[arg(long, env = "VTEX_MAX_UPLOAD_MB", default_value_t = 64.0)]
+    #[arg(long, value_name = "MIB", env = "VTEX_MAX_UPLOAD_MB", default_value_t = 64.0, help_heading = heading::BUDGETS)]
     pub max_upload_mb: f64,
     /// Largest region request, in pixels (w × h).
-    #[arg(long, env = "VTEX_MAX_REGION_PIXELS", default_value_t = DEFAULT_MAX_REGION_PIXELS)]
+    #[arg(long, value_name = "N", env = "VTEX_MAX_REGION_PIXELS", default_value_t = DEFAULT_MAX_REGION_PIXELS, help_heading = heading::BUDGETS)]
     pub max_region_pixels: u64,
-    /// Whole-request deadline in seconds (reading the body included): slow clients get 408.
-    #[arg(long, env = "VTEX_REQUEST_TIMEOUT_SECS", default_value_t = 30.0)]
+    /// Whole-request deadline in seconds, reading the body included.
+    ///
+    /// Slow clients get 408.
+    #[arg(long, value_name = "SECS", env = "VTEX_REQUEST_TIMEOUT_SECS", default_value_t = 30.0, help_heading = heading::CONNECTIONS)]
     pub request_timeout_secs: f64,
-    /// Deadline for a client to send its request headers; the connection is closed after it.
-    #[arg(long, env = "VTEX_HEADER_TIMEOUT_SECS", default_value_t = 10.0)]
+    /// Deadline for a client to send its request headers, in seconds.
+    ///
+    /// The connection is closed after it.
+    #[arg(long, value_name = "SECS", env = "VTEX_HEADER_TIMEOUT_SECS", default_value_t = 10.0, help_heading = heading::CONNECTIONS)]
     pub header_timeout_secs: f64,
-    /// Threads serving connections, one single-threaded runtime each. Default: CPU count.
-    #[arg(long, env = "VTEX_IO_THREADS")]
+    /// Threads serving connections [default: CPU count].
+    ///
+    /// One single-threaded runtime each.
+    #[arg(long, value_name = "N", env = "VTEX_IO_THREADS", help_heading = heading::CONNECTIONS)]
     pub io_threads: Option<usize>,
-    /// How tile bodies reach the socket: `copy` (portable: written from the heap) or `splice`
-    /// (Linux: cached tiles sent by page reference, like nginx's sendfile). Default: `splice`
-    /// on Linux, `copy` elsewhere.
-    #[arg(long, env = "VTEX_SEND", default_value_t = Transport::default())]
+    /// How tile bodies reach the socket: `copy` or `splice`.
+    ///
+    /// `copy` is portable: bodies are written from the heap. `splice` (Linux) sends cached
+    /// tiles by page reference, like nginx's sendfile. The default is `splice` on Linux, `copy`
+    /// elsewhere.
+    #[arg(long, value_name = "HOW", env = "VTEX_SEND", default_value_t = Transport::default(), help_heading = heading::CONNECTIONS)]
     pub send: Transport,
     /// Do not write the demo textures into an empty data directory.
-    #[arg(long, env = "VTEX_NO_DEMOS")]
+    #[arg(long, env = "VTEX_NO_DEMOS", help_heading = heading::STORE)]
     pub no_demos: bool,
-    /// A response whose bytes make no progress into the socket for this long is abandoned and
-    /// its connection closed (slow or stalled readers free what they hold).
-    #[arg(long, env = "VTEX_SEND_TIMEOUT_SECS", default_value_t = 30.0)]
+    /// Seconds a response may make no progress into the socket.
+    ///
+    /// Past it the response is abandoned and its connection closed (slow or stalled readers
+    /// free what they hold).
+    #[arg(long, value_name = "SECS", env = "VTEX_SEND_TIMEOUT_SECS", default_value_t = 30.0, help_heading = heading::CONNECTIONS)]
     pub send_timeout_secs: f64,
-    /// A connection with no request in flight and no bytes moving for this long is closed
-    /// (HTTP/1.1 keep-alive and HTTP/2 alike, and one that never sends a byte).
-    #[arg(long, env = "VTEX_IDLE_TIMEOUT_SECS", default_value_t = 60.0)]
+    /// Seconds after which an idle connection is closed.
+    ///
+    /// Idle: no request in flight and no bytes moving (HTTP/1.1 keep-alive and HTTP/2 alike,
+    /// and a connection that never sends a byte).
+    #[arg(long, value_name = "SECS", env = "VTEX_IDLE_TIMEOUT_SECS", default_value_t = 60.0, help_heading = heading::CONNECTIONS)]
     pub idle_timeout_secs: f64,
-    /// Open connections served at once; beyond it a new one gets a 503 and is closed.
-    /// Default: (open-file limit − 64) ÷ descriptors per connection (3 under `splice`, 1 under
-    /// `copy`).
-    #[arg(long, env = "VTEX_MAX_CONNECTIONS")]
+    /// Open connections served at once [default: from the open-file limit].
+    ///
+    /// Beyond it a new one gets a 503 and is closed. The default is (open-file limit − 64) ÷
+    /// descriptors per connection (3 under `splice`, 1 under `copy`).
+    #[arg(long, value_name = "N", env = "VTEX_MAX_CONNECTIONS", help_heading = heading::CONNECTIONS)]
     pub max_connections: Option<usize>,
-    /// Byte budget of loaded textures, in MiB, charged what each one's plan says it holds:
-    /// textures load on first use and the least recently used are dropped to stay within it.
-    /// A texture that alone holds more is refused.
-    #[arg(long, env = "VTEX_TEXTURES_MB", default_value_t = 2048.0)]
+    /// Byte budget of loaded textures, in MiB.
+    ///
+    /// Each texture is charged what its plan says it holds: textures load on first use and the
+    /// least recently used are dropped to stay within it. A texture that alone holds more is
+    /// refused.
+    #[arg(long, value_name = "MIB", env = "VTEX_TEXTURES_MB", default_value_t = 2048.0, help_heading = heading::BUDGETS)]
     pub textures_mb: f64,
-    /// Most work units one tile of a texture may cost (`vtex_synth::models::cost`); an upload
-    /// over it is refused.
-    #[arg(long, env = "VTEX_MAX_TILE_WORK", default_value_t = Limits::SERVE.max_tile_work)]
+    /// Most work units one tile of a texture may cost.
+    ///
+    /// Work units are `vtex_synth::models::cost`'s; an upload over it is refused.
+    #[arg(long, value_name = "N", env = "VTEX_MAX_TILE_WORK", default_value_t = Limits::SERVE.max_tile_work, help_heading = heading::BUDGETS)]
     pub max_tile_work: u64,
-    /// Most work units creating or loading one texture may cost; an upload over it is refused.
-    #[arg(long, env = "VTEX_MAX_BUILD_WORK", default_value_t = Limits::SERVE.max_build_work)]
+    /// Most work units creating or loading one texture may cost.
+    ///
+    /// An upload over it is refused.
+    #[arg(long, value_name = "N", env = "VTEX_MAX_BUILD_WORK", default_value_t = Limits::SERVE.max_build_work, help_heading = heading::BUDGETS)]
     pub max_build_work: u64,
-    /// Most textures the store holds; an upload past it is refused (507).
-    #[arg(long, env = "VTEX_MAX_TEXTURES", default_value_t = 10_000)]
+    /// Most textures the store holds.
+    ///
+    /// An upload past it is refused (507).
+    #[arg(long, value_name = "N", env = "VTEX_MAX_TEXTURES", default_value_t = 10_000, help_heading = heading::STORE)]
     pub max_textures: usize,
-    /// Most bytes of bundles the store holds on disk, in MiB; an upload past it is refused (507).
-    #[arg(long, env = "VTEX_STORE_MB", default_value_t = 4096.0)]
+    /// Most bytes of bundles the store holds on disk, in MiB.
+    ///
+    /// An upload past it is refused (507).
+    #[arg(long, value_name = "MIB", env = "VTEX_STORE_MB", default_value_t = 4096.0, help_heading = heading::STORE)]
     pub store_mb: f64,
-    /// Syntheses one texture may run at once, so that its misses, however slow, leave slots
-    /// to the others. Default: all slots but one (one when there is one slot).
-    #[arg(long, env = "VTEX_MAX_SYNTHESES_PER_TEXTURE")]
+    /// Syntheses one texture may run at once [default: all slots but one].
+    ///
+    /// So that its misses, however slow, leave slots to the others; one when there is one slot.
+    #[arg(long, value_name = "N", env = "VTEX_MAX_SYNTHESES_PER_TEXTURE", help_heading = heading::BUDGETS)]
     pub max_syntheses_per_texture: Option<usize>,
-    /// Misses waiting for a synthesis slot; one more is answered 503 at once. Default:
-    /// [`QUEUED_PER_SLOT`] per slot.
-    #[arg(long, env = "VTEX_MAX_QUEUED")]
+    // Its default is a constant's value, which a doc comment cannot show.
+    #[arg(long, value_name = "N", env = "VTEX_MAX_QUEUED", help_heading = heading::BUDGETS,
+        help = max_queued_help(false), long_help = max_queued_help(true))]
     pub max_queued: Option<usize>,
-    /// Byte budget of response bodies in flight, in MiB: regions (from their render until
-    /// sent), bundle downloads and batch frames reserve their bytes first; past it, 503.
-    /// Cached tiles are the tile cache's and are not charged.
-    #[arg(long, env = "VTEX_INFLIGHT_MB", default_value_t = DEFAULT_INFLIGHT_MB)]
+    /// Byte budget of response bodies in flight, in MiB.
+    ///
+    /// Regions (from their render until sent), bundle downloads and batch frames reserve their
+    /// bytes first; past it, 503. Cached tiles are the tile cache's and are not charged.
+    #[arg(long, value_name = "MIB", env = "VTEX_INFLIGHT_MB", default_value_t = DEFAULT_INFLIGHT_MB, help_heading = heading::BUDGETS)]
     pub inflight_mb: f64,
-    /// Fewest bytes a second a response must move while it waits for its reader, averaged over
-    /// each `--send-timeout-secs` of waiting; a slower one is abandoned and its connection
-    /// closed. 0 turns the check off.
-    #[arg(long, env = "VTEX_MIN_SEND_RATE", default_value_t = 1024)]
+    /// Fewest bytes a second a response must move to its reader.
+    ///
+    /// Counted while it waits for its reader, averaged over each `--send-timeout-secs` of waiting; a slower one is abandoned and its
+    /// connection closed. 0 turns the check off.
+    #[arg(long, value_name = "BYTES", env = "VTEX_MIN_SEND_RATE", default_value_t = 1024, help_heading = heading::CONNECTIONS)]
     pub min_send_rate: u64,
-    /// Bearer token every write (POST, PATCH, DELETE) must carry in `Authorization`; unset, only
-    /// loopback clients may write (see `--open-writes`). Prefer the environment or
-    /// `--write-token-file`: a flag shows in `ps`.
-    #[arg(long, env = "VTEX_WRITE_TOKEN", hide_env_values = true)]
+    /// Bearer token writes (POST, PATCH, DELETE) must carry.
+    ///
+    /// In `Authorization: Bearer …`, from every client. Unset, only loopback clients may write (see `--open-writes`).
+    /// Prefer the environment or `--write-token-file`: a flag shows in `ps`.
+    #[arg(long, value_name = "TOKEN", env = "VTEX_WRITE_TOKEN", hide_env_values = true, help_heading = heading::WRITES)]
     pub write_token: Option<WriteToken>,
-    /// File holding the write token (a container secret); its surrounding whitespace is ignored.
-    #[arg(long, env = "VTEX_WRITE_TOKEN_FILE", conflicts_with = "write_token")]
+    /// File holding the write token (a container secret).
+    ///
+    /// Its surrounding whitespace is ignored.
+    #[arg(long, value_name = "FILE", env = "VTEX_WRITE_TOKEN_FILE", conflicts_with = "write_token", help_heading = heading::WRITES)]
     pub write_token_file: Option<PathBuf>,
-    /// Without a write token, accept writes from every client, not only loopback ones: anyone
-    /// who reaches the port can upload, rename and delete. Only behind a proxy that
-    /// authenticates writes itself.
-    #[arg(long, env = "VTEX_OPEN_WRITES", conflicts_with_all = ["write_token", "write_token_file"])]
+    /// Without a write token, accept writes from every client, not only loopback ones.
+    ///
+    /// Anyone who reaches the port can then upload, rename and delete. Only behind a proxy that authenticates writes
+    /// itself.
+    #[arg(long, env = "VTEX_OPEN_WRITES", conflicts_with_all = ["write_token", "write_token_file"], help_heading = heading::WRITES)]
     pub open_writes: bool,
-    /// Refuse every write (403): a replica that only serves what the data directory holds.
-    #[arg(long, env = "VTEX_READ_ONLY")]
+    /// Refuse every write (403): serve only what the data directory holds.
+    #[arg(long, env = "VTEX_READ_ONLY", help_heading = heading::WRITES)]
     pub read_only: bool,
-    /// Origins (`https://host[:port]`, comma-separated, or `*`) whose pages may write across
-    /// origins; by default only requests without an `Origin` or from the server's own origin
-    /// may write. Reads are open to every origin.
-    #[arg(long, env = "VTEX_CORS_WRITE_ORIGINS", value_delimiter = ',')]
+    /// Other origins whose pages may write (comma-separated, or `*`).
+    ///
+    /// Each is `https://host[:port]` or `http://host[:port]`. By default only requests without an `Origin` or from the server's own origin may write.
+    /// Reads are open to every origin.
+    #[arg(long, value_name = "ORIGINS", env = "VTEX_CORS_WRITE_ORIGINS", value_delimiter = ',', help_heading = heading::WRITES)]
     pub cors_write_origins: Vec<String>,
-    /// How the store learns of bundles other processes add to or delete from the data
-    /// directory: `events` (inotify, else polling), `poll`, or `off` (then only a request for
-    /// an unknown id finds a new bundle).
-    #[arg(long, env = "VTEX_WATCH", value_enum, default_value_t = WatchMode::Events)]
+    /// Follow other processes' bundles.
+    ///
+    /// How the store learns of bundles other processes add to or delete from the data directory.
+    ///
+    /// `off`: only a request for an unknown id finds a new bundle.
+    #[arg(long, value_name = "HOW", env = "VTEX_WATCH", value_enum, default_value_t = WatchMode::Events, help_heading = heading::STORE)]
     pub watch: WatchMode,
+    /// Log one line per request at `info` (method, path, status, bytes, latency).
+    ///
+    /// Without it requests are logged at `debug`. Logs go to stderr, filtered by `VTEX_LOG` or
+    /// `RUST_LOG` (default `info`), coloured only on a terminal and without `NO_COLOR`.
+    #[arg(long, env = "VTEX_ACCESS_LOG", help_heading = heading::LOGGING)]
+    pub access_log: bool,
 }
 
 /// The default of `--inflight-mb`: two of the largest regions rendering at once (one a
@@ -160,6 +223,24 @@ pub const DEFAULT_INFLIGHT_MB: f64 = 256.0;
 /// missing at once is absorbed; a queue longer than that would only be answered near or past
 /// the request deadline, where a prompt 503 serves the client better.
 pub const QUEUED_PER_SLOT: usize = 32;
+
+/// Names an option's environment variable at the end of its `--help` rather than in `-h`,
+/// which then fits each option on one line.
+fn env_in_long_help(arg: clap::Arg) -> clap::Arg {
+    let Some(env) = arg.get_env().map(|e| e.to_string_lossy().into_owned()) else { return arg };
+    let help = arg.get_long_help().or(arg.get_help()).map(ToString::to_string).unwrap_or_default();
+    arg.hide_env(true).long_help(format!("{help}\n\n[env: {env}]"))
+}
+
+/// `--max-queued`'s help, short or long.
+fn max_queued_help(long: bool) -> String {
+    let short = format!("Misses waiting for a synthesis slot [default: {QUEUED_PER_SLOT} per slot]");
+    if long {
+        format!("{short}.\n\nOne more is answered 503 at once.")
+    } else {
+        short
+    }
+}
 
 impl ServeConfig {
     /// Checks ranges clap cannot express; the message names the setting.

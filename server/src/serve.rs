@@ -31,6 +31,7 @@ use prometheus::{IntCounter, IntGauge};
 use std::future::Future;
 use std::io::Write;
 use std::net::SocketAddr;
+use std::path::Path;
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 use tokio::io::{AsyncReadExt, AsyncWriteExt};
@@ -57,13 +58,21 @@ pub fn main(cfg: ServeConfig) -> anyhow::Result<()> {
 pub async fn run(mut cfg: ServeConfig, shutdown: impl Future<Output = ()>) -> anyhow::Result<()> {
     cfg.validate().map_err(anyhow::Error::msg)?;
     cfg.resolve_write_token().map_err(anyhow::Error::msg)?;
+    // Nothing is written before the server can run: the address is bound and the data
+    // directory checked before the demos are written into it.
+    let listener = TcpListener::bind(cfg.bind)
+        .await
+        .map_err(|e| anyhow::anyhow!("cannot listen on {}: {}", cfg.bind, io_message(&e)))?;
     let t0 = Instant::now();
-    let (dir, bounds, demos, watch) = (cfg.data_dir.clone(), cfg.store_bounds(), !cfg.no_demos, cfg.watch);
+    let (dir, bounds, watch, write) = (cfg.data_dir.clone(), cfg.store_bounds(), cfg.watch, !cfg.read_only);
+    let demos = write && !cfg.no_demos;
     // The watch starts before the store lists the directory, so nothing added meanwhile is missed.
     let (store, report, watch) = tokio::task::spawn_blocking(move || {
-        std::fs::create_dir_all(&dir)?;
-        let watch = Watch::start(&dir, watch).map_err(std::io::Error::other)?;
-        Store::open(&dir, bounds, demos).map(|(store, report)| (Arc::new(store), report, watch))
+        check_data_dir(&dir, write)?;
+        let watch = Watch::start(&dir, watch).map_err(anyhow::Error::msg)?;
+        let (store, report) = Store::open(&dir, bounds, demos)
+            .map_err(|e| anyhow::anyhow!("cannot open data directory {}: {}", dir.display(), io_message(&e)))?;
+        anyhow::Ok((Arc::new(store), report, watch))
     })
     .await??;
     for (path, why) in &report.rejected {
@@ -119,7 +128,6 @@ pub async fn run(mut cfg: ServeConfig, shutdown: impl Future<Output = ()>) -> an
     let refusal = Refusal::new(max_connections, app.metrics.connections_refused.clone());
     let front = api::Front::new(app);
 
-    let listener = TcpListener::bind(cfg.bind).await?;
     let addr = listener.local_addr()?;
     tracing::info!(
         %addr,
@@ -159,6 +167,48 @@ pub async fn run(mut cfg: ServeConfig, shutdown: impl Future<Output = ()>) -> an
             .map_err(|_| anyhow::anyhow!("an I/O thread panicked"))??;
     }
     Ok(())
+}
+
+/// Checks the data directory before anything is written to it: a directory (created if
+/// missing) that can be read, and written unless `write` is false. The error names the path.
+fn check_data_dir(dir: &Path, write: bool) -> anyhow::Result<()> {
+    let fail = |what: &str, e: std::io::Error| {
+        anyhow::anyhow!("cannot {what} data directory {}: {}", dir.display(), io_message(&e))
+    };
+    match std::fs::metadata(dir) {
+        Ok(m) if !m.is_dir() => anyhow::bail!("data directory {} is not a directory", dir.display()),
+        Ok(_) => {}
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => {
+            std::fs::create_dir_all(dir).map_err(|e| fail("create", e))?
+        }
+        Err(e) => return Err(fail("reach", e)),
+    }
+    std::fs::read_dir(dir).map_err(|e| fail("read", e))?;
+    if write {
+        // A temporary name: a probe left by a crash is removed at a later start, never served.
+        let probe = dir.join(format!("{}probe-{}", crate::store::TEMP_PREFIX, std::process::id()));
+        let created = std::fs::File::options().write(true).create_new(true).open(&probe);
+        created.and_then(|_| std::fs::remove_file(&probe)).map_err(|e| {
+            anyhow::anyhow!(
+                "cannot write to data directory {}: {} (--read-only serves it without writing)",
+                dir.display(),
+                io_message(&e)
+            )
+        })?;
+    }
+    Ok(())
+}
+
+/// An I/O error as a person reads it: the system's words without the `(os error N)` code,
+/// starting lower-case to follow the colon that introduces it.
+fn io_message(e: &std::io::Error) -> String {
+    let text = e.to_string();
+    let text = match text.find(" (os error ") {
+        Some(at) if text.ends_with(')') => &text[..at],
+        _ => text.as_str(),
+    };
+    let mut chars = text.chars();
+    chars.next().map(|c| c.to_lowercase().chain(chars).collect()).unwrap_or_default()
 }
 
 /// One runtime serving connections: how many it serves now, and (for the other runtimes) the

@@ -8,15 +8,16 @@ import {
   ROOT,
   closeSession,
   compareScreenToImage,
-  decodePng,
   fetchServerTile,
   openViewer,
   setAlignedView,
   startSession,
+  structure,
   tileRequests,
+  viewCentre,
   waitForIdle,
 } from './lib.mjs';
-import { SHOWCASE } from '../../client-web/src/first-view.js';
+import { FIRST_ZOOM, SHOWCASE } from '../../client-web/src/first-view.js';
 import { inPyramid, tileCount } from '../../client-web/src/pyramid.js';
 
 const SHOTS = join(ROOT, 'target', 'browser-shots');
@@ -27,34 +28,6 @@ let textures;
 
 before(async () => ({ server, browser, textures } = await startSession()));
 after(() => closeSession({ server, browser }));
-
-/**
- * How much a screenshot shows: colours at 5 bits a channel that each cover at least 0.1 % of
- * its pixels (noise adds rare colours, not common ones), and the standard deviation of luma.
- */
-function structure(shot) {
-  const counts = new Map();
-  let sum = 0;
-  let sum2 = 0;
-  const n = shot.width * shot.height;
-  for (let i = 0; i < shot.data.length; i += 4) {
-    const [r, g, b] = shot.data.subarray(i, i + 3);
-    const key = ((r >> 3) << 10) | ((g >> 3) << 5) | (b >> 3);
-    counts.set(key, (counts.get(key) || 0) + 1);
-    const luma = 0.2126 * r + 0.7152 * g + 0.0722 * b;
-    sum += luma;
-    sum2 += luma * luma;
-  }
-  const colours = [...counts.values()].filter((c) => c >= n / 1000).length;
-  return { colours, sd: Math.sqrt(Math.max(0, sum2 / n - (sum / n) ** 2)) };
-}
-
-/** The central half (each way) of the view, away from the controls and the navigator. */
-async function viewCentre(page) {
-  const box = await page.locator('#osd').boundingBox();
-  const clip = { x: Math.round(box.x + box.width / 4), y: Math.round(box.y + box.height / 4), width: Math.round(box.width / 2), height: Math.round(box.height / 2) };
-  return decodePng(await page.screenshot({ clip }));
-}
 
 test('the viewer opened without a link shows the showcase texture with its structure visible', async () => {
   const { page, log } = await openViewer(browser.context, `${server.url}/`);
@@ -71,6 +44,28 @@ test('the viewer opened without a link shows the showcase texture with its struc
   assert.deepEqual(log.errors, []);
   assert.deepEqual(log.badResponses, []);
   assert.equal(await page.locator('#error').isHidden(), true, 'no message');
+  await page.close();
+});
+
+test('a texture picked in the list opens as the first one does, where its structure shows', async () => {
+  // Opened on a small texture, shown whole; then each 100k texture picked in turn.
+  const small = textures.find((t) => t.width <= 2048 && t.height <= 2048 && !t.animated);
+  const picked = [textures.find((t) => t.name === SHOWCASE), textures.find((t) => t.name === 'LCM pebbles 100k')];
+  const { page, log } = await openViewer(browser.context, `${server.url}/?texture=${small.id}`);
+  await waitForIdle(page);
+  for (const info of picked) {
+    assert.ok(info.width >= 100_000, info.name);
+    await page.selectOption('#texture-picker', info.id);
+    await page.waitForFunction((id) => window.vtexViewer.state.info.id === id && window.vtexViewer.state.item, info.id);
+    await waitForIdle(page);
+    const s = structure(await viewCentre(page));
+    const view = await page.evaluate(() => window.vtexViewer.getView());
+    assert.ok(Math.abs(view.zoom - FIRST_ZOOM) < 1e-9, `${info.name} opens at the first view's zoom, not ${view.zoom}`);
+    assert.ok(s.colours >= 50, `${info.name}: ${s.colours} common colours in the view`);
+    assert.ok(s.sd >= 12, `${info.name}: luma standard deviation ${s.sd.toFixed(1)}`);
+  }
+  assert.deepEqual(log.errors, []);
+  assert.deepEqual(log.badResponses, []);
   await page.close();
 });
 

@@ -171,6 +171,34 @@ export async function waitForIdle(page, timeout = 60_000) {
   await page.waitForFunction(viewerIdle, null, { timeout, polling: 50 });
 }
 
+/**
+ * How much a screenshot shows: colours at 5 bits a channel that each cover at least 0.1 % of
+ * its pixels (noise adds rare colours, not common ones), and the standard deviation of luma.
+ */
+export function structure(shot) {
+  const counts = new Map();
+  let sum = 0;
+  let sum2 = 0;
+  const n = shot.width * shot.height;
+  for (let i = 0; i < shot.data.length; i += 4) {
+    const [r, g, b] = shot.data.subarray(i, i + 3);
+    const key = ((r >> 3) << 10) | ((g >> 3) << 5) | (b >> 3);
+    counts.set(key, (counts.get(key) || 0) + 1);
+    const luma = 0.2126 * r + 0.7152 * g + 0.0722 * b;
+    sum += luma;
+    sum2 += luma * luma;
+  }
+  const colours = [...counts.values()].filter((c) => c >= n / 1000).length;
+  return { colours, sd: Math.sqrt(Math.max(0, sum2 / n - (sum / n) ** 2)) };
+}
+
+/** The central half (each way) of the view, away from the controls and the navigator. */
+export async function viewCentre(page) {
+  const box = await page.locator('#osd').boundingBox();
+  const clip = { x: Math.round(box.x + box.width / 4), y: Math.round(box.y + box.height / 4), width: Math.round(box.width / 2), height: Math.round(box.height / 2) };
+  return decodePng(await page.screenshot({ clip }));
+}
+
 /** Where level-0 pixel (x, y)'s top-left corner is, in viewer-element and page coordinates. */
 export async function screenPointOf(page, x, y) {
   return page.evaluate(

@@ -5,15 +5,17 @@
 //! boxed services, its layers, the request extensions) costs more than the rest of such a
 //! request. The fast path matches the path against the router's own template ([`TILE`]) with
 //! the router's matcher (`matchit`), fills the same extractor types, runs the same handler
-//! ([`tiles::answer`]) and gives the answer the same CORS headers, metrics label, log line
-//! and deadline. Anything else (HEAD, other methods, percent-encoded paths, other routes)
+//! ([`tiles::answer`]) and gives the answer the same CORS headers, metrics label and
+//! deadline. Anything else (HEAD, other methods, percent-encoded paths, other routes)
 //! takes the router, so answers are the same either way (tests compare both).
 //!
 //! Before either, every request's head is checked where it costs least, before any route or
 //! parser sees it: its `Host` (RFC 9112 §3.2) and its query's length and number of parameters
 //! ([`check_query`]). Each connection has its own [`Connection`] service, which counts its
-//! requests in flight for the idle timeout.
+//! requests in flight for the idle timeout, and writes each request's access line once its
+//! body is sent ([`super::access`]), whichever path answered it.
 
+use super::access::AccessLine;
 use super::error::{echo, ApiError};
 use super::extract::{check_query, path_params, query_params, MAX_BATCH_QUERY_BYTES, MAX_QUERY_BYTES};
 use super::{accepts_compression, cors_layer, count, router, tiles, timed_out, App, BATCH, TILE};
@@ -92,17 +94,24 @@ impl hyper::service::Service<Request<Incoming>> for Connection {
         req.extensions_mut().insert(ConnectInfo(self.peer));
         let in_flight = self.activity.start();
         let this = self.front.0.clone();
+        let start = Instant::now();
+        let info = this.app.cfg.access_log;
+        let logged = AccessLine::wanted(info).then(|| (req.method().clone(), req.uri().clone()));
         Box::pin(async move {
             let resp = Inner::answer(this, req).await;
-            Ok(resp.map(|body| Tracked { body, _in_flight: in_flight }))
+            let status = resp.status().as_u16();
+            let line = logged.map(|(method, uri)| AccessLine::new(method, uri, status, start, info));
+            Ok(resp.map(|body| Tracked { body, _in_flight: in_flight, line }))
         })
     }
 }
 
-/// A response body that keeps its request counted in flight until it is finished or dropped.
+/// A response body that keeps its request counted in flight until it is finished or dropped,
+/// and then writes its access line.
 pub struct Tracked {
     body: Body,
     _in_flight: InFlight,
+    line: Option<AccessLine>,
 }
 
 impl http_body::Body for Tracked {
@@ -113,7 +122,11 @@ impl http_body::Body for Tracked {
         mut self: Pin<&mut Self>,
         cx: &mut Context<'_>,
     ) -> Poll<Option<Result<http_body::Frame<Bytes>, axum::Error>>> {
-        Pin::new(&mut self.body).poll_frame(cx)
+        let polled = Pin::new(&mut self.body).poll_frame(cx);
+        if let (Poll::Ready(Some(Ok(frame))), Some(line)) = (&polled, &mut self.line) {
+            line.sent(frame.data_ref().map_or(0, Bytes::len));
+        }
+        polled
     }
 
     fn is_end_stream(&self) -> bool {
@@ -149,14 +162,6 @@ impl Inner {
             };
             this.cors.apply(resp.headers_mut());
             count(&this.app, TILE, &Method::GET, start, &resp);
-            tracing::info!(
-                target: "vtex::http",
-                method = "GET",
-                uri = %req.uri(),
-                status = resp.status().as_u16(),
-                latency_us = start.elapsed().as_micros() as u64,
-                "finished processing request"
-            );
             return resp;
         }
         match this.router.clone().oneshot(req.map(Body::new)).await {
@@ -174,19 +179,12 @@ impl Inner {
         check_query(query, if long { MAX_BATCH_QUERY_BYTES } else { MAX_QUERY_BYTES })
     }
 
-    /// The answer to a request [`Self::check_head`] refused: counted and logged like any other.
+    /// The answer to a request [`Self::check_head`] refused: counted like any other.
     fn refuse(&self, req: &Request<Incoming>, e: ApiError) -> Response {
         let start = Instant::now();
         let mut resp = e.into_response();
         self.cors.apply(resp.headers_mut());
         count(&self.app, REFUSED, req.method(), start, &resp);
-        tracing::info!(
-            target: "vtex::http",
-            method = %req.method(),
-            uri = %echo(&req.uri().to_string()),
-            status = resp.status().as_u16(),
-            "refused before routing"
-        );
         resp
     }
 }

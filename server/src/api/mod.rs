@@ -2,6 +2,7 @@
 //! table of routes: requests are matched there and nowhere else ([`router`] wraps it in the
 //! layers, and the OpenAPI description is checked against it).
 
+mod access;
 pub mod batch;
 mod deletion;
 mod dzi;
@@ -48,8 +49,7 @@ use tower_http::compression::predicate::{DefaultPredicate, NotForContentType, Pr
 use tower_http::compression::{CompressionLayer, CompressionLevel};
 use tower_http::cors::{Any, CorsLayer};
 use tower_http::services::ServeDir;
-use tower_http::trace::{DefaultMakeSpan, DefaultOnResponse, TraceLayer};
-use tower_http::LatencyUnit;
+use tower_http::trace::{DefaultMakeSpan, TraceLayer};
 use vtex_synth::{Region, Stop};
 
 pub use error::ApiError as Error;
@@ -232,9 +232,13 @@ pub fn router(app: App) -> Router {
     let on_timeout = move |_: BoxError| async move { timed_out(limit) };
     let layers = ServiceBuilder::new()
         .layer(
+            // The span gives what handlers log its request; the request's own line is the
+            // access log's ([`front`]), so the layer logs no line per request.
             TraceLayer::new_for_http()
                 .make_span_with(DefaultMakeSpan::new().level(tracing::Level::INFO))
-                .on_response(DefaultOnResponse::new().level(tracing::Level::INFO).latency_unit(LatencyUnit::Micros)),
+                .on_request(())
+                .on_response(())
+                .on_eos(()),
         )
         .layer(middleware::map_response(weaken_encoded_etag))
         .layer(compression_layer())

@@ -83,7 +83,7 @@ impl Server {
         // The `serving` line, logged before the address is printed, names the transport.
         let asked = env.iter().find(|(k, _)| *k == "VTEX_SEND").map(|(_, v)| v.to_string());
         if let Some(send) = asked.or_else(|| std::env::var("VTEX_SEND").ok()).filter(|_| !extra.contains(&"--send")) {
-            let log = without_colours(&std::fs::read_to_string(&log).unwrap_or_default());
+            let log = std::fs::read_to_string(&log).unwrap_or_default();
             assert!(log.contains(&format!("send={send}")), "the server does not run VTEX_SEND={send}:\n{log}");
         }
         let base = base.to_string();
@@ -122,25 +122,10 @@ impl Server {
         self.child.try_wait().unwrap().is_none()
     }
 
-    /// The server's log so far, as plain text.
+    /// The server's log so far (plain text: not a terminal, so no colours).
     pub fn log_text(&self) -> String {
-        without_colours(&std::fs::read_to_string(&self.log).unwrap_or_default())
+        std::fs::read_to_string(&self.log).unwrap_or_default()
     }
-}
-
-/// `log` without the terminal escape sequences (colours) the logger writes around fields.
-fn without_colours(log: &str) -> String {
-    let mut out = String::with_capacity(log.len());
-    let mut chars = log.chars();
-    while let Some(c) = chars.next() {
-        if c == '\x1b' {
-            // An escape sequence runs up to its final letter (`m` for colours).
-            chars.by_ref().find(|c| c.is_ascii_alphabetic());
-        } else {
-            out.push(c);
-        }
-    }
-    out
 }
 
 impl Drop for Server {
