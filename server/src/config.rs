@@ -1,6 +1,7 @@
 //! Settings of `vtex serve`. Each one comes from its flag, else its environment variable,
 //! else its default — one precedence for all, implemented by clap.
 
+use crate::api::origin::{PublicUrl, TrustedProxy};
 use crate::encode::Format;
 use crate::store::Bounds;
 use crate::transport::{SendLimits, Transport};
@@ -29,6 +30,17 @@ pub struct ServeConfig {
     /// Address to listen on; port 0 picks a free one (the chosen address is printed).
     #[arg(long, env = "VTEX_BIND", default_value = "127.0.0.1:8080")]
     pub bind: SocketAddr,
+    /// The URL clients reach vtex at, when a proxy serves it elsewhere or under a sub-path
+    /// (`https://example.org/vtex/`): every absolute URL vtex writes (IIIF ids, TileJSON tiles,
+    /// the OpenAPI server, model examples) starts with it, and forwarded headers are not used
+    /// for them. Unset: the request's `Host`, or what trusted proxies forward.
+    #[arg(long, env = "VTEX_PUBLIC_URL", value_name = "URL")]
+    pub public_url: Option<PublicUrl>,
+    /// Proxies whose forwarded headers are believed (IP addresses or CIDR ranges,
+    /// comma-separated): `Forwarded` and `X-Forwarded-For/-Host/-Proto/-Port/-Prefix` give the
+    /// client's address and, without --public-url, the URL it used. Ignored from other peers.
+    #[arg(long, env = "VTEX_TRUSTED_PROXIES", value_delimiter = ',', value_name = "IP|CIDR")]
+    pub trusted_proxies: Vec<TrustedProxy>,
     /// Directory of content-addressed bundles (`<id>.vtex`); created if missing.
     #[arg(long, env = "VTEX_DATA_DIR", default_value = "./vtex-data")]
     pub data_dir: PathBuf,
