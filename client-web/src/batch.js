@@ -8,12 +8,13 @@ export const HEADER_LEN = 32;
 export const MAX_BATCH = 256;
 
 /**
- * URL of a batch of `tiles` ([{ level, x, y }], vtex levels) of texture `info`. `frame` is sent
- * only for animated textures, as for single tiles.
+ * URL of a batch of `tiles` ([{ level, x, y }], vtex levels) of texture `info`, relative to the
+ * viewer's page (vtex may be served under a sub-path). `frame` is sent only for animated
+ * textures, as for single tiles.
  */
 export function batchUrl(info, tiles, frame = 0, format = 'rgba') {
   const list = tiles.map((t) => `${t.level}/${t.x}/${t.y}`).join(',');
-  const base = `/api/v1/textures/${encodeURIComponent(info.id)}/tiles?format=${format}&tiles=${list}`;
+  const base = `api/v1/textures/${encodeURIComponent(info.id)}/tiles?format=${format}&tiles=${list}`;
   return info.animated ? `${base}&frame=${frame >>> 0}` : base;
 }
 

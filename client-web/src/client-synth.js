@@ -74,7 +74,7 @@ export class ClientSynth {
    * encoding at `encodingUrl`. `ready` resolves once every Worker has it open, or rejects with
    * a message that says why client synthesis is impossible.
    */
-  constructor(info, { encodingUrl = `/api/v1/textures/${encodeURIComponent(info.id)}/encoding`, stats }) {
+  constructor(info, { encodingUrl = `api/v1/textures/${encodeURIComponent(info.id)}/encoding`, stats }) {
     this.info = info;
     this.workers = [];
     /** Tiles asked for and not answered: key → { resolve, reject, worker }. */

@@ -27,7 +27,7 @@ export function setupCreatePanel({ onCreated }) {
   async function loadModels() {
     status('Loading the models…');
     try {
-      const response = await fetch('/api/v1/models');
+      const response = await fetch('api/v1/models');
       const body = await response.json().catch(() => null);
       if (!response.ok) throw new Error(`HTTP ${response.status}${body && body.error ? `: ${body.error}` : ''}`);
       state.models = body.models;
@@ -196,7 +196,7 @@ export function setupCreatePanel({ onCreated }) {
     let response;
     let body = null;
     try {
-      response = await fetch('/api/v1/textures', {
+      response = await fetch('api/v1/textures', {
         method: 'POST',
         body: form,
         headers: token ? { Authorization: `Bearer ${token}` } : {},

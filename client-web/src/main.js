@@ -518,7 +518,7 @@ window.vtexViewer = { viewer, stats, state, getView, setView, drawnLevels, openT
 
 /** Lists the textures again and opens `info`, one just created (create-panel.js). */
 async function openCreated(info) {
-  state.textures = (await getJson('/api/v1/textures')).textures;
+  state.textures = (await getJson('api/v1/textures')).textures;
   const listed = findTexture(info.id) || info;
   fillPicker(state.textures, listed.id);
   showError('');
@@ -531,7 +531,7 @@ async function start() {
   if (view.synth === 'client' || document.querySelector('meta[name="vtex-export"]')) loadModule(stats).catch(() => {});
   try {
     state.exported = await staticExport();
-    state.textures = state.exported ? state.exported.textures : (await getJson('/api/v1/textures')).textures;
+    state.textures = state.exported ? state.exported.textures : (await getJson('api/v1/textures')).textures;
   } catch (e) {
     showError(`Could not list textures: ${e.message}`);
     return;

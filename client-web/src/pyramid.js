@@ -52,13 +52,13 @@ export function sourceTile(info, tile) {
 export const modulo = (a, n) => ((a % n) + n) % n;
 
 /**
- * URL of one tile, or null when (level, x, y) lies outside the pyramid. `frame` is sent only
- * for animated textures (the server normalises it to 0 otherwise, so sending it would only
- * split the browser's cache).
+ * URL of one tile relative to the viewer's page, or null when (level, x, y) lies outside the
+ * pyramid. `frame` is sent only for animated textures (the server normalises it to 0 otherwise,
+ * so sending it would only split the browser's cache).
  */
 export function tileUrl(info, level, x, y, frame = 0, format = 'png') {
   if (!inPyramid(info, level, x, y)) return null;
-  const base = `/api/v1/textures/${encodeURIComponent(info.id)}/tiles/${level}/${x}/${y}.${format}`;
+  const base = `api/v1/textures/${encodeURIComponent(info.id)}/tiles/${level}/${x}/${y}.${format}`;
   return info.animated ? `${base}?frame=${frame >>> 0}` : base;
 }
 

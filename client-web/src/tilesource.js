@@ -177,7 +177,8 @@ function loadBatch(jobs, { loader, info, frame, format, stats, inFlight }) {
       tiles.push(t);
     }
   }
-  const url = batchUrl(info, tiles, frame, format);
+  // Absolute: the Worker would resolve a relative URL against its own script's.
+  const url = new URL(batchUrl(info, tiles, frame, format), document.baseURI).href;
   for (const job of jobs) job.userData.batchUrl = url; // for bench/viewer/trace.mjs
   stats.batchStarted();
   // Ends a job once, with its bitmap or the reason it has none.

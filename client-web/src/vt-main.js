@@ -45,7 +45,7 @@ async function start() {
   const canvas = document.getElementById('view');
   const gl = canvas.getContext('webgl2', { antialias: false, preserveDrawingBuffer: true });
   if (!gl) fail('This browser has no WebGL2.');
-  const list = await (await fetch('/api/v1/textures')).json();
+  const list = await (await fetch('api/v1/textures')).json();
   const info = findTexture(list.textures, params.get('texture') || FLAGSHIP) || (!params.has('texture') && list.textures[0]);
   if (!info) fail(`no texture named ${params.get('texture')}`);
 
@@ -97,7 +97,7 @@ async function start() {
     }
     state.stats.requested += pages.length;
     const arrived = new Set();
-    const url = `/api/v1/textures/${info.id}/tiles?pages=${pages.map((p) => p.key).join(',')}&${query}`;
+    const url = `api/v1/textures/${info.id}/tiles?pages=${pages.map((p) => p.key).join(',')}&${query}`;
     try {
       const r = await fetch(url);
       if (!r.ok) throw new Error(`${url}: HTTP ${r.status} ${await r.text()}`);

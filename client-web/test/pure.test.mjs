@@ -49,8 +49,8 @@ test('nothing outside the pyramid has a URL', () => {
   assert.equal(inPyramid(odd, 0, 11, 2), true);
   assert.equal(inPyramid(odd, 0, 11, 3), false);
   assert.equal(tileUrl(big, 0, 391, 0), null);
-  assert.equal(tileUrl(big, 3, 1, 2), `/api/v1/textures/${big.id}/tiles/3/1/2.png`);
-  assert.equal(tileUrl(odd, 0, 2, 1, 7), `/api/v1/textures/${odd.id}/tiles/0/2/1.png?frame=7`);
+  assert.equal(tileUrl(big, 3, 1, 2), `api/v1/textures/${big.id}/tiles/3/1/2.png`);
+  assert.equal(tileUrl(odd, 0, 2, 1, 7), `api/v1/textures/${odd.id}/tiles/0/2/1.png?frame=7`);
 });
 
 test('drawLevel: `map` draws the level nearest the screen resolution, `sharp` never magnifies', () => {
@@ -197,8 +197,8 @@ test('a view set at once is evaluated in the same task, at most once a frame', a
 
 test('batch URLs list level/x/y and send the frame only for animated textures', () => {
   const tiles = [{ level: 0, x: 285, y: 160 }, { level: 3, x: 1, y: 2 }];
-  assert.equal(batchUrl(big, tiles, 5, 'rgba'), `/api/v1/textures/${big.id}/tiles?format=rgba&tiles=0/285/160,3/1/2`);
-  assert.equal(batchUrl(odd, tiles, 7, 'png'), `/api/v1/textures/${odd.id}/tiles?format=png&tiles=0/285/160,3/1/2&frame=7`);
+  assert.equal(batchUrl(big, tiles, 5, 'rgba'), `api/v1/textures/${big.id}/tiles?format=rgba&tiles=0/285/160,3/1/2`);
+  assert.equal(batchUrl(odd, tiles, 7, 'png'), `api/v1/textures/${odd.id}/tiles?format=png&tiles=0/285/160,3/1/2&frame=7`);
   assert.equal(tileKey(3, 1, 2), '3/1/2');
   assert.equal(MAX_BATCH, 256);
   // The longest list the viewer can send stays well inside the server's 8 KiB query bound.

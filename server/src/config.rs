@@ -1,6 +1,7 @@
 //! Settings of `vtex serve`. Each one comes from its flag, else its environment variable,
 //! else its default — one precedence for all, implemented by clap.
 
+use crate::api::origin::{PublicUrl, TrustedProxy};
 use crate::encode::Format;
 use crate::store::Bounds;
 use crate::transport::{SendLimits, Transport};
@@ -45,6 +46,19 @@ pub struct ServeConfig {
     /// Port 0 picks a free one (the chosen address is printed).
     #[arg(long, value_name = "ADDR", env = "VTEX_BIND", default_value = "127.0.0.1:8080", help_heading = heading::NETWORK)]
     pub bind: SocketAddr,
+    /// The URL clients reach vtex at, behind a proxy or under a sub-path.
+    ///
+    /// For example `https://example.org/vtex/`: every absolute URL vtex writes (IIIF ids, TileJSON tiles, the OpenAPI
+    /// server, model examples) starts with it, and forwarded headers are not used for them. Unset: the request's
+    /// `Host`, or what trusted proxies forward.
+    #[arg(long, env = "VTEX_PUBLIC_URL", value_name = "URL", help_heading = heading::NETWORK)]
+    pub public_url: Option<PublicUrl>,
+    /// Proxies whose forwarded headers are believed (IPs or CIDR ranges, comma-separated).
+    ///
+    /// `Forwarded` and `X-Forwarded-For/-Host/-Proto/-Port/-Prefix` give the client's address and, without
+    /// --public-url, the URL it used. Ignored from other peers.
+    #[arg(long, env = "VTEX_TRUSTED_PROXIES", value_delimiter = ',', value_name = "IP|CIDR", help_heading = heading::NETWORK)]
+    pub trusted_proxies: Vec<TrustedProxy>,
     /// Directory of the texture bundles (`<id>.vtex`).
     ///
     /// Bundles are content-addressed. Created if missing; it must be readable, and writable unless `--read-only`.

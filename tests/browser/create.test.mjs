@@ -87,7 +87,7 @@ async function uploadByHand(url, id, name, params, inputs = {}, headers = {}) {
 /** The example's input images, fetched from the server ({ name: bytes }). */
 async function exampleInputs(m) {
   const out = {};
-  for (const [name, input] of Object.entries(m.example.inputs)) out[name] = Buffer.from(await (await fetch(`${server.url}${input.href}`)).arrayBuffer());
+  for (const [name, input] of Object.entries(m.example.inputs)) out[name] = Buffer.from(await (await fetch(input.href)).arrayBuffer());
   return out;
 }
 

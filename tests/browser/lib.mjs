@@ -22,9 +22,10 @@ export const WEB_DIR = process.env.VTEX_WEB_DIR || join(ROOT, 'client-web', 'dis
 /**
  * Starts `vtex serve` on 127.0.0.1:0 with a fresh data dir (or `dataDir`, kept at stop), serving
  * the viewer from WEB_DIR (or, with `embeddedViewer`, the copy built into the binary, as
- * deployed); resolves once it prints its URL.
+ * deployed), with `extraArgs` and the environment variables `env`; resolves once it prints its
+ * URL.
  */
-export async function startServer({ extraArgs = [], dataDir: keptDir = null, embeddedViewer = false } = {}) {
+export async function startServer({ extraArgs = [], env = {}, dataDir: keptDir = null, embeddedViewer = false } = {}) {
   // VTEX_URL: a server already running (e.g. nginx in front of replicas: bench/replicas).
   if (process.env.VTEX_URL) return { url: process.env.VTEX_URL, dataDir: null, stderr: () => '', async stop() {} };
   if (!existsSync(VTEX_BIN)) throw new Error(`${VTEX_BIN} not found: run cargo build --release -p vtex-server`);
@@ -33,7 +34,7 @@ export async function startServer({ extraArgs = [], dataDir: keptDir = null, emb
   const proc = spawn(
     VTEX_BIN,
     ['serve', '--bind', '127.0.0.1:0', '--data-dir', dataDir, ...(embeddedViewer ? [] : ['--web-dir', WEB_DIR]), ...extraArgs],
-    { stdio: ['ignore', 'pipe', 'pipe'] },
+    { stdio: ['ignore', 'pipe', 'pipe'], env: { ...process.env, ...env } },
   );
   let stderr = '';
   proc.stderr.on('data', (d) => {

@@ -15,7 +15,7 @@ export const NGINX = process.env.NGINX || '/usr/sbin/nginx';
 export const NGINX_CONF = join(ROOT, 'docker', 'nginx.conf');
 
 /** A free loopback port (closed again before it is used: a brief race, loopback only). */
-async function freePort() {
+export async function freePort() {
   return new Promise((resolvePort, reject) => {
     const srv = createServer();
     srv.listen(0, '127.0.0.1', () => {

@@ -13,6 +13,7 @@ use super::error::{echo, ApiError};
 use super::extract::{NoQuery, Path, Query};
 use super::openapi::text;
 use super::openapi::ErrorBody;
+use super::origin::Origin;
 use super::tiles::{self, frame_for};
 use super::view::{self, View};
 use super::App;
@@ -21,7 +22,7 @@ use crate::config::MAX_REGION_SIDE;
 use crate::encode::Format;
 use crate::store::Entry;
 use axum::extract::State;
-use axum::http::{header, HeaderMap, HeaderValue, StatusCode, Uri};
+use axum::http::{header, HeaderMap, HeaderValue, StatusCode};
 use axum::response::{IntoResponse, Response};
 use serde::Deserialize;
 use serde_json::json;
@@ -66,9 +67,9 @@ async fn image_of(app: &App, ident: &str) -> Result<(Arc<Entry>, u32), ApiError>
 }
 
 /// The URL of the image service of `ident`, as the client reached this server.
-fn service_url(headers: &HeaderMap, uri: &Uri, ident: &str) -> String {
+fn service_url(origin: &Origin, ident: &str) -> String {
     let ident: String = form_urlencoded::byte_serialize(ident.as_bytes()).collect();
-    format!("{}{PREFIX}/{ident}", super::origin::origin(headers, uri))
+    origin.url(&format!("{PREFIX}/{ident}"))
 }
 
 /// `GET /iiif/3/{identifier}`: the base URI redirects to its image information.
@@ -77,13 +78,8 @@ fn service_url(headers: &HeaderMap, uri: &Uri, ident: &str) -> String {
     tag = "interop",
     params(("ident" = String, Path, description = text::ID_AND_FRAME)),
     responses((status = 303, description = "to its `info.json`"), (status = 404, description = text::NOT_FOUND, body = ErrorBody)))]
-pub async fn base(
-    Path(IdentPath { ident }): Path<IdentPath>,
-    _: Query<NoQuery>,
-    headers: HeaderMap,
-    uri: Uri,
-) -> Response {
-    let to = format!("{}/info.json", service_url(&headers, &uri, &ident));
+pub async fn base(Path(IdentPath { ident }): Path<IdentPath>, _: Query<NoQuery>, origin: Origin) -> Response {
+    let to = format!("{}/info.json", service_url(&origin, &ident));
     (StatusCode::SEE_OTHER, [(header::LOCATION, to)]).into_response()
 }
 
@@ -97,8 +93,8 @@ pub async fn info(
     State(app): State<App>,
     Path(IdentPath { ident }): Path<IdentPath>,
     _: Query<NoQuery>,
+    origin: Origin,
     headers: HeaderMap,
-    uri: Uri,
 ) -> Result<Response, ApiError> {
     let (entry, _) = image_of(&app, &ident).await?;
     let (w, h) = (entry.texture.width(), entry.texture.height());
@@ -111,7 +107,7 @@ pub async fn info(
         .collect();
     let body = json!({
         "@context": CONTEXT,
-        "id": service_url(&headers, &uri, &ident),
+        "id": service_url(&origin, &ident),
         "type": "ImageService3",
         "protocol": "http://iiif.io/api/image",
         "profile": "level2",
@@ -383,8 +379,8 @@ pub async fn image(
     State(app): State<App>,
     Path(path): Path<ImagePath>,
     _: Query<NoQuery>,
+    origin: Origin,
     headers: HeaderMap,
-    uri: Uri,
 ) -> Result<Response, ApiError> {
     let (entry, frame) = image_of(&app, &path.ident).await?;
     let (width, height) = (entry.texture.width(), entry.texture.height());
@@ -394,7 +390,7 @@ pub async fn image(
     // One header with both links: some clients read only the first `Link` header.
     let links = format!(
         "{PROFILE_LINK}, <{}/{}>;rel=\"canonical\"",
-        service_url(&headers, &uri, &path.ident),
+        service_url(&origin, &path.ident),
         req.canonical(width, height)
     );
     let mut resp = answer(&app, entry, req, &headers).await?;

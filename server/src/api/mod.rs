@@ -13,7 +13,7 @@ mod health;
 mod iiif;
 pub mod models;
 pub mod openapi;
-mod origin;
+pub mod origin;
 pub mod pages;
 pub mod params;
 mod textures;

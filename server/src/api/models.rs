@@ -7,6 +7,7 @@ use super::error::{echo, ApiError};
 use super::extract::{NoQuery, Path, Query};
 use super::openapi::text;
 use super::openapi::ErrorBody;
+use super::origin::Origin;
 use super::textures::{json_validated, validated};
 use axum::http::HeaderMap;
 use axum::response::Response;
@@ -63,7 +64,8 @@ pub struct ExampleDoc {
 pub struct ExampleInputDoc {
     /// What the image is and how vtex drew it.
     pub what: String,
-    /// The PNG on this server (a path from its root).
+    /// The PNG: its absolute URL over HTTP (made like every absolute URL, [`Origin`]); a path
+    /// from the server's root in `vtex models`.
     pub href: String,
 }
 
@@ -153,8 +155,17 @@ pub struct ExampleFile {
     path = "/api/v1/models",
     tag = "models",
     responses((status = 200, description = "every model (strong ETag, `no-cache`)", body = ModelList), (status = 400, description = text::BAD_REQUEST, body = ErrorBody)))]
-pub async fn list_models(_: Query<NoQuery>, headers: HeaderMap) -> Response {
-    json_validated(&headers, &list())
+pub async fn list_models(_: Query<NoQuery>, origin: Origin, headers: HeaderMap) -> Response {
+    let mut list = list();
+    list.models.iter_mut().for_each(|doc| absolute(doc, &origin));
+    json_validated(&headers, &list)
+}
+
+/// `doc` with the URLs of its example's images made absolute.
+fn absolute(doc: &mut ModelDoc, origin: &Origin) {
+    for input in doc.example.inputs.values_mut() {
+        input.href = origin.url(&input.href);
+    }
 }
 
 /// `GET /api/v1/models/{id}`
@@ -166,9 +177,12 @@ pub async fn list_models(_: Query<NoQuery>, headers: HeaderMap) -> Response {
 pub async fn model(
     Path(ModelId { id }): Path<ModelId>,
     _: Query<NoQuery>,
+    origin: Origin,
     headers: HeaderMap,
 ) -> Result<Response, ApiError> {
-    Ok(json_validated(&headers, &one(&id)?))
+    let mut doc = one(&id)?;
+    absolute(&mut doc, &origin);
+    Ok(json_validated(&headers, &doc))
 }
 
 /// `GET /api/v1/models/{id}/example/{input}.png`: revalidated like the JSON (another build may

@@ -4,12 +4,14 @@
 //! equal: every route of the table is described here, and every path described here answers.
 
 use super::extract::{NoQuery, Query};
+use super::origin::Origin;
 use super::textures::json_validated;
 use super::{batch, deletion, dzi, health, iiif, models, pages, textures, tilejson, tiles};
 use axum::http::HeaderMap;
 use axum::response::Response;
 use serde::Serialize;
 use std::sync::LazyLock;
+use utoipa::openapi::Server;
 use utoipa::{OpenApi, ToSchema};
 
 /// Descriptions many operations share, written once.
@@ -93,9 +95,11 @@ pub fn document() -> &'static utoipa::openapi::OpenApi {
     &DOCUMENT
 }
 
-/// `GET /api/v1/openapi.json`
+/// `GET /api/v1/openapi.json`, its `servers` the one URL this server is reached at.
 #[utoipa::path(get, path = "/api/v1/openapi.json", tag = "operations",
     responses((status = 200, description = "This OpenAPI 3.1 document (strong ETag, `no-cache`)", content_type = "application/json")))]
-pub async fn openapi_json(_: Query<NoQuery>, headers: HeaderMap) -> Response {
-    json_validated(&headers, document())
+pub async fn openapi_json(_: Query<NoQuery>, origin: Origin, headers: HeaderMap) -> Response {
+    let mut doc = document().clone();
+    doc.servers = Some(vec![Server::new(origin.to_string())]);
+    json_validated(&headers, &doc)
 }

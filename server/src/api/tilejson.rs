@@ -10,13 +10,14 @@ use super::error::{echo, ApiError};
 use super::extract::{Path, Query};
 use super::openapi::text;
 use super::openapi::ErrorBody;
+use super::origin::Origin;
 use super::params::{de, format_value, named, u32_value};
 use super::tiles::{self, frame_for};
 use super::{lookup, record, App, TextureId};
 use crate::cache::{Shape, TileKey};
 use crate::encode::Format;
 use axum::extract::State;
-use axum::http::{HeaderMap, Uri};
+use axum::http::HeaderMap;
 use axum::response::Response;
 use axum::Json;
 use serde::Deserialize;
@@ -50,8 +51,7 @@ pub async fn tilejson(
     State(app): State<App>,
     Path(TextureId { id }): Path<TextureId>,
     Query(q): Query<TileJsonQuery>,
-    headers: HeaderMap,
-    uri: Uri,
+    origin: Origin,
 ) -> Result<Json<Value>, ApiError> {
     let rec = record(&app, &id).await?;
     let format = q.format.unwrap_or(Format::Png);
@@ -60,11 +60,7 @@ pub async fn tilejson(
     }
     let maxzoom = rec.levels - 1;
     let frame = q.frame.map(|f| format!("?frame={f}")).unwrap_or_default();
-    let template = format!(
-        "{}/api/v1/textures/{id}/xyz/{{z}}/{{x}}/{{y}}.{}{frame}",
-        super::origin::origin(&headers, &uri),
-        format.ext()
-    );
+    let template = origin.url(&format!("/api/v1/textures/{id}/xyz/{{z}}/{{x}}/{{y}}.{}{frame}", format.ext()));
     // The texture's share of the world: texels over map pixels at the highest zoom.
     let world = (rec.tile_size as u64 * (1u64 << maxzoom)) as f64;
     let (fx, fy) = (rec.plan.width as f64 / world, rec.plan.height as f64 / world);

@@ -3,9 +3,10 @@
 //! Every file is served twice: at `/{path}`, revalidated (`no-cache` and an ETag), and at
 //! `/assets/{build}/{path}`, cached for a year (`immutable`), `build` being a hash of every
 //! file. The pages (`/` or `/index.html`, the viewer; `/vt.html`, the virtual-texturing demo)
-//! are revalidated and name their stylesheets and scripts by their `/assets/{build}/` URLs, so a
+//! are revalidated and name their stylesheets and scripts by their `assets/{build}/` URLs, so a
 //! browser fetches those once per build; the modules they import relatively resolve inside the
-//! same fingerprinted directory.
+//! same fingerprinted directory. Those URLs are relative, as every URL of the viewer is: under a
+//! proxy's sub-path (`/vtex/`) they stay below it.
 //!
 //! Files come with the brotli and gzip copies the viewer's build made; a client that accepts
 //! one gets it (`Vary: Accept-Encoding`), others the file as it is.
@@ -33,8 +34,8 @@ mod embedded {
 }
 use embedded::File;
 
-/// Where the fingerprinted copies live: `/assets/{build}/…`.
-const ASSETS: &str = "/assets/";
+/// Where the fingerprinted copies live, below the viewer's root: `assets/{build}/…`.
+const ASSETS: &str = "assets/";
 
 struct Asset {
     body: Bytes,
@@ -99,10 +100,11 @@ impl Web {
 
     /// The answer to a GET or HEAD of `path`.
     fn answer(&self, path: &str, req: &Request) -> Response {
+        let path = path.trim_start_matches('/');
         let (key, immutable) = match path.strip_prefix(ASSETS).and_then(|p| p.split_once('/')) {
             Some((build, rest)) if build == self.build => (rest, true),
             Some(_) => return not_found(),
-            None => match path.trim_start_matches('/') {
+            None => match path {
                 "" => ("index.html", false),
                 p => (p, false),
             },
@@ -223,7 +225,7 @@ mod tests {
         assert_eq!(
             page,
             format!(
-                "<link href=\"/assets/{b}/viewer.css\"><script src=\"/assets/{b}/main.js\"></script><a href=\"other\">"
+                "<link href=\"assets/{b}/viewer.css\"><script src=\"assets/{b}/main.js\"></script><a href=\"other\">"
             )
         );
         let r = get(&web, &format!("/assets/{b}/main.js"));
@@ -255,7 +257,7 @@ mod tests {
         .unwrap();
         let b = &web.build;
         let body = |path: &str| web.files[path].body.clone();
-        assert_eq!(body("vt.html"), format!("<script src=\"/assets/{b}/vt.js\"></script>"));
+        assert_eq!(body("vt.html"), format!("<script src=\"assets/{b}/vt.js\"></script>"));
         assert!(web.files["vt.html"].br.is_empty(), "a rewritten page has no copy the build compressed");
         let r = web.answer("/", &Request::get("/").header(header::ACCEPT_ENCODING, "br").body(Body::empty()).unwrap());
         assert_eq!(r.headers()[header::ETAG], web.files["index.html"].etag);

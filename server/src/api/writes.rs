@@ -10,15 +10,16 @@
 //! writes without a preflight (a multipart form POST), so the write itself is checked too: an
 //! `Origin` that is neither configured nor the server's own (its `Host`) is refused. Requests
 //! without an `Origin` (curl, scripts, other servers) are not browsers' and pass that check.
+//! Behind trusted proxies (`--trusted-proxies`), the client is the address they forward for.
 
 use super::error::{echo, ApiError};
-use super::{drain, App};
+use super::{drain, origin, App};
 use crate::config::{ServeConfig, WriteToken};
-use axum::extract::{ConnectInfo, Request, State};
+use axum::extract::{Request, State};
 use axum::http::{header, HeaderMap, HeaderValue, Method, StatusCode};
 use axum::middleware::Next;
 use axum::response::{IntoResponse, Response};
-use std::net::{IpAddr, Ipv4Addr, SocketAddr};
+use std::net::IpAddr;
 
 /// How long a browser may keep a write preflight's answer.
 const PREFLIGHT_MAX_AGE_SECS: u32 = 600;
@@ -138,14 +139,6 @@ fn same_origin(origin: &str, headers: &HeaderMap) -> bool {
     !authority.is_empty() && authority.eq_ignore_ascii_case(host)
 }
 
-/// The address of the client that sent `req`: the connection's peer. A request without one
-/// (never the case over a socket) counts as no particular address, which is not loopback.
-fn client_ip(req: &Request) -> IpAddr {
-    req.extensions()
-        .get::<ConnectInfo<SocketAddr>>()
-        .map_or(IpAddr::V4(Ipv4Addr::UNSPECIFIED), |ConnectInfo(peer)| peer.ip())
-}
-
 /// A refused write: the JSON error, readable by any page like every other answer.
 fn refusal(e: ApiError) -> Response {
     let mut resp = e.into_response();
@@ -165,7 +158,10 @@ pub async fn guard(State(app): State<App>, req: Request, next: Next) -> Response
             return app.writes.preflight(headers.get(header::ORIGIN).and_then(|v| v.to_str().ok()));
         }
     } else if is_write(req.method()) {
-        if let Err(e) = app.writes.admit(headers, client_ip(&req)) {
+        let (parts, body) = req.into_parts();
+        let client = origin::client_addr(&app.cfg, &parts);
+        let req = Request::from_parts(parts, body);
+        if let Err(e) = app.writes.admit(req.headers(), client) {
             tracing::info!(method = %req.method(), path = %echo(req.uri().path()), reason = %e, "write refused");
             drain(req).await;
             return refusal(e);
