@@ -133,7 +133,7 @@ async fn iiif_info_and_tiles_are_the_tile_api() {
     }
 
     for (path, status, words) in [
-        (format!("{base}/full/max/45/default.png"), 501, "multiples of 90"),
+        (format!("{base}/full/max/45/default.png"), 400, "a multiple of 90"),
         (format!("{base}/full/max/0/sepia.png"), 400, "quality"),
         (format!("{base}/full/max/0/default.gif"), 400, "png, jpg or webp"),
         (format!("{base}/full/full/0/default.png"), 400, "size"),

@@ -263,27 +263,27 @@ export async function fetchServerTile(serverUrl, info, level, tx, ty, frame) {
 }
 
 /**
- * Checks that every pixel of the screen box `clip` shows exactly the server's level-0 texel
- * under its centre (no seams, no stretched tiles, no smoothing): `at` maps image point (x, y)
- * to screen (ax, ay) at sx × sy screen pixels per texel. Pixel centres within 1 % of a texel
- * edge, which may round either way, are skipped. Returns the pixels compared and the number of
- * tiles they came from.
+ * Checks that every pixel of the screen box `clip` shows exactly the server's level-`level`
+ * texel under its centre (no seams, no stretched tiles, no smoothing): `at` maps level-0 image
+ * point (x, y) to screen (ax, ay) at sx × sy screen pixels per level-0 texel. Pixel centres
+ * within 1 % of a texel edge, which may round either way, are skipped. Returns the pixels
+ * compared and the number of tiles they came from.
  */
-export async function compareScreenToTexels(page, serverUrl, info, x, y, at, clip) {
+export async function compareScreenToTexels(page, serverUrl, info, x, y, at, clip, level = 0) {
   const shot = decodePng(await page.screenshot({ clip }));
   const ts = info.tile_size;
   const tiles = new Map();
   let compared = 0;
   for (let j = 0; j < clip.height; j++) {
     for (let i = 0; i < clip.width; i++) {
-      const ix = x + (clip.x + i + 0.5 - at.ax) / at.sx;
-      const iy = y + (clip.y + j + 0.5 - at.ay) / at.sy;
+      const ix = (x + (clip.x + i + 0.5 - at.ax) / at.sx) / 2 ** level;
+      const iy = (y + (clip.y + j + 0.5 - at.ay) / at.sy) / 2 ** level;
       const fx = ix - Math.floor(ix);
       const fy = iy - Math.floor(iy);
       if (fx < 0.01 || fx > 0.99 || fy < 0.01 || fy > 0.99) continue;
       const [tx, ty] = [Math.floor(ix), Math.floor(iy)];
       const key = `${Math.floor(tx / ts)},${Math.floor(ty / ts)}`;
-      if (!tiles.has(key)) tiles.set(key, await fetchServerTile(serverUrl, info, 0, Math.floor(tx / ts), Math.floor(ty / ts)));
+      if (!tiles.has(key)) tiles.set(key, await fetchServerTile(serverUrl, info, level, Math.floor(tx / ts), Math.floor(ty / ts)));
       const tile = tiles.get(key);
       const t = ((ty % ts) * tile.width + (tx % ts)) * 4;
       const p = (j * clip.width + i) * 4;

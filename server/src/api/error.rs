@@ -35,10 +35,9 @@ pub enum ApiError {
     UriTooLong(String),
     #[error("{0}")]
     UnsupportedMediaType(String),
-    /// A well-formed request for a feature the server does not offer (IIIF's rule for, say,
-    /// a rotation by 45°).
+    /// An `Accept` header that names no representation the resource has.
     #[error("{0}")]
-    NotImplemented(String),
+    NotAcceptable(String),
     /// An encoding over a bound of the server: what it would cost (`vtex_synth::Error::TooCostly`).
     #[error("{0}")]
     TooCostly(String),
@@ -79,7 +78,7 @@ impl ApiError {
             ApiError::PayloadTooLarge(_) => StatusCode::PAYLOAD_TOO_LARGE,
             ApiError::UriTooLong(_) => StatusCode::URI_TOO_LONG,
             ApiError::UnsupportedMediaType(_) => StatusCode::UNSUPPORTED_MEDIA_TYPE,
-            ApiError::NotImplemented(_) => StatusCode::NOT_IMPLEMENTED,
+            ApiError::NotAcceptable(_) => StatusCode::NOT_ACCEPTABLE,
             ApiError::TooCostly(_) => StatusCode::UNPROCESSABLE_ENTITY,
             ApiError::InsufficientStorage(_) => StatusCode::INSUFFICIENT_STORAGE,
             ApiError::Unavailable(_) => StatusCode::SERVICE_UNAVAILABLE,

@@ -4,13 +4,14 @@
 //!
 //! The identifier is a texture id; `{id};{frame}` names a frame of an animated texture (the
 //! meta-identifier form Cantaloupe uses for pages). Errors follow the specification's rules: a
-//! request that cannot be parsed is a 400, an identifier that names no image a 404, a valid
-//! request for something not offered (a rotation other than a multiple of 90°) a 501. Beyond
-//! level 2: mirroring, upscaling (`^`), WebP, `bitonal`, and the profile and canonical `Link`
-//! headers.
+//! request that cannot be parsed or asks for what is not offered (a rotation other than a
+//! multiple of 90°, §4.3; a size over the region without `^` or over the limits, §4.2) is a
+//! 400, an identifier that names no image a 404. Beyond level 2: mirroring, upscaling (`^`),
+//! WebP, `bitonal`, and the profile and canonical `Link` headers.
 
 use super::error::{echo, ApiError};
 use super::extract::{NoQuery, Path, Query};
+use super::jsonld;
 use super::openapi::text;
 use super::openapi::ErrorBody;
 use super::origin::Origin;
@@ -31,7 +32,6 @@ use vtex_synth::Rgba8Image;
 
 /// Where the service lives: `{base}/{identifier}/…`.
 pub const PREFIX: &str = "/iiif/3";
-const CONTEXT: &str = "http://iiif.io/api/image/3/context.json";
 const PROFILE_LINK: &str = "<http://iiif.io/api/image/3/level2.json>;rel=\"profile\"";
 
 #[derive(Deserialize)]
@@ -67,7 +67,7 @@ async fn image_of(app: &App, ident: &str) -> Result<(Arc<Entry>, u32), ApiError>
 }
 
 /// The URL of the image service of `ident`, as the client reached this server.
-fn service_url(origin: &Origin, ident: &str) -> String {
+pub(super) fn service_url(origin: &Origin, ident: &str) -> String {
     let ident: String = form_urlencoded::byte_serialize(ident.as_bytes()).collect();
     origin.url(&format!("{PREFIX}/{ident}"))
 }
@@ -83,12 +83,13 @@ pub async fn base(Path(IdentPath { ident }): Path<IdentPath>, _: Query<NoQuery>,
     (StatusCode::SEE_OTHER, [(header::LOCATION, to)]).into_response()
 }
 
-/// `GET /iiif/3/{identifier}/info.json`: JSON-LD when asked for, JSON otherwise.
+/// `GET /iiif/3/{identifier}/info.json`: JSON-LD, or plain JSON when the client prefers it
+/// ([`jsonld`]); the profile `Link` too, as on images (§6).
 #[utoipa::path(get, operation_id = "iiif_info",
     path = "/iiif/3/{ident}/info.json",
     tag = "interop",
     params(("ident" = String, Path, description = text::ID_AND_FRAME)),
-    responses((status = 200, description = "IIIF Image API 3 image information (JSON-LD when asked for)", content(("application/json"))), (status = 404, description = text::NOT_FOUND, body = ErrorBody)))]
+    responses((status = 200, description = "IIIF Image API 3 image information: JSON-LD with the image context as its profile unless `Accept` prefers plain JSON", content(("application/ld+json"), ("application/json"))), (status = 404, description = text::NOT_FOUND, body = ErrorBody), (status = 406, description = text::NOT_ACCEPTABLE, body = ErrorBody)))]
 pub async fn info(
     State(app): State<App>,
     Path(IdentPath { ident }): Path<IdentPath>,
@@ -106,7 +107,7 @@ pub async fn info(
         .map(|(lw, lh)| json!({"width": lw, "height": lh}))
         .collect();
     let body = json!({
-        "@context": CONTEXT,
+        "@context": jsonld::IMAGE.uri,
         "id": service_url(&origin, &ident),
         "type": "ImageService3",
         "protocol": "http://iiif.io/api/image",
@@ -125,11 +126,9 @@ pub async fn info(
         "preferredFormats": ["png"],
         "extraFeatures": ["mirroring", "sizeUpscaling", "profileLinkHeader", "canonicalLinkHeader"],
     });
-    let ld =
-        headers.get_all(header::ACCEPT).iter().any(|a| a.to_str().is_ok_and(|a| a.contains("application/ld+json")));
-    let content_type =
-        if ld { format!("application/ld+json;profile=\"{CONTEXT}\"") } else { "application/json".to_string() };
-    Ok(([(header::CONTENT_TYPE, content_type)], body.to_string()).into_response())
+    let mut resp = jsonld::respond(&headers, &jsonld::IMAGE, &body)?;
+    resp.headers_mut().insert(header::LINK, HeaderValue::from_static(PROFILE_LINK));
+    Ok(resp)
 }
 
 /// Any other path under `/iiif`: an image or a service that does not exist.
@@ -240,53 +239,84 @@ fn parse_region(s: &str, width: u64, height: u64) -> Result<(u64, u64, u64, u64)
     Ok((x, y, w.min(width - x), h.min(height - y)))
 }
 
-/// The output size a size parameter asks for a `rw` × `rh` region: `max`, `w,`, `,h`, `pct:n`,
-/// `w,h` or `!w,h`, each optionally after `^` (which alone allows upscaling).
+/// `round(v × num / den)`, in integers.
+fn ratio(v: u64, num: u64, den: u64) -> u64 {
+    ((2 * v as u128 * num as u128 + den as u128) / (2 * den as u128)) as u64
+}
+
+/// The largest size with the `rw` × `rh` region's aspect ratio within `bw` × `bh` and `area`
+/// pixels: the side that binds the box is exact and the other rounded, and an area that binds
+/// takes both sides down (§4.2, "maintains the aspect ratio ... as closely as possible").
+fn fit(rw: u64, rh: u64, bw: u64, bh: u64, area: u64) -> (u64, u64) {
+    let (w, h) = if rw as u128 * bh as u128 >= rh as u128 * bw as u128 {
+        (bw, ratio(rh, bw, rw))
+    } else {
+        (ratio(rw, bh, rh), bh)
+    };
+    if w as u128 * h as u128 <= area as u128 {
+        return (w, h);
+    }
+    // w² ≤ area × rw / rh and h = w × rh / rw, rounded down, so w × h ≤ area.
+    let w = (area as u128 * rw as u128 / rh as u128).isqrt() as u64;
+    (w, (w as u128 * rh as u128 / rw as u128) as u64)
+}
+
+/// What `max` (`up` false) or `^max` (`up` true) gives for a `rw` × `rh` region (§4.2): the
+/// region itself, or scaled to the largest size the limits allow; only `^max` scales up.
+fn max_size(rw: u64, rh: u64, up: bool, limits: Limits) -> (u64, u64) {
+    let (bw, bh) = if up { (limits.side, limits.side) } else { (rw.min(limits.side), rh.min(limits.side)) };
+    fit(rw, rh, bw, bh, limits.area)
+}
+
+/// The output size a size parameter asks for a `rw` × `rh` region, by the rules of §4.2:
+/// `max`, `w,`, `,h`, `pct:n`, `w,h` or `!w,h`, each optionally after `^`, which alone may
+/// scale the region up. `max` and `!w,h` are confined to the limits; any other form over them,
+/// or under one pixel, is a 400.
 fn parse_size(s: &str, rw: u64, rh: u64, limits: Limits) -> Result<(u64, u64), ApiError> {
     const EXPECTED: &str = "max, w,, ,h, pct:n, w,h or !w,h, each optionally prefixed by ^";
     let (up, rest) = match s.strip_prefix('^') {
         Some(r) => (true, r),
         None => (false, s),
     };
-    let scaled = |v: u64, num: f64, den: f64| ((v as f64 * num / den).round() as u64).max(1);
     let (w, h) = if rest == "max" {
-        let (side, area) = (limits.side as f64, limits.area as f64);
-        let mut k = (side / rw as f64).min(side / rh as f64).min((area / (rw as f64 * rh as f64)).sqrt());
-        if !up {
-            k = k.min(1.0);
-        }
-        let fit = |v: u64| ((v as f64 * k).floor() as u64).max(1);
-        (fit(rw), fit(rh))
+        max_size(rw, rh, up, limits)
     } else if let Some(p) = rest.strip_prefix("pct:") {
-        let p = decimal(p).ok_or_else(|| bad("size", s, EXPECTED))?;
-        if p == 0.0 {
-            return Err(ApiError::bad_request(format!("IIIF size `{}` is zero", echo(s))));
+        let n = decimal(p).ok_or_else(|| bad("size", s, EXPECTED))?;
+        if n > 100.0 && !up {
+            return Err(ApiError::bad_request(format!(
+                "IIIF size `{}` is over 100%; upscaling needs the ^ prefix",
+                echo(s)
+            )));
         }
-        (scaled(rw, p, 100.0), scaled(rh, p, 100.0))
+        let pct = |v: u64| (v as f64 * n / 100.0).round().min(u64::MAX as f64) as u64;
+        (pct(rw), pct(rh))
     } else {
         let (confined, list) = match rest.strip_prefix('!') {
             Some(r) => (true, r),
             None => (false, rest),
         };
         let (a, b) = list.split_once(',').ok_or_else(|| bad("size", s, EXPECTED))?;
-        let (a, b) = (
-            if a.is_empty() { None } else { Some(integer(a).ok_or_else(|| bad("size", s, EXPECTED))?) },
-            if b.is_empty() { None } else { Some(integer(b).ok_or_else(|| bad("size", s, EXPECTED))?) },
-        );
-        if a == Some(0) || b == Some(0) {
-            return Err(ApiError::bad_request(format!("IIIF size `{}` has a zero width or height", echo(s))));
-        }
+        let number = |v: &str| integer(v).ok_or_else(|| bad("size", s, EXPECTED));
+        let (a, b) =
+            (if a.is_empty() { None } else { Some(number(a)?) }, if b.is_empty() { None } else { Some(number(b)?) });
         match (confined, a, b) {
-            (false, Some(w), None) => (w, scaled(rh, w as f64, rw as f64)),
-            (false, None, Some(h)) => (scaled(rw, h as f64, rh as f64), h),
+            (false, Some(w), None) => (w, ratio(rh, w, rw)),
+            (false, None, Some(h)) => (ratio(rw, h, rh), h),
             (false, Some(w), Some(h)) => (w, h),
             (true, Some(w), Some(h)) => {
-                let k = (w as f64 / rw as f64).min(h as f64 / rh as f64);
-                (scaled(rw, k, 1.0).min(w), scaled(rh, k, 1.0).min(h))
+                let (bw, bh) = (w.min(limits.side), h.min(limits.side));
+                let (bw, bh) = if up { (bw, bh) } else { (bw.min(rw), bh.min(rh)) };
+                fit(rw, rh, bw, bh, limits.area)
             }
             _ => return Err(bad("size", s, EXPECTED)),
         }
     };
+    if w == 0 || h == 0 {
+        return Err(ApiError::bad_request(format!(
+            "IIIF size `{}` of the {rw}×{rh} region is {w}×{h}, under one pixel",
+            echo(s)
+        )));
+    }
     if !up && (w > rw || h > rh) {
         return Err(ApiError::bad_request(format!(
             "IIIF size `{}` is {w}×{h}, larger than the {rw}×{rh} region; upscaling needs the ^ prefix",
@@ -313,11 +343,9 @@ fn parse_rotation(s: &str) -> Result<(bool, u8), ApiError> {
     let deg = decimal(deg)
         .filter(|d| *d <= 360.0)
         .ok_or_else(|| bad("rotation", s, "a number of degrees 0..=360, optionally prefixed by !"))?;
+    // §4.3: an unsupported rotation is a 400, like one out of range.
     if deg % 90.0 != 0.0 {
-        return Err(ApiError::NotImplemented(format!(
-            "IIIF rotation `{}` is not implemented; this service rotates by multiples of 90°",
-            echo(s)
-        )));
+        return Err(bad("rotation", s, "a multiple of 90 (this service rotates by quarter turns only)"));
     }
     Ok((mirror, ((deg / 90.0) as u8) % 4))
 }
@@ -355,17 +383,29 @@ impl Request {
         !self.mirror && self.turns == 0 && matches!(self.quality, Quality::Default | Quality::Color)
     }
 
-    /// The canonical form of this request's path after the identifier (spec §4.7).
-    fn canonical(&self, width: u64, height: u64) -> String {
+    /// The canonical form of this request's path after the identifier (§4.8): the size is
+    /// `max` or `^max` when it is what those give for the region, else `w,h` or `^w,h`.
+    fn canonical(&self, width: u64, height: u64, limits: Limits) -> String {
         let v = &self.view;
         let region = if (v.x, v.y, v.w, v.h) == (0, 0, width, height) {
             "full".into()
         } else {
             format!("{},{},{},{}", v.x, v.y, v.w, v.h)
         };
-        let up = if v.out_w as u64 > v.w || v.out_h as u64 > v.h { "^" } else { "" };
+        let out = (v.out_w as u64, v.out_h as u64);
+        let size = if out == max_size(v.w, v.h, false, limits) {
+            "max".into()
+        } else if out == max_size(v.w, v.h, true, limits) {
+            "^max".into()
+        } else if out.0 > v.w || out.1 > v.h {
+            format!("^{},{}", out.0, out.1)
+        } else {
+            format!("{},{}", out.0, out.1)
+        };
         let rotation = format!("{}{}", if self.mirror { "!" } else { "" }, self.turns as u32 * 90);
-        format!("{region}/{up}{},{}/{rotation}/{}.{}", v.out_w, v.out_h, self.quality.name(), self.format.ext())
+        // `color` is this server's default quality.
+        let quality = if self.quality == Quality::Color { Quality::Default } else { self.quality };
+        format!("{region}/{size}/{rotation}/{}.{}", quality.name(), self.format.ext())
     }
 }
 
@@ -373,8 +413,8 @@ impl Request {
 #[utoipa::path(get, operation_id = "iiif_image",
     path = "/iiif/3/{ident}/{region}/{size}/{rotation}/{file}",
     tag = "interop",
-    params(("ident" = String, Path, description = text::ID_AND_FRAME), ("region" = String, Path, description = "full, square, x,y,w,h or pct:x,y,w,h"), ("size" = String, Path, description = "max, ^max, w,, ,h, pct:n, w,h, !w,h (and ^ forms)"), ("rotation" = String, Path, description = "0, 90, 180, 270, optionally mirrored (!)"), ("file" = String, Path, description = "`{quality}.{format}`: default, color or gray; png, jpg or webp")),
-    responses((status = 200, description = "the image", content(("image/png"), ("image/webp"), ("image/jpeg"))), (status = 400, description = text::BAD_REQUEST, body = ErrorBody), (status = 404, description = text::NOT_FOUND, body = ErrorBody), (status = 501, description = "a well-formed request for a feature not offered", body = ErrorBody), (status = 503, description = text::UNAVAILABLE, body = ErrorBody)))]
+    params(("ident" = String, Path, description = text::ID_AND_FRAME), ("region" = String, Path, description = "full, square, x,y,w,h or pct:x,y,w,h"), ("size" = String, Path, description = "max, ^max, w,, ,h, pct:n, w,h, !w,h (and ^ forms)"), ("rotation" = String, Path, description = "0, 90, 180, 270 or 360, optionally mirrored (!); other angles are a 400"), ("file" = String, Path, description = "`{quality}.{format}`: default, color, gray or bitonal; png, jpg or webp")),
+    responses((status = 200, description = "the image", content(("image/png"), ("image/webp"), ("image/jpeg"))), (status = 400, description = text::BAD_REQUEST, body = ErrorBody), (status = 404, description = text::NOT_FOUND, body = ErrorBody), (status = 503, description = text::UNAVAILABLE, body = ErrorBody)))]
 pub async fn image(
     State(app): State<App>,
     Path(path): Path<ImagePath>,
@@ -391,7 +431,7 @@ pub async fn image(
     let links = format!(
         "{PROFILE_LINK}, <{}/{}>;rel=\"canonical\"",
         service_url(&origin, &path.ident),
-        req.canonical(width, height)
+        req.canonical(width, height, limits)
     );
     let mut resp = answer(&app, entry, req, &headers).await?;
     if let Ok(v) = HeaderValue::from_str(&links) {
@@ -500,24 +540,123 @@ mod tests {
         assert!(parse_region("1000,0,5,5", 1000, 600).is_err(), "outside");
     }
 
+    /// Small limits, so that rows reach them: maxWidth = maxHeight = 1000, maxArea = 360,000.
+    const SMALL: Limits = Limits { side: 1000, area: 360_000 };
+
+    /// Every size form of §4.2 against a 4:3 region larger than (400 × 300), equal to
+    /// (200 × 150) and smaller than (100 × 75) the size asked for; `None` is a 400.
     #[test]
-    fn sizes() {
-        assert_eq!(parse_size("max", 1000, 600, LIMITS).unwrap(), (1000, 600));
-        assert_eq!(parse_size("500,", 1000, 600, LIMITS).unwrap(), (500, 300));
-        assert_eq!(parse_size(",300", 1000, 600, LIMITS).unwrap(), (500, 300));
-        assert_eq!(parse_size("pct:50", 1000, 600, LIMITS).unwrap(), (500, 300));
-        assert_eq!(parse_size("100,100", 1000, 600, LIMITS).unwrap(), (100, 100));
-        assert_eq!(parse_size("!500,500", 1000, 600, LIMITS).unwrap(), (500, 300));
-        assert_eq!(parse_size("^2000,", 1000, 600, LIMITS).unwrap(), (2000, 1200));
-        assert_eq!(parse_size("^!3000,3000", 1000, 600, LIMITS).unwrap(), (3000, 1800));
-        for up in ["2000,", ",700", "pct:101", "1001,600", "!2000,3000", "full"] {
-            assert_eq!(parse_size(up, 1000, 600, LIMITS).unwrap_err().status(), StatusCode::BAD_REQUEST, "{up}");
+    fn sizes_follow_the_specification() {
+        const L: (u64, u64) = (400, 300);
+        const E: (u64, u64) = (200, 150);
+        const S: (u64, u64) = (100, 75);
+        let err = None;
+        #[rustfmt::skip]
+        let table: &[(&str, [Option<(u64, u64)>; 3])] = &[
+            // `w,`: "the width of the returned image is exactly equal to w", the height keeping
+            // the aspect ratio; "w MUST NOT be greater than the width of the extracted region".
+            ("200,", [Some(E), Some(E), err]),
+            // `^w,`: the same, and "if w is greater than the pixel width of the extracted region,
+            // the extracted region is upscaled".
+            ("^200,", [Some(E), Some(E), Some(E)]),
+            // `,h` and `^,h`: the same rules for the height.
+            (",150", [Some(E), Some(E), err]),
+            ("^,150", [Some(E), Some(E), Some(E)]),
+            // `pct:n`: "n percent of the width and height of the extracted region"; "n MUST NOT be
+            // greater than 100". `^pct:n`: "for values of n greater than 100, ... upscaled", and
+            // 800 × 600 is over maxArea.
+            ("pct:50", [Some(E), Some(S), Some((50, 38))]),
+            ("pct:200", [err, err, err]),
+            ("^pct:200", [err, Some(L), Some(E)]),
+            // `w,h`: "exactly w and h", the aspect ratio may change; "w and h MUST NOT be greater
+            // than the corresponding pixel dimensions of the extracted region". `^w,h`: upscaled.
+            ("200,150", [Some(E), Some(E), err]),
+            ("200,50", [Some((200, 50)), Some((200, 50)), err]),
+            ("^200,150", [Some(E), Some(E), Some(E)]),
+            ("^200,50", [Some((200, 50)), Some((200, 50)), Some((200, 50))]),
+            // `!w,h`: "not greater than w and h, while maintaining the aspect ratio ... as large as
+            // possible but not larger than the extracted region, w or h".
+            ("!200,200", [Some(E), Some(E), Some(S)]),
+            ("!200,100", [Some((133, 100)), Some((133, 100)), Some(S)]),
+            // `^!w,h`: "as large as possible but not larger than w, h, or server-imposed limits".
+            ("^!200,200", [Some(E), Some(E), Some(E)]),
+            ("^!200,100", [Some((133, 100)), Some((133, 100)), Some((133, 100))]),
+            // `max`: "the pixel dimensions of the extracted region", never upscaled.
+            ("max", [Some(L), Some(E), Some(S)]),
+            // `^max`: "the maximum size permitted by maxWidth, maxHeight, or maxArea": here the
+            // area binds, 692 × 519 ≤ 360,000 pixels.
+            ("^max", [Some((692, 519)), Some((692, 519)), Some((692, 519))]),
+        ];
+        for (size, expected) in table {
+            for (region, expected) in [L, E, S].into_iter().zip(expected) {
+                let got = parse_size(size, region.0, region.1, SMALL);
+                match expected {
+                    Some(wh) => assert_eq!(got.unwrap(), *wh, "{size} of {region:?}"),
+                    None => assert_eq!(got.unwrap_err().status(), StatusCode::BAD_REQUEST, "{size} of {region:?}"),
+                }
+            }
+        }
+    }
+
+    /// The rules that do not depend on how the region compares with the request.
+    #[test]
+    fn size_limits_and_syntax() {
+        let size = |s: &str, rw: u64, rh: u64| parse_size(s, rw, rh, SMALL).map_err(|e| e.status());
+        // The issue's case: `!w,h` is confined to the region, never a 400 for a small region.
+        assert_eq!(size("!200,200", 100, 100), Ok((100, 100)));
+        // `max` is "constrained to a smaller size by maxWidth, maxHeight, or maxArea".
+        assert_eq!(size("max", 2000, 500), Ok((1000, 250)), "maxWidth binds");
+        assert_eq!(size("max", 1200, 900), Ok((692, 519)), "maxArea binds");
+        // `!w,h` is "not larger than ... server-imposed limits" either.
+        assert_eq!(size("!1500,1500", 2000, 2000), Ok((600, 600)));
+        assert_eq!(size("^!5000,5000", 10, 10), Ok((600, 600)));
+        // "the pixel dimensions of the scaled region MUST NOT be less than 1 pixel or greater
+        // than the server-imposed limits ... 400 (Bad Request)".
+        for (s, rw, rh) in [("^1200,", 400, 300), ("^700,700", 400, 300), ("pct:100", 2000, 500), ("1,", 1000, 2)] {
+            assert_eq!(size(s, rw, rh), Err(StatusCode::BAD_REQUEST), "{s} of {rw}×{rh}");
+        }
+        for bad in [
+            "full", "0,", ",0", "0,0", "pct:0", "!0,10", "!10,", "!,10", "^", "^!", "pct:", "pct:-5", "10", "a,",
+            "1,2,3", "^^max",
+        ] {
+            assert_eq!(size(bad, 400, 300), Err(StatusCode::BAD_REQUEST), "{bad}");
         }
         let huge = parse_size("max", 100_000, 100_000, LIMITS).unwrap();
         assert_eq!(huge, (4096, 4096), "max is confined to maxArea");
-        assert!(parse_size("^10000,10000", 1000, 1000, LIMITS).is_err(), "over maxArea");
-        assert!(parse_size("0,", 1000, 600, LIMITS).is_err());
-        assert!(parse_size("pct:0", 1000, 600, LIMITS).is_err());
+    }
+
+    #[test]
+    fn canonical_forms() {
+        let canonical = |region: &str, size: &str, rotation: &str, file: &str| {
+            let path = ImagePath {
+                ident: "i".into(),
+                region: region.into(),
+                size: size.into(),
+                rotation: rotation.into(),
+                file: file.into(),
+            };
+            Request::parse(&path, 1000, 600, SMALL, 0).unwrap().canonical(1000, 600, SMALL)
+        };
+        // §4.8: region `full` if the full image is requested, otherwise `x,y,w,h`; size `max`
+        // if the maximum size without upscaling is requested, `^max` if the maximum upscaled
+        // size, otherwise `w,h`, or `^w,h` when upscaling; `!` then an integer rotation; the
+        // quality `default` if the server's default is requested.
+        for (req, expected) in [
+            (("full", "max", "0", "default.png"), "full/max/0/default.png"),
+            (("0,0,1000,600", "max", "0", "default.png"), "full/max/0/default.png"),
+            (("full", "!5000,5000", "0", "default.png"), "full/max/0/default.png"),
+            (("0,0,100,100", "!200,200", "0", "default.png"), "0,0,100,100/max/0/default.png"),
+            (("0,0,100,100", "100,", "0", "default.png"), "0,0,100,100/max/0/default.png"),
+            (("0,0,100,100", "^max", "0", "default.png"), "0,0,100,100/^max/0/default.png"),
+            (("0,0,100,100", "^600,600", "0", "default.png"), "0,0,100,100/^max/0/default.png"),
+            (("0,0,100,100", "^200,", "0", "default.png"), "0,0,100,100/^200,200/0/default.png"),
+            (("0,0,100,100", "pct:50", "0", "default.png"), "0,0,100,100/50,50/0/default.png"),
+            (("pct:10,10,10,10", "50,", "!90", "gray.jpg"), "100,60,100,60/50,30/!90/gray.jpg"),
+            (("square", "^!700,700", "360.0", "color.webp"), "200,0,600,600/max/0/default.webp"),
+            (("square", "^601,500", "0", "default.png"), "200,0,600,600/^601,500/0/default.png"),
+        ] {
+            assert_eq!(canonical(req.0, req.1, req.2, req.3), expected, "{req:?}");
+        }
     }
 
     #[test]
@@ -526,8 +665,8 @@ mod tests {
         assert_eq!(parse_rotation("!90").unwrap(), (true, 1));
         assert_eq!(parse_rotation("270.0").unwrap(), (false, 3));
         assert_eq!(parse_rotation("360").unwrap(), (false, 0));
-        assert_eq!(parse_rotation("45").unwrap_err().status(), StatusCode::NOT_IMPLEMENTED);
-        for bad in ["", "-90", "abc", "400", "!!90"] {
+        // §4.3: "A rotation value that is out of range or unsupported SHOULD result in a 400".
+        for bad in ["", "-90", "abc", "400", "!!90", "22.5", "45", "!180.5"] {
             assert_eq!(parse_rotation(bad).unwrap_err().status(), StatusCode::BAD_REQUEST, "{bad}");
         }
     }

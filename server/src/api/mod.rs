@@ -11,11 +11,13 @@ pub mod extract;
 mod front;
 mod health;
 mod iiif;
+mod jsonld;
 pub mod models;
 pub mod openapi;
 pub mod origin;
 pub mod pages;
 pub mod params;
+mod presentation;
 mod textures;
 mod tilejson;
 pub mod tiles;
@@ -288,12 +290,15 @@ fn routes() -> Table {
         // Virtual-texture pages with borders and KTX2 mip chains for game engines (pages.rs).
         .route("/api/v1/textures/{id}/pages/{level}/{x}/{file}", get(pages::page))
         .route("/api/v1/textures/{id}/mips.ktx2", get(pages::mip_chain))
-        // Deep Zoom and IIIF Image API 3 (dzi.rs, iiif.rs), over the same tiles and renders.
+        // Deep Zoom and IIIF Image API 3 (dzi.rs, iiif.rs), over the same tiles and renders, and
+        // IIIF Presentation 3 documents for viewers (presentation.rs).
         .route("/dzi/{file}", get(dzi::descriptor))
         .route("/dzi/{dir}/{level}/{file}", get(dzi::tile))
         .route("/iiif/3/{ident}", get(iiif::base))
         .route("/iiif/3/{ident}/info.json", get(iiif::info))
         .route("/iiif/3/{ident}/{region}/{size}/{rotation}/{file}", get(iiif::image))
+        .route("/iiif/presentation/3/{id}/manifest.json", get(presentation::manifest_json))
+        .route("/iiif/presentation/3/collection.json", get(presentation::collection_json))
         .route("/iiif", any(iiif::not_found))
         .route("/iiif/{*rest}", any(iiif::not_found))
         // TileJSON 3 and XYZ tiles (tilejson.rs).

@@ -6,7 +6,7 @@
 use super::extract::{NoQuery, Query};
 use super::origin::Origin;
 use super::textures::json_validated;
-use super::{batch, deletion, dzi, health, iiif, models, pages, textures, tilejson, tiles};
+use super::{batch, deletion, dzi, health, iiif, models, pages, presentation, textures, tilejson, tiles};
 use axum::http::HeaderMap;
 use axum::response::Response;
 use serde::Serialize;
@@ -21,6 +21,8 @@ pub mod text {
     pub const FRAME: &str = "frame of an animated texture (reduced modulo its period); ignored for still ones";
     pub const BAD_REQUEST: &str = "a malformed path or query, named in the message";
     pub const NOT_FOUND: &str = "no such texture, or a tile outside its level";
+    pub const NOT_ACCEPTABLE: &str =
+        "`Accept` allows neither JSON-LD (with the document's context as `profile`) nor JSON";
     pub const OVER_BOUND: &str = "over a cost bound of the server";
     pub const UNAVAILABLE: &str = "synthesis queue full, in-flight budget spent or shutting down (`Retry-After`)";
 }
@@ -59,6 +61,8 @@ pub struct ErrorBody {
         iiif::base,
         iiif::info,
         iiif::image,
+        presentation::manifest_json,
+        presentation::collection_json,
         tilejson::tilejson,
         tilejson::xyz,
         models::list_models,
@@ -72,7 +76,7 @@ pub struct ErrorBody {
         (name = "textures", description = "Texture resources: list, info, upload, edit, delete, encoding"),
         (name = "tiles", description = "Tiles, tile batches and regions of any level"),
         (name = "pages", description = "Virtual-texturing pages with borders, KTX2 mip chains"),
-        (name = "interop", description = "Deep Zoom, IIIF Image API 3, TileJSON and XYZ over the same tiles"),
+        (name = "interop", description = "Deep Zoom, IIIF Image API 3 and Presentation 3, TileJSON and XYZ over the same tiles"),
         (name = "models", description = "The texture models: parameter schemas and examples"),
         (name = "operations", description = "Liveness, readiness, metrics and this description"),
     )
