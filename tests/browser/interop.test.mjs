@@ -148,9 +148,8 @@ test("OpenSeadragon opens the 100k texture's IIIF source and shows the server's 
 });
 
 /**
- * The spots a map client is checked at, in texels of `level`: inside the texture (the corner of
- * four level-0 tiles), and on the right and bottom edges, where the centred box is half texture,
- * half beyond it.
+ * The spots a map client is checked at, in texels of `level`: SPOT inside the texture, and the
+ * right and bottom edges level with it, where the centred box is half texture, half beyond it.
  */
 function spots(level) {
   const s = 2 ** level;
