@@ -43,6 +43,9 @@ pub struct TileKey {
 pub enum Shape {
     /// A map tile of the server's `--tile-size`, clipped at the level's edges.
     Tile,
+    /// An edge tile drawn on the whole `--tile-size` square, transparent beyond the level:
+    /// XYZ clients stretch every tile image to a full square.
+    Square,
     /// A `size`² page of the page grid with `border` pixels of its neighbours on every side
     /// (`api/pages.rs`).
     Page { size: u32, border: u32 },

@@ -209,6 +209,7 @@ async fn tilejson_and_xyz_tiles() {
     assert_eq!(tj["scheme"], "xyz");
     assert_eq!(tj["tiles"][0], s.url(&format!("/api/v1/textures/{id}/xyz/{{z}}/{{x}}/{{y}}.png")));
     assert_eq!((tj["minzoom"].as_u64(), tj["maxzoom"].as_u64()), (Some(0), Some(2)));
+    assert_eq!(tj["tileSize"], 256, "MapLibre reads `tileSize` and assumes 512 without it");
     let bounds: Vec<f64> = tj["bounds"].as_array().unwrap().iter().map(|v| v.as_f64().unwrap()).collect();
     // 1024 texels are the whole 4 × 256 px world at zoom 2.
     for (got, want) in bounds.iter().zip([-180.0, -85.0511287798066, 180.0, 85.0511287798066]) {
@@ -241,5 +242,91 @@ async fn tilejson_and_xyz_tiles() {
     ] {
         let msg = expect_error(&c, &s.url(&path), status).await;
         assert!(msg.contains(words), "{path}: {msg}");
+    }
+}
+
+/// Web Mercator's y of latitude `lat` (degrees): 0 at the world's top, 1 at its bottom, as map
+/// clients compute it.
+fn mercator_y(lat: f64) -> f64 {
+    let phi = lat.to_radians();
+    (1.0 - (phi.tan() + 1.0 / phi.cos()).ln() / std::f64::consts::PI) / 2.0
+}
+
+/// Mean absolute difference of `img`'s colour channels from `truth`'s, over `truth`'s extent.
+fn mean_error(img: &image::RgbaImage, truth: &image::RgbaImage) -> f64 {
+    let sum: u64 = truth
+        .enumerate_pixels()
+        .map(|(x, y, t)| (0..3).map(|c| img.get_pixel(x, y)[c].abs_diff(t[c]) as u64).sum::<u64>())
+        .sum();
+    sum as f64 / (3 * truth.width() * truth.height()) as f64
+}
+
+#[tokio::test]
+async fn xyz_edge_tiles_are_whole_squares_transparent_beyond_the_texture() {
+    let dir = tempdir();
+    let s = Server::start(dir.path(), &[]);
+    let c = client();
+    // 1000 × 450 texels: neither square nor a power of two. Zooms 0..=2; at zoom 2 the world is
+    // 4 × 256 = 1024 texels across, and the texture its north-west 1000 × 450.
+    let sample = vtex_synth::samples::pebbles(50, 12, 3, true).to_png();
+    let inputs = vtex_synth::models::Inputs::from([("sample".to_string(), sample)]);
+    let params = serde_json::json!({"tiles_x": 20, "tiles_y": 9, "iterations": 10, "seed": 3});
+    let id = put(&c, &s, &vtex_synth::models::create("chaos-mosaic", "1000 × 450", &params, &inputs).unwrap()).await;
+    let tj: Value =
+        c.get(s.url(&format!("/api/v1/textures/{id}/tilejson.json"))).send().await.unwrap().json().await.unwrap();
+    assert_eq!((tj["maxzoom"].as_u64(), tj["tileSize"].as_u64()), (Some(2), Some(256)), "{tj}");
+    assert_eq!(tj["attribution"], "synthesized by vtex (chaos-mosaic model)");
+    let b: Vec<f64> = tj["bounds"].as_array().unwrap().iter().map(|v| v.as_f64().unwrap()).collect();
+    let world = 1024.0;
+    let (west, east) = ((b[0] + 180.0) / 360.0 * world, (b[2] + 180.0) / 360.0 * world);
+    let (north, south) = (mercator_y(b[3]) * world, mercator_y(b[1]) * world);
+    for (got, want) in [(west, 0.0), (north, 0.0), (east, 1000.0), (south, 450.0)] {
+        assert!((got - want).abs() < 1e-6, "bounds {b:?} end at texel {got}, not {want}");
+    }
+    // TileJSON 3.0.0 §3.6: the centre inside the bounds, its zoom an integer within the zooms.
+    let ctr: Vec<f64> = tj["center"].as_array().unwrap().iter().map(|v| v.as_f64().unwrap()).collect();
+    let inside = b[0] <= ctr[0] && ctr[0] <= b[2] && b[1] <= ctr[1] && ctr[1] <= b[3];
+    assert!(inside && ctr[2].fract() == 0.0 && (0.0..=2.0).contains(&ctr[2]), "{tj}");
+
+    // Every tile the texture's edge cuts, against the tile API's clipped tile of its level.
+    for (z, x, y) in [(0, 0, 0), (1, 1, 0), (2, 3, 0), (2, 0, 1), (2, 3, 1)] {
+        let level = 2 - z;
+        let (_, th, tile) = get_bytes(&c, &s.tile_url(&id, level, x, y, "png")).await;
+        let tile = decode(&tile);
+        for fmt in ["png", "webp", "jpg"] {
+            let url = s.url(&format!("/api/v1/textures/{id}/xyz/{z}/{x}/{y}.{fmt}"));
+            let (st, h, body) = get_bytes(&c, &url).await;
+            assert_eq!(st, 200, "{url}");
+            let img = decode(&body);
+            assert_eq!(img.dimensions(), (256, 256), "{url}: clients stretch every tile to a square");
+            assert!(h["x-vtex-width"] == "256" && h["x-vtex-height"] == "256", "{url}");
+            assert_eq!(h["cache-control"], th["cache-control"], "{url}");
+            assert_ne!(h["etag"], th["etag"], "{url}: not the clipped tile's bytes");
+            let (_, again, same) = get_bytes(&c, &url).await;
+            assert_eq!((&again["etag"], &same), (&h["etag"], &body), "{url}: the same bytes every time");
+            let r = c.get(&url).header("if-none-match", h["etag"].clone()).send().await.unwrap();
+            assert_eq!(r.status(), 304, "{url}");
+            // JPEG has no alpha, so black beyond the texture; and it is lossy, so its pixels are
+            // checked against the tile API's own JPEG of the tile: no worse for the padding.
+            let mut darkest = 0u8;
+            for (px, py, p) in img.enumerate_pixels() {
+                let texel = (px < tile.width() && py < tile.height()).then(|| tile.get_pixel(px, py).0);
+                match (fmt, texel) {
+                    ("jpg", Some(_)) => {}
+                    ("jpg", None) => darkest = darkest.max(p[0].max(p[1]).max(p[2])),
+                    (_, Some(t)) => assert_eq!(p.0, t, "{url}: pixel ({px}, {py})"),
+                    (_, None) => assert_eq!(p.0, [0; 4], "{url}: pixel ({px}, {py}) beyond the texture"),
+                }
+            }
+            if fmt == "jpg" {
+                assert!(darkest <= 24, "{url}: beyond the texture, a channel is {darkest}, not black");
+                let own = decode(&get_bytes(&c, &s.tile_url(&id, level, x, y, "jpg")).await.2);
+                let (xyz_error, own_error) = (mean_error(&img, &tile), mean_error(&own, &tile));
+                assert!(
+                    xyz_error <= 1.25 * own_error,
+                    "{url}: mean error {xyz_error}, the tile API's JPEG {own_error}"
+                );
+            }
+        }
     }
 }

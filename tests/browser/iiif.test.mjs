@@ -136,7 +136,10 @@ async function compareRect(page, level, x0, y0, x1, y1) {
   const s = 2 ** -level;
   assert.ok(Math.abs(at.sx - s) < 1e-6 && Math.abs(at.sy - s) < 1e-6, `shown at ${at.sx} × ${at.sy}, not ${s}`);
   const clip = { x: Math.round(at.ax), y: Math.round(at.ay), width: Math.round((x1 - x0) * s), height: Math.round((y1 - y0) * s) };
-  const { compared } = await compareScreenToTexels(page, server.url, info, x0, y0, at, clip, level);
+  // compareScreenToTexels takes the level's own texels: scale the level-0 mapping to them.
+  const k = 2 ** level;
+  const atLevel = { ax: at.ax, ay: at.ay, sx: at.sx * k, sy: at.sy * k };
+  const { compared } = await compareScreenToTexels(page, server.url, info, x0 / k, y0 / k, atLevel, clip, { level });
   return compared;
 }
 

@@ -263,21 +263,36 @@ export async function fetchServerTile(serverUrl, info, level, tx, ty, frame) {
 }
 
 /**
- * Checks that every pixel of the screen box `clip` shows exactly the server's level-`level`
- * texel under its centre (no seams, no stretched tiles, no smoothing): `at` maps level-0 image
- * point (x, y) to screen (ax, ay) at sx × sy screen pixels per level-0 texel. Pixel centres
- * within 1 % of a texel edge, which may round either way, are skipped. Returns the pixels
- * compared and the number of tiles they came from.
+ * Checks that every pixel of the screen box `clip` shows exactly the server's texel under its
+ * centre at `level` (0 unless given; no seams, no stretched tiles, no smoothing): `at` maps
+ * level-`level` point (x, y) to screen (ax, ay) at sx × sy screen pixels per texel. Pixel
+ * centres within 1 % of a texel edge, which may round either way, are skipped. A pixel beyond
+ * the level's edge must show `beyond` ([r, g, b], what is behind a transparent layer) when it
+ * is given, and is otherwise skipped. Returns the pixels compared, the number of tiles they
+ * came from, and the pixels found beyond the edge.
  */
-export async function compareScreenToTexels(page, serverUrl, info, x, y, at, clip, level = 0) {
+export async function compareScreenToTexels(page, serverUrl, info, x, y, at, clip, { level = 0, beyond } = {}) {
   const shot = decodePng(await page.screenshot({ clip }));
   const ts = info.tile_size;
+  const [lw, lh] = [Math.ceil(info.width / 2 ** level), Math.ceil(info.height / 2 ** level)];
   const tiles = new Map();
   let compared = 0;
+  let outside = 0;
   for (let j = 0; j < clip.height; j++) {
     for (let i = 0; i < clip.width; i++) {
-      const ix = (x + (clip.x + i + 0.5 - at.ax) / at.sx) / 2 ** level;
-      const iy = (y + (clip.y + j + 0.5 - at.ay) / at.sy) / 2 ** level;
+      const ix = x + (clip.x + i + 0.5 - at.ax) / at.sx;
+      const iy = y + (clip.y + j + 0.5 - at.ay) / at.sy;
+      const p = (j * clip.width + i) * 4;
+      if (ix < 0 || iy < 0 || ix >= lw || iy >= lh) {
+        if (!beyond) continue;
+        for (let c = 0; c < 3; c++) {
+          if (shot.data[p + c] !== beyond[c]) {
+            throw new Error(`screen (${clip.x + i}, ${clip.y + j}), beyond level ${level}'s ${lw} × ${lh} texels, shows ${shot.data[p + c]} in channel ${c}, not ${beyond[c]}`);
+          }
+        }
+        outside++;
+        continue;
+      }
       const fx = ix - Math.floor(ix);
       const fy = iy - Math.floor(iy);
       if (fx < 0.01 || fx > 0.99 || fy < 0.01 || fy > 0.99) continue;
@@ -286,16 +301,15 @@ export async function compareScreenToTexels(page, serverUrl, info, x, y, at, cli
       if (!tiles.has(key)) tiles.set(key, await fetchServerTile(serverUrl, info, level, Math.floor(tx / ts), Math.floor(ty / ts)));
       const tile = tiles.get(key);
       const t = ((ty % ts) * tile.width + (tx % ts)) * 4;
-      const p = (j * clip.width + i) * 4;
       for (let c = 0; c < 3; c++) {
         if (shot.data[p + c] !== tile.data[t + c]) {
-          throw new Error(`screen (${clip.x + i}, ${clip.y + j}) shows ${shot.data[p + c]} in channel ${c}, texel (${tx}, ${ty}) is ${tile.data[t + c]}`);
+          throw new Error(`screen (${clip.x + i}, ${clip.y + j}) shows ${shot.data[p + c]} in channel ${c}, texel (${tx}, ${ty}) of level ${level} is ${tile.data[t + c]}`);
         }
       }
       compared++;
     }
   }
-  return { compared, tiles: tiles.size };
+  return { compared, tiles: tiles.size, beyond: outside };
 }
 
 /**

@@ -273,7 +273,7 @@ pub async fn batch(
     let entry = lookup(&app, &id).await?;
     for t in &tiles {
         match shape {
-            Shape::Tile => tiles::check_tile(&entry, t.level, t.x, t.y)?,
+            Shape::Tile | Shape::Square => tiles::check_tile(&entry, t.level, t.x, t.y)?,
             Shape::Page { size, .. } => pages::check_page(&entry, t.level, t.x, t.y, size)?,
         }
     }

@@ -52,7 +52,7 @@ use tower_http::compression::{CompressionLayer, CompressionLevel};
 use tower_http::cors::{Any, CorsLayer};
 use tower_http::services::ServeDir;
 use tower_http::trace::{DefaultMakeSpan, TraceLayer};
-use vtex_synth::{Region, Stop};
+use vtex_synth::{Region, Rgba8Image, Stop};
 
 pub use error::ApiError as Error;
 pub use front::{Front, MAX_HEAD_BYTES};
@@ -148,7 +148,8 @@ impl AppState {
     /// Returns the encoded bytes. Bad regions are 400s; a panicking model is a 500; no slot
     /// (queue full, shutting down) or a render stopped by shutdown is a 503.
     pub async fn synthesize(&self, entry: Arc<Entry>, region: Region, format: Format) -> Result<Vec<u8>, ApiError> {
-        self.synthesize_then(entry, region, format, |bytes| bytes).await
+        let canvas = (region.width, region.height);
+        self.synthesize_then(entry, region, canvas, format, |bytes| bytes).await
     }
 
     /// [`Self::synthesize`], then `finish` on the encoded bytes in the same blocking task — for
@@ -156,12 +157,16 @@ impl AppState {
     /// huge-page arena, which may wait for the kernel to compact memory) then stays off the I/O
     /// runtimes.
     ///
+    /// The render is drawn at the top left of a transparent `canvas` (width, height), for
+    /// tiles that must be whole squares though the texture ends inside them.
+    ///
     /// Dropping the future (its request gone) stops the render: the model returns at its next
     /// band, and the slot is free again.
     pub async fn synthesize_then<T: Send + 'static>(
         &self,
         entry: Arc<Entry>,
         region: Region,
+        canvas: (u32, u32),
         format: Format,
         finish: impl FnOnce(Vec<u8>) -> T + Send + 'static,
     ) -> Result<T, ApiError> {
@@ -194,6 +199,13 @@ impl AppState {
                     return Err(unavailable(Refused::Closed));
                 };
                 synth_s.observe(t0.elapsed().as_secs_f64());
+                let img = if (img.width, img.height) == canvas {
+                    img
+                } else {
+                    let mut on = Rgba8Image::new(canvas.0, canvas.1);
+                    on.blit(&img, 0, 0);
+                    on
+                };
                 let t1 = Instant::now();
                 let bytes = encode::encode(img, format).map_err(|e| ApiError::internal("encoding failed", e))?;
                 encode_s.observe(t1.elapsed().as_secs_f64());

@@ -2,9 +2,11 @@
 //! texture as a raster tile layer.
 //!
 //! XYZ zoom z is vtex level `levels − 1 − z`: zoom 0 is the whole texture in one tile, the
-//! highest zoom full resolution, and the tiles are the tile API's own (same cache, bytes and
-//! ETags). In a Web Mercator map the texture fills the world from its north-west corner at
-//! one texel a map pixel at the highest zoom; the TileJSON `bounds` say where it ends.
+//! highest zoom full resolution. In a Web Mercator map the texture fills the world from its
+//! north-west corner at one texel a map pixel at the highest zoom; the TileJSON `bounds` say
+//! where it ends. Map clients draw every tile image stretched to a full square, so a tile the
+//! texture's edge cuts is served whole, transparent beyond the texture; every other tile is the
+//! tile API's own (same cache entry, bytes and ETag).
 
 use super::error::{echo, ApiError};
 use super::extract::{Path, Query};
@@ -12,9 +14,9 @@ use super::openapi::text;
 use super::openapi::ErrorBody;
 use super::origin::Origin;
 use super::params::{de, format_value, named, u32_value};
-use super::tiles::{self, frame_for};
+use super::tiles::{self, frame_for, square_shape};
 use super::{lookup, record, App, TextureId};
-use crate::cache::{Shape, TileKey};
+use crate::cache::TileKey;
 use crate::encode::Format;
 use axum::extract::State;
 use axum::http::HeaderMap;
@@ -76,7 +78,9 @@ pub async fn tilejson(
         "maxzoom": maxzoom,
         "bounds": [west, south, east, north],
         "center": [(west + east) / 2.0, latitude(fy / 2.0), maxzoom.min(2)],
-        "tile_size": rec.tile_size,
+        "attribution": format!("synthesized by vtex ({} model)", rec.manifest.model),
+        // Not in TileJSON 3.0.0, read by MapLibre and Mapbox GL, whose default is 512.
+        "tileSize": rec.tile_size,
     })))
 }
 
@@ -98,13 +102,14 @@ pub struct XyzQuery {
     frame: Option<u32>,
 }
 
-/// `GET /api/v1/textures/{id}/xyz/{z}/{x}/{y}.{format}[?frame=N]`: a zoom or tile outside the
-/// texture is a 404, as map clients expect at the edge of a layer.
+/// `GET /api/v1/textures/{id}/xyz/{z}/{x}/{y}.{format}[?frame=N]`: every tile a full square
+/// (JPEG, without alpha, is black beyond the texture); a zoom or tile outside the texture is a
+/// 404, as map clients expect at the edge of a layer.
 #[utoipa::path(get,
     path = "/api/v1/textures/{id}/xyz/{z}/{x}/{file}",
     tag = "interop",
     params(("id" = String, Path, description = text::TEXTURE_ID), ("z" = u32, Path, description = "zoom, 0 the whole texture in one tile"), ("x" = u32, Path), ("file" = String, Path, description = "`{y}.{format}`, format png, webp or jpg"), ("frame" = Option<u32>, Query, description = text::FRAME)),
-    responses((status = 200, description = "the tile of vtex level `levels − 1 − z`", content(("image/png"), ("image/webp"), ("image/jpeg"))), (status = 400, description = text::BAD_REQUEST, body = ErrorBody), (status = 404, description = text::NOT_FOUND, body = ErrorBody), (status = 503, description = text::UNAVAILABLE, body = ErrorBody)))]
+    responses((status = 200, description = "the tile of vtex level `levels − 1 − z`, always `tileSize` square: transparent beyond the texture (black in jpg); strong ETag, immutable", content(("image/png"), ("image/webp"), ("image/jpeg"))), (status = 400, description = text::BAD_REQUEST, body = ErrorBody), (status = 404, description = text::NOT_FOUND, body = ErrorBody), (status = 503, description = text::UNAVAILABLE, body = ErrorBody)))]
 pub async fn xyz(
     State(app): State<App>,
     Path(XyzPath { id, z, x, file }): Path<XyzPath>,
@@ -128,6 +133,7 @@ pub async fn xyz(
             "tile {z}/{x}/{y} is outside the texture, which has {cols}×{rows} tiles at zoom {z}"
         )));
     }
-    let key = TileKey { texture: entry.key, level, x, y, frame: frame_for(&entry, frame), format, shape: Shape::Tile };
+    let shape = square_shape(&entry, level, x, y);
+    let key = TileKey { texture: entry.key, level, x, y, frame: frame_for(&entry, frame), format, shape };
     tiles::respond(&app, &entry, key, &headers).await
 }

@@ -29,6 +29,9 @@ const RESPONSE_HEADERS: usize = 12;
 
 /// Version of the tile encoding scheme, part of every ETag: bump it when encoders change.
 const ETAG_SCHEME: &[u8] = b"vtex-tile/2";
+/// ETag field that sets square edge tiles apart from the clipped tiles at the same address
+/// (regions are marked 4 << 61, pages 2 and 3 << 61).
+const SQUARE_MARK: u64 = 5 << 61;
 
 /// The frame a request renders: animated textures reduce it modulo their period (frames
 /// one period apart are identical), still textures ignore it.
@@ -167,26 +170,44 @@ pub(super) async fn respond(
 
 /// The strong ETag of tile or page `key` of `entry`.
 pub(super) fn key_etag(entry: &Entry, key: &TileKey) -> HeaderValue {
+    let tile = [key.level as u64, key.x as u64, key.y as u64, key.frame as u64, entry.tile_size as u64];
     match key.shape {
-        Shape::Tile => {
-            let what = [key.level as u64, key.x as u64, key.y as u64, key.frame as u64, entry.tile_size as u64];
-            etag(&entry.key, &what, key.format)
-        }
+        Shape::Tile => etag(&entry.key, &tile, key.format),
+        Shape::Square => etag(&entry.key, &[SQUARE_MARK, tile[0], tile[1], tile[2], tile[3], tile[4]], key.format),
         Shape::Page { size, border } => pages::page_etag(entry, key, size, border),
     }
 }
 
-/// The region tile or page `key` of `entry` renders.
-fn key_region(entry: &Entry, key: &TileKey) -> Region {
+/// The shape of tile (`level`, `x`, `y`) of `entry` for clients that draw every tile as a full
+/// square: a whole tile is the tile API's own (same cache entry, bytes and ETag), a tile the
+/// level's edge cuts is a [`Shape::Square`].
+pub(super) fn square_shape(entry: &Entry, level: u32, x: u32, y: u32) -> Shape {
+    let ts = entry.tile_size as u64;
+    let (lw, lh) = level_size(entry.texture.width(), entry.texture.height(), level);
+    if (x as u64 + 1) * ts <= lw && (y as u64 + 1) * ts <= lh {
+        Shape::Tile
+    } else {
+        Shape::Square
+    }
+}
+
+/// The region tile or page `key` of `entry` renders, and the canvas it is drawn on (at its top
+/// left, transparent beyond).
+fn key_region(entry: &Entry, key: &TileKey) -> (Region, (u32, u32)) {
     match key.shape {
-        Shape::Tile => {
+        Shape::Tile | Shape::Square => {
             let ts = entry.tile_size as u64;
             let (lw, lh) = level_size(entry.texture.width(), entry.texture.height(), key.level);
             let (px, py) = (key.x as u64 * ts, key.y as u64 * ts);
             let (w, h) = ((lw - px).min(ts) as u32, (lh - py).min(ts) as u32);
-            Region::new(key.level, px as i64, py as i64, w, h).at_frame(key.frame)
+            let canvas = if key.shape == Shape::Square { (ts as u32, ts as u32) } else { (w, h) };
+            (Region::new(key.level, px as i64, py as i64, w, h).at_frame(key.frame), canvas)
         }
-        Shape::Page { size, border } => pages::page_region(key, size, border),
+        Shape::Page { size, border } => {
+            let region = pages::page_region(key, size, border);
+            let canvas = (region.width, region.height);
+            (region, canvas)
+        }
     }
 }
 
@@ -207,10 +228,11 @@ pub(super) async fn obtain(
             let (owner, entry) = (app.clone(), entry.clone());
             app.cache
                 .get_or_compute(key, move || async move {
-                    let region = key_region(&entry, &key);
-                    let (width, height) = (region.width, region.height);
+                    let (region, (width, height)) = key_region(&entry, &key);
                     let send = owner.cfg.send;
-                    let body = owner.synthesize_then(entry, region, key.format, move |b| send.seal(b)).await?;
+                    let body = owner
+                        .synthesize_then(entry, region, (width, height), key.format, move |b| send.seal(b))
+                        .await?;
                     Ok(Tile { body, etag: tag, width, height })
                 })
                 .await?

@@ -148,8 +148,8 @@ fn refusal(e: ApiError) -> Response {
 
 /// The layer enforcing [`WritePolicy`] on every request (see the module docs).
 pub async fn guard(State(app): State<App>, req: Request, next: Next) -> Response {
-    let headers = req.headers();
     if req.method() == Method::OPTIONS {
+        let headers = req.headers();
         let asks_to_write = headers
             .get(header::ACCESS_CONTROL_REQUEST_METHOD)
             .and_then(|v| Method::from_bytes(v.as_bytes()).ok())
@@ -166,6 +166,7 @@ pub async fn guard(State(app): State<App>, req: Request, next: Next) -> Response
             drain(req).await;
             return refusal(e);
         }
+        return next.run(req).await;
     }
     next.run(req).await
 }
