@@ -20,5 +20,6 @@ fn main() -> anyhow::Result<()> {
         Command::Render(args) => cli::render(args),
         Command::Info(args) => cli::info(args),
         Command::ExportWeb(args) => cli::export_web(args),
+        Command::Health(args) => vtex_server::probe::health(args),
     }
 }
