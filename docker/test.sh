@@ -240,7 +240,12 @@ proxy=http://127.0.0.1:$nginx_port
 
 step "VTEX_WRITE_TOKEN=… podman-compose -f docker/compose.yaml up -d --build (3 replicas + nginx)"
 compose up -d --build >"$tmp/compose-up.log" 2>&1 || { cat "$tmp/compose-up.log" >&2; fail "podman-compose up failed"; }
-replicas=$(podman ps --filter "label=io.podman.compose.project=$project" --format '{{.Names}}' | grep vtex- | sort)
+# The containers of a compose service, by its name.
+service() {
+    podman ps --filter "label=io.podman.compose.project=$project" \
+        --format '{{index .Labels "com.docker.compose.service"}} {{.Names}}' | awk -v s="$1" '$1 ~ s {print $2}' | sort
+}
+replicas=$(service '^vtex-[0-9]+$')
 [ "$(echo "$replicas" | wc -l)" = 3 ] || fail "compose runs replicas [$replicas], not three"
 for r in $replicas; do wait_healthy "$r"; done
 for _ in $(seq 1 30); do get "$proxy/nginx-health" >/dev/null 2>&1 && break; sleep 1; done
@@ -264,7 +269,7 @@ for x in 0 1 2 3; do
         served=$((served + 1))
     done
 done
-nginx=$(podman ps --filter "label=io.podman.compose.project=$project" --format '{{.Names}}' | grep nginx)
+nginx=$(service '^nginx$')
 retried=$(podman logs "$nginx" 2>&1 | grep -c 'upstream=[^ ]*, ' || true)
 [ "$retried" -gt 0 ] || fail "no request met the stopped replica (nginx's log shows no retry): the check proves nothing"
 echo "$served new tiles through nginx, $retried of them retried past $stopped"
