@@ -1,4 +1,4 @@
-//! The command line: `vtex serve | create | models | render | info | export-web`.
+//! The command line: `vtex serve | create | models | render | info | export-web | health`.
 
 use crate::api::models as api_models;
 use crate::config::ServeConfig;
@@ -32,6 +32,8 @@ pub enum Command {
     /// Write a folder any static file server can host: the viewer, the synthesis module and the
     /// texture's encoding; the browser synthesizes every tile (no vtex needed).
     ExportWeb(ExportWebArgs),
+    /// Ask a running `vtex serve` whether it is ready (`GET /readyz`); exit status 1 if not.
+    Health(crate::probe::HealthArgs),
 }
 
 #[derive(Args, Debug)]

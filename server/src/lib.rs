@@ -17,6 +17,7 @@
 //! * [`transport`] — how bodies reach the socket (`--send copy|splice`); all platform-specific code.
 //! * [`watch`] — follows bundles other processes add to or delete from the data directory.
 //! * [`cli`] — the offline subcommands `create`, `models`, `render`, `info`, `export-web`.
+//! * [`probe`] — `vtex health`: a running server's readiness, for container health checks.
 //! * [`export`] — `export-web`: the viewer, the synthesis module and an encoding as a static folder.
 
 // Unsafe code is denied in every module but `transport`, which holds the mappings and system
@@ -32,6 +33,7 @@ pub mod export;
 pub mod inflight;
 pub mod ktx2;
 pub mod metrics;
+pub mod probe;
 pub mod serve;
 pub mod slots;
 pub mod store;

@@ -24,6 +24,7 @@ fn main() -> ExitCode {
         Command::Render(args) => cli::render(args),
         Command::Info(args) => cli::info(args),
         Command::ExportWeb(args) => cli::export_web(args),
+        Command::Health(args) => vtex_server::probe::health(args),
     };
     match done {
         Ok(()) => ExitCode::SUCCESS,
