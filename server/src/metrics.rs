@@ -334,6 +334,15 @@ mod tests {
     }
 
     #[test]
+    fn counters_catch_up_with_their_totals_once() {
+        let m = Metrics::new();
+        for total in [5, 5, 7, 7] {
+            m.catch_up(&m.cache_evictions, total);
+        }
+        assert!(m.render().contains("\nvtex_tile_cache_evictions_total 7\n"), "{}", m.render());
+    }
+
+    #[test]
     fn every_model_reports_its_cache() {
         let m = Metrics::new();
         m.read_models();
