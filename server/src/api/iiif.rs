@@ -551,8 +551,10 @@ mod tests {
         const E: (u64, u64) = (200, 150);
         const S: (u64, u64) = (100, 75);
         let err = None;
+        /// A size form, and the size it gives against the larger, equal and smaller region.
+        type Row = (&'static str, [Option<(u64, u64)>; 3]);
         #[rustfmt::skip]
-        let table: &[(&str, [Option<(u64, u64)>; 3])] = &[
+        let table: &[Row] = &[
             // `w,`: "the width of the returned image is exactly equal to w", the height keeping
             // the aspect ratio; "w MUST NOT be greater than the width of the extracted region".
             ("200,", [Some(E), Some(E), err]),
