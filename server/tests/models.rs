@@ -110,11 +110,11 @@ async fn the_cli_lists_the_same_models_and_its_example_commands_create_them() {
     let c = client();
     let served: Value = c.get(s.url("/api/v1/models")).send().await.unwrap().json().await.unwrap();
     // Over HTTP the example images' links are absolute; the CLI, with no request, prints paths.
-    let served: Value = serde_json::from_str(&served.to_string().replace(&s.url(""), "")).unwrap();
+    let as_paths: Value = serde_json::from_str(&served.to_string().replace(&s.url(""), "")).unwrap();
     let printed: Value = serde_json::from_str(&vtex(&["models", "--json"])).unwrap();
-    assert_eq!(printed, served);
+    assert_eq!(printed, as_paths);
     let one: Value = serde_json::from_str(&vtex(&["models", "--json", "chaos-mosaic"])).unwrap();
-    assert_eq!(Some(&one), served["models"].as_array().unwrap().iter().find(|d| d["id"] == "chaos-mosaic"));
+    assert_eq!(Some(&one), as_paths["models"].as_array().unwrap().iter().find(|d| d["id"] == "chaos-mosaic"));
 
     let help = vtex(&["create", "--help"]);
     for id in vtex_synth::models::ids() {
