@@ -18,7 +18,7 @@ use std::thread;
 use serde_json::{json, Value};
 use vtex_synth::bundle::Bundle;
 use vtex_synth::mip::{downsample_n, mean_rgba, psnr};
-use vtex_synth::models::{self, Inputs, Limits, Model};
+use vtex_synth::models::{self, Inputs, Limits, MipGuarantee, Model};
 use vtex_synth::texture::{level_count, level_size, render_image};
 use vtex_synth::{samples, Domain, Error, Region, Rgba8Image, Texture};
 
@@ -65,23 +65,51 @@ impl Demo {
 /// What one cell found: the figure shown, and whether the invariant holds.
 type Outcome = Result<String, String>;
 
-/// Mip PSNR of one level: served and point-sampled against the exact box chain.
+/// The answers each level is scored as: the served level, then the trivial answers every mip
+/// gate must tell from it — a flat mean colour, point sampling, the finer level copied (the
+/// texture not zoomed out) and the coarser level copied up (pixel doubling).
+const ANSWERS: [&str; 5] = ["served", "flat", "point", "finer copy", "coarser copy"];
+
+/// One answer against the exact box chain of one level's window.
 #[derive(Clone, Copy)]
-struct LevelPsnr {
+struct Score {
+    psnr: f64,
+    /// σ of the answer over σ of the exact chain (RGB, over the window).
+    sigma_ratio: f64,
+    /// Largest |mean difference| of a channel, 0–255.
+    mean_error: f64,
+}
+
+/// One level's scores, in [`ANSWERS`] order (`None`: the answer does not exist at this level,
+/// such as the coarser copy of the last level).
+struct LevelScores {
     level: u32,
-    served: f64,
-    point: f64,
+    pixels: u32,
+    exact_sigma: f64,
+    answers: [Option<Score>; 5],
+}
+
+impl LevelScores {
+    /// Whether the window is large enough for its σ and mean to be judged.
+    fn statistics(&self) -> bool {
+        self.pixels >= STATISTIC_PIXELS
+    }
+
+    fn served(&self) -> Score {
+        self.answers[0].expect("the served level is always scored")
+    }
 }
 
 /// One invariant's check of a demo; the mip check also records its per-level figures.
-type Check = fn(&Demo, &mut Vec<LevelPsnr>) -> Outcome;
+type Check = fn(&Demo, &mut Vec<LevelScores>) -> Outcome;
 
 /// The checks, in column order.
-const COLUMNS: [(&str, Check); 10] = [
+const COLUMNS: [(&str, Check); 11] = [
     ("tile = crop", |d, _| tile_equals_crop(d)),
     ("order/threads", |d, _| order_and_threads(d)),
     ("torus wrap", |d, _| torus_wrap(d)),
     ("mip vs box chain", mip_coherence),
+    ("trivial answers", trivial_answers),
     ("coarsest mean", |d, _| coarsest_mean(d)),
     ("pinned", |d, _| pinned(d)),
     ("native ≡ wasm32", |d, _| wasm_probe(d)),
@@ -203,41 +231,109 @@ fn torus_wrap(d: &Demo) -> Outcome {
 // ---------------------------------------------------------------- 4. mip coherence
 
 /// Every level L ≥ 1 against [`MIP_SPAN`] exact 2×2 box downsamples of a region of level
-/// L − [`MIP_SPAN`] (fewer near level 0): the served level must keep the model's PSNR floor.
+/// L − [`MIP_SPAN`] (fewer near level 0): the served level must pass every gate of the model's
+/// [`MipGuarantee`](vtex_synth::models::MipGuarantee) — PSNR floor, σ and mean — at every level.
 /// A chain of several levels is used because one level of point sampling (every other pixel)
 /// aliases too little to fall below a floor the served levels keep, while over three levels
-/// its error compounds. Point sampling of the same region is scored the same way to show what
-/// the floor rejects.
-fn mip_coherence(d: &Demo, out: &mut Vec<LevelPsnr>) -> Outcome {
-    let floor = d.model.mip_guarantee().min_psnr_db;
+/// its error compounds. The trivial answers are scored on the same windows for
+/// [`trivial_answers`].
+fn mip_coherence(d: &Demo, out: &mut Vec<LevelScores>) -> Outcome {
     for level in 1..d.levels() {
-        let k = MIP_SPAN.min(level);
-        let (served, point) = box_chain(d, level, k)?;
-        out.push(LevelPsnr { level, served, point });
+        out.push(score_level(d, level, MIP_SPAN.min(level))?);
     }
-    let worst = out.iter().min_by(|a, b| a.served.total_cmp(&b.served)).expect("a texture has level 1");
-    let below: Vec<u32> = out.iter().filter(|p| p.point < floor).map(|p| p.level).collect();
-    let text = format!(
-        "min {} (L{}) ≥ {floor}; point < floor at {}/{} levels",
-        db(worst.served),
-        worst.level,
-        below.len(),
-        out.len()
-    );
-    if worst.served < floor {
-        Err(text)
-    } else {
+    let g = d.model.mip_guarantee();
+    let worst = out.iter().min_by(|a, b| a.served().psnr.total_cmp(&b.served().psnr)).expect("a texture has level 1");
+    let failing: Vec<String> = out
+        .iter()
+        .filter_map(|l| {
+            let gates = failed_gates(&l.served(), l, &g);
+            (!gates.is_empty()).then(|| format!("L{} {}", l.level, gates.join("+")))
+        })
+        .collect();
+    let text = format!("min {} (L{}) ≥ {}", db(worst.served().psnr), worst.level, g.min_psnr_db);
+    if failing.is_empty() {
         Ok(text)
+    } else {
+        Err(format!("{text}; fails at {}", failing.join(", ")))
     }
 }
 
 /// Levels over which the served level is compared with the box chain.
 const MIP_SPAN: u32 = 3;
 
-/// PSNR of the served level and of point sampling against `k` exact 2×2 box downsamples of a
-/// region of level L−k: up to 32 × 32 at level L, inside the level so no box straddles an odd
-/// edge; a side shorter than 2^k at L−k is taken whole.
-fn box_chain(d: &Demo, level: u32, k: u32) -> Result<(f64, f64), String> {
+/// The gates of `g` that `s` fails. σ and the mean are judged only on windows of
+/// [`STATISTIC_PIXELS`] and more, and σ only where the exact chain has [`VISIBLE_SIGMA`]: a few
+/// pixels at a coarse level, or a window the exact chain leaves almost flat, say nothing of
+/// contrast.
+fn failed_gates(s: &Score, l: &LevelScores, g: &MipGuarantee) -> Vec<&'static str> {
+    let mut failed = Vec::new();
+    if s.psnr < g.min_psnr_db {
+        failed.push("psnr");
+    }
+    if l.statistics() && l.exact_sigma >= VISIBLE_SIGMA && (s.sigma_ratio - 1.0).abs() > g.max_sigma_error {
+        failed.push("σ");
+    }
+    if l.statistics() && s.mean_error > g.max_mean_error {
+        failed.push("mean");
+    }
+    failed
+}
+
+/// Pixels a level's window needs before its σ and mean are judged.
+const STATISTIC_PIXELS: u32 = 64;
+
+/// σ (grey levels) of the exact chain below which a window counts as flat.
+const VISIBLE_SIGMA: f64 = 4.0;
+
+/// Every level must score at least as well as a flat colour and as point sampling (RMS error
+/// within one grey level of theirs) where the window has visible contrast, and the floor must
+/// reject point sampling at some level (a floor point sampling passes everywhere is not a
+/// gate). The cell counts, for each trivial answer, the levels where the gates reject it; the
+/// per-level table shows where they do not (near level 0, one or two levels of point sampling
+/// stay close to the box chain).
+fn trivial_answers(d: &Demo, levels: &mut Vec<LevelScores>) -> Outcome {
+    if levels.is_empty() {
+        return Err("no mip scores (the mip column failed)".into());
+    }
+    let g = d.model.mip_guarantee();
+    let rmse = |psnr: f64| 255.0 * 10f64.powf(-psnr / 20.0);
+    let mut problems = Vec::new();
+    let mut rejected = [0usize; 5];
+    let mut scored = [0usize; 5];
+    for l in levels.iter() {
+        let served = l.served();
+        for (i, answer) in l.answers.iter().enumerate().skip(1) {
+            let Some(a) = answer else { continue };
+            scored[i] += 1;
+            if !failed_gates(a, l, &g).is_empty() {
+                rejected[i] += 1;
+            }
+        }
+        if l.statistics() && l.exact_sigma >= VISIBLE_SIGMA {
+            for i in [1, 2] {
+                let a = l.answers[i].expect("flat and point answers exist at every level");
+                if rmse(served.psnr) > rmse(a.psnr) + 1.0 {
+                    problems.push(format!("L{} served {} < {} {}", l.level, db(served.psnr), ANSWERS[i], db(a.psnr)));
+                }
+            }
+        }
+    }
+    if levels.iter().all(|l| l.answers[2].is_some_and(|p| p.psnr >= g.min_psnr_db)) {
+        problems.push(format!("point sampling passes the {} dB floor at every level", g.min_psnr_db));
+    }
+    let text = (1..ANSWERS.len()).map(|i| format!("{} {}/{}", ANSWERS[i], rejected[i], scored[i])).collect::<Vec<_>>();
+    let text = format!("rejected: {}", text.join(", "));
+    if problems.is_empty() {
+        Ok(text)
+    } else {
+        Err(format!("{text}; {}", problems.join("; ")))
+    }
+}
+
+/// Scores the served level `level` and the trivial answers against `k` exact 2×2 box
+/// downsamples of a region of level L−k: up to 32 × 32 at level L, inside the level so no box
+/// straddles an odd edge; a side shorter than 2^k at L−k is taken whole.
+fn score_level(d: &Demo, level: u32, k: u32) -> Result<LevelScores, String> {
     let (pw, ph) = d.level_size(level - k);
     let (lw, lh) = d.level_size(level);
     let side = |prev: u64| {
@@ -249,13 +345,57 @@ fn box_chain(d: &Demo, level: u32, k: u32) -> Result<(f64, f64), String> {
     let prev = d.render(Region::new(level - k, x << k, y << k, w2, h2))?;
     let exact = downsample_n(&prev, k);
     let served = d.render(Region::new(level, x, y, w, h))?;
+    let mean = mean_rgba(&exact).map(|c| c.round() as u8);
+    let mut flat = Rgba8Image::new(w, h);
     let mut point = Rgba8Image::new(w, h);
     for j in 0..h {
         for i in 0..w {
+            flat.set_pixel(i, j, mean);
             point.set_pixel(i, j, prev.pixel((i << k).min(w2 - 1), (j << k).min(h2 - 1)));
         }
     }
-    Ok((psnr(&served, &exact), psnr(&point, &exact)))
+    let finer = d.render(Region::new(level - 1, x, y, w, h))?;
+    let coarser = if level + 1 < d.levels() {
+        let up = d.render(Region::new(level + 1, x >> 1, y >> 1, (w + 1) / 2 + 1, (h + 1) / 2 + 1))?;
+        let mut doubled = Rgba8Image::new(w, h);
+        for j in 0..h {
+            for i in 0..w {
+                let (u, v) = (((x + i as i64) >> 1) - (x >> 1), ((y + j as i64) >> 1) - (y >> 1));
+                doubled.set_pixel(i, j, up.pixel(u as u32, v as u32));
+            }
+        }
+        Some(doubled)
+    } else {
+        None
+    };
+    let exact_sigma = sigma(&exact);
+    let score = |img: &Rgba8Image| {
+        let (a, b) = (mean_rgba(img), mean_rgba(&exact));
+        Score {
+            psnr: psnr(img, &exact),
+            sigma_ratio: if exact_sigma > 0.0 { sigma(img) / exact_sigma } else { 1.0 + sigma(img) },
+            mean_error: (0..3).map(|c| (a[c] - b[c]).abs()).fold(0.0, f64::max),
+        }
+    };
+    Ok(LevelScores {
+        level,
+        pixels: w * h,
+        exact_sigma,
+        answers: [Some(score(&served)), Some(score(&flat)), Some(score(&point)), Some(score(&finer)), coarser.as_ref().map(score)],
+    })
+}
+
+/// Standard deviation over the RGB channels (each about its own mean), 0–255.
+fn sigma(img: &Rgba8Image) -> f64 {
+    let mean = mean_rgba(img);
+    let n = (img.width as f64 * img.height as f64).max(1.0);
+    let var: f64 = img
+        .data
+        .chunks_exact(4)
+        .map(|p| (0..3).map(|c| (p[c] as f64 - mean[c]).powi(2)).sum::<f64>())
+        .sum::<f64>()
+        / (3.0 * n);
+    var.sqrt()
 }
 
 fn db(v: f64) -> String {
@@ -552,7 +692,7 @@ fn plan(d: &Demo) -> Outcome {
 struct Row {
     label: String,
     cells: Vec<Outcome>,
-    mip: Vec<LevelPsnr>,
+    mip: Vec<LevelScores>,
 }
 
 fn run(d: &Demo) -> Row {
@@ -617,17 +757,28 @@ fn main() {
         rows.iter().map(|r| std::iter::once(r.label.clone()).chain(r.cells.iter().map(cell_text)).collect()).collect();
     print_table(&header, &table);
 
-    println!("\nmip coherence per level: served PSNR / point sampling PSNR against the exact 2×2 box chain from level L−{MIP_SPAN}");
-    let deepest = rows.iter().map(|r| r.mip.len()).max().unwrap_or(0);
-    let mut header = vec!["demo (model/name)".to_string(), "floor".to_string()];
-    header.extend((1..=deepest).map(|l| format!("L{l}")));
+    println!(
+        "\nmip levels against the exact 2×2 box chain from level L−{MIP_SPAN}: PSNR, σ over the exact σ, |Δ mean|; \
+         ✗ marks an answer the model's gates reject"
+    );
+    let mut header = vec!["demo (model/name)".to_string(), "L".to_string(), "exact σ".to_string()];
+    header.extend(ANSWERS.iter().map(|a| a.to_string()));
     let table: Vec<Vec<String>> = rows
         .iter()
         .zip(&demos)
-        .map(|(r, d)| {
-            let mut line = vec![r.label.clone(), format!("{}", d.model.mip_guarantee().min_psnr_db)];
-            line.extend(r.mip.iter().map(|p| format!("{}/{}", short_db(p.served), short_db(p.point))));
-            line
+        .flat_map(|(r, d)| {
+            let g = d.model.mip_guarantee();
+            r.mip.iter().map(move |l| {
+                let mut line = vec![r.label.clone(), l.level.to_string(), format!("{:.1}", l.exact_sigma)];
+                line.extend(l.answers.iter().map(|a| match a {
+                    None => "n/a".to_string(),
+                    Some(s) => {
+                        let mark = if failed_gates(s, l, &g).is_empty() { "" } else { " ✗" };
+                        format!("{} σ×{:.2} Δ{:.1}{mark}", short_db(s.psnr), s.sigma_ratio, s.mean_error)
+                    }
+                }));
+                line
+            })
         })
         .collect();
     print_table(&header, &table);

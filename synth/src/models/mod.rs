@@ -126,8 +126,12 @@ pub struct MipGuarantee {
     /// PSNR (dB) every level L ≥ 1 keeps against three exact 2×2 box downsamples of level L−3
     /// (fewer near level 0; any region): high enough that point sampling falls below it.
     pub min_psnr_db: f64,
-    /// Largest |mean difference| (0–255 per channel) between the coarsest level and the true mean.
+    /// Largest |mean difference| (0–255 per channel) of every level against the same box chain,
+    /// and of the coarsest level against the true mean.
     pub max_mean_error: f64,
+    /// Largest relative difference of every level's σ from the same box chain's: a flat colour
+    /// fails it, and so does a level that keeps only part of the texture's contrast.
+    pub max_sigma_error: f64,
 }
 
 /// Every model this build knows, one line each.

@@ -426,10 +426,10 @@ impl Layer {
         Some(self.transform.as_ref().unwrap().place(&self.rng, gx, gy, p, tex.reference.size))
     }
 
-    /// Mean premultiplied colour of the animated sparse cells in the square of side `k` cells
-    /// at cell coordinates (x, y): every cell up to 4 × 4 of them, else a stratified 4 × 4
+    /// Mean premultiplied colour of the sparse cells in the square of side `k` cells at cell
+    /// coordinates (x, y), at frame t: every cell up to 4 × 4 of them, else a stratified 4 × 4
     /// sample.
-    fn animated_mean(&self, r: &Reference, x: f64, y: f64, k: f64, t: u32) -> [f32; 4] {
+    fn cells_mean(&self, r: &Reference, x: f64, y: f64, k: f64, t: u32) -> [f32; 4] {
         let n = (k.ceil() as u64).clamp(1, OVERSAMPLE);
         let (mut acc, step) = ([0f32; 4], k / n as f64);
         for j in 0..n {
@@ -456,8 +456,12 @@ impl Layer {
         let w = region.width as usize;
         let (lw, lh) = level_size(tex.width, tex.height, level);
         if f * 4.0 > c {
-            // Under four pixels per cell: expected premultiplied coverage (law of large numbers),
-            // or for animated cells the mean of the cells under the pixel at this frame.
+            if f <= c * OVERSAMPLE as f64 {
+                return self.splat_sparse(tex, region, out, stop);
+            }
+            // Past 4 × 4 cells a pixel: the mean of a stratified 4 × 4 sample of its cells; a
+            // static texture's is drawn toward the expected coverage (law of large numbers) by
+            // 4/k, which gives its deviation the spread of a k × k mean, not a 4 × 4 one.
             let area = tr.mean_area();
             for row in 0..region.height as usize {
                 if stop.requested() {
@@ -466,15 +470,16 @@ impl Layer {
                 let py = wrap(region.y + row as i64, lh) as f64;
                 for col in 0..w {
                     let px = wrap(region.x + col as i64, lw) as f64;
-                    let e = match &self.choice {
-                        Some(choice) => {
-                            let (cx, cy) = ((px + 0.5) * f / c, (py + 0.5) * f / c);
-                            choice
-                                .expected(r, cx.min(self.grid.0 as f64), cy.min(self.grid.1 as f64), self.grid, true)
-                                .unwrap_or([0.0; 4])
-                        }
-                        None => self.animated_mean(r, px * f / c, py * f / c, f / c, region.frame),
-                    };
+                    let k = f / c;
+                    let mut e = self.cells_mean(r, px * k, py * k, k, region.frame);
+                    if let (Some(choice), true) = (&self.choice, k > OVERSAMPLE as f64) {
+                        let (cx, cy) = ((px + 0.5) * k, (py + 0.5) * k);
+                        let expected = choice
+                            .expected(r, cx.min(self.grid.0 as f64), cy.min(self.grid.1 as f64), self.grid, true)
+                            .unwrap_or([0.0; 4]);
+                        let shrink = (OVERSAMPLE as f64 / k) as f32;
+                        e = std::array::from_fn(|i| expected[i] + (e[i] - expected[i]) * shrink);
+                    }
                     over_pm(&mut out[(row * w + col) * 4..][..4], e.map(|v| v * area));
                 }
             }
@@ -523,6 +528,47 @@ impl Layer {
                 }
                 over_pm(&mut out[(row * w + col) * 4..][..4], acc);
             }
+        }
+    }
+
+    /// A sparse layer under four pixels a cell, up to four cells a pixel: each placed pattern's
+    /// mean colour splat over the pixels an unrotated square of its area and centre overlaps,
+    /// weighted by the overlap, so the level keeps where patterns lie.
+    fn splat_sparse(&self, tex: &PatternTexture, region: &Region, out: &mut [u8], stop: &dyn Stop) {
+        let r = &tex.reference;
+        let tr = self.transform.as_ref().unwrap();
+        let k = (1u64 << region.level.min(62)) as f64 / self.cell as f64;
+        let (w, h) = (region.width as i64, region.height as i64);
+        // Cells whose pattern may reach a pixel of [p, p + n): a point reads from `left` cells
+        // before its own to `right` cells after it.
+        let sources = |p: i64, n: i64| (p as f64 * k).floor() as i64 - tr.left..=((p + n) as f64 * k).floor() as i64 + tr.right;
+        // Summed in premultiplied f32 (the squares of neighbouring cells hardly overlap, so their
+        // coverages add), scaled back where they overlap past full, then put over `out` once.
+        let mut acc = vec![[0f32; 4]; (w * h) as usize];
+        for uy in sources(region.y, h) {
+            if stop.requested() {
+                return;
+            }
+            for ux in sources(region.x, w) {
+                let Some(pl) = self.placed(tex, ux, uy, region.frame) else { continue };
+                let (cx, cy) = (ux as f64 + pl.cx as f64, uy as f64 + pl.cy as f64);
+                let e = pl.scale as f64 * 0.5;
+                let pm = r.pm_mean(pl.pattern);
+                let span = |c: f64, p: i64, n: i64| {
+                    ((c - e) / k).floor().max(p as f64) as i64..((c + e) / k).ceil().min((p + n) as f64) as i64
+                };
+                for py in span(cy, region.y, h) {
+                    let cov_y = overlap(py as f64 * k, k, cy - e, 2.0 * e);
+                    for px in span(cx, region.x, w) {
+                        let cov = (cov_y * overlap(px as f64 * k, k, cx - e, 2.0 * e) / (k * k)) as f32;
+                        let a = &mut acc[((py - region.y) * w + (px - region.x)) as usize];
+                        *a = std::array::from_fn(|i| a[i] + pm[i] * cov);
+                    }
+                }
+            }
+        }
+        for (pixel, a) in out.chunks_exact_mut(4).zip(acc) {
+            over_pm(pixel, a.map(|v| v / a[3].max(1.0)));
         }
     }
 

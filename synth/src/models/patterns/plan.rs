@@ -253,7 +253,7 @@ fn plan_of(p: &Params, bundle: &Bundle, create: bool) -> Result<Plan> {
 
     // A tile: per pixel and layer, a tiling layer reads one texel (its transition overlays
     // too) while a pattern covers pixels, then up to 4 × 4 cell means; a sparse layer reads
-    // every neighbour cell a pattern may overflow from, then its expected colour; sprites
+    // every neighbour cell a pattern may overflow from, then up to 4 × 4 cell means; sprites
     // read one pattern, then splat each sprite.
     let layer_work = |lp: &LayerParams, t: &Option<TransformBlock>, level: u32| -> f64 {
         match lp.kind {
@@ -270,9 +270,9 @@ fn plan_of(p: &Params, bundle: &Bundle, create: bool) -> Result<Plan> {
             LayerKind::Sparse => {
                 let f = (1u64 << level.min(62)) as f64;
                 if f * 4.0 > lp.cell as f64 {
-                    // Animated cells have no expectation: up to 4 × 4 of them are read.
-                    let cells = if lp.animation.is_some() { (OVERSAMPLE * OVERSAMPLE) as f64 } else { 1.0 };
-                    TILE * EXPECTED * cells
+                    // Up to 4 × 4 cells are read, then a static layer's expected colour.
+                    let expected = if lp.animation.is_some() { 0.0 } else { 1.0 };
+                    TILE * EXPECTED * ((OVERSAMPLE * OVERSAMPLE) as f64 + expected)
                 } else {
                     let reach = t.as_ref().map_or(1, |t| t.left + t.right + 1) as f64;
                     TILE * BILINEAR * reach * reach
