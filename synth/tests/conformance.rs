@@ -20,7 +20,7 @@ use vtex_synth::bundle::Bundle;
 use vtex_synth::mip::{downsample_n, mean_rgba, psnr};
 use vtex_synth::models::{self, Inputs, Limits, MipGuarantee, Model};
 use vtex_synth::texture::{level_count, level_size, render_image};
-use vtex_synth::{samples, Domain, Error, Region, Rgba8Image, Texture};
+use vtex_synth::{samples, Animation, Domain, Error, Region, Rgba8Image, Stop, Texture};
 
 #[path = "../../wasm/src/probe.rs"]
 mod probe;
@@ -687,6 +687,87 @@ fn plan(d: &Demo) -> Outcome {
     }
 }
 
+// ---------------------------------------------------------------- models broken on purpose
+
+/// How a texture is broken on purpose, to show the mip gates reject it: every level above 0
+/// served as one flat colour, or with half its contrast about its mean (coarse levels that
+/// collapse toward the mean).
+#[derive(Clone, Copy, Debug)]
+enum Breakage {
+    Flat,
+    HalfContrast,
+}
+
+struct Broken {
+    inner: Arc<dyn Texture>,
+    breakage: Breakage,
+}
+
+impl Texture for Broken {
+    fn model(&self) -> &'static str {
+        self.inner.model()
+    }
+    fn width(&self) -> u64 {
+        self.inner.width()
+    }
+    fn height(&self) -> u64 {
+        self.inner.height()
+    }
+    fn domain(&self) -> Domain {
+        self.inner.domain()
+    }
+    fn animation(&self) -> Option<Animation> {
+        self.inner.animation()
+    }
+    fn render(&self, region: &Region, out: &mut [u8], stop: &dyn Stop) {
+        self.inner.render(region, out, stop);
+        if region.level == 0 {
+            return;
+        }
+        let top = level_count(self.width(), self.height()) - 1;
+        let mut mean = [0u8; 4];
+        self.inner.render(&Region::new(top, 0, 0, 1, 1).at_frame(region.frame), &mut mean, stop);
+        for p in out.chunks_exact_mut(4) {
+            for c in 0..3 {
+                p[c] = match self.breakage {
+                    Breakage::Flat => mean[c],
+                    Breakage::HalfContrast => ((p[c] as u16 + mean[c] as u16 + 1) / 2) as u8,
+                };
+            }
+        }
+    }
+}
+
+/// The first demo of each model, broken each way: its mip gates must reject every one.
+fn broken_on_purpose(demos: &[Demo]) -> Vec<(String, &'static str, String)> {
+    let mut seen = Vec::new();
+    let mut failed = Vec::new();
+    for d in demos {
+        if seen.contains(&d.model.id()) {
+            continue;
+        }
+        seen.push(d.model.id());
+        for breakage in [Breakage::Flat, Breakage::HalfContrast] {
+            let broken = Demo {
+                model: d.model,
+                bundle: d.bundle.clone(),
+                tex: Arc::new(Broken { inner: Arc::clone(&d.tex), breakage }),
+            };
+            let mut levels = Vec::new();
+            let verdict = mip_coherence(&broken, &mut levels).and_then(|_| trivial_answers(&broken, &mut levels));
+            let label = format!("{} broken: {breakage:?}", d.label());
+            match verdict {
+                Err(why) => println!("{label}: rejected ({})", why.chars().take(160).collect::<String>()),
+                Ok(text) => {
+                    println!("{label}: ACCEPTED ({text})");
+                    failed.push((label, "broken on purpose", "the mip gates accept it".to_string()));
+                }
+            }
+        }
+    }
+    failed
+}
+
 // ---------------------------------------------------------------- the table
 
 struct Row {
@@ -783,6 +864,9 @@ fn main() {
         .collect();
     print_table(&header, &table);
 
+    println!("\nmodels broken on purpose, held to the same mip gates");
+    let broken = broken_on_purpose(&demos);
+
     let failed: Vec<(String, &str, &String)> = rows
         .iter()
         .flat_map(|r| {
@@ -791,6 +875,7 @@ fn main() {
                 .zip(COLUMNS)
                 .filter_map(|(c, (name, _))| c.as_ref().err().map(|e| (r.label.clone(), name, e)))
         })
+        .chain(broken.iter().map(|(label, column, why)| (label.clone(), *column, why)))
         .collect();
     println!(
         "\n{} demos of {} models, {} cells, {} failed",
