@@ -79,10 +79,14 @@ pub struct TextureInfo {
     /// The animation's period and frame rate, for animated textures.
     #[schema(value_type = Option<Object>)]
     pub animation: Option<Animation>,
-    /// The parameters it was created with (its manifest's): posted back to the upload with
-    /// its model and input images, they make this very texture again.
+    /// The parameters it was created with, as given (its manifest's): posted back to the
+    /// upload with its model and input images, they make this very texture again.
     #[schema(value_type = Object)]
     pub params: serde_json::Value,
+    /// The parameters its model derived from `params` and the input images where they were
+    /// not given (e.g. the cascade's `range`): made again by `create`, not part of the recipe.
+    #[schema(value_type = Object)]
+    pub derived: serde_json::Map<String, serde_json::Value>,
 }
 
 /// What the store knows of a stored bundle without loading its texture: its manifest and plan.
@@ -146,6 +150,7 @@ impl Record {
             animated: p.animation.is_some(),
             animation: p.animation,
             params: self.manifest.params.clone(),
+            derived: self.manifest.derived.clone(),
         }
     }
 

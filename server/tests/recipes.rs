@@ -150,3 +150,86 @@ async fn a_patch_the_model_cannot_remake_is_refused_naming_the_field() {
     let msg = e["error"].as_str().unwrap();
     assert!(msg.contains("`seed`") && msg.contains("layers[0].table"), "{msg}");
 }
+
+/// The sample as an 8-bit RGB PNG: the pixels vtex would store, in bytes another tool writes.
+fn rgb_png(img: &vtex_synth::Rgba8Image) -> Vec<u8> {
+    let mut out = Vec::new();
+    let mut encoder = png::Encoder::new(&mut out, img.width, img.height);
+    encoder.set_color(png::ColorType::Rgb);
+    encoder.set_depth(png::BitDepth::Eight);
+    let mut writer = encoder.write_header().unwrap();
+    let rgb: Vec<u8> = img.data.chunks_exact(4).flat_map(|p| [p[0], p[1], p[2]]).collect();
+    writer.write_image_data(&rgb).unwrap();
+    writer.finish().unwrap();
+    out
+}
+
+/// Luma standard deviation of raw RGBA8 bytes.
+fn luma_sigma(rgba: &[u8]) -> f64 {
+    let luma: Vec<f64> =
+        rgba.chunks_exact(4).map(|p| 0.299 * p[0] as f64 + 0.587 * p[1] as f64 + 0.114 * p[2] as f64).collect();
+    let mean = luma.iter().sum::<f64>() / luma.len() as f64;
+    (luma.iter().map(|l| (l - mean).powi(2)).sum::<f64>() / luma.len() as f64).sqrt()
+}
+
+/// A PATCH gives the very texture (the same id) that uploading the user's params, patched,
+/// with the same input images gives: Cascade demo A's map moved from r = 3.9 to 3.3 (whose
+/// automatic `range` must follow, or the texture goes flat), an `lcm` element made larger and
+/// a layer added (fields the user never wrote, `k` and `stored_resolutions`, follow), and a
+/// new seed for a mosaic uploaded as a bundle the user assembled, sample in their own PNG.
+#[tokio::test]
+async fn a_patch_gives_what_uploading_the_patched_params_gives() {
+    let dir = tempdir();
+    let s = Server::start(dir.path(), &[]);
+    let c = client();
+    let cascade_a = json!({"seed": 11, "stages": [{"kernel": {"size": 5, "preset": "gauss", "sigma": 1.0},
+                           "map": {"kind": "logistic", "r": 3.9}, "iterations": 5}], "palette": "ocean"});
+    let mut stages = cascade_a["stages"].clone();
+    stages[0]["map"]["r"] = json!(3.3);
+    let brick = models::get("lcm").unwrap().example().params;
+    let mut layers = brick["layers"].clone();
+    let noise = serde_json::to_value(lcm::demos::table_noise()).unwrap();
+    layers.as_array_mut().unwrap().push(json!({"layer": 2, "weight": 0.2, "lcm": [20, 20], "table": noise}));
+    let cases = [
+        ("cascade", cascade_a, json!({"stages": stages})),
+        ("lcm", brick.clone(), json!({"element": {"k": 6}})),
+        ("lcm", brick, json!({"layers": layers})),
+    ];
+    for (model, user, edit) in cases {
+        let (status, made) = post_recipe(&c, &s, model, model, &user, &Inputs::new()).await;
+        assert_eq!(status, 201, "{made}");
+        let (status, patched) = patch(&c, &s, made["id"].as_str().unwrap(), json!({"params": edit})).await;
+        assert_eq!(status, 201, "{model} {edit}: {patched}");
+        let mut edited = user.clone();
+        models::merge_patch(&mut edited, &edit);
+        let (status, fresh) = post_recipe(&c, &s, model, model, &edited, &Inputs::new()).await;
+        assert_eq!((status, &fresh["id"]), (200, &patched["id"]), "{model} {edit}: not the fresh texture");
+        assert_eq!(patched["params"], fresh["params"]);
+        assert_eq!(patched["derived"], fresh["derived"]);
+    }
+    // Demo A at r = 3.3 is mapped by its own range, not 3.9's: a texture, not a flat colour.
+    let (_, a) =
+        post_recipe(&c, &s, "cascade", "a", &json!({"seed": 11, "stages": stages, "palette": "ocean"}), &Inputs::new())
+            .await;
+    assert!(a["params"].get("range").is_none() && a["derived"]["range"].is_array(), "{a}");
+    let sigma = luma_sigma(&tile(&c, &s, a["id"].as_str().unwrap()).await);
+    assert!(sigma > 20.0, "luma σ {sigma:.1}");
+
+    let sample = rgb_png(&vtex_synth::samples::pebbles(64, 10, 3, true));
+    let user = json!({"tiles_x": 16, "tiles_y": 16, "seed": 1, "seamless": true});
+    let uploaded = Bundle::new("chaos-mosaic", "uploaded", user.clone()).with_section("sample.png", sample.clone());
+    let id = put(&c, &s, &uploaded).await;
+    let (status, patched) = patch(&c, &s, &id, json!({"params": {"seed": 2}})).await;
+    assert_eq!(status, 201, "{patched}");
+    let inputs = Inputs::from([("sample".to_string(), sample)]);
+    let (status, fresh) = post_recipe(
+        &c,
+        &s,
+        "chaos-mosaic",
+        "uploaded",
+        &json!({"tiles_x": 16, "tiles_y": 16, "seed": 2, "seamless": true}),
+        &inputs,
+    )
+    .await;
+    assert_eq!((status, &fresh["id"]), (200, &patched["id"]), "the uploaded mosaic, reseeded: {fresh}");
+}

@@ -5,7 +5,8 @@
 //! ```text
 //! "VTEXBNDL"  magic, 8 bytes
 //! u32         container version (1)
-//! u32         manifest length, then the manifest: UTF-8 JSON {format, model, name, params}
+//! u32         manifest length, then the manifest: UTF-8 JSON {format, model, name, params,
+//!             derived (optional)}
 //! u32         section count, then per section:
 //!             u8 name length, name ([a-z0-9._-]), u64 data length, data
 //! ```
@@ -35,8 +36,34 @@ pub struct Manifest {
     pub model: String,
     /// Human-readable name shown by viewers.
     pub name: String,
-    /// Model parameters; each model defines and validates its own.
+    /// Model parameters as the user gave them (a JSON object; each model defines and
+    /// validates its own): the recipe that a PATCH edits and `create` takes back.
     pub params: serde_json::Value,
+    /// Parameters `create` derived from `params` and the input images, filled in where the
+    /// user left them out (the cascade's value `range`, the mosaic's `seamless`, …). Kept
+    /// apart so that a change of `params` derives them again instead of keeping stale ones;
+    /// no key is in both. Absent from bundles made before it existed, whose `params` hold
+    /// everything.
+    #[serde(default, skip_serializing_if = "serde_json::Map::is_empty")]
+    pub derived: serde_json::Map<String, serde_json::Value>,
+}
+
+impl Manifest {
+    /// Every parameter a model reads when loading: `params` with `derived` beside them.
+    pub fn full_params(&self) -> Result<serde_json::Value> {
+        if self.derived.is_empty() {
+            return Ok(self.params.clone());
+        }
+        let serde_json::Value::Object(given) = &self.params else {
+            return Err(Error::bundle("params: must be a JSON object"));
+        };
+        if let Some(k) = self.derived.keys().find(|k| given.contains_key(*k)) {
+            return Err(Error::bundle(format!("`{k}` is both in params and derived")));
+        }
+        let mut all = given.clone();
+        all.extend(self.derived.clone());
+        Ok(serde_json::Value::Object(all))
+    }
 }
 
 #[derive(Clone, Debug, PartialEq, Eq)]
@@ -55,9 +82,29 @@ pub struct Bundle {
 impl Bundle {
     pub fn new(model: &str, name: &str, params: serde_json::Value) -> Self {
         Self {
-            manifest: Manifest { format: FORMAT.into(), model: model.into(), name: name.into(), params },
+            manifest: Manifest {
+                format: FORMAT.into(),
+                model: model.into(),
+                name: name.into(),
+                params,
+                derived: Default::default(),
+            },
             sections: Vec::new(),
         }
+    }
+
+    /// A bundle of what `create` made: `given`, the params as the user gave them, and
+    /// `complete`, the same with the fields it derived filled in. Those fields are kept as
+    /// [`Manifest::derived`]; `complete` changes nothing that was given.
+    pub fn created(model: &str, name: &str, given: serde_json::Value, complete: serde_json::Value) -> Self {
+        let mut bundle = Self::new(model, name, given);
+        if let (serde_json::Value::Object(given), serde_json::Value::Object(complete)) =
+            (&bundle.manifest.params, complete)
+        {
+            debug_assert!(given.iter().all(|(k, v)| complete.get(k) == Some(v)), "create changed a given param");
+            bundle.manifest.derived = complete.into_iter().filter(|(k, _)| !given.contains_key(k)).collect();
+        }
+        bundle
     }
 
     pub fn with_section(mut self, name: &str, data: Vec<u8>) -> Self {
@@ -74,9 +121,10 @@ impl Bundle {
             .ok_or_else(|| Error::bundle(format!("missing section `{name}`")))
     }
 
-    /// The model parameters decoded into the model's own type.
+    /// The model parameters, given and derived ([`Manifest::full_params`]), decoded into the
+    /// model's own type.
     pub fn params<T: serde::de::DeserializeOwned>(&self) -> Result<T> {
-        serde_json::from_value(self.manifest.params.clone()).map_err(|e| Error::bundle(format!("params: {e}")))
+        serde_json::from_value(self.manifest.full_params()?).map_err(|e| Error::bundle(format!("params: {e}")))
     }
 
     pub fn to_bytes(&self) -> Vec<u8> {
@@ -206,6 +254,22 @@ mod tests {
         let id = id_of(&bytes);
         assert!(is_valid_id(&id));
         assert_eq!(id, id_of(&b.to_bytes()), "serialization is deterministic");
+    }
+
+    #[test]
+    fn derived_params_are_kept_apart_and_read_beside_the_given() {
+        use serde_json::json;
+        let b = Bundle::created("test", "t", json!({"seed": 1}), json!({"seed": 1, "range": [0, 1]}));
+        assert_eq!(b.manifest.params, json!({"seed": 1}));
+        assert_eq!(b.manifest.full_params().unwrap(), json!({"seed": 1, "range": [0, 1]}));
+        assert_eq!(Bundle::from_bytes(&b.to_bytes()).unwrap(), b);
+        // Nothing derived: the manifest is written as it was before `derived` existed.
+        let plain = Bundle::created("test", "t", json!({"seed": 1}), json!({"seed": 1}));
+        assert_eq!(plain, Bundle::new("test", "t", json!({"seed": 1})));
+        assert!(!String::from_utf8_lossy(&plain.to_bytes()).contains("derived"));
+        let mut both = b.clone();
+        both.manifest.params["range"] = json!([0, 2]);
+        assert!(both.manifest.full_params().unwrap_err().to_string().contains("`range` is both"), "{both:?}");
     }
 
     #[test]

@@ -476,6 +476,6 @@ fn hostile_block_sequences_are_refused() {
     let b = explicit_bundle().with_section("extra", vec![1]);
     assert!(load_err(&b).contains("unexpected section"));
     let mut b = explicit_bundle();
-    b.manifest.params["seamless"] = Value::Null;
+    b.manifest.derived.remove("seamless").expect("derived by create");
     assert!(load_err(&b).contains("seamless"));
 }

@@ -358,14 +358,14 @@ fn element_images_give_one_plane_with_a_palette_or_three_without() {
     let inputs: Inputs = BTreeMap::from([("element".to_string(), img.to_png())]);
     let rgb = json!({"background": [128.0, 128.0, 128.0], "layers": [{"layer": 0, "lcm": [4, 4], "table": table}]});
     let b = lcm::create("rgb", &rgb, &inputs).unwrap();
-    assert_eq!(b.manifest.params["planes"], 3);
+    assert_eq!(b.manifest.derived["planes"], 3);
     let t = lcm::load(&b).unwrap();
     let img = render(&t, 0, 0, 0, 16, 16);
     // Transparent pixels (alpha 0 in the image) leave the background.
     assert_eq!(img.pixel(15, 15), [128, 128, 128, 255]);
     assert!(img.data.chunks_exact(4).any(|p| p[0] != p[2]), "channels differ");
     let grey = json!({"palette": GREY, "layers": [{"layer": 0, "lcm": [4, 4], "table": table}]});
-    assert_eq!(lcm::create("g", &grey, &inputs).unwrap().manifest.params["planes"], 1);
+    assert_eq!(lcm::create("g", &grey, &inputs).unwrap().manifest.derived["planes"], 1);
 }
 
 #[test]
@@ -532,7 +532,7 @@ fn bad_encodings_are_refused_with_the_reason() {
     assert!(e.contains("missing section `element.0.2`"), "{e}");
     let e = edit(&|b| b.sections.push(vtex_synth::bundle::Section { name: "extra".into(), data: vec![1] }));
     assert!(e.contains("unexpected section `extra`"), "{e}");
-    let e = edit(&|b| b.manifest.params["k"] = json!(6));
+    let e = edit(&|b| b.manifest.derived["k"] = json!(6));
     assert!(e.contains("element.0.6") || e.contains("stored_resolutions"), "{e}");
     let e = edit(&|b| b.manifest.params["layers"][2]["share"] = json!(2));
     assert!(e.contains("share"), "{e}");
@@ -546,7 +546,7 @@ fn bad_encodings_are_refused_with_the_reason() {
     assert!(e.contains("magnify"), "{e}");
     let e = edit(&|b| b.manifest.params["layers"][0]["lcm"] = json!([5000, 40]));
     assert!(e.contains("LCM size"), "{e}");
-    let e = edit(&|b| b.manifest.params["planes"] = json!(2));
+    let e = edit(&|b| b.manifest.derived["planes"] = json!(2));
     assert!(e.contains("planes") || e.contains("palette"), "{e}");
     // Through the registry too, from raw bytes.
     let mut bytes = good.to_bytes();

@@ -209,35 +209,16 @@ async fn bundle_from_multipart(req: Request, limit: usize, bounds: Limits) -> Re
     Ok(bundle.to_bytes())
 }
 
-/// RFC 7396 JSON merge patch: objects merge recursively, `null` deletes, anything else replaces.
-pub fn merge_patch(target: &mut Value, patch: &Value) {
-    let Value::Object(patch) = patch else {
-        *target = patch.clone();
-        return;
-    };
-    if !target.is_object() {
-        *target = Value::Object(Default::default());
-    }
-    let map = target.as_object_mut().expect("made an object above");
-    for (k, v) in patch {
-        if v.is_null() {
-            map.remove(k);
-        } else {
-            merge_patch(map.entry(k.clone()).or_insert(Value::Null), v);
-        }
-    }
-}
-
-/// `PATCH /api/v1/textures/{id}`: merge-patch `name` and `params` of the manifest; the
-/// texture is made again by its model from the patched params (everything they derive
-/// follows them), or refused naming the field it cannot remake; the result is stored as a
-/// new texture (bundles are immutable).
+/// `PATCH /api/v1/textures/{id}`: merge-patch `name` and `params` of the manifest (the params
+/// as given, not those the model derived); the texture is made again by its model from the
+/// patched params — exactly what creating it from them makes — or refused naming the field it
+/// cannot remake; the result is stored as a new texture (bundles are immutable).
 #[utoipa::path(patch,
     path = "/api/v1/textures/{id}",
     tag = "textures",
     params(("id" = String, Path, description = text::TEXTURE_ID)),
-    request_body(description = "JSON merge patch (RFC 7396) of `name` and `params`", content(("application/json"))),
-    responses((status = 201, description = "the new texture made from the patched name and params", body = TextureInfo), (status = 400, description = "not a patch of `name` and `params`, or params its model cannot remake, named", body = ErrorBody), (status = 404, description = text::NOT_FOUND, body = ErrorBody), (status = 422, description = text::OVER_BOUND, body = ErrorBody)))]
+    request_body(description = "JSON merge patch (RFC 7396) of `name` and `params` (the params as given; `derived` is made again from them)", content(("application/json"))),
+    responses((status = 201, description = "the new texture: what creating it from the patched name and params with the same input images makes", body = TextureInfo), (status = 400, description = "not a patch of `name` and `params`, or params its model cannot remake, named", body = ErrorBody), (status = 404, description = text::NOT_FOUND, body = ErrorBody), (status = 422, description = text::OVER_BOUND, body = ErrorBody)))]
 pub async fn patch(
     State(app): State<App>,
     Path(TextureId { id }): Path<TextureId>,
@@ -255,7 +236,7 @@ pub async fn patch(
         return Err(ApiError::bad_request(format!("`{}` cannot be patched; only `name` and `params`", echo(k))));
     }
     let mut doc = serde_json::json!({ "name": entry.manifest.name, "params": entry.manifest.params });
-    merge_patch(&mut doc, &patch);
+    models::merge_patch(&mut doc, &patch);
     let name = match doc.get("name") {
         Some(Value::String(s)) => s.clone(),
         _ => return Err(ApiError::bad_request("`name` must remain a string")),
@@ -270,28 +251,4 @@ pub async fn patch(
         .await
         .map_err(|e| ApiError::internal("remaking the encoding failed inside the model", e))??;
     store_bundle(&app, new.to_bytes()).await
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-    use serde_json::json;
-
-    #[test]
-    fn merge_patch_follows_rfc7396() {
-        // The example of RFC 7396 §3.
-        let mut doc = json!({"title": "Goodbye!", "author": {"givenName": "John", "familyName": "Doe"},
-                             "tags": ["example", "sample"], "content": "This will be unchanged"});
-        let patch = json!({"title": "Hello!", "phoneNumber": "+01-123-456-7890",
-                           "author": {"familyName": null}, "tags": ["example"]});
-        merge_patch(&mut doc, &patch);
-        assert_eq!(
-            doc,
-            json!({"title": "Hello!", "author": {"givenName": "John"}, "tags": ["example"],
-                   "content": "This will be unchanged", "phoneNumber": "+01-123-456-7890"})
-        );
-        let mut scalar = json!(1);
-        merge_patch(&mut scalar, &json!({"a": {"b": null, "c": 2}}));
-        assert_eq!(scalar, json!({"a": {"c": 2}}));
-    }
 }

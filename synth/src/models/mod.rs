@@ -20,7 +20,7 @@ pub mod order_independent;
 pub mod patterns;
 mod remake;
 
-pub use remake::remake_within;
+pub use remake::{merge_patch, remake_within};
 
 /// Input images by name (PNG bytes), e.g. `sample` for the chaos mosaic.
 pub type Inputs = BTreeMap<String, Vec<u8>>;

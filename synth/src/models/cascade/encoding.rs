@@ -192,13 +192,14 @@ pub fn section_image(bundle: &crate::bundle::Bundle, section: &str, name: &str) 
 pub fn create(name: &str, params: &serde_json::Value, inputs: &Inputs) -> Result<Bundle> {
     super::plan::plan_create(params, inputs)?;
     let mut p: Params = parse_params(params)?;
+    let given = serde_json::to_value(&p).map_err(|e| Error::param("params", e.to_string()))?;
     let control = inputs.contains_key("control").then(|| input_image(inputs, "control")).transpose()?;
     let initial = inputs.contains_key("initial").then(|| input_image(inputs, "initial")).transpose()?;
     if p.range.is_none() {
         p.range = Some(auto_range(&build_engine(&p, control.as_ref(), initial.as_ref())?));
     }
-    let json = serde_json::to_value(&p).map_err(|e| Error::param("params", e.to_string()))?;
-    let mut bundle = Bundle::new(MODEL, name, json);
+    let complete = serde_json::to_value(&p).map_err(|e| Error::param("params", e.to_string()))?;
+    let mut bundle = Bundle::created(MODEL, name, given, complete);
     if let Some(c) = control {
         bundle = bundle.with_section(CONTROL_SECTION, c.to_png());
     }
@@ -218,7 +219,7 @@ pub fn load(bundle: &Bundle) -> Result<Cascade> {
         return Err(Error::bundle(format!("unexpected section `{}`", s.name)));
     }
     super::plan::plan(bundle)?;
-    let p: Params = parse_params(&bundle.manifest.params)?;
+    let p: Params = parse_params(&bundle.manifest.full_params()?)?;
     let control = section_image(bundle, CONTROL_SECTION, "control")?;
     let initial = section_image(bundle, INITIAL_SECTION, "initial")?;
     Cascade::build(p, control.as_ref(), initial.as_ref())

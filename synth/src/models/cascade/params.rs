@@ -1,5 +1,5 @@
-//! The cascade's parameters, as given to `create` and stored in the manifest (with `range`
-//! filled in).
+//! The cascade's parameters, as given to `create` and stored in the manifest (`range`, when
+//! not given, is derived: kept in the manifest's `derived`).
 //!
 //! ```json
 //! {"seed": 7, "width": 100000, "height": 100000,

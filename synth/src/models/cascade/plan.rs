@@ -60,7 +60,7 @@ pub fn plan(bundle: &Bundle) -> Result<Plan> {
     if let Some(s) = bundle.sections.iter().find(|s| s.name != CONTROL_SECTION && s.name != INITIAL_SECTION) {
         return Err(Error::bundle(format!("unexpected section `{}`", s.name)));
     }
-    let p: Params = parse_params(&bundle.manifest.params)?;
+    let p: Params = parse_params(&bundle.manifest.full_params()?)?;
     let header = |section: &str, name: &str| {
         bundle.sections.iter().find(|s| s.name == section).map(|s| png_dimensions(name, &s.data)).transpose()
     };

@@ -16,10 +16,11 @@ pub(super) const BLOCKS_SECTION: &str = "blocks";
 pub fn create(name: &str, params: &serde_json::Value, inputs: &Inputs) -> Result<Bundle> {
     super::plan::plan_create(params, inputs)?;
     let mut p: Params = parse_params(params)?;
+    let given = serde_json::to_value(&p).expect("params serialize");
     let sample = input_image(inputs, "sample")?;
     p.seamless.get_or_insert_with(|| is_seamless(&sample));
     let rule = SizeRule::new(sample.width, sample.height, &p)?;
-    let mut bundle = Bundle::new(MODEL, name, serde_json::to_value(&p).expect("params serialize"))
+    let mut bundle = Bundle::created(MODEL, name, given, serde_json::to_value(&p).expect("params serialize"))
         .with_section(SAMPLE_SECTION, sample.to_png());
     if p.sequence == Sequence::Explicit {
         bundle = bundle

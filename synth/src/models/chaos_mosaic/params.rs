@@ -54,7 +54,7 @@ pub struct Params {
     pub sequence: Sequence,
     /// Whether the sample tiles without a seam. Unset when creating: measured from the sample.
     /// When false, tile edges are cross-edge filtered like block edges (§2.4).
-    #[serde(default)]
+    #[serde(default, skip_serializing_if = "Option::is_none")]
     pub seamless: Option<bool>,
     /// Pixels filtered on each side of a block edge (the paper uses 3); 0 disables filtering.
     #[serde(default = "default_filter_width")]

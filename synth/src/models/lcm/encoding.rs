@@ -107,6 +107,7 @@ fn image_planes(inputs: &Inputs, planes: usize) -> Result<Vec<Plane>> {
 pub fn create(name: &str, params: &serde_json::Value, inputs: &Inputs) -> Result<Bundle> {
     super::plan::plan_create(params, inputs)?;
     let mut p: Params = parse_params(params)?;
+    let given = serde_json::to_value(&p).map_err(|e| Error::param("params", e.to_string()))?;
     let planes = match &p.element {
         Some(b) => builtin_planes(b),
         None => image_planes(inputs, if p.palette.is_empty() { 3 } else { 1 })?,
@@ -144,8 +145,8 @@ pub fn create(name: &str, params: &serde_json::Value, inputs: &Inputs) -> Result
     p.planes = Some(planes.len() as u32);
     p.stored_resolutions = if p.representation == Representation::Explicit { resolutions } else { vec![] };
     p.background.get_or_insert_with(|| vec![0.0; planes.len()]);
-    let json = serde_json::to_value(&p).map_err(|e| Error::param("params", e.to_string()))?;
-    let mut bundle = Bundle::new(MODEL, name, json);
+    let complete = serde_json::to_value(&p).map_err(|e| Error::param("params", e.to_string()))?;
+    let mut bundle = Bundle::created(MODEL, name, given, complete);
     sections.sort();
     for (n, d) in sections {
         bundle = bundle.with_section(&n, d);

@@ -63,10 +63,11 @@ pub struct Builtin {
     pub k: u32,
 }
 
-/// The parameters of an `lcm` encoding: what `create` takes, and what the manifest stores with
-/// the derived fields (`k`, `planes`, `stored_resolutions`, `background`) filled in. A stored
-/// manifest posted back to `create` (with the element image when `element` names no built-in)
-/// makes the same encoding again; a derived field that is given must agree with what it derives.
+/// The parameters of an `lcm` encoding: what `create` takes. The derived fields (`k`, `planes`,
+/// `stored_resolutions`, and `background` when not given) are filled in by `create` and kept in
+/// the manifest's `derived`. A manifest's params posted back to `create` (with the element image
+/// when `element` names no built-in) make the same encoding again; a derived field that is
+/// given must agree with what it derives.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize, JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct Params {
@@ -90,7 +91,7 @@ pub struct Params {
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub stored_resolutions: Vec<u32>,
     /// Background intensity per plane, added last; 0 when not given.
-    #[serde(default)]
+    #[serde(default, skip_serializing_if = "Option::is_none")]
     pub background: Option<Vec<f64>>,
     #[serde(default)]
     pub order: Order,

@@ -15,9 +15,10 @@ pub(super) const SAMPLE_SECTION: &str = "sample.png";
 pub fn create(name: &str, params: &serde_json::Value, inputs: &Inputs) -> Result<Bundle> {
     super::plan::plan_create(params, inputs)?;
     let mut p: Params = parse_params(params)?;
+    let given = serde_json::to_value(&p).expect("params serialize");
     p.generation0 = Some(p.generation0());
     let sample = input_image(inputs, "sample")?;
-    let bundle = Bundle::new(MODEL, name, serde_json::to_value(&p).expect("params serialize"))
+    let bundle = Bundle::created(MODEL, name, given, serde_json::to_value(&p).expect("params serialize"))
         .with_section(SAMPLE_SECTION, sample.to_png());
     load(&bundle)?;
     Ok(bundle)
@@ -26,7 +27,7 @@ pub fn create(name: &str, params: &serde_json::Value, inputs: &Inputs) -> Result
 /// Validates a stored encoding completely and builds the texture.
 pub fn load(bundle: &Bundle) -> Result<OrderIndependent> {
     super::plan::plan(bundle)?;
-    let params: Params = parse_params(&bundle.manifest.params)?;
+    let params: Params = parse_params(&bundle.manifest.full_params()?)?;
     let sample = decode_png(SAMPLE_SECTION, bundle.section(SAMPLE_SECTION)?)?;
     let hash = blake3::hash(&bundle.to_bytes());
     let key = u64::from_le_bytes(hash.as_bytes()[..8].try_into().expect("8 bytes"));

@@ -1,5 +1,6 @@
 //! The parameters of an order-independent texture, as given to `create` and stored in the
-//! manifest (with `generation0` filled in), and their validation against the sample's size.
+//! manifest (`generation0`, when not given, is derived: kept in the manifest's `derived`), and
+//! their validation against the sample's size.
 //!
 //! ```json
 //! {"seed": 7, "width": 100000, "height": 100000, "levels": 4, "generations": 3,

@@ -40,7 +40,7 @@ pub fn plan(bundle: &Bundle) -> Result<Plan> {
     if let Some(s) = bundle.sections.iter().find(|s| s.name != SAMPLE_SECTION) {
         return Err(Error::bundle(format!("unexpected section `{}`", s.name)));
     }
-    let p: Params = parse_params(&bundle.manifest.params)?;
+    let p: Params = parse_params(&bundle.manifest.full_params()?)?;
     check_stored(&p)?;
     let (w, h) = png_dimensions(SAMPLE_SECTION, bundle.section(SAMPLE_SECTION)?)?;
     plan_params(&p, w, h, false)

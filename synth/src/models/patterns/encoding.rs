@@ -59,7 +59,8 @@ pub(super) fn map_section(input: &str, bytes: &[u8], pixel_maps: &[(String, u32)
 pub fn inputs_of(bundle: &Bundle) -> Result<Inputs> {
     let mut inputs = Inputs::from([("reference".to_string(), bundle.section("reference.png")?.to_vec())]);
     let mut refs = Vec::new();
-    section_refs(&bundle.manifest.params, &mut refs);
+    let params = bundle.manifest.full_params()?;
+    section_refs(&params, &mut refs);
     for r in refs {
         let (name, [w, h], values) = if r.get("block").is_some() {
             let pm: params::PixelMapParams = parse_params(r)?;
