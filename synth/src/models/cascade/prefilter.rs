@@ -38,8 +38,14 @@ const WINDOW: u32 = 32;
 /// A bin needs this many samples to be trusted; others are interpolated.
 const MIN_COUNT: f64 = 4.0;
 
-/// The finest level whose blocks the calibration windows measure whole.
-const MEASURED_LEVELS: u32 = WINDOW.trailing_zeros();
+/// Larger windows for the levels whose blocks the small ones cannot hold: 16 × 256² gives
+/// 256 blocks at level 6 and 64 at level 7, as many as σ needs within a few per cent.
+const LARGE_WINDOWS: u64 = 16;
+const LARGE_WINDOW: u32 = 256;
+/// The finest level whose blocks the small windows measure whole, and the last the large ones
+/// measure with enough blocks.
+const SMALL_LEVELS: u32 = WINDOW.trailing_zeros();
+const MEASURED_LEVELS: u32 = SMALL_LEVELS + 2;
 
 /// Measured statistics of a texture for its prefiltered levels.
 #[derive(Clone, Debug, PartialEq)]
@@ -126,24 +132,38 @@ impl Calibration {
             }
             windows.push((x, y, img));
         }
+        let mut large = Vec::with_capacity(LARGE_WINDOWS as usize);
+        for i in 0..LARGE_WINDOWS {
+            let h = hash4(e.seed, STREAM_CALIBRATION, i as i64, 5);
+            let (x, y) = (h & !(LARGE_WINDOW as u64 - 1), h.rotate_left(29) & !(LARGE_WINDOW as u64 - 1));
+            large.push((x, y, tex.level0(x, y, LARGE_WINDOW, LARGE_WINDOW, stop)?));
+        }
         let mean = mean.map(|m| (m / count) as f32);
         let mut tables: Vec<Vec<[f32; 3]>> = sums.iter().map(|bins| fill(bins, mean)).collect();
         let image = tables.pop().filter(|_| guide(tex).is_some());
         let p = tex.params();
         let levels = crate::texture::level_count(p.width, p.height) as usize;
         let mut cal = Calibration { tables, image, mean, weights: vec![0.0; levels], residuals: vec![None; levels] };
-        cal.measure_residuals(tex, &windows, stop)?;
+        cal.measure_residuals(tex, &windows, &large, stop)?;
         Some(cal)
     }
 
-    /// The residuals: at each prefiltered level L up to the calibration window, measured
-    /// from the blocks of the calibration windows. Beyond, σ(exact) is extrapolated at the
-    /// ratio of the last two measured levels, the predictions' σ measured (they are cheap),
-    /// and the last measured distribution scaled to the σ they lack:
-    /// s_L² = σ²(exact) − σ²(predictions). The field's term of level k weighs 2^−k, the
+    /// The residuals: at each prefiltered level L up to [`MEASURED_LEVELS`], measured from the
+    /// blocks of the calibration windows (the large ones beyond the small ones' side). Beyond,
+    /// σ(exact) is extrapolated at the ratio of the last two measured levels, the predictions'
+    /// σ measured (they are cheap), and the last measured residuals, centred, scaled to the σ
+    /// they lack: s_L² = σ²(exact) − σ²(predictions). Centred, because a band's mean residual
+    /// corrects that band's prediction at its own level only: carried to another level's
+    /// predictions it would shift the level's mean. The field's term of level k weighs 2^−k, the
     /// spectrum of box-filtered white noise: at each level most of z's variance is its own
     /// level's term, as for the short-range detail the residual stands for.
-    fn measure_residuals(&mut self, tex: &Cascade, windows: &[(u64, u64, Rgba8Image)], stop: &dyn Stop) -> Option<()> {
+    fn measure_residuals(
+        &mut self,
+        tex: &Cascade,
+        windows: &[(u64, u64, Rgba8Image)],
+        large: &[(u64, u64, Rgba8Image)],
+        stop: &dyn Stop,
+    ) -> Option<()> {
         let e = tex.engine();
         let levels = self.weights.len() as u32;
         let first = tex.params().exact_levels + 1;
@@ -175,9 +195,10 @@ impl Calibration {
                 continue;
             }
             let (mut pairs, mut exact_lum) = (Vec::new(), Vec::new());
+            let (windows, window) = if l <= SMALL_LEVELS { (windows, WINDOW) } else { (large, LARGE_WINDOW) };
             for (x, y, img) in windows {
                 let exact = crate::mip::downsample_n(img, l);
-                let side = WINDOW >> l;
+                let side = window >> l;
                 let predicted = render(tex, self, l, x >> l, y >> l, side, side, stop)?;
                 exact_lum.extend(lum(&exact));
                 for (a, b) in exact.data.chunks_exact(4).zip(predicted.data.chunks_exact(4)) {
@@ -186,10 +207,11 @@ impl Calibration {
                 }
             }
             exact_sigma[at] = sigma(&exact_lum);
-            if let Some((r, s)) = Residual::measure(pairs) {
+            let deviations: Vec<[f32; 3]> = pairs.iter().map(|(_, r)| *r).collect();
+            if let Some((r, s)) = Residual::centred(&deviations) {
                 shape = (s > 0.0).then(|| r.scaled((1.0 / s) as f32)).or(shape);
-                self.residuals[at] = Some(r);
             }
+            self.residuals[at] = Residual::measure(pairs).map(|(r, _)| r);
         }
         for k in first as usize..levels as usize - 1 {
             self.weights[k] = libm::exp2f(-(k as f32));
