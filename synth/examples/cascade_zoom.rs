@@ -1,4 +1,4 @@
-//! A zoom sequence of a cascade demo: the same spot at successive mip levels, 128 × 128 pixels
+//! A zoom sequence of a cascade demo: the same spot at successive mip levels, 80 × 80 pixels
 //! each, side by side in one PNG (each level covers twice the width of the one on its left):
 //! `cargo run -p vtex-synth --release --example cascade_zoom -- OUT.png NAME_FILTER FIRST LAST`.
 
@@ -6,7 +6,7 @@ use vtex_synth::models::{cascade, load};
 use vtex_synth::texture::{render_image, Region};
 use vtex_synth::Rgba8Image;
 
-const SIDE: u32 = 128;
+const SIDE: u32 = 80;
 /// The spot, in level-0 pixels: far from the origin, as the tests' regions.
 const CENTRE: (i64, i64) = (3 << 30, -(5 << 28));
 

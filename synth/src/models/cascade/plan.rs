@@ -40,10 +40,10 @@ const LOAD: f64 = 50_000.0;
 /// As in `prefilter`: calibration windows and their side, the bins of its tables.
 const CALIBRATION_WINDOWS: f64 = 256.0;
 const CALIBRATION_WINDOW: u64 = 32;
-const LARGE_WINDOWS: f64 = 16.0;
-const LARGE_WINDOW: u64 = 256;
+const LARGE_WINDOWS: f64 = 12.0;
+const LARGE_WINDOW: u64 = 128;
 /// The last level the large windows measure.
-const MEASURED_LEVELS: u32 = CALIBRATION_WINDOW.trailing_zeros() + 2;
+const MEASURED_LEVELS: u32 = CALIBRATION_WINDOW.trailing_zeros() + 1;
 const BINS: f64 = 64.0;
 /// As in `residual`: quantiles of a band's table, bands of a level.
 const QUANTILES: f64 = 64.0;
@@ -156,7 +156,8 @@ fn plan_params(p: &Params, control: Option<(u32, u32)>, initial: Option<(u32, u3
             })
             .sum();
         let guide = if control.is_some() || initial.is_some() { (n * n) as f64 * GUIDE_SAMPLE } else { 0.0 };
-        let large = LARGE_WINDOWS * (win.field(last, LARGE_WINDOW, LARGE_WINDOW) + (LARGE_WINDOW * LARGE_WINDOW) as f64 * COLOUR);
+        let large = LARGE_WINDOWS
+            * (win.field(last, LARGE_WINDOW, LARGE_WINDOW) + (LARGE_WINDOW * LARGE_WINDOW) as f64 * COLOUR);
         CALIBRATION_WINDOWS * (win.field(last, n, n) + (n * n) as f64 * (COLOUR + SAMPLE) + coarse + guide) + large
     };
     let cell = p.initial.as_ref().map(|i| i.cell).or(p.dilation_map.as_ref().map(|d| d.cell));

@@ -144,7 +144,7 @@ pub fn field(weights: &[f32], seed: u64, l: u32, x: u64, y: u64, w: usize, h: us
         for j in 0..h {
             let qy = ancestor(y.wrapping_add(j as u64), shift);
             if row_of != Some(qy) {
-                let mut last: Option<(u64, f32)> = None;
+                let mut last: Option<(i64, f32)> = None;
                 for (i, t) in row.iter_mut().enumerate() {
                     let qx = ancestor(x.wrapping_add(i as u64), shift);
                     *t = match last {
