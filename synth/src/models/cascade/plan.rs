@@ -40,7 +40,7 @@ const LOAD: f64 = 50_000.0;
 /// As in `prefilter`: calibration windows and their side, the bins of its tables.
 const CALIBRATION_WINDOWS: f64 = 256.0;
 const CALIBRATION_WINDOW: u64 = 32;
-const LARGE_WINDOWS: f64 = 12.0;
+const LARGE_WINDOWS: f64 = 6.0;
 const LARGE_WINDOW: u64 = 128;
 /// The last level the large windows measure.
 const MEASURED_LEVELS: u32 = CALIBRATION_WINDOW.trailing_zeros() + 1;

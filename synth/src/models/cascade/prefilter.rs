@@ -38,10 +38,10 @@ const WINDOW: u32 = 32;
 /// A bin needs this many samples to be trusted; others are interpolated.
 const MIN_COUNT: f64 = 4.0;
 
-/// Larger windows for the level after the small ones': 12 × 128² gives 48 blocks at level 6
-/// (σ within ≈ 10 %), at the cost of 3 level-0 tiles (more would take the dilation-map demo's
-/// first coarse tile past the cost bound).
-const LARGE_WINDOWS: u64 = 12;
+/// Larger windows for the level after the small ones': 6 × 128² gives 24 blocks at level 6,
+/// at the cost of 1.5 level-0 tiles (more would take the dilation-map demo's first coarse
+/// tile past the cost bound).
+const LARGE_WINDOWS: u64 = 6;
 const LARGE_WINDOW: u32 = 128;
 /// The finest level whose blocks the small windows measure whole, and the last the large ones
 /// measure.
