@@ -40,10 +40,6 @@ const LOAD: f64 = 50_000.0;
 /// As in `prefilter`: calibration windows and their side, the bins of its tables.
 const CALIBRATION_WINDOWS: f64 = 256.0;
 const CALIBRATION_WINDOW: u64 = 32;
-const LARGE_WINDOWS: f64 = 6.0;
-const LARGE_WINDOW: u64 = 128;
-/// The last level the large windows measure.
-const MEASURED_LEVELS: u32 = CALIBRATION_WINDOW.trailing_zeros() + 1;
 const BINS: f64 = 64.0;
 /// As in `residual`: quantiles of a band's table, bands of a level.
 const QUANTILES: f64 = 64.0;
@@ -156,9 +152,7 @@ fn plan_params(p: &Params, control: Option<(u32, u32)>, initial: Option<(u32, u3
             })
             .sum();
         let guide = if control.is_some() || initial.is_some() { (n * n) as f64 * GUIDE_SAMPLE } else { 0.0 };
-        let large = LARGE_WINDOWS
-            * (win.field(last, LARGE_WINDOW, LARGE_WINDOW) + (LARGE_WINDOW * LARGE_WINDOW) as f64 * COLOUR);
-        CALIBRATION_WINDOWS * (win.field(last, n, n) + (n * n) as f64 * (COLOUR + SAMPLE) + coarse + guide) + large
+        CALIBRATION_WINDOWS * (win.field(last, n, n) + (n * n) as f64 * (COLOUR + SAMPLE) + coarse + guide)
     };
     let cell = p.initial.as_ref().map(|i| i.cell).or(p.dilation_map.as_ref().map(|d| d.cell));
     // Coarser levels: the finest stage whose lattice is at most 4 × 4 points a pixel, its
@@ -188,17 +182,12 @@ fn plan_params(p: &Params, control: Option<(u32, u32)>, initial: Option<(u32, u3
                 },
             }
     };
-    // The calibration's residuals: predictions of the windows' blocks at the levels they hold
-    // (the small windows', then the large ones'), and of 4 × 4 pixels a small window beyond.
+    // The calibration's residuals: predictions of the windows' blocks at the levels they hold,
+    // and of 4 × 4 pixels a window beyond.
     let residuals: f64 = (p.exact_levels + 1..levels.saturating_sub(1))
         .map(|l| {
-            if l <= CALIBRATION_WINDOW.trailing_zeros() {
-                CALIBRATION_WINDOWS * predicted(l, CALIBRATION_WINDOW >> l)
-            } else if l <= MEASURED_LEVELS {
-                LARGE_WINDOWS * predicted(l, LARGE_WINDOW >> l)
-            } else {
-                CALIBRATION_WINDOWS * predicted(l, 4)
-            }
+            let side = if l <= CALIBRATION_WINDOW.trailing_zeros() { CALIBRATION_WINDOW >> l } else { 4 };
+            CALIBRATION_WINDOWS * predicted(l, side)
         })
         .sum();
     let prefiltered = |l: u32| predicted(l, TILE) + calibration + residuals;

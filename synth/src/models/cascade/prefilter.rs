@@ -38,15 +38,9 @@ const WINDOW: u32 = 32;
 /// A bin needs this many samples to be trusted; others are interpolated.
 const MIN_COUNT: f64 = 4.0;
 
-/// Larger windows for the level after the small ones': 6 × 128² gives 24 blocks at level 6,
-/// at the cost of 1.5 level-0 tiles (more would take the dilation-map demo's first coarse
-/// tile past the cost bound).
-const LARGE_WINDOWS: u64 = 6;
-const LARGE_WINDOW: u32 = 128;
-/// The finest level whose blocks the small windows measure whole, and the last the large ones
-/// measure.
-const SMALL_LEVELS: u32 = WINDOW.trailing_zeros();
-const MEASURED_LEVELS: u32 = SMALL_LEVELS + 1;
+/// The finest level whose blocks the calibration windows measure whole. (Larger windows for
+/// level 6 would take the dilation-map demo's first coarse tile past the cost bound.)
+const MEASURED_LEVELS: u32 = WINDOW.trailing_zeros();
 
 /// Measured statistics of a texture for its prefiltered levels.
 #[derive(Clone, Debug, PartialEq)]
@@ -133,24 +127,18 @@ impl Calibration {
             }
             windows.push((x, y, img));
         }
-        let mut large = Vec::with_capacity(LARGE_WINDOWS as usize);
-        for i in 0..LARGE_WINDOWS {
-            let h = hash4(e.seed, STREAM_CALIBRATION, i as i64, 5);
-            let (x, y) = (h & !(LARGE_WINDOW as u64 - 1), h.rotate_left(29) & !(LARGE_WINDOW as u64 - 1));
-            large.push((x, y, tex.level0(x, y, LARGE_WINDOW, LARGE_WINDOW, stop)?));
-        }
         let mean = mean.map(|m| (m / count) as f32);
         let mut tables: Vec<Vec<[f32; 3]>> = sums.iter().map(|bins| fill(bins, mean)).collect();
         let image = tables.pop().filter(|_| guide(tex).is_some());
         let p = tex.params();
         let levels = crate::texture::level_count(p.width, p.height) as usize;
         let mut cal = Calibration { tables, image, mean, weights: vec![0.0; levels], residuals: vec![None; levels] };
-        cal.measure_residuals(tex, &windows, &large, stop)?;
+        cal.measure_residuals(tex, &windows, stop)?;
         Some(cal)
     }
 
     /// The residuals: at each prefiltered level L up to [`MEASURED_LEVELS`], measured from the
-    /// blocks of the calibration windows (the large ones beyond the small ones' side). Beyond,
+    /// blocks of the calibration windows. Beyond,
     /// σ(exact) is extrapolated at the ratio of the last two measured levels, the predictions'
     /// σ measured (they are cheap), and the last measured residuals, centred, scaled to the σ
     /// they lack: s_L² = σ²(exact) − σ²(predictions). Centred, because a band's mean residual
@@ -158,13 +146,7 @@ impl Calibration {
     /// predictions it would shift the level's mean. The field's term of level k weighs 2^−k, the
     /// spectrum of box-filtered white noise: at each level most of z's variance is its own
     /// level's term, as for the short-range detail the residual stands for.
-    fn measure_residuals(
-        &mut self,
-        tex: &Cascade,
-        windows: &[(u64, u64, Rgba8Image)],
-        large: &[(u64, u64, Rgba8Image)],
-        stop: &dyn Stop,
-    ) -> Option<()> {
+    fn measure_residuals(&mut self, tex: &Cascade, windows: &[(u64, u64, Rgba8Image)], stop: &dyn Stop) -> Option<()> {
         let e = tex.engine();
         let levels = self.weights.len() as u32;
         let first = tex.params().exact_levels + 1;
@@ -196,10 +178,9 @@ impl Calibration {
                 continue;
             }
             let (mut pairs, mut exact_lum) = (Vec::new(), Vec::new());
-            let (windows, window) = if l <= SMALL_LEVELS { (windows, WINDOW) } else { (large, LARGE_WINDOW) };
             for (x, y, img) in windows {
                 let exact = crate::mip::downsample_n(img, l);
-                let side = window >> l;
+                let side = WINDOW >> l;
                 let predicted = render(tex, self, l, x >> l, y >> l, side, side, stop)?;
                 exact_lum.extend(lum(&exact));
                 for (a, b) in exact.data.chunks_exact(4).zip(predicted.data.chunks_exact(4)) {
