@@ -471,7 +471,7 @@ fn sigma(img: &Rgba8Image) -> [f64; 3] {
 /// demo (those the calibration measures), each channel's σ is within 10 % of the exact box
 /// chain's (of a 2048² level-0 region), and the PSNR against it stays above a floor of
 /// 10 dB (a residual that has the truth's σ but not its place costs up to 3 dB against a
-/// flat prediction). Level 6, extrapolated, is printed. (A prediction alone — a conditional
+/// flat prediction). Level 6 (measured on fewer blocks) is printed. (A prediction alone — a conditional
 /// mean — is smoother than the truth: a single-stage texture's would be one flat colour.)
 #[test]
 fn coarse_levels_keep_the_exact_downsamples_statistics() {
@@ -499,4 +499,238 @@ fn coarse_levels_keep_the_exact_downsamples_statistics() {
             assert!(psnr >= 10.0, "{name}, level {l}: PSNR {psnr:.1} dB");
         }
     }
+}
+
+/// One level of a demo measured against the exact box chain: the served level, and the
+/// answers that need no model (a flat colour, point sampling, the level above copied down).
+struct LevelRow {
+    level: u32,
+    /// Where the exact chain starts: level 0, or a served level three below.
+    base: u32,
+    pixels: u32,
+    mean_exact: [f64; 3],
+    mean_served: [f64; 3],
+    sigma_exact: [f64; 3],
+    sigma_served: [f64; 3],
+    psnr_served: f64,
+    psnr_flat: f64,
+    /// Point sampling of the chain's base level, and of the served level below.
+    psnr_point_base: f64,
+    psnr_point_below: f64,
+    /// The served level above, each pixel copied to its 2×2 children.
+    psnr_above: f64,
+    /// Luminance correlation of the served level L + 1 with the served level L downsampled.
+    corr_next: f64,
+}
+
+/// Side of the level-0 region whose box chain is the exact reference up to
+/// [`FROM_LEVEL_0`], and the side of the compared region beyond, where the chain starts at
+/// the served level three below (as the conformance suite's).
+const REGION: u32 = 2048;
+const FROM_LEVEL_0: u32 = 7;
+const BEYOND: u32 = 64;
+/// Aligned to 2^28, so blocks of every measured level align with the region.
+const ANCHOR: (i64, i64) = (3 << 30, -(5 << 28));
+
+fn luma(img: &Rgba8Image) -> Vec<f64> {
+    img.data.chunks_exact(4).map(|p| 0.299 * p[0] as f64 + 0.587 * p[1] as f64 + 0.114 * p[2] as f64).collect()
+}
+
+fn correlation(a: &[f64], b: &[f64]) -> f64 {
+    let n = a.len() as f64;
+    let (ma, mb) = (a.iter().sum::<f64>() / n, b.iter().sum::<f64>() / n);
+    let cov: f64 = a.iter().zip(b).map(|(x, y)| (x - ma) * (y - mb)).sum();
+    let va: f64 = a.iter().map(|x| (x - ma).powi(2)).sum();
+    let vb: f64 = b.iter().map(|y| (y - mb).powi(2)).sum();
+    if va == 0.0 || vb == 0.0 {
+        return 0.0;
+    }
+    cov / (va * vb).sqrt()
+}
+
+/// `img` with each pixel replaced by its top-left child at `k` levels finer (`fine`).
+fn point_sample(fine: &Rgba8Image, k: u32, w: u32, h: u32) -> Rgba8Image {
+    let mut out = Rgba8Image::new(w, h);
+    for j in 0..h {
+        for i in 0..w {
+            out.set_pixel(i, j, fine.pixel(i << k, j << k));
+        }
+    }
+    out
+}
+
+/// A flat image of the rounded colour `c`.
+fn flat(c: [f64; 3], w: u32, h: u32) -> Rgba8Image {
+    let p = [c[0].round() as u8, c[1].round() as u8, c[2].round() as u8, 255];
+    Rgba8Image::from_raw(w, h, p.iter().copied().cycle().take((w * h * 4) as usize).collect()).unwrap()
+}
+
+/// Every level from 1 to the top of `t` against its exact box chain. Up to
+/// [`FROM_LEVEL_0`] the chain is that of a `REGION²` level-0 region (16 × 16 pixels at the
+/// last such level, 256 independent blocks: σ known within ≈ 5 %); beyond, a level-0 region
+/// large enough for σ would cost minutes a demo, so the chain starts at the served level
+/// three below, over `BEYOND²` pixels.
+fn level_table(t: &dyn Texture) -> Vec<LevelRow> {
+    let top = vtex_synth::texture::level_count(t.width(), t.height()) - 1;
+    // Each region is rendered once: a level-0 region of the dilation-map demo costs seconds.
+    let cache = std::cell::RefCell::new(std::collections::HashMap::new());
+    let at = |l: u32, side: u32| -> Rgba8Image {
+        let key = (l, side);
+        if let Some(img) = cache.borrow().get(&key) {
+            return Rgba8Image::clone(img);
+        }
+        let img = render(t, l, ANCHOR.0 >> l, ANCHOR.1 >> l, side, side);
+        cache.borrow_mut().insert(key, img.clone());
+        img
+    };
+    let base0 = at(0, REGION);
+    let side_at = |l: u32| if l <= FROM_LEVEL_0 { REGION >> l } else { BEYOND };
+    let mut rows = Vec::new();
+    for l in 1..=top {
+        let side = side_at(l);
+        let (base, fine) = if l <= FROM_LEVEL_0 { (0, base0.clone()) } else { (l - 3, at(l - 3, side << 3)) };
+        let exact = downsample_n(&fine, l - base);
+        let served = at(l, side);
+        let below = at(l - 1, side * 2);
+        // The level above, over the same area (none above the top).
+        let above = (l < top).then(|| at(l + 1, side / 2));
+        let copy = above.as_ref().map(|above| {
+            let mut copy = Rgba8Image::new(side, side);
+            for j in 0..side {
+                for i in 0..side {
+                    copy.set_pixel(i, j, above.pixel(i / 2, j / 2));
+                }
+            }
+            copy
+        });
+        let mean = |img: &Rgba8Image| {
+            let m = mean_rgba(img);
+            [m[0], m[1], m[2]]
+        };
+        let psnr = vtex_synth::mip::psnr;
+        rows.push(LevelRow {
+            level: l,
+            base,
+            pixels: side,
+            mean_exact: mean(&exact),
+            mean_served: mean(&served),
+            sigma_exact: sigma(&exact),
+            sigma_served: sigma(&served),
+            psnr_served: psnr(&served, &exact),
+            psnr_flat: psnr(&flat(mean(&exact), side, side), &exact),
+            psnr_point_base: psnr(&point_sample(&fine, l - base, side, side), &exact),
+            psnr_point_below: psnr(&point_sample(&below, 1, side, side), &exact),
+            psnr_above: copy.map_or(f64::NAN, |c| psnr(&c, &exact)),
+            corr_next: above.map_or(f64::NAN, |a| correlation(&luma(&a), &luma(&downsample_n(&served, 1)))),
+        });
+    }
+    rows
+}
+
+fn db(v: f64) -> String {
+    if v.is_infinite() {
+        "∞".into()
+    } else {
+        format!("{v:.1}")
+    }
+}
+
+/// The levels at which the model serves the texture's own content at that scale: the exact
+/// levels, those a stage's lattice predicts (up to its spacing × 4) and, with a guide image,
+/// all. Elsewhere a level is the mean and a residual with the right statistics in no
+/// particular place: its block means are sums of thousands of chaotic values that no bounded
+/// work a tile can place.
+fn content_levels(b: &Bundle) -> impl Fn(u32) -> bool {
+    let p = &b.manifest.params;
+    let exact = p["exact_levels"].as_u64().unwrap_or(2) as u32;
+    let guide = p.get("initial").is_some() || p.get("dilation_map").is_some();
+    let stages = p["stages"].as_array().unwrap();
+    let coarsest: u32 = stages.iter().skip(1).map(|s| s["upsample"].as_u64().unwrap().trailing_zeros()).sum();
+    move |l| l <= exact || guide || l <= coarsest + 2
+}
+
+/// The coarse levels stay the same texture as the user zooms, at every level of every demo:
+/// each channel's mean within 3 and σ within 15 % (+0.5) of the exact chain's; consecutive
+/// levels hold the same grain (the served level L + 1 correlated ≥ 0.5 with the served level
+/// L downsampled wherever it has a σ of 2 or more); and where the model serves the texture's
+/// own content ([`content_levels`]), a PSNR above the flat mean colour and above point
+/// sampling (of the chain's base and of the level below), and at a switch between two
+/// levels with content (exact to predicted) a correlation ≥ 0.5 too. Where it does not,
+/// those are printed as shortfalls. Prints the per-level table of `docs/models/cascade.md` (`-- --nocapture`).
+#[test]
+fn every_level_keeps_the_exact_chains_mean_structure_and_grain() {
+    let (mut failures, mut shortfalls) = (Vec::new(), Vec::new());
+    for b in cascade::demos() {
+        let name = b.manifest.name.clone();
+        let content = content_levels(&b);
+        let t = models::load(&Bundle::from_bytes(&b.to_bytes()).unwrap()).unwrap();
+        println!("\n{name}\n");
+        println!("| L | chain | px | mean exact | mean served | σ exact | σ served | PSNR served | flat | point base | point below | above | corr L+1 |");
+        println!("|---|---|---|---|---|---|---|---|---|---|---|---|---|");
+        let rows = level_table(t.as_ref());
+        for (i, r) in rows.iter().enumerate() {
+            let rgb = |c: [f64; 3]| format!("{:.0},{:.0},{:.0}", c[0], c[1], c[2]);
+            let rgb1 = |c: [f64; 3]| format!("{:.1},{:.1},{:.1}", c[0], c[1], c[2]);
+            println!(
+                "| {} | L{} | {}² | {} | {} | {} | {} | {} | {} | {} | {} | {} | {:.2} |",
+                r.level,
+                r.base,
+                r.pixels,
+                rgb(r.mean_exact),
+                rgb(r.mean_served),
+                rgb1(r.sigma_exact),
+                rgb1(r.sigma_served),
+                db(r.psnr_served),
+                db(r.psnr_flat),
+                db(r.psnr_point_base),
+                db(r.psnr_point_below),
+                db(r.psnr_above),
+                r.corr_next
+            );
+            let l = r.level;
+            for c in 0..3 {
+                if (r.mean_served[c] - r.mean_exact[c]).abs() > 3.0 {
+                    failures.push(format!(
+                        "{name} L{l} ch{c}: mean {:.1} vs exact {:.1}",
+                        r.mean_served[c], r.mean_exact[c]
+                    ));
+                }
+                if (r.sigma_served[c] - r.sigma_exact[c]).abs() > 0.15 * r.sigma_exact[c] + 0.5 {
+                    failures.push(format!(
+                        "{name} L{l} ch{c}: σ {:.1} vs exact {:.1}",
+                        r.sigma_served[c], r.sigma_exact[c]
+                    ));
+                }
+            }
+            let floor = r.psnr_flat.max(r.psnr_point_base).max(r.psnr_point_below);
+            if r.psnr_served.is_finite() && r.psnr_served < floor {
+                let why = format!(
+                    "{name} L{l}: PSNR {} below flat {} / point {} / point of L{} {}",
+                    db(r.psnr_served),
+                    db(r.psnr_flat),
+                    db(r.psnr_point_base),
+                    l - 1,
+                    db(r.psnr_point_below)
+                );
+                if content(l) {
+                    failures.push(why)
+                } else {
+                    shortfalls.push(why)
+                }
+            }
+            // The grain of level L + 1 against level L downsampled.
+            let next_sigma = rows.get(i + 1).map_or(0.0, |n| n.sigma_exact.iter().cloned().fold(0.0, f64::max));
+            if next_sigma >= 2.0 && r.corr_next < 0.5 {
+                let why = format!("{name}: L{} against L{l} downsampled: correlation {:.2}", l + 1, r.corr_next);
+                // Into a level without content from one with it: the grain cannot stay put.
+                if content(l) && !content(l + 1) {
+                    shortfalls.push(why)
+                } else {
+                    failures.push(why)
+                }
+            }
+        }
+    }
+    println!("\nshortfalls where the model has no content at the level's scale:\n{}", shortfalls.join("\n"));
+    assert!(failures.is_empty(), "{} failures:\n{}", failures.len(), failures.join("\n"));
 }

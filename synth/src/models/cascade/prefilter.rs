@@ -38,7 +38,8 @@ const WINDOW: u32 = 32;
 /// A bin needs this many samples to be trusted; others are interpolated.
 const MIN_COUNT: f64 = 4.0;
 
-/// The finest level whose blocks the calibration windows measure whole.
+/// The finest level whose blocks the calibration windows measure whole. (Larger windows for
+/// level 6 would take the dilation-map demo's first coarse tile past the cost bound.)
 const MEASURED_LEVELS: u32 = WINDOW.trailing_zeros();
 
 /// Measured statistics of a texture for its prefiltered levels.
@@ -136,11 +137,13 @@ impl Calibration {
         Some(cal)
     }
 
-    /// The residuals: at each prefiltered level L up to the calibration window, measured
-    /// from the blocks of the calibration windows. Beyond, σ(exact) is extrapolated at the
-    /// ratio of the last two measured levels, the predictions' σ measured (they are cheap),
-    /// and the last measured distribution scaled to the σ they lack:
-    /// s_L² = σ²(exact) − σ²(predictions). The field's term of level k weighs 2^−k, the
+    /// The residuals: at each prefiltered level L up to [`MEASURED_LEVELS`], measured from the
+    /// blocks of the calibration windows. Beyond,
+    /// σ(exact) is extrapolated at the ratio of the last two measured levels, the predictions'
+    /// σ measured (they are cheap), and the last measured residuals scaled to the σ they lack:
+    /// s_L² = σ²(exact) − σ²(predictions). Where the level's prediction is the flat mean they
+    /// are centred: a band's mean residual corrects that band's prediction, and carried to a
+    /// flat one it would shift the level's mean. The field's term of level k weighs 2^−k, the
     /// spectrum of box-filtered white noise: at each level most of z's variance is its own
     /// level's term, as for the short-range detail the residual stands for.
     fn measure_residuals(&mut self, tex: &Cascade, windows: &[(u64, u64, Rgba8Image)], stop: &dyn Stop) -> Option<()> {
@@ -158,7 +161,8 @@ impl Calibration {
         let rgb = |p: &[u8]| [p[0] as f32, p[1] as f32, p[2] as f32];
         // Luminance σ of the exact block means per level; the last measured residual at unit σ.
         let mut exact_sigma = vec![0.0f64; levels as usize];
-        let mut shape: Option<Residual> = None;
+        let (mut banded, mut centred): (Option<Residual>, Option<Residual>) = (None, None);
+        let last = e.stages.len() - 1;
         for l in first..levels.saturating_sub(1) {
             let at = l as usize;
             if l > MEASURED_LEVELS {
@@ -171,6 +175,10 @@ impl Calibration {
                     predicted.extend(lum(&render(tex, self, l, h, h.rotate_left(29), SIDE, SIDE, stop)?));
                 }
                 let s = (exact_sigma[at].powi(2) - sigma(&predicted).powi(2)).max(0.0).sqrt();
+                // A level predicted by a stage or a guide keeps the bands (their means correct
+                // the prediction's bias, as they did below); a flat one takes the centred shape.
+                let flat = guide(tex).is_none() && !(0..=last).any(|s| e.stages[s].shift + 2 >= l);
+                let shape = if flat { &centred } else { &banded };
                 self.residuals[at] = shape.as_ref().map(|r| r.scaled(s as f32));
                 continue;
             }
@@ -186,8 +194,12 @@ impl Calibration {
                 }
             }
             exact_sigma[at] = sigma(&exact_lum);
+            let deviations: Vec<[f32; 3]> = pairs.iter().map(|(_, r)| *r).collect();
+            if let Some((r, s)) = Residual::centred(&deviations) {
+                centred = (s > 0.0).then(|| r.scaled((1.0 / s) as f32)).or(centred);
+            }
             if let Some((r, s)) = Residual::measure(pairs) {
-                shape = (s > 0.0).then(|| r.scaled((1.0 / s) as f32)).or(shape);
+                banded = (s > 0.0).then(|| r.scaled((1.0 / s) as f32)).or(banded);
                 self.residuals[at] = Some(r);
             }
         }

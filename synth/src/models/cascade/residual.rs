@@ -43,25 +43,34 @@ impl Residual {
         let mean = lum.iter().sum::<f64>() / n as f64;
         let sigma = (lum.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / n as f64).sqrt();
         pairs.sort_by(|a, b| luminance(a.0).total_cmp(&luminance(b.0)));
-        let share =
-            |i: usize, parts: usize, len: usize| i * len / parts..((i + 1) * len / parts).max(i * len / parts + 1);
         let (mut centres, mut tables) = (Vec::new(), Vec::new());
         for b in 0..BANDS.min(n) {
             let band = &mut pairs[share(b, BANDS.min(n), n)];
             centres.push(band.iter().map(|(p, _)| luminance(*p)).sum::<f32>() / band.len() as f32);
             band.sort_by(|a, b| luminance(a.1).total_cmp(&luminance(b.1)));
-            // Each quantile the mean of an equal share of the band's ranked residuals.
-            tables.push(
-                (0..QUANTILES)
-                    .map(|q| {
-                        let group = &band[share(q, QUANTILES, band.len())];
-                        let sum = group.iter().fold([0.0f32; 3], |acc, (_, r)| [0, 1, 2].map(|c| acc[c] + r[c]));
-                        sum.map(|v| v / group.len() as f32)
-                    })
-                    .collect(),
-            );
+            tables.push(quantiles(&band.iter().map(|(_, r)| *r).collect::<Vec<_>>()));
         }
         Some((Residual { centres, tables }, sigma))
+    }
+
+    /// One band of the residuals' deviations from their mean, and their luminance σ: a
+    /// distribution that adds no bias whatever prediction it is added to. `None` without
+    /// residuals.
+    pub fn centred(residuals: &[[f32; 3]]) -> Option<(Self, f64)> {
+        let n = residuals.len();
+        if n == 0 {
+            return None;
+        }
+        let mut mean = [0.0f64; 3];
+        for r in residuals {
+            (0..3).for_each(|c| mean[c] += r[c] as f64);
+        }
+        let mut dev: Vec<[f32; 3]> =
+            residuals.iter().map(|r| [0, 1, 2].map(|c| (r[c] as f64 - mean[c] / n as f64) as f32)).collect();
+        let lum: Vec<f64> = dev.iter().map(|r| luminance(*r) as f64).collect();
+        let sigma = (lum.iter().map(|v| v * v).sum::<f64>() / n as f64).sqrt();
+        dev.sort_by(|a, b| luminance(*a).total_cmp(&luminance(*b)));
+        Some((Residual { centres: vec![0.0], tables: vec![quantiles(&dev)] }, sigma))
     }
 
     /// The same distribution with every residual multiplied by `f`.
@@ -87,6 +96,30 @@ impl Residual {
     }
 }
 
+/// The share of `len` items that part `i` of `parts` holds (never empty).
+fn share(i: usize, parts: usize, len: usize) -> std::ops::Range<usize> {
+    i * len / parts..((i + 1) * len / parts).max(i * len / parts + 1)
+}
+
+/// `QUANTILES` residuals from residuals ranked by luminance: each the mean of an equal share.
+fn quantiles(ranked: &[[f32; 3]]) -> Vec<[f32; 3]> {
+    (0..QUANTILES)
+        .map(|q| {
+            let group = &ranked[share(q, QUANTILES, ranked.len())];
+            let sum = group.iter().fold([0.0f32; 3], |acc, r| [0, 1, 2].map(|c| acc[c] + r[c]));
+            sum.map(|v| v / group.len() as f32)
+        })
+        .collect()
+}
+
+/// The ancestor `shift` levels up of a level coordinate, taken as signed (as regions give it):
+/// −1's parent is −1, so the pixels on either side of the origin keep one hierarchy (as
+/// unsigned, level L's −1 would not be a child of level L + 1's −1).
+#[inline]
+fn ancestor(c: u64, shift: u32) -> i64 {
+    (c as i64) >> shift
+}
+
 /// The field z (unit variance) over the `w × h` pixels at (x, y) of level `l`, row-major:
 /// at each pixel the sum over levels k ≥ l of `weights[k]` times the term of level k — a Haar
 /// pattern of the pixel's ancestor at level k among its three siblings, with three weights
@@ -101,19 +134,19 @@ pub fn field(weights: &[f32], seed: u64, l: u32, x: u64, y: u64, w: usize, h: us
             continue;
         }
         let shift = (k as u32 - l).min(63);
-        let term = |qx: u64, qy: u64| {
-            let h = hash4(seed, STREAM_RESIDUAL + k as u64, (qx >> 1) as i64, (qy >> 1) as i64);
+        let term = |qx: i64, qy: i64| {
+            let h = hash4(seed, STREAM_RESIDUAL + k as u64, qx >> 1, qy >> 1);
             let r = [0, 21, 42].map(|b| ((h >> b) & 0x1f_ffff) as f32 * (2.0 / (1u32 << 21) as f32) - 1.0);
             let (sx, sy) = (if qx & 1 == 0 { 1.0 } else { -1.0 }, if qy & 1 == 0 { 1.0 } else { -1.0 });
             a * (r[0] * sy + r[1] * sx + r[2] * sx * sy)
         };
         let mut row_of = None;
         for j in 0..h {
-            let qy = y.wrapping_add(j as u64) >> shift;
+            let qy = ancestor(y.wrapping_add(j as u64), shift);
             if row_of != Some(qy) {
-                let mut last: Option<(u64, f32)> = None;
+                let mut last: Option<(i64, f32)> = None;
                 for (i, t) in row.iter_mut().enumerate() {
-                    let qx = x.wrapping_add(i as u64) >> shift;
+                    let qx = ancestor(x.wrapping_add(i as u64), shift);
                     *t = match last {
                         Some((q, v)) if q == qx => v,
                         _ => term(qx, qy),
