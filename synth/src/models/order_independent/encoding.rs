@@ -14,8 +14,7 @@ pub(super) const SAMPLE_SECTION: &str = "sample.png";
 /// Makes an encoding from `params` (JSON, see [`Params`]) and the input image `sample`.
 pub fn create(name: &str, params: &serde_json::Value, inputs: &Inputs) -> Result<Bundle> {
     super::plan::plan_create(params, inputs)?;
-    let mut p: Params = parse_params(params)?;
-    p.generation0 = Some(p.generation0());
+    let p = parse_params::<Params>(params)?.filled();
     let sample = input_image(inputs, "sample")?;
     let bundle = Bundle::new(MODEL, name, serde_json::to_value(&p).expect("params serialize"))
         .with_section(SAMPLE_SECTION, sample.to_png());
