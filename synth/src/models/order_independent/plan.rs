@@ -124,12 +124,13 @@ fn plan_params(p: &Params, sw: u32, sh: u32, create: bool) -> Result<Plan> {
     );
 
     // Resident: per exemplar pixel of each level, colours and box colours, the valid masks,
-    // and where searched its vector, its k-coherence set and the set shifted 9 ways; the
+    // and where searched its vector, its k-coherence set and the set shifted 9 ways (with
+    // whether each shifted set starts with the coherent continuation); the
     // calibration's colours.
     let resident: f64 = (0..p.levels)
         .map(|s| {
             let n = pixels(s);
-            let ksets = if k > 0.0 { 2.0 * k + 1.0 + 9.0 * (2.0 * k + 1.0) } else { 0.0 };
+            let ksets = if k > 0.0 { 2.0 * k + 1.0 + 9.0 * (2.0 * k + 2.0) } else { 0.0 };
             let searched = if searched(s) { n * (vector(s) + 5.0 + ksets) } else { 0.0 };
             n * 6.0 + searched
         })
