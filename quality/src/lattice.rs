@@ -40,9 +40,7 @@ pub fn lattice_shares(x0: i64, y0: i64, w: u32, sources: &[(u32, u32)], max_bits
         let dx = (sx as i64).wrapping_sub(x) as u64;
         let dy = (sy as i64).wrapping_sub(y) as u64;
         let agree = (dx | dy).trailing_zeros().min(max_bits);
-        for j in 0..agree as usize {
-            on[j] += 1;
-        }
+        on.iter_mut().take(agree as usize).for_each(|c| *c += 1);
     }
     let n = sources.len() as f64;
     Ok(on
