@@ -11,6 +11,8 @@
 //! * [`histogram`] — per-channel 1-D Wasserstein (W1) distance between colour histograms.
 //! * [`patch_sw`] — sliced-Wasserstein distance between patch distributions at several
 //!   pyramid scales.
+//! * [`lattice`] — lattice share: how many pixels copy a sample pixel congruent to their own
+//!   position modulo 2^j (a collage of a few aligned translations scores 1, chance 1/4^j).
 //! * [`mip`] — PSNR of served coarse levels against the exact box chain, point sampling beside.
 //!
 //! [`report`] gathers them for one output; [`gimp_pattern`] and [`sample`] read and prepare the
@@ -24,6 +26,7 @@
 pub mod contrast;
 pub mod gimp_pattern;
 pub mod histogram;
+pub mod lattice;
 pub mod luma;
 pub mod mip;
 pub mod patch_sw;

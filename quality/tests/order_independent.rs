@@ -34,3 +34,41 @@ fn served_search_is_no_further_from_the_sample_than_exhaustive_search() {
         }
     }
 }
+
+/// Every demo's level-0 sources, over a 192² window away from the origin, sit on no lattice of
+/// the sample: for each 2^j below the pyramid's 2^(K−1), the share of pixels whose source is
+/// congruent to the pixel modulo 2^j stays under twice the chance 1/4^j for j = 1 and three
+/// times it beyond (a pyramid's coarser-level match still favours aligned copies a little).
+/// Coordinate upsampling without jitter and coherent candidates alone put every pixel on the
+/// 2^(K−1) lattice: 4, 16 and 64 times chance.
+#[test]
+fn served_sources_sit_on_no_lattice_of_the_sample() {
+    use vtex_quality::lattice::lattice_shares;
+    use vtex_synth::models::order_independent;
+    order_independent::set_cache_budget(0);
+    let mut locked = Vec::new();
+    for bundle in order_independent::demos() {
+        let t = order_independent::load(&bundle).unwrap();
+        let (x0, y0, side) = (-3000i64, 517i64, 192u32);
+        let sources = t.sources(x0, y0, side, side);
+        let bits = t.params().levels as u32 - 1;
+        for s in lattice_shares(x0, y0, side, &sources, bits).unwrap() {
+            eprintln!(
+                "{}: 2^{} lattice {:.4} (chance {:.4}, ×{:.2})",
+                bundle.manifest.name,
+                s.bits,
+                s.share,
+                s.chance,
+                s.excess()
+            );
+            let bound = if s.bits == 1 { 2.0 } else { 3.0 };
+            if s.excess() >= bound {
+                locked.push(format!(
+                    "{} on the 2^{} lattice: {:.3} (chance {:.3})",
+                    bundle.manifest.name, s.bits, s.share, s.chance
+                ));
+            }
+        }
+    }
+    assert!(locked.is_empty(), "{locked:#?}");
+}

@@ -14,9 +14,9 @@ pub(super) const SAMPLE_SECTION: &str = "sample.png";
 /// Makes an encoding from `params` (JSON, see [`Params`]) and the input image `sample`.
 pub fn create(name: &str, params: &serde_json::Value, inputs: &Inputs) -> Result<Bundle> {
     super::plan::plan_create(params, inputs)?;
-    let mut p: Params = parse_params(params)?;
+    let p: Params = parse_params(params)?;
     let given = serde_json::to_value(&p).expect("params serialize");
-    p.generation0 = Some(p.generation0());
+    let p = p.filled();
     let sample = input_image(inputs, "sample")?;
     let bundle = Bundle::created(MODEL, name, given, serde_json::to_value(&p).expect("params serialize"))
         .with_section(SAMPLE_SECTION, sample.to_png());

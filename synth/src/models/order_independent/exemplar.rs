@@ -34,6 +34,9 @@ pub struct Level {
     /// candidates v contributes to the entry at −d from it; `k` slots, `shifted_len` used.
     pub shifted: Vec<u16>,
     pub shifted_len: Vec<u8>,
+    /// Whether the first of those is v − d itself (v's coherent continuation), not a pixel
+    /// merely similar to v.
+    pub shifted_coherent: Vec<bool>,
 }
 
 impl Level {
@@ -52,6 +55,12 @@ impl Level {
     pub fn shifted(&self, v: usize, d: usize, k: usize) -> &[u16] {
         let at = v * 9 + d;
         &self.shifted[at * k..at * k + self.shifted_len[at] as usize]
+    }
+
+    /// Whether the first pixel of [`Level::shifted`] is v's coherent continuation.
+    #[inline]
+    pub fn shifted_coherent(&self, v: usize, d: usize) -> bool {
+        self.shifted_coherent[v * 9 + d]
     }
 }
 
@@ -189,6 +198,7 @@ impl Exemplar {
                 kset_len: Vec::new(),
                 shifted: Vec::new(),
                 shifted_len: Vec::new(),
+                shifted_coherent: Vec::new(),
             };
             if searched {
                 let coarser = levels.last();
@@ -295,6 +305,7 @@ fn fill_shifted(level: &mut Level, k: usize, wrap: bool) {
     let n = (w * h) as usize;
     let mut shifted = vec![0u16; n * 9 * k];
     let mut shifted_len = vec![0u8; n * 9];
+    let mut shifted_coherent = vec![false; n * 9];
     for v in 0..n {
         for (d, (dx, dy)) in (-1..=1).flat_map(|dy| (-1..=1).map(move |dx| (dx, dy))).enumerate() {
             let at = v * 9 + d;
@@ -307,6 +318,7 @@ fn fill_shifted(level: &mut Level, k: usize, wrap: bool) {
                 }
                 let u = (y * w + x) as usize;
                 if level.is_valid[u] {
+                    shifted_coherent[at] |= c as usize == v;
                     shifted[at * k + shifted_len[at] as usize] = u as u16;
                     shifted_len[at] += 1;
                 }
@@ -315,6 +327,7 @@ fn fill_shifted(level: &mut Level, k: usize, wrap: bool) {
     }
     level.shifted = shifted;
     level.shifted_len = shifted_len;
+    level.shifted_coherent = shifted_coherent;
 }
 
 #[cfg(test)]

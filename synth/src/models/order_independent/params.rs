@@ -3,8 +3,9 @@
 //! their validation against the sample's size.
 //!
 //! ```json
-//! {"seed": 7, "width": 100000, "height": 100000, "levels": 4, "generations": 3,
-//!  "neighbourhood": {"same": "circle5", "lower": "square3"}, "search": "kcoherence", "k": 1,
+//! {"seed": 7, "width": 100000, "height": 100000, "levels": 4, "generations": 5,
+//!  "neighbourhood": {"same": "circle5", "lower": "square3"}, "search": "kcoherence", "k": 2,
+//!  "k_exclusion": 2, "kappa": 100, "jitter": 1, "subpasses": 4,
 //!  "mip": {"exact_levels": 0, "lookahead": 1, "noise_levels": 3}}
 //! ```
 
@@ -23,6 +24,8 @@ pub const MAX_GENERATIONS: u8 = 6;
 pub const MAX_COARSEST_GENERATIONS: u8 = 3;
 pub const MAX_K: u8 = 8;
 pub const MAX_K_EXCLUSION: u8 = 16;
+pub const MAX_JITTER: u8 = 4;
+pub const MAX_KAPPA: u16 = 1000;
 pub const MAX_EXACT_LEVELS: u8 = 2;
 pub const MAX_NOISE_LEVELS: u8 = 4;
 
@@ -126,9 +129,11 @@ pub struct Params {
     /// K, synthesis levels (paper: 4).
     #[serde(default = "four")]
     pub levels: u8,
-    /// Generations of every level but the coarsest (paper: 3).
-    #[serde(default = "three")]
-    pub generations: u8,
+    /// Generations of every level but the coarsest (paper: 3). Unset: 3 for `exhaustive`, 5 for
+    /// `kcoherence`, whose four subpasses then correct every pixel once after the upsampling,
+    /// one parity class at a time.
+    #[serde(default)]
+    pub generations: Option<u8>,
     /// Generations of the coarsest level; its generation 0 is the noise (paper, Fig. 7: 1).
     #[serde(default = "one")]
     pub coarsest_generations: u8,
@@ -136,20 +141,34 @@ pub struct Params {
     pub neighbourhood: Neighbourhood,
     #[serde(default)]
     pub search: Search,
-    /// k-coherence set size, the pixel itself included. 1 (coherence alone: the nine
-    /// neighbours' continuations) keeps the sample's contrast and patch statistics best; see
-    /// the model's doc for the measurements.
-    #[serde(default = "one")]
+    /// k-coherence set size, the pixel itself included: with 2, each neighbour also offers the
+    /// pixel most like its continuation elsewhere in the sample, which lets a patch end.
+    #[serde(default = "two")]
     pub k: u8,
-    /// Chebyshev radius around a pixel from which its k-coherence set takes no other pixel.
-    #[serde(default)]
+    /// Chebyshev radius around a pixel from which its k-coherence set takes no other pixel, so
+    /// that the alternative is another place of the sample, not the pixel next door.
+    #[serde(default = "two")]
     pub k_exclusion: u8,
+    /// κ in percent (Lefebvre & Hoppe 2005's coherence factor): a k-coherence candidate that is
+    /// not a neighbour's coherent continuation must match (100 + κ)/100 times better to be
+    /// chosen, so jumps happen where the coherent patch really fits worse. Unset when creating:
+    /// [`DEFAULT_KAPPA`]; a stored encoding without it has 0 (plain SSD).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub kappa: Option<u16>,
+    /// Radius r of the hashed jitter added to every upsampled coordinate (generation 0 of each
+    /// level above the coarsest): offsets uniform over −r..=r−1 on each axis, 2r values, so the
+    /// finest level alone spreads a pixel's source over every residue mod 2 (and mod 4 for
+    /// r ≥ 2). Unset when creating: [`DEFAULT_JITTER`]; a stored encoding without it has none.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub jitter: Option<u8>,
     /// Unset when creating: `upsample` for `kcoherence`, `search` for `exhaustive`.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub generation0: Option<Generation0>,
-    /// 1, or 4: generation m updates one parity class of pixels, `(m − 1) mod 4`.
-    #[serde(default = "one")]
-    pub subpasses: u8,
+    /// 1, or 4: generation m updates one parity class of pixels, `(m − 1) mod 4` (Lefebvre &
+    /// Hoppe 2005's subpasses: each class reads its neighbours' corrected values). Unset: 1 for
+    /// `exhaustive` (the paper), 4 for `kcoherence`.
+    #[serde(default)]
+    pub subpasses: Option<u8>,
     /// The sample tiles seamlessly: its neighbourhoods wrap and every pixel is a candidate.
     #[serde(default)]
     pub exemplar_wrap: bool,
@@ -163,6 +182,9 @@ fn default_extent() -> u64 {
 fn one() -> u8 {
     1
 }
+fn two() -> u8 {
+    2
+}
 fn three() -> u8 {
     3
 }
@@ -170,7 +192,48 @@ fn four() -> u8 {
     4
 }
 
+/// The jitter radius and κ `create` fills in when none is given.
+pub const DEFAULT_JITTER: u8 = 1;
+pub const DEFAULT_KAPPA: u16 = 100;
+
 impl Params {
+    /// Generations of every level but the coarsest.
+    pub fn generations(&self) -> u8 {
+        self.generations.unwrap_or(match self.search {
+            Search::Exhaustive => 3,
+            Search::Kcoherence => 5,
+        })
+    }
+
+    /// Subpasses: 1 or 4.
+    pub fn subpasses(&self) -> u8 {
+        self.subpasses.unwrap_or(match self.search {
+            Search::Exhaustive => 1,
+            Search::Kcoherence => 4,
+        })
+    }
+
+    /// The jitter radius (0 when the encoding has none).
+    pub fn jitter(&self) -> u8 {
+        self.jitter.unwrap_or(0)
+    }
+
+    /// κ in percent (0 when the encoding has none).
+    pub fn kappa(&self) -> u16 {
+        self.kappa.unwrap_or(0)
+    }
+
+    /// The parameters as stored: every default that depends on when the encoding was made
+    /// filled in, so a later change of default never changes a stored texture.
+    pub fn filled(mut self) -> Params {
+        self.generation0 = Some(self.generation0());
+        self.generations = Some(self.generations());
+        self.subpasses = Some(self.subpasses());
+        self.jitter = Some(self.jitter.unwrap_or(DEFAULT_JITTER));
+        self.kappa = Some(self.kappa.unwrap_or(DEFAULT_KAPPA));
+        self
+    }
+
     /// `generation0`, or the default for the search mode.
     pub fn generation0(&self) -> Generation0 {
         self.generation0.unwrap_or(match self.search {
@@ -194,15 +257,19 @@ impl Params {
             }
         };
         range("levels", self.levels, 2, MAX_LEVELS)?;
-        range("generations", self.generations, 1, MAX_GENERATIONS)?;
+        range("generations", self.generations(), 1, MAX_GENERATIONS)?;
         range("coarsest_generations", self.coarsest_generations, 1, MAX_COARSEST_GENERATIONS)?;
         range("k", self.k, 1, MAX_K)?;
         range("k_exclusion", self.k_exclusion, 0, MAX_K_EXCLUSION)?;
+        range("jitter", self.jitter(), 0, MAX_JITTER)?;
+        if self.kappa() > MAX_KAPPA {
+            return Err(Error::param("kappa", format!("{}: must be 0..={MAX_KAPPA}", self.kappa())));
+        }
         range("mip.exact_levels", self.mip.exact_levels, 0, MAX_EXACT_LEVELS)?;
         range("mip.lookahead", self.mip.lookahead, 0, 1)?;
         range("mip.noise_levels", self.mip.noise_levels, 0, MAX_NOISE_LEVELS)?;
-        if self.subpasses != 1 && self.subpasses != 4 {
-            return Err(Error::param("subpasses", format!("{}: must be 1 or 4", self.subpasses)));
+        if self.subpasses() != 1 && self.subpasses() != 4 {
+            return Err(Error::param("subpasses", format!("{}: must be 1 or 4", self.subpasses())));
         }
         let unit = 1u64 << (self.levels - 1);
         if self.domain == DomainSpec::Torus && (self.width % unit != 0 || self.height % unit != 0) {
@@ -271,6 +338,8 @@ mod tests {
         assert_eq!(named(json!({"seed": 1, "k": 9}), 64, 64), "k");
         assert_eq!(named(json!({"seed": 1, "k_exclusion": 17}), 64, 64), "k_exclusion");
         assert_eq!(named(json!({"seed": 1, "subpasses": 2}), 64, 64), "subpasses");
+        assert_eq!(named(json!({"seed": 1, "jitter": 5}), 64, 64), "jitter");
+        assert_eq!(named(json!({"seed": 1, "kappa": 1001}), 64, 64), "kappa");
         assert_eq!(named(json!({"seed": 1, "width": 0}), 64, 64), "width");
         assert_eq!(named(json!({"seed": 1, "height": 1u64 << 41}), 64, 64), "height");
         assert_eq!(named(json!({"seed": 1, "domain": "torus", "width": 1000, "height": 1004}), 64, 64), "domain");

@@ -69,14 +69,18 @@ fn plan_params(p: &Params, sw: u32, sh: u32, create: bool) -> Result<Plan> {
     let searched = |s: u8| s > 0 || p.coarsest_generations > 1;
     let k = if p.search == Search::Kcoherence { p.k as f64 } else { 0.0 };
 
+    // With four subpasses a generation searches one pixel in four and copies the others.
+    let subpass = |search: f64| if p.subpasses() == 4 { search / 4.0 + 0.75 * UPSAMPLE } else { search };
     // The work of every entry of the cone of an s-level rectangle.
     let entry = |s: u8, m: u8| -> f64 {
         match (s, m) {
             (0, 0) => NOISE,
             (_, 0) if p.generation0() == Generation0::Upsample => UPSAMPLE,
             (_, 0) => pixels(s) * 3.0 * st.lower.len() as f64 * SCAN_BYTE,
-            _ if p.search == Search::Kcoherence => COHERENT * (st.same.len() + st.lower.len()) as f64 / 30.0 * k / 2.0,
-            _ => pixels(s) * vector(s) * SCAN_BYTE,
+            _ if p.search == Search::Kcoherence => {
+                subpass(COHERENT * (st.same.len() + st.lower.len()) as f64 / 30.0 * k / 2.0)
+            }
+            _ => subpass(pixels(s) * vector(s) * SCAN_BYTE),
         }
     };
     let work = |s: u8, side: usize| -> f64 {
@@ -110,21 +114,23 @@ fn plan_params(p: &Params, sw: u32, sh: u32, create: bool) -> Result<Plan> {
     let (tile_work, worst) =
         (0..levels).map(|l| (level_work(l), l)).fold((0.0, 0), |a, b| if b.0 > a.0 { b } else { a });
     let search = match p.search {
-        Search::Kcoherence => format!("k-coherence, k = {}", p.k),
+        Search::Kcoherence => format!("k-coherence, k = {}, κ = {}%, jitter {}", p.k, p.kappa(), p.jitter()),
         Search::Exhaustive => format!("exhaustive over {sw}×{sh}"),
     };
     let tile_why = format!(
         "the dependency cone of {} levels × {} generations ({search}) under level {worst} of a 256² tile",
-        p.levels, p.generations
+        p.levels,
+        p.generations()
     );
 
     // Resident: per exemplar pixel of each level, colours and box colours, the valid masks,
-    // and where searched its vector, its k-coherence set and the set shifted 9 ways; the
+    // and where searched its vector, its k-coherence set and the set shifted 9 ways (with
+    // whether each shifted set starts with the coherent continuation); the
     // calibration's colours.
     let resident: f64 = (0..p.levels)
         .map(|s| {
             let n = pixels(s);
-            let ksets = if k > 0.0 { 2.0 * k + 1.0 + 9.0 * (2.0 * k + 1.0) } else { 0.0 };
+            let ksets = if k > 0.0 { 2.0 * k + 1.0 + 9.0 * (2.0 * k + 2.0) } else { 0.0 };
             let searched = if searched(s) { n * (vector(s) + 5.0 + ksets) } else { 0.0 };
             n * 6.0 + searched
         })

@@ -17,6 +17,8 @@ pub const PLANE_BITS: u32 = 62;
 
 /// Hash stream of the noise level.
 pub const STREAM_NOISE: u64 = 0x004e_4f49_5345;
+/// Hash stream of the jitter of upsampled coordinates; level s uses `STREAM_JITTER + s`.
+pub const STREAM_JITTER: u64 = 0x004a_4954_0000;
 
 /// The longest neighbourhood vector: 24 same-level and 25 coarser taps, padded.
 const MAX_STRIDE: usize = (3 * (24 + 25usize)).div_ceil(CHUNK) * CHUNK;
@@ -32,6 +34,13 @@ pub struct Synthesizer {
     seed: u64,
     search: Search,
     generation0: Generation0,
+    /// Weight, in percent, of the SSD of a candidate that is no neighbour's coherent
+    /// continuation (100 + κ).
+    jump_weight: u64,
+    /// Radius of the hashed jitter of upsampled coordinates (0: none).
+    jitter: u8,
+    /// The sample tiles: a jittered coordinate wraps instead of staying put at an edge.
+    wrap: bool,
     /// For each same-level tap of the neighbourhood vector, its position in the `same` reads.
     same_at: Vec<usize>,
     /// Coarser-level taps of the neighbourhood vector (the `lower` reads, in order).
@@ -75,13 +84,13 @@ pub fn structure(p: &Params) -> Structure {
     };
     Structure {
         levels: p.levels,
-        generations: p.generations,
+        generations: p.generations(),
         coarsest_generations: p.coarsest_generations,
         coarsest_same: same.clone(),
         same,
         lower,
         generation0_lower,
-        subpasses: p.subpasses,
+        subpasses: p.subpasses(),
         torus: match p.domain {
             super::params::DomainSpec::Plane => None,
             super::params::DomainSpec::Torus => Some((p.width, p.height)),
@@ -141,6 +150,9 @@ impl Synthesizer {
             seed: p.seed,
             search: p.search,
             generation0: p.generation0(),
+            jump_weight: 100 + p.kappa() as u64,
+            jitter: p.jitter(),
+            wrap: p.exemplar_wrap,
             same_at,
             coherent,
         })
@@ -173,16 +185,29 @@ impl Synthesizer {
         }
     }
 
-    /// The k-coherence candidates of an entry: each set C(v) of its 3×3 window's previous
-    /// values v, shifted back by the window offset, kept when valid, without repeats.
+    /// The k-coherence candidates of an entry, each with the weight of its SSD: each set C(v)
+    /// of its 3×3 window's previous values v, shifted back by the window offset, kept when
+    /// valid, without repeats; weight 100 for a coherent continuation (v − d itself), 100 + κ
+    /// for the others.
     #[inline(always)]
-    fn candidates<'a>(&self, level: &Level, same: &[u16], buf: &'a mut [u16; MAX_CANDIDATES]) -> &'a [u16] {
+    fn candidates<'a>(
+        &self,
+        level: &Level,
+        same: &[u16],
+        buf: &'a mut [(u16, u64); MAX_CANDIDATES],
+    ) -> &'a [(u16, u64)] {
         let mut n = 0;
         for &(d, i) in &self.coherent {
-            for &c in level.shifted(same[i] as usize, d, self.exemplar.k) {
-                if !buf[..n].contains(&c) {
-                    buf[n] = c;
-                    n += 1;
+            let v = same[i] as usize;
+            let coherent = level.shifted_coherent(v, d);
+            for (j, &c) in level.shifted(v, d, self.exemplar.k).iter().enumerate() {
+                let weight = if j == 0 && coherent { 100 } else { self.jump_weight };
+                match buf[..n].iter_mut().find(|b| b.0 == c) {
+                    Some(b) => b.1 = b.1.min(weight),
+                    None => {
+                        buf[n] = (c, weight);
+                        n += 1;
+                    }
                 }
             }
         }
@@ -212,13 +237,57 @@ fn argmin(level: &Level, pixels: &[u16], target: &[u8], range: std::ops::Range<u
     best.map(|b| b.1)
 }
 
+impl Synthesizer {
+    /// The coordinates a pixel of level `s` is hashed at: reduced onto the torus, and on the
+    /// plane to their signed representatives modulo the plane's period at that level (which
+    /// repeats every 2^PLANE_BITS pixels of level 0, so that no evaluation comes near the i64
+    /// wrap).
+    fn hashed_at(&self, s: u8, x: i64, y: i64) -> (i64, i64) {
+        let e = self.structure.canonical(Entry { s, m: 0, x, y });
+        let bits = 64 - (PLANE_BITS - (self.structure.finest() - s) as u32);
+        ((e.x << bits) >> bits, (e.y << bits) >> bits)
+    }
+
+    /// The hashed jitter of pixel (x, y) of level `s`: on each axis one of the 2r offsets
+    /// −r..=r−1, a pure function of (seed, level, pixel).
+    #[inline]
+    fn jitter_of(&self, s: u8, x: i64, y: i64) -> (i64, i64) {
+        let r = self.jitter as u64;
+        let (x, y) = self.hashed_at(s, x, y);
+        let h = hash4(self.seed, STREAM_JITTER + s as u64, x, y);
+        (below(h, 2 * r) as i64 - r as i64, below(h.rotate_left(32), 2 * r) as i64 - r as i64)
+    }
+
+    /// A jittered coordinate `v + d` on an axis of `n` pixels: wrapped on a tiling sample; on
+    /// another, left unjittered if the offset would leave the sample.
+    #[inline]
+    fn moved(&self, v: i64, d: i64, n: i64) -> i64 {
+        match (self.wrap, v + d) {
+            (true, t) => t.rem_euclid(n),
+            (false, t) if (0..n).contains(&t) => t,
+            _ => v,
+        }
+    }
+}
+
+/// The candidate with the smallest (weight · SSD, index) against `target`.
+#[inline(always)]
+fn argmin_weighted(level: &Level, candidates: &[(u16, u64)], target: &[u8]) -> Option<u16> {
+    let mut best: Option<(u64, u16)> = None;
+    for &(u, weight) in candidates {
+        // Exact wherever weight · SSD can win or tie.
+        let bound = best.map_or(u32::MAX, |b| (b.0 / weight + 1).min(u32::MAX as u64) as u32);
+        let d = ssd_below(target, level.vector(u as usize), bound) as u64 * weight;
+        if best.is_none_or(|b| (d, u) < b) {
+            best = Some((d, u));
+        }
+    }
+    best.map(|b| b.1)
+}
+
 impl Synthesis for Synthesizer {
     fn noise(&self, x: i64, y: i64) -> u16 {
-        let e = self.structure.canonical(Entry { s: 0, m: 0, x, y });
-        // The plane repeats every 2^PLANE_BITS pixels of level 0, so that no evaluation comes
-        // near the i64 wrap: the noise is hashed at its coordinates' signed representatives.
-        let bits = 64 - (PLANE_BITS - self.structure.finest() as u32);
-        let (x, y) = ((e.x << bits) >> bits, (e.y << bits) >> bits);
+        let (x, y) = self.hashed_at(0, x, y);
         let level = &self.exemplar.levels[0];
         below(hash4(self.seed, STREAM_NOISE, x, y), (level.w * level.h) as u64) as u16
     }
@@ -238,8 +307,12 @@ crate::simd::widest! {
             return match syn.generation0 {
                 Generation0::Upsample => {
                     let (px, py) = (lower[0] as u32 % coarser.w, lower[0] as u32 / coarser.w);
-                    let (x, y) = (2 * px + (e.x & 1) as u32, 2 * py + (e.y & 1) as u32);
-                    (y * level.w + x) as u16
+                    let (mut x, mut y) = (2 * px as i64 + (e.x & 1), 2 * py as i64 + (e.y & 1));
+                    if syn.jitter > 0 {
+                        let (dx, dy) = syn.jitter_of(e.s, e.x, e.y);
+                        (x, y) = (syn.moved(x, dx, level.w as i64), syn.moved(y, dy, level.h as i64));
+                    }
+                    (y * level.w as i64 + x) as u16
                 }
                 Generation0::Search => {
                     let mut target = [0u8; MAX_STRIDE];
@@ -259,9 +332,9 @@ crate::simd::widest! {
         match syn.search {
             Search::Exhaustive => argmin(level, &level.valid, target, 0..level.stride),
             Search::Kcoherence => {
-                let mut buf = [0u16; MAX_CANDIDATES];
+                let mut buf = [(0u16, 0u64); MAX_CANDIDATES];
                 let candidates = syn.candidates(level, same, &mut buf);
-                argmin(level, candidates, target, 0..level.stride)
+                argmin_weighted(level, candidates, target)
             }
         }
         .unwrap_or_else(|| same[syn.centre.expect("k-coherence reads the pixel itself")])

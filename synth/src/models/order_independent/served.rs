@@ -279,8 +279,9 @@ mod tests {
         for params in [
             json!({"seed": 1, "levels": 3}),
             json!({"seed": 2, "levels": 3, "search": "exhaustive"}),
-            json!({"seed": 3, "levels": 3, "k": 3, "subpasses": 4, "generations": 4, "coarsest_generations": 2}),
-            json!({"seed": 4, "levels": 3, "domain": "torus", "width": 24, "height": 40, "exemplar_wrap": true}),
+            json!({"seed": 3, "levels": 3, "k": 3, "subpasses": 4, "generations": 4, "coarsest_generations": 2, "jitter": 2}),
+            json!({"seed": 4, "levels": 3, "domain": "torus", "width": 24, "height": 40, "exemplar_wrap": true, "jitter": 1}),
+            json!({"seed": 7, "levels": 4, "k": 2, "k_exclusion": 3, "jitter": 4, "kappa": 50}),
             json!({"seed": 5, "levels": 2, "neighbourhood": {"same": "square5", "lower": "square5"}, "generation0": "search"}),
             json!({"seed": 6, "levels": 3, "neighbourhood": {"same": "square3"}, "search": "exhaustive", "generation0": "upsample", "k_exclusion": 2}),
         ] {
