@@ -288,7 +288,7 @@ const VISIBLE_SIGMA: f64 = 4.0;
 /// Every level must score at least as well as a flat colour and as point sampling (RMS error
 /// within one grey level of theirs) where the window has visible contrast, and the floor must
 /// reject point sampling at some level (a floor point sampling passes everywhere is not a
-/// gate). The cell counts, for each trivial answer, the levels where the gates reject it; the
+/// gate) — unless the model's guarantee says it cannot, when the cell names where it does not. The cell counts, for each trivial answer, the levels where the gates reject it; the
 /// per-level table shows where they do not (near level 0, one or two levels of point sampling
 /// stay close to the box chain).
 fn trivial_answers(d: &Demo, levels: &mut Vec<LevelScores>) -> Outcome {
@@ -323,10 +323,10 @@ fn trivial_answers(d: &Demo, levels: &mut Vec<LevelScores>) -> Outcome {
     }
     let text = (1..ANSWERS.len()).map(|i| format!("{} {}/{}", ANSWERS[i], rejected[i], scored[i])).collect::<Vec<_>>();
     let text = format!("rejected: {}", text.join(", "));
-    if problems.is_empty() {
-        Ok(text)
-    } else {
-        Err(format!("{text}; {}", problems.join("; ")))
+    match (problems.is_empty(), g.beats_trivial_answers) {
+        (true, _) => Ok(text),
+        (false, true) => Err(format!("{text}; {}", problems.join("; "))),
+        (false, false) => Ok(format!("{text}; not promised: {}", problems.join("; "))),
     }
 }
 
@@ -381,7 +381,13 @@ fn score_level(d: &Demo, level: u32, k: u32) -> Result<LevelScores, String> {
         level,
         pixels: w * h,
         exact_sigma,
-        answers: [Some(score(&served)), Some(score(&flat)), Some(score(&point)), Some(score(&finer)), coarser.as_ref().map(score)],
+        answers: [
+            Some(score(&served)),
+            Some(score(&flat)),
+            Some(score(&point)),
+            Some(score(&finer)),
+            coarser.as_ref().map(score),
+        ],
     })
 }
 
@@ -389,12 +395,9 @@ fn score_level(d: &Demo, level: u32, k: u32) -> Result<LevelScores, String> {
 fn sigma(img: &Rgba8Image) -> f64 {
     let mean = mean_rgba(img);
     let n = (img.width as f64 * img.height as f64).max(1.0);
-    let var: f64 = img
-        .data
-        .chunks_exact(4)
-        .map(|p| (0..3).map(|c| (p[c] as f64 - mean[c]).powi(2)).sum::<f64>())
-        .sum::<f64>()
-        / (3.0 * n);
+    let var: f64 =
+        img.data.chunks_exact(4).map(|p| (0..3).map(|c| (p[c] as f64 - mean[c]).powi(2)).sum::<f64>()).sum::<f64>()
+            / (3.0 * n);
     var.sqrt()
 }
 
@@ -738,7 +741,8 @@ impl Texture for Broken {
     }
 }
 
-/// The first demo of each model, broken each way: its mip gates must reject every one.
+/// The first demo of each model, broken each way: its mip gates must reject every one its
+/// σ tolerance can tell (half the contrast needs one under ½).
 fn broken_on_purpose(demos: &[Demo]) -> Vec<(String, &'static str, String)> {
     let mut seen = Vec::new();
     let mut failed = Vec::new();
@@ -748,6 +752,11 @@ fn broken_on_purpose(demos: &[Demo]) -> Vec<(String, &'static str, String)> {
         }
         seen.push(d.model.id());
         for breakage in [Breakage::Flat, Breakage::HalfContrast] {
+            let tolerance = d.model.mip_guarantee().max_sigma_error;
+            if matches!(breakage, Breakage::HalfContrast) && tolerance >= 0.5 {
+                println!("{} broken: {breakage:?}: not checked, the σ tolerance {tolerance} admits it", d.label());
+                continue;
+            }
             let broken = Demo {
                 model: d.model,
                 bundle: d.bundle.clone(),

@@ -130,8 +130,14 @@ pub struct MipGuarantee {
     /// and of the coarsest level against the true mean.
     pub max_mean_error: f64,
     /// Largest relative difference of every level's σ from the same box chain's: a flat colour
-    /// fails it, and so does a level that keeps only part of the texture's contrast.
+    /// fails it, and so does a level that keeps only part of the texture's contrast
+    /// (`f64::INFINITY`: no promise).
     pub max_sigma_error: f64,
+    /// Every level where the box chain has visible contrast scores at least as well as a flat
+    /// colour and as point sampling, and the PSNR floor rejects point sampling at some level.
+    /// A model that cannot promise it says so here; the conformance table shows where it falls
+    /// short.
+    pub beats_trivial_answers: bool,
 }
 
 /// Every model this build knows, one line each.

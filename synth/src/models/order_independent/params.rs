@@ -132,7 +132,7 @@ pub struct Params {
     /// Generations of every level but the coarsest (paper: 3). Unset: 3 for `exhaustive`, 5 for
     /// `kcoherence`, whose four subpasses then correct every pixel once after the upsampling,
     /// one parity class at a time.
-    #[serde(default)]
+    #[serde(default, skip_serializing_if = "Option::is_none")]
     pub generations: Option<u8>,
     /// Generations of the coarsest level; its generation 0 is the noise (paper, Fig. 7: 1).
     #[serde(default = "one")]
@@ -167,7 +167,7 @@ pub struct Params {
     /// 1, or 4: generation m updates one parity class of pixels, `(m − 1) mod 4` (Lefebvre &
     /// Hoppe 2005's subpasses: each class reads its neighbours' corrected values). Unset: 1 for
     /// `exhaustive` (the paper), 4 for `kcoherence`.
-    #[serde(default)]
+    #[serde(default, skip_serializing_if = "Option::is_none")]
     pub subpasses: Option<u8>,
     /// The sample tiles seamlessly: its neighbourhoods wrap and every pixel is a candidate.
     #[serde(default)]

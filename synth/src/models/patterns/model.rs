@@ -541,7 +541,8 @@ impl Layer {
         let (w, h) = (region.width as i64, region.height as i64);
         // Cells whose pattern may reach a pixel of [p, p + n): a point reads from `left` cells
         // before its own to `right` cells after it.
-        let sources = |p: i64, n: i64| (p as f64 * k).floor() as i64 - tr.left..=((p + n) as f64 * k).floor() as i64 + tr.right;
+        let sources =
+            |p: i64, n: i64| (p as f64 * k).floor() as i64 - tr.left..=((p + n) as f64 * k).floor() as i64 + tr.right;
         // Summed in premultiplied f32 (the squares of neighbouring cells hardly overlap, so their
         // coverages add), scaled back where they overlap past full, then put over `out` once.
         let mut acc = vec![[0f32; 4]; (w * h) as usize];
