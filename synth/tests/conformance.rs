@@ -109,7 +109,7 @@ const COLUMNS: [(&str, Check); 11] = [
     ("order/threads", |d, _| order_and_threads(d)),
     ("torus wrap", |d, _| torus_wrap(d)),
     ("mip vs box chain", mip_coherence),
-    ("trivial answers", trivial_answers),
+    ("trivial answers", |d, levels| trivial_answers(d, levels)),
     ("coarsest mean", |d, _| coarsest_mean(d)),
     ("pinned", |d, _| pinned(d)),
     ("native ≡ wasm32", |d, _| wasm_probe(d)),
@@ -291,7 +291,7 @@ const VISIBLE_SIGMA: f64 = 4.0;
 /// gate) — unless the model's guarantee says it cannot, when the cell names where it does not. The cell counts, for each trivial answer, the levels where the gates reject it; the
 /// per-level table shows where they do not (near level 0, one or two levels of point sampling
 /// stay close to the box chain).
-fn trivial_answers(d: &Demo, levels: &mut Vec<LevelScores>) -> Outcome {
+fn trivial_answers(d: &Demo, levels: &[LevelScores]) -> Outcome {
     if levels.is_empty() {
         return Err("no mip scores (the mip column failed)".into());
     }
@@ -356,7 +356,7 @@ fn score_level(d: &Demo, level: u32, k: u32) -> Result<LevelScores, String> {
     }
     let finer = d.render(Region::new(level - 1, x, y, w, h))?;
     let coarser = if level + 1 < d.levels() {
-        let up = d.render(Region::new(level + 1, x >> 1, y >> 1, (w + 1) / 2 + 1, (h + 1) / 2 + 1))?;
+        let up = d.render(Region::new(level + 1, x >> 1, y >> 1, w.div_ceil(2) + 1, h.div_ceil(2) + 1))?;
         let mut doubled = Rgba8Image::new(w, h);
         for j in 0..h {
             for i in 0..w {
@@ -734,7 +734,7 @@ impl Texture for Broken {
             for c in 0..3 {
                 p[c] = match self.breakage {
                     Breakage::Flat => mean[c],
-                    Breakage::HalfContrast => ((p[c] as u16 + mean[c] as u16 + 1) / 2) as u8,
+                    Breakage::HalfContrast => (p[c] as u16 + mean[c] as u16).div_ceil(2) as u8,
                 };
             }
         }
@@ -763,7 +763,7 @@ fn broken_on_purpose(demos: &[Demo]) -> Vec<(String, &'static str, String)> {
                 tex: Arc::new(Broken { inner: Arc::clone(&d.tex), breakage }),
             };
             let mut levels = Vec::new();
-            let verdict = mip_coherence(&broken, &mut levels).and_then(|_| trivial_answers(&broken, &mut levels));
+            let verdict = mip_coherence(&broken, &mut levels).and_then(|_| trivial_answers(&broken, &levels));
             let label = format!("{} broken: {breakage:?}", d.label());
             match verdict {
                 Err(why) => println!("{label}: rejected ({})", why.chars().take(160).collect::<String>()),
