@@ -232,9 +232,11 @@ fn every_order_independent_field_patches_as_a_fresh_create() {
         add("generations", json!(2)),
         add("coarsest_generations", json!(2)),
         add("neighbourhood", json!({"same": "square3"})),
-        add("k", json!(2)),
+        add("k", json!(3)),
         add("k_exclusion", json!(1)),
-        add("subpasses", json!(4)),
+        add("kappa", json!(50)),
+        add("jitter", json!(2)),
+        add("subpasses", json!(1)),
         add("mip", json!({"exact_levels": 1})),
     ];
     check_all(&Made::example("order-independent"), edits);
