@@ -92,7 +92,7 @@ impl Model for OrderIndependentModel {
         demos::example()
     }
     fn mip_guarantee(&self) -> MipGuarantee {
-        MipGuarantee { min_psnr_db: 26.0, max_mean_error: 4.0, max_sigma_error: 0.8, beats_trivial_answers: false }
+        MipGuarantee { min_psnr_db: 27.0, max_mean_error: 2.0, max_sigma_error: 0.15, beats_trivial_answers: true }
     }
     fn set_cache_budget(&self, bytes: u64) {
         cache::set_cache_budget(bytes)

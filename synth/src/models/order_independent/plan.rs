@@ -105,7 +105,7 @@ fn plan_params(p: &Params, sw: u32, sh: u32, create: bool) -> Result<Plan> {
             Source::Exact => chunks * (work(fin, CHUNK as usize) + tile * COLOUR) + chunks * tile * DOWNSAMPLE,
             Source::Pyramid { r } => {
                 let s = fin - r as u8;
-                let cal = if s == 0 { calibration } else { 0.0 };
+                let cal = if r > 0 { calibration } else { 0.0 };
                 chunks * (work(s, CHUNK as usize) + tile * (COLOUR + DOWNSAMPLE)) + cal
             }
             Source::Mean => calibration + tile * COLOUR,

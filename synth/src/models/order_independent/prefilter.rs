@@ -8,6 +8,10 @@
 //!   rounding as vtex. With lookahead 1, level 1 is exact. At the coarsest synthesis level the
 //!   colour of an exemplar coordinate u is g(u), the measured mean colour of the level-0 blocks
 //!   grown from u, so levels beyond the pyramid are exact averages of coloured noise.
+//!   Finer levels correct what coarser ones drew, so a coarse entry's colour predicts its
+//!   block only in part and the averages lose contrast; each level's deviations from the mean
+//!   are scaled by a gain measured on the calibration windows, where the exact chain is known,
+//!   so its σ is the chain's.
 //! * Beyond: the texture's mean colour, flat (a pixel there averages thousands of independent
 //!   noise cells).
 
@@ -66,7 +70,24 @@ pub struct Calibration {
     /// where no block of the windows grew from u).
     pub g: Vec<[u8; 3]>,
     pub mean: [u8; 3],
+    /// Per vtex level, how its pyramid source is brought to the exact chain's contrast around
+    /// the texture's mean.
+    pub contrast: Vec<Contrast>,
 }
+
+/// `mean` + `gain` × (v − `centre`): the deviations of a level's source from its own mean,
+/// scaled to the σ of the exact chain.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Contrast {
+    /// The source's mean colour on the windows, in 1/256.
+    centre: [i64; 3],
+    /// σ of the exact chain over σ of the source on the windows, in 1/256.
+    gain: i64,
+}
+
+/// Where the source is exact, or a window is smaller than a pixel of the level: the source as
+/// it is.
+const UNCHANGED: Contrast = Contrast { centre: [0; 3], gain: 0 };
 
 impl Calibration {
     /// Measured over [`WINDOWS`] deterministic level-0 windows; `None` once `stop` is requested.
@@ -78,13 +99,15 @@ impl Calibration {
         let coarsest = &tex.synthesizer().exemplar().levels[0];
         let n = coarsest.colour.len();
         let mut sums = vec![[0u64; 4]; n];
+        let mut windows = Vec::with_capacity(WINDOWS as usize);
         for i in 0..WINDOWS {
             let h = hash4(p.seed, STREAM_CALIBRATION, i, 0);
             let (mut x, mut y) = ((h as i64) >> 24, (h.rotate_left(32) as i64) >> 24);
             if p.domain == super::params::DomainSpec::Torus {
                 (x, y) = (wrap(x, p.width) as i64, wrap(y, p.height) as i64);
             }
-            let (x, y) = (x & !(block - 1), y & !(block - 1));
+            // Aligned to the window's side, so each window is whole pixels of every level measured.
+            let (x, y) = (x & !(side as i64 - 1), y & !(side as i64 - 1));
             let img = tex.level0(x, y, side, side, stop)?;
             let cells = side as usize >> fin;
             let rect = Rect { x: x >> fin, y: y >> fin, w: cells, h: cells };
@@ -100,6 +123,7 @@ impl Calibration {
                     }
                 }
             }
+            windows.push((x, y, img));
         }
         let g: Vec<[u8; 3]> = sums
             .iter()
@@ -116,15 +140,81 @@ impl Calibration {
             (t, sums.iter().map(|s| s[3]).sum())
         };
         let mean = total.map(|t| ((t + weight / 2) / weight) as u8);
-        Some(Calibration { g, mean })
+        let top = fin + p.mip.noise_levels as u32;
+        let mut contrast = vec![UNCHANGED; top as usize + 1];
+        for (l, contrast) in contrast.iter_mut().enumerate().skip(1) {
+            let l = l as u32;
+            let Source::Pyramid { r } = source(p, l) else { continue };
+            if r == 0 || side >> l == 0 {
+                continue;
+            }
+            let (mut exact, mut raw) = (Moments::default(), Moments::default());
+            for (x, y, img) in &windows {
+                exact.add(&downsample_n(img, l));
+                raw.add(&pyramid(tex, &g, r, l - r, x >> l, y >> l, side >> l, side >> l, stop)?);
+            }
+            *contrast = Contrast { centre: raw.mean_q8(), gain: exact.gain_over(&raw) };
+        }
+        Some(Calibration { g, mean, contrast })
+    }
+
+    /// `img` (a source of level `l`) brought to the exact chain's contrast.
+    fn adjust(&self, l: u32, img: &mut Rgba8Image) {
+        let Contrast { centre, gain } = self.contrast[l as usize];
+        if gain == 0 {
+            return;
+        }
+        for px in img.data.chunks_exact_mut(4) {
+            for c in 0..3 {
+                let deviation = ((px[c] as i64) << 8) - centre[c];
+                px[c] = (self.mean[c] as i64 + ((deviation * gain + (1 << 15)) >> 16)).clamp(0, 255) as u8;
+            }
+        }
+    }
+}
+
+/// Sums of the RGB channels and their squares over some images, for σ.
+#[derive(Default)]
+struct Moments {
+    sum: [u64; 3],
+    squares: [u64; 3],
+    n: u64,
+}
+
+impl Moments {
+    fn add(&mut self, img: &Rgba8Image) {
+        for px in img.data.chunks_exact(4) {
+            for c in 0..3 {
+                self.sum[c] += px[c] as u64;
+                self.squares[c] += (px[c] as u64).pow(2);
+            }
+        }
+        self.n += img.data.len() as u64 / 4;
+    }
+
+    /// The mean of each channel in 1/256.
+    fn mean_q8(&self) -> [i64; 3] {
+        self.sum.map(|s| (((s << 9) / self.n.max(1)) as i64 + 1) >> 1)
+    }
+
+    /// Variance summed over the channels, times n² (exact in integers).
+    fn variance_n2(&self) -> u128 {
+        (0..3).map(|c| self.squares[c] as u128 * self.n as u128 - (self.sum[c] as u128).pow(2)).sum()
+    }
+
+    /// σ of `self` over σ of `other` in 1/256 (of equal counts; one where `other` is flat).
+    fn gain_over(&self, other: &Moments) -> i64 {
+        let (a, b) = (self.variance_n2(), other.variance_n2());
+        if b == 0 {
+            return 256;
+        }
+        ((a as f64 / b as f64).sqrt() * 256.0).round() as i64
     }
 }
 
 /// Renders `w × h` pixels of level `l` ≥ 1 at (x, y), or `None` once `stop` is requested.
 pub fn render(tex: &OrderIndependent, l: u32, x: i64, y: i64, w: u32, h: u32, stop: &dyn Stop) -> Option<Rgba8Image> {
-    let p = tex.params();
-    let fin = p.levels as u32 - 1;
-    match source(p, l) {
+    match source(tex.params(), l) {
         Source::Exact => Some(downsample_n(&tex.level0(x << l, y << l, w << l, h << l, stop)?, l)),
         Source::Mean => {
             let c = tex.calibration(stop)?.mean;
@@ -134,19 +224,39 @@ pub fn render(tex: &OrderIndependent, l: u32, x: i64, y: i64, w: u32, h: u32, st
             }
             Some(img)
         }
+        // The finest synthesis level coloured by the sample: exact.
+        Source::Pyramid { r: 0 } => pyramid(tex, &[], 0, l, x, y, w, h, stop),
         Source::Pyramid { r } => {
-            let d = l - r;
-            let s = fin - r;
-            let rect = Rect { x: x << d, y: y << d, w: (w as usize) << d, h: (h as usize) << d };
-            let colours =
-                if s == 0 { &tex.calibration(stop)?.g } else { &tex.synthesizer().exemplar().levels[s as usize].boxed };
-            let values = tex.entries(s as u8, rect, stop)?;
-            let mut img = Rgba8Image::new(w << d, h << d);
-            for (px, &v) in img.data.chunks_exact_mut(4).zip(&values) {
-                let c = colours[v as usize];
-                px.copy_from_slice(&[c[0], c[1], c[2], 255]);
-            }
-            Some(downsample_n(&img, d))
+            let cal = tex.calibration(stop)?;
+            let mut img = pyramid(tex, &cal.g, r, l - r, x, y, w, h, stop)?;
+            cal.adjust(l, &mut img);
+            Some(img)
         }
     }
+}
+
+/// `w × h` pixels at (x, y) of synthesis level K − 1 − `r` coloured with B_r (`g` at the
+/// coarsest) and box-filtered `d` times, or `None` once `stop` is requested.
+#[allow(clippy::too_many_arguments)]
+fn pyramid(
+    tex: &OrderIndependent,
+    g: &[[u8; 3]],
+    r: u32,
+    d: u32,
+    x: i64,
+    y: i64,
+    w: u32,
+    h: u32,
+    stop: &dyn Stop,
+) -> Option<Rgba8Image> {
+    let s = tex.params().levels as u32 - 1 - r;
+    let rect = Rect { x: x << d, y: y << d, w: (w as usize) << d, h: (h as usize) << d };
+    let colours = if s == 0 { g } else { &tex.synthesizer().exemplar().levels[s as usize].boxed };
+    let values = tex.entries(s as u8, rect, stop)?;
+    let mut img = Rgba8Image::new(w << d, h << d);
+    for (px, &v) in img.data.chunks_exact_mut(4).zip(&values) {
+        let c = colours[v as usize];
+        px.copy_from_slice(&[c[0], c[1], c[2], 255]);
+    }
+    Some(downsample_n(&img, d))
 }
