@@ -184,9 +184,9 @@ struct Moments {
 impl Moments {
     fn add(&mut self, img: &Rgba8Image) {
         for px in img.data.chunks_exact(4) {
-            for c in 0..3 {
-                self.sum[c] += px[c] as u64;
-                self.squares[c] += (px[c] as u64).pow(2);
+            for (c, &v) in px[..3].iter().enumerate() {
+                self.sum[c] += v as u64;
+                self.squares[c] += (v as u64).pow(2);
             }
         }
         self.n += img.data.len() as u64 / 4;
