@@ -208,7 +208,7 @@ impl Moments {
         if b == 0 {
             return 256;
         }
-        ((a as f64 / b as f64).sqrt() * 256.0).round() as i64
+        ((a << 16) / b).isqrt() as i64
     }
 }
 
