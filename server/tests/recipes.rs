@@ -7,6 +7,9 @@ use common::*;
 use serde_json::{json, Value};
 use vtex_synth::bundle::Bundle;
 use vtex_synth::models::{self, lcm, Inputs};
+#[path = "../../synth/tests/support/rgb_png.rs"]
+mod rgb_png;
+use rgb_png::rgb_png;
 
 async fn encoding(c: &reqwest::Client, s: &Server, id: &str) -> Bundle {
     let (status, _, bytes) = get_bytes(c, &s.url(&format!("/api/v1/textures/{id}/encoding"))).await;
@@ -149,19 +152,6 @@ async fn a_patch_the_model_cannot_remake_is_refused_naming_the_field() {
     assert_eq!(status, 400, "{e}");
     let msg = e["error"].as_str().unwrap();
     assert!(msg.contains("`seed`") && msg.contains("layers[0].table"), "{msg}");
-}
-
-/// The sample as an 8-bit RGB PNG: the pixels vtex would store, in bytes another tool writes.
-fn rgb_png(img: &vtex_synth::Rgba8Image) -> Vec<u8> {
-    let mut out = Vec::new();
-    let mut encoder = png::Encoder::new(&mut out, img.width, img.height);
-    encoder.set_color(png::ColorType::Rgb);
-    encoder.set_depth(png::BitDepth::Eight);
-    let mut writer = encoder.write_header().unwrap();
-    let rgb: Vec<u8> = img.data.chunks_exact(4).flat_map(|p| [p[0], p[1], p[2]]).collect();
-    writer.write_image_data(&rgb).unwrap();
-    writer.finish().unwrap();
-    out
 }
 
 /// Luma standard deviation of raw RGBA8 bytes.

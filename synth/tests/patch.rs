@@ -8,6 +8,9 @@ use serde_json::{json, Value};
 use vtex_synth::bundle::{id_of, Bundle};
 use vtex_synth::models::{self, lcm, merge_patch, remake_within, Inputs, Limits};
 use vtex_synth::{texture::render_image, Region, Rgba8Image};
+#[path = "support/rgb_png.rs"]
+mod rgb_png;
+use rgb_png::rgb_png;
 
 /// The merge patch (RFC 7396) that turns `from` into `to`: the changed fields of objects,
 /// `null` for removed ones, anything else (arrays included) whole.
@@ -185,21 +188,6 @@ fn every_chaos_mosaic_field_patches_as_a_fresh_create() {
         add("filter_width", json!(2)),
     ];
     check_all(&Made::example("chaos-mosaic"), edits);
-}
-
-/// The sample as an 8-bit RGB PNG: the same pixels as `Rgba8Image::to_png` writes (the
-/// sample is opaque), in other bytes, as another tool writes them.
-fn rgb_png(img: &Rgba8Image) -> Vec<u8> {
-    assert!(img.data.chunks_exact(4).all(|p| p[3] == 255));
-    let mut out = Vec::new();
-    let mut encoder = png::Encoder::new(&mut out, img.width, img.height);
-    encoder.set_color(png::ColorType::Rgb);
-    encoder.set_depth(png::BitDepth::Eight);
-    let mut writer = encoder.write_header().unwrap();
-    let rgb: Vec<u8> = img.data.chunks_exact(4).flat_map(|p| [p[0], p[1], p[2]]).collect();
-    writer.write_image_data(&rgb).unwrap();
-    writer.finish().unwrap();
-    out
 }
 
 /// A mosaic uploaded as a bundle a user assembled: a manifest naming its params and the
