@@ -5,7 +5,8 @@
 //! fails when any cell fails.
 //!
 //! `cargo test -p vtex-synth --test conformance`; `CONFORMANCE_ONLY=<text>` keeps the demos
-//! whose `model/name` contains the text.
+//! whose `model/name` contains the text; `CONFORMANCE_LEVELS=<file>` also writes the per-level
+//! table there (`docs/mip-levels.md` holds it for every demo).
 
 use std::alloc::{GlobalAlloc, Layout, System};
 use std::cell::Cell;
@@ -845,7 +846,7 @@ fn main() {
     header.extend(COLUMNS.iter().map(|(n, _)| n.to_string()));
     let table: Vec<Vec<String>> =
         rows.iter().map(|r| std::iter::once(r.label.clone()).chain(r.cells.iter().map(cell_text)).collect()).collect();
-    print_table(&header, &table);
+    print!("{}", table_text(&header, &table));
 
     println!(
         "\nmip levels against the exact 2×2 box chain from level L−{MIP_SPAN}: PSNR, σ over the exact σ, |Δ mean|; \
@@ -858,7 +859,8 @@ fn main() {
         .zip(&demos)
         .flat_map(|(r, d)| {
             let g = d.model.mip_guarantee();
-            r.mip.iter().map(move |l| {
+            // Levels where every answer is exact (a flat region) say nothing.
+            r.mip.iter().filter(|l| l.answers.iter().flatten().any(|a| a.psnr.is_finite())).map(move |l| {
                 let mut line = vec![r.label.clone(), l.level.to_string(), format!("{:.1}", l.exact_sigma)];
                 line.extend(l.answers.iter().map(|a| match a {
                     None => "n/a".to_string(),
@@ -871,7 +873,11 @@ fn main() {
             })
         })
         .collect();
-    print_table(&header, &table);
+    let levels = table_text(&header, &table);
+    print!("{levels}");
+    if let Ok(path) = std::env::var("CONFORMANCE_LEVELS") {
+        std::fs::write(&path, levels).unwrap_or_else(|e| panic!("{path}: {e}"));
+    }
 
     println!("\nmodels broken on purpose, held to the same mip gates");
     let broken = broken_on_purpose(&demos);
@@ -909,7 +915,8 @@ fn short_db(v: f64) -> String {
     }
 }
 
-fn print_table(header: &[String], rows: &[Vec<String>]) {
+/// A Markdown table, its columns padded to their widest cell.
+fn table_text(header: &[String], rows: &[Vec<String>]) -> String {
     let width = |i: usize| {
         rows.iter().map(|r| r.get(i).map_or(0, |c| c.chars().count())).chain([header[i].chars().count()]).max().unwrap()
     };
@@ -921,11 +928,12 @@ fn print_table(header: &[String], rows: &[Vec<String>]) {
                 format!("{c}{}", " ".repeat(widths[i] - c.chars().count()))
             })
             .collect();
-        println!("| {} |", padded.join(" | "));
+        format!("| {} |\n", padded.join(" | "))
     };
-    line(header);
-    println!("|{}|", widths.iter().map(|w| "-".repeat(w + 2)).collect::<Vec<_>>().join("|"));
+    let mut text = line(header);
+    text += &format!("|{}|\n", widths.iter().map(|w| "-".repeat(w + 2)).collect::<Vec<_>>().join("|"));
     for r in rows {
-        line(r);
+        text += &line(r);
     }
+    text
 }
