@@ -37,7 +37,7 @@ use axum::extract::{DefaultBodyLimit, MatchedPath, Request, State};
 use axum::http::{header, HeaderMap, HeaderName, HeaderValue, Method, StatusCode};
 use axum::middleware::{self, Next};
 use axum::response::{IntoResponse, Response};
-use axum::routing::{any, delete, get, MethodRouter};
+use axum::routing::any;
 use axum::{BoxError, Router};
 use error::ApiError;
 use extract::{NoQuery, Query};
@@ -52,6 +52,7 @@ use tower_http::compression::{CompressionLayer, CompressionLevel};
 use tower_http::cors::{Any, CorsLayer};
 use tower_http::services::ServeDir;
 use tower_http::trace::{DefaultMakeSpan, TraceLayer};
+use utoipa_axum::{router::OpenApiRouter, routes};
 use vtex_synth::{Region, Rgba8Image, Stop};
 
 pub use error::ApiError as Error;
@@ -262,67 +263,49 @@ pub fn router(app: App) -> Router {
         .layer(HandleErrorLayer::new(on_timeout))
         .timeout(limit)
         .layer(DefaultBodyLimit::max(app.cfg.max_upload_bytes()));
-    routes().router.method_not_allowed_fallback(method_not_allowed).merge(viewer(&app)).layer(layers).with_state(app)
+    let (routes, _) = routes().split_for_parts();
+    routes.method_not_allowed_fallback(method_not_allowed).merge(viewer(&app)).layer(layers).with_state(app)
 }
 
-/// The route table as it is built: the router, and the path of every route in it.
-#[derive(Default)]
-struct Table {
-    router: Router<App>,
-    paths: Vec<&'static str>,
-}
-
-impl Table {
-    fn route(mut self, path: &'static str, method_router: MethodRouter<App>) -> Table {
-        self.router = self.router.route(path, method_router);
-        self.paths.push(path);
-        self
-    }
-}
-
-/// The path of every route, in table order, once per `route` (the OpenAPI description is
-/// checked against them).
-pub fn route_paths() -> Vec<&'static str> {
-    routes().paths
-}
-
-/// The table of routes.
-fn routes() -> Table {
-    Table::default()
-        .route("/api/v1/textures", get(textures::list).post(textures::upload))
-        .route("/api/v1/textures/{id}", get(textures::info).patch(textures::patch))
-        .route("/api/v1/textures/{id}/encoding", get(textures::encoding))
-        .route(BATCH, get(batch::batch))
-        .route(TILE, get(tiles::tile))
-        .route("/api/v1/textures/{id}/region", get(tiles::region))
-        // Deployment: deleting textures, liveness and readiness.
-        .route("/api/v1/textures/{id}", delete(deletion::delete))
-        .route("/healthz", get(health::healthz))
-        .route("/readyz", get(health::readyz))
+/// The route table. A described route is declared once, by its handler: `routes!` takes the
+/// path and method from the handler's `#[utoipa::path]`, so the router and the OpenAPI
+/// description ([`openapi::document`]) cannot disagree.
+pub(crate) fn routes() -> OpenApiRouter<App> {
+    OpenApiRouter::with_openapi(openapi::base())
+        .routes(routes!(textures::list, textures::upload))
+        .routes(routes!(textures::info, textures::patch, deletion::delete))
+        .routes(routes!(textures::encoding))
+        .routes(routes!(batch::batch))
+        .routes(routes!(tiles::tile))
+        .routes(routes!(tiles::region))
+        // Deployment: liveness and readiness.
+        .routes(routes!(health::healthz))
+        .routes(routes!(health::readyz))
         // Virtual-texture pages with borders and KTX2 mip chains for game engines (pages.rs).
-        .route("/api/v1/textures/{id}/pages/{level}/{x}/{file}", get(pages::page))
-        .route("/api/v1/textures/{id}/mips.ktx2", get(pages::mip_chain))
+        .routes(routes!(pages::page))
+        .routes(routes!(pages::mip_chain))
         // Deep Zoom and IIIF Image API 3 (dzi.rs, iiif.rs), over the same tiles and renders, and
         // IIIF Presentation 3 documents for viewers (presentation.rs).
-        .route("/dzi/{file}", get(dzi::descriptor))
-        .route("/dzi/{dir}/{level}/{file}", get(dzi::tile))
-        .route("/iiif/3/{ident}", get(iiif::base))
-        .route("/iiif/3/{ident}/info.json", get(iiif::info))
-        .route("/iiif/3/{ident}/{region}/{size}/{rotation}/{file}", get(iiif::image))
-        .route("/iiif/presentation/3/{id}/manifest.json", get(presentation::manifest_json))
-        .route("/iiif/presentation/3/collection.json", get(presentation::collection_json))
+        .routes(routes!(dzi::descriptor))
+        .routes(routes!(dzi::tile))
+        .routes(routes!(iiif::base))
+        .routes(routes!(iiif::info))
+        .routes(routes!(iiif::image))
+        .routes(routes!(presentation::manifest_json))
+        .routes(routes!(presentation::collection_json))
+        // TileJSON 3 and XYZ tiles (tilejson.rs).
+        .routes(routes!(tilejson::tilejson))
+        .routes(routes!(tilejson::xyz))
+        // The model catalogue: parameter schemas and examples (models.rs).
+        .routes(routes!(models::list_models))
+        .routes(routes!(models::model))
+        .routes(routes!(models::example_image))
+        .routes(routes!(metrics))
+        // The OpenAPI 3.1 description of this table (openapi.rs).
+        .routes(routes!(openapi::openapi_json))
+        // Not described: the JSON 404 of unknown IIIF and API paths.
         .route("/iiif", any(iiif::not_found))
         .route("/iiif/{*rest}", any(iiif::not_found))
-        // TileJSON 3 and XYZ tiles (tilejson.rs).
-        .route("/api/v1/textures/{id}/tilejson.json", get(tilejson::tilejson))
-        .route(tilejson::XYZ, get(tilejson::xyz))
-        // The model catalogue: parameter schemas and examples (models.rs).
-        .route("/api/v1/models", get(models::list_models))
-        .route("/api/v1/models/{id}", get(models::model))
-        .route(models::EXAMPLE_INPUT, get(models::example_image))
-        .route("/metrics", get(metrics))
-        // The OpenAPI 3.1 description of this table (openapi.rs).
-        .route("/api/v1/openapi.json", get(openapi::openapi_json))
         .route("/api", any(api_not_found))
         .route("/api/{*rest}", any(api_not_found))
 }

@@ -188,7 +188,7 @@ pub async fn model(
 /// `GET /api/v1/models/{id}/example/{input}.png`: revalidated like the JSON (another build may
 /// draw another example).
 #[utoipa::path(get,
-    path = "/api/v1/models/{id}/example/{file}",
+    path = EXAMPLE_INPUT,
     tag = "models",
     params(("id" = String, Path, description = "model id"), ("file" = String, Path, description = "`{input}.png`, an input of the model's example")),
     responses((status = 200, description = "the example's input image", content(("image/png"))), (status = 404, description = "no such model or example input", body = ErrorBody)))]

@@ -1,12 +1,11 @@
-//! The OpenAPI 3.1 description of the whole API, `GET /api/v1/openapi.json`, generated from the
-//! handlers' `#[utoipa::path]` annotations and the response types' schemas. The route table
-//! ([`super::router`]) is where routes are declared; `server/tests/openapi.rs` holds the two
-//! equal: every route of the table is described here, and every path described here answers.
+//! The OpenAPI 3.1 description of the whole API, `GET /api/v1/openapi.json`, collected by the
+//! route table (`super::routes`) from the handlers' `#[utoipa::path]` annotations and the
+//! response types' schemas, so every described route is served and the reverse;
+//! `server/tests/openapi.rs` validates it and requests every described path.
 
 use super::extract::{NoQuery, Query};
 use super::origin::Origin;
 use super::textures::json_validated;
-use super::{batch, deletion, dzi, health, iiif, models, pages, presentation, textures, tilejson, tiles};
 use axum::http::HeaderMap;
 use axum::response::Response;
 use serde::Serialize;
@@ -42,35 +41,6 @@ pub struct ErrorBody {
                        demand, identical every time. Errors are JSON `{\"error\": …}` with a 4xx status for \
                        anything the client got wrong."
     ),
-    paths(
-        textures::list,
-        textures::upload,
-        textures::info,
-        textures::patch,
-        deletion::delete,
-        textures::encoding,
-        batch::batch,
-        tiles::tile,
-        tiles::region,
-        health::healthz,
-        health::readyz,
-        pages::page,
-        pages::mip_chain,
-        dzi::descriptor,
-        dzi::tile,
-        iiif::base,
-        iiif::info,
-        iiif::image,
-        presentation::manifest_json,
-        presentation::collection_json,
-        tilejson::tilejson,
-        tilejson::xyz,
-        models::list_models,
-        models::model,
-        models::example_image,
-        super::metrics,
-        openapi_json,
-    ),
     components(schemas(ErrorBody)),
     tags(
         (name = "textures", description = "Texture resources: list, info, upload, edit, delete, encoding"),
@@ -83,13 +53,14 @@ pub struct ErrorBody {
 )]
 struct ApiDoc;
 
-/// Routes of the table that answer only errors (the JSON 404 of unknown API and IIIF paths):
-/// not part of the description.
-pub const UNDESCRIBED: &[&str] = &["/iiif", "/iiif/{*rest}", "/api", "/api/{*rest}"];
+/// What the description says beyond its operations: title, tags, shared schemas.
+pub(super) fn base() -> utoipa::openapi::OpenApi {
+    ApiDoc::openapi()
+}
 
-/// The description, built once.
+/// The description, built once from the route table.
 static DOCUMENT: LazyLock<utoipa::openapi::OpenApi> = LazyLock::new(|| {
-    let mut doc = ApiDoc::openapi();
+    let (_, mut doc) = super::routes().split_for_parts();
     doc.info.version = env!("CARGO_PKG_VERSION").into();
     doc
 });

@@ -26,9 +26,6 @@ use serde::Deserialize;
 use serde_json::{json, Value};
 use std::f64::consts::PI;
 
-/// The route of an XYZ tile.
-pub const XYZ: &str = "/api/v1/textures/{id}/xyz/{z}/{x}/{file}";
-
 #[derive(Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct TileJsonQuery {

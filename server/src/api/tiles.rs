@@ -111,7 +111,7 @@ pub(super) fn check_tile(entry: &Entry, level: u32, x: u32, y: u32) -> Result<()
 /// `GET /api/v1/textures/{id}/tiles/{level}/{x}/{y}.{format}[?frame=N]` (the route
 /// [`TILE`](super::TILE)).
 #[utoipa::path(get,
-    path = "/api/v1/textures/{id}/tiles/{level}/{x}/{file}",
+    path = super::TILE,
     tag = "tiles",
     params(("id" = String, Path, description = text::TEXTURE_ID), ("level" = u32, Path, description = "mip level, 0 full resolution"), ("x" = u32, Path, description = "tile column"), ("file" = String, Path, description = "`{y}.{format}`, format png, webp, jpg or rgba (raw RGBA8)"), ("frame" = Option<u32>, Query, description = text::FRAME)),
     responses((status = 200, description = "the tile (edge tiles clipped; strong ETag, immutable)", content(("image/png"), ("image/webp"), ("image/jpeg"), ("application/octet-stream"))), (status = 304, description = "`If-None-Match` names its ETag"), (status = 400, description = text::BAD_REQUEST, body = ErrorBody), (status = 404, description = text::NOT_FOUND, body = ErrorBody), (status = 503, description = text::UNAVAILABLE, body = ErrorBody)))]
