@@ -259,8 +259,25 @@ impl BatchQuery {
 #[utoipa::path(get,
     path = super::BATCH,
     tag = "tiles",
-    params(("id" = String, Path, description = text::TEXTURE_ID), ("format" = String, Query, description = "png, webp, jpg or rgba (ktx2 with `pages`)"), ("tiles" = Option<String>, Query, description = "`L/x/y,L/x/y,…`, at most 256 tiles"), ("pages" = Option<String>, Query, description = "`L/x/y,…` pages instead of tiles, with `size`, `border`, `codec`, `supercompression`"), ("size" = Option<u32>, Query, description = "page side (pages only)"), ("border" = Option<u32>, Query, description = "page border (pages only)"), ("codec" = Option<String>, Query, description = "KTX2 codec (pages only)"), ("supercompression" = Option<String>, Query, description = "KTX2 supercompression (pages only)"), ("frame" = Option<u32>, Query, description = text::FRAME)),
-    responses((status = 200, description = "a stream of frames, one per tile in completion order: a 32-byte header then the tile's bytes", content(("application/x-vtex-tile-batch"))), (status = 400, description = text::BAD_REQUEST, body = ErrorBody), (status = 404, description = text::NOT_FOUND, body = ErrorBody), (status = 503, description = text::UNAVAILABLE, body = ErrorBody)))]
+    params(
+        ("id" = String, Path, description = text::TEXTURE_ID),
+        ("format" = String, Query, description = "png, webp, jpg or rgba (ktx2 with `pages`)"),
+        ("tiles" = Option<String>, Query, description = "`L/x/y,L/x/y,…`, at most 256 tiles"),
+        ("pages" = Option<String>, Query, description = "`L/x/y,…` pages instead of tiles, with `size`, `border`, \
+            `codec`, `supercompression`"),
+        ("size" = Option<u32>, Query, description = "page side (pages only)"),
+        ("border" = Option<u32>, Query, description = "page border (pages only)"),
+        ("codec" = Option<String>, Query, description = "KTX2 codec (pages only)"),
+        ("supercompression" = Option<String>, Query, description = "KTX2 supercompression (pages only)"),
+        ("frame" = Option<u32>, Query, description = text::FRAME),
+    ),
+    responses(
+        (status = 200, description = "a stream of frames, one per tile in completion order: a 32-byte header then \
+            the tile's bytes", content(("application/x-vtex-tile-batch"))),
+        (status = 400, description = text::BAD_REQUEST, body = ErrorBody),
+        (status = 404, description = text::NOT_FOUND, body = ErrorBody),
+        (status = 503, description = text::UNAVAILABLE, body = ErrorBody),
+    ))]
 pub async fn batch(
     State(app): State<App>,
     Path(TextureId { id }): Path<TextureId>,

@@ -16,7 +16,11 @@ use axum::http::StatusCode;
     path = "/api/v1/textures/{id}",
     tag = "textures",
     params(("id" = String, Path, description = text::TEXTURE_ID)),
-    responses((status = 204, description = "deleted"), (status = 400, description = text::BAD_REQUEST, body = ErrorBody), (status = 404, description = text::NOT_FOUND, body = ErrorBody)))]
+    responses(
+        (status = 204, description = "deleted"),
+        (status = 400, description = text::BAD_REQUEST, body = ErrorBody),
+        (status = 404, description = text::NOT_FOUND, body = ErrorBody),
+    ))]
 pub async fn delete(
     State(app): State<App>,
     Path(TextureId { id }): Path<TextureId>,

@@ -67,8 +67,17 @@ pub struct TilePath {
 #[utoipa::path(get, operation_id = "dzi_descriptor",
     path = "/dzi/{file}",
     tag = "interop",
-    params(("file" = String, Path, description = "`{id}.dzi`"), ("overlap" = Option<u32>, Query, description = "tile overlap in pixels"), ("format" = Option<String>, Query, description = "png, webp or jpg"), ("frame" = Option<u32>, Query, description = text::FRAME)),
-    responses((status = 200, description = "the Deep Zoom descriptor", content(("application/xml"))), (status = 400, description = text::BAD_REQUEST, body = ErrorBody), (status = 404, description = text::NOT_FOUND, body = ErrorBody)))]
+    params(
+        ("file" = String, Path, description = "`{id}.dzi`"),
+        ("overlap" = Option<u32>, Query, description = "tile overlap in pixels"),
+        ("format" = Option<String>, Query, description = "png, webp or jpg"),
+        ("frame" = Option<u32>, Query, description = text::FRAME),
+    ),
+    responses(
+        (status = 200, description = "the Deep Zoom descriptor", content(("application/xml"))),
+        (status = 400, description = text::BAD_REQUEST, body = ErrorBody),
+        (status = 404, description = text::NOT_FOUND, body = ErrorBody),
+    ))]
 pub async fn descriptor(
     State(app): State<App>,
     Path(DescriptorPath { file }): Path<DescriptorPath>,
@@ -98,8 +107,20 @@ pub async fn descriptor(
 #[utoipa::path(get, operation_id = "dzi_tile",
     path = "/dzi/{dir}/{level}/{file}",
     tag = "interop",
-    params(("dir" = String, Path, description = "`{id}_files`"), ("level" = u32, Path, description = "Deep Zoom level, 0 the 1×1"), ("file" = String, Path, description = "`{x}_{y}.{format}`"), ("overlap" = Option<u32>, Query), ("format" = Option<String>, Query), ("frame" = Option<u32>, Query, description = text::FRAME)),
-    responses((status = 200, description = "the Deep Zoom tile", content(("image/png"), ("image/webp"), ("image/jpeg"))), (status = 400, description = text::BAD_REQUEST, body = ErrorBody), (status = 404, description = text::NOT_FOUND, body = ErrorBody), (status = 503, description = text::UNAVAILABLE, body = ErrorBody)))]
+    params(
+        ("dir" = String, Path, description = "`{id}_files`"),
+        ("level" = u32, Path, description = "Deep Zoom level, 0 the 1×1"),
+        ("file" = String, Path, description = "`{x}_{y}.{format}`"),
+        ("overlap" = Option<u32>, Query),
+        ("format" = Option<String>, Query),
+        ("frame" = Option<u32>, Query, description = text::FRAME),
+    ),
+    responses(
+        (status = 200, description = "the Deep Zoom tile", content(("image/png"), ("image/webp"), ("image/jpeg"))),
+        (status = 400, description = text::BAD_REQUEST, body = ErrorBody),
+        (status = 404, description = text::NOT_FOUND, body = ErrorBody),
+        (status = 503, description = text::UNAVAILABLE, body = ErrorBody),
+    ))]
 pub async fn tile(
     State(app): State<App>,
     Path(TilePath { dir, level, file }): Path<TilePath>,

@@ -13,7 +13,9 @@ use std::sync::atomic::Ordering;
 #[utoipa::path(get,
     path = "/healthz",
     tag = "operations",
-    responses((status = 200, description = "`{\"status\":\"ok\"}`: the process answers", content(("application/json")))))]
+    responses(
+        (status = 200, description = "`{\"status\":\"ok\"}`: the process answers", content(("application/json"))),
+    ))]
 pub async fn healthz(_: Query<NoQuery>) -> Response {
     ([(header::CONTENT_TYPE, "application/json")], r#"{"status":"ok"}"#).into_response()
 }
@@ -21,7 +23,11 @@ pub async fn healthz(_: Query<NoQuery>) -> Response {
 #[utoipa::path(get,
     path = "/readyz",
     tag = "operations",
-    responses((status = 200, description = "`{\"status\":\"ready\",\"textures\":N}`", content(("application/json"))), (status = 503, description = "not ready: the data directory cannot be read, or shutting down", content(("application/json")))))]
+    responses(
+        (status = 200, description = "`{\"status\":\"ready\",\"textures\":N}`", content(("application/json"))),
+        (status = 503, description = "not ready: the data directory cannot be read, or shutting \
+            down", content(("application/json"))),
+    ))]
 pub async fn readyz(State(app): State<App>, _: Query<NoQuery>) -> Response {
     let not_ready = |why: &str| {
         let body = serde_json::json!({ "status": "not ready", "error": why }).to_string();

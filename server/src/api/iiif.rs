@@ -77,7 +77,10 @@ pub(super) fn service_url(origin: &Origin, ident: &str) -> String {
     path = "/iiif/3/{ident}",
     tag = "interop",
     params(("ident" = String, Path, description = text::ID_AND_FRAME)),
-    responses((status = 303, description = "to its `info.json`"), (status = 404, description = text::NOT_FOUND, body = ErrorBody)))]
+    responses(
+        (status = 303, description = "to its `info.json`"),
+        (status = 404, description = text::NOT_FOUND, body = ErrorBody),
+    ))]
 pub async fn base(Path(IdentPath { ident }): Path<IdentPath>, _: Query<NoQuery>, origin: Origin) -> Response {
     let to = format!("{}/info.json", service_url(&origin, &ident));
     (StatusCode::SEE_OTHER, [(header::LOCATION, to)]).into_response()
@@ -89,7 +92,12 @@ pub async fn base(Path(IdentPath { ident }): Path<IdentPath>, _: Query<NoQuery>,
     path = "/iiif/3/{ident}/info.json",
     tag = "interop",
     params(("ident" = String, Path, description = text::ID_AND_FRAME)),
-    responses((status = 200, description = "IIIF Image API 3 image information: JSON-LD with the image context as its profile unless `Accept` prefers plain JSON", content(("application/ld+json"), ("application/json"))), (status = 404, description = text::NOT_FOUND, body = ErrorBody), (status = 406, description = text::NOT_ACCEPTABLE, body = ErrorBody)))]
+    responses(
+        (status = 200, description = "IIIF Image API 3 image information: JSON-LD with the image context as its \
+            profile unless `Accept` prefers plain JSON", content(("application/ld+json"), ("application/json"))),
+        (status = 404, description = text::NOT_FOUND, body = ErrorBody),
+        (status = 406, description = text::NOT_ACCEPTABLE, body = ErrorBody),
+    ))]
 pub async fn info(
     State(app): State<App>,
     Path(IdentPath { ident }): Path<IdentPath>,
@@ -413,8 +421,21 @@ impl Request {
 #[utoipa::path(get, operation_id = "iiif_image",
     path = "/iiif/3/{ident}/{region}/{size}/{rotation}/{file}",
     tag = "interop",
-    params(("ident" = String, Path, description = text::ID_AND_FRAME), ("region" = String, Path, description = "full, square, x,y,w,h or pct:x,y,w,h"), ("size" = String, Path, description = "max, ^max, w,, ,h, pct:n, w,h, !w,h (and ^ forms)"), ("rotation" = String, Path, description = "0, 90, 180, 270 or 360, optionally mirrored (!); other angles are a 400"), ("file" = String, Path, description = "`{quality}.{format}`: default, color, gray or bitonal; png, jpg or webp")),
-    responses((status = 200, description = "the image", content(("image/png"), ("image/webp"), ("image/jpeg"))), (status = 400, description = text::BAD_REQUEST, body = ErrorBody), (status = 404, description = text::NOT_FOUND, body = ErrorBody), (status = 503, description = text::UNAVAILABLE, body = ErrorBody)))]
+    params(
+        ("ident" = String, Path, description = text::ID_AND_FRAME),
+        ("region" = String, Path, description = "full, square, x,y,w,h or pct:x,y,w,h"),
+        ("size" = String, Path, description = "max, ^max, w,, ,h, pct:n, w,h, !w,h (and ^ forms)"),
+        ("rotation" = String, Path, description = "0, 90, 180, 270 or 360, optionally mirrored (!); other angles are \
+            a 400"),
+        ("file" = String, Path, description = "`{quality}.{format}`: default, color, gray or bitonal; png, jpg or \
+            webp"),
+    ),
+    responses(
+        (status = 200, description = "the image", content(("image/png"), ("image/webp"), ("image/jpeg"))),
+        (status = 400, description = text::BAD_REQUEST, body = ErrorBody),
+        (status = 404, description = text::NOT_FOUND, body = ErrorBody),
+        (status = 503, description = text::UNAVAILABLE, body = ErrorBody),
+    ))]
 pub async fn image(
     State(app): State<App>,
     Path(path): Path<ImagePath>,

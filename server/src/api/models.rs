@@ -154,7 +154,10 @@ pub struct ExampleFile {
 #[utoipa::path(get,
     path = "/api/v1/models",
     tag = "models",
-    responses((status = 200, description = "every model (strong ETag, `no-cache`)", body = ModelList), (status = 400, description = text::BAD_REQUEST, body = ErrorBody)))]
+    responses(
+        (status = 200, description = "every model (strong ETag, `no-cache`)", body = ModelList),
+        (status = 400, description = text::BAD_REQUEST, body = ErrorBody),
+    ))]
 pub async fn list_models(_: Query<NoQuery>, origin: Origin, headers: HeaderMap) -> Response {
     let mut list = list();
     list.models.iter_mut().for_each(|doc| absolute(doc, &origin));
@@ -173,7 +176,10 @@ fn absolute(doc: &mut ModelDoc, origin: &Origin) {
     path = "/api/v1/models/{id}",
     tag = "models",
     params(("id" = String, Path, description = "model id, e.g. `chaos-mosaic`")),
-    responses((status = 200, description = "the model", body = ModelDoc), (status = 404, description = "no such model; the message names the models", body = ErrorBody)))]
+    responses(
+        (status = 200, description = "the model", body = ModelDoc),
+        (status = 404, description = "no such model; the message names the models", body = ErrorBody),
+    ))]
 pub async fn model(
     Path(ModelId { id }): Path<ModelId>,
     _: Query<NoQuery>,
@@ -190,8 +196,14 @@ pub async fn model(
 #[utoipa::path(get,
     path = EXAMPLE_INPUT,
     tag = "models",
-    params(("id" = String, Path, description = "model id"), ("file" = String, Path, description = "`{input}.png`, an input of the model's example")),
-    responses((status = 200, description = "the example's input image", content(("image/png"))), (status = 404, description = "no such model or example input", body = ErrorBody)))]
+    params(
+        ("id" = String, Path, description = "model id"),
+        ("file" = String, Path, description = "`{input}.png`, an input of the model's example"),
+    ),
+    responses(
+        (status = 200, description = "the example's input image", content(("image/png"))),
+        (status = 404, description = "no such model or example input", body = ErrorBody),
+    ))]
 pub async fn example_image(
     Path(ExampleFile { id, file }): Path<ExampleFile>,
     _: Query<NoQuery>,

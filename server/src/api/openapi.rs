@@ -46,7 +46,8 @@ pub struct ErrorBody {
         (name = "textures", description = "Texture resources: list, info, upload, edit, delete, encoding"),
         (name = "tiles", description = "Tiles, tile batches and regions of any level"),
         (name = "pages", description = "Virtual-texturing pages with borders, KTX2 mip chains"),
-        (name = "interop", description = "Deep Zoom, IIIF Image API 3 and Presentation 3, TileJSON and XYZ over the same tiles"),
+        (name = "interop", description = "Deep Zoom, IIIF Image API 3 and Presentation 3, TileJSON and XYZ over the \
+            same tiles"),
         (name = "models", description = "The texture models: parameter schemas and examples"),
         (name = "operations", description = "Liveness, readiness, metrics and this description"),
     )
@@ -72,7 +73,10 @@ pub fn document() -> &'static utoipa::openapi::OpenApi {
 
 /// `GET /api/v1/openapi.json`, its `servers` the one URL this server is reached at.
 #[utoipa::path(get, path = "/api/v1/openapi.json", tag = "operations",
-    responses((status = 200, description = "This OpenAPI 3.1 document (strong ETag, `no-cache`)", content_type = "application/json")))]
+    responses(
+        (status = 200, description = "This OpenAPI 3.1 document (strong ETag, \
+            `no-cache`)", content_type = "application/json"),
+    ))]
 pub async fn openapi_json(_: Query<NoQuery>, origin: Origin, headers: HeaderMap) -> Response {
     let mut doc = document().clone();
     doc.servers = Some(vec![Server::new(origin.to_string())]);

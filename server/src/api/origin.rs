@@ -406,7 +406,8 @@ mod tests {
         let c = cfg(&["--trusted-proxies", "10.0.0.0/8"]);
         let fwd = [(
             "forwarded",
-            "for=198.51.100.1;host=spoofed.example, for=192.0.2.60;proto=https;host=example.org, for=10.0.0.7;host=inner:81",
+            "for=198.51.100.1;host=spoofed.example, for=192.0.2.60;proto=https;host=example.org, \
+             for=10.0.0.7;host=inner:81",
         )];
         assert_eq!(url(&c, "10.0.0.8:1", &fwd), "https://example.org");
         assert_eq!(client_addr(&c, &request("10.0.0.8:1", &fwd)), IpAddr::from([192, 0, 2, 60]));

@@ -199,8 +199,24 @@ pub(super) fn page_etag(entry: &Entry, key: &TileKey, size: u32, border: u32) ->
 #[utoipa::path(get,
     path = "/api/v1/textures/{id}/pages/{level}/{x}/{file}",
     tag = "pages",
-    params(("id" = String, Path, description = text::TEXTURE_ID), ("level" = u32, Path), ("x" = u32, Path, description = "page column"), ("file" = String, Path, description = "`{y}.{format}`, format png, webp, jpg, rgba or ktx2"), ("size" = Option<u32>, Query, description = "64, 128 (default), 256 or 512"), ("border" = Option<u32>, Query, description = "0..=size/8 (default 4)"), ("codec" = Option<String>, Query, description = "ktx2: bc7, bc1 or rgba8"), ("supercompression" = Option<String>, Query, description = "ktx2: none or zstd"), ("frame" = Option<u32>, Query, description = text::FRAME)),
-    responses((status = 200, description = "the (size + 2·border)² page, its border bit-identical to its neighbours", content(("application/octet-stream"))), (status = 400, description = text::BAD_REQUEST, body = ErrorBody), (status = 404, description = text::NOT_FOUND, body = ErrorBody), (status = 503, description = text::UNAVAILABLE, body = ErrorBody)))]
+    params(
+        ("id" = String, Path, description = text::TEXTURE_ID),
+        ("level" = u32, Path),
+        ("x" = u32, Path, description = "page column"),
+        ("file" = String, Path, description = "`{y}.{format}`, format png, webp, jpg, rgba or ktx2"),
+        ("size" = Option<u32>, Query, description = "64, 128 (default), 256 or 512"),
+        ("border" = Option<u32>, Query, description = "0..=size/8 (default 4)"),
+        ("codec" = Option<String>, Query, description = "ktx2: bc7, bc1 or rgba8"),
+        ("supercompression" = Option<String>, Query, description = "ktx2: none or zstd"),
+        ("frame" = Option<u32>, Query, description = text::FRAME),
+    ),
+    responses(
+        (status = 200, description = "the (size + 2·border)² page, its border bit-identical to its \
+            neighbours", content(("application/octet-stream"))),
+        (status = 400, description = text::BAD_REQUEST, body = ErrorBody),
+        (status = 404, description = text::NOT_FOUND, body = ErrorBody),
+        (status = 503, description = text::UNAVAILABLE, body = ErrorBody),
+    ))]
 pub async fn page(
     State(app): State<App>,
     Path(PagePath { id, level, x, file }): Path<PagePath>,
@@ -258,8 +274,19 @@ pub struct ChainQuery {
 #[utoipa::path(get,
     path = "/api/v1/textures/{id}/mips.ktx2",
     tag = "pages",
-    params(("id" = String, Path, description = text::TEXTURE_ID), ("level" = Option<u32>, Query, description = "finest level of the chain"), ("codec" = Option<String>, Query), ("supercompression" = Option<String>, Query), ("frame" = Option<u32>, Query, description = text::FRAME)),
-    responses((status = 200, description = "a KTX2 mip chain from `level` to 1×1", content(("image/ktx2"))), (status = 400, description = text::BAD_REQUEST, body = ErrorBody), (status = 404, description = text::NOT_FOUND, body = ErrorBody), (status = 503, description = text::UNAVAILABLE, body = ErrorBody)))]
+    params(
+        ("id" = String, Path, description = text::TEXTURE_ID),
+        ("level" = Option<u32>, Query, description = "finest level of the chain"),
+        ("codec" = Option<String>, Query),
+        ("supercompression" = Option<String>, Query),
+        ("frame" = Option<u32>, Query, description = text::FRAME),
+    ),
+    responses(
+        (status = 200, description = "a KTX2 mip chain from `level` to 1×1", content(("image/ktx2"))),
+        (status = 400, description = text::BAD_REQUEST, body = ErrorBody),
+        (status = 404, description = text::NOT_FOUND, body = ErrorBody),
+        (status = 503, description = text::UNAVAILABLE, body = ErrorBody),
+    ))]
 pub async fn mip_chain(
     State(app): State<App>,
     Path(TextureId { id }): Path<TextureId>,

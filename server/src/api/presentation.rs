@@ -94,7 +94,14 @@ fn manifest(origin: &Origin, record: &Record) -> Value {
     path = "/iiif/presentation/3/{id}/manifest.json",
     tag = "interop",
     params(("id" = String, Path, description = text::TEXTURE_ID)),
-    responses((status = 200, description = "IIIF Presentation API 3 Manifest of the texture: one Canvas painted by its Image API 3 service. JSON-LD with the presentation context as its profile unless `Accept` prefers plain JSON", content(("application/ld+json"), ("application/json"))), (status = 400, description = text::BAD_REQUEST, body = ErrorBody), (status = 404, description = text::NOT_FOUND, body = ErrorBody), (status = 406, description = text::NOT_ACCEPTABLE, body = ErrorBody)))]
+    responses(
+        (status = 200, description = "IIIF Presentation API 3 Manifest of the texture: one Canvas painted by its \
+            Image API 3 service. JSON-LD with the presentation context as its profile unless `Accept` prefers plain \
+            JSON", content(("application/ld+json"), ("application/json"))),
+        (status = 400, description = text::BAD_REQUEST, body = ErrorBody),
+        (status = 404, description = text::NOT_FOUND, body = ErrorBody),
+        (status = 406, description = text::NOT_ACCEPTABLE, body = ErrorBody),
+    ))]
 pub async fn manifest_json(
     State(app): State<App>,
     Path(TextureId { id }): Path<TextureId>,
@@ -110,7 +117,13 @@ pub async fn manifest_json(
 #[utoipa::path(get, operation_id = "iiif_collection",
     path = "/iiif/presentation/3/collection.json",
     tag = "interop",
-    responses((status = 200, description = "IIIF Presentation API 3 Collection of every texture's Manifest, by name. JSON-LD with the presentation context as its profile unless `Accept` prefers plain JSON", content(("application/ld+json"), ("application/json"))), (status = 400, description = text::BAD_REQUEST, body = ErrorBody), (status = 406, description = text::NOT_ACCEPTABLE, body = ErrorBody)))]
+    responses(
+        (status = 200, description = "IIIF Presentation API 3 Collection of every texture's Manifest, by name. \
+            JSON-LD with the presentation context as its profile unless `Accept` prefers plain \
+            JSON", content(("application/ld+json"), ("application/json"))),
+        (status = 400, description = text::BAD_REQUEST, body = ErrorBody),
+        (status = 406, description = text::NOT_ACCEPTABLE, body = ErrorBody),
+    ))]
 pub async fn collection_json(
     State(app): State<App>,
     _: Query<NoQuery>,

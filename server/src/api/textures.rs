@@ -31,7 +31,10 @@ const MAX_PATCH_BYTES: usize = 1 << 20;
 #[utoipa::path(get,
     path = "/api/v1/textures",
     tag = "textures",
-    responses((status = 200, description = "every texture, by name (strong ETag, `no-cache`)", body = TextureList), (status = 400, description = text::BAD_REQUEST, body = ErrorBody)))]
+    responses(
+        (status = 200, description = "every texture, by name (strong ETag, `no-cache`)", body = TextureList),
+        (status = 400, description = text::BAD_REQUEST, body = ErrorBody),
+    ))]
 pub async fn list(State(app): State<App>, _: Query<NoQuery>, headers: HeaderMap) -> Response {
     let textures: Vec<TextureInfo> = app.store.list().iter().map(|e| e.info()).collect();
     json_validated(&headers, &TextureList { textures })
@@ -41,7 +44,11 @@ pub async fn list(State(app): State<App>, _: Query<NoQuery>, headers: HeaderMap)
     path = "/api/v1/textures/{id}",
     tag = "textures",
     params(("id" = String, Path, description = text::TEXTURE_ID)),
-    responses((status = 200, description = "the texture's info (strong ETag, `no-cache`)", body = TextureInfo), (status = 400, description = text::BAD_REQUEST, body = ErrorBody), (status = 404, description = text::NOT_FOUND, body = ErrorBody)))]
+    responses(
+        (status = 200, description = "the texture's info (strong ETag, `no-cache`)", body = TextureInfo),
+        (status = 400, description = text::BAD_REQUEST, body = ErrorBody),
+        (status = 404, description = text::NOT_FOUND, body = ErrorBody),
+    ))]
 pub async fn info(
     State(app): State<App>,
     Path(TextureId { id }): Path<TextureId>,
@@ -79,7 +86,13 @@ pub(super) fn validated(headers: &HeaderMap, content_type: &'static str, body: b
     path = "/api/v1/textures/{id}/encoding",
     tag = "textures",
     params(("id" = String, Path, description = text::TEXTURE_ID)),
-    responses((status = 200, description = "the bundle bytes exactly as stored (ETag: the id)", content(("application/octet-stream"))), (status = 400, description = text::BAD_REQUEST, body = ErrorBody), (status = 404, description = text::NOT_FOUND, body = ErrorBody), (status = 503, description = text::UNAVAILABLE, body = ErrorBody)))]
+    responses(
+        (status = 200, description = "the bundle bytes exactly as stored (ETag: the \
+            id)", content(("application/octet-stream"))),
+        (status = 400, description = text::BAD_REQUEST, body = ErrorBody),
+        (status = 404, description = text::NOT_FOUND, body = ErrorBody),
+        (status = 503, description = text::UNAVAILABLE, body = ErrorBody),
+    ))]
 pub async fn encoding(
     State(app): State<App>,
     Path(TextureId { id }): Path<TextureId>,
@@ -131,8 +144,18 @@ async fn store_bundle(app: &App, bytes: Vec<u8>) -> Result<(StatusCode, Json<Tex
 #[utoipa::path(post,
     path = "/api/v1/textures",
     tag = "textures",
-    request_body(description = "a bundle (`application/octet-stream`), or multipart fields `model`, `name`, `params` (JSON text) and one per input image (see `GET /api/v1/models`)", content(("application/octet-stream"), ("multipart/form-data"))),
-    responses((status = 201, description = "stored", body = TextureInfo), (status = 200, description = "the identical bundle was already stored", body = TextureInfo), (status = 400, description = "invalid bundle, model, parameters or input image, named", body = ErrorBody), (status = 413, description = "body over `--max-upload-mb`", body = ErrorBody), (status = 415, description = "neither a bundle nor multipart", body = ErrorBody), (status = 422, description = text::OVER_BOUND, body = ErrorBody), (status = 507, description = "the store is full", body = ErrorBody)))]
+    request_body(description = "a bundle (`application/octet-stream`), or multipart fields `model`, `name`, `params` \
+        (JSON text) and one per input image (see `GET \
+        /api/v1/models`)", content(("application/octet-stream"), ("multipart/form-data"))),
+    responses(
+        (status = 201, description = "stored", body = TextureInfo),
+        (status = 200, description = "the identical bundle was already stored", body = TextureInfo),
+        (status = 400, description = "invalid bundle, model, parameters or input image, named", body = ErrorBody),
+        (status = 413, description = "body over `--max-upload-mb`", body = ErrorBody),
+        (status = 415, description = "neither a bundle nor multipart", body = ErrorBody),
+        (status = 422, description = text::OVER_BOUND, body = ErrorBody),
+        (status = 507, description = "the store is full", body = ErrorBody),
+    ))]
 pub async fn upload(
     State(app): State<App>,
     _: Query<NoQuery>,
@@ -217,8 +240,16 @@ async fn bundle_from_multipart(req: Request, limit: usize, bounds: Limits) -> Re
     path = "/api/v1/textures/{id}",
     tag = "textures",
     params(("id" = String, Path, description = text::TEXTURE_ID)),
-    request_body(description = "JSON merge patch (RFC 7396) of `name` and `params` (the params as given; `derived` is made again from them)", content(("application/json"))),
-    responses((status = 201, description = "the new texture: what creating it from the patched name and params with the same input images makes", body = TextureInfo), (status = 400, description = "not a patch of `name` and `params`, or params its model cannot remake, named", body = ErrorBody), (status = 404, description = text::NOT_FOUND, body = ErrorBody), (status = 422, description = text::OVER_BOUND, body = ErrorBody)))]
+    request_body(description = "JSON merge patch (RFC 7396) of `name` and `params` (the params as given; `derived` \
+        is made again from them)", content(("application/json"))),
+    responses(
+        (status = 201, description = "the new texture: what creating it from the patched name and params with the \
+            same input images makes", body = TextureInfo),
+        (status = 400, description = "not a patch of `name` and `params`, or params its model cannot remake, \
+            named", body = ErrorBody),
+        (status = 404, description = text::NOT_FOUND, body = ErrorBody),
+        (status = 422, description = text::OVER_BOUND, body = ErrorBody),
+    ))]
 pub async fn patch(
     State(app): State<App>,
     Path(TextureId { id }): Path<TextureId>,

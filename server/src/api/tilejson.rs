@@ -44,8 +44,16 @@ fn latitude(t: f64) -> f64 {
 #[utoipa::path(get,
     path = "/api/v1/textures/{id}/tilejson.json",
     tag = "interop",
-    params(("id" = String, Path, description = text::TEXTURE_ID), ("format" = Option<String>, Query, description = "png (default), webp or jpg"), ("frame" = Option<u32>, Query, description = text::FRAME)),
-    responses((status = 200, description = "TileJSON 3.0.0", content(("application/json"))), (status = 400, description = text::BAD_REQUEST, body = ErrorBody), (status = 404, description = text::NOT_FOUND, body = ErrorBody)))]
+    params(
+        ("id" = String, Path, description = text::TEXTURE_ID),
+        ("format" = Option<String>, Query, description = "png (default), webp or jpg"),
+        ("frame" = Option<u32>, Query, description = text::FRAME),
+    ),
+    responses(
+        (status = 200, description = "TileJSON 3.0.0", content(("application/json"))),
+        (status = 400, description = text::BAD_REQUEST, body = ErrorBody),
+        (status = 404, description = text::NOT_FOUND, body = ErrorBody),
+    ))]
 pub async fn tilejson(
     State(app): State<App>,
     Path(TextureId { id }): Path<TextureId>,
@@ -68,7 +76,10 @@ pub async fn tilejson(
     Ok(Json(json!({
         "tilejson": "3.0.0",
         "name": rec.manifest.name,
-        "description": format!("vtex texture {id} ({} model, {}×{} texels)", rec.manifest.model, rec.plan.width, rec.plan.height),
+        "description": format!(
+            "vtex texture {id} ({} model, {}×{} texels)",
+            rec.manifest.model, rec.plan.width, rec.plan.height
+        ),
         "scheme": "xyz",
         "tiles": [template],
         "minzoom": 0,
@@ -105,8 +116,21 @@ pub struct XyzQuery {
 #[utoipa::path(get,
     path = "/api/v1/textures/{id}/xyz/{z}/{x}/{file}",
     tag = "interop",
-    params(("id" = String, Path, description = text::TEXTURE_ID), ("z" = u32, Path, description = "zoom, 0 the whole texture in one tile"), ("x" = u32, Path), ("file" = String, Path, description = "`{y}.{format}`, format png, webp or jpg"), ("frame" = Option<u32>, Query, description = text::FRAME)),
-    responses((status = 200, description = "the tile of vtex level `levels − 1 − z`, always `tileSize` square: transparent beyond the texture (black in jpg); strong ETag, immutable", content(("image/png"), ("image/webp"), ("image/jpeg"))), (status = 400, description = text::BAD_REQUEST, body = ErrorBody), (status = 404, description = text::NOT_FOUND, body = ErrorBody), (status = 503, description = text::UNAVAILABLE, body = ErrorBody)))]
+    params(
+        ("id" = String, Path, description = text::TEXTURE_ID),
+        ("z" = u32, Path, description = "zoom, 0 the whole texture in one tile"),
+        ("x" = u32, Path),
+        ("file" = String, Path, description = "`{y}.{format}`, format png, webp or jpg"),
+        ("frame" = Option<u32>, Query, description = text::FRAME),
+    ),
+    responses(
+        (status = 200, description = "the tile of vtex level `levels − 1 − z`, always `tileSize` square: transparent \
+            beyond the texture (black in jpg); strong ETag, \
+            immutable", content(("image/png"), ("image/webp"), ("image/jpeg"))),
+        (status = 400, description = text::BAD_REQUEST, body = ErrorBody),
+        (status = 404, description = text::NOT_FOUND, body = ErrorBody),
+        (status = 503, description = text::UNAVAILABLE, body = ErrorBody),
+    ))]
 pub async fn xyz(
     State(app): State<App>,
     Path(XyzPath { id, z, x, file }): Path<XyzPath>,

@@ -113,8 +113,21 @@ pub(super) fn check_tile(entry: &Entry, level: u32, x: u32, y: u32) -> Result<()
 #[utoipa::path(get,
     path = super::TILE,
     tag = "tiles",
-    params(("id" = String, Path, description = text::TEXTURE_ID), ("level" = u32, Path, description = "mip level, 0 full resolution"), ("x" = u32, Path, description = "tile column"), ("file" = String, Path, description = "`{y}.{format}`, format png, webp, jpg or rgba (raw RGBA8)"), ("frame" = Option<u32>, Query, description = text::FRAME)),
-    responses((status = 200, description = "the tile (edge tiles clipped; strong ETag, immutable)", content(("image/png"), ("image/webp"), ("image/jpeg"), ("application/octet-stream"))), (status = 304, description = "`If-None-Match` names its ETag"), (status = 400, description = text::BAD_REQUEST, body = ErrorBody), (status = 404, description = text::NOT_FOUND, body = ErrorBody), (status = 503, description = text::UNAVAILABLE, body = ErrorBody)))]
+    params(
+        ("id" = String, Path, description = text::TEXTURE_ID),
+        ("level" = u32, Path, description = "mip level, 0 full resolution"),
+        ("x" = u32, Path, description = "tile column"),
+        ("file" = String, Path, description = "`{y}.{format}`, format png, webp, jpg or rgba (raw RGBA8)"),
+        ("frame" = Option<u32>, Query, description = text::FRAME),
+    ),
+    responses(
+        (status = 200, description = "the tile (edge tiles clipped; strong ETag, \
+            immutable)", content(("image/png"), ("image/webp"), ("image/jpeg"), ("application/octet-stream"))),
+        (status = 304, description = "`If-None-Match` names its ETag"),
+        (status = 400, description = text::BAD_REQUEST, body = ErrorBody),
+        (status = 404, description = text::NOT_FOUND, body = ErrorBody),
+        (status = 503, description = text::UNAVAILABLE, body = ErrorBody),
+    ))]
 pub async fn tile(
     State(app): State<App>,
     Path(path): Path<TilePath>,
@@ -211,10 +224,11 @@ fn key_region(entry: &Entry, key: &TileKey) -> (Region, (u32, u32)) {
     }
 }
 
-/// Tile or page `key` (inside `entry`'s pyramid or page grid): `cached` when the caller found it in the cache, else
-/// from the cache or synthesized, one computation shared by every concurrent request for it
-/// (holding a synthesis slot, and stopped once none of them waits any more). Counted as a hit or a miss. Single tiles and batches
-/// (`batch.rs`) both come through here, so they share the cache, coalescing and bounds.
+/// Tile or page `key` (inside `entry`'s pyramid or page grid): `cached` when the caller found it
+/// in the cache, else from the cache or synthesized, one computation shared by every concurrent
+/// request for it (holding a synthesis slot, and stopped once none of them waits any more).
+/// Counted as a hit or a miss. Single tiles and batches (`batch.rs`) both come through here, so
+/// they share the cache, coalescing and bounds.
 pub(super) async fn obtain(
     app: &App,
     entry: &Arc<Entry>,
@@ -275,8 +289,22 @@ pub struct RegionQuery {
 #[utoipa::path(get,
     path = "/api/v1/textures/{id}/region",
     tag = "tiles",
-    params(("id" = String, Path, description = text::TEXTURE_ID), ("level" = u32, Query), ("x" = i64, Query, description = "any integer: a torus wraps, a plane is defined everywhere"), ("y" = i64, Query), ("w" = u32, Query), ("h" = u32, Query, description = "w × h at most `--max-region-pixels`, 16383 a side"), ("format" = Option<String>, Query, description = "png (default), webp, jpg or rgba"), ("frame" = Option<u32>, Query, description = text::FRAME)),
-    responses((status = 200, description = "the region, rendered", content(("image/png"))), (status = 400, description = text::BAD_REQUEST, body = ErrorBody), (status = 404, description = text::NOT_FOUND, body = ErrorBody), (status = 503, description = text::UNAVAILABLE, body = ErrorBody)))]
+    params(
+        ("id" = String, Path, description = text::TEXTURE_ID),
+        ("level" = u32, Query),
+        ("x" = i64, Query, description = "any integer: a torus wraps, a plane is defined everywhere"),
+        ("y" = i64, Query),
+        ("w" = u32, Query),
+        ("h" = u32, Query, description = "w × h at most `--max-region-pixels`, 16383 a side"),
+        ("format" = Option<String>, Query, description = "png (default), webp, jpg or rgba"),
+        ("frame" = Option<u32>, Query, description = text::FRAME),
+    ),
+    responses(
+        (status = 200, description = "the region, rendered", content(("image/png"))),
+        (status = 400, description = text::BAD_REQUEST, body = ErrorBody),
+        (status = 404, description = text::NOT_FOUND, body = ErrorBody),
+        (status = 503, description = text::UNAVAILABLE, body = ErrorBody),
+    ))]
 pub async fn region(
     State(app): State<App>,
     Path(TextureId { id }): Path<TextureId>,

@@ -85,7 +85,8 @@ impl View {
     pub fn check(&self, max_pixels: u64) -> Result<(), ApiError> {
         if self.out_w == 0 || self.out_h == 0 || over(self.out_w as u64, self.out_h as u64, max_pixels) {
             return Err(ApiError::bad_request(format!(
-                "output {}×{} is outside the limits: 1..={MAX_REGION_SIDE} pixels a side and at most {max_pixels} pixels in all",
+                "output {}×{} is outside the limits: 1..={MAX_REGION_SIDE} pixels a side and at most \
+                 {max_pixels} pixels in all",
                 self.out_w, self.out_h
             )));
         }
