@@ -44,7 +44,13 @@ pub struct ServeConfig {
     /// Address to listen on.
     ///
     /// Port 0 picks a free one (the chosen address is printed).
-    #[arg(long, value_name = "ADDR", env = "VTEX_BIND", default_value = "127.0.0.1:8080", help_heading = heading::NETWORK)]
+    #[arg(
+        long,
+        value_name = "ADDR",
+        env = "VTEX_BIND",
+        default_value = "127.0.0.1:8080",
+        help_heading = heading::NETWORK,
+    )]
     pub bind: SocketAddr,
     /// The URL clients reach vtex at, behind a proxy or under a sub-path.
     ///
@@ -57,12 +63,24 @@ pub struct ServeConfig {
     ///
     /// `Forwarded` and `X-Forwarded-For/-Host/-Proto/-Port/-Prefix` give the client's address and, without
     /// --public-url, the URL it used. Ignored from other peers.
-    #[arg(long, env = "VTEX_TRUSTED_PROXIES", value_delimiter = ',', value_name = "IP|CIDR", help_heading = heading::NETWORK)]
+    #[arg(
+        long,
+        env = "VTEX_TRUSTED_PROXIES",
+        value_delimiter = ',',
+        value_name = "IP|CIDR",
+        help_heading = heading::NETWORK,
+    )]
     pub trusted_proxies: Vec<TrustedProxy>,
     /// Directory of the texture bundles (`<id>.vtex`).
     ///
     /// Bundles are content-addressed. Created if missing; it must be readable, and writable unless `--read-only`.
-    #[arg(long, value_name = "DIR", env = "VTEX_DATA_DIR", default_value = "./vtex-data", help_heading = heading::STORE)]
+    #[arg(
+        long,
+        value_name = "DIR",
+        env = "VTEX_DATA_DIR",
+        default_value = "./vtex-data",
+        help_heading = heading::STORE,
+    )]
     pub data_dir: PathBuf,
     /// Byte budget of the encoded-tile cache, in MiB.
     ///
@@ -74,7 +92,13 @@ pub struct ServeConfig {
     /// The process-wide pyramidal cache of `order-independent`, shared by all its textures; 0
     /// keeps nothing. It never changes a tile, only how much of a tile's dependencies is
     /// computed again.
-    #[arg(long, value_name = "MIB", env = "VTEX_SYNTH_CACHE_MB", default_value_t = 64.0, help_heading = heading::BUDGETS)]
+    #[arg(
+        long,
+        value_name = "MIB",
+        env = "VTEX_SYNTH_CACHE_MB",
+        default_value_t = 64.0,
+        help_heading = heading::BUDGETS,
+    )]
     pub synth_cache_mb: f64,
     /// Serve the viewer from this directory, not the built-in copy.
     ///
@@ -90,20 +114,44 @@ pub struct ServeConfig {
     #[arg(long, value_name = "N", env = "VTEX_MAX_SYNTHESES", help_heading = heading::BUDGETS)]
     pub max_syntheses: Option<usize>,
     /// Largest accepted request body (uploads, patches), in MiB.
-    #[arg(long, value_name = "MIB", env = "VTEX_MAX_UPLOAD_MB", default_value_t = 64.0, help_heading = heading::BUDGETS)]
+    #[arg(
+        long,
+        value_name = "MIB",
+        env = "VTEX_MAX_UPLOAD_MB",
+        default_value_t = 64.0,
+        help_heading = heading::BUDGETS,
+    )]
     pub max_upload_mb: f64,
     /// Largest region request, in pixels (w × h).
-    #[arg(long, value_name = "N", env = "VTEX_MAX_REGION_PIXELS", default_value_t = DEFAULT_MAX_REGION_PIXELS, help_heading = heading::BUDGETS)]
+    #[arg(
+        long,
+        value_name = "N",
+        env = "VTEX_MAX_REGION_PIXELS",
+        default_value_t = DEFAULT_MAX_REGION_PIXELS,
+        help_heading = heading::BUDGETS,
+    )]
     pub max_region_pixels: u64,
     /// Whole-request deadline in seconds, reading the body included.
     ///
     /// Slow clients get 408.
-    #[arg(long, value_name = "SECS", env = "VTEX_REQUEST_TIMEOUT_SECS", default_value_t = 30.0, help_heading = heading::CONNECTIONS)]
+    #[arg(
+        long,
+        value_name = "SECS",
+        env = "VTEX_REQUEST_TIMEOUT_SECS",
+        default_value_t = 30.0,
+        help_heading = heading::CONNECTIONS,
+    )]
     pub request_timeout_secs: f64,
     /// Deadline for a client to send its request headers, in seconds.
     ///
     /// The connection is closed after it.
-    #[arg(long, value_name = "SECS", env = "VTEX_HEADER_TIMEOUT_SECS", default_value_t = 10.0, help_heading = heading::CONNECTIONS)]
+    #[arg(
+        long,
+        value_name = "SECS",
+        env = "VTEX_HEADER_TIMEOUT_SECS",
+        default_value_t = 10.0,
+        help_heading = heading::CONNECTIONS,
+    )]
     pub header_timeout_secs: f64,
     /// Threads serving connections [default: CPU count].
     ///
@@ -115,7 +163,13 @@ pub struct ServeConfig {
     /// `copy` is portable: bodies are written from the heap. `splice` (Linux) sends cached
     /// tiles by page reference, like nginx's sendfile. The default is `splice` on Linux, `copy`
     /// elsewhere.
-    #[arg(long, value_name = "HOW", env = "VTEX_SEND", default_value_t = Transport::default(), help_heading = heading::CONNECTIONS)]
+    #[arg(
+        long,
+        value_name = "HOW",
+        env = "VTEX_SEND",
+        default_value_t = Transport::default(),
+        help_heading = heading::CONNECTIONS,
+    )]
     pub send: Transport,
     /// Do not write the demo textures into an empty data directory.
     #[arg(long, env = "VTEX_NO_DEMOS", help_heading = heading::STORE)]
@@ -124,13 +178,25 @@ pub struct ServeConfig {
     ///
     /// Past it the response is abandoned and its connection closed (slow or stalled readers
     /// free what they hold).
-    #[arg(long, value_name = "SECS", env = "VTEX_SEND_TIMEOUT_SECS", default_value_t = 30.0, help_heading = heading::CONNECTIONS)]
+    #[arg(
+        long,
+        value_name = "SECS",
+        env = "VTEX_SEND_TIMEOUT_SECS",
+        default_value_t = 30.0,
+        help_heading = heading::CONNECTIONS,
+    )]
     pub send_timeout_secs: f64,
     /// Seconds after which an idle connection is closed.
     ///
     /// Idle: no request in flight and no bytes moving (HTTP/1.1 keep-alive and HTTP/2 alike,
     /// and a connection that never sends a byte).
-    #[arg(long, value_name = "SECS", env = "VTEX_IDLE_TIMEOUT_SECS", default_value_t = 60.0, help_heading = heading::CONNECTIONS)]
+    #[arg(
+        long,
+        value_name = "SECS",
+        env = "VTEX_IDLE_TIMEOUT_SECS",
+        default_value_t = 60.0,
+        help_heading = heading::CONNECTIONS,
+    )]
     pub idle_timeout_secs: f64,
     /// Open connections served at once [default: from the open-file limit].
     ///
@@ -143,17 +209,35 @@ pub struct ServeConfig {
     /// Each texture is charged what its plan says it holds: textures load on first use and the
     /// least recently used are dropped to stay within it. A texture that alone holds more is
     /// refused.
-    #[arg(long, value_name = "MIB", env = "VTEX_TEXTURES_MB", default_value_t = 2048.0, help_heading = heading::BUDGETS)]
+    #[arg(
+        long,
+        value_name = "MIB",
+        env = "VTEX_TEXTURES_MB",
+        default_value_t = 2048.0,
+        help_heading = heading::BUDGETS,
+    )]
     pub textures_mb: f64,
     /// Most work units one tile of a texture may cost.
     ///
     /// Work units are `vtex_synth::models::cost`'s; an upload over it is refused.
-    #[arg(long, value_name = "N", env = "VTEX_MAX_TILE_WORK", default_value_t = Limits::SERVE.max_tile_work, help_heading = heading::BUDGETS)]
+    #[arg(
+        long,
+        value_name = "N",
+        env = "VTEX_MAX_TILE_WORK",
+        default_value_t = Limits::SERVE.max_tile_work,
+        help_heading = heading::BUDGETS,
+    )]
     pub max_tile_work: u64,
     /// Most work units creating or loading one texture may cost.
     ///
     /// An upload over it is refused.
-    #[arg(long, value_name = "N", env = "VTEX_MAX_BUILD_WORK", default_value_t = Limits::SERVE.max_build_work, help_heading = heading::BUDGETS)]
+    #[arg(
+        long,
+        value_name = "N",
+        env = "VTEX_MAX_BUILD_WORK",
+        default_value_t = Limits::SERVE.max_build_work,
+        help_heading = heading::BUDGETS,
+    )]
     pub max_build_work: u64,
     /// Most textures the store holds.
     ///
@@ -178,13 +262,25 @@ pub struct ServeConfig {
     ///
     /// Regions (from their render until sent), bundle downloads and batch frames reserve their
     /// bytes first; past it, 503. Cached tiles are the tile cache's and are not charged.
-    #[arg(long, value_name = "MIB", env = "VTEX_INFLIGHT_MB", default_value_t = DEFAULT_INFLIGHT_MB, help_heading = heading::BUDGETS)]
+    #[arg(
+        long,
+        value_name = "MIB",
+        env = "VTEX_INFLIGHT_MB",
+        default_value_t = DEFAULT_INFLIGHT_MB,
+        help_heading = heading::BUDGETS,
+    )]
     pub inflight_mb: f64,
     /// Fewest bytes a second a response must move to its reader.
     ///
-    /// Counted while it waits for its reader, averaged over each `--send-timeout-secs` of waiting; a slower one is abandoned and its
-    /// connection closed. 0 turns the check off.
-    #[arg(long, value_name = "BYTES", env = "VTEX_MIN_SEND_RATE", default_value_t = 1024, help_heading = heading::CONNECTIONS)]
+    /// Counted while it waits for its reader, averaged over each `--send-timeout-secs` of waiting;
+    /// a slower one is abandoned and its connection closed. 0 turns the check off.
+    #[arg(
+        long,
+        value_name = "BYTES",
+        env = "VTEX_MIN_SEND_RATE",
+        default_value_t = 1024,
+        help_heading = heading::CONNECTIONS,
+    )]
     pub min_send_rate: u64,
     /// Bearer token writes (POST, PATCH, DELETE) must carry.
     ///
@@ -195,29 +291,53 @@ pub struct ServeConfig {
     /// File holding the write token (a container secret).
     ///
     /// Its surrounding whitespace is ignored.
-    #[arg(long, value_name = "FILE", env = "VTEX_WRITE_TOKEN_FILE", conflicts_with = "write_token", help_heading = heading::WRITES)]
+    #[arg(
+        long,
+        value_name = "FILE",
+        env = "VTEX_WRITE_TOKEN_FILE",
+        conflicts_with = "write_token",
+        help_heading = heading::WRITES,
+    )]
     pub write_token_file: Option<PathBuf>,
     /// Without a write token, accept writes from every client, not only loopback ones.
     ///
     /// Anyone who reaches the port can then upload, rename and delete. Only behind a proxy that authenticates writes
     /// itself.
-    #[arg(long, env = "VTEX_OPEN_WRITES", conflicts_with_all = ["write_token", "write_token_file"], help_heading = heading::WRITES)]
+    #[arg(
+        long,
+        env = "VTEX_OPEN_WRITES",
+        conflicts_with_all = ["write_token", "write_token_file"],
+        help_heading = heading::WRITES,
+    )]
     pub open_writes: bool,
     /// Refuse every write (403): serve only what the data directory holds.
     #[arg(long, env = "VTEX_READ_ONLY", help_heading = heading::WRITES)]
     pub read_only: bool,
     /// Other origins whose pages may write (comma-separated, or `*`).
     ///
-    /// Each is `https://host[:port]` or `http://host[:port]`. By default only requests without an `Origin` or from the server's own origin may write.
-    /// Reads are open to every origin.
-    #[arg(long, value_name = "ORIGINS", env = "VTEX_CORS_WRITE_ORIGINS", value_delimiter = ',', help_heading = heading::WRITES)]
+    /// Each is `https://host[:port]` or `http://host[:port]`. By default only requests without an
+    /// `Origin` or from the server's own origin may write. Reads are open to every origin.
+    #[arg(
+        long,
+        value_name = "ORIGINS",
+        env = "VTEX_CORS_WRITE_ORIGINS",
+        value_delimiter = ',',
+        help_heading = heading::WRITES,
+    )]
     pub cors_write_origins: Vec<String>,
     /// Follow other processes' bundles.
     ///
     /// How the store learns of bundles other processes add to or delete from the data directory.
     ///
     /// `off`: only a request for an unknown id finds a new bundle.
-    #[arg(long, value_name = "HOW", env = "VTEX_WATCH", value_enum, default_value_t = WatchMode::Events, help_heading = heading::STORE)]
+    #[arg(
+        long,
+        value_name = "HOW",
+        env = "VTEX_WATCH",
+        value_enum,
+        default_value_t = WatchMode::Events,
+        help_heading = heading::STORE,
+    )]
     pub watch: WatchMode,
     /// Log one line per request at `info` (method, path, status, bytes, latency).
     ///

@@ -434,7 +434,10 @@ async fn accept_loop(
                     None => own.serve(stream),
                     Some(tx) => {
                         // Deregistered here, registered again on the receiving runtime.
-                        let sent = stream.into_std().map_err(|e| e.to_string()).and_then(|s| tx.send(s).map_err(|_| "runtime gone".into()));
+                        let sent = stream
+                            .into_std()
+                            .map_err(|e| e.to_string())
+                            .and_then(|s| tx.send(s).map_err(|_| "runtime gone".into()));
                         if let Err(e) = sent {
                             w.live.dec();
                             tracing::warn!(error = %e, "could not hand a connection to its runtime");

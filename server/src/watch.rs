@@ -19,7 +19,9 @@ pub enum WatchMode {
     /// Kernel events (inotify), else polling when they cannot be had.
     Events,
     /// Lists the directory every [`POLL_INTERVAL`]: for filesystems without events (NFS).
-    #[value(help = format!("Lists the directory every {} s: for filesystems without events (NFS)", POLL_INTERVAL.as_secs()))]
+    #[value(
+        help = format!("Lists the directory every {} s: for filesystems without events (NFS)", POLL_INTERVAL.as_secs()),
+    )]
     Poll,
     /// No watch: a new bundle is found when its id is first asked for; the list does not follow.
     Off,
