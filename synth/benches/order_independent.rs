@@ -1,5 +1,5 @@
 //! Order-independent synthesis speed on one core: a cold 256² level-0 tile of each demo (64²
-//! exemplars, k-coherence; target ≤ 60 ms), a cold mip tile, the exhaustive reference over a
+//! exemplars, the served default; target ≤ 60 ms), a cold mip tile, the exhaustive reference over a
 //! 128² window, and the load (pyramid and k-coherence sets); a chaos-mosaic tile is the
 //! baseline of the same run. The pyramidal cache has no budget here, so every tile is cold.
 //! `cargo bench -p vtex-synth --bench order_independent`
@@ -36,14 +36,6 @@ fn served(c: &mut Criterion) {
         let name = b.manifest.name.split(" — ").nth(1).unwrap_or("?").to_string();
         tile(c, "oits_cold_tile_256", &name, t.as_ref(), Region::new(0, 1024, 2048, 256, 256));
     }
-    // The served default before jitter, κ and subpasses (k = 1, three generations), on the
-    // lichen demo's sample: the cold-tile cost the change is measured against.
-    let old = json!({"seed": 31, "exemplar_wrap": true, "k": 1, "k_exclusion": 0, "kappa": 0, "jitter": 0,
-                     "generations": 3, "subpasses": 1});
-    let mut inputs = Inputs::new();
-    inputs.insert("sample".into(), samples::lichen(64, 21).to_png());
-    let t = models::load(&models::create("order-independent", "old", &old, &inputs).unwrap()).unwrap();
-    tile(c, "oits_cold_tile_256", "lichen, old default", t.as_ref(), Region::new(0, 1024, 2048, 256, 256));
     let b = &order_independent::demos()[1];
     let t = models::load(b).unwrap();
     // Level 2 with lookahead: synthesis level fin − 1 over 512², four chunks.
