@@ -1,7 +1,8 @@
 //! The figures of Wei & Levoy 2002, *Order-Independent Texture Synthesis* (spec §6), as CSV
 //! files and PNG images. The cache figures (F3, F7a, F7bc, F4, F8, F9) are counted by the
 //! reference evaluator in structure-only mode (which entries are computed does not depend on the
-//! search); Fig. 5's quality panel (F5) and the mip PSNR table (Fmip) render the served model.
+//! search); Fig. 5's quality panel (F5) sets the served model beside Wei & Levoy 2000 and the
+//! paper's algorithm, and the mip PSNR table (Fmip) renders the served model.
 //!
 //! `cargo run --release -p vtex-quality --example oits_figures -- [OUT_DIR [FIGURE…]]`
 //!
@@ -504,12 +505,20 @@ fn fig9(out: &Out) {
         log: true,
         ticks: plot::powers_of_two(1024, 65536, |v| format!("{}K", v / 1024)),
     };
+    // Log axes: the ratios span four decades, from quake-I's plateau to the 1K cache's thrashing.
+    let points = || lines.iter().flat_map(|l| l.points.iter().map(|p| p.1));
+    let (low, high) = (points().fold(f64::INFINITY, f64::min), points().fold(0.0, f64::max));
+    let (min, max) = (10f64.powf(low.log10().floor()), 10f64.powf(high.log10().ceil()));
     let y = Axis {
         label: "COMPUTATION RATIO".into(),
-        min: 0.0,
-        max: 3.5,
-        log: false,
-        ticks: (0..=7).map(|i| (i as f64 * 0.5, format!("{:.1}", i as f64 * 0.5))).collect(),
+        min,
+        max,
+        log: true,
+        ticks: [0.001, 0.01, 0.1, 0.25, 0.5, 1.0, 2.0, 3.5, 10.0, 20.0, 100.0]
+            .into_iter()
+            .filter(|v| (min..=max).contains(v))
+            .map(|v| (v, format!("{v}")))
+            .collect(),
     };
     out.png("fig9.png", &plot::chart("FIG. 9  SYNTHETIC SCENES", &x, &y, &lines, 900, 600));
 }

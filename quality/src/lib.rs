@@ -15,6 +15,9 @@
 //!   position modulo 2^j (a collage of a few aligned translations scores 1, chance 1/4^j).
 //! * [`mip`] — PSNR of served coarse levels against the exact box chain, point sampling beside.
 //!
+//! [`wei_levoy_2000`] is a baseline to measure against, not a metric: the sequential synthesis
+//! that order-independent synthesis was compared with.
+//!
 //! [`report`] gathers them for one output; [`gimp_pattern`] and [`sample`] read and prepare the
 //! real samples the `quality-report` binary judges the models on.
 //!
@@ -34,6 +37,7 @@ pub mod repetition;
 pub mod report;
 pub mod sample;
 pub mod seam;
+pub mod wei_levoy_2000;
 
 pub use vtex_synth::{Error, Result, Rgba8Image};
 

@@ -173,8 +173,9 @@ impl Metrics {
         let model_work = must(IntCounterVec::new(
             Opts::new(
                 "vtex_model_work_total",
-                "Work the models count in their renders, by model and kind (order-independent: entries computed \
-                 and pixels requested, whose ratio is the paper's computation ratio)",
+                "Work the models count in their renders, by model and kind (order-independent: every entry \
+                 computed, noise included, and pixels requested, whose ratio is the paper's computation ratio; \
+                 noise entries, the noise part of the entries computed)",
             ),
             &["model", "kind"],
         ));

@@ -17,8 +17,9 @@ use std::sync::OnceLock;
 /// bounds the memory of one call (about 2 bytes an entry over the chunk's cone).
 pub const CHUNK: u32 = 256;
 
-/// Work counted by renders, by kind: the computation ratio is `entries_computed` (noise
-/// included) over `pixels_requested`.
+/// Work counted by renders, by kind: `entries_computed` is every entry filled, noise included
+/// as the paper counts it, so that over `pixels_requested` it is the paper's computation ratio;
+/// `noise_entries` is the noise part of it.
 pub(super) struct Work {
     computed: AtomicU64,
     noise: AtomicU64,
@@ -108,7 +109,7 @@ impl OrderIndependent {
         let st = self.synthesizer.structure();
         let values = evaluate(&self.synthesizer, st, cache, s, rect, &mut counts, stop);
         for work in [&self.work, &PROCESS_WORK] {
-            work.add(counts.computed, counts.noise, 0);
+            work.add(counts.computed + counts.noise, counts.noise, 0);
         }
         values
     }
