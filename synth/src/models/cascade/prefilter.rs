@@ -352,10 +352,10 @@ fn lum_sigma(colours: impl Iterator<Item = [f32; 3]>) -> f64 {
 
 /// `shape` (a unit-σ residual) scaled by f and shifted by o so that the served colours,
 /// `predicted + f·unit + o` clamped to [0, 255], have the luminance σ of `target` and the
-/// mean colour `mt`. Without the clamp, with v(·) the luminance variance, v(p) + 2f·cov(p, u)
-/// + f²·v(u) = v(t) (the larger root, or f = 0 where the prediction alone varies as much);
-/// the clamp (a bright prediction's residual cut at 255) then takes off mean and σ, which a
-/// few corrections of o and f give back.
+/// mean colour `mt`. Without the clamp, with v(·) the luminance variance,
+/// v(p) + 2f·cov(p, u) + f²·v(u) = v(t) (the larger root, or f = 0 where the prediction alone
+/// varies as much); the clamp (a bright prediction's residual cut at 255) then takes off mean
+/// and σ, which a few corrections of o and f give back.
 fn fit(shape: &Residual, target: &[[f32; 3]], mt: [f64; 3], predicted: &[[f32; 3]], unit: &[[f32; 3]]) -> Residual {
     let n = target.len() as f64;
     let mean = |v: &[[f64; 3]]| [0, 1, 2].map(|c| v.iter().map(|p| p[c]).sum::<f64>() / n);
