@@ -36,8 +36,8 @@ const BINS: usize = 64;
 const WINDOWS: u64 = 256;
 const WINDOW: u32 = 32;
 /// Pixels a side of the spots on which a level beyond the measured ones is fitted to the
-/// box filter of the level below; levels the base level's structure is carried up to, and
-/// the side of its spots (`SIDE << CARRIED`).
+/// box filter of the level below; levels past the base whose σ is carried up from the last
+/// measured level, and the side of their spots at the base (`SIDE << CARRIED`).
 const SIDE: u32 = 2;
 const CARRIED: u32 = 3;
 const CARRIED_SIDE: u32 = SIDE << CARRIED;
@@ -92,8 +92,8 @@ pub fn stage_at_pixels(
 
 /// Calibration window `i`'s corner, aligned to `WINDOW`. Over a repeating guide the windows
 /// are stratified, one to each cell of a 16 × 16 grid over the guide's period: the guide's
-/// values weigh the colour and a plain random sample of 256 of them misses its mean by
-/// several levels (the dilation-map demo's by 4).
+/// values weigh on the colour, and a plain random sample of 256 of them is a poor sample of
+/// their distribution.
 fn window(tex: &Cascade, i: u64) -> (u64, u64) {
     let h = hash4(tex.engine().seed, STREAM_CALIBRATION, i as i64, 1);
     let align = !(WINDOW as u64 - 1);
@@ -166,16 +166,15 @@ impl Calibration {
     }
 
     /// The residuals: at each prefiltered level L up to [`MEASURED_LEVELS`], measured from the
-    /// blocks of the calibration windows. Beyond, the level above is what a box filter makes
-    /// of the served level below: on 256 deterministic spots, level L − 1 as served (with its
-    /// residual) is box-filtered, and level L takes the last measured residual's shape,
-    /// centred, scaled so that prediction plus residual has the filtered level's luminance σ,
-    /// and shifted to its mean. (Extrapolating σ from the measured levels keeps the σ of
-    /// texture at a scale the blocks have outgrown: demo H's levels past its coarsest stage
-    /// kept 6× the σ of their own box chain.) The field's term of level k weighs 2^−k, the
-    /// spectrum of box-filtered white noise: at each level most of z's variance is its own
-    /// level's term, as for the short-range detail the residual stands for, and z at level
-    /// L + 1 is z at level L box-filtered, so the levels' residuals share their grains.
+    /// blocks of the calibration windows. Beyond, the level is what a box filter makes of the
+    /// served levels below: on deterministic spots, the last measured residual's shape,
+    /// centred, is scaled (and shifted to the last measured level's mean) so that prediction
+    /// plus residual has the σ of level L − 1 as served and box-filtered — or, for the
+    /// [`CARRIED`] levels past the base, of the last measured level box-filtered up to L, so
+    /// that structure at a scale the blocks have not outgrown keeps its σ. The field's weights
+    /// follow that chain's fall across those levels and are 2^−k elsewhere (box-filtered white
+    /// noise: the short-range detail the residual stands for); z at level L + 1 is z at level
+    /// L box-filtered, so the levels' residuals share their grains.
     fn measure_residuals(&mut self, tex: &Cascade, windows: &[(u64, u64, Rgba8Image)], stop: &dyn Stop) -> Option<()> {
         let e = tex.engine();
         let levels = self.weights.len() as u32;
@@ -192,14 +191,15 @@ impl Calibration {
             (h, h.rotate_left(29))
         };
         let mut centred: Option<Residual> = None;
-        // Per level k, how the σ of level k + 1 compares with level k's: carried up from the
-        // base level's structure, ½ (white noise box-filtered) elsewhere.
+        // Per level k, how the σ of level k + 1 compares with level k's: from the carried
+        // chain past the base, ½ (white noise box-filtered) elsewhere.
         let mut ratios = vec![0.5f64; levels as usize];
         // The mean colour of the exact blocks of the last measured level, over all the
-        // windows: the levels beyond keep it. (Carried from level to level through the few
-        // blocks a fit sees, it drifted by several levels.)
+        // windows: the levels beyond keep it, rather than the mean of the few blocks a fit
+        // sees, whose error would add up from level to level.
         let mut reference = self.mean.map(|m| m as f64);
-        // Per level base + m (m = 1..=CARRIED), the served base level box-filtered m times.
+        // Per level base + m (m = 1..=CARRIED), the last measured level as served,
+        // box-filtered up to it.
         let mut carried: Vec<Vec<[f32; 3]>> = Vec::new();
         // Up to the top (one pixel, no field): its residual is the offset alone.
         for l in first..levels {
