@@ -358,7 +358,7 @@ async fn ktx2_pages_are_the_same_bytes_on_every_run_and_thread_count() {
     // Pinned: a deliberate change of the encoder, its settings or the container changes these.
     assert_eq!(
         hashes,
-        ["e2e278c92fe79a32", "2f20ab8efc9f0006", "96d79d551abb9276", "61c8f008dad1e29c", "f9f057f5008b7c63"],
+        ["e2e278c92fe79a32", "2f20ab8efc9f0006", "96d79d551abb9276", "61c8f008dad1e29c", "b16a0c8a50b07997"],
         "KTX2 page bytes changed"
     );
 }

@@ -98,13 +98,11 @@ impl Model for CascadeModel {
         demos::example()
     }
     fn mip_guarantee(&self) -> MipGuarantee {
-        // Coarse levels carry a residual with the exact downsample's statistics but not its
-        // places: up to 3 dB below a smooth prediction's PSNR, bought for the right σ.
-        MipGuarantee {
-            min_psnr_db: 10.0,
-            max_mean_error: 8.0,
-            max_sigma_error: f64::INFINITY,
-            beats_trivial_answers: false,
-        }
+        // Levels without content at their scale (a single-stage texture from level 3, any
+        // texture past its coarsest stage) carry a residual with the box chain's σ and mean in
+        // no particular place: up to 3 dB below a flat colour, bought for the right σ.
+        // Against a small window's chain (few blocks, one region) σ and the mean vary more
+        // than over the per-level test's 1024² region, where they hold within 15 % and 3.
+        MipGuarantee { min_psnr_db: 12.0, max_mean_error: 6.0, max_sigma_error: 0.45, beats_trivial_answers: false }
     }
 }

@@ -41,6 +41,11 @@ const LOAD: f64 = 50_000.0;
 const CALIBRATION_WINDOWS: f64 = 256.0;
 const CALIBRATION_WINDOW: u64 = 32;
 const BINS: f64 = 64.0;
+/// As in `prefilter`: levels past the base carried up from the last measured level, their
+/// spots and the spots' side at the base.
+const CARRIED: u32 = 3;
+const CARRY_SPOTS: f64 = 128.0;
+const CARRIED_SIDE: u64 = 16;
 /// As in `residual`: quantiles of a band's table, bands of a level.
 const QUANTILES: f64 = 64.0;
 const RESIDUAL_BANDS: f64 = 4.0;
@@ -182,12 +187,22 @@ fn plan_params(p: &Params, control: Option<(u32, u32)>, initial: Option<(u32, u3
                 },
             }
     };
-    // The calibration's residuals: predictions of the windows' blocks at the levels they hold,
-    // and of 4 × 4 pixels a window beyond.
-    let residuals: f64 = (p.exact_levels + 1..levels.saturating_sub(1))
+    // The calibration's residuals: predictions of the windows' blocks at the levels they
+    // hold; beyond, on each spot the level below served over 4 × 4 pixels and the level's
+    // prediction over 2 × 2, or past the base the prediction on the carried chain's spots,
+    // whose 16·2^depth-pixel side at the last measured level is served once.
+    let measured = CALIBRATION_WINDOW.trailing_zeros();
+    let base = stages.iter().map(|s| s.shift + 2).max().unwrap_or(0).max(measured);
+    let residuals: f64 = (p.exact_levels + 1..levels)
         .map(|l| {
-            let side = if l <= CALIBRATION_WINDOW.trailing_zeros() { CALIBRATION_WINDOW >> l } else { 4 };
-            CALIBRATION_WINDOWS * predicted(l, side)
+            if l <= measured {
+                CALIBRATION_WINDOWS * predicted(l, CALIBRATION_WINDOW >> l)
+            } else if (1..=CARRIED).contains(&(l - base)) {
+                let chain = if l == base + 1 { predicted(measured, CARRIED_SIDE << (base - measured)) } else { 0.0 };
+                CARRY_SPOTS * (chain + predicted(l, CARRIED_SIDE >> (l - base)))
+            } else {
+                CALIBRATION_WINDOWS * (predicted(l - 1, 4) + predicted(l, 2))
+            }
         })
         .sum();
     let prefiltered = |l: u32| predicted(l, TILE) + calibration + residuals;

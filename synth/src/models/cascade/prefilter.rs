@@ -35,6 +35,14 @@ const BINS: usize = 64;
 /// Calibration windows (level-0 pixels, `WINDOW²` each) scattered over the plane.
 const WINDOWS: u64 = 256;
 const WINDOW: u32 = 32;
+/// Pixels a side of the spots on which a level beyond the measured ones is fitted to the
+/// box filter of the level below; levels past the base whose σ is carried up from the last
+/// measured level, and the side of their spots at the base (`SIDE << CARRIED`).
+const SIDE: u32 = 2;
+const CARRIED: u32 = 3;
+const CARRIED_SIDE: u32 = SIDE << CARRIED;
+/// Spots of the carried chain.
+const CARRY_SPOTS: u64 = 128;
 /// A bin needs this many samples to be trusted; others are interpolated.
 const MIN_COUNT: f64 = 4.0;
 
@@ -82,6 +90,27 @@ pub fn stage_at_pixels(
     Some(upsample(&g, k, x, y, w, h))
 }
 
+/// Calibration window `i`'s corner, aligned to `WINDOW`. Over a repeating guide the windows
+/// are stratified, one to each cell of a 16 × 16 grid over the guide's period: the guide's
+/// values weigh on the colour, and a plain random sample of 256 of them is a poor sample of
+/// their distribution.
+fn window(tex: &Cascade, i: u64) -> (u64, u64) {
+    let h = hash4(tex.engine().seed, STREAM_CALIBRATION, i as i64, 1);
+    let align = !(WINDOW as u64 - 1);
+    match guide(tex).filter(|g| g.repeat) {
+        Some(g) => {
+            const GRID: u64 = 16;
+            let (pw, ph) = (g.cell * g.w as u64, g.cell * g.h as u64);
+            let at = |period: u64, k: u64, far: u64, jitter: u64| {
+                let cell = (period / GRID).max(1);
+                far.wrapping_mul(period).wrapping_add(k * period / GRID).wrapping_add(jitter % cell) & align
+            };
+            (at(pw, i % GRID, h >> 40, h), at(ph, (i / GRID) % GRID, (h >> 16) & 0xff_ffff, h.rotate_left(23)))
+        }
+        None => (h & align, h.rotate_left(29) & align),
+    }
+}
+
 impl Calibration {
     /// The statistics, or `None` once `stop` is requested.
     pub fn compute(tex: &Cascade, stop: &dyn Stop) -> Option<Self> {
@@ -94,8 +123,7 @@ impl Calibration {
         // The windows, aligned to whole blocks of the measured levels, are kept for the residuals.
         let mut windows = Vec::with_capacity(WINDOWS as usize);
         for i in 0..WINDOWS {
-            let h = hash4(e.seed, STREAM_CALIBRATION, i as i64, 1);
-            let (x, y) = (h & !(WINDOW as u64 - 1), h.rotate_left(29) & !(WINDOW as u64 - 1));
+            let (x, y) = window(tex, i);
             let img = tex.level0(x, y, WINDOW, WINDOW, stop)?;
             for p in img.data.chunks_exact(4) {
                 for c in 0..3 {
@@ -138,75 +166,155 @@ impl Calibration {
     }
 
     /// The residuals: at each prefiltered level L up to [`MEASURED_LEVELS`], measured from the
-    /// blocks of the calibration windows. Beyond,
-    /// σ(exact) is extrapolated at the ratio of the last two measured levels, the predictions'
-    /// σ measured (they are cheap), and the last measured residuals scaled to the σ they lack:
-    /// s_L² = σ²(exact) − σ²(predictions). Where the level's prediction is the flat mean they
-    /// are centred: a band's mean residual corrects that band's prediction, and carried to a
-    /// flat one it would shift the level's mean. The field's term of level k weighs 2^−k, the
-    /// spectrum of box-filtered white noise: at each level most of z's variance is its own
-    /// level's term, as for the short-range detail the residual stands for.
+    /// blocks of the calibration windows. Beyond, the level is what a box filter makes of the
+    /// served levels below: on deterministic spots, the last measured residual's shape,
+    /// centred, is scaled (and shifted to the last measured level's mean) so that prediction
+    /// plus residual has the σ of level L − 1 as served and box-filtered — or, for the
+    /// [`CARRIED`] levels past the base, of the last measured level box-filtered up to L, so
+    /// that structure at a scale the blocks have not outgrown keeps its σ. The field's weights
+    /// follow that chain's fall across those levels and are 2^−k elsewhere (box-filtered white
+    /// noise: the short-range detail the residual stands for); z at level L + 1 is z at level
+    /// L box-filtered, so the levels' residuals share their grains.
     fn measure_residuals(&mut self, tex: &Cascade, windows: &[(u64, u64, Rgba8Image)], stop: &dyn Stop) -> Option<()> {
         let e = tex.engine();
         let levels = self.weights.len() as u32;
         let first = tex.params().exact_levels + 1;
-        let sigma = |v: &[f32]| {
-            let n = v.len() as f64;
-            let m = v.iter().map(|&x| x as f64).sum::<f64>() / n;
-            (v.iter().map(|&x| (x as f64 - m).powi(2)).sum::<f64>() / n).sqrt()
-        };
-        let lum = |img: &Rgba8Image| -> Vec<f32> {
-            img.data.chunks_exact(4).map(|p| luminance([p[0] as f32, p[1] as f32, p[2] as f32])).collect()
-        };
-        let rgb = |p: &[u8]| [p[0] as f32, p[1] as f32, p[2] as f32];
-        // Luminance σ of the exact block means per level; the last measured residual at unit σ.
-        let mut exact_sigma = vec![0.0f64; levels as usize];
-        let (mut banded, mut centred): (Option<Residual>, Option<Residual>) = (None, None);
-        let last = e.stages.len() - 1;
-        for l in first..levels.saturating_sub(1) {
-            let at = l as usize;
-            if l > MEASURED_LEVELS {
-                let ratio = (exact_sigma[at - 1] / exact_sigma[at - 2]).clamp(0.5, 1.0);
-                exact_sigma[at] = if ratio.is_finite() { exact_sigma[at - 1] * ratio } else { 0.0 };
-                const SIDE: u32 = 4;
-                let mut predicted = Vec::new();
-                for i in 0..WINDOWS {
-                    let h = hash4(e.seed, STREAM_CALIBRATION, i as i64, 3);
-                    predicted.extend(lum(&render(tex, self, l, h, h.rotate_left(29), SIDE, SIDE, stop)?));
-                }
-                let s = (exact_sigma[at].powi(2) - sigma(&predicted).powi(2)).max(0.0).sqrt();
-                // A level predicted by a stage or a guide keeps the bands (their means correct
-                // the prediction's bias, as they did below); a flat one takes the centred shape.
-                let flat = guide(tex).is_none() && !(0..=last).any(|s| e.stages[s].shift + 2 >= l);
-                let shape = if flat { &centred } else { &banded };
-                self.residuals[at] = shape.as_ref().map(|r| r.scaled(s as f32));
-                continue;
-            }
-            let (mut pairs, mut exact_lum) = (Vec::new(), Vec::new());
-            for (x, y, img) in windows {
-                let exact = crate::mip::downsample_n(img, l);
-                let side = WINDOW >> l;
-                let predicted = render(tex, self, l, x >> l, y >> l, side, side, stop)?;
-                exact_lum.extend(lum(&exact));
-                for (a, b) in exact.data.chunks_exact(4).zip(predicted.data.chunks_exact(4)) {
-                    let (a, b) = (rgb(a), rgb(b));
-                    pairs.push((b, [0, 1, 2].map(|c| a[c] - b[c])));
-                }
-            }
-            exact_sigma[at] = sigma(&exact_lum);
-            let deviations: Vec<[f32; 3]> = pairs.iter().map(|(_, r)| *r).collect();
-            if let Some((r, s)) = Residual::centred(&deviations) {
-                centred = (s > 0.0).then(|| r.scaled((1.0 / s) as f32)).or(centred);
-            }
-            if let Some((r, s)) = Residual::measure(pairs) {
-                banded = (s > 0.0).then(|| r.scaled((1.0 / s) as f32)).or(banded);
-                self.residuals[at] = Some(r);
-            }
-        }
         for k in first as usize..levels as usize - 1 {
             self.weights[k] = libm::exp2f(-(k as f32));
         }
+        // The finest level whose served blocks hold structure of their own: the last measured
+        // one, or beyond it the last one a stage's lattice predicts.
+        let base = e.stages.iter().map(|s| s.shift + 2).max().unwrap_or(0).max(MEASURED_LEVELS);
+        let rgb = |p: &[u8]| [p[0] as f32, p[1] as f32, p[2] as f32];
+        let spot = |i: u64| {
+            let h = hash4(e.seed, STREAM_CALIBRATION, i as i64, 3);
+            (h, h.rotate_left(29))
+        };
+        let mut centred: Option<Residual> = None;
+        // Per level k, how the σ of level k + 1 compares with level k's: from the carried
+        // chain past the base, ½ (white noise box-filtered) elsewhere.
+        let mut ratios = vec![0.5f64; levels as usize];
+        // The mean colour of the exact blocks of the last measured level, over all the
+        // windows: the levels beyond keep it, rather than the mean of the few blocks a fit
+        // sees, whose error would add up from level to level.
+        let mut reference = self.mean.map(|m| m as f64);
+        // Per level base + m (m = 1..=CARRIED), the last measured level as served,
+        // box-filtered up to it.
+        let mut carried: Vec<Vec<[f32; 3]>> = Vec::new();
+        // Up to the top (one pixel, no field): its residual is the offset alone.
+        for l in first..levels {
+            let at = l as usize;
+            if l <= MEASURED_LEVELS {
+                let mut pairs = Vec::new();
+                for (x, y, img) in windows {
+                    let exact = crate::mip::downsample_n(img, l);
+                    let side = WINDOW >> l;
+                    let predicted = render(tex, self, l, x >> l, y >> l, side, side, stop)?;
+                    for (a, b) in exact.data.chunks_exact(4).zip(predicted.data.chunks_exact(4)) {
+                        let (a, b) = (rgb(a), rgb(b));
+                        pairs.push((b, [0, 1, 2].map(|c| a[c] - b[c])));
+                    }
+                }
+                let n = pairs.len() as f64;
+                reference = [0, 1, 2].map(|c| pairs.iter().map(|(p, r)| (p[c] + r[c]) as f64).sum::<f64>() / n);
+                let deviations: Vec<[f32; 3]> = pairs.iter().map(|(_, r)| *r).collect();
+                if let Some((r, s)) = Residual::centred(&deviations) {
+                    centred = (s > 0.0).then(|| r.scaled((1.0 / s) as f32)).or(centred);
+                }
+                if let Some((r, _)) = Residual::measure(pairs) {
+                    self.residuals[at] = Some(r);
+                }
+                continue;
+            }
+            let Some(shape) = centred.clone() else { continue };
+            if l == base + 1 {
+                // The structure of the levels up to the base carried up: the last measured
+                // level as served (it has the exact blocks' statistics) over CARRIED_SIDE <<
+                // depth pixels a spot, box-filtered level by level, sets both the σ of the
+                // levels past the base and how fast the field's σ falls across them.
+                let from = MEASURED_LEVELS.max(first).min(base);
+                let depth = base - from;
+                let mut filtered: Vec<Rgba8Image> = Vec::new();
+                for i in 0..CARRY_SPOTS {
+                    let (x, y) = spot(i);
+                    let side = CARRIED_SIDE << depth;
+                    filtered.push(render(
+                        tex,
+                        self,
+                        from,
+                        x << (CARRIED + depth),
+                        y << (CARRIED + depth),
+                        side,
+                        side,
+                        stop,
+                    )?);
+                }
+                let pixels = |imgs: &[Rgba8Image]| -> Vec<[f32; 3]> {
+                    imgs.iter().flat_map(|img| img.data.chunks_exact(4).map(rgb)).collect()
+                };
+                for _ in 0..depth {
+                    filtered = filtered.iter().map(|img| crate::mip::downsample_n(img, 1)).collect();
+                }
+                let mut sigmas = vec![lum_sigma(pixels(&filtered).into_iter())];
+                for _ in 0..CARRIED {
+                    filtered = filtered.iter().map(|img| crate::mip::downsample_n(img, 1)).collect();
+                    carried.push(pixels(&filtered));
+                    sigmas.push(lum_sigma(carried.last().unwrap().iter().copied()));
+                }
+                for m in 0..CARRIED as usize {
+                    if sigmas[m] > 0.0 && base as usize + m < ratios.len() {
+                        ratios[base as usize + m] = sigmas[m + 1] / sigmas[m];
+                    }
+                }
+                self.weights_from(&ratios, first);
+            }
+            let m = l - base;
+            let (target, side, shift) = if (1..=CARRIED).contains(&m) {
+                (carried[m as usize - 1].clone(), CARRIED_SIDE >> m, CARRIED - m)
+            } else {
+                let mut target = Vec::new();
+                for i in 0..WINDOWS {
+                    let (x, y) = spot(i);
+                    let below = render(tex, self, l - 1, x << 1, y << 1, 2 * SIDE, 2 * SIDE, stop)?;
+                    target.extend(crate::mip::downsample_n(&below, 1).data.chunks_exact(4).map(rgb));
+                }
+                (target, SIDE, 0)
+            };
+            let spots = if (1..=CARRIED).contains(&m) { CARRY_SPOTS } else { WINDOWS };
+            let (mut predicted, mut unit) = (Vec::new(), Vec::new());
+            for i in 0..spots {
+                let (x, y) = spot(i);
+                let (x, y) = (x << shift, y << shift);
+                let n = (side * side) as usize;
+                let z = residual::field(&self.weights, e.seed, l, x, y, side as usize, side as usize)
+                    .unwrap_or_else(|| vec![0.0; n]);
+                let mut p = vec![[0.0f32; 3]; n];
+                predict(tex, self, l, x, y, side, side, stop, |i, j, c| p[(j * side + i) as usize] = c)?;
+                for (c, z) in p.into_iter().zip(z) {
+                    unit.push(shape.at(luminance(c), z));
+                    predicted.push(c);
+                }
+            }
+            self.residuals[at] = Some(fit(&shape, &target, reference, &predicted, &unit));
+        }
         Some(())
+    }
+
+    /// The field's weights from the σ ratios of consecutive levels (`ratios[k]`: level k + 1
+    /// against level k). z at level L is normalised by N_L = √(Σ_{k≥L} a_k²), and z at L + 1
+    /// is z at L box-filtered times N_{L+1}/N_L: N_{L+1}/N_L = ratios[L] makes the field fall
+    /// across levels as the texture's block means do (a_k = 2^−k where the ratio is ½). Ratios
+    /// are kept within [½, 0.95], so that every term keeps a share.
+    fn weights_from(&mut self, ratios: &[f64], first: u32) {
+        let top = self.weights.len() - 2;
+        let mut tail = half_pow(top) * half_pow(top);
+        self.weights[top] = half_pow(top) as f32;
+        for k in (first as usize..top).rev() {
+            let r = ratios[k].clamp(0.5, 0.95);
+            let n2 = tail / (r * r);
+            self.weights[k] = (n2 - tail).sqrt() as f32;
+            tail = n2;
+        }
     }
 
     /// The residual field over `w × h` pixels of level `l` at (x, y), where the level has a residual.
@@ -219,13 +327,80 @@ impl Calibration {
     /// from the region's field `z`, rounded.
     #[inline]
     fn pixel(&self, colour: [f32; 3], l: u32, z: Option<&[f32]>, at: usize) -> [u8; 4] {
+        // Without a field (the top level) the residual's median: its offset.
         let r = match (&self.residuals[l as usize], z) {
-            (Some(r), Some(z)) => r.at(luminance(colour), z[at]),
-            _ => [0.0; 3],
+            (Some(r), z) => r.at(luminance(colour), z.map_or(0.0, |z| z[at])),
+            (None, _) => [0.0; 3],
         };
         let p = [0, 1, 2].map(|c| (colour[c] + r[c] + 0.5).floor().clamp(0.0, 255.0) as u8);
         [p[0], p[1], p[2], 255]
     }
+}
+
+/// 2^−k, exactly.
+fn half_pow(k: usize) -> f64 {
+    1.0 / (1u64 << k.min(63)) as f64
+}
+
+/// Luminance σ of colours.
+fn lum_sigma(colours: impl Iterator<Item = [f32; 3]>) -> f64 {
+    let v: Vec<f64> = colours.map(|c| luminance(c) as f64).collect();
+    let n = v.len() as f64;
+    let m = v.iter().sum::<f64>() / n;
+    (v.iter().map(|x| (x - m) * (x - m)).sum::<f64>() / n).sqrt()
+}
+
+/// `shape` (a unit-σ residual) scaled by f and shifted by o so that the served colours,
+/// `predicted + f·unit + o` clamped to [0, 255], have the luminance σ of `target` and the
+/// mean colour `mt`. Without the clamp, with v(·) the luminance variance,
+/// v(p) + 2f·cov(p, u) + f²·v(u) = v(t) (the larger root, or f = 0 where the prediction alone
+/// varies as much); the clamp (a bright prediction's residual cut at 255) then takes off mean
+/// and σ, which a few corrections of o and f give back.
+fn fit(shape: &Residual, target: &[[f32; 3]], mt: [f64; 3], predicted: &[[f32; 3]], unit: &[[f32; 3]]) -> Residual {
+    let n = target.len() as f64;
+    let mean = |v: &[[f64; 3]]| [0, 1, 2].map(|c| v.iter().map(|p| p[c]).sum::<f64>() / n);
+    let wide = |v: &[[f32; 3]]| v.iter().map(|p| p.map(|c| c as f64)).collect::<Vec<[f64; 3]>>();
+    let (target, predicted, unit) = (wide(target), wide(predicted), wide(unit));
+    let luma = |c: [f64; 3]| 0.299 * c[0] + 0.587 * c[1] + 0.114 * c[2];
+    let lum = |v: &[[f64; 3]]| v.iter().map(|p| luma(*p)).collect::<Vec<f64>>();
+    let cov = |a: &[f64], b: &[f64]| {
+        let (ma, mb) = (a.iter().sum::<f64>() / n, b.iter().sum::<f64>() / n);
+        a.iter().zip(b).map(|(x, y)| (x - ma) * (y - mb)).sum::<f64>() / n
+    };
+    let (t, p, u) = (lum(&target), lum(&predicted), lum(&unit));
+    let (vt, vp, vu, cpu) = (cov(&t, &t), cov(&p, &p), cov(&u, &u), cov(&p, &u));
+    // A unit residual that does not vary (the top level, without a field) only shifts.
+    let mut f = if vu > 1e-6 && vp < vt { (-cpu + (cpu * cpu + vu * (vt - vp)).sqrt()) / vu } else { 0.0 };
+    let (mp, mu) = (mean(&predicted), mean(&unit));
+    let mut offset = [0, 1, 2].map(|c| mt[c] - mp[c] - f * mu[c]);
+    for _ in 0..4 {
+        let served: Vec<[f64; 3]> = predicted
+            .iter()
+            .zip(&unit)
+            .map(|(p, u)| [0, 1, 2].map(|c| (p[c] + f * u[c] + offset[c]).clamp(0.0, 255.0)))
+            .collect();
+        let ms = mean(&served);
+        (0..3).for_each(|c| offset[c] += mt[c] - ms[c]);
+        let vs = cov(&lum(&served), &lum(&served));
+        if f > 0.0 && vs > vp && vt > vp {
+            // Only the residual's share of the variance is f's to correct.
+            f *= ((vt - vp) / (vs - vp)).sqrt().clamp(0.5, 2.0);
+        }
+    }
+    // Each channel's share: where a channel varies by more than a level either way, its own
+    // σ (a palette's channels saturate differently: a fire palette's red at 255).
+    let served: Vec<[f64; 3]> = predicted
+        .iter()
+        .zip(&unit)
+        .map(|(p, u)| [0, 1, 2].map(|c| (p[c] + f * u[c] + offset[c]).clamp(0.0, 255.0)))
+        .collect();
+    let each = [0, 1, 2].map(|c| {
+        let (t, s) = (target.iter().map(|v| v[c]).collect::<Vec<_>>(), served.iter().map(|v| v[c]).collect::<Vec<_>>());
+        let (vt, vs) = (cov(&t, &t), cov(&s, &s));
+        let g = if vt > 1.0 && vs > 1.0 { (vt / vs).sqrt().clamp(0.5, 2.0) } else { 1.0 };
+        (f * g) as f32
+    });
+    shape.scaled_each(each).shifted(offset.map(|o| o as f32))
 }
 
 #[inline]
@@ -283,10 +458,30 @@ pub fn render(
     h: u32,
     stop: &dyn Stop,
 ) -> Option<Rgba8Image> {
+    let mut img = Rgba8Image::new(w, h);
+    let z = cal.field(tex.engine().seed, l, x, y, w, h);
+    predict(tex, cal, l, x, y, w, h, stop, |i, j, colour| {
+        img.set_pixel(i, j, cal.pixel(colour, l, z.as_deref(), (j * w + i) as usize))
+    })?;
+    Some(img)
+}
+
+/// The prediction (without the residual, unrounded) of each of the `w × h` pixels of level
+/// `l` at (x, y), handed to `put(i, j, colour)`; `None` once `stop` is requested.
+#[allow(clippy::too_many_arguments)]
+fn predict(
+    tex: &Cascade,
+    cal: &Calibration,
+    l: u32,
+    x: u64,
+    y: u64,
+    w: u32,
+    h: u32,
+    stop: &dyn Stop,
+    mut put: impl FnMut(u32, u32, [f32; 3]),
+) -> Option<()> {
     let e = tex.engine();
     let last = e.stages.len() - 1;
-    let mut img = Rgba8Image::new(w, h);
-    let z = cal.field(e.seed, l, x, y, w, h);
     let Some(s) = (0..=last).rev().find(|&s| e.stages[s].shift + 2 >= l) else {
         if let (Some(guide), Some(table)) = (guide(tex), &cal.image) {
             // A guide image (texture transfer, dilation map) carries structure at every
@@ -322,11 +517,10 @@ pub fn render(
                             (0..3).for_each(|k| acc[k] += c[k]);
                         }
                     }
-                    let at = (j * w as u64 + i) as usize;
-                    img.set_pixel(i as u32, j as u32, cal.pixel(acc.map(|v| v * inv), l, z.as_deref(), at));
+                    put(i as u32, j as u32, acc.map(|v| v * inv));
                 }
             }
-            return Some(img);
+            return Some(());
         }
         // The mean colour and the residual, a row at a time: a region may be as large as a
         // render allows.
@@ -335,10 +529,10 @@ pub fn render(
                 return None;
             }
             for i in 0..w {
-                img.set_pixel(i, j, cal.pixel(cal.mean, l, z.as_deref(), (j * w + i) as usize));
+                put(i, j, cal.mean);
             }
         }
-        return Some(img);
+        return Some(());
     };
     let shift = e.stages[s].shift;
     let ql = l.saturating_sub(shift);
@@ -377,9 +571,8 @@ pub fn render(
                     }
                 }
             }
-            let at = j as usize * w as usize + i;
-            img.set_pixel(i as u32, j as u32, cal.pixel(acc.map(|v| v * inv_n), l, z.as_deref(), at));
+            put(i as u32, j as u32, acc.map(|v| v * inv_n));
         }
     }
-    Some(img)
+    Some(())
 }

@@ -79,6 +79,19 @@ impl Residual {
         Residual { centres: self.centres.clone(), tables }
     }
 
+    /// The same distribution with each channel's residuals multiplied by its `f`.
+    pub fn scaled_each(&self, f: [f32; 3]) -> Self {
+        let tables = self.tables.iter().map(|t| t.iter().map(|r| [0, 1, 2].map(|c| r[c] * f[c])).collect()).collect();
+        Residual { centres: self.centres.clone(), tables }
+    }
+
+    /// The same distribution with `offset` added to every residual.
+    pub fn shifted(&self, offset: [f32; 3]) -> Self {
+        let tables =
+            self.tables.iter().map(|t| t.iter().map(|r| [0, 1, 2].map(|c| r[c] + offset[c])).collect()).collect();
+        Residual { centres: self.centres.clone(), tables }
+    }
+
     /// The residual at field value `z` for a prediction of luminance `lum`.
     pub fn at(&self, lum: f32, z: f32) -> [f32; 3] {
         let u = 0.5 * (1.0 + libm::erff(z * core::f32::consts::FRAC_1_SQRT_2));
