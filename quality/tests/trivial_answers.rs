@@ -35,8 +35,8 @@ const CLAIMS: [Claim; 2] = [
     Claim { model: order_independent::MODEL, max_repetition: 0.2, contrast: (0.7, 1.1), max_seam_ratio: Some(1.3) },
 ];
 
-/// One answer's metrics; `None` where a metric is undefined (a flat image has no
-/// autocorrelation), which no gate accepts.
+/// One answer's metrics; `None` where a metric is undefined (no joins, or a luminance without
+/// any variation), which no gate accepts.
 #[derive(Debug)]
 struct Scores {
     repetition: Option<f64>,

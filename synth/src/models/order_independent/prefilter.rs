@@ -71,8 +71,9 @@ pub struct Calibration {
     pub g: Vec<[u8; 3]>,
     pub mean: [u8; 3],
     /// Per vtex level, how its pyramid source is brought to the exact chain's contrast around
-    /// the texture's mean.
-    pub contrast: Vec<Contrast>,
+    /// the texture's mean; `None` where the source is exact, or a window is smaller than a
+    /// pixel of the level.
+    pub contrast: Vec<Option<Contrast>>,
 }
 
 /// `mean` + `gain` × (v − `centre`): the deviations of a level's source from its own mean,
@@ -84,10 +85,6 @@ pub struct Contrast {
     /// σ of the exact chain over σ of the source on the windows, in 1/256.
     gain: i64,
 }
-
-/// Where the source is exact, or a window is smaller than a pixel of the level: the source as
-/// it is.
-const UNCHANGED: Contrast = Contrast { centre: [0; 3], gain: 0 };
 
 impl Calibration {
     /// Measured over [`WINDOWS`] deterministic level-0 windows; `None` once `stop` is requested.
@@ -141,7 +138,7 @@ impl Calibration {
         };
         let mean = total.map(|t| ((t + weight / 2) / weight) as u8);
         let top = fin + p.mip.noise_levels as u32;
-        let mut contrast = vec![UNCHANGED; top as usize + 1];
+        let mut contrast = vec![None; top as usize + 1];
         for (l, contrast) in contrast.iter_mut().enumerate().skip(1) {
             let l = l as u32;
             let Source::Pyramid { r } = source(p, l) else { continue };
@@ -153,17 +150,14 @@ impl Calibration {
                 exact.add(&downsample_n(img, l));
                 raw.add(&pyramid(tex, &g, r, l - r, x >> l, y >> l, side >> l, side >> l, stop)?);
             }
-            *contrast = Contrast { centre: raw.mean_q8(), gain: exact.gain_over(&raw) };
+            *contrast = Some(Contrast { centre: raw.mean_q8(), gain: exact.gain_over(&raw) });
         }
         Some(Calibration { g, mean, contrast })
     }
 
     /// `img` (a source of level `l`) brought to the exact chain's contrast.
     fn adjust(&self, l: u32, img: &mut Rgba8Image) {
-        let Contrast { centre, gain } = self.contrast[l as usize];
-        if gain == 0 {
-            return;
-        }
+        let Some(Contrast { centre, gain }) = self.contrast[l as usize] else { return };
         for px in img.data.chunks_exact_mut(4) {
             for c in 0..3 {
                 let deviation = ((px[c] as i64) << 8) - centre[c];
