@@ -37,6 +37,7 @@ use std::time::{Duration, Instant};
 use tokio::io::{AsyncReadExt, AsyncWriteExt};
 use tokio::net::{TcpListener, TcpStream};
 use tokio::sync::Semaphore;
+use vtex_synth::Resources;
 
 /// How long shutdown waits for requests in flight before it gives up on them.
 const DRAIN_TIMEOUT: Duration = Duration::from_secs(10);
@@ -65,12 +66,13 @@ pub async fn run(mut cfg: ServeConfig, shutdown: impl Future<Output = ()>) -> an
         .map_err(|e| anyhow::anyhow!("cannot listen on {}: {}", cfg.bind, io_message(&e)))?;
     let t0 = Instant::now();
     let (dir, bounds, watch, write) = (cfg.data_dir.clone(), cfg.store_bounds(), cfg.watch, !cfg.read_only);
+    let resources = Resources::new(cfg.synth_cache_bytes());
     let demos = write && !cfg.no_demos;
     // The watch starts before the store lists the directory, so nothing added meanwhile is missed.
     let (store, report, watch) = tokio::task::spawn_blocking(move || {
         check_data_dir(&dir, write)?;
         let watch = Watch::start(&dir, watch).map_err(anyhow::Error::msg)?;
-        let (store, report) = Store::open(&dir, bounds, demos)
+        let (store, report) = Store::open(&dir, bounds, resources, demos)
             .map_err(|e| anyhow::anyhow!("cannot open data directory {}: {}", dir.display(), io_message(&e)))?;
         anyhow::Ok((Arc::new(store), report, watch))
     })
