@@ -1,6 +1,6 @@
 //! The command line: `vtex serve | create | models | render | info | export-web | health`.
 
-use crate::api::models as api_models;
+use crate::catalogue;
 use crate::config::ServeConfig;
 use crate::encode::{self, Format};
 use crate::store::{self, Bounds, Entry, Store};
@@ -172,15 +172,15 @@ pub fn create(args: CreateArgs) -> anyhow::Result<()> {
 
 pub fn models(args: ModelsArgs) -> anyhow::Result<()> {
     let docs = match &args.model {
-        Some(id) => vec![api_models::one(id).map_err(|e| anyhow!("{e}"))?],
-        None => api_models::list().models,
+        Some(id) => vec![catalogue::one(id).map_err(|e| anyhow!("{e}"))?],
+        None => catalogue::list().models,
     };
     if let Some(dir) = &args.example_dir {
         std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
         for doc in &docs {
             for name in doc.example.inputs.keys() {
                 let path = dir.join(example_file(&doc.id, name));
-                let png = api_models::example_input(&doc.id, name).map_err(|e| anyhow!("{e}"))?;
+                let png = catalogue::example_input(&doc.id, name).map_err(|e| anyhow!("{e}"))?;
                 std::fs::write(&path, png).with_context(|| format!("writing {}", path.display()))?;
             }
         }
@@ -188,7 +188,7 @@ pub fn models(args: ModelsArgs) -> anyhow::Result<()> {
     if args.json {
         let out = match &args.model {
             Some(_) => serde_json::to_string_pretty(&docs[0])?,
-            None => serde_json::to_string_pretty(&api_models::ModelList { models: docs })?,
+            None => serde_json::to_string_pretty(&catalogue::ModelList { models: docs })?,
         };
         println!("{out}");
         return Ok(());
@@ -210,7 +210,7 @@ fn example_file(id: &str, name: &str) -> String {
 
 /// One model for people: what it is, its parameters and inputs, and its example as a
 /// `vtex create` command whose inputs are in `dir`.
-fn describe_model(doc: &api_models::ModelDoc, dir: &Path) -> String {
+fn describe_model(doc: &catalogue::ModelDoc, dir: &Path) -> String {
     let schema = &doc.params_schema;
     let required: Vec<&str> = schema["required"].as_array().into_iter().flatten().filter_map(|v| v.as_str()).collect();
     let params: Vec<String> = schema["properties"]

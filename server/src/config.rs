@@ -1,12 +1,13 @@
 //! Settings of `vtex serve`. Each one comes from its flag, else its environment variable,
 //! else its default — one precedence for all, implemented by clap.
 
-use crate::api::origin::{PublicUrl, TrustedProxy};
 use crate::encode::Format;
 use crate::store::Bounds;
 use crate::transport::{SendLimits, Transport};
 pub use crate::watch::WatchMode;
 use clap::Args;
+use ipnet::IpNet;
+use std::net::IpAddr;
 use std::net::SocketAddr;
 use std::path::PathBuf;
 use std::time::Duration;
@@ -567,5 +568,51 @@ impl std::str::FromStr for WriteToken {
 impl std::fmt::Debug for WriteToken {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         f.write_str("WriteToken(…)")
+    }
+}
+
+/// `--public-url`: an `http` or `https` URL without credentials, query or fragment, kept as
+/// its origin and path without the trailing slash.
+#[derive(Clone, Debug, PartialEq)]
+pub struct PublicUrl(pub(crate) String);
+
+impl std::str::FromStr for PublicUrl {
+    type Err = String;
+    fn from_str(s: &str) -> Result<Self, String> {
+        let bad = |why: &str| Err(format!("`{s}` is not a public URL like https://example.org/vtex/: {why}"));
+        let url = match url::Url::parse(s.trim()) {
+            Ok(url) => url,
+            Err(e) => return bad(&e.to_string()),
+        };
+        if !matches!(url.scheme(), "http" | "https") {
+            return bad("the scheme must be http or https");
+        }
+        if url.host().is_none() {
+            return bad("it names no host");
+        }
+        if !url.username().is_empty() || url.password().is_some() {
+            return bad("it must not carry credentials");
+        }
+        if url.query().is_some() || url.fragment().is_some() {
+            return bad("it must not have a query or a fragment");
+        }
+        Ok(PublicUrl(format!("{}{}", url.origin().ascii_serialization(), url.path().trim_end_matches('/'))))
+    }
+}
+
+/// One entry of `--trusted-proxies`: an address, or a CIDR range.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct TrustedProxy(pub(crate) IpNet);
+
+impl std::str::FromStr for TrustedProxy {
+    type Err = String;
+    fn from_str(s: &str) -> Result<Self, String> {
+        let s = s.trim();
+        let net = match s.contains('/') {
+            true => s.parse::<IpNet>().map(|n| n.trunc()).ok(),
+            false => s.parse::<IpAddr>().map(IpNet::from).ok(),
+        };
+        net.map(TrustedProxy)
+            .ok_or_else(|| format!("`{s}` is not an IP address or a CIDR range (like 127.0.0.1, 10.0.0.0/8 or ::1)"))
     }
 }

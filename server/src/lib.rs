@@ -1,21 +1,22 @@
 //! vtex-server: serves virtual textures over HTTP.
 //!
-//! Data flows one way: request → [`cache`] lookup → (miss) model render → [`encode`] →
-//! cache → response. The server never knows how a model works; it only calls
+//! Data flows one way: request → [`api`] → [`engine`]: texture lookup, the tile cache, (on a
+//! miss) the model's render → [`encode`] → cache → response. The server never knows how a model works; it only calls
 //! [`vtex_synth::Texture::render`] on regions it has validated.
 //!
 //! * [`config`] — settings of `vtex serve` (flags beat environment beat defaults).
 //! * [`store`] — the data directory of content-addressed bundles, written atomically.
-//! * [`cache`] — the sharded, byte-bounded tile LRU with coalesced misses.
+//! * [`engine`] — what is served, below HTTP: texture lookup, tile and page addressing and
+//!   ETags, the sharded, byte-bounded tile LRU with coalesced misses, synthesis in bounded
+//!   slots.
 //! * [`encode`] — tile formats (PNG, WebP, JPEG, raw RGBA).
 //! * [`ktx2`] — GPU-ready pages: BC7, BC1 or RGBA8 in KTX2, optionally zstd-supercompressed.
 //! * [`metrics`] — Prometheus counters, gauges and histograms.
 //! * [`api`] — the HTTP API v1 (axum).
-//! * [`slots`] — synthesis slots shared fairly between textures, with a bounded queue.
-//! * [`inflight`] — the byte budget of response bodies in flight.
 //! * [`serve`] — the listener: connection timeouts and graceful shutdown.
 //! * [`transport`] — how bodies reach the socket (`--send copy|splice`); all platform-specific code.
 //! * [`watch`] — follows bundles other processes add to or delete from the data directory.
+//! * [`catalogue`] — every model's parameters, inputs and example, for the API and the CLI.
 //! * [`cli`] — the offline subcommands `create`, `models`, `render`, `info`, `export-web`.
 //! * [`probe`] — `vtex health`: a running server's readiness, for container health checks.
 //! * [`export`] — `export-web`: the viewer, the synthesis module and an encoding as a static folder.
@@ -25,18 +26,61 @@
 #![deny(unsafe_code)]
 
 pub mod api;
-pub mod cache;
+pub mod catalogue;
 pub mod cli;
 pub mod config;
 pub mod encode;
+pub mod engine;
 pub mod export;
-pub mod inflight;
 pub mod ktx2;
 pub mod metrics;
 pub mod probe;
 pub mod serve;
-pub mod slots;
 pub mod store;
 #[allow(unsafe_code)]
 pub mod transport;
 pub mod watch;
+
+#[cfg(test)]
+mod tests {
+    use std::path::{Path, PathBuf};
+
+    /// The source files of `dir` (or the file itself), recursively.
+    fn sources(path: &Path) -> Vec<PathBuf> {
+        if path.is_file() {
+            return vec![path.to_path_buf()];
+        }
+        std::fs::read_dir(path).unwrap().flat_map(|e| sources(&e.unwrap().path())).collect()
+    }
+
+    /// The floors below the API — the engine, the store, the catalogue and what they use, and
+    /// the offline commands — name no HTTP type and nothing of the API or the listener.
+    #[test]
+    fn the_floors_below_the_api_know_no_http() {
+        let src = Path::new(env!("CARGO_MANIFEST_DIR")).join("src");
+        let floors = [
+            "engine",
+            "store.rs",
+            "catalogue.rs",
+            "config.rs",
+            "encode.rs",
+            "ktx2.rs",
+            "metrics.rs",
+            "watch.rs",
+            "cli.rs",
+            "export.rs",
+        ];
+        let mut found = Vec::new();
+        for file in floors.iter().flat_map(|f| sources(&src.join(f))) {
+            let text = std::fs::read_to_string(&file).unwrap();
+            for (n, line) in text.lines().enumerate().filter(|(_, l)| !l.trim_start().starts_with("//")) {
+                for word in ["axum", "hyper", "http::", "crate::api", "crate::serve"] {
+                    if line.contains(word) {
+                        found.push(format!("{}:{}: {word}", file.display(), n + 1));
+                    }
+                }
+            }
+        }
+        assert!(found.is_empty(), "{found:#?}");
+    }
+}

@@ -8,7 +8,7 @@
 //! connections (nginx's worker model); one accepts and hands each new connection to the
 //! runtime serving the fewest. One work-stealing runtime would spend more CPU per warm tile
 //! and wait on cross-thread wake-ups. Syntheses still run on blocking pools, bounded by the
-//! shared [`crate::slots::Slots`].
+//! shared [`crate::engine::slots::Slots`].
 //!
 //! Every connection is bounded in time and number: a response that cannot be sent for
 //! `--send-timeout-secs`, or that its reader takes slower than `--min-send-rate`, is abandoned
@@ -132,7 +132,7 @@ pub async fn run(
             tokio::spawn(async move {
                 tokio::time::sleep(DRAIN_TIMEOUT - STOP_BEFORE_END).await;
                 tracing::info!("stopping the syntheses still running");
-                app.stop_syntheses();
+                app.engine.stop_syntheses();
             });
         }
     };

@@ -15,7 +15,7 @@
 //!
 //! Several processes may share one data directory (replicas behind a proxy). A bundle another
 //! process wrote, or one copied in, is found on the first request for its id ([`Store::find`],
-//! with a short memory of ids found absent) and by the directory watch ([`crate::watch`]), which
+//! with a short memory of ids found absent) and by the directory watch (`watch.rs`), which
 //! calls [`Store::refresh`] for every bundle that appears or disappears. Temporary names are
 //! unique per process, and only temporaries older than [`STALE_TEMP_AGE`] are taken for crashed
 //! writes, so replicas starting together never remove each other's writes in progress.

@@ -10,7 +10,7 @@
 //! the others as each synthesis finishes. Each frame is a [`HEADER_LEN`]-byte little-endian
 //! header followed by exactly the bytes the single-tile endpoint returns for that tile (the
 //! same cache, the same coalescing of concurrent misses, the same synthesis slots:
-//! [`tiles::obtain`]). Header, by byte offset:
+//! [`Engine::tile`](crate::engine::Engine::tile)). Header, by byte offset:
 //!
 //! | bytes  | field                                                             |
 //! |--------|-------------------------------------------------------------------|
@@ -26,7 +26,7 @@
 //! repeated tile, more than [`MAX_TILES`] tiles, a list over [`MAX_LIST_BYTES`], an unknown
 //! format or parameter are 400s, a level the texture does not serve a 400 and a tile outside
 //! its level a 404, as for single tiles, each naming the problem; a spent in-flight budget
-//! ([`crate::inflight`]) is a 503. Errors after that (a model failing to render; no synthesis
+//! ([`super::inflight`]) is a 503. Errors after that (a model failing to render; no synthesis
 //! slot, 503) come as error frames. Dropping the response (a
 //! client that went away) aborts the tiles not yet done: a synthesis that has not started never
 //! starts, and one running stops unless another request waits for the same tile; a body not
@@ -34,15 +34,15 @@
 
 use super::error::{echo, ApiError};
 use super::extract::{Path, Query};
+use super::inflight::Reservation;
 use super::openapi::text;
 use super::openapi::ErrorBody;
 use super::pages::{self, page_format_value, PageFormat};
 use super::params::{de, u32_value};
-use super::tiles::{self, frame_for};
 use super::{lookup, not_modified, not_modified_response, App, TextureId, CACHE_IMMUTABLE};
-use crate::cache::{Shape, Source, Tile, TileKey};
 use crate::encode::Format;
-use crate::inflight::Reservation;
+use crate::engine::address::{self, frame_for};
+use crate::engine::cache::{Shape, Source, Tile, TileKey};
 use axum::body::Body;
 use axum::extract::State;
 use axum::http::{header, HeaderMap, HeaderValue};
@@ -290,8 +290,8 @@ pub async fn batch(
     let entry = lookup(&app, &id).await?;
     for t in &tiles {
         match shape {
-            Shape::Tile | Shape::Square => tiles::check_tile(&entry, t.level, t.x, t.y)?,
-            Shape::Page { size, .. } => pages::check_page(&entry, t.level, t.x, t.y, size)?,
+            Shape::Tile | Shape::Square => address::check_tile(&entry, t.level, t.x, t.y)?,
+            Shape::Page { size, .. } => address::check_page(&entry, t.level, t.x, t.y, size)?,
         }
     }
     let frame = frame_for(&entry, frame);
@@ -308,7 +308,7 @@ pub async fn batch(
     let turns = Arc::new(Semaphore::new(app.cfg.syntheses_per_texture()));
     for tile in tiles {
         let key = TileKey { texture: entry.key, level: tile.level, x: tile.x, y: tile.y, frame, format, shape };
-        match app.cache.get(&key) {
+        match app.engine.cache.get(&key) {
             Some(hit) => {
                 app.metrics.cache_hit(tile.level);
                 push_tile(&mut ready, tile, &hit, Source::Hit);
@@ -317,8 +317,8 @@ pub async fn batch(
                 let (app, entry, turns) = (app.clone(), entry.clone(), turns.clone());
                 pending.spawn(async move {
                     let _turn = turns.acquire().await.expect("the semaphore is never closed");
-                    let tag = tiles::key_etag(&entry, &key);
-                    (tile, tiles::obtain(&app, &entry, key, None, tag).await)
+                    let tag = address::key_etag(&entry, &key);
+                    (tile, app.engine.tile(&entry, key, None, tag).await.map_err(ApiError::from))
                 });
             }
         }
@@ -356,7 +356,7 @@ fn push_error(out: &mut VecDeque<Bytes>, tile: TileRef, e: &ApiError) {
     out.push_back(b.freeze());
 }
 
-/// A tile as [`tiles::obtain`] answers it.
+/// A tile as [`Engine::tile`](crate::engine::Engine::tile) answers it.
 type Obtained = Result<(Arc<Tile>, Source), ApiError>;
 
 /// The response body: queued chunks first, then tiles as their tasks finish. Dropping it

@@ -4,7 +4,7 @@ use super::error::ApiError;
 use super::extract::{NoQuery, Path, Query};
 use super::openapi::text;
 use super::openapi::ErrorBody;
-use super::{check_id, no_texture, App, TextureId};
+use super::{App, TextureId};
 use axum::extract::State;
 use axum::http::StatusCode;
 
@@ -26,15 +26,15 @@ pub async fn delete(
     Path(TextureId { id }): Path<TextureId>,
     _: Query<NoQuery>,
 ) -> Result<StatusCode, ApiError> {
-    check_id(&id)?;
-    let store = app.store.clone();
+    crate::engine::check_id(&id)?;
+    let store = app.engine.store.clone();
     let target = id.clone();
     let removed = tokio::task::spawn_blocking(move || store.remove(&target))
         .await
         .map_err(|e| ApiError::internal("deleting the bundle failed", e))?
         .map_err(|e| ApiError::internal("deleting the bundle failed", e))?;
     if !removed {
-        return Err(no_texture(&id));
+        return Err(ApiError::not_found(format!("no texture with id {id}")));
     }
     tracing::info!(%id, "texture deleted");
     Ok(StatusCode::NO_CONTENT)

@@ -12,10 +12,12 @@ use super::extract::{Path, Query};
 use super::openapi::text;
 use super::openapi::ErrorBody;
 use super::params::{de, format_value, named, u32_value};
-use super::tiles::{self, frame_for};
+use super::tiles;
 use super::{lookup, App};
-use crate::cache::{Shape, TileKey};
 use crate::encode::{self, Format};
+use crate::engine::address::frame_for;
+use crate::engine::cache::{Shape, TileKey};
+use crate::engine::{ETag, Mark};
 use crate::store::Entry;
 use axum::extract::State;
 use axum::http::{header, HeaderMap};
@@ -184,15 +186,15 @@ async fn rendered(app: &App, entry: Arc<Entry>, t: DziTile, headers: &HeaderMap)
         (start, ((i as u64 + 1) * ts + ov).min(size) - start)
     };
     let ((x0, w), (y0, h)) = (span(t.x, lw), span(t.y, lh));
-    let what = [2 << 62, t.level as u64, t.x as u64, t.y as u64, ov, t.frame as u64, ts];
-    let tag = tiles::etag(&entry.key, &what, t.format);
-    if super::not_modified(headers, tag.to_str().unwrap_or_default()) {
-        return Ok(super::not_modified_response(tag));
+    let what = [t.level as u64, t.x as u64, t.y as u64, ov, t.frame as u64, ts];
+    let tag = ETag::new(&entry.key, Some(Mark::Dzi), &what, t.format);
+    if super::not_modified(headers, tag.as_str()) {
+        return Ok(super::not_modified_response(super::etag_header(&tag)));
     }
     let (w, h) = (w as u32, h as u32);
     let mut reservation = app.inflight.reserve(encode::peak_bytes(t.format, w, h))?;
     let region = Region::new(t.level, x0 as i64, y0 as i64, w, h).at_frame(t.frame);
-    let body = app.synthesize(entry, region, t.format).await?;
+    let body = app.engine.synthesize(entry, region, t.format).await?;
     app.inflight.resize(&mut reservation, body.len() as u64)?;
-    Ok(tiles::image_response(reservation.hold(body), t.format, tag, w, h))
+    Ok(tiles::image_response(reservation.hold(body), t.format, &tag, w, h))
 }

@@ -4,9 +4,7 @@
 use axum::http::{header, HeaderValue, StatusCode};
 use axum::response::{IntoResponse, Response};
 
-/// The cause of an internal error: kept for the log, never sent. Shared, so that one
-/// synthesis's error can answer every request that waited for it.
-pub type Cause = std::sync::Arc<dyn std::error::Error + Send + Sync>;
+pub use crate::engine::Cause;
 
 /// Seconds a client is asked to wait before retrying a `503`.
 pub const RETRY_AFTER_SECS: u32 = 1;
@@ -106,13 +104,19 @@ impl ApiError {
     }
 }
 
-/// Client input echoed in messages is cut short, so an error never amplifies a request.
-pub fn echo(s: &str) -> String {
-    const MAX: usize = 64;
-    if s.chars().count() <= MAX {
-        s.to_string()
-    } else {
-        format!("{}…", s.chars().take(MAX).collect::<String>())
+pub use crate::engine::echo;
+
+/// The engine's failures by meaning, as statuses.
+impl From<crate::engine::Error> for ApiError {
+    fn from(e: crate::engine::Error) -> Self {
+        use crate::engine::Error;
+        match e {
+            Error::Invalid(m) => ApiError::BadRequest(m),
+            Error::Missing(m) => ApiError::NotFound(m),
+            Error::Model(e) => e.into(),
+            Error::Busy(m) => ApiError::Unavailable(m),
+            Error::Failed { what, cause } => ApiError::Internal { what, cause },
+        }
     }
 }
 

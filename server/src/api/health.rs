@@ -36,11 +36,11 @@ pub async fn readyz(State(app): State<App>, _: Query<NoQuery>) -> Response {
     if app.draining.load(Ordering::Relaxed) {
         return not_ready("the server is shutting down");
     }
-    let dir = app.store.dir().to_path_buf();
+    let dir = app.engine.store.dir().to_path_buf();
     let readable = tokio::task::spawn_blocking(move || std::fs::read_dir(&dir).is_ok()).await.unwrap_or(false);
     if !readable {
         return not_ready("the data directory cannot be read");
     }
-    let body = serde_json::json!({ "status": "ready", "textures": app.store.len() }).to_string();
+    let body = serde_json::json!({ "status": "ready", "textures": app.engine.store.len() }).to_string();
     ([(header::CONTENT_TYPE, "application/json")], body).into_response()
 }

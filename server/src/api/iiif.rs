@@ -15,12 +15,14 @@ use super::jsonld;
 use super::openapi::text;
 use super::openapi::ErrorBody;
 use super::origin::Origin;
-use super::tiles::{self, frame_for};
+use super::tiles;
 use super::view::{self, View};
 use super::App;
-use crate::cache::{Shape, TileKey};
 use crate::config::MAX_REGION_SIDE;
 use crate::encode::Format;
+use crate::engine::address::frame_for;
+use crate::engine::cache::{Shape, TileKey};
+use crate::engine::{ETag, Mark};
 use crate::store::Entry;
 use axum::extract::State;
 use axum::http::{header, HeaderMap, HeaderValue, StatusCode};
@@ -58,7 +60,7 @@ async fn image_of(app: &App, ident: &str) -> Result<(Arc<Entry>, u32), ApiError>
         Some((id, f)) => (id, Some(f.parse::<u32>().map_err(|_| none())?)),
         None => (ident, None),
     };
-    if !vtex_synth::bundle::is_valid_id(id) || app.store.record(id).is_none() {
+    if !vtex_synth::bundle::is_valid_id(id) || app.engine.store.record(id).is_none() {
         return Err(none());
     }
     let entry = super::lookup(app, id).await?;
@@ -470,7 +472,6 @@ async fn answer(app: &App, entry: Arc<Entry>, req: Request, headers: &HeaderMap)
         return tiles::respond(app, &entry, key, headers).await;
     }
     let what = [
-        3 << 62,
         v.x,
         v.y,
         v.w,
@@ -482,9 +483,9 @@ async fn answer(app: &App, entry: Arc<Entry>, req: Request, headers: &HeaderMap)
         req.turns as u64,
         req.quality as u64,
     ];
-    let tag = tiles::etag(&entry.key, &what, req.format);
-    if super::not_modified(headers, tag.to_str().unwrap_or_default()) {
-        return Ok(super::not_modified_response(tag));
+    let tag = ETag::new(&entry.key, Some(Mark::Iiif), &what, req.format);
+    if super::not_modified(headers, tag.as_str()) {
+        return Ok(super::not_modified_response(super::etag_header(&tag)));
     }
     let reservation = app
         .inflight
@@ -495,7 +496,7 @@ async fn answer(app: &App, entry: Arc<Entry>, req: Request, headers: &HeaderMap)
         .map_err(|e| ApiError::internal("transforming the image failed", e))?;
     let (w, h) = (img.width, img.height);
     let body = view::encode_held(app, img, req.format, reservation).await?;
-    Ok(tiles::image_response(body, req.format, tag, w, h))
+    Ok(tiles::image_response(body, req.format, &tag, w, h))
 }
 
 /// Mirrors (left–right), then rotates clockwise by quarter turns, then maps the colours.

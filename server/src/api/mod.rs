@@ -11,6 +11,7 @@ pub mod extract;
 mod front;
 mod health;
 mod iiif;
+pub mod inflight;
 mod jsonld;
 pub mod models;
 pub mod openapi;
@@ -25,13 +26,10 @@ mod view;
 mod web;
 pub mod writes;
 
-use crate::cache::TileCache;
 use crate::config::ServeConfig;
-use crate::encode::{self, Format};
-use crate::inflight::Inflight;
+use crate::engine::{ETag, Engine};
 use crate::metrics::Metrics;
-use crate::slots::{Refused, Slots};
-use crate::store::{Entry, Record, Store, StoreError};
+use crate::store::{Entry, Record, Store};
 use axum::error_handling::HandleErrorLayer;
 use axum::extract::{DefaultBodyLimit, MatchedPath, Request, State};
 use axum::http::{header, HeaderMap, HeaderName, HeaderValue, Method, StatusCode};
@@ -42,8 +40,9 @@ use axum::{BoxError, Router};
 use error::ApiError;
 use extract::{NoQuery, Query};
 use http_body_util::BodyExt;
+use inflight::Inflight;
 use serde::Deserialize;
-use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::atomic::AtomicBool;
 use std::sync::Arc;
 use std::time::Instant;
 use tower::ServiceBuilder;
@@ -53,7 +52,6 @@ use tower_http::cors::{Any, CorsLayer};
 use tower_http::services::ServeDir;
 use tower_http::trace::{DefaultMakeSpan, TraceLayer};
 use utoipa_axum::{router::OpenApiRouter, routes};
-use vtex_synth::{Region, Rgba8Image, Stop};
 
 pub use error::ApiError as Error;
 pub use front::{Front, MAX_HEAD_BYTES};
@@ -71,27 +69,12 @@ pub static X_VTEX_CACHE: HeaderName = HeaderName::from_static("x-vtex-cache");
 pub static X_VTEX_WIDTH: HeaderName = HeaderName::from_static("x-vtex-width");
 pub static X_VTEX_HEIGHT: HeaderName = HeaderName::from_static("x-vtex-height");
 
-const SYNTHESIS_FAILED: &str = "synthesis failed inside the model; the texture cannot render this region";
-
-/// What a caught panic says, for the log.
-fn panic_message(panic: Box<dyn std::any::Any + Send>) -> String {
-    match panic.downcast::<String>() {
-        Ok(s) => format!("panic: {s}"),
-        Err(p) => format!("panic: {}", p.downcast_ref::<&str>().unwrap_or(&"(no message)")),
-    }
-}
-
-/// Everything a request handler needs.
+/// Everything a request handler needs: the engine, and what only HTTP has.
 pub struct AppState {
-    pub store: Arc<Store>,
-    pub cache: TileCache,
-    pub metrics: Metrics,
-    /// Synthesis slots, shared fairly between textures, with a bounded queue.
-    pub slots: Arc<Slots>,
+    pub engine: Arc<Engine>,
+    pub metrics: Arc<Metrics>,
     /// The budget of response bodies in flight (`--inflight-mb`).
     pub inflight: Inflight,
-    /// Set when shutdown stops the renders still running.
-    pub stopping: Arc<AtomicBool>,
     /// Set when shutdown begins: no longer ready (`/readyz`).
     pub draining: AtomicBool,
     /// Who may write (`VTEX_WRITE_TOKEN`, `--read-only`, `--cors-write-origins`).
@@ -101,133 +84,17 @@ pub struct AppState {
 
 pub type App = Arc<AppState>;
 
-/// The stop of one synthesis: requested when nobody waits for it any more, or for all at
-/// shutdown.
-struct SynthesisStop {
-    abandoned: AtomicBool,
-    server: Arc<AtomicBool>,
-}
-
-impl Stop for SynthesisStop {
-    fn requested(&self) -> bool {
-        self.abandoned.load(Ordering::Relaxed) || self.server.load(Ordering::Relaxed)
-    }
-}
-
-/// Requests the stop of a synthesis when the future waiting for it ends, finished or dropped.
-struct StopOnDrop(Arc<SynthesisStop>);
-
-impl Drop for StopOnDrop {
-    fn drop(&mut self) {
-        self.0.abandoned.store(true, Ordering::Relaxed);
-    }
-}
-
 impl AppState {
     pub fn new(store: Arc<Store>, cfg: ServeConfig) -> App {
-        let metrics = Metrics::new();
-        let cache = TileCache::new(cfg.cache_bytes(), cfg.send);
-        metrics.cache_budget_bytes.set(cache.budget() as i64);
+        let metrics = Arc::new(Metrics::new());
         metrics.textures_budget_bytes.set(store.bounds().limits.max_resident_bytes as i64);
+        metrics.model_cache_budget_bytes.set(store.resources().cache_budget() as i64);
+        let engine = Arc::new(Engine::new(store, &cfg, metrics.clone()));
         let inflight = Inflight::new(cfg.inflight_bytes());
         metrics.inflight_budget_bytes.set(inflight.budget_bytes() as i64);
-        metrics.model_cache_budget_bytes.set(store.resources().cache_budget() as i64);
-        let slots = Slots::new(cfg.syntheses(), cfg.syntheses_per_texture(), cfg.max_queued());
-        let stopping = Arc::new(AtomicBool::new(false));
         let (draining, writes) = (AtomicBool::new(false), writes::WritePolicy::new(&cfg));
-        Arc::new(AppState { store, cache, metrics, slots, inflight, stopping, draining, writes, cfg })
+        Arc::new(AppState { engine, metrics, inflight, draining, writes, cfg })
     }
-
-    /// Shutdown: stops every render in progress and refuses every miss waiting or to come.
-    pub fn stop_syntheses(&self) {
-        self.stopping.store(true, Ordering::Relaxed);
-        self.slots.close();
-    }
-
-    /// Renders `region` of `entry` and encodes it, on the blocking pool, holding a slot.
-    /// Returns the encoded bytes. Bad regions are 400s; a panicking model is a 500; no slot
-    /// (queue full, shutting down) or a render stopped by shutdown is a 503.
-    pub async fn synthesize(&self, entry: Arc<Entry>, region: Region, format: Format) -> Result<Vec<u8>, ApiError> {
-        let canvas = (region.width, region.height);
-        self.synthesize_then(entry, region, canvas, format, |bytes| bytes).await
-    }
-
-    /// [`Self::synthesize`], then `finish` on the encoded bytes in the same blocking task — for
-    /// tiles, [`crate::transport::Transport::seal`], whose copy (and the first touch of a fresh
-    /// huge-page arena, which may wait for the kernel to compact memory) then stays off the I/O
-    /// runtimes.
-    ///
-    /// The render is drawn at the top left of a transparent `canvas` (width, height), for
-    /// tiles that must be whole squares though the texture ends inside them.
-    ///
-    /// Dropping the future (its request gone) stops the render: the model returns at its next
-    /// band, and the slot is free again.
-    pub async fn synthesize_then<T: Send + 'static>(
-        &self,
-        entry: Arc<Entry>,
-        region: Region,
-        canvas: (u32, u32),
-        format: Format,
-        finish: impl FnOnce(Vec<u8>) -> T + Send + 'static,
-    ) -> Result<T, ApiError> {
-        let slot = self.slots.acquire(entry.key).await.map_err(|refused| {
-            if refused == Refused::Full {
-                self.metrics.syntheses_shed.inc();
-            }
-            unavailable(refused)
-        })?;
-        let stop = Arc::new(SynthesisStop { abandoned: AtomicBool::new(false), server: self.stopping.clone() });
-        let _stop_on_drop = StopOnDrop(stop.clone());
-        let m = &self.metrics;
-        let (synth_s, encode_s, in_flight, count, stopped) = (
-            m.synthesis_seconds.clone(),
-            m.encode_seconds.with_label_values(&[format.ext()]),
-            m.syntheses_in_flight.clone(),
-            m.syntheses.clone(),
-            m.syntheses_stopped.clone(),
-        );
-        // The slot moves into the blocking work, not this future: a request dropped while its
-        // tile renders must not free the slot before the render has returned, or more
-        // syntheses than slots would run at once.
-        tokio::task::spawn_blocking(move || {
-            count.inc();
-            in_flight.inc();
-            let work = || {
-                let t0 = Instant::now();
-                let Some(img) = vtex_synth::texture::render_image_until(&*entry.texture, &region, &*stop)? else {
-                    stopped.inc();
-                    return Err(unavailable(Refused::Closed));
-                };
-                synth_s.observe(t0.elapsed().as_secs_f64());
-                let img = if (img.width, img.height) == canvas {
-                    img
-                } else {
-                    let mut on = Rgba8Image::new(canvas.0, canvas.1);
-                    on.blit(&img, 0, 0);
-                    on
-                };
-                let t1 = Instant::now();
-                let bytes = encode::encode(img, format).map_err(|e| ApiError::internal("encoding failed", e))?;
-                encode_s.observe(t1.elapsed().as_secs_f64());
-                Ok(finish(bytes))
-            };
-            let result = std::panic::catch_unwind(std::panic::AssertUnwindSafe(work));
-            in_flight.dec();
-            drop(slot);
-            result.unwrap_or_else(|panic| Err(ApiError::internal(SYNTHESIS_FAILED, panic_message(panic))))
-        })
-        .await
-        .map_err(|e| ApiError::internal(SYNTHESIS_FAILED, e))?
-    }
-}
-
-/// The 503 for a miss that got no slot, or whose render shutdown stopped (a render stopped
-/// because its requests left answers nobody).
-fn unavailable(why: Refused) -> ApiError {
-    ApiError::Unavailable(match why {
-        Refused::Full => "too many tiles wait for synthesis; retry shortly".into(),
-        Refused::Closed => "the server is shutting down".into(),
-    })
 }
 
 /// The path of the routes of one texture, `/api/v1/textures/{id}…`.
@@ -385,7 +252,7 @@ async fn observe(State(app): State<App>, req: Request, next: Next) -> Response {
 /// Counts one answered request under `route`.
 fn count(app: &AppState, route: &str, method: &Method, start: Instant, resp: &Response) {
     let bytes = http_body::Body::size_hint(resp.body()).exact().unwrap_or(0);
-    app.metrics.request_done(route, method, resp.status(), start.elapsed().as_secs_f64(), bytes);
+    app.metrics.request_done(route, method.as_str(), resp.status().as_str(), start.elapsed().as_secs_f64(), bytes);
 }
 
 #[utoipa::path(get,
@@ -394,18 +261,18 @@ fn count(app: &AppState, route: &str, method: &Method, start: Instant, resp: &Re
     responses((status = 200, description = "Prometheus text format", content(("text/plain")))))]
 async fn metrics(State(app): State<App>, _: Query<NoQuery>) -> Response {
     let m = &app.metrics;
-    m.cache_bytes.set(app.cache.bytes() as i64);
+    let (cache, store) = (&app.engine.cache, &app.engine.store);
+    m.cache_bytes.set(cache.bytes() as i64);
     m.cache_mapped_bytes.set(app.cfg.send.mapped_bytes() as i64);
-    m.cache_entries.set(app.cache.len() as i64);
-    m.catch_up(&m.cache_evictions, app.cache.evictions());
-    let store = &app.store;
+    m.cache_entries.set(cache.len() as i64);
+    m.catch_up(&m.cache_evictions, cache.evictions());
     m.textures.set(store.len() as i64);
     m.store_bytes.set(store.stored_bytes() as i64);
     m.textures_loaded.set(store.loaded() as i64);
     m.textures_loaded_bytes.set(store.loaded_bytes() as i64);
     m.catch_up(&m.texture_loads, store.loads());
     m.catch_up(&m.texture_evictions, store.evictions());
-    m.syntheses_queued.set(app.slots.queued() as i64);
+    m.syntheses_queued.set(app.engine.slots.queued() as i64);
     m.inflight_bytes.set(app.inflight.reserved_bytes() as i64);
     m.read_models(store.resources());
     ([(header::CONTENT_TYPE, "text/plain; version=0.0.4")], m.render()).into_response()
@@ -497,39 +364,19 @@ pub async fn drain(req: Request) {
     }
 }
 
-/// A texture id from the path: checked before it can reach a file name.
-pub(crate) fn check_id(id: &str) -> Result<(), ApiError> {
-    if vtex_synth::bundle::is_valid_id(id) {
-        return Ok(());
-    }
-    Err(ApiError::bad_request(format!(
-        "invalid texture id `{}`: expected 64 lowercase hex characters",
-        error::echo(id)
-    )))
-}
-
-pub(crate) fn no_texture(id: &str) -> ApiError {
-    ApiError::not_found(format!("no texture with id {id}"))
-}
-
-/// What the store knows of texture `id`, without loading it (found in the data directory when
-/// another process wrote it).
+/// Texture `id`'s record, without loading it ([`Engine::record`]).
 pub async fn record(app: &AppState, id: &str) -> Result<Arc<Record>, ApiError> {
-    check_id(id)?;
-    app.store.find(id).await.ok_or_else(|| no_texture(id))
+    Ok(app.engine.record(id).await?)
 }
 
-/// Texture `id`, loaded: on its first use (or after its eviction) off the I/O threads.
+/// Texture `id`, loaded ([`Engine::lookup`]).
 pub async fn lookup(app: &AppState, id: &str) -> Result<Arc<Entry>, ApiError> {
-    check_id(id)?;
-    match app.store.get(id).await {
-        Ok(Some(entry)) => Ok(entry),
-        Ok(None) => Err(no_texture(id)),
-        Err(StoreError::Invalid(e)) => {
-            Err(ApiError::internal("the stored texture failed validation when loaded; it is no longer served", e))
-        }
-        Err(e) => Err(ApiError::internal("loading the stored texture failed", e)),
-    }
+    Ok(app.engine.lookup(id).await?)
+}
+
+/// An ETag as a header value (its bytes shared, not copied).
+pub fn etag_header(tag: &ETag) -> HeaderValue {
+    HeaderValue::from_maybe_shared(tag.bytes()).expect("quotes and hex digits are a valid header value")
 }
 
 #[cfg(test)]

@@ -20,59 +20,13 @@
 
 use super::App;
 use crate::config::ServeConfig;
+use crate::config::{PublicUrl, TrustedProxy};
 use axum::extract::{ConnectInfo, FromRequestParts};
 use axum::http::request::Parts;
 use axum::http::uri::Authority;
 use axum::http::{header, HeaderMap};
-use ipnet::IpNet;
 use std::convert::Infallible;
 use std::net::{IpAddr, Ipv4Addr, SocketAddr};
-
-/// `--public-url`: an `http` or `https` URL without credentials, query or fragment, kept as
-/// its origin and path without the trailing slash.
-#[derive(Clone, Debug, PartialEq)]
-pub struct PublicUrl(String);
-
-impl std::str::FromStr for PublicUrl {
-    type Err = String;
-    fn from_str(s: &str) -> Result<Self, String> {
-        let bad = |why: &str| Err(format!("`{s}` is not a public URL like https://example.org/vtex/: {why}"));
-        let url = match url::Url::parse(s.trim()) {
-            Ok(url) => url,
-            Err(e) => return bad(&e.to_string()),
-        };
-        if !matches!(url.scheme(), "http" | "https") {
-            return bad("the scheme must be http or https");
-        }
-        if url.host().is_none() {
-            return bad("it names no host");
-        }
-        if !url.username().is_empty() || url.password().is_some() {
-            return bad("it must not carry credentials");
-        }
-        if url.query().is_some() || url.fragment().is_some() {
-            return bad("it must not have a query or a fragment");
-        }
-        Ok(PublicUrl(format!("{}{}", url.origin().ascii_serialization(), url.path().trim_end_matches('/'))))
-    }
-}
-
-/// One entry of `--trusted-proxies`: an address, or a CIDR range.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct TrustedProxy(IpNet);
-
-impl std::str::FromStr for TrustedProxy {
-    type Err = String;
-    fn from_str(s: &str) -> Result<Self, String> {
-        let s = s.trim();
-        let net = match s.contains('/') {
-            true => s.parse::<IpNet>().map(|n| n.trunc()).ok(),
-            false => s.parse::<IpAddr>().map(IpNet::from).ok(),
-        };
-        net.map(TrustedProxy)
-            .ok_or_else(|| format!("`{s}` is not an IP address or a CIDR range (like 127.0.0.1, 10.0.0.0/8 or ::1)"))
-    }
-}
 
 /// Whether `ip` is one of the trusted proxies.
 fn trusted(proxies: &[TrustedProxy], ip: IpAddr) -> bool {

@@ -8,21 +8,22 @@
 //! are always (S + 2B)² even where the grid runs past the level's edge (every texture vtex
 //! serves is a torus or a plane: none has an edge where pixels would stop). Pages exist at
 //! every level down to 1×1. They share the tile cache, its coalescing and the synthesis slots
-//! with tiles (`tiles::obtain`), carry strong ETags and are immutable.
+//! with tiles (`Engine::tile`), carry strong ETags and are immutable.
 
 use super::error::{echo, ApiError};
 use super::extract::{Path, Query};
 use super::openapi::text;
 use super::openapi::ErrorBody;
 use super::params::{de, named, u32_value};
-use super::tiles::{self, frame_for};
-use super::{lookup, not_modified, not_modified_response, App, TextureId, X_VTEX_CACHE};
-use crate::cache::{Shape, TileKey};
+use super::tiles;
+use super::{lookup, not_modified, not_modified_response, App, TextureId};
 use crate::encode::Format;
+use crate::engine::address;
+use crate::engine::cache::{Shape, TileKey};
+use crate::engine::{ETag, Mark};
 use crate::ktx2::{self, Codec, Ktx2, Supercompression};
-use crate::store::Entry;
 use axum::extract::State;
-use axum::http::{HeaderMap, HeaderValue};
+use axum::http::HeaderMap;
 use axum::response::Response;
 use serde::de::Error as _;
 use serde::{Deserialize, Deserializer};
@@ -36,9 +37,6 @@ pub const DEFAULT_SIZE: u32 = 128;
 pub const DEFAULT_BORDER: u32 = 4;
 /// Largest side of a mip chain's first level.
 pub const MAX_CHAIN_SIDE: u64 = 2048;
-/// ETag fields that set pages apart from tiles and regions.
-const PAGE_MARK: u64 = 2 << 61;
-const CHAIN_MARK: u64 = 3 << 61;
 
 const FORMATS_EXPECTED: &str = "expected png, webp, jpg, rgba or ktx2";
 
@@ -152,49 +150,6 @@ fn ktx2_options(codec: Option<Codec>, supercompression: Option<Supercompression>
     Ktx2 { codec: codec.unwrap_or(Codec::Bc7), supercompression: supercompression.unwrap_or(Supercompression::None) }
 }
 
-/// Whether `entry` serves page (`level`, `x`, `y`) of side `size`: a level it does not have is
-/// a 400, a page outside the level's grid a 404.
-pub(super) fn check_page(entry: &Entry, level: u32, x: u32, y: u32, size: u32) -> Result<(), ApiError> {
-    let (w, h) = (entry.texture.width(), entry.texture.height());
-    let levels = level_count(w, h);
-    if level >= levels {
-        return Err(ApiError::bad_request(format!(
-            "page {level}/{x}/{y}: level {level} does not exist; pages are served at levels 0..={} (down to 1×1)",
-            levels - 1
-        )));
-    }
-    let (cols, rows) = page_grid(w, h, level, size);
-    if x as u64 >= cols || y as u64 >= rows {
-        return Err(ApiError::not_found(format!(
-            "page {level}/{x}/{y} is outside level {level}, which has {cols}×{rows} pages of {size}²"
-        )));
-    }
-    Ok(())
-}
-
-/// Columns and rows of pages of side `size` covering `level`.
-pub fn page_grid(width: u64, height: u64, level: u32, size: u32) -> (u64, u64) {
-    let (lw, lh) = level_size(width, height, level);
-    (lw.div_ceil(size as u64), lh.div_ceil(size as u64))
-}
-
-/// The region a page renders: its square and its border.
-pub(super) fn page_region(key: &TileKey, size: u32, border: u32) -> Region {
-    let at = |v: u32| v as i64 * size as i64 - border as i64;
-    let side = size + 2 * border;
-    Region::new(key.level, at(key.x), at(key.y), side, side).at_frame(key.frame)
-}
-
-/// The strong ETag of page `key`.
-pub(super) fn page_etag(entry: &Entry, key: &TileKey, size: u32, border: u32) -> HeaderValue {
-    let (codec, sc) = match key.format {
-        Format::Ktx2(k) => (1 + k.codec as u64, 1 + k.supercompression as u64),
-        _ => (0, 0),
-    };
-    let what = [PAGE_MARK, key.level as u64, key.x as u64, key.y as u64, key.frame as u64, size as u64, border as u64];
-    tiles::etag(&entry.key, &[&what[..], &[codec, sc]].concat(), key.format)
-}
-
 /// `GET /api/v1/textures/{id}/pages/{level}/{x}/{y}.{format}[?size=S&border=B&codec=C&supercompression=Z&frame=N]`
 #[utoipa::path(get,
     path = "/api/v1/textures/{id}/pages/{level}/{x}/{file}",
@@ -231,22 +186,10 @@ pub async fn page(
     let y = named("y", y, u32_value)?;
     let (format, shape) = page_spec(format, q.size, q.border, q.codec, q.supercompression)?;
     let Shape::Page { size, .. } = shape else { unreachable!("page_spec gives pages") };
-    check_page(&entry, level, x, y, size)?;
-    let frame = frame_for(&entry, q.frame);
+    address::check_page(&entry, level, x, y, size)?;
+    let frame = address::frame_for(&entry, q.frame);
     let key = TileKey { texture: entry.key, level, x, y, frame, format, shape };
-    let cached = app.cache.get(&key);
-    let tag = match &cached {
-        Some(page) => page.etag.clone(),
-        None => tiles::key_etag(&entry, &key),
-    };
-    if not_modified(&headers, tag.to_str().unwrap_or_default()) {
-        return Ok(not_modified_response(tag));
-    }
-    let (page, source) = tiles::obtain(&app, &entry, key, cached, tag).await?;
-    let mut resp = tiles::image_response(page.body.clone(), format, page.etag.clone(), page.width, page.height);
-    let cache_state = if source == crate::cache::Source::Hit { "hit" } else { "miss" };
-    resp.headers_mut().insert(X_VTEX_CACHE.clone(), HeaderValue::from_static(cache_state));
-    Ok(resp)
+    tiles::respond(&app, &entry, key, &headers).await
 }
 
 /// The query of a mip chain: `[?level=L][&codec=C][&supercompression=Z][&frame=N]`.
@@ -313,11 +256,11 @@ pub async fn mip_chain(
              (level {first_fit} or coarser)"
         )));
     }
-    let frame = frame_for(&entry, q.frame);
+    let frame = address::frame_for(&entry, q.frame);
     let (codec, sc) = (1 + k.codec as u64, 1 + k.supercompression as u64);
-    let tag = tiles::etag(&entry.key, &[CHAIN_MARK, level as u64, frame as u64, codec, sc], Format::Ktx2(k));
-    if not_modified(&headers, tag.to_str().unwrap_or_default()) {
-        return Ok(not_modified_response(tag));
+    let tag = ETag::new(&entry.key, Some(Mark::Chain), &[level as u64, frame as u64, codec, sc], Format::Ktx2(k));
+    if not_modified(&headers, tag.as_str()) {
+        return Ok(not_modified_response(super::etag_header(&tag)));
     }
     let (bw, bh) = level_size(w, h, level);
     let (bw, bh) = (bw as u32, bh as u32);
@@ -327,7 +270,7 @@ pub async fn mip_chain(
     let mut images = Vec::with_capacity(sizes.len());
     for (i, &(lw, lh)) in sizes.iter().enumerate() {
         let region = Region::new(level + i as u32, 0, 0, lw, lh).at_frame(frame);
-        let data = app.synthesize(entry.clone(), region, Format::Rgba).await?;
+        let data = app.engine.synthesize(entry.clone(), region, Format::Rgba).await?;
         images.push(Rgba8Image::from_raw(lw, lh, data).map_err(|e| ApiError::internal("a chain level", e))?);
     }
     let body = tokio::task::spawn_blocking(move || ktx2::encode(&images, k))
@@ -335,7 +278,7 @@ pub async fn mip_chain(
         .map_err(|e| ApiError::internal("encoding the mip chain failed", e))?
         .map_err(|e| ApiError::internal("encoding the mip chain failed", e))?;
     app.inflight.resize(&mut reservation, body.len() as u64)?;
-    Ok(tiles::image_response(reservation.hold(body), Format::Ktx2(k), tag, bw, bh))
+    Ok(tiles::image_response(reservation.hold(body), Format::Ktx2(k), &tag, bw, bh))
 }
 
 /// Levels of a GPU mip chain whose first level is `w` × `h`: down to 1×1.

@@ -131,6 +131,7 @@ pub async fn collection_json(
     origin: Origin,
 ) -> Result<Response, ApiError> {
     let items: Vec<Value> = app
+        .engine
         .store
         .list()
         .iter()

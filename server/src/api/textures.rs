@@ -36,7 +36,7 @@ const MAX_PATCH_BYTES: usize = 1 << 20;
         (status = 400, description = text::BAD_REQUEST, body = ErrorBody),
     ))]
 pub async fn list(State(app): State<App>, _: Query<NoQuery>, headers: HeaderMap) -> Response {
-    let textures: Vec<TextureInfo> = app.store.list().iter().map(|e| e.info()).collect();
+    let textures: Vec<TextureInfo> = app.engine.store.list().iter().map(|e| e.info()).collect();
     json_validated(&headers, &TextureList { textures })
 }
 
@@ -105,7 +105,7 @@ pub async fn encoding(
         return Ok(not_modified_response(tag));
     }
     let reservation = app.inflight.reserve(entry.encoding_bytes)?;
-    let bytes = tokio::fs::read(app.store.path_of(&entry.id))
+    let bytes = tokio::fs::read(app.engine.store.path_of(&entry.id))
         .await
         .map_err(|e| ApiError::internal("reading the stored bundle failed", e))?;
     let bytes = reservation.hold(bytes);
@@ -125,7 +125,7 @@ pub async fn encoding(
 /// Validates and stores bundle bytes off the runtime: 201 when new, 200 when already stored.
 /// Over the server's bounds is 422; past a cap of the store or on a full disk, 507.
 async fn store_bundle(app: &App, bytes: Vec<u8>) -> Result<(StatusCode, Json<TextureInfo>), ApiError> {
-    let store = app.store.clone();
+    let store = app.engine.store.clone();
     let (entry, created) = tokio::task::spawn_blocking(move || store.put(bytes))
         .await
         .map_err(|e| ApiError::internal("validating the bundle failed inside the model", e))?
@@ -172,7 +172,7 @@ pub async fn upload(
         if declared_length(req.headers()).is_some_and(|n| n > limit as u64) {
             return Err(refuse_oversized(req, limit).await);
         }
-        let bytes = bundle_from_multipart(req, limit, app.store.bounds().limits).await?;
+        let bytes = bundle_from_multipart(req, limit, app.engine.store.bounds().limits).await?;
         store_bundle(&app, bytes).await
     } else if content_type.starts_with("application/octet-stream") {
         let bytes = read_body(req, limit).await?;
@@ -273,11 +273,11 @@ pub async fn patch(
         _ => return Err(ApiError::bad_request("`name` must remain a string")),
     };
     let params = doc.get("params").cloned().unwrap_or(Value::Null);
-    let bytes = tokio::fs::read(app.store.path_of(&entry.id))
+    let bytes = tokio::fs::read(app.engine.store.path_of(&entry.id))
         .await
         .map_err(|e| ApiError::internal("reading the stored bundle failed", e))?;
     let old = Bundle::from_bytes(&bytes)?;
-    let limits = app.store.bounds().limits;
+    let limits = app.engine.store.bounds().limits;
     let new = tokio::task::spawn_blocking(move || models::remake_within(&old, &name, &params, &limits))
         .await
         .map_err(|e| ApiError::internal("remaking the encoding failed inside the model", e))??;

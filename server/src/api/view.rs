@@ -5,10 +5,10 @@
 //! a region's, whatever rectangle it covers.
 
 use super::error::ApiError;
+use super::inflight::Reservation;
 use super::App;
 use crate::config::MAX_REGION_SIDE;
 use crate::encode::{self, Format};
-use crate::inflight::Reservation;
 use crate::store::Entry;
 use std::sync::Arc;
 use vtex_synth::texture::{level_count, level_size};
@@ -105,7 +105,7 @@ impl View {
 pub async fn render(app: &App, entry: Arc<Entry>, view: View) -> Result<Rgba8Image, ApiError> {
     let Source { region, exact } = view.source(&entry, app.cfg.max_region_pixels);
     vtex_synth::texture::check_region(&*entry.texture, &region)?;
-    let raw = app.synthesize(entry, region, Format::Rgba).await?;
+    let raw = app.engine.synthesize(entry, region, Format::Rgba).await?;
     let src = Rgba8Image::from_raw(region.width, region.height, raw)
         .map_err(|e| ApiError::internal("a rendered region has the wrong size", e))?;
     if exact {

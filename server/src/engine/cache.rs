@@ -5,10 +5,9 @@
 //! its bytes fit, under its own lock, so the sum over shards never exceeds the budget. A
 //! tile larger than a quarter of a shard is served but not cached (it would flush the shard).
 
-use crate::api::error::ApiError;
+use super::{ETag, Error};
 use crate::encode::Format;
 use crate::transport::Transport;
-use axum::http::HeaderValue;
 use bytes::Bytes;
 use lru::LruCache;
 use std::collections::HashMap;
@@ -56,7 +55,7 @@ pub enum Shape {
 pub struct Tile {
     pub body: Bytes,
     /// Its strong ETag, hashed once when the tile is made rather than on every hit.
-    pub etag: HeaderValue,
+    pub etag: ETag,
     pub width: u32,
     pub height: u32,
 }
@@ -167,10 +166,10 @@ impl TileCache {
     /// of them still waits: when the last leaves (its request dropped: a client gone, a
     /// deadline passed), the task is aborted. An error answers every caller waiting then;
     /// the next caller computes again.
-    pub async fn get_or_compute<F, Fut>(&self, key: TileKey, compute: F) -> Result<(Arc<Tile>, Source), ApiError>
+    pub async fn get_or_compute<F, Fut>(&self, key: TileKey, compute: F) -> Result<(Arc<Tile>, Source), Error>
     where
         F: FnOnce() -> Fut,
-        Fut: Future<Output = Result<Tile, ApiError>> + Send + 'static,
+        Fut: Future<Output = Result<Tile, Error>> + Send + 'static,
     {
         if let Some(tile) = self.get(&key) {
             return Ok((tile, Source::Hit));
@@ -200,7 +199,7 @@ impl TileCache {
         let outcome = match result.wait_for(Option::is_some).await {
             Ok(done) => done.clone().expect("waited for a result"),
             // The task panicked, or its runtime ended.
-            Err(_) => Err(ApiError::internal("synthesis failed", "the computation ended without a result")),
+            Err(_) => Err(Error::failed("synthesis failed", "the computation ended without a result")),
         };
         // Whichever waiter sees the result first caches it and retires the flight.
         let mut pending = self.pending.lock().unwrap();
@@ -224,7 +223,7 @@ impl TileCache {
 
 /// A computation in progress and the requests waiting for it.
 struct Flight {
-    result: watch::Receiver<Option<Result<Arc<Tile>, ApiError>>>,
+    result: watch::Receiver<Option<Result<Arc<Tile>, Error>>>,
     waiters: usize,
     task: AbortHandle,
     /// Tells this flight from a later one for the same key.
@@ -262,7 +261,12 @@ mod tests {
     }
 
     fn tile(n: usize) -> Arc<Tile> {
-        Arc::new(Tile { body: Bytes::from(vec![1u8; n]), etag: HeaderValue::from_static("\"t\""), width: 1, height: 1 })
+        Arc::new(Tile {
+            body: Bytes::from(vec![1u8; n]),
+            etag: ETag::new(&[0; 32], None, &[], Format::Png),
+            width: 1,
+            height: 1,
+        })
     }
 
     #[test]
@@ -313,7 +317,7 @@ mod tests {
     }
 
     fn small(body: &'static [u8]) -> Tile {
-        Tile { body: Bytes::from_static(body), etag: HeaderValue::from_static("\"t\""), width: 1, height: 1 }
+        Tile { body: Bytes::from_static(body), etag: ETag::new(&[0; 32], None, &[], Format::Png), width: 1, height: 1 }
     }
 
     #[tokio::test(flavor = "multi_thread", worker_threads = 4)]
@@ -339,14 +343,14 @@ mod tests {
         }
         assert_eq!(runs.load(Ordering::SeqCst), 1);
         assert_eq!(cache.pending(), 0);
-        let (_, src) = cache.get_or_compute(key(3), || async { Err(ApiError::bad_request("unused")) }).await.unwrap();
+        let (_, src) = cache.get_or_compute(key(3), || async { Err(Error::Invalid("unused".into())) }).await.unwrap();
         assert_eq!(src, Source::Hit);
     }
 
     #[tokio::test]
     async fn a_failed_computation_is_retried() {
         let cache = TileCache::new(1 << 20, Transport::Copy);
-        let failed = cache.get_or_compute(key(1), || async { Err(ApiError::bad_request("boom")) }).await;
+        let failed = cache.get_or_compute(key(1), || async { Err(Error::Invalid("boom".into())) }).await;
         assert!(failed.is_err());
         assert_eq!(cache.pending(), 0);
         let (t, src) = cache.get_or_compute(key(1), || async { Ok(small(b"x")) }).await.unwrap();
@@ -354,7 +358,7 @@ mod tests {
     }
 
     /// A computation that waits for `go`, and sets `dropped` if it is dropped unfinished.
-    fn gated(go: Arc<tokio::sync::Notify>, dropped: Arc<AtomicBool>) -> impl Future<Output = Result<Tile, ApiError>> {
+    fn gated(go: Arc<tokio::sync::Notify>, dropped: Arc<AtomicBool>) -> impl Future<Output = Result<Tile, Error>> {
         struct SetOnDrop(Option<Arc<AtomicBool>>);
         impl Drop for SetOnDrop {
             fn drop(&mut self) {

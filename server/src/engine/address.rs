@@ -1,0 +1,181 @@
+//! Where a tile or page is, what it renders, and its ETag: the addressing every route that
+//! serves tiles, pages or renders shares.
+
+use super::cache::{Shape, TileKey};
+use super::Error;
+use crate::encode::Format;
+use crate::store::Entry;
+use bytes::Bytes;
+use vtex_synth::texture::{level_count, level_size};
+use vtex_synth::Region;
+
+/// Version of the tile encoding scheme, part of every ETag: bump it when encoders change.
+const ETAG_SCHEME: &[u8] = b"vtex-tile/2";
+
+/// What an ETag names, its first hashed field: it sets the resources apart that could
+/// otherwise hash the same fields (a tile is unmarked: its fields are its own).
+#[derive(Clone, Copy, Debug)]
+pub enum Mark {
+    /// A region of `GET …/region`.
+    Region,
+    /// A page of the page grid.
+    Page,
+    /// A KTX2 mip chain.
+    Chain,
+    /// An edge tile drawn on the whole square ([`Shape::Square`]).
+    Square,
+    /// A Deep Zoom tile with its overlap.
+    Dzi,
+    /// A IIIF Image API image.
+    Iiif,
+}
+
+impl Mark {
+    /// The hashed value. ETags are compared per URL, so the region's and Deep Zoom's sharing
+    /// one is harmless.
+    fn value(self) -> u64 {
+        match self {
+            Mark::Region | Mark::Dzi => 1 << 63,
+            Mark::Page => 2 << 61,
+            Mark::Chain => 3 << 61,
+            Mark::Square => 5 << 61,
+            Mark::Iiif => 3 << 62,
+        }
+    }
+}
+
+/// A strong validator, `"…"` with 32 hex digits: the bytes it names are a pure function of
+/// everything hashed into it.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct ETag(Bytes);
+
+impl ETag {
+    /// The ETag of texture `texture`'s resource `what` (after its [`Mark`], if any) in `format`.
+    pub fn new(texture: &[u8; 32], mark: Option<Mark>, what: &[u64], format: Format) -> ETag {
+        let mut h = blake3::Hasher::new();
+        h.update(ETAG_SCHEME);
+        h.update(texture);
+        for v in mark.map(Mark::value).iter().chain(what) {
+            h.update(&v.to_le_bytes());
+        }
+        h.update(format.ext().as_bytes());
+        let hex = h.finalize().to_hex();
+        ETag(Bytes::from(format!("\"{}\"", &hex[..32])))
+    }
+
+    pub fn as_str(&self) -> &str {
+        std::str::from_utf8(&self.0).expect("quotes and hex digits")
+    }
+
+    /// Its bytes, shared (for a header value without a copy).
+    pub fn bytes(&self) -> Bytes {
+        self.0.clone()
+    }
+}
+
+/// The frame a request renders: animated textures reduce it modulo their period (frames one
+/// period apart are identical), still textures ignore it.
+pub fn frame_for(entry: &Entry, frame: Option<u32>) -> u32 {
+    let frame = frame.unwrap_or(0);
+    match entry.texture.animation() {
+        None => 0,
+        Some(a) if a.period_frames > 0 => frame % a.period_frames,
+        Some(_) => frame,
+    }
+}
+
+/// Whether `entry` serves tile (`level`, `x`, `y`): a level it does not serve is invalid, a
+/// tile outside its level missing (a client may probe the pyramid's edge).
+pub fn check_tile(entry: &Entry, level: u32, x: u32, y: u32) -> Result<(), Error> {
+    if level >= entry.levels {
+        return Err(Error::Invalid(format!(
+            "tile {level}/{x}/{y}: level {level} does not exist; this texture serves levels 0..={}",
+            entry.levels - 1
+        )));
+    }
+    let (cols, rows) = entry.tiles_at(level);
+    if x as u64 >= cols || y as u64 >= rows {
+        return Err(Error::Missing(format!(
+            "tile {level}/{x}/{y} is outside level {level}, which has {cols}×{rows} tiles"
+        )));
+    }
+    Ok(())
+}
+
+/// Whether `entry` serves page (`level`, `x`, `y`) of side `size`: a level it does not have is
+/// invalid, a page outside the level's grid missing.
+pub fn check_page(entry: &Entry, level: u32, x: u32, y: u32, size: u32) -> Result<(), Error> {
+    let (w, h) = (entry.texture.width(), entry.texture.height());
+    let levels = level_count(w, h);
+    if level >= levels {
+        return Err(Error::Invalid(format!(
+            "page {level}/{x}/{y}: level {level} does not exist; pages are served at levels 0..={} (down to 1×1)",
+            levels - 1
+        )));
+    }
+    let (cols, rows) = page_grid(w, h, level, size);
+    if x as u64 >= cols || y as u64 >= rows {
+        return Err(Error::Missing(format!(
+            "page {level}/{x}/{y} is outside level {level}, which has {cols}×{rows} pages of {size}²"
+        )));
+    }
+    Ok(())
+}
+
+/// Columns and rows of pages of side `size` covering `level`.
+pub fn page_grid(width: u64, height: u64, level: u32, size: u32) -> (u64, u64) {
+    let (lw, lh) = level_size(width, height, level);
+    (lw.div_ceil(size as u64), lh.div_ceil(size as u64))
+}
+
+/// The shape of tile (`level`, `x`, `y`) of `entry` for clients that draw every tile as a full
+/// square: a whole tile is the tile API's own (same cache entry, bytes and ETag), a tile the
+/// level's edge cuts is a [`Shape::Square`].
+pub fn square_shape(entry: &Entry, level: u32, x: u32, y: u32) -> Shape {
+    let ts = entry.tile_size as u64;
+    let (lw, lh) = level_size(entry.texture.width(), entry.texture.height(), level);
+    if (x as u64 + 1) * ts <= lw && (y as u64 + 1) * ts <= lh {
+        Shape::Tile
+    } else {
+        Shape::Square
+    }
+}
+
+/// The strong ETag of tile or page `key` of `entry`.
+pub fn key_etag(entry: &Entry, key: &TileKey) -> ETag {
+    let (level, x, y, frame) = (key.level as u64, key.x as u64, key.y as u64, key.frame as u64);
+    match key.shape {
+        Shape::Tile => ETag::new(&entry.key, None, &[level, x, y, frame, entry.tile_size as u64], key.format),
+        Shape::Square => {
+            ETag::new(&entry.key, Some(Mark::Square), &[level, x, y, frame, entry.tile_size as u64], key.format)
+        }
+        Shape::Page { size, border } => {
+            let (codec, sc) = match key.format {
+                Format::Ktx2(k) => (1 + k.codec as u64, 1 + k.supercompression as u64),
+                _ => (0, 0),
+            };
+            let what = [level, x, y, frame, size as u64, border as u64, codec, sc];
+            ETag::new(&entry.key, Some(Mark::Page), &what, key.format)
+        }
+    }
+}
+
+/// The region tile or page `key` of `entry` renders, and the canvas it is drawn on (at its top
+/// left, transparent beyond).
+pub fn key_region(entry: &Entry, key: &TileKey) -> (Region, (u32, u32)) {
+    match key.shape {
+        Shape::Tile | Shape::Square => {
+            let ts = entry.tile_size as u64;
+            let (lw, lh) = level_size(entry.texture.width(), entry.texture.height(), key.level);
+            let (px, py) = (key.x as u64 * ts, key.y as u64 * ts);
+            let (w, h) = ((lw - px).min(ts) as u32, (lh - py).min(ts) as u32);
+            let canvas = if key.shape == Shape::Square { (ts as u32, ts as u32) } else { (w, h) };
+            (Region::new(key.level, px as i64, py as i64, w, h).at_frame(key.frame), canvas)
+        }
+        Shape::Page { size, border } => {
+            let at = |v: u32| v as i64 * size as i64 - border as i64;
+            let side = size + 2 * border;
+            (Region::new(key.level, at(key.x), at(key.y), side, side).at_frame(key.frame), (side, side))
+        }
+    }
+}

@@ -1,0 +1,235 @@
+//! The engine: what vtex serves, below HTTP — textures looked up in the store, tiles and pages
+//! addressed ([`address`]), the tile cache with coalesced misses ([`cache`]), synthesis in
+//! bounded slots ([`slots`]) with its stop. It knows no HTTP type: `api` gives its [`Error`] a
+//! status and puts its [`ETag`]s in headers.
+
+pub mod address;
+pub mod cache;
+mod error;
+pub mod slots;
+
+pub use address::{ETag, Mark};
+pub use error::{echo, Cause, Error};
+
+use crate::config::ServeConfig;
+use crate::encode::{self, Format};
+use crate::metrics::Metrics;
+use crate::store::{Entry, Record, Store, StoreError};
+use crate::transport::Transport;
+use cache::{Source, Tile, TileCache, TileKey};
+use slots::{Refused, Slots};
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::Arc;
+use std::time::Instant;
+use vtex_synth::{Region, Rgba8Image, Stop};
+
+const SYNTHESIS_FAILED: &str = "synthesis failed inside the model; the texture cannot render this region";
+
+/// The store, the tile cache and the synthesis slots, and how tiles are made from them.
+pub struct Engine {
+    pub store: Arc<Store>,
+    pub cache: TileCache,
+    /// Synthesis slots, shared fairly between textures, with a bounded queue.
+    pub slots: Arc<Slots>,
+    pub metrics: Arc<Metrics>,
+    /// Set when shutdown stops the renders still running.
+    stopping: Arc<AtomicBool>,
+    /// How cached tiles are held for sending.
+    send: Transport,
+}
+
+impl Engine {
+    pub fn new(store: Arc<Store>, cfg: &ServeConfig, metrics: Arc<Metrics>) -> Engine {
+        let cache = TileCache::new(cfg.cache_bytes(), cfg.send);
+        metrics.cache_budget_bytes.set(cache.budget() as i64);
+        let slots = Slots::new(cfg.syntheses(), cfg.syntheses_per_texture(), cfg.max_queued());
+        Engine { store, cache, slots, metrics, stopping: Arc::new(AtomicBool::new(false)), send: cfg.send }
+    }
+
+    /// Shutdown: stops every render in progress and refuses every miss waiting or to come.
+    pub fn stop_syntheses(&self) {
+        self.stopping.store(true, Ordering::Relaxed);
+        self.slots.close();
+    }
+
+    /// What the store knows of texture `id`, without loading it (found in the data directory
+    /// when another process wrote it).
+    pub async fn record(&self, id: &str) -> Result<Arc<Record>, Error> {
+        check_id(id)?;
+        self.store.find(id).await.ok_or_else(|| no_texture(id))
+    }
+
+    /// Texture `id`, loaded: on its first use (or after its eviction) off the I/O threads.
+    pub async fn lookup(&self, id: &str) -> Result<Arc<Entry>, Error> {
+        check_id(id)?;
+        match self.store.get(id).await {
+            Ok(Some(entry)) => Ok(entry),
+            Ok(None) => Err(no_texture(id)),
+            Err(StoreError::Invalid(e)) => {
+                Err(Error::failed("the stored texture failed validation when loaded; it is no longer served", e))
+            }
+            Err(e) => Err(Error::failed("loading the stored texture failed", e)),
+        }
+    }
+
+    /// Tile or page `key` (inside `entry`'s pyramid or page grid): `cached` when the caller
+    /// found it in the cache, else from the cache or synthesized, one computation shared by
+    /// every concurrent request for it (holding a synthesis slot, and stopped once none of them
+    /// waits any more). Counted as a hit or a miss. Every route that serves tiles or pages
+    /// comes through here, so they share the cache, coalescing and bounds.
+    pub async fn tile(
+        self: &Arc<Self>,
+        entry: &Arc<Entry>,
+        key: TileKey,
+        cached: Option<Arc<Tile>>,
+        etag: ETag,
+    ) -> Result<(Arc<Tile>, Source), Error> {
+        let (tile, source) = match cached {
+            Some(tile) => (tile, Source::Hit),
+            None => {
+                let (owner, entry) = (self.clone(), entry.clone());
+                self.cache
+                    .get_or_compute(key, move || async move {
+                        let (region, (width, height)) = address::key_region(&entry, &key);
+                        let send = owner.send;
+                        let body = owner
+                            .synthesize_then(entry, region, (width, height), key.format, move |b| send.seal(b))
+                            .await?;
+                        Ok(Tile { body, etag, width, height })
+                    })
+                    .await?
+            }
+        };
+        match source {
+            Source::Hit => self.metrics.cache_hit(key.level),
+            Source::Miss => self.metrics.cache_miss(key.level),
+        }
+        Ok((tile, source))
+    }
+
+    /// Renders `region` of `entry` and encodes it, on the blocking pool, holding a slot.
+    /// Returns the encoded bytes. A bad region is the model's error; a panicking model a
+    /// failure; no slot (queue full, shutting down) or a render stopped by shutdown is busy.
+    pub async fn synthesize(&self, entry: Arc<Entry>, region: Region, format: Format) -> Result<Vec<u8>, Error> {
+        let canvas = (region.width, region.height);
+        self.synthesize_then(entry, region, canvas, format, |bytes| bytes).await
+    }
+
+    /// [`Self::synthesize`], then `finish` on the encoded bytes in the same blocking task — for
+    /// tiles, [`Transport::seal`], whose copy (and the first touch of a fresh huge-page arena,
+    /// which may wait for the kernel to compact memory) then stays off the I/O runtimes.
+    ///
+    /// The render is drawn at the top left of a transparent `canvas` (width, height), for
+    /// tiles that must be whole squares though the texture ends inside them.
+    ///
+    /// Dropping the future (its request gone) stops the render: the model returns at its next
+    /// band, and the slot is free again.
+    pub async fn synthesize_then<T: Send + 'static>(
+        &self,
+        entry: Arc<Entry>,
+        region: Region,
+        canvas: (u32, u32),
+        format: Format,
+        finish: impl FnOnce(Vec<u8>) -> T + Send + 'static,
+    ) -> Result<T, Error> {
+        let slot = self.slots.acquire(entry.key).await.map_err(|refused| {
+            if refused == Refused::Full {
+                self.metrics.syntheses_shed.inc();
+            }
+            busy(refused)
+        })?;
+        let stop = Arc::new(SynthesisStop { abandoned: AtomicBool::new(false), server: self.stopping.clone() });
+        let _stop_on_drop = StopOnDrop(stop.clone());
+        let m = &self.metrics;
+        let (synth_s, encode_s, in_flight, count, stopped) = (
+            m.synthesis_seconds.clone(),
+            m.encode_seconds.with_label_values(&[format.ext()]),
+            m.syntheses_in_flight.clone(),
+            m.syntheses.clone(),
+            m.syntheses_stopped.clone(),
+        );
+        // The slot moves into the blocking work, not this future: a request dropped while its
+        // tile renders must not free the slot before the render has returned, or more
+        // syntheses than slots would run at once.
+        tokio::task::spawn_blocking(move || {
+            count.inc();
+            in_flight.inc();
+            let work = || {
+                let t0 = Instant::now();
+                let Some(img) = vtex_synth::texture::render_image_until(&*entry.texture, &region, &*stop)? else {
+                    stopped.inc();
+                    return Err(busy(Refused::Closed));
+                };
+                synth_s.observe(t0.elapsed().as_secs_f64());
+                let img = if (img.width, img.height) == canvas {
+                    img
+                } else {
+                    let mut on = Rgba8Image::new(canvas.0, canvas.1);
+                    on.blit(&img, 0, 0);
+                    on
+                };
+                let t1 = Instant::now();
+                let bytes = encode::encode(img, format).map_err(|e| Error::failed("encoding failed", e))?;
+                encode_s.observe(t1.elapsed().as_secs_f64());
+                Ok(finish(bytes))
+            };
+            let result = std::panic::catch_unwind(std::panic::AssertUnwindSafe(work));
+            in_flight.dec();
+            drop(slot);
+            result.unwrap_or_else(|panic| Err(Error::failed(SYNTHESIS_FAILED, panic_message(panic))))
+        })
+        .await
+        .map_err(|e| Error::failed(SYNTHESIS_FAILED, e))?
+    }
+}
+
+/// The stop of one synthesis: requested when nobody waits for it any more, or for all at
+/// shutdown.
+struct SynthesisStop {
+    abandoned: AtomicBool,
+    server: Arc<AtomicBool>,
+}
+
+impl Stop for SynthesisStop {
+    fn requested(&self) -> bool {
+        self.abandoned.load(Ordering::Relaxed) || self.server.load(Ordering::Relaxed)
+    }
+}
+
+/// Requests the stop of a synthesis when the future waiting for it ends, finished or dropped.
+struct StopOnDrop(Arc<SynthesisStop>);
+
+impl Drop for StopOnDrop {
+    fn drop(&mut self) {
+        self.0.abandoned.store(true, Ordering::Relaxed);
+    }
+}
+
+/// What a caught panic says, for the log.
+fn panic_message(panic: Box<dyn std::any::Any + Send>) -> String {
+    match panic.downcast::<String>() {
+        Ok(s) => format!("panic: {s}"),
+        Err(p) => format!("panic: {}", p.downcast_ref::<&str>().unwrap_or(&"(no message)")),
+    }
+}
+
+/// A miss that got no slot, or whose render shutdown stopped (a render stopped because its
+/// requests left answers nobody).
+fn busy(why: Refused) -> Error {
+    Error::Busy(match why {
+        Refused::Full => "too many tiles wait for synthesis; retry shortly".into(),
+        Refused::Closed => "the server is shutting down".into(),
+    })
+}
+
+/// A texture id from a request: checked before it can reach a file name.
+pub fn check_id(id: &str) -> Result<(), Error> {
+    if vtex_synth::bundle::is_valid_id(id) {
+        return Ok(());
+    }
+    Err(Error::Invalid(format!("invalid texture id `{}`: expected 64 lowercase hex characters", echo(id))))
+}
+
+fn no_texture(id: &str) -> Error {
+    Error::Missing(format!("no texture with id {id}"))
+}
