@@ -166,7 +166,7 @@ impl Target for ManifestTarget {
         if models::plan(&bundle).is_err() {
             return false;
         }
-        let Ok(tex) = models::load_within(&bundle, &LIMITS) else { return false };
+        let Ok(tex) = models::load_within(&bundle, &LIMITS, &vtex_synth::Resources::default()) else { return false };
         let levels = level_count(tex.width(), tex.height());
         for level in [0, levels / 2, levels - 1] {
             let region = Region::new(level, 0, 0, 64, 64);

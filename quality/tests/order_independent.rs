@@ -45,7 +45,6 @@ fn served_search_is_no_further_from_the_sample_than_exhaustive_search() {
 fn served_sources_sit_on_no_lattice_of_the_sample() {
     use vtex_quality::lattice::lattice_shares;
     use vtex_synth::models::order_independent;
-    order_independent::set_cache_budget(0);
     let mut locked = Vec::new();
     for bundle in order_independent::demos() {
         let t = order_independent::load(&bundle).unwrap();

@@ -8,7 +8,7 @@ use anyhow::{anyhow, bail, Context};
 use clap::{Args, Parser, Subcommand};
 use std::path::{Path, PathBuf};
 use vtex_synth::models::{self, Inputs};
-use vtex_synth::Region;
+use vtex_synth::{Region, Resources};
 
 #[derive(Parser, Debug)]
 #[command(name = "vtex", version, about = "Virtual textures: store compact encodings, serve any tile at any level.")]
@@ -162,7 +162,7 @@ pub fn create(args: CreateArgs) -> anyhow::Result<()> {
         }
         None => {
             std::fs::create_dir_all(&args.data_dir)?;
-            let (store, _) = Store::open(&args.data_dir, Bounds::unbounded(256), false)?;
+            let (store, _) = Store::open(&args.data_dir, Bounds::unbounded(256), Resources::default(), false)?;
             store.put(bytes)?;
         }
     }
@@ -248,7 +248,8 @@ pub fn info(args: InfoArgs) -> anyhow::Result<()> {
     let out = match &args.texture {
         Some(t) => serde_json::to_string_pretty(&open_texture(t, &args.data_dir, args.tile_size)?.info())?,
         None => {
-            let (store, report) = Store::open(&args.data_dir, Bounds::unbounded(args.tile_size), false)?;
+            let (store, report) =
+                Store::open(&args.data_dir, Bounds::unbounded(args.tile_size), Resources::default(), false)?;
             for (path, why) in report.rejected {
                 eprintln!("skipping {}: {why}", path.display());
             }

@@ -89,8 +89,8 @@ pub struct ServeConfig {
     pub cache_mb: f64,
     /// Byte budget of each model's synthesis cache, in MiB.
     ///
-    /// The process-wide pyramidal cache of `order-independent`, shared by all its textures; 0
-    /// keeps nothing. It never changes a tile, only how much of a tile's dependencies is
+    /// The pyramidal cache of `order-independent`, shared by all its textures the server loads;
+    /// 0 keeps nothing. It never changes a tile, only how much of a tile's dependencies is
     /// computed again.
     #[arg(
         long,

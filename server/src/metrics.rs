@@ -7,6 +7,7 @@ use prometheus::{
     Encoder, Histogram, HistogramOpts, HistogramVec, IntCounter, IntCounterVec, IntGauge, IntGaugeVec, Opts, Registry,
     TextEncoder,
 };
+use vtex_synth::Resources;
 
 /// The `route` label of the requests no route matched, which the static viewer's files
 /// answer: one fixed label, so paths that do not exist cannot add series.
@@ -58,10 +59,10 @@ pub struct Metrics {
     /// Bytes reserved by response bodies in flight.
     pub inflight_bytes: IntGauge,
     pub inflight_budget_bytes: IntGauge,
-    /// Bytes each model's process-wide synthesis cache holds, and their budget.
+    /// Bytes each model's synthesis cache holds (shared by the server's textures), and their budget.
     pub model_cache_bytes: IntGaugeVec,
     pub model_cache_budget_bytes: IntGauge,
-    /// The models' own work counters (`Model::work_counters`), by model and kind.
+    /// The models' own work counters (`vtex_synth::resources::Part::work`), by model and kind.
     model_work: IntCounterVec,
     /// Serialises the counters' catching up with the totals they mirror, so that two scrapes
     /// at once do not both add the same difference.
@@ -163,12 +164,12 @@ impl Metrics {
         let inflight_budget_bytes =
             must(IntGauge::new("vtex_inflight_budget_bytes", "Byte budget of response bodies in flight"));
         let model_cache_bytes = must(IntGaugeVec::new(
-            Opts::new("vtex_model_cache_bytes", "Bytes held by each model's process-wide synthesis cache"),
+            Opts::new("vtex_model_cache_bytes", "Bytes held by each model's synthesis cache"),
             &["model"],
         ));
         let model_cache_budget_bytes = must(IntGauge::new(
             "vtex_model_cache_budget_bytes",
-            "Byte budget of each model's process-wide synthesis cache (--synth-cache-mb)",
+            "Byte budget of each model's synthesis cache (--synth-cache-mb)",
         ));
         let model_work = must(IntCounterVec::new(
             Opts::new(
@@ -268,13 +269,14 @@ impl Metrics {
         counter.inc_by(total.saturating_sub(counter.get()));
     }
 
-    /// Reads every registered model's cache size and work counters into their metrics.
-    pub fn read_models(&self) {
+    /// Reads every registered model's cache size and work counters in `resources` into their
+    /// metrics.
+    pub fn read_models(&self, resources: &Resources) {
         for m in vtex_synth::models::REGISTRY {
-            self.model_cache_bytes.with_label_values(&[m.id()]).set(m.cache_bytes() as i64);
-            for (kind, total) in m.work_counters() {
-                self.catch_up(&self.model_work.with_label_values(&[m.id(), kind]), total);
-            }
+            self.model_cache_bytes.with_label_values(&[m.id()]).set(resources.cache_bytes(m.id()) as i64);
+        }
+        for (model, kind, total) in resources.work() {
+            self.catch_up(&self.model_work.with_label_values(&[model, kind]), total);
         }
     }
 
@@ -346,7 +348,7 @@ mod tests {
     #[test]
     fn every_model_reports_its_cache() {
         let m = Metrics::new();
-        m.read_models();
+        m.read_models(&Resources::default());
         let text = m.render();
         for id in vtex_synth::models::ids() {
             assert!(text.contains(&format!(r#"vtex_model_cache_bytes{{model="{id}"}}"#)), "{id}: {text}");

@@ -37,6 +37,7 @@ use std::time::{Duration, Instant};
 use tokio::io::{AsyncReadExt, AsyncWriteExt};
 use tokio::net::{TcpListener, TcpStream};
 use tokio::sync::Semaphore;
+use vtex_synth::Resources;
 
 /// How long shutdown waits for requests in flight before it gives up on them.
 const DRAIN_TIMEOUT: Duration = Duration::from_secs(10);
@@ -47,15 +48,28 @@ const STOP_BEFORE_END: Duration = Duration::from_secs(2);
 /// `vtex serve`: [`run`] until SIGTERM or Ctrl-C. The runtime is not waited for when the
 /// server is done: work still on its blocking pool then (a render that did not stop in the
 /// drain time) has nobody left to answer, so the process exits within the drain time.
+///
+/// Once it accepts connections it prints `vtex listening on http://ADDR` on stdout, the line
+/// scripts and tests wait for.
 pub fn main(cfg: ServeConfig) -> anyhow::Result<()> {
     let rt = tokio::runtime::Builder::new_current_thread().enable_all().build()?;
-    let result = rt.block_on(run(cfg, shutdown_signal()));
+    let announce = |addr: SocketAddr| -> anyhow::Result<()> {
+        let mut out = std::io::stdout().lock();
+        writeln!(out, "vtex listening on http://{addr}")?;
+        Ok(out.flush()?)
+    };
+    let result = rt.block_on(run(cfg, shutdown_signal(), announce));
     rt.shutdown_background();
     result
 }
 
-/// Runs the server until `shutdown` resolves.
-pub async fn run(mut cfg: ServeConfig, shutdown: impl Future<Output = ()>) -> anyhow::Result<()> {
+/// Runs the server until `shutdown` resolves, calling `listening` with its address once it
+/// accepts connections.
+pub async fn run(
+    mut cfg: ServeConfig,
+    shutdown: impl Future<Output = ()>,
+    listening: impl FnOnce(SocketAddr) -> anyhow::Result<()>,
+) -> anyhow::Result<()> {
     cfg.validate().map_err(anyhow::Error::msg)?;
     cfg.resolve_write_token().map_err(anyhow::Error::msg)?;
     // Nothing is written before the server can run: the address is bound and the data
@@ -65,12 +79,13 @@ pub async fn run(mut cfg: ServeConfig, shutdown: impl Future<Output = ()>) -> an
         .map_err(|e| anyhow::anyhow!("cannot listen on {}: {}", cfg.bind, io_message(&e)))?;
     let t0 = Instant::now();
     let (dir, bounds, watch, write) = (cfg.data_dir.clone(), cfg.store_bounds(), cfg.watch, !cfg.read_only);
+    let resources = Resources::new(cfg.synth_cache_bytes());
     let demos = write && !cfg.no_demos;
     // The watch starts before the store lists the directory, so nothing added meanwhile is missed.
     let (store, report, watch) = tokio::task::spawn_blocking(move || {
         check_data_dir(&dir, write)?;
         let watch = Watch::start(&dir, watch).map_err(anyhow::Error::msg)?;
-        let (store, report) = Store::open(&dir, bounds, demos)
+        let (store, report) = Store::open(&dir, bounds, resources, demos)
             .map_err(|e| anyhow::anyhow!("cannot open data directory {}: {}", dir.display(), io_message(&e)))?;
         anyhow::Ok((Arc::new(store), report, watch))
     })
@@ -137,11 +152,7 @@ pub async fn run(mut cfg: ServeConfig, shutdown: impl Future<Output = ()>) -> an
         max_connections,
         "serving"
     );
-    {
-        let mut out = std::io::stdout().lock();
-        writeln!(out, "vtex listening on http://{addr}")?;
-        out.flush()?;
-    }
+    listening(addr)?;
 
     // One single-threaded runtime per core, each serving its own connections (nginx's worker
     // model): no cross-thread wake-ups on the hot path. This runtime accepts and hands each

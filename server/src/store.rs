@@ -32,7 +32,7 @@ use std::time::{Instant, SystemTime};
 use vtex_synth::bundle::{id_of, is_valid_id, Bundle, Manifest};
 use vtex_synth::models::{self, Limits, Plan};
 use vtex_synth::texture::level_size;
-use vtex_synth::{Animation, Domain, Texture};
+use vtex_synth::{Animation, Domain, Resources, Texture};
 
 pub const BUNDLE_EXT: &str = "vtex";
 /// Prefix of temporary files; anything carrying it at start-up is a crashed write.
@@ -236,6 +236,8 @@ struct Index {
 pub struct Store {
     dir: PathBuf,
     bounds: Bounds,
+    /// What the loaded textures share: the models' caches and work counters.
+    resources: Resources,
     index: RwLock<Index>,
     loaded: Budgeted<Arc<Entry>>,
     loads: AtomicU64,
@@ -265,11 +267,17 @@ impl Store {
     /// Opens (creating if needed) the data directory: removes temporary files of crashed
     /// writes, indexes every bundle within `bounds`, and writes the demos into an empty
     /// directory.
-    pub fn open(dir: &Path, bounds: Bounds, write_demos: bool) -> std::io::Result<(Store, OpenReport)> {
+    pub fn open(
+        dir: &Path,
+        bounds: Bounds,
+        resources: Resources,
+        write_demos: bool,
+    ) -> std::io::Result<(Store, OpenReport)> {
         std::fs::create_dir_all(dir)?;
         let store = Store {
             dir: dir.to_path_buf(),
             bounds,
+            resources,
             index: Default::default(),
             loaded: Budgeted::new(bounds.limits.max_resident_bytes),
             loads: AtomicU64::new(0),
@@ -538,9 +546,14 @@ impl Store {
         bundle: &Bundle,
     ) -> Result<(Arc<Entry>, Charge<'_, Arc<Entry>>), StoreError> {
         let charge = self.loaded.reserve(record.resident_bytes());
-        let texture = models::load_within(bundle, &self.bounds.limits)?;
+        let texture = models::load_within(bundle, &self.bounds.limits, &self.resources)?;
         self.loads.fetch_add(1, Ordering::Relaxed);
         Ok((Arc::new(Entry { record, texture }), charge))
+    }
+
+    /// What the loaded textures share.
+    pub fn resources(&self) -> &Resources {
+        &self.resources
     }
 
     /// Textures indexed (servable).
@@ -796,7 +809,7 @@ mod tests {
         std::fs::write(dir.join(".tmp-2-0-def.vtex"), b"being written").unwrap();
         let bogus = dir.join(format!("{}.vtex", "ab".repeat(32)));
         std::fs::write(&bogus, b"not a bundle").unwrap();
-        let (store, report) = Store::open(&dir, Bounds::unbounded(256), false).unwrap();
+        let (store, report) = Store::open(&dir, Bounds::unbounded(256), Resources::default(), false).unwrap();
         assert_eq!(report.stale_temp_removed, 1);
         assert!(!dir.join(".tmp-1-0-abc.vtex").exists());
         assert!(dir.join(".tmp-2-0-def.vtex").exists(), "a write in progress was removed");
@@ -812,8 +825,8 @@ mod tests {
     fn bundles_written_by_another_process_are_found_and_forgotten() {
         let dir = std::env::temp_dir().join(format!("vtex-store-shared-{}", std::process::id()));
         let _ = std::fs::remove_dir_all(&dir);
-        let store = Store::open(&dir, Bounds::unbounded(256), false).unwrap().0;
-        let other = Store::open(&dir, Bounds::unbounded(256), false).unwrap().0;
+        let store = Store::open(&dir, Bounds::unbounded(256), Resources::default(), false).unwrap().0;
+        let other = Store::open(&dir, Bounds::unbounded(256), Resources::default(), false).unwrap().0;
         let bundle = models::demos().into_iter().min_by_key(|b| b.to_bytes().len()).unwrap().to_bytes();
         let (record, created) = other.put(bundle).unwrap();
         assert!(created);
@@ -837,7 +850,7 @@ mod tests {
     fn the_memory_of_absent_ids_is_bounded() {
         let dir = std::env::temp_dir().join(format!("vtex-store-absent-{}", std::process::id()));
         let _ = std::fs::remove_dir_all(&dir);
-        let store = Store::open(&dir, Bounds::unbounded(256), false).unwrap().0;
+        let store = Store::open(&dir, Bounds::unbounded(256), Resources::default(), false).unwrap().0;
         for i in 0..ABSENT_MAX + 10 {
             store.remember_absent(&format!("{i:064x}"));
         }
@@ -854,7 +867,7 @@ mod tests {
         std::fs::create_dir_all(&stuck).unwrap();
         std::fs::write(stuck.join("inside"), b"x").unwrap();
         std::fs::File::open(&stuck).unwrap().set_modified(SystemTime::now() - STALE_TEMP_AGE * 2).unwrap();
-        let (store, report) = Store::open(&dir, Bounds::unbounded(256), false).unwrap();
+        let (store, report) = Store::open(&dir, Bounds::unbounded(256), Resources::default(), false).unwrap();
         assert_eq!(report.stale_temp_kept.len(), 1, "{report:?}");
         assert_eq!(report.stale_temp_kept[0].0, stuck);
         assert!(store.is_empty());

@@ -61,7 +61,6 @@ fn sample_inputs(size: u32) -> Inputs {
 }
 
 fn served(c: &mut Criterion) {
-    order_independent::set_cache_budget(0);
     for b in order_independent::demos() {
         let t = models::load(&b).unwrap();
         let name = b.manifest.name.split(" — ").nth(1).unwrap_or("?").to_string();
@@ -80,7 +79,6 @@ fn served(c: &mut Criterion) {
 }
 
 fn exhaustive(c: &mut Criterion) {
-    order_independent::set_cache_budget(0);
     let params = json!({"seed": 5, "search": "exhaustive"});
     let t = models::load(&models::create("order-independent", "bench", &params, &sample_inputs(64)).unwrap()).unwrap();
     tile(c, "oits_exhaustive_window", "128x128", t.as_ref(), Region::new(0, 300, 700, 128, 128));

@@ -9,6 +9,7 @@
 //! * [`models`] — the models, and the registry that loads or creates any of them by name.
 //! * [`hash`] — counter-based hashing, the only source of randomness in the pixel path.
 //! * [`pixels`] — RGBA8 buffers and bounded PNG decoding of untrusted samples.
+//! * [`resources`] — the caches and work counters that the textures of one owner share.
 //! * [`mip`] — the exact 2×2 box downsample that every model's prefiltered levels are held to.
 //! * [`simd`] — hot integer loops compiled for the CPU's widest vector unit, chosen at run time
 //!   (the crate's only `unsafe`).
@@ -21,10 +22,12 @@ pub mod hash;
 pub mod mip;
 pub mod models;
 pub mod pixels;
+pub mod resources;
 pub mod samples;
 pub mod simd;
 pub mod texture;
 
 pub use error::{Error, Result};
 pub use pixels::Rgba8Image;
+pub use resources::Resources;
 pub use texture::{Animation, Domain, Never, Region, Stop, Texture};

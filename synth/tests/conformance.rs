@@ -814,7 +814,7 @@ fn main() {
     let mut demos = Vec::new();
     for model in models::REGISTRY {
         for bundle in model.demos() {
-            let tex = match model.load(&bundle) {
+            let tex = match model.load(&bundle, &vtex_synth::Resources::default()) {
                 Ok(t) => t,
                 Err(e) => {
                     eprintln!("{}/{}: the demo does not load: {e}", model.id(), bundle.manifest.name);

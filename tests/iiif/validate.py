@@ -36,12 +36,12 @@ AGAINST_SPEC = ["size_noup"]
 # Tests of higher levels it does not run, and why (printed, so the log says what was left out).
 NOT_RUN = {
     "format_gif, format_jp2, format_pdf, format_tif": "formats vtex does not offer (400 naming png, jpg, webp)",
-    "format_webp": "the validator's test calls urllib.urlopen, which Python 3 does not have; WebP is covered by server/tests/iiif.rs",
+    "format_webp": "the validator's test calls urllib.urlopen, which Python 3 does not have; WebP is covered by server/tests/api/iiif.rs",
     "rot_full_non90, rot_region_non90": "arbitrary rotation is not offered (400, as §4.3 asks)",
     "size_up": "expects ^max to be the full size, while the specification scales ^max up to maxWidth/maxHeight/maxArea",
     "size_noup": "its last check expects !2000,3000 of the 1000 × 1000 image to be a 400, while §4.2 confines !w,h to "
                  "the region (1000 × 1000, a 200); its other checks (w,h ,h w, pct:n over the region without ^) are "
-                 "server/tests/iiif.rs's",
+                 "server/tests/api/iiif.rs's",
 }
 
 

@@ -163,7 +163,7 @@ pub fn fig9b(out: &Out) {
     for (i, side) in [16i64, 32, 64].into_iter().enumerate() {
         let mut points = Vec::new();
         for (k, mib) in BUDGETS_MIB.into_iter().enumerate() {
-            let cache: &'static BlockCache = Box::leak(Box::new(BlockCache::new(side)));
+            let cache = std::sync::Arc::new(BlockCache::new(side));
             cache.set_budget(mib << 20);
             let texture = order_independent::load(bundle).expect("a demo loads").in_cache(cache);
             let started = Instant::now();

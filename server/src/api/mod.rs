@@ -131,8 +131,7 @@ impl AppState {
         metrics.textures_budget_bytes.set(store.bounds().limits.max_resident_bytes as i64);
         let inflight = Inflight::new(cfg.inflight_bytes());
         metrics.inflight_budget_bytes.set(inflight.budget_bytes() as i64);
-        vtex_synth::models::set_cache_budget(cfg.synth_cache_bytes());
-        metrics.model_cache_budget_bytes.set(cfg.synth_cache_bytes() as i64);
+        metrics.model_cache_budget_bytes.set(store.resources().cache_budget() as i64);
         let slots = Slots::new(cfg.syntheses(), cfg.syntheses_per_texture(), cfg.max_queued());
         let stopping = Arc::new(AtomicBool::new(false));
         let (draining, writes) = (AtomicBool::new(false), writes::WritePolicy::new(&cfg));
@@ -408,7 +407,7 @@ async fn metrics(State(app): State<App>, _: Query<NoQuery>) -> Response {
     m.catch_up(&m.texture_evictions, store.evictions());
     m.syntheses_queued.set(app.slots.queued() as i64);
     m.inflight_bytes.set(app.inflight.reserved_bytes() as i64);
-    m.read_models();
+    m.read_models(store.resources());
     ([(header::CONTENT_TYPE, "text/plain; version=0.0.4")], m.render()).into_response()
 }
 

@@ -1,7 +1,7 @@
 //! The OpenAPI 3.1 description of the whole API, `GET /api/v1/openapi.json`, collected by the
 //! route table (`super::routes`) from the handlers' `#[utoipa::path]` annotations and the
 //! response types' schemas, so every described route is served and the reverse;
-//! `server/tests/openapi.rs` validates it and requests every described path.
+//! `server/tests/api/openapi.rs` validates it and requests every described path.
 
 use super::extract::{NoQuery, Query};
 use super::origin::Origin;

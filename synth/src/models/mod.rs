@@ -6,6 +6,7 @@
 //! texture), `demos.rs` — plus its own internals. [`REGISTRY`] lists one entry per model;
 //! nothing else in vtex names a model, so adding one is a module and a line there.
 
+use crate::resources::{Resources, Shared};
 use crate::{bundle::Bundle, Error, Result, Texture};
 use std::collections::BTreeMap;
 use std::sync::{Arc, LazyLock};
@@ -37,8 +38,9 @@ pub trait Model: Send + Sync + 'static {
     /// with them and the manifest's params makes the bundle again, bit for bit (held for every
     /// demo by the tests; [`remake_within`] checks it before it changes a parameter).
     fn inputs_of(&self, bundle: &Bundle) -> Result<Inputs>;
-    /// Validates a bundle of this model completely and returns its texture.
-    fn load(&self, bundle: &Bundle) -> Result<Arc<dyn Texture>>;
+    /// Validates a bundle of this model completely and returns its texture, which shares
+    /// `resources` with the others loaded with them.
+    fn load(&self, bundle: &Bundle, resources: &Resources) -> Result<Arc<dyn Texture>>;
     /// What `load(bundle)` would give and cost, from the manifest, section lengths and image
     /// headers alone: nothing drawn, generated, indexed or decoded.
     fn plan(&self, bundle: &Bundle) -> Result<Plan>;
@@ -52,18 +54,10 @@ pub trait Model: Send + Sync + 'static {
     fn example(&self) -> Example;
     /// What its prefiltered coarse levels promise, held by the conformance suite.
     fn mip_guarantee(&self) -> MipGuarantee;
-    /// Sets the bytes the model's process-wide caches may hold (0: none); they never change a
-    /// result. Models without such caches have nothing to set.
-    fn set_cache_budget(&self, _bytes: u64) {}
-    /// Bytes its process-wide caches hold now.
-    fn cache_bytes(&self) -> u64 {
-        0
-    }
-    /// Running totals of the work its textures' renders have done in this process, by kind,
-    /// for the server's metrics (for `order-independent`, entries computed and pixels
-    /// requested: their ratio is the paper's computation ratio). Empty when it counts nothing.
-    fn work_counters(&self) -> Vec<(&'static str, u64)> {
-        Vec::new()
+    /// Its part of a [`Resources`] — caches (holding at most `cache_budget` bytes) and work
+    /// counters that its textures loaded with those resources share — when it has any.
+    fn resources(&self, _cache_budget: u64) -> Option<Shared> {
+        None
     }
 }
 
@@ -186,29 +180,28 @@ pub fn create_within(
     m.create(name, params, inputs)
 }
 
-/// Validates an encoding completely and returns the texture it describes.
+/// Validates an encoding completely and returns the texture it describes, with resources of its
+/// own (no cache).
 pub fn load(bundle: &Bundle) -> Result<Arc<dyn Texture>> {
-    check_name(&bundle.manifest.name)?;
-    get(&bundle.manifest.model)?.load(bundle)
+    load_with(bundle, &Resources::default())
 }
 
-/// [`load`], refused before any heavy work when its [`Plan`] is over `limits`.
-pub fn load_within(bundle: &Bundle, limits: &Limits) -> Result<Arc<dyn Texture>> {
+/// [`load`], the texture sharing `resources` with the others loaded with them.
+pub fn load_with(bundle: &Bundle, resources: &Resources) -> Result<Arc<dyn Texture>> {
+    check_name(&bundle.manifest.name)?;
+    get(&bundle.manifest.model)?.load(bundle, resources)
+}
+
+/// [`load_with`], refused before any heavy work when its [`Plan`] is over `limits`.
+pub fn load_within(bundle: &Bundle, limits: &Limits, resources: &Resources) -> Result<Arc<dyn Texture>> {
     limits.check(&bundle.manifest.model, &plan(bundle)?)?;
-    get(&bundle.manifest.model)?.load(bundle)
+    get(&bundle.manifest.model)?.load(bundle, resources)
 }
 
 /// What loading `bundle` would give and cost, without loading it.
 pub fn plan(bundle: &Bundle) -> Result<Plan> {
     check_name(&bundle.manifest.name)?;
     get(&bundle.manifest.model)?.plan(bundle)
-}
-
-/// Gives every model's process-wide caches a budget of `bytes` each.
-pub fn set_cache_budget(bytes: u64) {
-    for m in REGISTRY {
-        m.set_cache_budget(bytes);
-    }
 }
 
 /// Every model's demo encodings, sorted by name.

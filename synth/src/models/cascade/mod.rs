@@ -82,7 +82,7 @@ impl Model for CascadeModel {
             &[("control", encoding::CONTROL_SECTION), ("initial", encoding::INITIAL_SECTION)],
         ))
     }
-    fn load(&self, bundle: &Bundle) -> Result<Arc<dyn Texture>> {
+    fn load(&self, bundle: &Bundle, _: &crate::Resources) -> Result<Arc<dyn Texture>> {
         Ok(Arc::new(load(bundle)?))
     }
     fn plan(&self, bundle: &Bundle) -> Result<Plan> {

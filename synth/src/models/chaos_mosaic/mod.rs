@@ -67,7 +67,7 @@ impl Model for ChaosMosaicModel {
     fn inputs_of(&self, bundle: &Bundle) -> Result<Inputs> {
         Ok(super::section_inputs(bundle, &[("sample", encoding::SAMPLE_SECTION)]))
     }
-    fn load(&self, bundle: &Bundle) -> Result<Arc<dyn Texture>> {
+    fn load(&self, bundle: &Bundle, _: &crate::Resources) -> Result<Arc<dyn Texture>> {
         Ok(Arc::new(load(bundle)?))
     }
     fn plan(&self, bundle: &Bundle) -> Result<Plan> {

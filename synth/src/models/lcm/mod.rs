@@ -77,7 +77,7 @@ impl Model for LcmModel {
     fn inputs_of(&self, bundle: &Bundle) -> Result<Inputs> {
         encoding::inputs_of(bundle)
     }
-    fn load(&self, bundle: &Bundle) -> Result<Arc<dyn Texture>> {
+    fn load(&self, bundle: &Bundle, _: &crate::Resources) -> Result<Arc<dyn Texture>> {
         Ok(Arc::new(load(bundle)?))
     }
     fn plan(&self, bundle: &Bundle) -> Result<Plan> {

@@ -1,20 +1,20 @@
 //! The pyramidal cache of the served evaluator (paper §3): blocks of side × side entries of one
 //! (texture, level, generation) with a validity bit each, in an LRU bounded in bytes and sharded
-//! against lock contention. One cache of 32 × 32 blocks is shared by every order-independent
-//! texture of the process; figures make others to compare block sides.
+//! against lock contention. The textures loaded with one [`Resources`](crate::Resources) share
+//! one cache of 32 × 32 blocks ([`super::shared`]); figures make others to compare block sides.
 //!
 //! An entry's value is a pure function of its tag, so the cache never changes a result: with a
-//! budget of 0 (the default until [`set_cache_budget`] is called) nothing is kept at all.
+//! budget of 0 nothing is kept at all.
 
 use super::served::Rect;
 use super::structure::Structure;
 use crate::hash::fmix64;
 use lru::LruCache;
 use std::sync::atomic::{AtomicU64, Ordering};
-use std::sync::{LazyLock, Mutex};
+use std::sync::{Arc, Mutex};
 
 /// Side of the shared cache's blocks, in entries.
-const SIDE: i64 = 32;
+pub const SIDE: i64 = 32;
 const SHARDS: usize = 16;
 /// Bytes one block of the shared cache holds.
 pub const BLOCK_BYTES: u64 = block_bytes(SIDE);
@@ -22,24 +22,6 @@ pub const BLOCK_BYTES: u64 = block_bytes(SIDE);
 /// Bytes one block of `side` holds: values, validity bits, and the LRU's bookkeeping.
 const fn block_bytes(side: i64) -> u64 {
     (side * side) as u64 * 2 + (side * side) as u64 / 8 + 64
-}
-
-static SHARED: LazyLock<BlockCache> = LazyLock::new(|| BlockCache::new(SIDE));
-
-/// Sets the bytes all order-independent textures of the process may keep in their shared
-/// pyramidal cache (0: none), evicting the least recently used blocks beyond it.
-pub fn set_cache_budget(bytes: u64) {
-    SHARED.set_budget(bytes)
-}
-
-/// The budget last set.
-pub fn cache_budget() -> u64 {
-    SHARED.budget()
-}
-
-/// Bytes the shared cache holds now.
-pub fn cache_bytes() -> u64 {
-    SHARED.bytes()
 }
 
 /// A pyramidal cache: blocks of `side` × `side` entries in a sharded LRU bounded in bytes.
@@ -136,10 +118,10 @@ fn groups(side: i64, start: i64, n: usize, period: Option<u64>) -> Vec<(i64, Vec
 }
 
 /// One texture's view of a cache.
-#[derive(Clone, Copy)]
+#[derive(Clone)]
 pub struct Pyramid {
     texture: u64,
-    cache: &'static BlockCache,
+    cache: Arc<BlockCache>,
 }
 
 impl std::fmt::Debug for Pyramid {
@@ -149,20 +131,19 @@ impl std::fmt::Debug for Pyramid {
 }
 
 impl Pyramid {
-    /// The view of the texture keyed `texture` (the start of its bundle's hash) of the shared
-    /// cache.
-    pub fn new(texture: u64) -> Pyramid {
-        Pyramid { texture, cache: &SHARED }
+    /// The view of `cache` of the texture keyed `texture` (the start of its bundle's hash).
+    pub fn new(texture: u64, cache: Arc<BlockCache>) -> Pyramid {
+        Pyramid { texture, cache }
     }
 
     /// The same texture's view of `cache` instead.
-    pub fn in_cache(self, cache: &'static BlockCache) -> Pyramid {
+    pub fn in_cache(self, cache: Arc<BlockCache>) -> Pyramid {
         Pyramid { cache, ..self }
     }
 
     /// The cache this view reads and fills.
-    pub fn cache(&self) -> &'static BlockCache {
-        self.cache
+    pub fn cache(&self) -> &BlockCache {
+        &self.cache
     }
 
     /// Visits every block under `rect` of (s, m) with the rectangle pixels it holds.

@@ -3,11 +3,12 @@
 
 use super::params::Params;
 use super::render::OrderIndependent;
+use super::shared::Shared;
 use super::MODEL;
 use crate::bundle::Bundle;
 use crate::models::{input_image, parse_params, Inputs};
 use crate::pixels::decode_png;
-use crate::{Error, Result};
+use crate::{Error, Resources, Result};
 
 pub(super) const SAMPLE_SECTION: &str = "sample.png";
 
@@ -24,14 +25,21 @@ pub fn create(name: &str, params: &serde_json::Value, inputs: &Inputs) -> Result
     Ok(bundle)
 }
 
-/// Validates a stored encoding completely and builds the texture.
+/// Validates a stored encoding completely and builds the texture, with resources of its own
+/// (no cache).
 pub fn load(bundle: &Bundle) -> Result<OrderIndependent> {
+    load_with(bundle, &Resources::default())
+}
+
+/// [`load`], the texture sharing `resources` with the others loaded with them.
+pub fn load_with(bundle: &Bundle, resources: &Resources) -> Result<OrderIndependent> {
     super::plan::plan(bundle)?;
     let params: Params = parse_params(&bundle.manifest.full_params()?)?;
     let sample = decode_png(SAMPLE_SECTION, bundle.section(SAMPLE_SECTION)?)?;
     let hash = blake3::hash(&bundle.to_bytes());
     let key = u64::from_le_bytes(hash.as_bytes()[..8].try_into().expect("8 bytes"));
-    OrderIndependent::new(params, &sample, key)
+    let shared = resources.part::<Shared>(MODEL).expect("the model's part of every Resources");
+    OrderIndependent::new(params, &sample, key, shared)
 }
 
 /// Refuses a stored manifest that leaves a default to be filled.

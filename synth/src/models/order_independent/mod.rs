@@ -14,7 +14,8 @@
 //! * [`exemplar`] — the exemplar pyramid, valid masks, neighbourhood vectors, k-coherence sets;
 //! * [`search`] — the per-entry function ([`Synthesizer`], a [`structure::Synthesis`]);
 //! * [`served`] — the dense evaluator of a rectangle's dependency cone;
-//! * [`cache`] — the pyramidal cache shared by every texture of the model;
+//! * [`cache`] — the pyramidal cache; [`shared`] — the cache and work counters that the
+//!   textures loaded with one [`Resources`] share;
 //! * [`prefilter`] — coarse mip levels from the synthesis pyramid;
 //! * [`demos`] — the demo encodings.
 
@@ -29,17 +30,17 @@ pub mod reference;
 mod render;
 pub mod search;
 pub mod served;
+pub mod shared;
 pub mod structure;
 
 use super::{InputInfo, Inputs, MipGuarantee, Model, ModelInfo, Plan};
 use crate::bundle::Bundle;
 use crate::texture::Texture;
-use crate::Result;
+use crate::{Resources, Result};
 use std::sync::Arc;
 
-pub use cache::set_cache_budget;
 pub use demos::demos;
-pub use encoding::{create, load};
+pub use encoding::{create, load, load_with};
 pub use params::Params;
 pub use render::OrderIndependent;
 pub use search::Synthesizer;
@@ -76,8 +77,8 @@ impl Model for OrderIndependentModel {
     fn inputs_of(&self, bundle: &Bundle) -> Result<Inputs> {
         Ok(super::section_inputs(bundle, &[("sample", encoding::SAMPLE_SECTION)]))
     }
-    fn load(&self, bundle: &Bundle) -> Result<Arc<dyn Texture>> {
-        Ok(Arc::new(load(bundle)?))
+    fn load(&self, bundle: &Bundle, resources: &Resources) -> Result<Arc<dyn Texture>> {
+        Ok(Arc::new(load_with(bundle, resources)?))
     }
     fn plan(&self, bundle: &Bundle) -> Result<Plan> {
         plan::plan(bundle)
@@ -94,13 +95,7 @@ impl Model for OrderIndependentModel {
     fn mip_guarantee(&self) -> MipGuarantee {
         MipGuarantee { min_psnr_db: 27.0, max_mean_error: 2.0, max_sigma_error: 0.15, beats_trivial_answers: true }
     }
-    fn set_cache_budget(&self, bytes: u64) {
-        cache::set_cache_budget(bytes)
-    }
-    fn cache_bytes(&self) -> u64 {
-        cache::cache_bytes()
-    }
-    fn work_counters(&self) -> Vec<(&'static str, u64)> {
-        render::PROCESS_WORK.counters()
+    fn resources(&self, cache_budget: u64) -> Option<crate::resources::Shared> {
+        Some(crate::resources::Shared::new(shared::Shared::new(cache_budget)))
     }
 }

@@ -6,48 +6,16 @@ use super::params::{DomainSpec, Params};
 use super::prefilter::{self, Calibration};
 use super::search::{Synthesizer, PLANE_BITS};
 use super::served::{evaluate, Counts, Rect};
+use super::shared::{Shared, Work};
 use super::MODEL;
 use crate::pixels::Rgba8Image;
 use crate::texture::{Domain, Region, Stop, Texture};
 use crate::Result;
-use std::sync::atomic::{AtomicU64, Ordering};
-use std::sync::OnceLock;
+use std::sync::{Arc, OnceLock};
 
 /// Side of the chunks a large region is evaluated in, in pixels of the evaluated level:
 /// bounds the memory of one call (about 2 bytes an entry over the chunk's cone).
 pub const CHUNK: u32 = 256;
-
-/// Work counted by renders, by kind: `entries_computed` is every entry filled, noise included
-/// as the paper counts it, so that over `pixels_requested` it is the paper's computation ratio;
-/// `noise_entries` is the noise part of it.
-pub(super) struct Work {
-    computed: AtomicU64,
-    noise: AtomicU64,
-    requested: AtomicU64,
-}
-
-impl Work {
-    const fn new() -> Work {
-        Work { computed: AtomicU64::new(0), noise: AtomicU64::new(0), requested: AtomicU64::new(0) }
-    }
-
-    fn add(&self, computed: u64, noise: u64, requested: u64) {
-        self.computed.fetch_add(computed, Ordering::Relaxed);
-        self.noise.fetch_add(noise, Ordering::Relaxed);
-        self.requested.fetch_add(requested, Ordering::Relaxed);
-    }
-
-    pub(super) fn counters(&self) -> Vec<(&'static str, u64)> {
-        vec![
-            ("entries_computed", self.computed.load(Ordering::Relaxed)),
-            ("noise_entries", self.noise.load(Ordering::Relaxed)),
-            ("pixels_requested", self.requested.load(Ordering::Relaxed)),
-        ]
-    }
-}
-
-/// The work of every order-independent texture of the process, for the server's metrics.
-pub(super) static PROCESS_WORK: Work = Work::new();
 
 /// A loaded, validated order-independent texture.
 pub struct OrderIndependent {
@@ -57,8 +25,9 @@ pub struct OrderIndependent {
     /// The colours of coarse levels beyond the pyramid, measured on first use (a pure
     /// function of the encoding, so when it is computed never changes a result).
     calibration: OnceLock<Calibration>,
-    /// This texture's share of [`PROCESS_WORK`], since it was loaded.
+    /// This texture's share of the shared work, since it was loaded.
     work: Work,
+    shared: Arc<Shared>,
 }
 
 impl std::fmt::Debug for OrderIndependent {
@@ -68,22 +37,23 @@ impl std::fmt::Debug for OrderIndependent {
 }
 
 impl OrderIndependent {
-    /// The texture of `params` over `sample`; `key` (the start of its bundle's hash) names its
-    /// entries in the shared pyramidal cache.
-    pub fn new(params: Params, sample: &Rgba8Image, key: u64) -> Result<Self> {
+    /// The texture of `params` over `sample`, sharing `shared` with the other textures of its
+    /// owner; `key` (the start of its bundle's hash) names its entries in the shared cache.
+    pub fn new(params: Params, sample: &Rgba8Image, key: u64, shared: Arc<Shared>) -> Result<Self> {
         let synthesizer = Synthesizer::new(&params, sample)?;
         Ok(OrderIndependent {
             params,
             synthesizer,
-            pyramid: Pyramid::new(key),
+            pyramid: Pyramid::new(key, shared.cache.clone()),
             calibration: OnceLock::new(),
-            work: Work::new(),
+            work: Work::default(),
+            shared,
         })
     }
 
-    /// This texture with its entries kept in `cache` instead of the process's shared cache
-    /// (the figures compare block sides and budgets with it).
-    pub fn in_cache(self, cache: &'static BlockCache) -> Self {
+    /// This texture with its entries kept in `cache` instead of the shared cache (the figures
+    /// compare block sides and budgets with it).
+    pub fn in_cache(self, cache: Arc<BlockCache>) -> Self {
         OrderIndependent { pyramid: self.pyramid.in_cache(cache), ..self }
     }
 
@@ -108,7 +78,7 @@ impl OrderIndependent {
         let mut counts = Counts::default();
         let st = self.synthesizer.structure();
         let values = evaluate(&self.synthesizer, st, cache, s, rect, &mut counts, stop);
-        for work in [&self.work, &PROCESS_WORK] {
+        for work in [&self.work, &self.shared.work] {
             work.add(counts.computed + counts.noise, counts.noise, 0);
         }
         values
@@ -191,7 +161,7 @@ impl Texture for OrderIndependent {
     }
 
     fn render(&self, region: &Region, out: &mut [u8], stop: &dyn Stop) {
-        for work in [&self.work, &PROCESS_WORK] {
+        for work in [&self.work, &self.shared.work] {
             work.add(0, 0, region.pixel_count());
         }
         let l = region.level;
@@ -220,17 +190,21 @@ impl Texture for OrderIndependent {
 
 #[cfg(test)]
 mod tests {
-    use super::super::cache::{cache_bytes, set_cache_budget, BLOCK_BYTES};
-    use super::super::{create, load};
+    use super::super::cache::BLOCK_BYTES;
+    use super::super::{create, load, load_with, MODEL};
     use super::*;
     use crate::models::Inputs;
     use crate::Never;
     use serde_json::json;
 
-    fn texture(params: serde_json::Value, sample: Rgba8Image) -> OrderIndependent {
+    fn bundle(params: serde_json::Value, sample: Rgba8Image) -> crate::bundle::Bundle {
         let mut inputs = Inputs::new();
         inputs.insert("sample".into(), sample.to_png());
-        load(&create("t", &params, &inputs).unwrap()).unwrap()
+        create("t", &params, &inputs).unwrap()
+    }
+
+    fn texture(params: serde_json::Value, sample: Rgba8Image) -> OrderIndependent {
+        load(&bundle(params, sample)).unwrap()
     }
 
     fn regions() -> Vec<Region> {
@@ -262,13 +236,13 @@ mod tests {
     /// the same bytes. The warm pass with plenty computes less, so the cache was in use.
     #[test]
     fn the_pyramidal_cache_never_changes_a_result() {
-        let t = texture(json!({"seed": 8, "levels": 3, "width": 4096, "height": 4096}), crate::samples::lichen(32, 2));
+        let b = bundle(json!({"seed": 8, "levels": 3, "width": 4096, "height": 4096}), crate::samples::lichen(32, 2));
         let n = regions().len();
         let forward: Vec<usize> = (0..n).collect();
-        set_cache_budget(0);
-        let cold = render_all(&t, &forward);
+        let cold = render_all(&load(&b).unwrap(), &forward);
         for budget in [16 * 3 * BLOCK_BYTES, 64 << 20] {
-            set_cache_budget(budget);
+            let resources = crate::Resources::new(budget);
+            let t = load_with(&b, &resources).unwrap();
             for pass in 0..2 {
                 let before = computed(&t);
                 let parts: Vec<Vec<Vec<u8>>> = std::thread::scope(|s| {
@@ -284,14 +258,13 @@ mod tests {
                 for got in parts {
                     assert_eq!(got, cold, "budget {budget}, pass {pass}");
                 }
-                assert!(cache_bytes() <= budget.max(BLOCK_BYTES * 16));
+                assert!(resources.cache_bytes(MODEL) <= budget.max(BLOCK_BYTES * 16));
                 if budget == 64 << 20 && pass == 1 {
                     let warm = computed(&t) - before;
                     assert!(warm < 2 * 1000, "a warm pass computed {warm} entries");
                 }
             }
         }
-        set_cache_budget(0);
     }
 
     /// Regions at the ends of the i64 range render (no overflow in their cones), equal the crop
@@ -328,7 +301,8 @@ mod tests {
             let v = evaluate(syn, syn.structure(), cache, 3, rect, &mut counts, &Never).unwrap();
             (v, counts.computed + counts.noise)
         };
-        let (exact, masked) = count(Some(&Pyramid::new(0x5eed)));
+        let cache = Arc::new(BlockCache::new(super::super::cache::SIDE));
+        let (exact, masked) = count(Some(&Pyramid::new(0x5eed, cache)));
         let (dense, rectangles) = count(None);
         assert_eq!((masked, rectangles), (276_360, 276_412));
         assert_eq!(exact, dense);

@@ -2,8 +2,7 @@
 //! budget that holds under load. Everything here holds under either transport (`VTEX_SEND`),
 //! and the transport is chosen the way every other setting is.
 
-mod common;
-use common::*;
+use crate::support::*;
 use rand::seq::SliceRandom;
 use rand::SeedableRng;
 use std::collections::BTreeMap;
@@ -170,36 +169,4 @@ async fn cache_budget_holds_after_filling_it_many_times_over() {
     assert_eq!(metric(&metrics(&c, &s).await, "vtex_tile_cache_hits_total", &[]), hits + 1.0, "a hit");
     assert!(resynthesized == first && hit == first, "the tile's bytes changed through eviction and the cache");
     assert_eq!((&evicted["etag"], &cached["etag"]), (&first_headers["etag"], &first_headers["etag"]));
-}
-
-/// `--send` and `VTEX_SEND` choose the transport with the precedence of every setting (the flag
-/// beats the environment), and a name that is not a transport is refused before serving.
-#[test]
-fn the_transport_comes_from_the_flag_or_vtex_send() {
-    let dir = tempdir();
-    let s = Server::start_env(dir.path(), &[], &[("VTEX_SEND", "copy")]);
-    assert!(s.log_text().contains("send=copy"), "{}", s.log_text());
-    drop(s);
-    let s = Server::start_env(dir.path(), &["--send", "copy"], &[("VTEX_SEND", "splice")]);
-    assert!(s.log_text().contains("send=copy"), "the flag wins: {}", s.log_text());
-    drop(s);
-    let refused = |env: &[(&str, &str)], extra: &[&str]| {
-        let out = std::process::Command::new(BIN)
-            .args(["serve", "--bind", "127.0.0.1:0", "--no-demos"])
-            .args(extra)
-            .envs(env.iter().copied())
-            .output()
-            .unwrap();
-        assert!(!out.status.success());
-        String::from_utf8_lossy(&out.stderr).into_owned()
-    };
-    let err = refused(&[], &["--send", "sendfile"]);
-    assert!(err.contains("expected `copy` or `splice`"), "{err}");
-    if cfg!(target_os = "linux") {
-        let s = Server::start_env(dir.path(), &[], &[("VTEX_SEND", "splice")]);
-        assert!(s.log_text().contains("send=splice"), "{}", s.log_text());
-    } else {
-        let err = refused(&[("VTEX_SEND", "splice")], &[]);
-        assert!(err.contains("needs Linux"), "{err}");
-    }
 }

@@ -3,8 +3,7 @@
 //! Collection. (The size arithmetic is tabled in `server/src/api/iiif.rs`; the official
 //! validator runs in `tests/iiif/validate.py`, Mirador in `tests/browser/iiif.test.mjs`.)
 
-mod common;
-use common::*;
+use crate::support::*;
 use serde_json::Value;
 
 const IMAGE_LD: &str = "application/ld+json;profile=\"http://iiif.io/api/image/3/context.json\"";

@@ -1,8 +1,7 @@
 //! The command line: the offline subcommands (`vtex create`, `vtex render`, `vtex info`), and
 //! what `vtex serve` tells a person: start-up errors, its help, its log.
 
-mod common;
-use common::*;
+use crate::support::*;
 use std::process::Command;
 
 fn vtex(args: &[&str]) -> std::process::Output {
@@ -66,7 +65,7 @@ async fn create_info_render_agree_with_the_server() {
     let raw = dir.path().join("t.rgba");
     let out = vtex(&["render", file.to_str().unwrap(), "--x", "256", "--y", "0", "--out", raw.to_str().unwrap()]);
     assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
-    let s = Server::start(&data, &[]);
+    let s = Server::spawn(&data, &[]);
     let (_, _, tile) = get_bytes(&client(), &s.tile_url(&id, 0, 1, 0, "rgba")).await;
     assert_eq!(std::fs::read(&raw).unwrap(), tile);
     let png = dir.path().join("r.png");
@@ -307,9 +306,9 @@ async fn a_few_requests(s: &Server) -> Vec<(String, u16, usize)> {
 #[tokio::test]
 async fn the_log_has_no_colours_and_lines_per_request_only_as_an_access_log() {
     let dir = tempdir();
-    let s = Server::start(dir.path(), &[]);
+    let s = Server::spawn(dir.path(), &[]);
     let quiet = a_few_requests(&s).await;
-    let log = std::fs::read_to_string(&s.log).unwrap();
+    let log = s.log_text();
     assert!(log.contains("serving") && !log.contains('\x1b'), "plain text in a file:\n{log}");
     for (path, _, _) in &quiet {
         assert!(!log.contains(path.as_str()), "no line for {path} by default:\n{log}");
@@ -317,11 +316,11 @@ async fn the_log_has_no_colours_and_lines_per_request_only_as_an_access_log() {
     drop(s);
 
     let dir = tempdir();
-    let s = Server::start(dir.path(), &["--access-log"]);
+    let s = Server::spawn(dir.path(), &["--access-log"]);
     let done = a_few_requests(&s).await;
     let upload = 1;
     let lines = || -> Vec<String> {
-        let log = std::fs::read_to_string(&s.log).unwrap();
+        let log = s.log_text();
         log.lines().filter(|l| l.contains("vtex::access")).map(String::from).collect()
     };
     // A line is written once its body is sent, perhaps just after the client has it.

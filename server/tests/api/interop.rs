@@ -2,8 +2,7 @@
 //! official IIIF validator runs in `tests/iiif/validate.py`; OpenSeadragon in
 //! `tests/browser/interop.test.mjs`).
 
-mod common;
-use common::*;
+use crate::support::*;
 use serde_json::Value;
 
 fn decode(bytes: &[u8]) -> image::RgbaImage {

@@ -4,8 +4,7 @@
 //! level down to 1×1; they are cached, ETagged and batched like tiles; KTX2 pages are the same
 //! bytes whatever the run or thread count; bad parameters are 400s naming what is allowed.
 
-mod common;
-use common::*;
+use crate::support::*;
 use serde_json::json;
 use vtex_synth::models::{self, Inputs};
 

@@ -1,8 +1,7 @@
 //! Protected writes over real sockets: the write token, read-only mode, DELETE, the CORS
 //! policy of writes, and readiness beside liveness.
 
-mod common;
-use common::*;
+use crate::support::*;
 use serde_json::{json, Value};
 
 const TOKEN: &str = "s3cret-Token_42";
@@ -21,7 +20,7 @@ fn post_bundle(c: &reqwest::Client, s: &Server, bytes: Vec<u8>) -> reqwest::Requ
 #[tokio::test]
 async fn writes_need_the_token_when_one_is_set() {
     let dir = tempdir();
-    let s = Server::start_env(dir.path(), &[], &[("VTEX_WRITE_TOKEN", TOKEN)]);
+    let s = Server::spawn_env(dir.path(), &[], &[("VTEX_WRITE_TOKEN", TOKEN)]);
     let c = client();
     let bundle = mosaic(32, 8, 1).to_bytes();
 
@@ -56,7 +55,7 @@ async fn the_token_can_come_from_a_file() {
     let dir = tempdir();
     let file = dir.path().with_extension("token");
     std::fs::write(&file, format!("{TOKEN}\n")).unwrap();
-    let s = Server::start(dir.path(), &["--write-token-file", file.to_str().unwrap()]);
+    let s = Server::spawn(dir.path(), &["--write-token-file", file.to_str().unwrap()]);
     let c = client();
     let r = post_bundle(&c, &s, mosaic(32, 8, 1).to_bytes()).send().await.unwrap();
     error_of(r, 401).await;
@@ -69,7 +68,7 @@ async fn the_token_can_come_from_a_file() {
 #[tokio::test]
 async fn delete_removes_the_texture_for_good() {
     let dir = tempdir();
-    let s = Server::start(dir.path(), &[]);
+    let s = Server::spawn(dir.path(), &[]);
     let c = client();
     let id = put(&c, &s, &mosaic(32, 8, 2)).await;
     let keep = put(&c, &s, &mosaic(32, 8, 3)).await;
@@ -100,10 +99,10 @@ async fn delete_removes_the_texture_for_good() {
 #[tokio::test]
 async fn read_only_refuses_every_write_naming_the_mode() {
     let dir = tempdir();
-    let s = Server::start(dir.path(), &[]);
+    let s = Server::spawn(dir.path(), &[]);
     let id = put(&client(), &s, &mosaic(32, 8, 4)).await;
     drop(s);
-    let s = Server::start_env(dir.path(), &["--read-only"], &[("VTEX_WRITE_TOKEN", TOKEN)]);
+    let s = Server::spawn_env(dir.path(), &["--read-only"], &[("VTEX_WRITE_TOKEN", TOKEN)]);
     let c = client();
     let texture = s.url(&format!("/api/v1/textures/{id}"));
     let refused = [
@@ -123,7 +122,7 @@ async fn read_only_refuses_every_write_naming_the_mode() {
 async fn cors_allows_writes_only_from_configured_origins() {
     let dir = tempdir();
     let good = "https://editor.example";
-    let s = Server::start(dir.path(), &["--cors-write-origins", &format!("{good},https://other.example")]);
+    let s = Server::spawn(dir.path(), &["--cors-write-origins", &format!("{good},https://other.example")]);
     let c = client();
     let preflight = |origin: &str, method: &str| {
         c.request(reqwest::Method::OPTIONS, s.url("/api/v1/textures"))
@@ -168,7 +167,7 @@ async fn cors_allows_writes_only_from_configured_origins() {
 #[tokio::test]
 async fn without_configured_origins_no_cross_origin_write_is_allowed() {
     let dir = tempdir();
-    let s = Server::start(dir.path(), &[]);
+    let s = Server::spawn(dir.path(), &[]);
     let c = client();
     let r = c
         .request(reqwest::Method::OPTIONS, s.url("/api/v1/textures"))
@@ -186,7 +185,7 @@ async fn without_configured_origins_no_cross_origin_write_is_allowed() {
 async fn readiness_follows_the_data_directory_and_liveness_does_not() {
     let dir = tempdir();
     let data = dir.path().join("data");
-    let s = Server::start(&data, &[]);
+    let s = Server::spawn(&data, &[]);
     let c = client();
     put(&c, &s, &mosaic(32, 8, 10)).await;
     let ready: Value = c.get(s.url("/readyz")).send().await.unwrap().json().await.unwrap();
@@ -204,7 +203,7 @@ async fn readiness_follows_the_data_directory_and_liveness_does_not() {
 #[tokio::test]
 async fn without_a_token_loopback_clients_write() {
     let dir = tempdir();
-    let s = Server::start(dir.path(), &["--bind", "[::]:0"]);
+    let s = Server::spawn(dir.path(), &["--bind", "[::]:0"]);
     let port = s.addr.rsplit_once(':').unwrap().1;
     let c = client();
     for (seed, host) in [(11, "127.0.0.1"), (12, "[::1]")] {
@@ -251,7 +250,7 @@ impl NetNs {
     fn serve(&self, data_dir: &std::path::Path, extra: &[&str], env: &[(&str, &str)]) -> Server {
         let mut args = vec!["--bind", "0.0.0.0:0"];
         args.extend(extra);
-        Server::start_under(&["ip", "netns", "exec", &self.0], data_dir, &args, env)
+        Server::spawn_under(&["ip", "netns", "exec", &self.0], data_dir, &args, env)
     }
 
     /// One raw HTTP/1.1 exchange with `s` from inside the namespace, from `from` (an address of

@@ -3,8 +3,7 @@
 //! chains down to 1×1 — is walked against the layout rules of the specification's text, section
 //! by section, and read by the `ktx2` crate, a reader no one here wrote.
 
-mod common;
-use common::*;
+use crate::support::*;
 
 /// A served KTX2 file and the URL it came from.
 struct File {

@@ -2,8 +2,7 @@
 //! texture written by any of them, or copied into the directory, is served by all; a deletion
 //! reaches all; replicas starting together on an empty directory do not collide.
 
-mod common;
-use common::*;
+use crate::support::*;
 use serde_json::Value;
 use std::time::{Duration, Instant};
 
@@ -26,8 +25,8 @@ async fn until_listed(c: &reqwest::Client, s: &Server, id: &str, present: bool) 
 #[tokio::test]
 async fn a_miss_looks_in_the_shared_directory() {
     let dir = tempdir();
-    let a = Server::start(dir.path(), &[]);
-    let b = Server::start(dir.path(), &["--watch", "off"]);
+    let a = Server::spawn(dir.path(), &[]);
+    let b = Server::spawn(dir.path(), &["--watch", "off"]);
     let c = client();
     let unknown = "0".repeat(64);
     assert!(expect_error(&c, &b.url(&format!("/api/v1/textures/{unknown}")), 404).await.contains(&unknown));
@@ -56,8 +55,8 @@ async fn a_miss_looks_in_the_shared_directory() {
 #[tokio::test]
 async fn the_watch_keeps_every_replica_list_in_step() {
     let dir = tempdir();
-    let a = Server::start(dir.path(), &[]);
-    let b = Server::start(dir.path(), &[]);
+    let a = Server::spawn(dir.path(), &[]);
+    let b = Server::spawn(dir.path(), &[]);
     let c = client();
     let id = put(&c, &a, &mosaic(48, 8, 2)).await;
     until_listed(&c, &b, &id, true).await;
@@ -91,7 +90,7 @@ async fn replicas_starting_together_seed_the_demos_once() {
     let starting: Vec<_> = (0..3)
         .map(|_| {
             let path = path.clone();
-            std::thread::spawn(move || Server::start(&path, &["--demos"]))
+            std::thread::spawn(move || Server::spawn(&path, &["--demos"]))
         })
         .collect();
     let replicas: Vec<Server> = starting.into_iter().map(|t| t.join().expect("a replica failed to start")).collect();

@@ -1,11 +1,9 @@
-//! Response bodies in flight are bounded, over real sockets against a real `vtex serve`: past
+//! Response bodies in flight are bounded, over real sockets: past
 //! the in-flight budget a region is a clear 503 while cached tiles are still served, and a
 //! reader slower than the minimum send rate is dropped; either way the reservations return
 //! (the `vtex_inflight_bytes` gauge).
 
-mod common;
-
-use common::*;
+use crate::support::*;
 use std::io::{Read, Write};
 use std::net::TcpStream;
 use std::time::{Duration, Instant};

@@ -3,8 +3,7 @@
 //! renders stop when every client waiting for them has gone, and SIGTERM stops them and exits
 //! within the drain time.
 
-mod common;
-use common::*;
+use crate::support::*;
 use std::io::{Read, Write};
 use std::net::TcpStream;
 use std::time::{Duration, Instant};
@@ -16,7 +15,7 @@ const ADMIT_EXPENSIVE: &[&str] =
     &["--max-tile-work", "18446744073709551615", "--max-build-work", "18446744073709551615"];
 
 fn start(dir: &std::path::Path, flags: &[&str]) -> Server {
-    Server::start(dir, &[ADMIT_EXPENSIVE, flags].concat())
+    Server::spawn(dir, &[ADMIT_EXPENSIVE, flags].concat())
 }
 
 /// A cascade of twelve stages of 40 iterations of a 7 × 7 kernel, none coarser than the next:

@@ -2,12 +2,11 @@
 //! bit for bit, and a PATCH
 //! that changes them makes the texture again from them — for every model, over HTTP.
 
-mod common;
-use common::*;
+use crate::support::*;
 use serde_json::{json, Value};
 use vtex_synth::bundle::Bundle;
 use vtex_synth::models::{self, lcm, Inputs};
-#[path = "../../synth/tests/support/rgb_png.rs"]
+#[path = "../../../synth/tests/support/rgb_png.rs"]
 mod rgb_png;
 use rgb_png::rgb_png;
 

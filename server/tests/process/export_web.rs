@@ -1,8 +1,7 @@
 //! `vtex export-web`: what the folder holds, and what it refuses. (The folder served by a static
 //! server and opened in Chromium: tests/browser/export.test.mjs.)
 
-mod common;
-use common::*;
+use crate::support::*;
 use std::path::Path;
 use std::process::{Command, Output};
 

@@ -3,8 +3,7 @@
 //! answers on a live server with the demo textures, and every method a path does not describe
 //! is a 405.
 
-mod common;
-use common::*;
+use crate::support::*;
 use serde_json::Value;
 use std::path::PathBuf;
 

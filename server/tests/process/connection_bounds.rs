@@ -4,9 +4,7 @@
 //! past the connection limit a new client gets a clear 503, long and crowded queries are
 //! refused before parsing, and `Host` is checked as RFC 9112 §3.2 asks.
 
-mod common;
-
-use common::*;
+use crate::support::*;
 use std::io::{ErrorKind, Read, Write};
 use std::net::TcpStream;
 use std::time::{Duration, Instant};
@@ -41,7 +39,7 @@ fn open_connections(s: &Server) -> f64 {
 
 /// The server's resident memory, from `/proc/<pid>/status`.
 fn rss_mib(s: &Server) -> f64 {
-    let status = std::fs::read_to_string(format!("/proc/{}/status", s.child.id())).unwrap();
+    let status = std::fs::read_to_string(format!("/proc/{}/status", s.pid())).unwrap();
     let line = status.lines().find(|l| l.starts_with("VmRSS:")).unwrap();
     line.split_whitespace().nth(1).unwrap().parse::<f64>().unwrap() / 1024.0
 }
@@ -153,7 +151,7 @@ impl H2 {
 #[test]
 fn readers_that_stop_are_dropped_after_the_send_timeout_and_their_memory_freed() {
     let dir = tempdir();
-    let s = Server::start(dir.path(), &["--send-timeout-secs", "1"]);
+    let s = Server::spawn(dir.path(), &["--send-timeout-secs", "1"]);
     let id = upload(&s, &mosaic(64, 8, 1));
     let region = format!("/api/v1/textures/{id}/region?level=0&x=0&y=0&w=2048&h=2048&format=rgba");
     let full = get(&s.addr, &region);
@@ -201,7 +199,7 @@ fn readers_that_stop_are_dropped_after_the_send_timeout_and_their_memory_freed()
 #[test]
 fn an_http2_response_stalled_by_flow_control_is_dropped_when_idle() {
     let dir = tempdir();
-    let s = Server::start(dir.path(), &["--idle-timeout-secs", "1"]);
+    let s = Server::spawn(dir.path(), &["--idle-timeout-secs", "1"]);
     let id = upload(&s, &mosaic(64, 8, 1));
     let mut h2 = H2::connect(&s.addr);
     assert_eq!(h2.get(1, &format!("/api/v1/textures/{id}/region?level=0&x=0&y=0&w=1024&h=1024&format=rgba")), 200);
@@ -218,7 +216,7 @@ fn an_http2_response_stalled_by_flow_control_is_dropped_when_idle() {
 fn idle_connections_are_closed_whatever_they_speak() {
     let dir = tempdir();
     let idle = Duration::from_millis(500);
-    let s = Server::start(dir.path(), &["--idle-timeout-secs", "0.5"]);
+    let s = Server::spawn(dir.path(), &["--idle-timeout-secs", "0.5"]);
 
     let mut silent = TcpStream::connect(&s.addr).unwrap();
     let silent_since = Instant::now();
@@ -253,7 +251,7 @@ fn idle_connections_are_closed_whatever_they_speak() {
 #[test]
 fn a_long_synthesis_is_not_idle() {
     let dir = tempdir();
-    let s = Server::start(dir.path(), &["--idle-timeout-secs", "0.2"]);
+    let s = Server::spawn(dir.path(), &["--idle-timeout-secs", "0.2"]);
     let params = serde_json::json!({"seed": 11, "stages": [{"kernel": {"size": 5, "preset": "gauss", "sigma": 1.0},
         "map": {"kind": "logistic", "r": 3.9}, "iterations": 5}], "palette": "ocean"});
     let id = upload(&s, &models::create("cascade", "slow ripples", &params, &Inputs::new()).unwrap());
@@ -278,7 +276,7 @@ fn a_long_synthesis_is_not_idle() {
 #[test]
 fn past_the_connection_limit_a_new_client_gets_a_clear_refusal() {
     let dir = tempdir();
-    let s = Server::start_under(&["prlimit", "--nofile=128:128", "--"], dir.path(), &[], &[]);
+    let s = Server::spawn_under(&["prlimit", "--nofile=128:128", "--"], dir.path(), &[], &[]);
     let log = s.log_text();
     let per = if log.contains("send=copy") { 1 } else { 3 };
     let max = metric(&metrics_of(&s), "vtex_http_connections_max", &[]);
@@ -309,7 +307,7 @@ fn past_the_connection_limit_a_new_client_gets_a_clear_refusal() {
 #[test]
 fn long_and_crowded_queries_are_refused_before_parsing() {
     let dir = tempdir();
-    let s = Server::start(dir.path(), &["--tile-size", "16"]);
+    let s = Server::spawn(dir.path(), &["--tile-size", "16"]);
     let id = upload(&s, &mosaic(64, 8, 1));
     let routes = [
         "/healthz".to_string(),
@@ -387,7 +385,7 @@ fn long_and_crowded_queries_are_refused_before_parsing() {
 #[test]
 fn host_is_required_once_in_http_1_1() {
     let dir = tempdir();
-    let s = Server::start(dir.path(), &[]);
+    let s = Server::spawn(dir.path(), &[]);
     let cases = [
         ("GET /healthz HTTP/1.1\r\nConnection: close\r\n\r\n", 400, "needs a Host header"),
         ("GET /healthz HTTP/1.1\r\nHost: a\r\nHost: b\r\nConnection: close\r\n\r\n", 400, "more than one Host"),

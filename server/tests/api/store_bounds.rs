@@ -1,27 +1,11 @@
 //! The store under bounds: lazy loading within the texture budget, the limits on uploads, the
 //! store's caps (507), and the small defects of the store (one 201, stale temporary files,
-//! names on every path) — each over a real socket against a real `vtex serve`.
+//! names on every path) — each over a real socket.
 
-mod common;
-use common::*;
+use crate::support::*;
 use serde_json::{json, Value};
 use std::path::Path;
 use vtex_synth::bundle::Bundle;
-use vtex_synth::models;
-
-/// Bytes a loaded `bundle` is charged against the texture budget: what its plan states.
-fn resident(bundle: &Bundle) -> u64 {
-    models::plan(bundle).unwrap().cost.resident_bytes.value
-}
-
-/// `--textures-mb` for a budget of `bytes`.
-fn mib(bytes: u64) -> String {
-    format!("{}", bytes as f64 / (1024.0 * 1024.0))
-}
-
-async fn gauge(c: &reqwest::Client, s: &Server, name: &str) -> f64 {
-    metric(&metrics(c, s).await, name, &[])
-}
 
 /// Four textures whose summed resident bytes are over a budget each fits in alone: rendering a
 /// tile of each in turn loads and evicts them, the bytes they hold never pass the budget, and
@@ -57,30 +41,6 @@ async fn loaded_textures_stay_within_the_budget() {
     assert_eq!(metric(&m, "vtex_textures", &[]), 4.0);
 }
 
-/// A texture that alone holds more than the budget is refused at upload (422 naming it), and a
-/// stored one is not served by a server whose budget it passes.
-#[tokio::test]
-async fn a_texture_alone_over_the_budget_is_refused() {
-    let big = mosaic(64, 8, 5);
-    let small_budget = mib(resident(&big) / 2);
-    let dir = tempdir();
-    let s = Server::start(dir.path(), &["--textures-mb", &small_budget]);
-    let (status, body) = upload(&client(), &s, big.to_bytes()).await;
-    assert_eq!(status, 422, "{body}");
-    let msg = body["error"].as_str().unwrap();
-    assert!(msg.contains("chaos-mosaic") && msg.contains("resident bytes") && msg.contains("bound"), "{msg}");
-    assert!(store_files(dir.path()).is_empty());
-    drop(s);
-
-    let s = Server::start(dir.path(), &[]);
-    let id = put(&client(), &s, &big).await;
-    drop(s);
-    let s = Server::start(dir.path(), &["--textures-mb", &small_budget]);
-    expect_error(&client(), &s.url(&format!("/api/v1/textures/{id}")), 404).await;
-    let log = s.log_text();
-    assert!(log.contains("not serving an invalid file") && log.contains("resident bytes"), "{log}");
-}
-
 /// Textures load on first use, not at start; concurrent first uses share one load.
 #[tokio::test]
 async fn textures_load_on_first_use_once() {
@@ -107,32 +67,6 @@ async fn textures_load_on_first_use_once() {
         (1.0, 1.0),
         "{m}"
     );
-}
-
-/// A bundle that fails validation when it is first loaded is logged, dropped from the index, and
-/// its request answered with a JSON error; the server goes on serving the others.
-#[tokio::test]
-async fn a_bundle_invalid_at_first_use_is_dropped() {
-    let dir = tempdir();
-    let s = Server::start(dir.path(), &[]);
-    let c = client();
-    let (bad, good) = (put(&c, &s, &mosaic(64, 8, 1)).await, put(&c, &s, &mosaic(64, 8, 2)).await);
-    drop(s);
-    let s = Server::start(dir.path(), &[]);
-    // Changed on disk after it was indexed: it no longer matches its id.
-    let path = dir.path().join(format!("{bad}.vtex"));
-    let mut bytes = std::fs::read(&path).unwrap();
-    let n = bytes.len();
-    bytes[n - 10] ^= 0xff;
-    std::fs::write(&path, &bytes).unwrap();
-    let msg = expect_error(&c, &s.tile_url(&bad, 0, 0, 0, "png"), 500).await;
-    assert!(msg.contains("failed validation") && msg.contains("no longer served"), "{msg}");
-    assert!(s.log_text().contains("no longer serving it"), "{}", s.log_text());
-    expect_error(&c, &s.url(&format!("/api/v1/textures/{bad}")), 404).await;
-    let (status, _, _) = get_bytes(&c, &s.tile_url(&good, 0, 0, 0, "png")).await;
-    assert_eq!(status, 200);
-    assert_eq!(gauge(&c, &s, "vtex_textures").await, 1.0);
-    assert!(path.exists(), "invalid files are left for an operator, never deleted");
 }
 
 /// `--max-textures` and `--store-mb`: an upload past either is a 507 naming the cap; what is
@@ -231,24 +165,6 @@ async fn concurrent_identical_uploads_make_one_201() {
     statuses.sort();
     assert_eq!(statuses, [vec![200; 9], vec![201]].concat(), "{answers:?}");
     assert_eq!(store_files(dir.path()).len(), 1);
-}
-
-/// A stale temporary entry that cannot be removed (a non-empty directory: `remove_file` fails
-/// on it even as root) is logged and left; the server starts and serves.
-#[tokio::test]
-async fn start_up_survives_a_stale_temp_it_cannot_remove() {
-    let dir = tempdir();
-    let stuck = dir.path().join(".tmp-4242-0-stuck.vtex");
-    std::fs::create_dir(&stuck).unwrap();
-    std::fs::write(stuck.join("inside"), b"x").unwrap();
-    let long_ago = std::time::SystemTime::now() - vtex_server::store::STALE_TEMP_AGE * 2;
-    std::fs::File::open(&stuck).unwrap().set_modified(long_ago).unwrap();
-    let s = Server::start(dir.path(), &[]);
-    let id = put(&client(), &s, &mosaic(32, 8, 1)).await;
-    let (status, _, _) = get_bytes(&client(), &s.tile_url(&id, 0, 0, 0, "png")).await;
-    assert_eq!(status, 200);
-    let log = s.log_text();
-    assert!(log.contains("could not remove a stale temporary file") && log.contains(".tmp-4242-0-stuck"), "{log}");
 }
 
 /// Empty names and names with control characters are refused on every path that names a

@@ -2,8 +2,7 @@
 //! ("draw it on another sprites layer") followed through PATCH gives a texture drawing both
 //! sprites, tile for tile what the model renders.
 
-mod common;
-use common::*;
+use crate::support::*;
 use serde_json::{json, Value};
 use vtex_synth::bundle::Bundle;
 use vtex_synth::models::{self, patterns::demos};

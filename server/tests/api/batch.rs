@@ -2,8 +2,7 @@
 //! endpoint's bytes, hits come first and misses as they finish, bad requests are 400/404 JSON
 //! errors naming the problem, metrics count it, and a client that goes away stops the work.
 
-mod common;
-use common::*;
+use crate::support::*;
 use std::io::{Read, Write};
 use std::net::TcpStream;
 use std::time::Duration;
