@@ -178,7 +178,7 @@ async function session(dataDir, info, mode, profile) {
     const t0 = performance.now();
     const left = () => Math.max(1, CAP_MS - (performance.now() - t0));
     try {
-      await page.goto(`${server.url}/?texture=${info.id}&${query}`, { timeout: left() });
+      await page.goto(`${server.url}/?texture=${info.id}&${query}&debug`, { timeout: left() });
       await page.waitForFunction(() => window.vtexViewer && window.vtexViewer.state.item, null, { timeout: left() });
       await waitForIdle(page, left());
       result.firstViewMs = performance.now() - t0;

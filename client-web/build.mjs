@@ -1,6 +1,9 @@
-// Builds client-web/dist/: the viewer's files plus OpenSeadragon and its navigation images
-// copied from node_modules (the server serves this directory at `/`; nothing comes from a CDN),
-// and the synthesis module for client mode (`vtex_synth.wasm`, built by
+// Builds client-web/dist/: src/ as it is — the pages at its root (index.html, the viewer, at
+// `/`; vt.html, the VT demo), their code in its folders (viewer/, vt/, workers/, shared/; the
+// modules import each other relatively, so the tree is served as it is, with no bundler) — plus
+// OpenSeadragon and its navigation images copied from node_modules (the server serves this
+// directory at `/`; nothing comes from a CDN), and the synthesis module for client mode
+// (`vtex_synth.wasm`, built by
 // `cargo build -p vtex-synth-wasm --lib --target wasm32-unknown-unknown --profile wasm`).
 // Every text file and the module get a brotli (quality 11) and a gzip (level 9) copy beside
 // them, `X.br` and `X.gz`, which vtex (embedded or --web-dir) and any static server that looks

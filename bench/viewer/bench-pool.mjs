@@ -17,7 +17,7 @@
 // also split in two: the passes whose machine references, before and after, were both under
 // MS (the machine at its fast speed throughout), and the rest.
 import { readFileSync } from 'node:fs';
-import { percentile } from '../../client-web/src/stats.js';
+import { percentile } from '../../client-web/src/viewer/stats.js';
 
 const argv = process.argv.slice(2);
 let views = 0;

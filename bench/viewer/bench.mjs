@@ -32,7 +32,7 @@
 //    animation-frame interval, cold and then warm (the same path again).
 import { parseArgs } from 'node:util';
 import { mkdirSync, writeFileSync } from 'node:fs';
-import { launchBrowser, openViewer, startServer, viewerIdle } from '../../tests/browser/lib.mjs';
+import { debugUrl, launchBrowser, openViewer, startServer, viewerIdle } from '../../tests/browser/lib.mjs';
 import { launchBare } from './cdp.mjs';
 import { collectTrace, formatBreakdown, installTracer, viewBreakdown } from './trace.mjs';
 
@@ -64,7 +64,7 @@ const { values: args } = parseArgs({
     texture: { type: 'string' },
     // Tile format the viewer asks for (its `format` URL parameter); default: the viewer's (rgba on loopback).
     format: { type: 'string' },
-    // Level choice (the viewer's `detail` URL parameter, client-web/src/pyramid.js DETAIL);
+    // Level choice (the viewer's `detail` URL parameter, client-web/src/viewer/pyramid.js DETAIL);
     // default: the viewer's (map).
     detail: { type: 'string' },
     // When each view change is applied: at a seeded random point of an animation frame
@@ -433,7 +433,7 @@ async function openPage(url) {
       close: () => b.close(),
     };
   } else {
-    page = await launchBare(url, { ...SIZE, initScript });
+    page = await launchBare(debugUrl(url), { ...SIZE, initScript });
   }
   await page.waitFor(() => window.vtexViewer && window.vtexViewer.state.item);
   return page;

@@ -14,7 +14,7 @@
 //   put(opaque)+draw  the same with `{ alpha: false }` canvases
 //   bitmap(none)+draw default reader + createImageBitmap(ImageData, premultiplyAlpha 'none')
 //   byob              a BYOB reader into one reused 2 MiB buffer, chunks dropped
-//   byob+bitmap(none)+draw   the viewer's reader (batch.js readChunks) + bitmap(none)+draw
+//   byob+bitmap(none)+draw   the viewer's reader (shared/batch.js readChunks) + bitmap(none)+draw
 //   w:read            a dedicated Worker fetches and reads (default reader), chunks dropped
 //   w:bitmap[(none)][+draw]  a Worker reads, splits frames, makes an ImageBitmap per tile and
 //                     transfers it; the main thread receives (and draws) them
@@ -86,7 +86,7 @@ function chromiumCpu() {
 
 /** Runs in the page: one case over the batch at `url`; wall ms and the batch's Resource Timing. */
 async function runCase({ url, kind }) {
-  const { FrameReader } = await import('/batch.js');
+  const { FrameReader } = await import('/shared/batch.js');
   const abs = new URL(url, location.origin).href;
   performance.clearResourceTimings();
   const W = 960;
@@ -108,7 +108,7 @@ async function runCase({ url, kind }) {
   const t0 = performance.now();
   if (kind.startsWith('w:')) {
     const src = `
-      import { FrameReader } from '${location.origin}/batch.js';
+      import { FrameReader } from '${location.origin}/shared/batch.js';
       onmessage = async (e) => {
         const { url, kind } = e.data;
         const r = await fetch(url);
@@ -338,7 +338,7 @@ try {
   // Warm the server's cache for every batch, so only the browser is measured.
   for (const c of plan) await (await fetch(server.url + c.url)).arrayBuffer();
 
-  const page = await launchBare(`${server.url}/?texture=${big.id}&zoom=0.01&x=50000&y=50000`);
+  const page = await launchBare(`${server.url}/?texture=${big.id}&zoom=0.01&x=50000&y=50000&debug`);
   await page.waitFor(() => window.vtexViewer && window.vtexViewer.state.item && window.vtexViewer.state.item.getFullyLoaded());
   await new Promise((r) => setTimeout(r, 500));
   const acc = {};

@@ -11,7 +11,7 @@
 import { execFileSync } from 'node:child_process';
 import { readFileSync, readdirSync } from 'node:fs';
 import { parseArgs } from 'node:util';
-import { launchBrowser, openViewer, startServer } from '../../tests/browser/lib.mjs';
+import { debugUrl, launchBrowser, openViewer, startServer } from '../../tests/browser/lib.mjs';
 import { launchBare } from './cdp.mjs';
 
 const { values: args } = parseArgs({
@@ -66,7 +66,7 @@ function fetchAll({ urls, format, noStore }) {
 
 /** In the page: the same tiles as one batched request, read frame by frame as the viewer does. */
 async function fetchBatch({ urls }) {
-  const { FrameReader } = await import('/batch.js');
+  const { FrameReader } = await import('/shared/batch.js');
   const t0 = performance.now();
   const m = urls[0].match(/^(.*)\/tiles\/\d+\/\d+\/\d+\.(\w+)$/);
   const list = urls.map((u) => u.match(/\/tiles\/(\d+\/\d+\/\d+)\./)[1]).join(',');
@@ -115,7 +115,7 @@ try {
 
   const pages = {};
   const url = `${server.url}/?texture=${big.id}&zoom=0.01&x=50000&y=50000`;
-  pages.cdp = await launchBare(url);
+  pages.cdp = await launchBare(debugUrl(url));
   await pages.cdp.waitFor(() => window.vtexViewer && window.vtexViewer.state.item && window.vtexViewer.state.item.getFullyLoaded());
   const pw = await launchBrowser();
   const p = (await openViewer(pw.context, url)).page;

@@ -31,7 +31,7 @@ const load = [loadavg()[0]];
 /** Runs the demo with `query` to its last frame; its figures over frames `from`… */
 async function run(name, query, from = 1) {
   const page = await browser.context.newPage();
-  await page.goto(`${server.url}/vt.html?${query}&frames=${frames}`);
+  await page.goto(`${server.url}/vt.html?${query}&frames=${frames}&debug`);
   await page.waitForFunction(() => window.vtDemo && (window.vtDemo.error || window.vtDemo.state.done), null, { timeout: 900_000, polling: 250 });
   const s = await page.evaluate(() => {
     const { state, cache } = window.vtDemo;

@@ -1,9 +1,9 @@
-// What the viewer opens (client-web/src/first-view.js) and the tiles a wrapping view shows
-// (client-web/src/pyramid.js sourceTile).
+// What the viewer opens (client-web/src/viewer/first-view.js) and the tiles a wrapping view shows
+// (client-web/src/viewer/pyramid.js sourceTile).
 import test from 'node:test';
 import assert from 'node:assert/strict';
-import { FIRST_ZOOM, SHOWCASE, firstView, openingView } from '../src/first-view.js';
-import { sourceTile, osdLevel, tileCount } from '../src/pyramid.js';
+import { FIRST_ZOOM, SHOWCASE, firstView, openingView } from '../src/viewer/first-view.js';
+import { sourceTile, osdLevel, tileCount } from '../src/viewer/pyramid.js';
 
 const info = (id, name, width, height, wraps = false) => ({ id: id.repeat(64), name, width, height, levels: 10, tile_size: 256, wraps });
 const huge = info('a', 'Huge cascade', 1_048_576, 1_048_576);

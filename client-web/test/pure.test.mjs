@@ -2,12 +2,12 @@
 // the early view update (against a stand-in for OpenSeadragon's viewer), batch frames.
 import test from 'node:test';
 import assert from 'node:assert/strict';
-import { DETAIL, inPyramid, levelSize, osdLevel, tileCount, tileUrl, vtexLevel, drawLevel } from '../src/pyramid.js';
-import { formatView, parseView } from '../src/view-url.js';
-import { TileStats, formatBytes, formatRatio, percentile } from '../src/stats.js';
-import { updateEarly } from '../src/loader.js';
-import { PREVIEW_STEPS, fetchWantedLevels, wantedLevel } from '../src/osd-adapter.js';
-import { FrameReader, HEADER_LEN, MAGIC, MAX_BATCH, READ_BUFFER_BYTES, batchUrl, readChunks, tileKey } from '../src/batch.js';
+import { DETAIL, inPyramid, levelSize, osdLevel, tileCount, tileUrl, vtexLevel, drawLevel } from '../src/viewer/pyramid.js';
+import { formatView, parseView } from '../src/viewer/view-url.js';
+import { TileStats, formatBytes, formatRatio, percentile } from '../src/viewer/stats.js';
+import { updateEarly } from '../src/viewer/loader.js';
+import { PREVIEW_STEPS, fetchWantedLevels, wantedLevel } from '../src/viewer/osd-adapter.js';
+import { FrameReader, HEADER_LEN, MAGIC, MAX_BATCH, READ_BUFFER_BYTES, batchUrl, readChunks, tileKey } from '../src/shared/batch.js';
 
 const big = { id: 'ab'.repeat(32), width: 100_000, height: 100_000, levels: 10, tile_size: 256, animated: false };
 const odd = { id: 'cd'.repeat(32), width: 3000, height: 700, levels: 5, tile_size: 256, animated: true };

@@ -1,8 +1,8 @@
-// The schema subset the parameter form understands (client-web/src/schema-form.js): which
+// The schema subset the parameter form understands (client-web/src/viewer/schema-form.js): which
 // field each kind of schema gets, and JSON that keeps u64 integers exact.
 import test from 'node:test';
 import assert from 'node:assert/strict';
-import { FormError, classify, parseJson, readInteger, readNumber, resolve, stringifyJson, unionTag } from '../src/schema-form.js';
+import { FormError, classify, parseJson, readInteger, readNumber, resolve, stringifyJson, unionTag } from '../src/viewer/schema-form.js';
 
 const root = {
   $defs: {

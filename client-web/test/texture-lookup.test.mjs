@@ -1,7 +1,7 @@
-// Which texture a link names (client-web/src/texture-lookup.js).
+// Which texture a link names (client-web/src/shared/texture-lookup.js).
 import test from 'node:test';
 import assert from 'node:assert/strict';
-import { MIN_PREFIX, findTexture } from '../src/texture-lookup.js';
+import { MIN_PREFIX, findTexture } from '../src/shared/texture-lookup.js';
 
 const textures = [
   { id: 'ab12' + '0'.repeat(60), name: 'Pebbles' },

@@ -1,8 +1,8 @@
-// The client mode in the view's URL (src/view-url.js): `synth=client` is read, kept by links,
+// The client mode in the view's URL (src/viewer/view-url.js): `synth=client` is read, kept by links,
 // and anything else is ignored (server mode).
 import test from 'node:test';
 import assert from 'node:assert/strict';
-import { formatView, parseView } from '../src/view-url.js';
+import { formatView, parseView } from '../src/viewer/view-url.js';
 
 test('synth=client survives a link; other values mean server mode', () => {
   const view = parseView('?texture=t&zoom=0.5&x=10&y=20&synth=client');

@@ -1,9 +1,9 @@
-// The virtual-texturing demo's bookkeeping (client-web/src/vt-pages.js) and KTX2 reading
-// (client-web/src/vt-ktx2.js).
+// The virtual-texturing demo's bookkeeping (client-web/src/vt/pages.js) and KTX2 reading
+// (client-web/src/vt/ktx2.js).
 import test from 'node:test';
 import assert from 'node:assert/strict';
-import { PageCache, ancestor, decodeFeedback, pageKey, plan, pyramid } from '../src/vt-pages.js';
-import { parseKtx2 } from '../src/vt-ktx2.js';
+import { PageCache, ancestor, decodeFeedback, pageKey, plan, pyramid } from '../src/vt/pages.js';
+import { parseKtx2 } from '../src/vt/ktx2.js';
 
 test('the page pyramid of a 100k texture: a 1024² table, level 10 one page', () => {
   const p = pyramid({ width: 100_000, height: 100_000 });

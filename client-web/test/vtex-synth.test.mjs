@@ -1,9 +1,9 @@
-// The wrapper of the synthesis module (src/vtex-synth.js) against a stand-in for its exports:
+// The wrapper of the synthesis module (src/shared/vtex-synth.js) against a stand-in for its exports:
 // a trap becomes a SynthError carrying the panic's message, and the instance is not used again.
 // (tests/wasm/api.test.mjs runs the wrapper over the real module.)
 import test from 'node:test';
 import assert from 'node:assert/strict';
-import { Synth, SynthError } from '../src/vtex-synth.js';
+import { Synth, SynthError } from '../src/shared/vtex-synth.js';
 
 /** Exports whose vtex_open traps after "panicking" with `message`. */
 function trappingExports(message) {

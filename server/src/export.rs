@@ -13,7 +13,7 @@ use serde::Serialize;
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
-/// The description file the viewer reads (`client-web/src/client-synth.js` staticExport).
+/// The description file the viewer reads (`client-web/src/viewer/client-synth.js` staticExport).
 pub const DESCRIPTION: &str = "vtex-export.json";
 /// The synthesis module the viewer loads in client mode (`client-synth.js` WASM_URL).
 pub const MODULE: &str = "vtex_synth.wasm";

@@ -8,6 +8,7 @@ import assert from 'node:assert/strict';
 import {
   closeSession,
   compareScreenToServerTile,
+  debugUrl,
   openViewer,
   setAlignedView,
   startServer,
@@ -122,7 +123,7 @@ async function openWithEncoding(info, edit) {
     const real = new Uint8Array(await (await route.fetch()).body());
     await route.fulfill({ status: 200, contentType: 'application/octet-stream', body: Buffer.from(edit(real)) });
   });
-  await page.goto(`${server.url}/?texture=${info.id}&synth=client`);
+  await page.goto(debugUrl(`${server.url}/?texture=${info.id}&synth=client`));
   await page.waitForFunction(() => !document.getElementById('error').hidden, null, { timeout: 60_000 });
   return { page, errors, message: await page.locator('#error').textContent() };
 }

@@ -1,4 +1,4 @@
-// The viewer's panel that creates a texture (client-web/src/create-panel.js): its form, made
+// The viewer's panel that creates a texture (client-web/src/viewer/create-panel.js): its form, made
 // from each model's JSON Schema, holds the model's example exactly; what it posts makes the
 // same texture as the same upload made by hand; the viewer opens the result; the server's
 // refusals (a bad parameter, a missing write token, a read-only server) show in the panel.
@@ -6,6 +6,7 @@ import test, { after, before } from 'node:test';
 import assert from 'node:assert/strict';
 import {
   compareScreenToServerTile,
+  debugUrl,
   encodePng,
   launchBrowser,
   openViewer,
@@ -14,7 +15,7 @@ import {
   tileRequests,
   waitForIdle,
 } from './lib.mjs';
-import { parseJson, stringifyJson } from '../../client-web/src/schema-form.js';
+import { parseJson, stringifyJson } from '../../client-web/src/viewer/schema-form.js';
 
 let server;
 let browser;
@@ -234,7 +235,7 @@ test('a server that needs a write token, or takes no writes, says so in the pane
     const sample = await exampleInputs(m);
     // A server without textures shows the panel all the same.
     const panelOn = async (url) => {
-      await page.goto(`${url}/`);
+      await page.goto(debugUrl(`${url}/`));
       await page.click('#create-toggle');
       await page.waitForSelector('#create-model:not([disabled])');
       await page.selectOption('#create-model', m.id);

@@ -17,8 +17,8 @@ import {
   viewCentre,
   waitForIdle,
 } from './lib.mjs';
-import { FIRST_ZOOM, SHOWCASE } from '../../client-web/src/first-view.js';
-import { inPyramid, tileCount } from '../../client-web/src/pyramid.js';
+import { FIRST_ZOOM, SHOWCASE } from '../../client-web/src/viewer/first-view.js';
+import { inPyramid, tileCount } from '../../client-web/src/viewer/pyramid.js';
 
 const SHOTS = join(ROOT, 'target', 'browser-shots');
 

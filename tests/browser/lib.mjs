@@ -10,7 +10,7 @@ import { fileURLToPath } from 'node:url';
 import { deflateSync, inflateSync } from 'node:zlib';
 
 export const ROOT = resolve(dirname(fileURLToPath(import.meta.url)), '..', '..');
-// playwright-core is a dependency of client-web (one `npm ci` installs the viewer and its tests).
+// playwright-core is a dev dependency of client-web (one `npm ci` installs the viewer and its tests).
 const require = createRequire(join(ROOT, 'client-web', 'package.json'));
 const { chromium } = require('playwright-core');
 
@@ -136,8 +136,16 @@ export async function closeSession({ server, browser }) {
 }
 
 /**
- * Opens `url` in a new page that records console errors, page errors, failed requests and
- * every request made, so tests can assert on all of them.
+ * `url` (a page of the viewer's) with the `debug` parameter, which makes the viewer and the VT
+ * demo expose their hooks (`window.vtexViewer`, `window.vtDemo`; client-web/src/shared/debug.js).
+ */
+export function debugUrl(url) {
+  return `${url}${url.includes('?') ? '&' : '?'}debug`;
+}
+
+/**
+ * Opens `url` (with its hooks: debugUrl) in a new page that records console errors, page
+ * errors, failed requests and every request made, so tests can assert on all of them.
  */
 export async function openViewer(context, url) {
   const page = await context.newPage();
@@ -151,7 +159,7 @@ export async function openViewer(context, url) {
   page.on('response', (r) => {
     if (r.status() >= 400) log.badResponses.push(`${r.status()} ${r.url()}`);
   });
-  await page.goto(url);
+  await page.goto(debugUrl(url));
   await page.waitForFunction(() => window.vtexViewer && window.vtexViewer.state.item);
   return { page, log };
 }

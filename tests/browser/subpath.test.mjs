@@ -18,6 +18,7 @@ import {
   VTEX_BIN,
   WEB_DIR,
   compareScreenToServerTile,
+  debugUrl,
   exited,
   launchBrowser,
   openViewer,
@@ -194,7 +195,7 @@ test('the VT demo under /vtex/ streams its pages through the prefix', async () =
     page.on('request', (r) => requests.push(r.url()));
     page.on('response', (r) => r.status() >= 400 && bad.push(`${r.status()} ${r.url()}`));
     // A fixed camera: the demo settles once every page the view needs is resident.
-    await page.goto(`${base}/vt.html?texture=${big.id}&format=rgba&camera=50000,50000,220,17,35`);
+    await page.goto(debugUrl(`${base}/vt.html?texture=${big.id}&format=rgba&camera=50000,50000,220,17,35`));
     await page.waitForFunction(() => window.vtDemo && (window.vtDemo.error || window.vtDemo.state.settled || window.vtDemo.state.done), null, {
       timeout: 120_000,
       polling: 100,

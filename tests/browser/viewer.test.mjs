@@ -14,7 +14,7 @@ import {
   tileRequests,
   waitForIdle,
 } from './lib.mjs';
-import { inPyramid } from '../../client-web/src/pyramid.js';
+import { inPyramid } from '../../client-web/src/viewer/pyramid.js';
 
 let server;
 let browser;
@@ -113,7 +113,7 @@ test('every private OpenSeadragon member the adapter relies on exists on the loa
   const { page, log } = await openViewer(browser.context, `${server.url}/?texture=${big.id}&zoom=0.02&x=50000&y=50000`);
   await waitForIdle(page);
   const found = await page.evaluate(async () => {
-    const { OSD_VERSION, PRIVATE_MEMBERS, checkVersion } = await import('/osd-adapter.js');
+    const { OSD_VERSION, PRIVATE_MEMBERS, checkVersion } = await import('/viewer/osd-adapter.js');
     const { viewer, state } = window.vtexViewer;
     const members = PRIVATE_MEMBERS.map(({ path, type }) => {
       const [root, ...rest] = path.split('.');

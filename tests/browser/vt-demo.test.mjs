@@ -7,7 +7,7 @@ import test, { after, before } from 'node:test';
 import assert from 'node:assert/strict';
 import { mkdirSync, writeFileSync } from 'node:fs';
 import { join } from 'node:path';
-import { decodePng, launchBrowser, ROOT, startServer } from './lib.mjs';
+import { debugUrl, decodePng, launchBrowser, ROOT, startServer } from './lib.mjs';
 
 const VIEW = { width: 640, height: 400 };
 // Pitched 35° down: levels 0 to 4 and beyond in one frame, the page grid crossed many times.
@@ -42,7 +42,7 @@ async function openDemo(query) {
     const u = new URL(r.url());
     if (u.pathname.endsWith('/tiles') && u.searchParams.has('pages')) log.pages.push(...u.searchParams.get('pages').split(','));
   });
-  await page.goto(`${server.url}/vt.html?${query}`);
+  await page.goto(debugUrl(`${server.url}/vt.html?${query}`));
   await page.waitForFunction(() => window.vtDemo && (window.vtDemo.error || window.vtDemo.state.settled || window.vtDemo.state.done), null, {
     timeout: 120_000,
     polling: 100,

@@ -1,4 +1,4 @@
-// The WebAssembly module as clients use it (client-web/src/vtex-synth.js over wasm/src/api.rs)
+// The WebAssembly module as clients use it (client-web/src/shared/vtex-synth.js over wasm/src/api.rs)
 // renders exactly the native bytes: every demo, its probe regions (levels 0 to the coarsest,
 // far and negative coordinates, a later animation frame) and a few server tiles, against the
 // native reference (`cargo run --bin reference`); and bad bundles and calls are errors that
@@ -11,7 +11,7 @@ import { mkdtempSync, readFileSync, rmSync } from 'node:fs';
 import { tmpdir } from 'node:os';
 import { dirname, join, resolve } from 'node:path';
 import { fileURLToPath } from 'node:url';
-import { instantiate, SynthError } from '../../client-web/src/vtex-synth.js';
+import { instantiate, SynthError } from '../../client-web/src/shared/vtex-synth.js';
 
 const ROOT = resolve(dirname(fileURLToPath(import.meta.url)), '..', '..');
 const WASM = join(ROOT, 'target', 'wasm32-unknown-unknown', 'wasm', 'vtex_synth_wasm.wasm');

@@ -1,6 +1,6 @@
 //! The module's exports for clients that synthesize tiles themselves ([`crate::client`] as a
 //! raw ABI of numbers and two buffers, so no bindings generator is needed;
-//! `client-web/src/vtex-synth.js` wraps it for JavaScript).
+//! `client-web/src/shared/vtex-synth.js` wraps it for JavaScript).
 //!
 //! - The caller writes bundle bytes into the *input* buffer ([`vtex_input`]), then calls
 //!   [`vtex_open`], which answers a handle (never 0) and the texture's info, or 0.

@@ -3,7 +3,7 @@
 //! WebAssembly build renders exactly the bytes of the native one.
 //!
 //! - [`client`]: open a bundle within a page's bounds, its info, regions and server tiles;
-//!   [`api`] exports it (wrapped for JavaScript by `client-web/src/vtex-synth.js`).
+//!   [`api`] exports it (wrapped for JavaScript by `client-web/src/shared/vtex-synth.js`).
 //! - [`probe`]: the regions of a texture every build must render identically. The native
 //!   reference (`cargo run -p vtex-synth-wasm --bin reference -- DIR`) writes every demo's
 //!   bundle and the native bytes of its probe and of a few tiles; `tests/wasm/api.test.mjs`

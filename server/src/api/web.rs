@@ -2,8 +2,9 @@
 //!
 //! Every file is served twice: at `/{path}`, revalidated (`no-cache` and an ETag), and at
 //! `/assets/{build}/{path}`, cached for a year (`immutable`), `build` being a hash of every
-//! file. The pages (`/` or `/index.html`, the viewer; `/vt.html`, the virtual-texturing demo)
-//! are revalidated and name their stylesheets and scripts by their `assets/{build}/` URLs, so a
+//! file. The pages (`/` or `/index.html`, the viewer; `/vt.html`, the virtual-texturing demo),
+//! at the build's root, are revalidated and name their stylesheets and scripts (in the build's
+//! folders: `viewer/main.js`, `vt/main.js`, …) by their `assets/{build}/` URLs, so a
 //! browser fetches those once per build; the modules they import relatively resolve inside the
 //! same fingerprinted directory. Those URLs are relative, as every URL of the viewer is: under a
 //! proxy's sub-path (`/vtex/`) they stay below it.
@@ -215,9 +216,12 @@ mod tests {
     #[test]
     fn the_page_names_fingerprinted_assets() {
         let files = &[
-            file("index.html", b"<link href=\"viewer.css\"><script src=\"main.js\"></script><a href=\"other\">"),
-            file("main.js", b"import './lib.js';"),
-            file("viewer.css", b"body{}"),
+            file(
+                "index.html",
+                b"<link href=\"viewer/style.css\"><script src=\"viewer/main.js\"></script><a href=\"x\">",
+            ),
+            file("viewer/main.js", b"import '../shared/lib.js';"),
+            file("viewer/style.css", b"body{}"),
         ];
         let web = Web::from_files(files).unwrap();
         let page = String::from_utf8(web.files["index.html"].body.to_vec()).unwrap();
@@ -225,21 +229,22 @@ mod tests {
         assert_eq!(
             page,
             format!(
-                "<link href=\"assets/{b}/viewer.css\"><script src=\"assets/{b}/main.js\"></script><a href=\"other\">"
+                "<link href=\"assets/{b}/viewer/style.css\"><script src=\"assets/{b}/viewer/main.js\"></script>\
+                 <a href=\"x\">"
             )
         );
-        let r = get(&web, &format!("/assets/{b}/main.js"));
+        let r = get(&web, &format!("/assets/{b}/viewer/main.js"));
         assert_eq!(r.status(), StatusCode::OK);
         assert!(r.headers()[header::CACHE_CONTROL].to_str().unwrap().contains("immutable"));
         assert_eq!(r.headers()[header::CONTENT_TYPE], "text/javascript; charset=utf-8");
-        let r = get(&web, "/main.js");
+        let r = get(&web, "/viewer/main.js");
         assert_eq!(r.headers()[header::CACHE_CONTROL], "no-cache");
-        assert_eq!(get(&web, "/assets/0000000000000000/main.js").status(), StatusCode::NOT_FOUND);
+        assert_eq!(get(&web, "/assets/0000000000000000/viewer/main.js").status(), StatusCode::NOT_FOUND);
         assert_eq!(get(&web, "/nothing.js").status(), StatusCode::NOT_FOUND);
         let other = Web::from_files(&[
             file("index.html", files[0].bytes),
-            file("main.js", b"changed"),
-            file("viewer.css", files[2].bytes),
+            file("viewer/main.js", b"changed"),
+            file("viewer/style.css", files[2].bytes),
         ])
         .unwrap();
         assert_ne!(other.build, web.build, "another build, another fingerprint");
@@ -249,15 +254,16 @@ mod tests {
     #[test]
     fn every_page_names_fingerprinted_assets_and_the_root_is_the_viewer() {
         let web = Web::from_files(&[
-            file("index.html", b"<script src=\"main.js\"></script>"),
-            File { path: "vt.html", bytes: b"<script src=\"vt.js\"></script>", br: b"stale", gzip: b"stale" },
-            file("main.js", b""),
-            file("vt.js", b""),
+            file("index.html", b"<script src=\"viewer/main.js\"></script>"),
+            File { path: "vt.html", bytes: b"<script src=\"vt/main.js\"></script>", br: b"stale", gzip: b"stale" },
+            file("viewer/main.js", b""),
+            file("vt/main.js", b""),
         ])
         .unwrap();
         let b = &web.build;
         let body = |path: &str| web.files[path].body.clone();
-        assert_eq!(body("vt.html"), format!("<script src=\"assets/{b}/vt.js\"></script>"));
+        assert_eq!(body("index.html"), format!("<script src=\"assets/{b}/viewer/main.js\"></script>"));
+        assert_eq!(body("vt.html"), format!("<script src=\"assets/{b}/vt/main.js\"></script>"));
         assert!(web.files["vt.html"].br.is_empty(), "a rewritten page has no copy the build compressed");
         let r = web.answer("/", &Request::get("/").header(header::ACCEPT_ENCODING, "br").body(Body::empty()).unwrap());
         assert_eq!(r.headers()[header::ETAG], web.files["index.html"].etag);

@@ -22,17 +22,21 @@ async fn the_viewer_is_built_in_fingerprinted_and_cached() {
     assert_eq!(st, 304);
     let main = page
         .split('"')
-        .find(|p| p.starts_with("assets/") && p.ends_with("/main.js"))
+        .find(|p| p.starts_with("assets/") && p.ends_with("/viewer/main.js"))
         .unwrap_or_else(|| panic!("the page names its fingerprinted script, relatively (a proxy's sub-path): {page}"));
     let (st, h, body) = get_with(&c, &s.url(&format!("/{main}")), &[]).await;
     assert_eq!(st, 200);
     assert_eq!(h["cache-control"], "public, max-age=31536000, immutable");
     assert_eq!(h["content-type"], "text/javascript; charset=utf-8");
-    assert_eq!(body, std::fs::read(dist.join("main.js")).unwrap(), "the built-in script is the build's");
-    // Modules import each other relatively: inside the same fingerprinted directory.
-    let pyramid = format!("/{}", main.replace("/main.js", "/pyramid.js"));
-    assert_eq!(get_with(&c, &s.url(&pyramid), &[]).await.2, std::fs::read(dist.join("pyramid.js")).unwrap());
-    let (st, h, _) = get_with(&c, &s.url("/main.js"), &[]).await;
+    assert_eq!(body, std::fs::read(dist.join("viewer/main.js")).unwrap(), "the built-in script is the build's");
+    // Modules import each other relatively, across the build's folders: inside the same
+    // fingerprinted directory.
+    for (module, file) in [("/viewer/pyramid.js", "viewer/pyramid.js"), ("/shared/batch.js", "shared/batch.js")] {
+        let url = format!("/{}", main.replace("/viewer/main.js", module));
+        assert_eq!(get_with(&c, &s.url(&url), &[]).await.2, std::fs::read(dist.join(file)).unwrap(), "{url}");
+    }
+    let (st, h, _) = get_with(&c, &s.url("/viewer/main.js"), &[]).await;
     assert_eq!((st, h["cache-control"].to_str().unwrap()), (200, "no-cache"));
-    assert_eq!(get_with(&c, &s.url("/assets/0123456789abcdef/main.js"), &[]).await.0, 404, "another build's assets");
+    let other = get_with(&c, &s.url("/assets/0123456789abcdef/viewer/main.js"), &[]).await.0;
+    assert_eq!(other, 404, "another build's assets");
 }

@@ -9,13 +9,16 @@
 // format=rgba|bc7 (default bc7 where the GPU has BPTC), aniso=N (at most 4), slots=N (atlas
 // slots a side, at least 5: the 21 pinned pages fit), feedback=N (the feedback buffer N times
 // smaller than the view).
-// `window.vtDemo` exposes the state and a log of every page requested, made resident or evicted.
+// debug (shared/debug.js): `window.vtDemo` exposes the state and a log of every page requested,
+// made resident or evicted, or the error that stopped the demo.
 
-import { FrameReader, readChunks } from './batch.js';
-import { MAX_ANISOTROPY, VtRenderer } from './vt-gl.js';
-import { parseKtx2, VK_FORMAT_BC7_SRGB } from './vt-ktx2.js';
-import { BORDER, PAGE_SIZE, PINNED_LEVELS, PageCache, decodeFeedback, pageKey, plan, pyramid } from './vt-pages.js';
-import { findTexture } from './texture-lookup.js';
+import { FrameReader, readChunks } from '../shared/batch.js';
+import { MAX_ANISOTROPY, VtRenderer } from './gl.js';
+import { parseKtx2, VK_FORMAT_BC7_SRGB } from './ktx2.js';
+import { BORDER, PAGE_SIZE, PINNED_LEVELS, PageCache, decodeFeedback, pageKey, plan, pyramid } from './pages.js';
+import { findTexture } from '../shared/texture-lookup.js';
+import { expose } from '../shared/debug.js';
+import { fetchOk, getJson } from '../shared/http.js';
 
 const FLAGSHIP = 'Pebbles — chaos mosaic 100k';
 /** Pages a batch request asks for, and batches in flight at once. */
@@ -26,11 +29,14 @@ const FLIGHT = { height: 220, pitch: 20, step: 20, fov: 60 };
 
 const params = new URLSearchParams(location.search);
 const overlay = document.getElementById('overlay');
+/** The message that stopped the demo, once it has stopped. */
+let failure = null;
 
 function fail(message) {
+  failure = message;
   overlay.textContent = message;
   overlay.classList.add('error');
-  window.vtDemo = { error: message };
+  expose('vtDemo', { error: message });
   throw new Error(message);
 }
 
@@ -45,7 +51,7 @@ async function start() {
   const canvas = document.getElementById('view');
   const gl = canvas.getContext('webgl2', { antialias: false, preserveDrawingBuffer: true });
   if (!gl) fail('This browser has no WebGL2.');
-  const list = await (await fetch('api/v1/textures')).json();
+  const list = await getJson('api/v1/textures', 'the texture list');
   const info = findTexture(list.textures, params.get('texture') || FLAGSHIP) || (!params.has('texture') && list.textures[0]);
   if (!info) fail(`no texture named ${params.get('texture')}`);
 
@@ -99,8 +105,7 @@ async function start() {
     const arrived = new Set();
     const url = `api/v1/textures/${info.id}/tiles?pages=${pages.map((p) => p.key).join(',')}&${query}`;
     try {
-      const r = await fetch(url);
-      if (!r.ok) throw new Error(`${url}: HTTP ${r.status} ${await r.text()}`);
+      const r = await fetchOk(url);
       const reader = new FrameReader((f) => {
         if (f.status !== 200) throw new Error(`page ${f.level}/${f.x}/${f.y}: status ${f.status}`);
         const body = f.body.slice();
@@ -210,7 +215,7 @@ async function start() {
   window.addEventListener('resize', resize);
   resize();
 
-  window.vtDemo = { state, cache, pyramid: pyr, camera, resident: (key) => cache.has(key) };
+  expose('vtDemo', { state, cache, pyramid: pyr, camera, resident: (key) => cache.has(key) });
   requestAnimationFrame(step);
 }
 
@@ -230,5 +235,5 @@ function fly(camera, frame) {
 }
 
 start().catch((e) => {
-  if (!window.vtDemo?.error) fail(String(e));
+  if (failure === null) fail(String(e));
 });

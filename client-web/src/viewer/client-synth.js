@@ -1,12 +1,13 @@
 // The viewer's client mode (`?synth=client`, or the Synthesis control): the texture's encoding
 // is fetched once and every tile is synthesized in this browser, by Workers each running the
-// WebAssembly module (synth-worker.js over vtex-synth.js), byte for byte the server's tile.
+// WebAssembly module (workers/synth-tiles.js over shared/vtex-synth.js), byte for byte the server's tile.
 // Once the encoding is in, panning, zooming and animation need no server at all.
 //
 // A ClientSynth serves the tile sources of one texture (every animation frame): tilesource.js
 // hands it OpenSeadragon's jobs (loadJobs, abortJob) instead of sending them to the server.
 
 import { sourceTile } from './pyramid.js';
+import { fetchOk, getJson } from '../shared/http.js';
 
 /** The synthesis module, beside the viewer's files (client-web/build.mjs copies it there). */
 export const WASM_URL = 'vtex_synth.wasm';
@@ -35,24 +36,6 @@ export function loadModule(stats) {
     compiled.catch(() => (compiled = null)); // a failed fetch may be retried by the next texture
   }
   return compiled;
-}
-
-/** Fetches `url`; a failure or an HTTP error names `what` and the server's message. */
-async function fetchOk(url, what) {
-  let response;
-  try {
-    response = await fetch(url);
-  } catch (e) {
-    throw new Error(`${what} could not be fetched from ${url}: ${e.message}`);
-  }
-  if (response.ok) return response;
-  let reason = new TextDecoder().decode((await response.arrayBuffer()).slice(0, 200));
-  try {
-    reason = JSON.parse(reason).error || reason;
-  } catch {
-    // not JSON: the start of the body as text
-  }
-  throw new Error(`${what}: HTTP ${response.status} for ${url}${reason ? ` – ${reason}` : ''}`);
 }
 
 /** Counts the transfer of `url` (its Resource Timing entry; `bytes` when there is none) in `stats`. */
@@ -92,7 +75,7 @@ export class ClientSynth {
     if (this.closed) throw new Error('closed');
     const opened = [];
     for (let i = 0; i < WORKERS; i++) {
-      const worker = new Worker(new URL('./synth-worker.js', import.meta.url), { type: 'module' });
+      const worker = new Worker(new URL('../workers/synth-tiles.js', import.meta.url), { type: 'module' });
       worker.load = 0;
       this.workers.push(worker);
       opened.push(
@@ -221,7 +204,5 @@ export async function staticExport() {
   const meta = document.querySelector('meta[name="vtex-export"]');
   if (!meta) return null;
   const url = new URL(meta.content, document.baseURI).href;
-  const response = await fetch(url);
-  if (!response.ok) throw new Error(`the export's description ${url}: HTTP ${response.status}`);
-  return response.json();
+  return getJson(url, "the export's description");
 }

@@ -3,7 +3,7 @@
 // a flat square that says nothing of what vtex does. The first texture opened, one picked in
 // the list and one just created all open through `openingView`.
 
-import { findTexture } from './texture-lookup.js';
+import { findTexture } from '../shared/texture-lookup.js';
 
 /** The showcase: the flagship demo, the chaos mosaic of pebbles, 100,000² from a 61 KB encoding. */
 export const SHOWCASE = 'Pebbles — chaos mosaic 100k';

@@ -4,7 +4,7 @@
 // atlas through the page table. Both passes choose the level with the same function, from the
 // screen-space derivatives of the texel coordinates, as a GPU selects a mip level.
 
-import { BORDER, PAGE_SIZE, SLOT_SIDE } from './vt-pages.js';
+import { BORDER, PAGE_SIZE, SLOT_SIDE } from './pages.js';
 
 /** Largest anisotropy the 4-pixel border allows: a footprint's samples stay within it. */
 export const MAX_ANISOTROPY = 4;
@@ -121,7 +121,7 @@ function compile(gl, vertex, fragment) {
 }
 
 /**
- * The demo's GPU state for `pyramid` (vt-pages.js) on canvas `canvas`: the page table, an atlas
+ * The demo's GPU state for `pyramid` (pages.js) on canvas `canvas`: the page table, an atlas
  * of `slotsPerSide`² slots holding RGBA or BC7 pages (`bc7`: the GPU's
  * WEBGL_compressed_texture_bptc, or null), the feedback framebuffer `feedbackScale` times smaller
  * than the view, and the two programs.
@@ -206,7 +206,7 @@ export class VtRenderer {
     gl.uniform1i(u.maxLevel, this.pyramid.maxLevel);
   }
 
-  /** The feedback pass: the RGBA8 feedback pixels (vt-pages.js decodeFeedback reads them). */
+  /** The feedback pass: the RGBA8 feedback pixels (pages.js decodeFeedback reads them). */
   feedback(camera, width, height) {
     const gl = this.gl;
     const w = Math.max(1, Math.ceil(width / this.feedbackScale));

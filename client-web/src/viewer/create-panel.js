@@ -6,6 +6,7 @@
 
 import { FormError, createForm, parseJson, stringifyJson } from './schema-form.js';
 import { formatBytes } from './stats.js';
+import { fetchOk, getJson } from '../shared/http.js';
 
 const $ = (id) => document.getElementById(id);
 
@@ -27,10 +28,7 @@ export function setupCreatePanel({ onCreated }) {
   async function loadModels() {
     status('Loading the models…');
     try {
-      const response = await fetch('api/v1/models');
-      const body = await response.json().catch(() => null);
-      if (!response.ok) throw new Error(`HTTP ${response.status}${body && body.error ? `: ${body.error}` : ''}`);
-      state.models = body.models;
+      state.models = (await getJson('api/v1/models')).models;
     } catch (e) {
       status(`Could not list the models (GET /api/v1/models): ${e.message}`, 'error');
       return;
@@ -247,7 +245,5 @@ export function setupCreatePanel({ onCreated }) {
 }
 
 async function fetchImage(href) {
-  const response = await fetch(href);
-  if (!response.ok) throw new Error(`${href}: HTTP ${response.status}`);
-  return response.blob();
+  return (await fetchOk(href, 'an example image')).blob();
 }

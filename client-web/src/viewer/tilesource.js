@@ -1,13 +1,13 @@
 // An OpenSeadragon tile source over the vtex tile API. The tiles OpenSeadragon asks for in one
-// update go out as one request (OpenSeadragon's tile batching; batch.js), fetched and turned
-// into ImageBitmaps by a Worker (tile-worker.js) and handed to OpenSeadragon as data type
-// "imageBitmap", which the viewer's drawer draws as it is (osd-adapter.js). Each tile reports
-// what the server says about it (cache hit or miss) and how long it took. Formats: png / webp
-// (lossless), jpg (lossy, smallest) and rgba (raw: no decoding, the fastest on a fast link).
+// update go out as one request (OpenSeadragon's tile batching; shared/batch.js), fetched and
+// turned into ImageBitmaps by a Worker (workers/fetch-tiles.js) and handed to OpenSeadragon as
+// data type "imageBitmap", which the viewer's drawer draws as it is (osd-adapter.js). Each tile
+// reports what the server says about it (cache hit or miss) and how long it took. Formats: png /
+// webp (lossless), jpg (lossy, smallest) and rgba (raw: no decoding, the fastest on a fast link).
 // In client mode the tiles are synthesized in the page instead (client-synth.js): no request.
 
 import { inPyramid, sourceTile, tileUrl, vtexLevel } from './pyramid.js';
-import { MAX_BATCH, batchUrl, tileKey } from './batch.js';
+import { MAX_BATCH, batchUrl, tileKey } from '../shared/batch.js';
 
 /**
  * Makes the tile source for texture `info` (the server's info JSON) at animation `frame`.
@@ -102,9 +102,9 @@ function abortJob(job, { inFlight, stats }) {
 }
 
 /**
- * The page's end of the tile Worker (tile-worker.js), one Worker for all tile sources (a texture
- * switched, an animation frame loaded behind the visible one): batches by id, each { onTile,
- * onEnd }. Resource Timing entries of the batches (which the page does not see: the Worker
+ * The page's end of the tile Worker (workers/fetch-tiles.js), one Worker for all tile sources
+ * (a texture switched, an animation frame loaded behind the visible one): batches by id, each
+ * { onTile, onEnd }. Resource Timing entries of the batches (which the page does not see: the Worker
  * fetches them) go to `stats` (the latest tile source's; the page has one) and to `timings`
  * (by URL, for bench/viewer/trace.mjs), shifted to the page's clock.
  */
@@ -114,7 +114,7 @@ function tileLoader(stats) {
     shared.stats = stats;
     return shared;
   }
-  const worker = new Worker(new URL('./tile-worker.js', import.meta.url), { type: 'module' });
+  const worker = new Worker(new URL('../workers/fetch-tiles.js', import.meta.url), { type: 'module' });
   const loader = { worker, stats, batches: new Map(), nextId: 1, timings: new Map() };
   worker.onmessage = ({ data }) => {
     if (data.type === 'timing') {

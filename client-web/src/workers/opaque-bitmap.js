@@ -1,5 +1,5 @@
-// RGBA rows as an opaque ImageBitmap, in a Worker: the raw tiles of tile-worker.js and the
-// synthesized tiles of synth-worker.js take this one path to the screen.
+// RGBA rows as an opaque ImageBitmap, in a Worker: the raw tiles of fetch-tiles.js and the
+// synthesized tiles of synth-tiles.js take this one path to the screen.
 
 /** The canvas pixels pass through on their way to a bitmap, reused (one per Worker). */
 let canvas = null;
@@ -10,7 +10,7 @@ let canvas = null;
  * fast as it can: a bitmap marked unpremultiplied is converted at every draw, and an opaque
  * bitmap is cheaper for the Worker to make than a premultiplied `createImageBitmap`
  * (`bench/viewer/ingest.mjs` compares them). The viewer treats tiles as opaque anyway
- * (tilesource.js `hasTransparency`); these pixels reach the screen exactly (the browser tests
+ * (viewer/tilesource.js `hasTransparency`); these pixels reach the screen exactly (the browser tests
  * compare them), a pixel with alpha would show over black.
  */
 export function opaqueBitmap(data, width, height) {

@@ -20,13 +20,6 @@ export async function instantiate(source) {
   return new Synth(result.instance || result);
 }
 
-/** Fetches and compiles the module at `url` (for instantiating in Workers). */
-export async function compile(url) {
-  const response = await fetch(url);
-  if (!response.ok) throw new SynthError(`the synthesis module ${url}: HTTP ${response.status}`);
-  return WebAssembly.compile(await response.arrayBuffer());
-}
-
 const decoder = new TextDecoder();
 
 /** One instance of the module: the textures opened in it share its memory. */

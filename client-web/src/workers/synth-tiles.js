@@ -1,4 +1,4 @@
-// One synthesis Worker of the viewer's client mode (client-synth.js starts several): opens the
+// One synthesis Worker of the viewer's client mode (viewer/client-synth.js starts several): opens the
 // texture's encoding in its own instance of the WebAssembly module and renders the tiles it is
 // given, one at a time, as opaque ImageBitmaps (opaque-bitmap.js, as raw RGBA tiles from the
 // server), or as raw bytes when asked for them (the tests compare those).
@@ -9,7 +9,7 @@
 //               { type: 'tile', key, ms, bitmap | bytes, width, height } | { type: 'tile', key, error }
 
 import { opaqueBitmap } from './opaque-bitmap.js';
-import { instantiate } from './vtex-synth.js';
+import { instantiate } from '../shared/vtex-synth.js';
 
 let texture = null;
 let tileSize = 0;

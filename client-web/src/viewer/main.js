@@ -6,11 +6,13 @@ import { TileStats, formatBytes, formatRatio } from './stats.js';
 import { FORMATS, parseView, formatView } from './view-url.js';
 import { DEFAULT_DETAIL, DETAIL, drawLevel, modulo, vtexLevel } from './pyramid.js';
 import { updateEarly } from './loader.js';
-import { findTexture as lookupTexture } from './texture-lookup.js';
+import { findTexture as lookupTexture } from '../shared/texture-lookup.js';
 import { firstView, openingView } from './first-view.js';
 import { fetchWantedLevels, keepBatchesOnDraw, vtexDrawer } from './osd-adapter.js';
 import { ClientSynth, loadModule, staticExport } from './client-synth.js';
 import { setupCreatePanel } from './create-panel.js';
+import { expose, keepDebug } from '../shared/debug.js';
+import { getJson } from '../shared/http.js';
 
 const OSD = window.OpenSeadragon;
 const $ = (id) => document.getElementById(id);
@@ -96,20 +98,6 @@ updateEarly(viewer);
 
 // ---------------------------------------------------------------------------------------
 // Texture list, picker and opening
-
-async function getJson(url) {
-  const response = await fetch(url);
-  let body = null;
-  try {
-    body = await response.json();
-  } catch {
-    body = null;
-  }
-  if (!response.ok) {
-    throw new Error(`${url}: HTTP ${response.status}${body && body.error ? ` – ${body.error}` : ''}`);
-  }
-  return body;
-}
 
 function showError(message) {
   const box = $('error');
@@ -230,7 +218,7 @@ function updateUrl() {
   clearTimeout(urlTimer);
   urlTimer = setTimeout(() => {
     const view = getView();
-    if (view) history.replaceState(null, '', formatView(view));
+    if (view) history.replaceState(null, '', keepDebug(formatView(view)));
   }, 150);
 }
 
@@ -496,7 +484,7 @@ $('copy-link').addEventListener('click', async () => {
   const view = getView();
   if (!view) return;
   const link = new URL(formatView(view), location.href).href;
-  history.replaceState(null, '', formatView(view));
+  history.replaceState(null, '', keepDebug(formatView(view)));
   try {
     await navigator.clipboard.writeText(link);
     $('copy-link').textContent = 'Copied';
@@ -513,8 +501,9 @@ $('reset-stats').addEventListener('click', () => {
 
 setInterval(renderStats, 250);
 
-// Hooks for the end-to-end tests (tests/browser/) and the viewer bench (bench/viewer/).
-window.vtexViewer = { viewer, stats, state, getView, setView, drawnLevels, openTexture, findTexture, showFrame };
+// Hooks for the end-to-end tests (tests/browser/) and the viewer bench (bench/viewer/), on a
+// page opened with `?debug` (shared/debug.js).
+expose('vtexViewer', { viewer, stats, state, getView, setView, drawnLevels, openTexture, findTexture, showFrame });
 
 /** Lists the textures again and opens `info`, one just created (create-panel.js). */
 async function openCreated(info) {

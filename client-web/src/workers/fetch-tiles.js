@@ -1,5 +1,5 @@
-// The network side of the tile batches, in a dedicated Worker (tilesource.js starts it): fetches
-// a batch, splits its body into frames (batch.js) and turns each tile into an ImageBitmap that
+// The network side of the tile batches, in a dedicated Worker (viewer/tilesource.js starts it): fetches
+// a batch, splits its body into frames (shared/batch.js) and turns each tile into an ImageBitmap that
 // it transfers to the page. On the page's main thread the body could only be read between
 // animation frames, each busy with canvas raster and OpenSeadragon's update while a view loads,
 // so a view's bytes would trickle in over several frames. Here they flow while the page draws.
@@ -13,10 +13,11 @@
 // `arrived` (the frame was complete) and the timing entry are on the worker's clock shifted to
 // the epoch (performance.timeOrigin + now); the page shifts them back to its own.
 
-import { FrameReader, readChunks } from './batch.js';
+import { FrameReader, readChunks } from '../shared/batch.js';
 import { opaqueBitmap } from './opaque-bitmap.js';
+import { errorText, fetchOk } from '../shared/http.js';
 
-/** Read buffers of the batches that finished, for the next ones (batch.js readChunks). */
+/** Read buffers of the batches that finished, for the next ones (shared/batch.js readChunks). */
 const readBuffers = [];
 /** Batches in flight: id → AbortController. */
 const inFlight = new Map();
@@ -54,10 +55,7 @@ async function load({ id, url, format }) {
   const sent = [];
   let error = null;
   try {
-    const response = await fetch(url, { signal: controller.signal, credentials: 'same-origin' });
-    if (!response.ok) {
-      throw new Error(`HTTP ${response.status} for ${url.slice(0, 120)}: ${errorText(new Uint8Array(await response.arrayBuffer()))}`);
-    }
+    const response = await fetchOk(url, '', { signal: controller.signal, credentials: 'same-origin' });
     // Chunks and split frames live in buffers that are reused: each tile takes its bytes
     // while its frame is handed over (tileBitmap and errorText copy at once).
     let tiles = [];
@@ -104,16 +102,6 @@ function tileMessage(f, format) {
     (b) => ({ ...head, bitmap: b }),
     (e) => ({ ...head, error: `tile ${f.level}/${f.x}/${f.y}: ${e.message}` }),
   );
-}
-
-/** The message of a JSON error body (`{"error": …}`), else its start as text. */
-function errorText(bytes) {
-  const text = new TextDecoder().decode(bytes);
-  try {
-    return JSON.parse(text).error || text.slice(0, 200);
-  } catch {
-    return text.slice(0, 200);
-  }
 }
 
 const MIME = { png: 'image/png', webp: 'image/webp', jpg: 'image/jpeg' };
