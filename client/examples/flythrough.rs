@@ -37,7 +37,7 @@ fn needed_pages(cam: &Camera, tex: &TextureInfo, size: u32) -> Vec<PageAddr> {
     let up = [cy * sp, sy * sp, cp];
     let tan = (FOV_Y / 2.0).tan();
     let pixel_angle = FOV_Y / HEIGHT;
-    let levels = tex.page_levels();
+    let levels = vtex_client::page_levels(tex);
     let mut pages = BTreeSet::new();
     for py in (0..HEIGHT as usize).step_by(STEP) {
         for px in (0..WIDTH as usize).step_by(STEP) {
@@ -55,7 +55,7 @@ fn needed_pages(cam: &Camera, tex: &TextureInfo, size: u32) -> Vec<PageAddr> {
             // Texels one screen pixel covers along its longer axis on the ground.
             let footprint = distance * pixel_angle / incidence;
             let level = (footprint.max(1.0).log2().floor() as u32).min(levels - 1);
-            let (cols, rows) = tex.page_grid(level, size);
+            let (cols, rows) = vtex_client::page_grid(tex, level, size);
             let scale = (1u64 << level) as f64 * size as f64;
             let x = (u / scale).floor().rem_euclid(cols as f64) as u32;
             let y = (v / scale).floor().rem_euclid(rows as f64) as u32;

@@ -1,11 +1,7 @@
-//! The batch body's frames (`application/x-vtex-tile-batch`, docs/server.md): a 32-byte
-//! little-endian header, then the item's bytes or its `{"error": …}`.
+//! The batch body's frames ([`vtex_wire::frame`]), each with its bytes as a slice of the body.
 
 use crate::Error;
 use bytes::Bytes;
-
-pub const HEADER_LEN: usize = 32;
-const MAGIC: [u8; 4] = *b"vtb\x01";
 
 /// One frame of a batch.
 #[derive(Clone, Debug, PartialEq, Eq)]
@@ -25,61 +21,67 @@ pub struct Frame {
 
 /// Every frame of a complete batch body; a truncated body or a bad header is an error.
 pub fn parse(body: &Bytes) -> Result<Vec<Frame>, Error> {
-    let mut frames = Vec::new();
-    let mut at = 0;
-    while at < body.len() {
-        let b = &body[at..];
-        if b.len() < HEADER_LEN || b[..4] != MAGIC {
-            return Err(Error::Protocol(format!("bad or truncated frame header at byte {at}")));
-        }
-        let u32_at = |i: usize| u32::from_le_bytes(b[i..i + 4].try_into().expect("4 bytes"));
-        let len = u32_at(28) as usize;
-        if b.len() < HEADER_LEN + len {
-            return Err(Error::Protocol(format!("frame at byte {at} is cut off ({len} bytes announced)")));
-        }
-        frames.push(Frame {
-            level: u32_at(4),
-            x: u32_at(8),
-            y: u32_at(12),
-            status: u16::from_le_bytes([b[16], b[17]]),
-            cache: b[18],
-            width: u32_at(20),
-            height: u32_at(24),
-            body: body.slice(at + HEADER_LEN..at + HEADER_LEN + len),
-        });
-        at += HEADER_LEN + len;
-    }
-    Ok(frames)
+    let frames = vtex_wire::frame::frames(body).map_err(Error::Protocol)?;
+    Ok(frames
+        .into_iter()
+        .map(|(h, at)| Frame {
+            level: h.tile.level,
+            x: h.tile.x,
+            y: h.tile.y,
+            status: h.status,
+            cache: h.cache,
+            width: h.width,
+            height: h.height,
+            body: body.slice(at),
+        })
+        .collect())
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+    use serde_json::Value;
 
-    fn frame(level: u32, x: u32, y: u32, body: &[u8]) -> Vec<u8> {
-        let mut h = MAGIC.to_vec();
-        for v in [level, x, y] {
-            h.extend_from_slice(&v.to_le_bytes());
-        }
-        h.extend_from_slice(&200u16.to_le_bytes());
-        h.extend_from_slice(&[2, 0]);
-        for v in [8u32, 8, body.len() as u32] {
-            h.extend_from_slice(&v.to_le_bytes());
-        }
-        h.extend_from_slice(body);
-        h
+    fn fixture(name: &str) -> Vec<u8> {
+        std::fs::read(std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../wire/fixtures").join(name)).unwrap()
     }
 
+    /// The golden batch the server's tests write: every frame as they list it, its bytes where
+    /// they say, and a body cut anywhere refused.
     #[test]
-    fn frames_in_sequence_and_truncation() {
-        let body = Bytes::from([frame(0, 1, 2, b"abc"), frame(3, 4, 5, b"")].concat());
-        let f = parse(&body).unwrap();
-        assert_eq!((f[0].level, f[0].x, f[0].y, &f[0].body[..]), (0, 1, 2, &b"abc"[..]));
-        assert_eq!((f[1].level, f[1].x, f[1].y, f[1].body.len(), f[1].cache), (3, 4, 5, 0, 2));
-        assert!(parse(&body.slice(..body.len() - 1)).is_err());
-        assert!(parse(&body.slice(..10)).is_err());
-        let mut bad = body.to_vec();
-        bad[3] = 2;
-        assert!(parse(&Bytes::from(bad)).is_err(), "another version");
+    fn the_golden_batch_parses_as_the_server_lists_it() {
+        let body = Bytes::from(fixture("batch.bin"));
+        let want: Vec<Value> = serde_json::from_slice(&fixture("batch.json")).unwrap();
+        let got = parse(&body).unwrap();
+        assert_eq!(got.len(), want.len());
+        for (f, w) in got.iter().zip(&want) {
+            let field = |k: &str| w[k].as_u64().unwrap();
+            assert_eq!(
+                (f.level, f.x, f.y, f.status, f.cache, f.width, f.height),
+                (
+                    field("level") as u32,
+                    field("x") as u32,
+                    field("y") as u32,
+                    field("status") as u16,
+                    field("cache") as u8,
+                    field("width") as u32,
+                    field("height") as u32
+                )
+            );
+            let at = field("body_offset") as usize;
+            assert_eq!(f.body, body.slice(at..at + field("body_length") as usize));
+        }
+        for cut in [1, 31, 32, 100, body.len() - 1] {
+            assert!(parse(&body.slice(..cut)).is_err(), "cut at {cut}");
+        }
+    }
+
+    /// The golden texture info reads as the client's type, whole.
+    #[test]
+    fn the_golden_texture_info_reads() {
+        let info: crate::TextureInfo = serde_json::from_slice(&fixture("texture-info.json")).unwrap();
+        let json: Value = serde_json::from_slice(&fixture("texture-info.json")).unwrap();
+        assert_eq!(serde_json::to_value(&info).unwrap(), json, "no field lost or added");
+        assert_eq!((crate::page_levels(&info), crate::page_grid(&info, 0, 16)), (7, (4, 4)));
     }
 }

@@ -15,6 +15,7 @@ use cache::PageCache;
 use serde::Deserialize;
 use std::sync::Mutex;
 use std::time::Duration;
+use vtex_wire::urls;
 
 #[derive(Debug, thiserror::Error)]
 pub enum Error {
@@ -29,29 +30,16 @@ pub enum Error {
 
 pub type Result<T> = std::result::Result<T, Error>;
 
-/// A texture as the server lists it (the fields a client needs).
-#[derive(Clone, Debug, Deserialize)]
-pub struct TextureInfo {
-    pub id: String,
-    pub name: String,
-    pub model: String,
-    pub width: u64,
-    pub height: u64,
-    pub domain: String,
+pub use vtex_wire::{Domain, TextureInfo};
+
+/// Levels of `texture` pages are served at, down to 1×1.
+pub fn page_levels(texture: &TextureInfo) -> u32 {
+    vtex_wire::levels::level_count(texture.width, texture.height)
 }
 
-impl TextureInfo {
-    /// Levels pages are served at, down to 1×1.
-    pub fn page_levels(&self) -> u32 {
-        let side = self.width.max(self.height).max(1);
-        (64 - (side - 1).leading_zeros()) + 1
-    }
-
-    /// Pages of side `size` across and down `level`.
-    pub fn page_grid(&self, level: u32, size: u32) -> (u64, u64) {
-        let d = |v: u64| v.div_ceil(1u64 << level.min(63)).max(1).div_ceil(size as u64);
-        (d(self.width), d(self.height))
-    }
+/// Pages of side `size` across and down `level` of `texture`.
+pub fn page_grid(texture: &TextureInfo, level: u32, size: u32) -> (u64, u64) {
+    vtex_wire::levels::grid(texture.width, texture.height, level, size)
 }
 
 /// A page's place: level and column, row of the level's page grid.
@@ -208,23 +196,18 @@ impl Client {
 
     pub fn page_url(&self, texture: &str, addr: PageAddr, spec: &PageSpec) -> String {
         let PageAddr { level, x, y } = addr;
-        format!("{}/api/v1/textures/{texture}/pages/{level}/{x}/{y}.{}?{}", self.base, spec.ext(), spec.query())
+        format!("{}{}?{}", self.base, urls::page_path(texture, level, x, y, spec.ext()), spec.query())
     }
 
     pub fn tile_url(&self, texture: &str, level: u32, x: u32, y: u32, ext: &str) -> String {
-        format!("{}/api/v1/textures/{texture}/tiles/{level}/{x}/{y}.{ext}", self.base)
+        format!("{}{}", self.base, urls::tile_path(texture, level, x, y, ext))
     }
 
     /// The URL of a batch of `addrs` (at most [`MAX_BATCH`]).
     pub fn batch_url(&self, texture: &str, addrs: &[PageAddr], spec: &PageSpec) -> String {
         let list: Vec<String> = addrs.iter().map(|a| format!("{}/{}/{}", a.level, a.x, a.y)).collect();
-        format!(
-            "{}/api/v1/textures/{texture}/tiles?pages={}&format={}&{}",
-            self.base,
-            list.join(","),
-            spec.ext(),
-            spec.query()
-        )
+        let path = urls::batch_path(texture);
+        format!("{}{path}?pages={}&format={}&{}", self.base, list.join(","), spec.ext(), spec.query())
     }
 
     /// Pages held by the client's cache now.

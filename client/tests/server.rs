@@ -76,8 +76,8 @@ async fn discovery_batched_pages_and_the_cache() {
     let client = Client::new(&s.base, 1 << 20);
     let textures = client.textures().await.unwrap();
     let t = textures.iter().find(|t| t.id == id).unwrap();
-    assert_eq!((t.width, t.domain.as_str(), t.page_levels()), (256, "torus", 9));
-    assert_eq!(t.page_grid(0, 64), (4, 4));
+    assert_eq!((t.width, t.domain, vtex_client::page_levels(t)), (256, vtex_client::Domain::Torus, 9));
+    assert_eq!(vtex_client::page_grid(t, 0, 64), (4, 4));
     let spec = PageSpec { size: 64, border: 4, format: PageFormat::Ktx2 { codec: "bc1", zstd: true } };
     let want = [addrs(0, 4), addrs(1, 2), vec![PageAddr { level: 8, x: 0, y: 0 }]].concat();
     let (pages, stats) = client.pages(&id, &want, &spec).await.unwrap();

@@ -21,7 +21,6 @@
 //! writes, so replicas starting together never remove each other's writes in progress.
 
 use lru::LruCache;
-use serde::Serialize;
 use std::collections::{BTreeMap, HashMap};
 use std::io::Write;
 use std::ops::Deref;
@@ -32,7 +31,7 @@ use std::time::{Instant, SystemTime};
 use vtex_synth::bundle::{id_of, is_valid_id, Bundle, Manifest};
 use vtex_synth::models::{self, Limits, Plan};
 use vtex_synth::texture::level_size;
-use vtex_synth::{Animation, Domain, Resources, Texture};
+use vtex_synth::{Domain, Resources, Texture};
 
 pub const BUNDLE_EXT: &str = "vtex";
 /// Prefix of temporary files; anything carrying it at start-up is a crashed write.
@@ -58,36 +57,7 @@ pub fn served_levels(width: u64, height: u64, tile_size: u32) -> u32 {
     }
 }
 
-/// What clients see of a texture: the items of the texture list and `GET /api/v1/textures/{id}`.
-#[derive(Clone, Debug, Serialize, serde::Deserialize, PartialEq, utoipa::ToSchema)]
-pub struct TextureInfo {
-    pub id: String,
-    pub name: String,
-    pub model: String,
-    pub width: u64,
-    pub height: u64,
-    pub levels: u32,
-    pub tile_size: u32,
-    pub encoding_bytes: u64,
-    /// Bytes of the explicit 24-bit level 0 the encoding stands for.
-    pub explicit_bytes: u64,
-    pub wraps: bool,
-    /// `torus` (wraps) or `plane` (defined everywhere, served over its extent).
-    #[schema(value_type = String)]
-    pub domain: Domain,
-    pub animated: bool,
-    /// The animation's period and frame rate, for animated textures.
-    #[schema(value_type = Option<Object>)]
-    pub animation: Option<Animation>,
-    /// The parameters it was created with, as given (its manifest's): posted back to the
-    /// upload with its model and input images, they make this very texture again.
-    #[schema(value_type = Object)]
-    pub params: serde_json::Value,
-    /// The parameters its model derived from `params` and the input images where they were
-    /// not given (e.g. the cascade's `range`): made again by `create`, not part of the recipe.
-    #[schema(value_type = Object)]
-    pub derived: serde_json::Map<String, serde_json::Value>,
-}
+pub use vtex_wire::TextureInfo;
 
 /// What the store knows of a stored bundle without loading its texture: its manifest and plan.
 pub struct Record {

@@ -38,23 +38,7 @@ impl Region {
     }
 }
 
-/// Where a texture is defined.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
-#[serde(rename_all = "lowercase")]
-pub enum Domain {
-    /// Periodic with the texture's size: it tiles without a seam.
-    Torus,
-    /// Defined on the whole integer plane; the size is only the extent that is served.
-    Plane,
-}
-
-/// How an animated texture moves: `frame` in [`Region`] counts ticks at `fps`.
-#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
-pub struct Animation {
-    pub fps: f32,
-    /// Frames after which the animation repeats exactly; 0 when it never does.
-    pub period_frames: u32,
-}
+pub use vtex_wire::{Animation, Domain};
 
 /// A virtual texture: a pure function from a region to RGBA8 pixels.
 ///
@@ -100,18 +84,7 @@ impl Stop for std::sync::atomic::AtomicBool {
     }
 }
 
-/// Size of `level` for a texture of `width × height` at level 0.
-pub fn level_size(width: u64, height: u64, level: u32) -> (u64, u64) {
-    let d = |v: u64| if level >= 64 { 1 } else { v.div_ceil(1u64 << level).max(1) };
-    (d(width), d(height))
-}
-
-/// Number of levels down to 1 × 1 inclusive.
-pub fn level_count(width: u64, height: u64) -> u32 {
-    let side = width.max(height).max(1);
-    // ceil(log2(side)) + 1
-    (64 - (side - 1).leading_zeros()) + 1
-}
+pub use vtex_wire::levels::{level_count, level_size};
 
 /// Checks a region against a texture before rendering: a level that exists, a non-empty
 /// area within [`MAX_REGION_PIXELS`], coordinates whose far corner does not overflow.

@@ -6,21 +6,11 @@
 //! of a few dozen tiles paid it a few dozen times before a pixel was drawn. One request for the
 //! whole view pays it once.
 //!
-//! The body is a stream of frames sent in completion order: tiles found in the cache at once,
-//! the others as each synthesis finishes. Each frame is a [`HEADER_LEN`]-byte little-endian
-//! header followed by exactly the bytes the single-tile endpoint returns for that tile (the
-//! same cache, the same coalescing of concurrent misses, the same synthesis slots:
-//! [`Engine::tile`](crate::engine::Engine::tile)). Header, by byte offset:
-//!
-//! | bytes  | field                                                             |
-//! |--------|-------------------------------------------------------------------|
-//! | 0..4   | magic `b"vtb"` then the format version, 1                          |
-//! | 4..16  | level, x, y (u32 each)                                             |
-//! | 16..18 | status (u16): 200, or the HTTP status of this tile's error         |
-//! | 18     | cache: 1 hit, 2 miss (as `X-Vtex-Cache`), 0 for an error           |
-//! | 19     | reserved, 0                                                        |
-//! | 20..28 | width, height of the tile in pixels (u32 each; 0 for an error)     |
-//! | 28..32 | length of what follows (u32): the tile's bytes, or `{"error": …}`  |
+//! The body is a stream of frames ([`vtex_wire::frame`]) sent in completion order: tiles found
+//! in the cache at once, the others as each synthesis finishes. Each frame is a header followed
+//! by exactly the bytes the single-tile endpoint returns for that tile (the same cache, the same
+//! coalescing of concurrent misses, the same synthesis slots:
+//! [`Engine::tile`](crate::engine::Engine::tile)).
 //!
 //! The whole request is validated before anything is sent: a malformed or empty list, a
 //! repeated tile, more than [`MAX_TILES`] tiles, a list over [`MAX_LIST_BYTES`], an unknown
@@ -58,72 +48,14 @@ use std::task::{Context, Poll};
 use std::time::Instant;
 use tokio::sync::Semaphore;
 use tokio::task::JoinSet;
+pub use vtex_wire::frame::{FrameHeader, TileRef, CONTENT_TYPE, HEADER_LEN, MAX_TILES};
 
-/// Most tiles one request may ask for (a 4K screen of 256-px tiles needs ~150).
-pub const MAX_TILES: usize = 256;
 /// Longest `tiles` list accepted: 256 tiles of the largest coordinates fit with room to spare.
 pub const MAX_LIST_BYTES: usize = 8192;
-/// First bytes of every frame: `vtb` and the format version.
-pub const MAGIC: [u8; 4] = *b"vtb\x01";
-pub const HEADER_LEN: usize = 32;
-/// The media type of a batch body.
-pub const CONTENT_TYPE: &str = "application/x-vtex-tile-batch";
 /// What a batch reserves from the in-flight budget for each of its tiles: the frame header it
 /// builds and, for a tile that fails, room for its error's JSON (one of the synthesis path's
 /// fixed messages). The tiles' bytes are the cache's, sent without a copy, and not charged.
 const FRAME_RESERVE: u64 = HEADER_LEN as u64 + 256;
-
-/// One tile as the query names it.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
-pub struct TileRef {
-    pub level: u32,
-    pub x: u32,
-    pub y: u32,
-}
-
-/// A frame header (the table in the module docs).
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub struct FrameHeader {
-    pub tile: TileRef,
-    pub status: u16,
-    /// 1 hit, 2 miss, 0 error.
-    pub cache: u8,
-    pub width: u32,
-    pub height: u32,
-    pub len: u32,
-}
-
-impl FrameHeader {
-    pub fn encode(&self) -> [u8; HEADER_LEN] {
-        let mut b = [0u8; HEADER_LEN];
-        b[0..4].copy_from_slice(&MAGIC);
-        b[4..8].copy_from_slice(&self.tile.level.to_le_bytes());
-        b[8..12].copy_from_slice(&self.tile.x.to_le_bytes());
-        b[12..16].copy_from_slice(&self.tile.y.to_le_bytes());
-        b[16..18].copy_from_slice(&self.status.to_le_bytes());
-        b[18] = self.cache;
-        b[20..24].copy_from_slice(&self.width.to_le_bytes());
-        b[24..28].copy_from_slice(&self.height.to_le_bytes());
-        b[28..32].copy_from_slice(&self.len.to_le_bytes());
-        b
-    }
-
-    /// The header at the start of `b`, or `None` when `b` is short or the magic is wrong.
-    pub fn decode(b: &[u8]) -> Option<FrameHeader> {
-        if b.len() < HEADER_LEN || b[0..4] != MAGIC {
-            return None;
-        }
-        let u32_at = |i: usize| u32::from_le_bytes(b[i..i + 4].try_into().expect("4 bytes"));
-        Some(FrameHeader {
-            tile: TileRef { level: u32_at(4), x: u32_at(8), y: u32_at(12) },
-            status: u16::from_le_bytes([b[16], b[17]]),
-            cache: b[18],
-            width: u32_at(20),
-            height: u32_at(24),
-            len: u32_at(28),
-        })
-    }
-}
 
 /// The `tiles` list: `L/x/y` items separated by commas, at most [`MAX_TILES`] in at most
 /// [`MAX_LIST_BYTES`], none repeated. Errors are worded to follow the parameter's name.

@@ -59,10 +59,10 @@ pub use web::Web;
 
 /// The route of a single tile: [`router`] serves it, and [`Front`] answers plain GETs of it
 /// directly, matching paths against this same template.
-pub const TILE: &str = "/api/v1/textures/{id}/tiles/{level}/{x}/{file}";
+pub const TILE: &str = vtex_wire::urls::TILE;
 /// The route of a tile batch, the one route whose query may be longer than
 /// [`extract::MAX_QUERY_BYTES`].
-pub const BATCH: &str = "/api/v1/textures/{id}/tiles";
+pub const BATCH: &str = vtex_wire::urls::BATCH;
 
 pub const CACHE_IMMUTABLE: HeaderValue = HeaderValue::from_static("public, max-age=31536000, immutable");
 pub static X_VTEX_CACHE: HeaderName = HeaderName::from_static("x-vtex-cache");

@@ -152,7 +152,7 @@ fn ktx2_options(codec: Option<Codec>, supercompression: Option<Supercompression>
 
 /// `GET /api/v1/textures/{id}/pages/{level}/{x}/{y}.{format}[?size=S&border=B&codec=C&supercompression=Z&frame=N]`
 #[utoipa::path(get,
-    path = "/api/v1/textures/{id}/pages/{level}/{x}/{file}",
+    path = vtex_wire::urls::PAGE,
     tag = "pages",
     params(
         ("id" = String, Path, description = text::TEXTURE_ID),

@@ -289,3 +289,52 @@ async fn batches_of_cached_tiles_are_cacheable() {
         assert_eq!(r.status(), 200, "{other}");
     }
 }
+
+/// The golden files of `wire/fixtures`, which the Rust client's and the viewer's tests read: a
+/// real batch body (two hits, then a miss: a deterministic order) with the frames it holds, and
+/// the info of its texture. A change of the frame format or the info fails here first;
+/// `VTEX_BLESS=1` writes the files again, and then the readers' tests must agree with them.
+#[tokio::test]
+async fn the_golden_batch_and_info_are_what_the_server_sends() {
+    let dir = tempdir();
+    let s = Server::start(dir.path(), &["--tile-size", "16"]);
+    let c = client();
+    let id = put(&c, &s, &mosaic(16, 4, 7)).await;
+    for (x, y) in [(0, 0), (3, 2)] {
+        assert_eq!(get_bytes(&c, &s.tile_url(&id, 0, x, y, "rgba")).await.0, 200);
+    }
+    let (status, headers, batch) = get_bytes(&c, &batch_url(&s, &id, "format=rgba&tiles=0/0/0,0/1/1,0/3/2")).await;
+    assert_eq!((status, &headers["content-type"]), (200, &"application/x-vtex-tile-batch".parse().unwrap()));
+    let expected: Vec<serde_json::Value> = {
+        let mut at = 0;
+        frames(&batch)
+            .iter()
+            .map(|f| {
+                at += 32;
+                let entry = serde_json::json!({
+                    "level": f.level, "x": f.x, "y": f.y, "status": f.status, "cache": f.cache,
+                    "width": f.width, "height": f.height, "body_offset": at, "body_length": f.body.len(),
+                });
+                at += f.body.len();
+                entry
+            })
+            .collect()
+    };
+    let caches: Vec<u64> = expected.iter().map(|f| f["cache"].as_u64().unwrap()).collect();
+    assert_eq!(caches, [1, 1, 2], "two hits in the order asked, then the miss");
+    let info: serde_json::Value =
+        c.get(s.url(&format!("/api/v1/textures/{id}"))).send().await.unwrap().json().await.unwrap();
+    let fixtures = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../wire/fixtures");
+    let golden = [
+        ("batch.bin", batch),
+        ("batch.json", serde_json::to_vec_pretty(&expected).unwrap()),
+        ("texture-info.json", serde_json::to_vec_pretty(&info).unwrap()),
+    ];
+    for (name, bytes) in golden {
+        let path = fixtures.join(name);
+        if std::env::var_os("VTEX_BLESS").is_some() {
+            std::fs::write(&path, &bytes).unwrap();
+        }
+        assert!(std::fs::read(&path).unwrap() == bytes, "{name} differs from what the server sends");
+    }
+}

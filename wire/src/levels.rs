@@ -1,0 +1,37 @@
+//! Mip levels: level L of a `width × height` texture is `⌈width / 2^L⌉ × ⌈height / 2^L⌉`, down
+//! to 1 × 1.
+
+/// Size of `level` for a texture of `width × height` at level 0.
+pub fn level_size(width: u64, height: u64, level: u32) -> (u64, u64) {
+    let d = |v: u64| if level >= 64 { 1 } else { v.div_ceil(1u64 << level).max(1) };
+    (d(width), d(height))
+}
+
+/// Number of levels down to 1 × 1 inclusive.
+pub fn level_count(width: u64, height: u64) -> u32 {
+    let side = width.max(height).max(1);
+    // ceil(log2(side)) + 1
+    (64 - (side - 1).leading_zeros()) + 1
+}
+
+/// Columns and rows of squares of side `size` (tiles, pages) covering `level`.
+pub fn grid(width: u64, height: u64, level: u32, size: u32) -> (u64, u64) {
+    let (lw, lh) = level_size(width, height, level);
+    (lw.div_ceil(size as u64), lh.div_ceil(size as u64))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn levels_halve_rounding_up_down_to_one_pixel() {
+        assert_eq!(level_count(1, 1), 1);
+        assert_eq!(level_count(100_000, 100_000), 18);
+        assert_eq!(level_size(100_000, 3, 1), (50_000, 2));
+        assert_eq!(level_size(100_000, 3, 17), (1, 1));
+        assert_eq!(level_size(5, 5, 200), (1, 1));
+        assert_eq!(grid(1000, 300, 0, 256), (4, 2));
+        assert_eq!(grid(1000, 300, 2, 128), (2, 1));
+    }
+}
