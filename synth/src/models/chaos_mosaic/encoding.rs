@@ -3,13 +3,11 @@
 
 use super::blocks::{self, SizeRule};
 use super::mosaic::ChaosMosaic;
-use super::params::{self, Params, Sequence};
+use super::params::{Params, Sequence};
+use super::plan::{BLOCKS_SECTION, SAMPLE_SECTION};
 use super::MODEL;
 use crate::models::{input_image, parse_params, Inputs};
-use crate::{bundle::Bundle, pixels::Rgba8Image, Error, Result};
-
-pub(super) const SAMPLE_SECTION: &str = "sample.png";
-pub(super) const BLOCKS_SECTION: &str = "blocks";
+use crate::{bundle::Bundle, pixels::Rgba8Image, Result};
 
 /// Makes an encoding from `params` (JSON, see [`Params`]) and the input image `sample`.
 /// When `seamless` is not given it is measured from the sample.
@@ -37,18 +35,6 @@ pub fn load(bundle: &Bundle) -> Result<ChaosMosaic> {
     let sample = crate::pixels::decode_png(SAMPLE_SECTION, bundle.section(SAMPLE_SECTION)?)?;
     let explicit = bundle.sections.iter().find(|s| s.name == BLOCKS_SECTION).map(|s| s.data.as_slice());
     ChaosMosaic::new(params, sample, explicit)
-}
-
-/// Refuses a `width × height` sample for an explicit sequence when its records cannot hold it.
-pub(super) fn check_explicit_sample(width: u32, height: u32) -> Result<()> {
-    let max = params::MAX_EXPLICIT_SAMPLE_SIDE;
-    if width > max || height > max {
-        return Err(Error::param(
-            "sequence",
-            format!("explicit 12-byte blocks need a sample of at most {max}×{max}; use \"seed\" for {width}×{height}"),
-        ));
-    }
-    Ok(())
 }
 
 /// Whether a sample tiles without a visible seam: the mean colour step across its wrap edges

@@ -65,7 +65,7 @@ impl Model for ChaosMosaicModel {
         create(name, params, inputs)
     }
     fn inputs_of(&self, bundle: &Bundle) -> Result<Inputs> {
-        Ok(super::section_inputs(bundle, &[("sample", encoding::SAMPLE_SECTION)]))
+        Ok(super::section_inputs(bundle, &[("sample", plan::SAMPLE_SECTION)]))
     }
     fn load(&self, bundle: &Bundle, _: &crate::Resources) -> Result<Arc<dyn Texture>> {
         Ok(Arc::new(load(bundle)?))

@@ -45,7 +45,7 @@ impl ChaosMosaic {
         let blocks = match (params.sequence, explicit) {
             (Sequence::Seed, None) => blocks::generate(&params, sw, sh, &rule),
             (Sequence::Explicit, Some(bytes)) => {
-                super::encoding::check_explicit_sample(sw, sh)?;
+                super::plan::check_explicit_sample(sw, sh)?;
                 let blocks = blocks::unpack(bytes, sw, sh, width, height, &rule)?;
                 let expected = params.tiles_x as usize * params.tiles_y as usize * params.blocks_per_tile as usize;
                 if blocks.len() != expected {

@@ -4,13 +4,28 @@
 //! calibrated by `examples/cost_calibration.rs`.
 
 use super::blocks::SizeRule;
-use super::encoding::{check_explicit_sample, BLOCKS_SECTION, SAMPLE_SECTION};
 use super::params::{self, Params, Sequence};
 use crate::bundle::Bundle;
 use crate::models::{cost, parse_params, Cost, Inputs, Measure, Plan};
 use crate::pixels::png_dimensions;
 use crate::texture::level_count;
 use crate::{Domain, Error, Result};
+
+/// The bundle's sections: the sample as given, and the explicit block sequence when there is one.
+pub(super) const SAMPLE_SECTION: &str = "sample.png";
+pub(super) const BLOCKS_SECTION: &str = "blocks";
+
+/// Refuses a `width × height` sample for an explicit sequence when its records cannot hold it.
+pub(super) fn check_explicit_sample(width: u32, height: u32) -> Result<()> {
+    let max = params::MAX_EXPLICIT_SAMPLE_SIDE;
+    if width > max || height > max {
+        return Err(Error::param(
+            "sequence",
+            format!("explicit 12-byte blocks need a sample of at most {max}×{max}; use \"seed\" for {width}×{height}"),
+        ));
+    }
+    Ok(())
+}
 
 /// Pixels of one tile.
 const TILE: f64 = 256.0 * 256.0;
