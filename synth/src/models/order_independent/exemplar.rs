@@ -1,5 +1,6 @@
-//! The exemplar, prepared once at load (integer only): its Gaussian pyramid, its 2×2-box mip
-//! chain, which pixels are valid candidates, their neighbourhood vectors and k-coherence sets.
+//! The exemplar, prepared once at load (integer only): its Gaussian pyramid or stack, its
+//! 2×2-box mip chain (or box stack), which pixels are valid candidates, their neighbourhood
+//! vectors and k-coherence sets.
 
 use super::structure::Taps;
 use crate::pixels::Rgba8Image;
@@ -8,14 +9,19 @@ use crate::pixels::Rgba8Image;
 /// on whole fixed-size chunks.
 pub const CHUNK: usize = 32;
 
-/// One level s of the exemplar pyramid (0 = coarsest).
+/// One level s of the exemplar pyramid or stack (0 = coarsest).
 #[derive(Clone, Debug)]
 pub struct Level {
     pub w: u32,
     pub h: u32,
-    /// E_s: the Gaussian pyramid level the search compares.
+    /// Exemplar pixels between the taps of a neighbourhood: 1 in a pyramid, h_s = 2^(fin − s)
+    /// in a stack.
+    pub spacing: u32,
+    /// E_s: the Gaussian level the search compares.
     pub colour: Vec<[u8; 3]>,
-    /// B_(fin − s): the 2×2-box mip of the sample at this size, which colours coarse vtex levels.
+    /// B_(fin − s), which colours coarse vtex levels: in a pyramid the 2×2-box mip of the sample
+    /// at this size; in a stack, at each pixel u, the same rounding chain over the h_s × h_s
+    /// block from u (the colour of an entry's block, had finer levels kept it).
     pub boxed: Vec<[u8; 3]>,
     /// V_s in index order: pixels whose whole neighbourhood lies in the sample.
     pub valid: Vec<u16>,
@@ -37,6 +43,9 @@ pub struct Level {
     /// Whether the first of those is v − d itself (v's coherent continuation), not a pixel
     /// merely similar to v.
     pub shifted_coherent: Vec<bool>,
+    /// Per pixel, the factor (in 1/256) its weighted SSD is scaled by as a k-coherence
+    /// candidate: the histogram balance of its luma band, 256 until one is measured.
+    pub balance: Vec<u16>,
 }
 
 impl Level {
@@ -68,6 +77,8 @@ impl Level {
 #[derive(Clone, Debug)]
 pub struct Options {
     pub levels: u8,
+    /// A Gaussian stack instead of a pyramid.
+    pub stack: bool,
     pub same: Taps,
     pub lower: Taps,
     pub wrap: bool,
@@ -83,6 +94,7 @@ pub struct Options {
 pub struct Exemplar {
     pub levels: Vec<Level>,
     pub k: usize,
+    pub stack: bool,
 }
 
 /// A coordinate reduced into 0..n: wrapped, or mirrored without repeating the edge
@@ -104,35 +116,60 @@ fn border(v: i64, n: i64, wrap: bool) -> i64 {
 /// One level down the Gaussian pyramid: the separable binomial [1 4 6 4 1]/16 at the even
 /// pixels, exact in integers with one rounding ((Σ + 128) >> 8).
 pub fn gaussian_down(src: &[[u8; 3]], w: u32, h: u32, wrap: bool) -> Vec<[u8; 3]> {
+    let blurred = blur(src, w, h, 1, wrap);
+    let (ow, oh) = (w as usize / 2, h as usize / 2);
+    (0..ow * oh).map(|i| blurred[(2 * (i / ow)) * w as usize + 2 * (i % ow)]).collect()
+}
+
+/// The separable binomial [1 4 6 4 1]/16 with its taps `step` pixels apart, at every pixel,
+/// exact in integers with one rounding ((Σ + 128) >> 8): one level down a Gaussian stack.
+pub fn blur(src: &[[u8; 3]], w: u32, h: u32, step: i64, wrap: bool) -> Vec<[u8; 3]> {
     const K: [u32; 5] = [1, 4, 6, 4, 1];
     let (w, h) = (w as i64, h as i64);
-    let (ow, oh) = (w / 2, h / 2);
-    // Horizontal pass at even columns, unrounded (≤ 16·255 a channel).
-    let mut rows = vec![[0u32; 3]; (ow * h) as usize];
+    // Horizontal pass, unrounded (≤ 16·255 a channel).
+    let mut rows = vec![[0u32; 3]; (w * h) as usize];
     for y in 0..h {
-        for x in 0..ow {
+        for x in 0..w {
             let mut acc = [0u32; 3];
             for (i, k) in K.iter().enumerate() {
-                let sx = border(2 * x + i as i64 - 2, w, wrap);
+                let sx = border(x + step * (i as i64 - 2), w, wrap);
                 let p = src[(y * w + sx) as usize];
                 (0..3).for_each(|c| acc[c] += k * p[c] as u32);
             }
-            rows[(y * ow + x) as usize] = acc;
+            rows[(y * w + x) as usize] = acc;
         }
     }
-    let mut out = vec![[0u8; 3]; (ow * oh) as usize];
-    for y in 0..oh {
-        for x in 0..ow {
+    let mut out = vec![[0u8; 3]; (w * h) as usize];
+    for y in 0..h {
+        for x in 0..w {
             let mut acc = [0u32; 3];
             for (i, k) in K.iter().enumerate() {
-                let sy = border(2 * y + i as i64 - 2, h, wrap);
-                let p = rows[(sy * ow + x) as usize];
+                let sy = border(y + step * (i as i64 - 2), h, wrap);
+                let p = rows[(sy * w + x) as usize];
                 (0..3).for_each(|c| acc[c] += k * p[c]);
             }
-            out[(y * ow + x) as usize] = acc.map(|a| ((a + 128) >> 8) as u8);
+            out[(y * w + x) as usize] = acc.map(|a| ((a + 128) >> 8) as u8);
         }
     }
     out
+}
+
+/// One level down a box stack: at each pixel, the rounded mean of `src` at the four corners of
+/// a `step`-sided square from it (as `mip::downsample` rounds), wrapped or clamped at the edges.
+fn box_down(src: &[[u8; 3]], w: u32, h: u32, step: i64, wrap: bool) -> Vec<[u8; 3]> {
+    let (w, h) = (w as i64, h as i64);
+    let at = |v: i64, n: i64| if wrap { v.rem_euclid(n) } else { v.min(n - 1) };
+    (0..w * h)
+        .map(|i| {
+            let (x, y) = (i % w, i / w);
+            let mut acc = [0u32; 3];
+            for (dx, dy) in [(0, 0), (step, 0), (0, step), (step, step)] {
+                let p = src[(at(y + dy, h) * w + at(x + dx, w)) as usize];
+                (0..3).for_each(|c| acc[c] += p[c] as u32);
+            }
+            acc.map(|a| ((a + 2) / 4) as u8)
+        })
+        .collect()
 }
 
 /// Sum of squared differences of two padded vectors, in fixed-size chunks the compiler
@@ -167,28 +204,40 @@ impl Exemplar {
     pub fn build(sample: &Rgba8Image, o: &Options) -> Exemplar {
         let n = o.levels as usize;
         let fin = n - 1;
-        // Gaussian pyramid E_s, finest first, and the box mip chain B_j.
-        let mut colours = vec![sample.data.chunks_exact(4).map(|p| [p[0], p[1], p[2]]).collect::<Vec<_>>()];
-        let mut boxed = vec![sample.clone()];
+        // Gaussian levels E_s and box levels B_j, finest first.
+        let rgb = |img: &Rgba8Image| img.data.chunks_exact(4).map(|p| [p[0], p[1], p[2]]).collect::<Vec<_>>();
+        let mut colours = vec![rgb(sample)];
+        let mut boxed = vec![rgb(sample)];
         let (mut w, mut h) = (sample.width, sample.height);
-        for _ in 0..fin {
-            colours.push(gaussian_down(colours.last().unwrap(), w, h, o.wrap));
-            boxed.push(crate::mip::downsample(boxed.last().unwrap()));
-            (w, h) = (w / 2, h / 2);
+        let mut mip = sample.clone();
+        for j in 0..fin {
+            if o.stack {
+                let step = 1 << j;
+                colours.push(blur(colours.last().unwrap(), w, h, step, o.wrap));
+                boxed.push(box_down(boxed.last().unwrap(), w, h, step, o.wrap));
+            } else {
+                colours.push(gaussian_down(colours.last().unwrap(), w, h, o.wrap));
+                mip = crate::mip::downsample(&mip);
+                boxed.push(rgb(&mip));
+                (w, h) = (w / 2, h / 2);
+            }
         }
         colours.reverse();
         boxed.reverse();
         let mut levels: Vec<Level> = Vec::with_capacity(n);
         for s in 0..n {
-            let (w, h) = (sample.width >> (fin - s), sample.height >> (fin - s));
-            let rgb = boxed[s].data.chunks_exact(4).map(|p| [p[0], p[1], p[2]]).collect();
+            let (w, h, spacing) = match o.stack {
+                true => (sample.width, sample.height, 1 << (fin - s)),
+                false => (sample.width >> (fin - s), sample.height >> (fin - s), 1),
+            };
             let lower = if s == 0 { &[][..] } else { &o.lower[..] };
             let searched = s > 0 || o.coarsest_search;
             let mut level = Level {
                 w,
                 h,
+                spacing,
                 colour: std::mem::take(&mut colours[s]),
-                boxed: rgb,
+                boxed: std::mem::take(&mut boxed[s]),
                 valid: Vec::new(),
                 is_valid: Vec::new(),
                 valid_low: Vec::new(),
@@ -199,6 +248,7 @@ impl Exemplar {
                 shifted: Vec::new(),
                 shifted_len: Vec::new(),
                 shifted_coherent: Vec::new(),
+                balance: vec![256; (w * h) as usize],
             };
             if searched {
                 let coarser = levels.last();
@@ -210,7 +260,7 @@ impl Exemplar {
             }
             levels.push(level);
         }
-        Exemplar { levels, k: o.k }
+        Exemplar { levels, k: o.k, stack: o.stack }
     }
 }
 
@@ -226,8 +276,9 @@ fn fill_neighbourhoods(level: &mut Level, coarser: Option<&Level>, same: &[(i8, 
             let u = (y * w + x) as usize;
             let v = &mut vectors[u * stride..(u + 1) * stride];
             let mut same_in = true;
+            let step = level.spacing as i64;
             for (t, &(dx, dy)) in same.iter().enumerate() {
-                let (sx, sy) = (x + dx as i64, y + dy as i64);
+                let (sx, sy) = (x + step * dx as i64, y + step * dy as i64);
                 same_in &= inside(sx, sy, w, h);
                 let p = level.colour[(border(sy, h, wrap) * w + border(sx, w, wrap)) as usize];
                 v[3 * t..3 * t + 3].copy_from_slice(&p);
@@ -258,11 +309,13 @@ fn fill_neighbourhoods(level: &mut Level, coarser: Option<&Level>, same: &[(i8, 
 }
 
 crate::simd::widest! {
-    /// C_s(u) for every pixel u: u, then the k − 1 valid v ≠ u outside its exclusion square with
-    /// the smallest (SSD(N(u), N(v)), index v); compiled for the CPU's widest vector unit.
+    /// C_s(u) for every pixel u: u, then the k − 1 valid v ≠ u outside its exclusion square
+    /// (`exclusion` taps a side) with the smallest (SSD(N(u), N(v)), index v); compiled for the
+    /// CPU's widest vector unit.
     fn fill_ksets(level: &mut Level, k: usize, exclusion: u32) {
         let n = (level.w * level.h) as usize;
         let w = level.w as i64;
+        let exclusion = exclusion * level.spacing;
         let mut kset = vec![0u16; n * k];
         let mut kset_len = vec![0u8; n];
         let mut best: Vec<(u32, u16)> = Vec::with_capacity(k);
@@ -299,9 +352,10 @@ crate::simd::widest! {
     }
 }
 
-/// The k-coherence sets shifted by each 3×3 offset, invalid pixels dropped.
+/// The k-coherence sets shifted by each 3×3 offset (in taps), invalid pixels dropped.
 fn fill_shifted(level: &mut Level, k: usize, wrap: bool) {
     let (w, h) = (level.w as i64, level.h as i64);
+    let step = level.spacing as i64;
     let n = (w * h) as usize;
     let mut shifted = vec![0u16; n * 9 * k];
     let mut shifted_len = vec![0u8; n * 9];
@@ -310,7 +364,7 @@ fn fill_shifted(level: &mut Level, k: usize, wrap: bool) {
         for (d, (dx, dy)) in (-1..=1).flat_map(|dy| (-1..=1).map(move |dx| (dx, dy))).enumerate() {
             let at = v * 9 + d;
             for &c in level.kset(v, k) {
-                let (mut x, mut y) = (c as i64 % w - dx, c as i64 / w - dy);
+                let (mut x, mut y) = (c as i64 % w - step * dx, c as i64 / w - step * dy);
                 if wrap {
                     (x, y) = (x.rem_euclid(w), y.rem_euclid(h));
                 } else if !(0..w).contains(&x) || !(0..h).contains(&y) {
@@ -377,11 +431,44 @@ mod tests {
         }
     }
 
+    /// A stack level read every h_s pixels is the pyramid's level: its box colours exactly, its
+    /// Gaussian colours wherever the filter's chain stays off the far edge (mirrored about the
+    /// last pixel of each level in a pyramid, of the sample in a stack).
+    #[test]
+    fn a_stack_sampled_every_h_pixels_is_the_pyramid() {
+        let img = crate::samples::pebbles(64, 7, 5, false);
+        let o = |stack| Options {
+            levels: 4,
+            stack,
+            same: circle5(),
+            lower: Vec::new(),
+            wrap: false,
+            k: 0,
+            k_exclusion: 0,
+            coarsest_search: false,
+        };
+        let (pyramid, stack) = (Exemplar::build(&img, &o(false)), Exemplar::build(&img, &o(true)));
+        for (s, (p, t)) in pyramid.levels.iter().zip(&stack.levels).enumerate() {
+            let h = 1 << (3 - s);
+            assert_eq!((t.w, t.spacing, p.spacing), (64, h, 1));
+            for y in 0..p.h {
+                for x in 0..p.w {
+                    let (u, v) = ((y * p.w + x) as usize, (y * h * 64 + x * h) as usize);
+                    assert_eq!(p.boxed[u], t.boxed[v], "level {s}, ({x}, {y})");
+                    if x + 3 < p.w && y + 3 < p.h {
+                        assert_eq!(p.colour[u], t.colour[v], "level {s}, ({x}, {y})");
+                    }
+                }
+            }
+        }
+    }
+
     #[test]
     fn ksets_start_with_the_pixel_and_are_sorted_by_ssd_then_index() {
         let img = crate::samples::lichen(32, 3);
         let o = Options {
             levels: 2,
+            stack: false,
             same: circle5(),
             lower: square(1),
             wrap: false,

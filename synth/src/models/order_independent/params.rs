@@ -26,6 +26,7 @@ pub const MAX_K: u8 = 8;
 pub const MAX_K_EXCLUSION: u8 = 16;
 pub const MAX_JITTER: u8 = 4;
 pub const MAX_KAPPA: u16 = 1000;
+pub const MAX_BALANCE: u8 = 4;
 pub const MAX_EXACT_LEVELS: u8 = 2;
 pub const MAX_NOISE_LEVELS: u8 = 4;
 
@@ -91,6 +92,20 @@ pub enum Generation0 {
     Upsample,
     /// Exhaustive search on the coarser level's part of the neighbourhood (the paper).
     Search,
+}
+
+/// What the levels of the search compare against.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, JsonSchema)]
+#[serde(rename_all = "lowercase")]
+pub enum ExemplarLevels {
+    /// A Gaussian pyramid: level s is the sample subsampled 2^(K−1−s) times, and a coordinate
+    /// indexes its own level (Wei & Levoy).
+    Pyramid,
+    /// A Gaussian stack: every level at the sample's resolution, blurred as the pyramid's,
+    /// coordinates in the sample's own pixels at every level, and the taps of level s spaced
+    /// h_s = 2^(K−1−s) apart (Lefebvre & Hoppe 2005). An upsampled copy may start at any
+    /// pixel, so the output sits on no lattice of the sample. k-coherence only.
+    Stack,
 }
 
 /// How coarse vtex levels are made (see `prefilter`).
@@ -164,6 +179,18 @@ pub struct Params {
     /// Unset when creating: `upsample` for `kcoherence`, `search` for `exhaustive`.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub generation0: Option<Generation0>,
+    /// Histogram balance, an exponent in halves (0..=4; 0 off): a k-coherence candidate's
+    /// weighted SSD is also scaled by (used ⁄ fair)^(balance/2) of its luma band at its level,
+    /// measured once at load on a pilot window of that level synthesised without it (Kopf et
+    /// al. 2007's histogram weighting made static, so every entry stays a function of the
+    /// encoding alone). Tones the SSD search over-uses then cost more, and the sample's extremes
+    /// come back. Unset: none.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub balance: Option<u8>,
+    /// Unset: a pyramid. A stack compares only same-level taps (its coordinates carry the
+    /// coarser levels), so `neighbourhood.lower` is unused.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub exemplar: Option<ExemplarLevels>,
     /// 1, or 4: generation m updates one parity class of pixels, `(m − 1) mod 4` (Lefebvre &
     /// Hoppe 2005's subpasses: each class reads its neighbours' corrected values). Unset: 1 for
     /// `exhaustive` (the paper), 4 for `kcoherence`.
@@ -218,6 +245,16 @@ impl Params {
         self.jitter.unwrap_or(0)
     }
 
+    /// The histogram balance exponent in halves (0 when the encoding has none).
+    pub fn balance(&self) -> u8 {
+        self.balance.unwrap_or(0)
+    }
+
+    /// The exemplar's levels (a pyramid when the encoding does not say).
+    pub fn exemplar(&self) -> ExemplarLevels {
+        self.exemplar.unwrap_or(ExemplarLevels::Pyramid)
+    }
+
     /// κ in percent (0 when the encoding has none).
     pub fn kappa(&self) -> u16 {
         self.kappa.unwrap_or(0)
@@ -262,6 +299,7 @@ impl Params {
         range("k", self.k, 1, MAX_K)?;
         range("k_exclusion", self.k_exclusion, 0, MAX_K_EXCLUSION)?;
         range("jitter", self.jitter(), 0, MAX_JITTER)?;
+        range("balance", self.balance(), 0, MAX_BALANCE)?;
         if self.kappa() > MAX_KAPPA {
             return Err(Error::param("kappa", format!("{}: must be 0..={MAX_KAPPA}", self.kappa())));
         }
@@ -270,6 +308,14 @@ impl Params {
         range("mip.noise_levels", self.mip.noise_levels, 0, MAX_NOISE_LEVELS)?;
         if self.subpasses() != 1 && self.subpasses() != 4 {
             return Err(Error::param("subpasses", format!("{}: must be 1 or 4", self.subpasses())));
+        }
+        if self.exemplar() == ExemplarLevels::Stack
+            && (self.search != Search::Kcoherence || self.generation0() != Generation0::Upsample)
+        {
+            return Err(Error::param("exemplar", "a stack needs `kcoherence` search and `upsample` generation 0"));
+        }
+        if self.balance() > 0 && self.search != Search::Kcoherence {
+            return Err(Error::param("balance", "weights k-coherence candidates: needs `kcoherence` search"));
         }
         let unit = 1u64 << (self.levels - 1);
         if self.domain == DomainSpec::Torus && (self.width % unit != 0 || self.height % unit != 0) {
@@ -339,7 +385,11 @@ mod tests {
         assert_eq!(named(json!({"seed": 1, "k_exclusion": 17}), 64, 64), "k_exclusion");
         assert_eq!(named(json!({"seed": 1, "subpasses": 2}), 64, 64), "subpasses");
         assert_eq!(named(json!({"seed": 1, "jitter": 5}), 64, 64), "jitter");
+        assert_eq!(named(json!({"seed": 1, "balance": 5}), 64, 64), "balance");
+        assert_eq!(named(json!({"seed": 1, "balance": 1, "search": "exhaustive"}), 64, 64), "balance");
         assert_eq!(named(json!({"seed": 1, "kappa": 1001}), 64, 64), "kappa");
+        assert_eq!(named(json!({"seed": 1, "exemplar": "stack", "search": "exhaustive"}), 64, 64), "exemplar");
+        assert_eq!(named(json!({"seed": 1, "exemplar": "stack", "generation0": "search"}), 64, 64), "exemplar");
         assert_eq!(named(json!({"seed": 1, "width": 0}), 64, 64), "width");
         assert_eq!(named(json!({"seed": 1, "height": 1u64 << 41}), 64, 64), "height");
         assert_eq!(named(json!({"seed": 1, "domain": "torus", "width": 1000, "height": 1004}), 64, 64), "domain");

@@ -2,10 +2,10 @@
 //! holds and what its dearest tile and its making cost. Work units are about 1 ns of one core.
 
 use super::encoding::{check_stored, SAMPLE_SECTION};
-use super::params::{Generation0, Params, Search};
+use super::params::{ExemplarLevels, Generation0, Params, Search};
 use super::prefilter::{source, span, Source};
 use super::render::CHUNK;
-use super::search::structure;
+use super::search::{structure, PILOT};
 use super::served::{cone, Rect};
 use super::MODEL;
 use crate::bundle::Bundle;
@@ -51,7 +51,7 @@ pub fn plan_create(params: &serde_json::Value, inputs: &Inputs) -> Result<Plan> 
     if let Some(other) = inputs.keys().find(|k| k.as_str() != "sample") {
         return Err(Error::image(other.as_str(), "not an input of `order-independent` (it takes `sample`)"));
     }
-    let p: Params = parse_params(params)?;
+    let p = parse_params::<Params>(params)?.filled();
     let sample = inputs.get("sample").ok_or_else(|| Error::image("sample", "missing; this model needs it"))?;
     let (w, h) = png_dimensions("sample", sample)?;
     plan_params(&p, w, h, true)
@@ -61,7 +61,8 @@ fn plan_params(p: &Params, sw: u32, sh: u32, create: bool) -> Result<Plan> {
     p.validate(sw, sh)?;
     let st = structure(p);
     let fin = p.levels - 1;
-    let pixels = |s: u8| ((sw >> (fin - s)) as f64) * ((sh >> (fin - s)) as f64);
+    let shift = |s: u8| if p.exemplar() == ExemplarLevels::Stack { 0 } else { fin - s };
+    let pixels = |s: u8| ((sw >> shift(s)) as f64) * ((sh >> shift(s)) as f64);
     let vector = |s: u8| {
         let taps = st.same.len() + if s > 0 { st.lower.len() } else { 0 };
         (3 * taps).div_ceil(32) as f64 * 32.0
@@ -123,16 +124,16 @@ fn plan_params(p: &Params, sw: u32, sh: u32, create: bool) -> Result<Plan> {
         p.generations()
     );
 
-    // Resident: per exemplar pixel of each level, colours and box colours, the valid masks,
-    // and where searched its vector, its k-coherence set and the set shifted 9 ways (with
-    // whether each shifted set starts with the coherent continuation); the
+    // Resident: per exemplar pixel of each level, colours and box colours, its balance, the
+    // valid masks, and where searched its vector, its k-coherence set and the set shifted 9
+    // ways (with whether each shifted set starts with the coherent continuation); the
     // calibration's colours.
     let resident: f64 = (0..p.levels)
         .map(|s| {
             let n = pixels(s);
             let ksets = if k > 0.0 { 2.0 * k + 1.0 + 9.0 * (2.0 * k + 2.0) } else { 0.0 };
             let searched = if searched(s) { n * (vector(s) + 5.0 + ksets) } else { 0.0 };
-            n * 6.0 + searched
+            n * 8.0 + searched
         })
         .sum::<f64>()
         + pixels(0) * 3.0
@@ -141,9 +142,16 @@ fn plan_params(p: &Params, sw: u32, sh: u32, create: bool) -> Result<Plan> {
 
     let ksets: f64 =
         (0..p.levels).filter(|&s| searched(s) && k > 0.0).map(|s| pixels(s) * pixels(s) * vector(s) * KSET_BYTE).sum();
-    let load = SAMPLE_PIXEL * pixels(fin) + ksets;
+    // The histogram balance synthesises a pilot window of each searched level.
+    let pilots: f64 =
+        if p.balance() > 0 { (0..p.levels).filter(|&s| searched(s)).map(|s| work(s, PILOT)).sum() } else { 0.0 };
+    let load = SAMPLE_PIXEL * pixels(fin) + ksets + pilots;
     let build = if create { 2.0 * load + ENCODE_PIXEL * pixels(fin) } else { load };
-    let build_why = format!("k-coherence sets of {sw}×{sh} pixels{}", if create { ", made and loaded" } else { "" });
+    let build_why = format!(
+        "k-coherence sets of {sw}×{sh} pixels{}{}",
+        if p.balance() > 0 { " and the balance's pilot windows" } else { "" },
+        if create { ", made and loaded" } else { "" }
+    );
     Ok(Plan {
         width: p.width,
         height: p.height,

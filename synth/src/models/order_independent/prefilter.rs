@@ -67,7 +67,7 @@ pub fn span(p: &super::Params, l: u32) -> u32 {
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub struct Calibration {
     /// g(u): mean level-0 colour of the blocks whose coarsest-level coordinate is u (B at u
-    /// where no block of the windows grew from u).
+    /// where no block of the windows grew from u, and everywhere in a stack).
     pub g: Vec<[u8; 3]>,
     pub mean: [u8; 3],
     /// Per vtex level, how its pyramid source is brought to the exact chain's contrast around
@@ -95,7 +95,13 @@ impl Calibration {
         let side = WINDOW.max(2 * block as u32);
         let coarsest = &tex.synthesizer().exemplar().levels[0];
         let n = coarsest.colour.len();
-        let mut sums = vec![[0u64; 4]; n];
+        // A stack's coarsest level has a coordinate per sample pixel, too many for the windows
+        // to measure one by one: g is measured per bin of `bin` × `bin` coordinates.
+        let stack = tex.synthesizer().exemplar().stack;
+        let bin: usize = if stack { 1 << fin } else { 1 };
+        let bins_w = coarsest.w as usize / bin;
+        let key = |u: usize| (u / coarsest.w as usize / bin) * bins_w + u % coarsest.w as usize / bin;
+        let mut sums = vec![[0u64; 4]; n / (bin * bin)];
         let mut windows = Vec::with_capacity(WINDOWS as usize);
         for i in 0..WINDOWS {
             let h = hash4(p.seed, STREAM_CALIBRATION, i, 0);
@@ -111,7 +117,7 @@ impl Calibration {
             let coarse = tex.entries(0, rect, stop)?;
             for (k, &u) in coarse.iter().enumerate() {
                 let (bx, by) = ((k % cells) << fin, (k / cells) << fin);
-                let acc = &mut sums[u as usize];
+                let acc = &mut sums[key(u as usize)];
                 for j in 0..block as usize {
                     let row = (by + j) * side as usize + bx;
                     for px in img.data[row * 4..(row + block as usize) * 4].chunks_exact(4) {
@@ -122,14 +128,16 @@ impl Calibration {
             }
             windows.push((x, y, img));
         }
-        let g: Vec<[u8; 3]> = sums
-            .iter()
-            .zip(&coarsest.boxed)
-            .map(|(s, b)| if s[3] == 0 { *b } else { [0, 1, 2].map(|c| ((s[c] + s[3] / 2) / s[3]) as u8) })
+        let g: Vec<[u8; 3]> = (0..n)
+            .map(|u| match sums[key(u)] {
+                s if s[3] == 0 => coarsest.boxed[u],
+                s => [0, 1, 2].map(|c| ((s[c] + s[3] / 2) / s[3]) as u8),
+            })
             .collect();
-        // The noise is uniform over the coarsest level, so with one generation there the
-        // texture's mean is g's plain mean; otherwise weigh g by how often each u grew.
-        let (total, weight) = if p.coarsest_generations == 1 {
+        // The noise is uniform over a pyramid's coarsest level, so with one generation there
+        // the texture's mean is g's plain mean; otherwise (or binned) weigh g by how often each
+        // u grew.
+        let (total, weight) = if p.coarsest_generations == 1 && !stack {
             let t = g.iter().fold([0u64; 3], |a, c| [0, 1, 2].map(|k| a[k] + c[k] as u64));
             (t, n as u64)
         } else {

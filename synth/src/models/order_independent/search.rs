@@ -1,10 +1,12 @@
 //! The synthesized function itself: the value of one entry from the values it reads (the
 //! [`Synthesis`] both evaluators call). Values are exemplar indices `y·w_s + x` at the entry's
-//! level; the search compares neighbourhoods by exact integer SSD on sRGB bytes and breaks
-//! ties by the lower index, as the paper's strict `>` over a scanline scan does.
+//! level (the sample's own pixels at every level of a stack); the search compares
+//! neighbourhoods by exact integer SSD on sRGB bytes and breaks ties by the lower index, as the
+//! paper's strict `>` over a scanline scan does.
 
 use super::exemplar::{ssd_below, Exemplar, Level, Options, CHUNK};
-use super::params::{Generation0, LowerShape, Params, SameShape, Search};
+use super::params::{ExemplarLevels, Generation0, LowerShape, Params, SameShape, Search};
+use super::served::{evaluate, Counts, Rect};
 use super::structure::{circle5, square, union, without_centre, Entry, Structure, Synthesis, Taps};
 use crate::hash::{below, hash4};
 use crate::pixels::Rgba8Image;
@@ -19,6 +21,12 @@ pub const PLANE_BITS: u32 = 62;
 pub const STREAM_NOISE: u64 = 0x004e_4f49_5345;
 /// Hash stream of the jitter of upsampled coordinates; level s uses `STREAM_JITTER + s`.
 pub const STREAM_JITTER: u64 = 0x004a_4954_0000;
+/// Hash stream of the pilot window's position (the histogram balance's measurement).
+pub const STREAM_PILOT: u64 = 0x0050_494c_4f54;
+/// Side of the pilot window, in pixels of each searched level.
+pub const PILOT: usize = 128;
+/// Luma bands of the histogram balance (16 grey levels each).
+const BANDS: usize = 16;
 
 /// The longest neighbourhood vector: 24 same-level and 25 coarser taps, padded.
 const MAX_STRIDE: usize = (3 * (24 + 25usize)).div_ceil(CHUNK) * CHUNK;
@@ -72,7 +80,11 @@ pub fn lower_taps(shape: LowerShape) -> Taps {
 /// The dependency structure the parameters describe: what each entry reads.
 pub fn structure(p: &Params) -> Structure {
     let compared = same_taps(p.neighbourhood.same);
-    let lower = lower_taps(p.neighbourhood.lower);
+    // A stack's coordinates already carry the coarser levels: only generation 0 reads them.
+    let lower = match p.exemplar() {
+        ExemplarLevels::Pyramid => lower_taps(p.neighbourhood.lower),
+        ExemplarLevels::Stack => Vec::new(),
+    };
     // k-coherence also reads the 3×3 window whose sets give the candidates.
     let same = match p.search {
         Search::Exhaustive => compared,
@@ -107,6 +119,7 @@ impl Synthesizer {
         let compared = same_taps(p.neighbourhood.same);
         let options = Options {
             levels: p.levels,
+            stack: p.exemplar() == ExemplarLevels::Stack,
             same: compared.clone(),
             lower: structure.lower.clone(),
             wrap: p.exemplar_wrap,
@@ -142,7 +155,7 @@ impl Synthesizer {
                 window
             }
         };
-        Ok(Synthesizer {
+        let mut syn = Synthesizer {
             centre: position(&(0, 0)),
             lower_taps: structure.lower.len(),
             structure,
@@ -155,7 +168,46 @@ impl Synthesizer {
             wrap: p.exemplar_wrap,
             same_at,
             coherent,
-        })
+        };
+        if p.balance() > 0 {
+            for s in 0..syn.exemplar.levels.len() {
+                syn.exemplar.levels[s].balance = syn.balance(s, p.balance());
+            }
+        }
+        Ok(syn)
+    }
+
+    /// The histogram balance of level `s`, exponent `halves`/2, the coarser levels balanced
+    /// already: the level is synthesised over a pilot window as it is now, and a pixel's factor
+    /// is (used ⁄ fair)^(halves/2) of its luma band, fair being the band's share of the valid
+    /// pixels, clamped to ½..=2. Balancing coarse to fine, each pilot sees the coarser levels
+    /// as they will be served, so the corrections do not compound.
+    fn balance(&self, s: usize, halves: u8) -> Vec<u16> {
+        let level = &self.exemplar.levels[s];
+        if level.valid.is_empty() {
+            return level.balance.clone();
+        }
+        let h = hash4(self.seed, STREAM_PILOT, 0, 0);
+        let (x, y) = ((h as i64) >> 24, (h.rotate_left(32) as i64) >> 24);
+        let band = |c: [u8; 3]| ((77 * c[0] as u32 + 150 * c[1] as u32 + 29 * c[2] as u32) >> 12) as usize;
+        let rect = Rect { x, y, w: PILOT, h: PILOT };
+        let used = evaluate(self, &self.structure, None, s as u8, rect, &mut Counts::default(), &crate::Never)
+            .expect("a pilot that is never stopped completes");
+        let (mut fair, mut got) = ([0u64; BANDS], [0u64; BANDS]);
+        level.valid.iter().for_each(|&u| fair[band(level.colour[u as usize])] += 1);
+        used.iter().for_each(|&u| got[band(level.colour[u as usize])] += 1);
+        let factor: Vec<u64> = (0..BANDS)
+            .map(|b| {
+                if fair[b] == 0 {
+                    return 256;
+                }
+                // (used ⁄ fair) in 1/256, its square root, raised to `halves`.
+                let ratio = (got[b] << 8) * level.valid.len() as u64 / (fair[b] * used.len() as u64);
+                let root = (ratio << 8).isqrt();
+                (0..halves).fold(256u64, |f, _| (f * root) >> 8).clamp(128, 512)
+            })
+            .collect();
+        level.colour.iter().map(|&c| factor[band(c)] as u16).collect()
     }
 
     pub fn structure(&self) -> &Structure {
@@ -188,7 +240,7 @@ impl Synthesizer {
     /// The k-coherence candidates of an entry, each with the weight of its SSD: each set C(v)
     /// of its 3×3 window's previous values v, shifted back by the window offset, kept when
     /// valid, without repeats; weight 100 for a coherent continuation (v − d itself), 100 + κ
-    /// for the others.
+    /// for the others, times the candidate's histogram balance.
     #[inline(always)]
     fn candidates<'a>(
         &self,
@@ -201,7 +253,8 @@ impl Synthesizer {
             let v = same[i] as usize;
             let coherent = level.shifted_coherent(v, d);
             for (j, &c) in level.shifted(v, d, self.exemplar.k).iter().enumerate() {
-                let weight = if j == 0 && coherent { 100 } else { self.jump_weight };
+                let kind = if j == 0 && coherent { 100 } else { self.jump_weight };
+                let weight = kind * level.balance[c as usize] as u64;
                 match buf[..n].iter_mut().find(|b| b.0 == c) {
                     Some(b) => b.1 = b.1.min(weight),
                     None => {
@@ -248,18 +301,27 @@ impl Synthesizer {
         ((e.x << bits) >> bits, (e.y << bits) >> bits)
     }
 
-    /// The hashed jitter of pixel (x, y) of level `s`: on each axis one of the 2r offsets
-    /// −r..=r−1, a pure function of (seed, level, pixel).
+    /// The noise draws coordinates (x, y) with x < w and y < h of the coarsest level: all of a
+    /// pyramid's; in a stack of a sample that does not tile, those whose h_0-sided block lies
+    /// inside the sample.
+    fn noise_area(&self) -> (u32, u32) {
+        let level = &self.exemplar.levels[0];
+        let margin = if self.wrap { 0 } else { level.spacing - 1 };
+        (level.w - margin, level.h - margin)
+    }
+
+    /// The hashed jitter of pixel (x, y) of level `s`: on each axis one of the 2r·h offsets
+    /// −r·h..=r·h−1, h the level's tap spacing, a pure function of (seed, level, pixel).
     #[inline]
     fn jitter_of(&self, s: u8, x: i64, y: i64) -> (i64, i64) {
-        let r = self.jitter as u64;
+        let r = self.jitter as u64 * self.exemplar.levels[s as usize].spacing as u64;
         let (x, y) = self.hashed_at(s, x, y);
         let h = hash4(self.seed, STREAM_JITTER + s as u64, x, y);
         (below(h, 2 * r) as i64 - r as i64, below(h.rotate_left(32), 2 * r) as i64 - r as i64)
     }
 
-    /// A jittered coordinate `v + d` on an axis of `n` pixels: wrapped on a tiling sample; on
-    /// another, left unjittered if the offset would leave the sample.
+    /// A coordinate `v` moved by `d` on an axis of `n` pixels: wrapped on a tiling sample; on
+    /// another, left where it was if the offset would leave the sample.
     #[inline]
     fn moved(&self, v: i64, d: i64, n: i64) -> i64 {
         match (self.wrap, v + d) {
@@ -288,8 +350,9 @@ fn argmin_weighted(level: &Level, candidates: &[(u16, u64)], target: &[u8]) -> O
 impl Synthesis for Synthesizer {
     fn noise(&self, x: i64, y: i64) -> u16 {
         let (x, y) = self.hashed_at(0, x, y);
-        let level = &self.exemplar.levels[0];
-        below(hash4(self.seed, STREAM_NOISE, x, y), (level.w * level.h) as u64) as u16
+        let (nw, nh) = self.noise_area();
+        let i = below(hash4(self.seed, STREAM_NOISE, x, y), (nw * nh) as u64) as u32;
+        (i / nw * self.exemplar.levels[0].w + i % nw) as u16
     }
 
     fn entry(&self, e: Entry, same: &[u16], lower: &[u16]) -> u16 {
@@ -306,11 +369,16 @@ crate::simd::widest! {
             let coarser = &syn.exemplar.levels[s - 1];
             return match syn.generation0 {
                 Generation0::Upsample => {
+                    // The parent's coordinate at this level, plus the child's offset in taps.
+                    let scale = if syn.exemplar.stack { 1 } else { 2 };
                     let (px, py) = (lower[0] as u32 % coarser.w, lower[0] as u32 / coarser.w);
-                    let (mut x, mut y) = (2 * px as i64 + (e.x & 1), 2 * py as i64 + (e.y & 1));
+                    let (px, py) = (scale * px as i64, scale * py as i64);
+                    let step = level.spacing as i64;
+                    let (w, h) = (level.w as i64, level.h as i64);
+                    let (mut x, mut y) = (syn.moved(px, step * (e.x & 1), w), syn.moved(py, step * (e.y & 1), h));
                     if syn.jitter > 0 {
                         let (dx, dy) = syn.jitter_of(e.s, e.x, e.y);
-                        (x, y) = (syn.moved(x, dx, level.w as i64), syn.moved(y, dy, level.h as i64));
+                        (x, y) = (syn.moved(x, dx, w), syn.moved(y, dy, h));
                     }
                     (y * level.w as i64 + x) as u16
                 }

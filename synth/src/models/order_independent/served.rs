@@ -284,6 +284,8 @@ mod tests {
             json!({"seed": 7, "levels": 4, "k": 2, "k_exclusion": 3, "jitter": 4, "kappa": 50}),
             json!({"seed": 5, "levels": 2, "neighbourhood": {"same": "square5", "lower": "square5"}, "generation0": "search"}),
             json!({"seed": 6, "levels": 3, "neighbourhood": {"same": "square3"}, "search": "exhaustive", "generation0": "upsample", "k_exclusion": 2}),
+            json!({"seed": 8, "levels": 3, "exemplar": "stack", "jitter": 1, "kappa": 100, "balance": 1}),
+            json!({"seed": 9, "levels": 3, "exemplar": "stack", "domain": "torus", "width": 24, "height": 40, "exemplar_wrap": true, "jitter": 2, "balance": 2, "subpasses": 1}),
         ] {
             let syn = synthesizer(params.clone(), &sample);
             let st = syn.structure();
