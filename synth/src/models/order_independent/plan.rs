@@ -127,7 +127,7 @@ fn plan_params(p: &Params, sw: u32, sh: u32, create: bool) -> Result<Plan> {
     // Resident: per exemplar pixel of each level, colours and box colours, its balance, the
     // valid masks, and where searched its vector, its k-coherence set and the set shifted 9
     // ways (with whether each shifted set starts with the coherent continuation); the
-    // calibration's colours.
+    // calibration's colours; the empty cache and counters of a texture loaded alone.
     let resident: f64 = (0..p.levels)
         .map(|s| {
             let n = pixels(s);
@@ -137,7 +137,7 @@ fn plan_params(p: &Params, sw: u32, sh: u32, create: bool) -> Result<Plan> {
         })
         .sum::<f64>()
         + pixels(0) * 3.0
-        + 4096.0;
+        + 8192.0;
     let resident_why = format!("a {sw}×{sh} sample in {} levels: colours, vectors, k-coherence sets", p.levels);
 
     let ksets: f64 =
