@@ -77,10 +77,7 @@ impl Model for CascadeModel {
         create(name, params, inputs)
     }
     fn inputs_of(&self, bundle: &Bundle) -> Result<Inputs> {
-        Ok(super::section_inputs(
-            bundle,
-            &[("control", encoding::CONTROL_SECTION), ("initial", encoding::INITIAL_SECTION)],
-        ))
+        Ok(super::section_inputs(bundle, &[("control", plan::CONTROL_SECTION), ("initial", plan::INITIAL_SECTION)]))
     }
     fn load(&self, bundle: &Bundle, _: &crate::Resources) -> Result<Arc<dyn Texture>> {
         Ok(Arc::new(load(bundle)?))

@@ -1,8 +1,9 @@
 //! The loaded texture: the validated engine and palette, rendering level 0 and the exact
 //! levels by brute force over bounded chunks and coarser levels through [`prefilter`](super::prefilter).
 
-use super::encoding::{build_engine, Params};
 use super::engine::{Engine, STREAM_CALIBRATION};
+use super::params::Params;
+use super::plan::build_engine;
 use super::{palette, prefilter, MODEL};
 use crate::pixels::Rgba8Image;
 use crate::texture::{Domain, Region, Stop, Texture};

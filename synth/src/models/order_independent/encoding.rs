@@ -2,15 +2,14 @@
 //! derived (pyramid, vectors, k-coherence sets) is recomputed at load.
 
 use super::params::Params;
+use super::plan::SAMPLE_SECTION;
 use super::render::OrderIndependent;
 use super::shared::Shared;
 use super::MODEL;
 use crate::bundle::Bundle;
 use crate::models::{input_image, parse_params, Inputs};
 use crate::pixels::decode_png;
-use crate::{Error, Resources, Result};
-
-pub(super) const SAMPLE_SECTION: &str = "sample.png";
+use crate::{Resources, Result};
 
 /// Makes an encoding from `params` (JSON, see [`Params`]) and the input image `sample`.
 pub fn create(name: &str, params: &serde_json::Value, inputs: &Inputs) -> Result<Bundle> {
@@ -40,12 +39,4 @@ pub fn load_with(bundle: &Bundle, resources: &Resources) -> Result<OrderIndepend
     let key = u64::from_le_bytes(hash.as_bytes()[..8].try_into().expect("8 bytes"));
     let shared = resources.part::<Shared>(MODEL).expect("the model's part of every Resources");
     OrderIndependent::new(params, &sample, key, shared)
-}
-
-/// Refuses a stored manifest that leaves a default to be filled.
-pub(super) fn check_stored(p: &Params) -> Result<()> {
-    if p.generation0.is_none() {
-        return Err(Error::param("generation0", "must be set in a stored encoding"));
-    }
-    Ok(())
 }

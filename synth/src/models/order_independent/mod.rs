@@ -75,7 +75,7 @@ impl Model for OrderIndependentModel {
         create(name, params, inputs)
     }
     fn inputs_of(&self, bundle: &Bundle) -> Result<Inputs> {
-        Ok(super::section_inputs(bundle, &[("sample", encoding::SAMPLE_SECTION)]))
+        Ok(super::section_inputs(bundle, &[("sample", plan::SAMPLE_SECTION)]))
     }
     fn load(&self, bundle: &Bundle, resources: &Resources) -> Result<Arc<dyn Texture>> {
         Ok(Arc::new(load_with(bundle, resources)?))

@@ -1,7 +1,6 @@
 //! The cost model: from the parameters and the sample's PNG header alone, what a loaded texture
 //! holds and what its dearest tile and its making cost. Work units are about 1 ns of one core.
 
-use super::encoding::{check_stored, SAMPLE_SECTION};
 use super::params::{ExemplarLevels, Generation0, Params, Search};
 use super::prefilter::{source, span, Source};
 use super::render::CHUNK;
@@ -13,6 +12,17 @@ use crate::models::{cost, parse_params, Cost, Inputs, Measure, Plan};
 use crate::pixels::png_dimensions;
 use crate::texture::level_count;
 use crate::{Domain, Error, Result};
+
+/// The bundle's one section: the sample as given.
+pub(super) const SAMPLE_SECTION: &str = "sample.png";
+
+/// Refuses a stored manifest that leaves a default to be filled.
+pub(super) fn check_stored(p: &Params) -> Result<()> {
+    if p.generation0.is_none() {
+        return Err(Error::param("generation0", "must be set in a stored encoding"));
+    }
+    Ok(())
+}
 
 /// Per noise entry (a hash), per upsampled entry, per k-coherence entry (gathering, candidates
 /// and about a dozen 96-byte SSDs), and per byte an exhaustive scan compares.
