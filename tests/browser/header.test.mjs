@@ -43,8 +43,12 @@ for (const size of [
       // Playwright's own checks before a click: visible, stable, enabled, receiving the pointer.
       await page.locator(selector).click({ trial: true, timeout: 5000 });
     }
+    // The answer comes after the clipboard's promise settles, so it is awaited, not read at once.
     await page.click('#copy-link');
-    assert.notEqual(await page.locator('#copy-link').textContent(), 'Copy link', 'Copy link answered the click');
+    const answered = await page
+      .waitForFunction(() => document.querySelector('#copy-link').textContent !== 'Copy link', null, { timeout: 5000 })
+      .then(() => true, () => false);
+    assert.ok(answered, 'Copy link answered the click');
     assert.deepEqual(log.errors, []);
     await Promise.all([page.waitForURL(/\/vt\.html$/), page.click('#vt-demo')]);
     await page.close();
