@@ -36,11 +36,11 @@ fn served_search_is_no_further_from_the_sample_than_exhaustive_search() {
 }
 
 /// Every demo's level-0 sources, over a 192² window away from the origin, sit on no lattice of
-/// the sample: for each 2^j below the pyramid's 2^(K−1), the share of pixels whose source is
-/// congruent to the pixel modulo 2^j stays under twice the chance 1/4^j for j = 1 and three
-/// times it beyond (a pyramid's coarser-level match still favours aligned copies a little).
-/// Coordinate upsampling without jitter and coherent candidates alone put every pixel on the
-/// 2^(K−1) lattice: 4, 16 and 64 times chance.
+/// the sample: for each 2^j up to the pyramid's 2^(K−1), the share of pixels whose source is
+/// congruent to the pixel modulo 2^j stays under 1.6 times the chance 1/4^j. Pixels come in
+/// copied patches, so the share of a window varies by tens of percent about chance; a pyramid
+/// exemplar with jitter scores about 2 times chance at j = 2, 3, and coordinate upsampling
+/// without jitter puts every pixel on the 2^(K−1) lattice: 4, 16 and 64 times chance.
 #[test]
 fn served_sources_sit_on_no_lattice_of_the_sample() {
     use vtex_quality::lattice::lattice_shares;
@@ -60,8 +60,7 @@ fn served_sources_sit_on_no_lattice_of_the_sample() {
                 s.chance,
                 s.excess()
             );
-            let bound = if s.bits == 1 { 2.0 } else { 3.0 };
-            if s.excess() >= bound {
+            if s.excess() >= 1.6 {
                 locked.push(format!(
                     "{} on the 2^{} lattice: {:.3} (chance {:.3})",
                     bundle.manifest.name, s.bits, s.share, s.chance

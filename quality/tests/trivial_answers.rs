@@ -32,7 +32,7 @@ struct Claim {
 /// joins of a low-frequency sample visible (the lichen demo's ratio is about 1.65).
 const CLAIMS: [Claim; 2] = [
     Claim { model: chaos_mosaic::MODEL, max_repetition: 0.55, contrast: (0.85, 1.1), max_seam_ratio: None },
-    Claim { model: order_independent::MODEL, max_repetition: 0.2, contrast: (0.7, 1.1), max_seam_ratio: Some(1.3) },
+    Claim { model: order_independent::MODEL, max_repetition: 0.2, contrast: (0.9, 1.1), max_seam_ratio: Some(1.0) },
 ];
 
 /// One answer's metrics; `None` where a metric is undefined (no joins, or a luminance without

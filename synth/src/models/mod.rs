@@ -118,7 +118,9 @@ impl Example {
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct MipGuarantee {
     /// PSNR (dB) every level L ≥ 1 keeps against three exact 2×2 box downsamples of level L−3
-    /// (fewer near level 0; any region): high enough that point sampling falls below it.
+    /// (fewer near level 0; any region). Where a texture's coarse levels are hard to predict
+    /// (large dark patches of a pebble sample) this floor sits below what point sampling scores
+    /// elsewhere; the σ gate and `beats_trivial_answers` then hold the level to its texture.
     pub min_psnr_db: f64,
     /// Largest |mean difference| (0–255 per channel) of every level against the same box chain,
     /// and of the coarsest level against the true mean.
@@ -128,7 +130,7 @@ pub struct MipGuarantee {
     /// (`f64::INFINITY`: no promise).
     pub max_sigma_error: f64,
     /// Every level where the box chain has visible contrast scores at least as well as a flat
-    /// colour and as point sampling, and the PSNR floor rejects point sampling at some level.
+    /// colour and as point sampling, and the gates reject both of them at some level.
     /// A model that cannot promise it says so here; the conformance table shows where it falls
     /// short.
     pub beats_trivial_answers: bool,

@@ -93,7 +93,7 @@ impl Model for OrderIndependentModel {
         demos::example()
     }
     fn mip_guarantee(&self) -> MipGuarantee {
-        MipGuarantee { min_psnr_db: 27.0, max_mean_error: 2.0, max_sigma_error: 0.15, beats_trivial_answers: true }
+        MipGuarantee { min_psnr_db: 22.0, max_mean_error: 2.0, max_sigma_error: 0.15, beats_trivial_answers: true }
     }
     fn resources(&self, cache_budget: u64) -> Option<crate::resources::Shared> {
         Some(crate::resources::Shared::new(shared::Shared::new(cache_budget)))

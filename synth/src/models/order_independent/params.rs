@@ -184,11 +184,13 @@ pub struct Params {
     /// measured once at load on a pilot window of that level synthesised without it (Kopf et
     /// al. 2007's histogram weighting made static, so every entry stays a function of the
     /// encoding alone). Tones the SSD search over-uses then cost more, and the sample's extremes
-    /// come back. Unset: none.
+    /// come back. Unset when creating: [`DEFAULT_BALANCE`] for `kcoherence`; a stored encoding
+    /// without it has none.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub balance: Option<u8>,
-    /// Unset: a pyramid. A stack compares only same-level taps (its coordinates carry the
-    /// coarser levels), so `neighbourhood.lower` is unused.
+    /// Unset when creating: a stack for `kcoherence` with `upsample` generation 0, a pyramid
+    /// otherwise; a stored encoding without it has a pyramid. A stack compares only same-level
+    /// taps (its coordinates carry the coarser levels), so `neighbourhood.lower` is unused.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub exemplar: Option<ExemplarLevels>,
     /// 1, or 4: generation m updates one parity class of pixels, `(m − 1) mod 4` (Lefebvre &
@@ -219,9 +221,10 @@ fn four() -> u8 {
     4
 }
 
-/// The jitter radius and κ `create` fills in when none is given.
+/// The jitter radius, κ and histogram balance `create` fills in when none is given.
 pub const DEFAULT_JITTER: u8 = 1;
 pub const DEFAULT_KAPPA: u16 = 100;
+pub const DEFAULT_BALANCE: u8 = 1;
 
 impl Params {
     /// Generations of every level but the coarsest.
@@ -268,6 +271,11 @@ impl Params {
         self.subpasses = Some(self.subpasses());
         self.jitter = Some(self.jitter.unwrap_or(DEFAULT_JITTER));
         self.kappa = Some(self.kappa.unwrap_or(DEFAULT_KAPPA));
+        let kcoherence = self.search == Search::Kcoherence;
+        let upsampled = kcoherence && self.generation0() == Generation0::Upsample;
+        let exemplar = if upsampled { ExemplarLevels::Stack } else { ExemplarLevels::Pyramid };
+        self.exemplar = Some(self.exemplar.unwrap_or(exemplar));
+        self.balance = Some(self.balance.unwrap_or(if kcoherence { DEFAULT_BALANCE } else { 0 }));
         self
     }
 
