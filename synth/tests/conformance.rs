@@ -805,6 +805,15 @@ fn broken_on_purpose(demos: &[Demo]) -> Vec<(String, &'static str, String)> {
 
 // ---------------------------------------------------------------- the table
 
+/// Writes the per-level table to `path` (relative to the workspace root), after the prose that
+/// comes before the table in the file already there.
+fn write_levels(path: &str, table: &str) {
+    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("..").join(path);
+    let old = std::fs::read_to_string(&path).unwrap_or_default();
+    let prose: String = old.lines().take_while(|l| !l.starts_with('|')).map(|l| format!("{l}\n")).collect();
+    std::fs::write(&path, prose + table).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+}
+
 struct Row {
     label: String,
     cells: Vec<Outcome>,
@@ -901,7 +910,7 @@ fn main() {
     let levels = table_text(&header, &table);
     print!("{levels}");
     if let Ok(path) = std::env::var("CONFORMANCE_LEVELS") {
-        std::fs::write(&path, levels).unwrap_or_else(|e| panic!("{path}: {e}"));
+        write_levels(&path, &levels);
     }
 
     println!("\nmodels broken on purpose, held to the same mip gates");
