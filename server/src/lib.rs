@@ -6,6 +6,7 @@
 //!
 //! * [`config`] — settings of `vtex serve` (flags beat environment beat defaults).
 //! * [`store`] — the data directory of content-addressed bundles, written atomically.
+//! * [`byte_lru`] — the byte-weighed LRU under the tile cache and the store's loaded textures.
 //! * [`engine`] — what is served, below HTTP: texture lookup, tile and page addressing and
 //!   ETags, the sharded, byte-bounded tile LRU with coalesced misses, synthesis in bounded
 //!   slots.
@@ -26,6 +27,7 @@
 #![deny(unsafe_code)]
 
 pub mod api;
+pub mod byte_lru;
 pub mod catalogue;
 pub mod cli;
 pub mod config;
@@ -60,7 +62,8 @@ mod tests {
         let src = Path::new(env!("CARGO_MANIFEST_DIR")).join("src");
         let floors = [
             "engine",
-            "store.rs",
+            "store",
+            "byte_lru.rs",
             "catalogue.rs",
             "config.rs",
             "encode.rs",
