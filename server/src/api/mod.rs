@@ -98,9 +98,11 @@ impl AppState {
 }
 
 /// The path of the routes of one texture, `/api/v1/textures/{id}…`.
-#[derive(Deserialize)]
+#[derive(Deserialize, utoipa::IntoParams)]
 #[serde(deny_unknown_fields)]
+#[into_params(parameter_in = Path)]
 pub struct TextureId {
+    /// texture id: 64 lowercase hex characters, the BLAKE3 of its bundle
     pub id: String,
 }
 
