@@ -4,8 +4,9 @@
 //! the same words. A query of parameters shared with other routes is a [`Both`] of two structs.
 //!
 //! [`check_query`] bounds a query before anything parses it: its length (414) and its number
-//! of parameters (400). [`Front`](super::Front) applies it to every request, so a hostile
-//! query costs one scan of at most [`MAX_BATCH_QUERY_BYTES`] bytes, whatever the route.
+//! of parameters (400). The connection code (`serve/head.rs`) applies it to every request, so
+//! a hostile query costs one scan of at most [`MAX_BATCH_QUERY_BYTES`] bytes, whatever the
+//! route.
 
 use super::error::{echo, ApiError};
 use axum::extract::{FromRequestParts, RawPathParams};

@@ -94,8 +94,8 @@ pub async fn tile(
 }
 
 /// A tile: validation, 304, the cache, synthesis on a miss — for the router and for the
-/// fast path of [`Front`](super::Front) alike.
-pub(super) async fn answer(
+/// fast tile path of the connection code (`serve/fast_tile.rs`) alike.
+pub(crate) async fn answer(
     app: &App,
     TilePath { id, level, x, file }: TilePath,
     TileQuery { frame }: TileQuery,
