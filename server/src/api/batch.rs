@@ -116,6 +116,9 @@ pub struct BatchList {
     pub format: PageFormat,
 }
 
+/// The query of a batch: its list and format, and a page's parameters.
+pub type BatchQuery = Both<BatchList, PageParams>;
+
 /// Version of the batch validator scheme, part of every batch ETag.
 const BATCH_ETAG_SCHEME: &[u8] = b"vtex-batch/1";
 
@@ -201,7 +204,7 @@ fn items(list: BatchList, page: &PageParams) -> Result<(Vec<TileRef>, Format, Sh
 pub async fn batch(
     State(app): State<App>,
     Path(TextureId { id }): Path<TextureId>,
-    Query(Both(list, page)): Query<Both<BatchList, PageParams>>,
+    Query(Both(list, page)): Query<BatchQuery>,
     headers: HeaderMap,
 ) -> Result<Response, ApiError> {
     let started = Instant::now();

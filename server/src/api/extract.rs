@@ -77,7 +77,7 @@ impl<S: Send + Sync, T: DeserializeOwned> FromRequestParts<S> for Path<T> {
     }
 }
 
-impl<S: Send + Sync, T: DeserializeOwned> FromRequestParts<S> for Query<T> {
+impl<S: Send + Sync, T: FromQuery> FromRequestParts<S> for Query<T> {
     type Rejection = ApiError;
 
     async fn from_request_parts(parts: &mut Parts, _: &S) -> Result<Self, ApiError> {
@@ -85,11 +85,28 @@ impl<S: Send + Sync, T: DeserializeOwned> FromRequestParts<S> for Query<T> {
     }
 }
 
-impl<S: Send + Sync, A: DeserializeOwned, B: DeserializeOwned> FromRequestParts<S> for Query<Both<A, B>> {
-    type Rejection = ApiError;
+/// What a query string fills: a parameter struct, or [`Both`] of two.
+pub trait FromQuery: Sized {
+    fn from_query(query: Option<&str>) -> Result<Self, ApiError>;
+}
 
-    async fn from_request_parts(parts: &mut Parts, _: &S) -> Result<Self, ApiError> {
-        both_params(parts.uri.query()).map(Query)
+impl<T: DeserializeOwned> FromQuery for T {
+    fn from_query(query: Option<&str>) -> Result<T, ApiError> {
+        deserialize(MapDeserializer::new(pairs(query)), Place::Query, &[])
+    }
+}
+
+impl<A: DeserializeOwned, B: DeserializeOwned> FromQuery for Both<A, B> {
+    fn from_query(query: Option<&str>) -> Result<Both<A, B>, ApiError> {
+        let pairs: Vec<(Cow<str>, Cow<str>)> = pairs(query).collect();
+        let (own, shared) = (fields::<A>(), fields::<B>());
+        let is_shared = |key: &str| shared.contains(&key);
+        // Unknown parameters go to `A`, whose refusal names `B`'s parameters too.
+        let a = pairs.iter().filter(|(k, _)| !is_shared(k)).cloned();
+        let b = pairs.iter().filter(|(k, _)| is_shared(k)).cloned();
+        let a = deserialize(MapDeserializer::new(a), Place::Query, shared)?;
+        let b = deserialize(MapDeserializer::new(b), Place::Query, own)?;
+        Ok(Both(a, b))
     }
 }
 
@@ -99,21 +116,8 @@ pub fn path_params<'a, T: Deserialize<'a>>(pairs: impl Iterator<Item = (&'a str,
 }
 
 /// What [`Query`] makes of a query string.
-pub fn query_params<T: DeserializeOwned>(query: Option<&str>) -> Result<T, ApiError> {
-    deserialize(MapDeserializer::new(pairs(query)), Place::Query, &[])
-}
-
-/// What [`Query`] makes of a query string filling [`Both`].
-pub fn both_params<A: DeserializeOwned, B: DeserializeOwned>(query: Option<&str>) -> Result<Both<A, B>, ApiError> {
-    let pairs: Vec<(Cow<str>, Cow<str>)> = pairs(query).collect();
-    let (own, shared) = (fields::<A>(), fields::<B>());
-    let is_shared = |key: &str| shared.contains(&key);
-    // Unknown parameters go to `A`, whose refusal names `B`'s parameters too.
-    let a = pairs.iter().filter(|(k, _)| !is_shared(k)).cloned();
-    let b = pairs.iter().filter(|(k, _)| is_shared(k)).cloned();
-    let a = deserialize(MapDeserializer::new(a), Place::Query, shared)?;
-    let b = deserialize(MapDeserializer::new(b), Place::Query, own)?;
-    Ok(Both(a, b))
+pub fn query_params<T: FromQuery>(query: Option<&str>) -> Result<T, ApiError> {
+    T::from_query(query)
 }
 
 /// The decoded name–value pairs of a query string.
@@ -123,7 +127,7 @@ fn pairs(query: Option<&str>) -> form_urlencoded::Parse<'_> {
 
 /// The fields of a parameter struct, as its `Deserialize` declares them: serde hands them to
 /// `deserialize_struct`, which this deserializer answers with them at once.
-pub fn fields<'de, T: Deserialize<'de>>() -> &'static [&'static str] {
+fn fields<'de, T: Deserialize<'de>>() -> &'static [&'static str] {
     struct Probe;
     #[derive(Debug)]
     struct Fields(&'static [&'static str]);
@@ -264,7 +268,7 @@ mod tests {
         frame: Option<u32>,
     }
 
-    fn query<T: DeserializeOwned>(q: &str) -> Result<T, String> {
+    fn query<T: FromQuery>(q: &str) -> Result<T, String> {
         query_params(Some(q)).map_err(|e| e.to_string())
     }
 
@@ -336,7 +340,7 @@ mod tests {
 
     #[test]
     fn both_structs_share_one_query_and_its_words() {
-        let both = |q: &str| both_params::<Q, Shared>(Some(q)).map_err(|e| e.to_string());
+        let both = |q: &str| query::<Both<Q, Shared>>(q);
         let Both(q, shared) = both("size=64&level=3").unwrap();
         assert_eq!((q.level, q.frame, shared.size), (3, None, Some(64)));
         assert_eq!(both("level=1&size=-1").unwrap_err(), "`size` must not be negative (got -1)");

@@ -111,16 +111,12 @@ pub enum PageFormat {
 }
 
 /// What a page request asks for, checked: its format and its shape.
-pub fn page_spec(
-    format: PageFormat,
-    PageParams { size, border, codec, supercompression, .. }: &PageParams,
-) -> Result<(Format, Shape), ApiError> {
-    let (size, border, codec, supercompression) = (*size, *border, *codec, *supercompression);
-    let size = size.unwrap_or(DEFAULT_SIZE);
+pub fn page_spec(format: PageFormat, page: &PageParams) -> Result<(Format, Shape), ApiError> {
+    let size = page.size.unwrap_or(DEFAULT_SIZE);
     if !PAGE_SIZES.contains(&size) {
         return Err(ApiError::bad_request(format!("`size` must be one of 64, 128, 256 or 512 (got {size})")));
     }
-    let border = border.unwrap_or(DEFAULT_BORDER);
+    let border = page.border.unwrap_or(DEFAULT_BORDER);
     if border > size / 8 {
         return Err(ApiError::bad_request(format!(
             "`border` must be at most size / 8 = {} for size {size} (got {border})",
@@ -129,7 +125,7 @@ pub fn page_spec(
     }
     let format = match format {
         PageFormat::Image(f) => {
-            let ktx2_params = [("codec", codec.is_some()), ("supercompression", supercompression.is_some())];
+            let ktx2_params = [("codec", page.codec.is_some()), ("supercompression", page.supercompression.is_some())];
             if let Some((name, _)) = ktx2_params.into_iter().find(|(_, given)| *given) {
                 return Err(ApiError::bad_request(format!(
                     "`{name}` applies to ktx2 pages only; this page is {}",
@@ -139,7 +135,7 @@ pub fn page_spec(
             f
         }
         PageFormat::Ktx2 => {
-            let k = ktx2_options(codec, supercompression);
+            let k = ktx2_options(page.codec, page.supercompression);
             if k.codec.is_block_compressed() && border % 2 == 1 {
                 return Err(ApiError::bad_request(format!(
                     "`border` must be even for {} pages (got {border}): a block-compressed page's side, \
