@@ -1,11 +1,12 @@
 //! vtex-server: serves virtual textures over HTTP.
 //!
 //! Data flows one way: request → [`api`] → [`engine`]: texture lookup, the tile cache, (on a
-//! miss) the model's render → [`encode`] → cache → response. The server never knows how a model works; it only calls
-//! [`vtex_synth::Texture::render`] on regions it has validated.
+//! miss) the model's render → [`encode`] → cache → response. The server never knows how a
+//! model works; it only calls [`vtex_synth::Texture::render`] on regions it has validated.
 //!
 //! * [`config`] — settings of `vtex serve` (flags beat environment beat defaults).
 //! * [`store`] — the data directory of content-addressed bundles, written atomically.
+//! * [`byte_lru`] — the byte-weighed LRU under the tile cache and the store's loaded textures.
 //! * [`engine`] — what is served, below HTTP: texture lookup, tile and page addressing and
 //!   ETags, the sharded, byte-bounded tile LRU with coalesced misses, synthesis in bounded
 //!   slots.
@@ -13,7 +14,8 @@
 //! * [`ktx2`] — GPU-ready pages: BC7, BC1 or RGBA8 in KTX2, optionally zstd-supercompressed.
 //! * [`metrics`] — Prometheus counters, gauges and histograms.
 //! * [`api`] — the HTTP API v1 (axum).
-//! * [`serve`] — the listener: connection timeouts and graceful shutdown.
+//! * [`serve`] — the listener: connections, their timeouts and graceful shutdown, head checks,
+//!   the fast path of warm tiles, the access log.
 //! * [`transport`] — how bodies reach the socket (`--send copy|splice`); all platform-specific code.
 //! * [`watch`] — follows bundles other processes add to or delete from the data directory.
 //! * [`catalogue`] — every model's parameters, inputs and example, for the API and the CLI.
@@ -26,6 +28,7 @@
 #![deny(unsafe_code)]
 
 pub mod api;
+pub mod byte_lru;
 pub mod catalogue;
 pub mod cli;
 pub mod config;
@@ -60,7 +63,8 @@ mod tests {
         let src = Path::new(env!("CARGO_MANIFEST_DIR")).join("src");
         let floors = [
             "engine",
-            "store.rs",
+            "store",
+            "byte_lru.rs",
             "catalogue.rs",
             "config.rs",
             "encode.rs",

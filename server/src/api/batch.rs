@@ -23,12 +23,12 @@
 //! finished within the request deadline is cut off (the client sees a truncated stream).
 
 use super::error::{echo, ApiError};
-use super::extract::{Path, Query};
+use super::extract::{Both, Path, Query};
 use super::inflight::Reservation;
 use super::openapi::text;
 use super::openapi::ErrorBody;
-use super::pages::{self, page_format_value, PageFormat};
-use super::params::{de, u32_value};
+use super::pages::{self, page_format_value, PageFormat, PageParams};
+use super::params::u32_value;
 use super::{lookup, not_modified, not_modified_response, App, TextureId, CACHE_IMMUTABLE};
 use crate::encode::Format;
 use crate::engine::address::{self, frame_for};
@@ -48,6 +48,7 @@ use std::task::{Context, Poll};
 use std::time::Instant;
 use tokio::sync::Semaphore;
 use tokio::task::JoinSet;
+use utoipa::IntoParams;
 pub use vtex_wire::frame::{FrameHeader, TileRef, CONTENT_TYPE, HEADER_LEN, MAX_TILES};
 
 /// Longest `tiles` list accepted: 256 tiles of the largest coordinates fit with room to spare.
@@ -95,27 +96,28 @@ fn de_format<'de, D: Deserializer<'de>>(d: D) -> Result<PageFormat, D::Error> {
     page_format_value(&String::deserialize(d)?).map_err(serde::de::Error::custom)
 }
 
-/// The query of a batch: `tiles` or `pages`, and the parameters of a single tile or page.
-#[derive(Deserialize)]
+/// The query of a batch: `tiles` or `pages`, and its format; the other parameters are a
+/// page's ([`PageParams`]), of which tiles take only `frame`.
+#[derive(Deserialize, IntoParams)]
 #[serde(deny_unknown_fields)]
-pub struct BatchQuery {
+#[into_params(parameter_in = Query)]
+pub struct BatchList {
+    /// `L/x/y,L/x/y,…`, at most 256 tiles
     #[serde(default, deserialize_with = "de_tiles")]
+    #[param(value_type = Option<String>)]
     pub tiles: Option<Vec<TileRef>>,
+    /// `L/x/y,…` pages instead of tiles, with `size`, `border`, `codec`, `supercompression`
     #[serde(default, deserialize_with = "de_tiles")]
+    #[param(value_type = Option<String>)]
     pub pages: Option<Vec<TileRef>>,
+    /// png, webp, jpg or rgba (ktx2 with `pages`)
     #[serde(deserialize_with = "de_format")]
+    #[param(value_type = String)]
     pub format: PageFormat,
-    #[serde(default, deserialize_with = "de::opt_u32")]
-    pub size: Option<u32>,
-    #[serde(default, deserialize_with = "de::opt_u32")]
-    pub border: Option<u32>,
-    #[serde(default, deserialize_with = "pages::de_codec")]
-    pub codec: Option<crate::ktx2::Codec>,
-    #[serde(default, deserialize_with = "pages::de_supercompression")]
-    pub supercompression: Option<crate::ktx2::Supercompression>,
-    #[serde(default, deserialize_with = "de::opt_u32")]
-    pub frame: Option<u32>,
 }
+
+/// The query of a batch: its list and format, and a page's parameters.
+pub type BatchQuery = Both<BatchList, PageParams>;
 
 /// Version of the batch validator scheme, part of every batch ETag.
 const BATCH_ETAG_SCHEME: &[u8] = b"vtex-batch/1";
@@ -147,37 +149,33 @@ fn batch_etag(
     HeaderValue::from_str(&format!("W/\"{}\"", &hex[..32])).expect("hex is a valid header value")
 }
 
-impl BatchQuery {
-    /// The list, the format and the shape: tiles take no page parameter and no ktx2.
-    fn items(self) -> Result<(Vec<TileRef>, crate::encode::Format, Shape), ApiError> {
-        let BatchQuery { tiles, pages, format, size, border, codec, supercompression, .. } = self;
-        match (tiles, pages) {
-            (Some(tiles), None) => {
-                let page_params = [
-                    ("size", size.is_some()),
-                    ("border", border.is_some()),
-                    ("codec", codec.is_some()),
-                    ("supercompression", supercompression.is_some()),
-                ];
-                if let Some((name, _)) = page_params.into_iter().find(|(_, given)| *given) {
-                    return Err(ApiError::bad_request(format!(
-                        "`{name}` applies to pages only; this batch lists tiles"
-                    )));
-                }
-                let PageFormat::Image(format) = format else {
-                    return Err(ApiError::bad_request(format!(
-                        "`format` ktx2 is served for pages only; tiles: {}",
-                        crate::encode::Format::EXPECTED
-                    )));
-                };
-                Ok((tiles, format, Shape::Tile))
+/// The list, the format and the shape of a batch: tiles take no page parameter and no ktx2.
+fn items(list: BatchList, page: &PageParams) -> Result<(Vec<TileRef>, Format, Shape), ApiError> {
+    let BatchList { tiles, pages, format } = list;
+    match (tiles, pages) {
+        (Some(tiles), None) => {
+            let page_params = [
+                ("size", page.size.is_some()),
+                ("border", page.border.is_some()),
+                ("codec", page.codec.is_some()),
+                ("supercompression", page.supercompression.is_some()),
+            ];
+            if let Some((name, _)) = page_params.into_iter().find(|(_, given)| *given) {
+                return Err(ApiError::bad_request(format!("`{name}` applies to pages only; this batch lists tiles")));
             }
-            (None, Some(pages)) => {
-                let (format, shape) = pages::page_spec(format, size, border, codec, supercompression)?;
-                Ok((pages, format, shape))
-            }
-            _ => Err(ApiError::bad_request("a batch takes exactly one of `tiles` and `pages`")),
+            let PageFormat::Image(format) = format else {
+                return Err(ApiError::bad_request(format!(
+                    "`format` ktx2 is served for pages only; tiles: {}",
+                    Format::EXPECTED
+                )));
+            };
+            Ok((tiles, format, Shape::Tile))
         }
+        (None, Some(pages)) => {
+            let (format, shape) = pages::page_spec(format, page)?;
+            Ok((pages, format, shape))
+        }
+        _ => Err(ApiError::bad_request("a batch takes exactly one of `tiles` and `pages`")),
     }
 }
 
@@ -192,16 +190,9 @@ impl BatchQuery {
     path = super::BATCH,
     tag = "tiles",
     params(
-        ("id" = String, Path, description = text::TEXTURE_ID),
-        ("format" = String, Query, description = "png, webp, jpg or rgba (ktx2 with `pages`)"),
-        ("tiles" = Option<String>, Query, description = "`L/x/y,L/x/y,…`, at most 256 tiles"),
-        ("pages" = Option<String>, Query, description = "`L/x/y,…` pages instead of tiles, with `size`, `border`, \
-            `codec`, `supercompression`"),
-        ("size" = Option<u32>, Query, description = "page side (pages only)"),
-        ("border" = Option<u32>, Query, description = "page border (pages only)"),
-        ("codec" = Option<String>, Query, description = "KTX2 codec (pages only)"),
-        ("supercompression" = Option<String>, Query, description = "KTX2 supercompression (pages only)"),
-        ("frame" = Option<u32>, Query, description = text::FRAME),
+        TextureId,
+        BatchList,
+        PageParams,
     ),
     responses(
         (status = 200, description = "a stream of frames, one per tile in completion order: a 32-byte header then \
@@ -213,12 +204,12 @@ impl BatchQuery {
 pub async fn batch(
     State(app): State<App>,
     Path(TextureId { id }): Path<TextureId>,
-    Query(query): Query<BatchQuery>,
+    Query(Both(list, page)): Query<BatchQuery>,
     headers: HeaderMap,
 ) -> Result<Response, ApiError> {
     let started = Instant::now();
-    let frame = query.frame;
-    let (tiles, format, shape) = query.items()?;
+    let frame = page.frame;
+    let (tiles, format, shape) = items(list, &page)?;
     let entry = lookup(&app, &id).await?;
     for t in &tiles {
         match shape {

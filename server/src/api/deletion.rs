@@ -15,7 +15,7 @@ use axum::http::StatusCode;
 #[utoipa::path(delete,
     path = "/api/v1/textures/{id}",
     tag = "textures",
-    params(("id" = String, Path, description = text::TEXTURE_ID)),
+    params(TextureId),
     responses(
         (status = 204, description = "deleted"),
         (status = 400, description = text::BAD_REQUEST, body = ErrorBody),

@@ -24,19 +24,25 @@ use axum::http::{header, HeaderMap};
 use axum::response::{IntoResponse, Response};
 use serde::Deserialize;
 use std::sync::Arc;
+use utoipa::IntoParams;
 use vtex_synth::texture::{level_count, level_size};
 use vtex_synth::Region;
 
 /// Most pixels a tile may share with each neighbour.
 pub const MAX_OVERLAP: u32 = 32;
 
-#[derive(Deserialize)]
+#[derive(Deserialize, IntoParams)]
 #[serde(deny_unknown_fields)]
+#[into_params(parameter_in = Query)]
 pub struct DziQuery {
+    /// tile overlap in pixels
     #[serde(default, deserialize_with = "de::opt_u32")]
     overlap: Option<u32>,
+    /// png, webp or jpg
     #[serde(default, deserialize_with = "de::opt_format")]
+    #[param(value_type = Option<String>)]
     format: Option<Format>,
+    /// frame of an animated texture (reduced modulo its period); ignored for still ones
     #[serde(default, deserialize_with = "de::opt_u32")]
     frame: Option<u32>,
 }
@@ -71,9 +77,7 @@ pub struct TilePath {
     tag = "interop",
     params(
         ("file" = String, Path, description = "`{id}.dzi`"),
-        ("overlap" = Option<u32>, Query, description = "tile overlap in pixels"),
-        ("format" = Option<String>, Query, description = "png, webp or jpg"),
-        ("frame" = Option<u32>, Query, description = text::FRAME),
+        DziQuery,
     ),
     responses(
         (status = 200, description = "the Deep Zoom descriptor", content(("application/xml"))),
@@ -113,9 +117,7 @@ pub async fn descriptor(
         ("dir" = String, Path, description = "`{id}_files`"),
         ("level" = u32, Path, description = "Deep Zoom level, 0 the 1×1"),
         ("file" = String, Path, description = "`{x}_{y}.{format}`"),
-        ("overlap" = Option<u32>, Query),
-        ("format" = Option<String>, Query),
-        ("frame" = Option<u32>, Query, description = text::FRAME),
+        DziQuery,
     ),
     responses(
         (status = 200, description = "the Deep Zoom tile", content(("image/png"), ("image/webp"), ("image/jpeg"))),

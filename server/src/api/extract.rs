@@ -1,11 +1,12 @@
 //! [`Path`] and [`Query`]: axum's extractors of the same names, deserializing a route's path
 //! segments or query string into a struct (`#[serde(deny_unknown_fields)]`) and rejecting with
 //! [`ApiError`]. Every endpoint thereby names a bad, missing, repeated or unknown parameter in
-//! the same words.
+//! the same words. A query of parameters shared with other routes is a [`Both`] of two structs.
 //!
 //! [`check_query`] bounds a query before anything parses it: its length (414) and its number
-//! of parameters (400). [`Front`](super::Front) applies it to every request, so a hostile
-//! query costs one scan of at most [`MAX_BATCH_QUERY_BYTES`] bytes, whatever the route.
+//! of parameters (400). The connection code (`serve/head.rs`) applies it to every request, so
+//! a hostile query costs one scan of at most [`MAX_BATCH_QUERY_BYTES`] bytes, whatever the
+//! route.
 
 use super::error::{echo, ApiError};
 use axum::extract::{FromRequestParts, RawPathParams};
@@ -13,6 +14,7 @@ use axum::http::request::Parts;
 use serde::de::value::MapDeserializer;
 use serde::de::{DeserializeOwned, IntoDeserializer};
 use serde::Deserialize;
+use std::borrow::Cow;
 use std::fmt;
 
 /// Longest query of every route but the tile batch; the others take a few short numbers.
@@ -53,6 +55,13 @@ pub struct Query<T>(pub T);
 #[serde(deny_unknown_fields)]
 pub struct NoQuery {}
 
+/// A query filled into two parameter structs: `A` the route's own parameters, `B` a set it
+/// shares with other routes (serde's `flatten` would lose `deny_unknown_fields` and the names
+/// in value errors). Each struct takes its own parameters, and a parameter neither takes is
+/// refused naming the parameters of both.
+#[derive(Debug)]
+pub struct Both<A, B>(pub A, pub B);
+
 impl<S: Send + Sync, T: DeserializeOwned> FromRequestParts<S> for Path<T> {
     type Rejection = ApiError;
 
@@ -68,7 +77,7 @@ impl<S: Send + Sync, T: DeserializeOwned> FromRequestParts<S> for Path<T> {
     }
 }
 
-impl<S: Send + Sync, T: DeserializeOwned> FromRequestParts<S> for Query<T> {
+impl<S: Send + Sync, T: FromQuery> FromRequestParts<S> for Query<T> {
     type Rejection = ApiError;
 
     async fn from_request_parts(parts: &mut Parts, _: &S) -> Result<Self, ApiError> {
@@ -76,14 +85,86 @@ impl<S: Send + Sync, T: DeserializeOwned> FromRequestParts<S> for Query<T> {
     }
 }
 
+/// What a query string fills: a parameter struct, or [`Both`] of two.
+pub trait FromQuery: Sized {
+    fn from_query(query: Option<&str>) -> Result<Self, ApiError>;
+}
+
+impl<T: DeserializeOwned> FromQuery for T {
+    fn from_query(query: Option<&str>) -> Result<T, ApiError> {
+        deserialize(MapDeserializer::new(pairs(query)), Place::Query, &[])
+    }
+}
+
+impl<A: DeserializeOwned, B: DeserializeOwned> FromQuery for Both<A, B> {
+    fn from_query(query: Option<&str>) -> Result<Both<A, B>, ApiError> {
+        let pairs: Vec<(Cow<str>, Cow<str>)> = pairs(query).collect();
+        let (own, shared) = (fields::<A>(), fields::<B>());
+        let is_shared = |key: &str| shared.contains(&key);
+        // Unknown parameters go to `A`, whose refusal names `B`'s parameters too.
+        let a = pairs.iter().filter(|(k, _)| !is_shared(k)).cloned();
+        let b = pairs.iter().filter(|(k, _)| is_shared(k)).cloned();
+        let a = deserialize(MapDeserializer::new(a), Place::Query, shared)?;
+        let b = deserialize(MapDeserializer::new(b), Place::Query, own)?;
+        Ok(Both(a, b))
+    }
+}
+
 /// What [`Path`] makes of the (decoded) segments a route template matched.
 pub fn path_params<'a, T: Deserialize<'a>>(pairs: impl Iterator<Item = (&'a str, &'a str)>) -> Result<T, ApiError> {
-    deserialize(MapDeserializer::new(pairs), Place::Path)
+    deserialize(MapDeserializer::new(pairs), Place::Path, &[])
 }
 
 /// What [`Query`] makes of a query string.
-pub fn query_params<T: DeserializeOwned>(query: Option<&str>) -> Result<T, ApiError> {
-    deserialize(MapDeserializer::new(form_urlencoded::parse(query.unwrap_or_default().as_bytes())), Place::Query)
+pub fn query_params<T: FromQuery>(query: Option<&str>) -> Result<T, ApiError> {
+    T::from_query(query)
+}
+
+/// The decoded name–value pairs of a query string.
+fn pairs(query: Option<&str>) -> form_urlencoded::Parse<'_> {
+    form_urlencoded::parse(query.unwrap_or_default().as_bytes())
+}
+
+/// The fields of a parameter struct, as its `Deserialize` declares them: serde hands them to
+/// `deserialize_struct`, which this deserializer answers with them at once.
+fn fields<'de, T: Deserialize<'de>>() -> &'static [&'static str] {
+    struct Probe;
+    #[derive(Debug)]
+    struct Fields(&'static [&'static str]);
+    impl fmt::Display for Fields {
+        fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+            write!(f, "fields {:?}", self.0)
+        }
+    }
+    impl std::error::Error for Fields {}
+    impl serde::de::Error for Fields {
+        fn custom<M: fmt::Display>(msg: M) -> Self {
+            unreachable!("a parameter struct deserializes as a struct: {msg}")
+        }
+    }
+    impl<'de> serde::Deserializer<'de> for Probe {
+        type Error = Fields;
+        fn deserialize_any<V: serde::de::Visitor<'de>>(self, _: V) -> Result<V::Value, Fields> {
+            unreachable!("a parameter struct deserializes as a struct")
+        }
+        fn deserialize_struct<V: serde::de::Visitor<'de>>(
+            self,
+            _: &'static str,
+            fields: &'static [&'static str],
+            _: V,
+        ) -> Result<V::Value, Fields> {
+            Err(Fields(fields))
+        }
+        serde::forward_to_deserialize_any! {
+            bool i8 i16 i32 i64 i128 u8 u16 u32 u64 u128 f32 f64 char str string bytes byte_buf
+            option unit unit_struct newtype_struct seq tuple tuple_struct map enum identifier
+            ignored_any
+        }
+    }
+    match T::deserialize(Probe) {
+        Err(Fields(fields)) => fields,
+        Ok(_) => unreachable!("the probe never yields a value"),
+    }
 }
 
 #[derive(Clone, Copy)]
@@ -106,17 +187,25 @@ enum ParamError {
     Repeated(&'static str),
 }
 
+impl ParamError {
+    /// The message, naming `also` besides the struct's own parameters as expected.
+    fn message(&self, also: &[&str]) -> String {
+        match self {
+            ParamError::Value(why) => why.clone(),
+            ParamError::Unknown { name, expected } => {
+                let expected: Vec<&str> = expected.iter().chain(also).copied().collect();
+                let expected = if expected.is_empty() { "none".to_string() } else { expected.join(", ") };
+                format!("unknown query parameter `{}`; expected {expected}", echo(name))
+            }
+            ParamError::Missing(name) => format!("missing query parameter `{name}`"),
+            ParamError::Repeated(name) => format!("query parameter `{name}` is repeated"),
+        }
+    }
+}
+
 impl fmt::Display for ParamError {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        match self {
-            ParamError::Value(why) => f.write_str(why),
-            ParamError::Unknown { name, expected } => {
-                let expected = if expected.is_empty() { "none".to_string() } else { expected.join(", ") };
-                write!(f, "unknown query parameter `{}`; expected {expected}", echo(name))
-            }
-            ParamError::Missing(name) => write!(f, "missing query parameter `{name}`"),
-            ParamError::Repeated(name) => write!(f, "query parameter `{name}` is repeated"),
-        }
+        f.write_str(&self.message(&[]))
     }
 }
 
@@ -142,8 +231,13 @@ impl serde::de::Error for ParamError {
 
 /// Fills `T` from name–value pairs. A value's error is prefixed with its name; a path that
 /// does not fit its struct is the server's fault (the route template and the handler
-/// disagree), a query that does not fit is the client's.
-fn deserialize<'de, T, I, K, V>(pairs: MapDeserializer<'de, I, ParamError>, place: Place) -> Result<T, ApiError>
+/// disagree), a query that does not fit is the client's, told the parameters `T` and `also`
+/// take.
+fn deserialize<'de, T, I, K, V>(
+    pairs: MapDeserializer<'de, I, ParamError>,
+    place: Place,
+    also: &[&str],
+) -> Result<T, ApiError>
 where
     T: Deserialize<'de>,
     I: Iterator<Item = (K, V)>,
@@ -154,7 +248,7 @@ where
         let name = e.path().to_string();
         match (e.into_inner(), place) {
             (ParamError::Value(why), _) => ApiError::bad_request(format!("`{}` {why}", echo(&name))),
-            (other, Place::Query) => ApiError::bad_request(other.to_string()),
+            (other, Place::Query) => ApiError::bad_request(other.message(also)),
             (other, Place::Path) => ApiError::internal("the route's path does not fit its handler", other),
         }
     })
@@ -174,63 +268,25 @@ mod tests {
         frame: Option<u32>,
     }
 
-    fn query<T: DeserializeOwned>(q: &str) -> Result<T, String> {
+    fn query<T: FromQuery>(q: &str) -> Result<T, String> {
         query_params(Some(q)).map_err(|e| e.to_string())
-    }
-
-    /// The number of fields of a parameter struct, as its `Deserialize` declares them.
-    fn fields<T: DeserializeOwned>() -> usize {
-        struct Probe;
-        #[derive(Debug)]
-        struct Fields(usize);
-        impl fmt::Display for Fields {
-            fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-                write!(f, "{} fields", self.0)
-            }
-        }
-        impl std::error::Error for Fields {}
-        impl serde::de::Error for Fields {
-            fn custom<M: fmt::Display>(msg: M) -> Self {
-                panic!("not a struct: {msg}")
-            }
-        }
-        impl<'de> serde::Deserializer<'de> for Probe {
-            type Error = Fields;
-            fn deserialize_any<V: serde::de::Visitor<'de>>(self, _: V) -> Result<V::Value, Fields> {
-                panic!("a parameter struct deserializes as a struct")
-            }
-            fn deserialize_struct<V: serde::de::Visitor<'de>>(
-                self,
-                _: &'static str,
-                fields: &'static [&'static str],
-                _: V,
-            ) -> Result<V::Value, Fields> {
-                Err(Fields(fields.len()))
-            }
-            serde::forward_to_deserialize_any! {
-                bool i8 i16 i32 i64 i128 u8 u16 u32 u64 u128 f32 f64 char str string bytes byte_buf
-                option unit unit_struct newtype_struct seq tuple tuple_struct map enum identifier
-                ignored_any
-            }
-        }
-        T::deserialize(Probe).err().expect("the probe never yields a value").0
     }
 
     /// [`MAX_QUERY_KEYS`] refuses no valid query: it is the largest count of parameters of any
     /// route's query.
     #[test]
     fn the_key_bound_is_the_largest_query() {
-        use crate::api::pages::{ChainQuery, PageQuery};
-        use crate::api::{batch::BatchQuery, tiles::RegionQuery, tiles::TileQuery};
+        use crate::api::pages::{ChainQuery, PageParams};
+        use crate::api::{batch::BatchList, tiles::RegionQuery, tiles::TileQuery};
         // A batch names `tiles` or `pages`, never both.
-        let batch = fields::<BatchQuery>() - 1;
+        let batch = fields::<BatchList>().len() - 1 + fields::<PageParams>().len();
         let counts = [
-            fields::<NoQuery>(),
-            fields::<TileQuery>(),
+            fields::<NoQuery>().len(),
+            fields::<TileQuery>().len(),
             batch,
-            fields::<RegionQuery>(),
-            fields::<PageQuery>(),
-            fields::<ChainQuery>(),
+            fields::<RegionQuery>().len(),
+            fields::<PageParams>().len(),
+            fields::<ChainQuery>().len(),
         ];
         assert_eq!(counts, [0, 1, 7, 7, 5, 4]);
         assert_eq!(counts.iter().max(), Some(&MAX_QUERY_KEYS));
@@ -273,5 +329,26 @@ mod tests {
         );
         assert_eq!(query::<NoQuery>("x=1").unwrap_err(), "unknown query parameter `x`; expected none");
         assert!(query::<NoQuery>("").is_ok());
+    }
+
+    #[derive(Debug, Deserialize)]
+    #[serde(deny_unknown_fields)]
+    struct Shared {
+        #[serde(default, deserialize_with = "de::opt_u32")]
+        size: Option<u32>,
+    }
+
+    #[test]
+    fn both_structs_share_one_query_and_its_words() {
+        let both = |q: &str| query::<Both<Q, Shared>>(q);
+        let Both(q, shared) = both("size=64&level=3").unwrap();
+        assert_eq!((q.level, q.frame, shared.size), (3, None, Some(64)));
+        assert_eq!(both("level=1&size=-1").unwrap_err(), "`size` must not be negative (got -1)");
+        assert_eq!(both("level=1&size=1&size=2").unwrap_err(), "query parameter `size` is repeated");
+        assert_eq!(both("size=1").unwrap_err(), "missing query parameter `level`");
+        assert_eq!(
+            both("level=1&gutter=4").unwrap_err(),
+            "unknown query parameter `gutter`; expected level, frame, size"
+        );
     }
 }

@@ -2,13 +2,11 @@
 //! table of routes: requests are matched there and nowhere else ([`router`] wraps it in the
 //! layers, and the OpenAPI description is checked against it).
 
-mod access;
 pub mod batch;
 mod deletion;
 mod dzi;
 pub mod error;
 pub mod extract;
-mod front;
 mod health;
 mod iiif;
 pub mod inflight;
@@ -54,11 +52,11 @@ use tower_http::trace::{DefaultMakeSpan, TraceLayer};
 use utoipa_axum::{router::OpenApiRouter, routes};
 
 pub use error::ApiError as Error;
-pub use front::{Front, MAX_HEAD_BYTES};
 pub use web::Web;
 
-/// The route of a single tile: [`router`] serves it, and [`Front`] answers plain GETs of it
-/// directly, matching paths against this same template.
+/// The route of a single tile: [`router`] serves it, and the fast tile path of the connection
+/// code (`serve/fast_tile.rs`) answers plain GETs of it directly, matching paths against this
+/// same template.
 pub const TILE: &str = vtex_wire::urls::TILE;
 /// The route of a tile batch, the one route whose query may be longer than
 /// [`extract::MAX_QUERY_BYTES`].
@@ -98,9 +96,11 @@ impl AppState {
 }
 
 /// The path of the routes of one texture, `/api/v1/textures/{id}…`.
-#[derive(Deserialize)]
+#[derive(Deserialize, utoipa::IntoParams)]
 #[serde(deny_unknown_fields)]
+#[into_params(parameter_in = Path)]
 pub struct TextureId {
+    /// texture id: 64 lowercase hex characters, the BLAKE3 of its bundle
     pub id: String,
 }
 
@@ -114,7 +114,7 @@ pub fn router(app: App) -> Router {
     let layers = ServiceBuilder::new()
         .layer(
             // The span gives what handlers log its request; the request's own line is the
-            // access log's ([`front`]), so the layer logs no line per request.
+            // access log's (`serve/access.rs`), so the layer logs no line per request.
             TraceLayer::new_for_http()
                 .make_span_with(DefaultMakeSpan::new().level(tracing::Level::INFO))
                 .on_request(())
@@ -220,7 +220,7 @@ async fn weaken_encoded_etag<B>(mut resp: Response<B>) -> Response<B> {
 }
 
 /// The answer to a request not done within the deadline `limit`.
-fn timed_out(limit: std::time::Duration) -> ApiError {
+pub(crate) fn timed_out(limit: std::time::Duration) -> ApiError {
     ApiError::Timeout(format!("request not completed within {} s (slow client or overload)", limit.as_secs_f64()))
 }
 
@@ -228,7 +228,7 @@ fn timed_out(limit: std::time::Duration) -> ApiError {
 /// response headers the viewer reads exposed. Writes have their own ([`writes::guard`]). The
 /// answers do not depend on the request's `Origin` or preflight headers, so they carry no
 /// `Vary` for them (caches keep one copy).
-fn cors_layer() -> CorsLayer {
+pub(crate) fn cors_layer() -> CorsLayer {
     CorsLayer::new()
         .vary([])
         .allow_origin(Any)
@@ -250,7 +250,7 @@ async fn observe(State(app): State<App>, req: Request, next: Next) -> Response {
 }
 
 /// Counts one answered request under `route`.
-fn count(app: &AppState, route: &str, method: &Method, start: Instant, resp: &Response) {
+pub(crate) fn count(app: &AppState, route: &str, method: &Method, start: Instant, resp: &Response) {
     let bytes = http_body::Body::size_hint(resp.body()).exact().unwrap_or(0);
     app.metrics.request_done(route, method.as_str(), resp.status().as_str(), start.elapsed().as_secs_f64(), bytes);
 }

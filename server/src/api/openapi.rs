@@ -17,7 +17,6 @@ use utoipa::{OpenApi, ToSchema};
 pub mod text {
     pub const TEXTURE_ID: &str = "texture id: 64 lowercase hex characters, the BLAKE3 of its bundle";
     pub const ID_AND_FRAME: &str = "a texture id, optionally `;frame`";
-    pub const FRAME: &str = "frame of an animated texture (reduced modulo its period); ignored for still ones";
     pub const BAD_REQUEST: &str = "a malformed path or query, named in the message";
     pub const NOT_FOUND: &str = "no such texture, or a tile outside its level";
     pub const NOT_ACCEPTABLE: &str =

@@ -27,6 +27,7 @@ use axum::http::HeaderMap;
 use axum::response::Response;
 use serde::de::Error as _;
 use serde::{Deserialize, Deserializer};
+use utoipa::IntoParams;
 use vtex_synth::texture::{level_count, level_size};
 use vtex_synth::{Region, Rgba8Image};
 
@@ -53,18 +54,27 @@ pub struct PagePath {
     pub file: String,
 }
 
-/// The query of a page: `[?size=S][&border=B][&codec=C][&supercompression=Z][&frame=N]`.
-#[derive(Deserialize)]
+/// The parameters of a page, for one page and for a batch of pages alike:
+/// `[?size=S][&border=B][&codec=C][&supercompression=Z][&frame=N]`.
+#[derive(Deserialize, IntoParams)]
 #[serde(deny_unknown_fields)]
-pub struct PageQuery {
+#[into_params(parameter_in = Query)]
+pub struct PageParams {
+    /// 64, 128 (default), 256 or 512
     #[serde(default, deserialize_with = "de::opt_u32")]
     pub size: Option<u32>,
+    /// 0..=size/8 (default 4)
     #[serde(default, deserialize_with = "de::opt_u32")]
     pub border: Option<u32>,
+    /// ktx2: bc7, bc1 or rgba8
     #[serde(default, deserialize_with = "de_codec")]
+    #[param(value_type = Option<String>)]
     pub codec: Option<Codec>,
+    /// ktx2: none or zstd
     #[serde(default, deserialize_with = "de_supercompression")]
+    #[param(value_type = Option<String>)]
     pub supercompression: Option<Supercompression>,
+    /// frame of an animated texture (reduced modulo its period); ignored for still ones
     #[serde(default, deserialize_with = "de::opt_u32")]
     pub frame: Option<u32>,
 }
@@ -101,18 +111,12 @@ pub enum PageFormat {
 }
 
 /// What a page request asks for, checked: its format and its shape.
-pub fn page_spec(
-    format: PageFormat,
-    size: Option<u32>,
-    border: Option<u32>,
-    codec: Option<Codec>,
-    supercompression: Option<Supercompression>,
-) -> Result<(Format, Shape), ApiError> {
-    let size = size.unwrap_or(DEFAULT_SIZE);
+pub fn page_spec(format: PageFormat, page: &PageParams) -> Result<(Format, Shape), ApiError> {
+    let size = page.size.unwrap_or(DEFAULT_SIZE);
     if !PAGE_SIZES.contains(&size) {
         return Err(ApiError::bad_request(format!("`size` must be one of 64, 128, 256 or 512 (got {size})")));
     }
-    let border = border.unwrap_or(DEFAULT_BORDER);
+    let border = page.border.unwrap_or(DEFAULT_BORDER);
     if border > size / 8 {
         return Err(ApiError::bad_request(format!(
             "`border` must be at most size / 8 = {} for size {size} (got {border})",
@@ -121,7 +125,7 @@ pub fn page_spec(
     }
     let format = match format {
         PageFormat::Image(f) => {
-            let ktx2_params = [("codec", codec.is_some()), ("supercompression", supercompression.is_some())];
+            let ktx2_params = [("codec", page.codec.is_some()), ("supercompression", page.supercompression.is_some())];
             if let Some((name, _)) = ktx2_params.into_iter().find(|(_, given)| *given) {
                 return Err(ApiError::bad_request(format!(
                     "`{name}` applies to ktx2 pages only; this page is {}",
@@ -131,7 +135,7 @@ pub fn page_spec(
             f
         }
         PageFormat::Ktx2 => {
-            let k = ktx2_options(codec, supercompression);
+            let k = ktx2_options(page.codec, page.supercompression);
             if k.codec.is_block_compressed() && border % 2 == 1 {
                 return Err(ApiError::bad_request(format!(
                     "`border` must be even for {} pages (got {border}): a block-compressed page's side, \
@@ -159,11 +163,7 @@ fn ktx2_options(codec: Option<Codec>, supercompression: Option<Supercompression>
         ("level" = u32, Path),
         ("x" = u32, Path, description = "page column"),
         ("file" = String, Path, description = "`{y}.{format}`, format png, webp, jpg, rgba or ktx2"),
-        ("size" = Option<u32>, Query, description = "64, 128 (default), 256 or 512"),
-        ("border" = Option<u32>, Query, description = "0..=size/8 (default 4)"),
-        ("codec" = Option<String>, Query, description = "ktx2: bc7, bc1 or rgba8"),
-        ("supercompression" = Option<String>, Query, description = "ktx2: none or zstd"),
-        ("frame" = Option<u32>, Query, description = text::FRAME),
+        PageParams,
     ),
     responses(
         (status = 200, description = "the (size + 2·border)² page, its border bit-identical to its \
@@ -175,7 +175,7 @@ fn ktx2_options(codec: Option<Codec>, supercompression: Option<Supercompression>
 pub async fn page(
     State(app): State<App>,
     Path(PagePath { id, level, x, file }): Path<PagePath>,
-    Query(q): Query<PageQuery>,
+    Query(q): Query<PageParams>,
     headers: HeaderMap,
 ) -> Result<Response, ApiError> {
     let entry = lookup(&app, &id).await?;
@@ -184,7 +184,7 @@ pub async fn page(
     })?;
     let format = named("format", ext, page_format_value)?;
     let y = named("y", y, u32_value)?;
-    let (format, shape) = page_spec(format, q.size, q.border, q.codec, q.supercompression)?;
+    let (format, shape) = page_spec(format, &q)?;
     let Shape::Page { size, .. } = shape else { unreachable!("page_spec gives pages") };
     address::check_page(&entry, level, x, y, size)?;
     let frame = address::frame_for(&entry, q.frame);
@@ -193,15 +193,20 @@ pub async fn page(
 }
 
 /// The query of a mip chain: `[?level=L][&codec=C][&supercompression=Z][&frame=N]`.
-#[derive(Deserialize)]
+#[derive(Deserialize, IntoParams)]
 #[serde(deny_unknown_fields)]
+#[into_params(parameter_in = Query)]
 pub struct ChainQuery {
+    /// finest level of the chain
     #[serde(default, deserialize_with = "de::opt_u32")]
     pub level: Option<u32>,
     #[serde(default, deserialize_with = "de_codec")]
+    #[param(value_type = Option<String>)]
     pub codec: Option<Codec>,
     #[serde(default, deserialize_with = "de_supercompression")]
+    #[param(value_type = Option<String>)]
     pub supercompression: Option<Supercompression>,
+    /// frame of an animated texture (reduced modulo its period); ignored for still ones
     #[serde(default, deserialize_with = "de::opt_u32")]
     pub frame: Option<u32>,
 }
@@ -218,11 +223,8 @@ pub struct ChainQuery {
     path = "/api/v1/textures/{id}/mips.ktx2",
     tag = "pages",
     params(
-        ("id" = String, Path, description = text::TEXTURE_ID),
-        ("level" = Option<u32>, Query, description = "finest level of the chain"),
-        ("codec" = Option<String>, Query),
-        ("supercompression" = Option<String>, Query),
-        ("frame" = Option<u32>, Query, description = text::FRAME),
+        TextureId,
+        ChainQuery,
     ),
     responses(
         (status = 200, description = "a KTX2 mip chain from `level` to 1×1", content(("image/ktx2"))),

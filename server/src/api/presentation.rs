@@ -93,7 +93,7 @@ fn manifest(origin: &Origin, record: &Record) -> Value {
 #[utoipa::path(get, operation_id = "iiif_manifest",
     path = "/iiif/presentation/3/{id}/manifest.json",
     tag = "interop",
-    params(("id" = String, Path, description = text::TEXTURE_ID)),
+    params(TextureId),
     responses(
         (status = 200, description = "IIIF Presentation API 3 Manifest of the texture: one Canvas painted by its \
             Image API 3 service. JSON-LD with the presentation context as its profile unless `Accept` prefers plain \

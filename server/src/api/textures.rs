@@ -43,7 +43,7 @@ pub async fn list(State(app): State<App>, _: Query<NoQuery>, headers: HeaderMap)
 #[utoipa::path(get,
     path = "/api/v1/textures/{id}",
     tag = "textures",
-    params(("id" = String, Path, description = text::TEXTURE_ID)),
+    params(TextureId),
     responses(
         (status = 200, description = "the texture's info (strong ETag, `no-cache`)", body = TextureInfo),
         (status = 400, description = text::BAD_REQUEST, body = ErrorBody),
@@ -85,7 +85,7 @@ pub(super) fn validated(headers: &HeaderMap, content_type: &'static str, body: b
 #[utoipa::path(get,
     path = "/api/v1/textures/{id}/encoding",
     tag = "textures",
-    params(("id" = String, Path, description = text::TEXTURE_ID)),
+    params(TextureId),
     responses(
         (status = 200, description = "the bundle bytes exactly as stored (ETag: the \
             id)", content(("application/octet-stream"))),
@@ -239,7 +239,7 @@ async fn bundle_from_multipart(req: Request, limit: usize, bounds: Limits) -> Re
 #[utoipa::path(patch,
     path = "/api/v1/textures/{id}",
     tag = "textures",
-    params(("id" = String, Path, description = text::TEXTURE_ID)),
+    params(TextureId),
     request_body(description = "JSON merge patch (RFC 7396) of `name` and `params` (the params as given; `derived` \
         is made again from them)", content(("application/json"))),
     responses(

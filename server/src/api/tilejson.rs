@@ -26,12 +26,17 @@ use axum::Json;
 use serde::Deserialize;
 use serde_json::{json, Value};
 use std::f64::consts::PI;
+use utoipa::IntoParams;
 
-#[derive(Deserialize)]
+#[derive(Deserialize, IntoParams)]
 #[serde(deny_unknown_fields)]
+#[into_params(parameter_in = Query)]
 pub struct TileJsonQuery {
+    /// png (default), webp or jpg
     #[serde(default, deserialize_with = "de::opt_format")]
+    #[param(value_type = Option<String>)]
     format: Option<Format>,
+    /// frame of an animated texture (reduced modulo its period); ignored for still ones
     #[serde(default, deserialize_with = "de::opt_u32")]
     frame: Option<u32>,
 }
@@ -46,9 +51,8 @@ fn latitude(t: f64) -> f64 {
     path = "/api/v1/textures/{id}/tilejson.json",
     tag = "interop",
     params(
-        ("id" = String, Path, description = text::TEXTURE_ID),
-        ("format" = Option<String>, Query, description = "png (default), webp or jpg"),
-        ("frame" = Option<u32>, Query, description = text::FRAME),
+        TextureId,
+        TileJsonQuery,
     ),
     responses(
         (status = 200, description = "TileJSON 3.0.0", content(("application/json"))),
@@ -104,9 +108,11 @@ pub struct XyzPath {
     file: String,
 }
 
-#[derive(Deserialize)]
+#[derive(Deserialize, IntoParams)]
 #[serde(deny_unknown_fields)]
+#[into_params(parameter_in = Query)]
 pub struct XyzQuery {
+    /// frame of an animated texture (reduced modulo its period); ignored for still ones
     #[serde(default, deserialize_with = "de::opt_u32")]
     frame: Option<u32>,
 }
@@ -122,7 +128,7 @@ pub struct XyzQuery {
         ("z" = u32, Path, description = "zoom, 0 the whole texture in one tile"),
         ("x" = u32, Path),
         ("file" = String, Path, description = "`{y}.{format}`, format png, webp or jpg"),
-        ("frame" = Option<u32>, Query, description = text::FRAME),
+        XyzQuery,
     ),
     responses(
         (status = 200, description = "the tile of vtex level `levels − 1 − z`, always `tileSize` square: transparent \

@@ -22,6 +22,7 @@ use axum::response::Response;
 use bytes::Bytes;
 use serde::Deserialize;
 use std::sync::Arc;
+use utoipa::IntoParams;
 use vtex_synth::texture::level_count;
 use vtex_synth::Region;
 
@@ -54,9 +55,11 @@ pub struct TilePath {
 }
 
 /// The query of a tile: `[?frame=N]`.
-#[derive(Deserialize)]
+#[derive(Deserialize, IntoParams)]
 #[serde(deny_unknown_fields)]
+#[into_params(parameter_in = Query)]
 pub struct TileQuery {
+    /// frame of an animated texture (reduced modulo its period); ignored for still ones
     #[serde(default, deserialize_with = "de::opt_u32")]
     pub frame: Option<u32>,
 }
@@ -71,7 +74,7 @@ pub struct TileQuery {
         ("level" = u32, Path, description = "mip level, 0 full resolution"),
         ("x" = u32, Path, description = "tile column"),
         ("file" = String, Path, description = "`{y}.{format}`, format png, webp, jpg or rgba (raw RGBA8)"),
-        ("frame" = Option<u32>, Query, description = text::FRAME),
+        TileQuery,
     ),
     responses(
         (status = 200, description = "the tile (edge tiles clipped; strong ETag, \
@@ -91,8 +94,8 @@ pub async fn tile(
 }
 
 /// A tile: validation, 304, the cache, synthesis on a miss — for the router and for the
-/// fast path of [`Front`](super::Front) alike.
-pub(super) async fn answer(
+/// fast tile path of the connection code (`serve/fast_tile.rs`) alike.
+pub(crate) async fn answer(
     app: &App,
     TilePath { id, level, x, file }: TilePath,
     TileQuery { frame }: TileQuery,
@@ -135,21 +138,27 @@ pub(super) async fn respond(
 }
 
 /// The query of a region.
-#[derive(Deserialize)]
+#[derive(Deserialize, IntoParams)]
 #[serde(deny_unknown_fields)]
+#[into_params(parameter_in = Query)]
 pub struct RegionQuery {
     #[serde(deserialize_with = "de::u32")]
     pub level: u32,
+    /// any integer: a torus wraps, a plane is defined everywhere
     #[serde(deserialize_with = "de::i64")]
     pub x: i64,
     #[serde(deserialize_with = "de::i64")]
     pub y: i64,
     #[serde(deserialize_with = "de::u32")]
     pub w: u32,
+    /// w × h at most `--max-region-pixels`, 16383 a side
     #[serde(deserialize_with = "de::u32")]
     pub h: u32,
+    /// png (default), webp, jpg or rgba
     #[serde(default, deserialize_with = "de::opt_format")]
+    #[param(value_type = Option<String>)]
     pub format: Option<Format>,
+    /// frame of an animated texture (reduced modulo its period); ignored for still ones
     #[serde(default, deserialize_with = "de::opt_u32")]
     pub frame: Option<u32>,
 }
@@ -165,14 +174,8 @@ pub struct RegionQuery {
     path = "/api/v1/textures/{id}/region",
     tag = "tiles",
     params(
-        ("id" = String, Path, description = text::TEXTURE_ID),
-        ("level" = u32, Query),
-        ("x" = i64, Query, description = "any integer: a torus wraps, a plane is defined everywhere"),
-        ("y" = i64, Query),
-        ("w" = u32, Query),
-        ("h" = u32, Query, description = "w × h at most `--max-region-pixels`, 16383 a side"),
-        ("format" = Option<String>, Query, description = "png (default), webp, jpg or rgba"),
-        ("frame" = Option<u32>, Query, description = text::FRAME),
+        TextureId,
+        RegionQuery,
     ),
     responses(
         (status = 200, description = "the region, rendered", content(("image/png"))),

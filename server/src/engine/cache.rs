@@ -6,10 +6,10 @@
 //! tile larger than a quarter of a shard is served but not cached (it would flush the shard).
 
 use super::{ETag, Error};
+use crate::byte_lru::ByteLru;
 use crate::encode::Format;
 use crate::transport::Transport;
 use bytes::Bytes;
-use lru::LruCache;
 use std::collections::HashMap;
 use std::future::Future;
 use std::hash::{BuildHasher, Hash};
@@ -60,13 +60,8 @@ pub struct Tile {
     pub height: u32,
 }
 
-struct Shard {
-    lru: LruCache<TileKey, Arc<Tile>>,
-    bytes: u64,
-}
-
 pub struct TileCache {
-    shards: Vec<Mutex<Shard>>,
+    shards: Vec<Mutex<ByteLru<TileKey, Arc<Tile>>>>,
     shard_budget: u64,
     budget: u64,
     bytes: AtomicU64,
@@ -91,7 +86,7 @@ impl TileCache {
     /// A cache of `budget_bytes` for bodies [`Transport::seal`]ed by `send`.
     pub fn new(budget_bytes: u64, send: Transport) -> Self {
         let n = (budget_bytes / MIN_SHARD_BYTES).clamp(1, MAX_SHARDS);
-        let shards = (0..n).map(|_| Mutex::new(Shard { lru: LruCache::unbounded(), bytes: 0 })).collect();
+        let shards = (0..n).map(|_| Mutex::default()).collect();
         TileCache {
             shards,
             shard_budget: budget_bytes / n,
@@ -116,7 +111,7 @@ impl TileCache {
     }
 
     pub fn len(&self) -> usize {
-        self.shards.iter().map(|s| s.lock().unwrap().lru.len()).sum()
+        self.shards.iter().map(|s| s.lock().unwrap().len()).sum()
     }
 
     pub fn is_empty(&self) -> bool {
@@ -127,13 +122,13 @@ impl TileCache {
         self.evictions.load(Ordering::Relaxed)
     }
 
-    fn shard(&self, key: &TileKey) -> &Mutex<Shard> {
+    fn shard(&self, key: &TileKey) -> &Mutex<ByteLru<TileKey, Arc<Tile>>> {
         let i = self.hasher.hash_one(key) % self.shards.len() as u64;
         &self.shards[i as usize]
     }
 
     pub fn get(&self, key: &TileKey) -> Option<Arc<Tile>> {
-        self.shard(key).lock().unwrap().lru.get(key).cloned()
+        self.shard(key).lock().unwrap().get(key).cloned()
     }
 
     /// What `tile` is charged: the memory its body takes, plus [`ENTRY_OVERHEAD`].
@@ -147,18 +142,13 @@ impl TileCache {
             return;
         }
         let mut shard = self.shard(&key).lock().unwrap();
-        if let Some(old) = shard.lru.put(key, tile) {
-            shard.bytes -= self.cost(&old);
-            self.bytes.fetch_sub(self.cost(&old), Ordering::Relaxed);
+        if let Some(old) = shard.put(key, tile, cost) {
+            self.bytes.fetch_sub(old, Ordering::Relaxed);
         }
-        shard.bytes += cost;
         self.bytes.fetch_add(cost, Ordering::Relaxed);
-        while shard.bytes > self.shard_budget {
-            let (_, evicted) = shard.lru.pop_lru().expect("bytes > 0 implies an entry");
-            shard.bytes -= self.cost(&evicted);
-            self.bytes.fetch_sub(self.cost(&evicted), Ordering::Relaxed);
-            self.evictions.fetch_add(1, Ordering::Relaxed);
-        }
+        let (evicted, freed) = shard.evict_to(self.shard_budget);
+        self.bytes.fetch_sub(freed, Ordering::Relaxed);
+        self.evictions.fetch_add(evicted, Ordering::Relaxed);
     }
 
     /// The tile for `key`, computing it with `compute` on a miss. Concurrent callers with

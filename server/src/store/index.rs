@@ -1,41 +1,18 @@
-//! The encoding store: an index of the content-addressed bundles of a data directory,
-//! `<id>.vtex`, and the textures loaded from them within a memory budget.
-//!
-//! At open each bundle's container is parsed and its cost planned — no texture is built — so a
-//! bundle over the bounds is rejected before it costs anything. A texture is loaded on its first
-//! use, off the I/O threads, one load shared by concurrent first uses, and kept in an LRU charged
-//! with the bytes its plan says it holds. A load reserves its charge before it starts, so what
-//! loaded textures hold stays within the budget; evicting drops the store's reference only, and
-//! requests in flight keep theirs.
-//!
-//! A bundle is validated completely (container and model) before it is written. Writes are
-//! atomic — a temporary file in the same directory, fsync, rename, fsync of the directory — so
-//! a crash leaves either the whole bundle or nothing but a temporary file, which the next start
-//! removes. Bundles are immutable: an edit is a new bundle, a new id.
-//!
-//! Several processes may share one data directory (replicas behind a proxy). A bundle another
-//! process wrote, or one copied in, is found on the first request for its id ([`Store::find`],
-//! with a short memory of ids found absent) and by the directory watch (`watch.rs`), which
-//! calls [`Store::refresh`] for every bundle that appears or disappears. Temporary names are
-//! unique per process, and only temporaries older than [`STALE_TEMP_AGE`] are taken for crashed
-//! writes, so replicas starting together never remove each other's writes in progress.
+//! [`Store`]: the index of the data directory's bundles, their writes and deletions, and the
+//! textures loaded from them.
 
-use lru::LruCache;
+use super::atomic::{sync_dir, write_atomic};
+use super::budget::{Budgeted, Charge};
+use super::{Entry, Record, BUNDLE_EXT, TEMP_PREFIX};
 use std::collections::{BTreeMap, HashMap};
-use std::io::Write;
-use std::ops::Deref;
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicU64, Ordering};
-use std::sync::{Arc, Condvar, Mutex, RwLock};
+use std::sync::{Arc, Mutex, RwLock};
 use std::time::{Instant, SystemTime};
-use vtex_synth::bundle::{id_of, is_valid_id, Bundle, Manifest};
-use vtex_synth::models::{self, Limits, Plan};
-use vtex_synth::texture::level_size;
-use vtex_synth::{Domain, Resources, Texture};
+use vtex_synth::bundle::{id_of, is_valid_id, Bundle};
+use vtex_synth::models::{self, Limits};
+use vtex_synth::Resources;
 
-pub const BUNDLE_EXT: &str = "vtex";
-/// Prefix of temporary files; anything carrying it at start-up is a crashed write.
-pub const TEMP_PREFIX: &str = ".tmp-";
 /// Age past which a temporary file is a crashed write: a write in progress (of another
 /// process sharing the directory) takes seconds.
 pub const STALE_TEMP_AGE: std::time::Duration = std::time::Duration::from_secs(15 * 60);
@@ -44,119 +21,6 @@ pub const ABSENT_TTL: std::time::Duration = std::time::Duration::from_secs(2);
 /// Most ids remembered absent; past it the memory starts over.
 const ABSENT_MAX: usize = 16_384;
 
-/// Number of served levels: 0..n-1, where level n-1 is the first that fits in one tile.
-pub fn served_levels(width: u64, height: u64, tile_size: u32) -> u32 {
-    let ts = tile_size as u64;
-    let mut level = 0;
-    loop {
-        let (w, h) = level_size(width, height, level);
-        if w <= ts && h <= ts {
-            return level + 1;
-        }
-        level += 1;
-    }
-}
-
-pub use vtex_wire::TextureInfo;
-
-/// What the store knows of a stored bundle without loading its texture: its manifest and plan.
-pub struct Record {
-    pub id: String,
-    /// The id as 32 raw bytes: the compact form used in cache keys.
-    pub key: [u8; 32],
-    pub manifest: Manifest,
-    pub plan: Plan,
-    pub encoding_bytes: u64,
-    pub levels: u32,
-    pub tile_size: u32,
-    /// Held while the texture loads, so that concurrent first uses share one load.
-    loading: Arc<tokio::sync::Mutex<()>>,
-}
-
-impl Record {
-    /// Plans `bundle`, stored as `encoding_bytes` bytes whose hash is `id`, and checks the plan
-    /// against `limits`; the texture is not built.
-    fn plan(
-        bundle: &Bundle,
-        id: String,
-        encoding_bytes: usize,
-        tile_size: u32,
-        limits: &Limits,
-    ) -> Result<Record, vtex_synth::Error> {
-        let plan = models::plan(bundle)?;
-        limits.check(&bundle.manifest.model, &plan)?;
-        let key = blake3::Hash::from_hex(&id).expect("id_of gives hex").into();
-        Ok(Record {
-            id,
-            key,
-            manifest: bundle.manifest.clone(),
-            levels: served_levels(plan.width, plan.height, tile_size),
-            plan,
-            encoding_bytes: encoding_bytes as u64,
-            tile_size,
-            loading: Default::default(),
-        })
-    }
-
-    /// Bytes the loaded texture is charged against the budget: what its plan says it holds.
-    pub fn resident_bytes(&self) -> u64 {
-        self.plan.cost.resident_bytes.value
-    }
-
-    pub fn info(&self) -> TextureInfo {
-        let p = &self.plan;
-        TextureInfo {
-            id: self.id.clone(),
-            name: self.manifest.name.clone(),
-            model: self.manifest.model.clone(),
-            width: p.width,
-            height: p.height,
-            levels: self.levels,
-            tile_size: self.tile_size,
-            encoding_bytes: self.encoding_bytes,
-            explicit_bytes: p.width.saturating_mul(p.height).saturating_mul(3),
-            wraps: p.domain == Domain::Torus,
-            domain: p.domain,
-            animated: p.animation.is_some(),
-            animation: p.animation,
-            params: self.manifest.params.clone(),
-            derived: self.manifest.derived.clone(),
-        }
-    }
-
-    /// Tiles across and down at `level`.
-    pub fn tiles_at(&self, level: u32) -> (u64, u64) {
-        let (w, h) = level_size(self.plan.width, self.plan.height, level);
-        let ts = self.tile_size as u64;
-        (w.div_ceil(ts), h.div_ceil(ts))
-    }
-}
-
-/// A loaded texture, ready to render, with its record.
-pub struct Entry {
-    pub record: Arc<Record>,
-    pub texture: Arc<dyn Texture>,
-}
-
-impl Deref for Entry {
-    type Target = Record;
-    fn deref(&self) -> &Record {
-        &self.record
-    }
-}
-
-impl Entry {
-    /// Validates bundle bytes completely and loads the texture, within no bound: for the
-    /// offline commands, which run what they are given.
-    pub fn from_bytes(bytes: &[u8], tile_size: u32) -> Result<Entry, vtex_synth::Error> {
-        let bundle = Bundle::from_bytes(bytes)?;
-        let record = Record::plan(&bundle, id_of(bytes), bytes.len(), tile_size, &Limits::NONE)?;
-        let texture = models::load(&bundle)?;
-        Ok(Entry { record: Arc::new(record), texture })
-    }
-}
-
-/// Why a bundle was not stored or a texture not loaded.
 #[derive(Debug, thiserror::Error)]
 pub enum StoreError {
     #[error("{0}")]
@@ -615,157 +479,9 @@ impl Store {
     }
 }
 
-/// Values charged against a byte budget, kept least recently used first. A load reserves its
-/// charge before it starts — evicting, or waiting for loads in progress to finish — so the sum
-/// charged, kept values and loads in progress together, never exceeds the budget.
-struct Budgeted<V> {
-    budget: u64,
-    state: Mutex<Charged<V>>,
-    /// Signalled when charge is released or a value is kept (and so becomes evictable).
-    room: Condvar,
-    evictions: AtomicU64,
-}
-
-struct Charged<V> {
-    lru: LruCache<String, (V, u64)>,
-    bytes: u64,
-}
-
-/// A charge reserved for a load in progress: released when dropped, unless kept.
-#[must_use]
-struct Charge<'a, V> {
-    set: &'a Budgeted<V>,
-    bytes: u64,
-}
-
-impl<V> Drop for Charge<'_, V> {
-    fn drop(&mut self) {
-        if self.bytes > 0 {
-            self.set.state.lock().unwrap().bytes -= self.bytes;
-            self.set.room.notify_all();
-        }
-    }
-}
-
-impl<V: Clone> Budgeted<V> {
-    fn new(budget: u64) -> Self {
-        Budgeted {
-            budget,
-            state: Mutex::new(Charged { lru: LruCache::unbounded(), bytes: 0 }),
-            room: Condvar::new(),
-            evictions: AtomicU64::new(0),
-        }
-    }
-
-    fn get(&self, key: &str) -> Option<V> {
-        self.state.lock().unwrap().lru.get(key).map(|(v, _)| v.clone())
-    }
-
-    /// Reserves `bytes`, evicting least recently used values, or waiting for loads in progress
-    /// when none is left to evict. Blocking.
-    fn reserve(&self, bytes: u64) -> Charge<'_, V> {
-        let mut state = self.state.lock().unwrap();
-        while state.bytes.saturating_add(bytes) > self.budget {
-            if let Some((_, (_, freed))) = state.lru.pop_lru() {
-                state.bytes -= freed;
-                self.evictions.fetch_add(1, Ordering::Relaxed);
-            } else if state.bytes > 0 {
-                state = self.room.wait(state).unwrap();
-            } else {
-                // Alone over the budget: callers check each value against it first.
-                break;
-            }
-        }
-        state.bytes += bytes;
-        Charge { set: self, bytes }
-    }
-
-    /// Keeps `value` under `key`, charged what `charge` reserved.
-    fn keep(&self, mut charge: Charge<'_, V>, key: String, value: V) {
-        let mut state = self.state.lock().unwrap();
-        if let Some((_, (_, old))) = state.lru.push(key, (value, charge.bytes)) {
-            state.bytes -= old;
-        }
-        charge.bytes = 0;
-        drop(state);
-        self.room.notify_all();
-    }
-
-    fn remove(&self, key: &str) {
-        let mut state = self.state.lock().unwrap();
-        if let Some((_, freed)) = state.lru.pop(key) {
-            state.bytes -= freed;
-            drop(state);
-            self.room.notify_all();
-        }
-    }
-
-    fn len(&self) -> usize {
-        self.state.lock().unwrap().lru.len()
-    }
-
-    fn charged(&self) -> u64 {
-        self.state.lock().unwrap().bytes
-    }
-
-    fn evictions(&self) -> u64 {
-        self.evictions.load(Ordering::Relaxed)
-    }
-}
-
-/// Writes `bytes` to `path` so that readers and crashes see all of it or none of it.
-/// The temporary name is unique across processes sharing `dir` — even replicas in containers,
-/// which all run as pid 1 — by a random tag drawn once per process.
-pub fn write_atomic(dir: &Path, path: &Path, bytes: &[u8]) -> std::io::Result<()> {
-    use std::hash::{BuildHasher, RandomState};
-    static COUNTER: AtomicU64 = AtomicU64::new(0);
-    static PROCESS_TAG: std::sync::OnceLock<u64> = std::sync::OnceLock::new();
-    let tag = PROCESS_TAG.get_or_init(|| RandomState::new().hash_one(std::process::id()));
-    let n = COUNTER.fetch_add(1, Ordering::Relaxed);
-    let file_name = path.file_name().and_then(|s| s.to_str()).unwrap_or("bundle");
-    let tmp = dir.join(format!("{TEMP_PREFIX}{tag:016x}-{n}-{file_name}"));
-    let result = (|| {
-        let mut f = std::fs::OpenOptions::new().write(true).create_new(true).open(&tmp)?;
-        f.write_all(bytes)?;
-        f.sync_all()?;
-        drop(f);
-        std::fs::rename(&tmp, path)?;
-        sync_dir(dir)
-    })();
-    if result.is_err() {
-        let _ = std::fs::remove_file(&tmp);
-    }
-    result
-}
-
-fn sync_dir(dir: &Path) -> std::io::Result<()> {
-    std::fs::File::open(dir)?.sync_all()
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    #[test]
-    fn served_levels_stop_at_one_tile() {
-        assert_eq!(served_levels(256, 256, 256), 1);
-        assert_eq!(served_levels(257, 10, 256), 2);
-        assert_eq!(served_levels(100_000, 100_000, 256), 10); // 100000/2^9 = 196 ≤ 256
-        assert_eq!(served_levels(1, 1, 256), 1);
-        assert_eq!(served_levels(100_000, 3, 256), 10);
-    }
-
-    #[test]
-    fn atomic_write_leaves_no_temp() {
-        let dir = std::env::temp_dir().join(format!("vtex-store-unit-{}", std::process::id()));
-        std::fs::create_dir_all(&dir).unwrap();
-        let path = dir.join("x.vtex");
-        write_atomic(&dir, &path, b"hello").unwrap();
-        assert_eq!(std::fs::read(&path).unwrap(), b"hello");
-        let names: Vec<_> = std::fs::read_dir(&dir).unwrap().map(|e| e.unwrap().file_name()).collect();
-        assert_eq!(names, vec![std::ffi::OsString::from("x.vtex")]);
-        std::fs::remove_dir_all(&dir).unwrap();
-    }
 
     #[test]
     fn open_removes_stale_temps_and_rejects_garbage() {
@@ -852,42 +568,5 @@ mod tests {
         }
         let e = write_error(std::io::Error::from(std::io::ErrorKind::PermissionDenied));
         assert!(matches!(e, StoreError::Io(_)), "{e:?}");
-    }
-
-    #[test]
-    fn the_budget_evicts_least_recently_used_first() {
-        let set: Budgeted<u32> = Budgeted::new(100);
-        set.keep(set.reserve(40), "a".into(), 1);
-        set.keep(set.reserve(40), "b".into(), 2);
-        assert_eq!(set.get("a"), Some(1), "a is now the most recently used");
-        set.keep(set.reserve(40), "c".into(), 3);
-        assert_eq!((set.get("a"), set.get("b"), set.get("c")), (Some(1), None, Some(3)));
-        assert_eq!((set.charged(), set.evictions(), set.len()), (80, 1, 2));
-        // A failed load gives its reservation back.
-        drop(set.reserve(60));
-        assert_eq!((set.charged(), set.evictions()), (40, 2));
-        set.remove("c");
-        assert_eq!((set.charged(), set.len()), (0, 0));
-    }
-
-    #[test]
-    fn loads_in_progress_count_against_the_budget() {
-        let set: Arc<Budgeted<u32>> = Arc::new(Budgeted::new(100));
-        let first = set.reserve(70);
-        let (tx, rx) = std::sync::mpsc::channel();
-        let waiter = {
-            let set = set.clone();
-            std::thread::spawn(move || {
-                let charge = set.reserve(70);
-                tx.send(set.charged()).unwrap();
-                set.keep(charge, "second".into(), 2);
-            })
-        };
-        // Nothing is evictable while the first load runs: the second waits for it.
-        assert!(rx.recv_timeout(std::time::Duration::from_millis(200)).is_err(), "the budget was overcommitted");
-        set.keep(first, "first".into(), 1);
-        assert_eq!(rx.recv_timeout(std::time::Duration::from_secs(10)).unwrap(), 70, "the first was evicted");
-        waiter.join().unwrap();
-        assert_eq!((set.get("first"), set.get("second"), set.charged()), (None, Some(2), 70));
     }
 }

@@ -19,12 +19,24 @@
 //! Shutdown stops accepting, lets requests in flight finish within the drain time, stops the
 //! renders that would outlast it (their requests get 503), and exits without waiting for
 //! anything past it.
+//!
+//! Each request of a connection ([`connection`]) has its head checked ([`head`]), then takes
+//! the fast tile path ([`fast_tile`]) or the router; its access line is written once its body
+//! is sent ([`access`]).
 
-use crate::api::{self, AppState};
+mod access;
+mod connection;
+mod cors;
+mod fast_tile;
+mod head;
+
+use crate::api::AppState;
 use crate::config::ServeConfig;
 use crate::store::Store;
 use crate::transport::{Activity, SendLimits, Transport};
 use crate::watch::Watch;
+use connection::Front;
+use head::MAX_HEAD_BYTES;
 use hyper_util::rt::{TokioExecutor, TokioTimer};
 use hyper_util::server::conn::auto;
 use prometheus::{IntCounter, IntGauge};
@@ -141,7 +153,7 @@ pub async fn run(
     let max_connections = cfg.max_connections();
     app.metrics.connections_max.set(i64::try_from(max_connections).unwrap_or(i64::MAX));
     let refusal = Refusal::new(max_connections, app.metrics.connections_refused.clone());
-    let front = api::Front::new(app);
+    let front = Front::new(app);
 
     let addr = listener.local_addr()?;
     tracing::info!(
@@ -240,7 +252,7 @@ struct Worker {
 /// How one runtime serves its connections: hyper's settings, graceful shutdown, and the count
 /// of connections it serves (shared with the acceptor).
 struct Conns {
-    front: api::Front,
+    front: Front,
     builder: auto::Builder<TokioExecutor>,
     send: Transport,
     send_limits: SendLimits,
@@ -250,14 +262,10 @@ struct Conns {
 }
 
 impl Conns {
-    fn new(front: api::Front, cfg: &ServeConfig, live: IntGauge) -> Conns {
+    fn new(front: Front, cfg: &ServeConfig, live: IntGauge) -> Conns {
         let mut builder = auto::Builder::new(TokioExecutor::new());
-        builder
-            .http1()
-            .timer(TokioTimer::new())
-            .header_read_timeout(cfg.header_timeout())
-            .max_buf_size(api::MAX_HEAD_BYTES);
-        let head = u32::try_from(api::MAX_HEAD_BYTES).expect("the head bound fits HTTP/2's setting");
+        builder.http1().timer(TokioTimer::new()).header_read_timeout(cfg.header_timeout()).max_buf_size(MAX_HEAD_BYTES);
+        let head = u32::try_from(MAX_HEAD_BYTES).expect("the head bound fits HTTP/2's setting");
         builder.http2().timer(TokioTimer::new()).max_header_list_size(head);
         Conns {
             front,
