@@ -24,6 +24,7 @@ mod index;
 mod layout;
 mod prefilter;
 mod render;
+mod sums;
 
 pub use blocks::{Block, RECORD_BYTES};
 pub use demos::demos;
