@@ -59,6 +59,8 @@ test('client mode draws every model (and an animation frame) exactly as the serv
       // Opened zoomed out (the zoom is held at the whole texture): the views checked are set below.
       const { page, log } = await openViewer(browser.context, `${server.url}/?texture=${info.id}&synth=client&frame=${frame}&zoom=0.001`);
       await waitForIdle(page, 120_000);
+      const described = await page.evaluate(() => window.vtexViewer.state.synth.ready);
+      assert.deepEqual(described, info, "the module's info is the server's");
       // Level 0 and level 2 at 1:1, away from the origin, each patch inside one tile.
       const at = (size, offset) => 1024 * Math.max(0, Math.floor((Math.min(9_000, size - 300) - offset) / 1024)) + offset;
       const x0 = at(info.width, 40);

@@ -15,6 +15,8 @@ import { instantiate, SynthError } from '../../client-web/src/shared/vtex-synth.
 
 const ROOT = resolve(dirname(fileURLToPath(import.meta.url)), '..', '..');
 const WASM = join(ROOT, 'target', 'wasm32-unknown-unknown', 'wasm', 'vtex_synth_wasm.wasm');
+/** The reference's tile size (wasm/src/bin/reference.rs TILE_SIZE). */
+const TILE_SIZE = 256;
 
 let dir;
 let reference;
@@ -45,12 +47,12 @@ test('every demo renders its probe regions and tiles byte for byte like native',
   const models = new Set();
   let compared = 0;
   for (const demo of reference.demos) {
-    const tex = synth.open(bundleOf(demo));
+    const tex = synth.open(bundleOf(demo), TILE_SIZE);
     assert.deepEqual(tex.info, demo.info, `info of ${demo.info.name}`);
     models.add(tex.info.model);
     for (const c of demo.cases) {
       const what = `${demo.info.name} (${demo.info.model}) ${JSON.stringify({ ...c, rgba: undefined })}`;
-      const run = () => (c.kind === 'region' ? tex.render(c) : tex.renderTile(c.tile_size, c.level, c.tx, c.ty, c.frame));
+      const run = () => (c.kind === 'region' ? tex.render(c) : tex.renderTile(c.level, c.tx, c.ty, c.frame));
       if (c.error) {
         assert.throws(run, (e) => e instanceof SynthError && e.message === c.error, what);
         continue;
@@ -71,15 +73,15 @@ test('animated demos move: a tile differs at frames 0, 1, 10 and 37', () => {
   const animated = reference.demos.filter((d) => d.info.animated);
   assert.ok(animated.length > 0, 'no animated demo');
   for (const demo of animated) {
-    const tex = synth.open(bundleOf(demo));
-    const frames = [0, 1, 10, 37].map((frame) => Buffer.from(tex.renderTile(256, 2, 0, 0, frame).data).toString('base64'));
+    const tex = synth.open(bundleOf(demo), TILE_SIZE);
+    const frames = [0, 1, 10, 37].map((frame) => Buffer.from(tex.renderTile(2, 0, 0, frame).data).toString('base64'));
     assert.equal(new Set(frames).size, 4, `${demo.info.name}: some of frames 0, 1, 10 and 37 are identical`);
     tex.close();
   }
 });
 
 const rejects = (bytes, pattern) =>
-  assert.throws(() => synth.open(bytes), (e) => e instanceof SynthError && pattern.test(e.message), `expected ${pattern}`);
+  assert.throws(() => synth.open(bytes, TILE_SIZE), (e) => e instanceof SynthError && pattern.test(e.message), `expected ${pattern}`);
 
 test('bad bundles are errors that say what is wrong', () => {
   const good = new Uint8Array(bundleOf(reference.demos[0]));
@@ -109,8 +111,8 @@ test('flipped bytes all through a bundle give errors or textures, never a trap',
       const bytes = good.slice();
       bytes[i] ^= 0x55;
       try {
-        const tex = synth.open(bytes);
-        tex.renderTile(256, tex.info.levels - 1, 0, 0, 0);
+        const tex = synth.open(bytes, TILE_SIZE);
+        tex.renderTile(tex.info.levels - 1, 0, 0, 0);
         tex.close();
       } catch (e) {
         assert.ok(e instanceof SynthError, `${demo.info.name}, byte ${i}: ${e}`);
@@ -124,18 +126,20 @@ test('flipped bytes all through a bundle give errors or textures, never a trap',
 
 test('bad calls are errors and leave the module working', () => {
   const demo = reference.demos[0];
-  const tex = synth.open(bundleOf(demo));
+  const tex = synth.open(bundleOf(demo), TILE_SIZE);
   assert.throws(() => tex.render({ level: 99, x: 0, y: 0, width: 4, height: 4 }), /level 99 does not exist/);
   assert.throws(() => tex.render({ level: 0, x: 0.5, y: 0, width: 4, height: 4 }), /x = 0.5 is not an integer/);
   assert.throws(() => tex.render({ level: 0, x: 0, y: 0, width: 0, height: 4 }), /empty region/);
   assert.throws(() => tex.render({ level: 0, x: 0, y: 0, width: 8192, height: 8192 }), /at most 16777216 per render/);
-  assert.throws(() => tex.renderTile(256, 0, 1e6, 0), /outside level 0's/);
-  assert.throws(() => tex.renderTile(0, 0, 0, 0), /the tile size is 0/);
+  assert.throws(() => tex.renderTile(0, 1e6, 0), /outside level 0's/);
+  assert.throws(() => tex.renderTile(tex.info.levels, 0, 0), /level \d+ does not exist/);
+  assert.throws(() => synth.open(bundleOf(demo), 0), /invalid tile size 0: from 1 to 65535/);
+  assert.throws(() => synth.open(bundleOf(demo), 65536), /invalid tile size 65536/);
   tex.close();
   assert.throws(() => tex.render({ level: 0, x: 0, y: 0, width: 4, height: 4 }), /is closed/);
   assert.equal(synth.exports.vtex_close(9999), 0);
   assert.equal(synth.outputText(), 'no open texture has handle 9999');
-  const again = synth.open(bundleOf(demo));
+  const again = synth.open(bundleOf(demo), TILE_SIZE);
   const c = demo.cases.find((k) => k.rgba && k.kind === 'region');
   assert.equal(firstDifference(again.render(c), readFileSync(join(dir, c.rgba))), -1);
   again.close();

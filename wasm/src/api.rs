@@ -3,7 +3,8 @@
 //! `client-web/src/shared/vtex-synth.js` wraps it for JavaScript).
 //!
 //! - The caller writes bundle bytes into the *input* buffer ([`vtex_input`]), then calls
-//!   [`vtex_open`], which answers a handle (never 0) and the texture's info, or 0.
+//!   [`vtex_open`] with the tile size to cut it into, which answers a handle (never 0) and the
+//!   texture's info (the server's `TextureInfo` for that tile size), or 0.
 //! - Every call that produces something writes it into the *output* buffer ([`vtex_output`],
 //!   [`vtex_output_len`]) and answers non-zero; on failure it writes the error message (UTF-8)
 //!   there and answers 0. Both buffers belong to the module and are reused by the next call.
@@ -11,16 +12,17 @@
 //!   [`vtex_panic_message`], and the caller must then drop the instance (a trapped call may
 //!   leave the module's state locked).
 
-use crate::client::{self, Info};
+use crate::client::{self, Opened};
 use std::collections::BTreeMap;
-use std::sync::{Arc, LazyLock, Mutex, MutexGuard};
-use vtex_synth::{Region, Texture};
+use std::sync::{LazyLock, Mutex, MutexGuard};
+use vtex_synth::Region;
+use vtex_wire::TextureInfo;
 
 #[derive(Default)]
 struct State {
     input: Vec<u8>,
     output: Vec<u8>,
-    textures: BTreeMap<u32, (Arc<dyn Texture>, Info)>,
+    textures: BTreeMap<u32, Opened>,
     /// Handles are never reused, so a closed handle is an error, not another texture.
     last_handle: u32,
 }
@@ -48,11 +50,11 @@ fn answer(st: &mut State, result: Result<Vec<u8>, String>, ok: u32) -> u32 {
     }
 }
 
-fn texture(st: &State, handle: u32) -> Result<Arc<dyn Texture>, String> {
-    st.textures.get(&handle).map(|(t, _)| t.clone()).ok_or_else(|| format!("no open texture has handle {handle}"))
+fn opened(st: &State, handle: u32) -> Result<&Opened, String> {
+    st.textures.get(&handle).ok_or_else(|| format!("no open texture has handle {handle}"))
 }
 
-fn info_json(info: &Info) -> Vec<u8> {
+fn info_json(info: &TextureInfo) -> Vec<u8> {
     serde_json::to_vec(info).expect("an info always serializes")
 }
 
@@ -102,19 +104,19 @@ pub extern "C" fn vtex_output_len() -> u32 {
     state().output.len() as u32
 }
 
-/// Opens the bundle in the input buffer (and frees it): a handle and the texture's info as
-/// JSON, or 0 and the error.
+/// Opens the bundle in the input buffer (and frees it), cut into tiles of `tile_size` (at most
+/// [`client::MAX_TILE_SIZE`]): a handle and the texture's info as JSON, or 0 and the error.
 #[allow(unsafe_code)]
 #[no_mangle]
-pub extern "C" fn vtex_open() -> u32 {
+pub extern "C" fn vtex_open(tile_size: u32) -> u32 {
     let mut st = state();
     let bytes = std::mem::take(&mut st.input);
-    match client::open(&bytes) {
+    match client::open(&bytes, tile_size) {
         Ok(opened) => {
             st.last_handle += 1;
             let handle = st.last_handle;
             st.output = info_json(&opened.info);
-            st.textures.insert(handle, (opened.texture, opened.info));
+            st.textures.insert(handle, opened);
             handle
         }
         Err(message) => answer(&mut st, Err(message), 0),
@@ -126,11 +128,7 @@ pub extern "C" fn vtex_open() -> u32 {
 #[no_mangle]
 pub extern "C" fn vtex_info(handle: u32) -> u32 {
     let mut st = state();
-    let result = st
-        .textures
-        .get(&handle)
-        .map(|(_, info)| info_json(info))
-        .ok_or_else(|| format!("no open texture has handle {handle}"));
+    let result = opened(&st, handle).map(|t| info_json(&t.info));
     answer(&mut st, result, 1)
 }
 
@@ -140,28 +138,25 @@ pub extern "C" fn vtex_info(handle: u32) -> u32 {
 #[no_mangle]
 pub extern "C" fn vtex_render(handle: u32, level: u32, x: f64, y: f64, width: u32, height: u32, frame: u32) -> u32 {
     let mut st = state();
-    let result = texture(&st, handle).and_then(|t| {
+    let result = opened(&st, handle).and_then(|t| {
         let region = Region::new(level, coordinate("x", x)?, coordinate("y", y)?, width, height).at_frame(frame);
-        client::render(&*t, &region)
+        t.render(&region)
     });
     answer(&mut st, result, 1)
 }
 
-/// Renders tile (`tx`, `ty`) of `level` at `frame`, cut as the server cuts tiles of
-/// `tile_size`, into the output buffer as RGBA8; answers the tile's width and height packed
-/// as `width << 16 | height` (both at most 65,535 here), or 0 and the error.
+/// Renders tile (`tx`, `ty`) of `level` at `frame`, cut as the server cuts tiles of the size
+/// the texture was opened with, into the output buffer as RGBA8; answers the tile's width and
+/// height packed as `width << 16 | height`, or 0 and the error.
 #[allow(unsafe_code)]
 #[no_mangle]
-pub extern "C" fn vtex_render_tile(handle: u32, tile_size: u32, level: u32, tx: u32, ty: u32, frame: u32) -> u32 {
+pub extern "C" fn vtex_render_tile(handle: u32, level: u32, tx: u32, ty: u32, frame: u32) -> u32 {
     let mut st = state();
     let mut size = 0;
-    let result = texture(&st, handle).and_then(|t| {
-        if tile_size > u16::MAX as u32 {
-            return Err(format!("invalid tile: tile size {tile_size}; at most {}", u16::MAX));
-        }
-        let region = client::tile_region(&*t, tile_size, level, tx, ty, frame)?;
+    let result = opened(&st, handle).and_then(|t| {
+        let region = t.tile_region(level, tx, ty, frame)?;
         size = region.width << 16 | region.height;
-        client::render(&*t, &region)
+        t.render(&region)
     });
     answer(&mut st, result, size)
 }

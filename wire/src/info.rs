@@ -29,6 +29,8 @@ pub struct TextureInfo {
     pub model: String,
     pub width: u64,
     pub height: u64,
+    // Levels served as tiles (`levels::tile_levels`); not a doc comment, which the OpenAPI
+    // description would show.
     pub levels: u32,
     pub tile_size: u32,
     pub encoding_bytes: u64,
@@ -50,4 +52,10 @@ pub struct TextureInfo {
     /// not given (e.g. the cascade's `range`): made again by `create`, not part of the recipe.
     #[cfg_attr(feature = "openapi", schema(value_type = Object))]
     pub derived: serde_json::Map<String, serde_json::Value>,
+}
+
+/// Bytes of the explicit 24-bit level 0 of a `width × height` texture: what its encoding
+/// stands for.
+pub fn explicit_bytes(width: u64, height: u64) -> u64 {
+    width.saturating_mul(height).saturating_mul(3)
 }

@@ -14,6 +14,14 @@ pub fn level_count(width: u64, height: u64) -> u32 {
     (64 - (side - 1).leading_zeros()) + 1
 }
 
+/// Number of levels served as tiles of side `tile_size` (at least 1): down to the first level
+/// that fits in one tile, the `levels` of [`TextureInfo`](crate::TextureInfo).
+pub fn tile_levels(width: u64, height: u64, tile_size: u32) -> u32 {
+    // Level L fits in one tile when ⌈side / 2^L⌉ ≤ tile_size, i.e. when 2^L ≥ ⌈side / tile_size⌉.
+    let ts = tile_size as u64;
+    level_count(width.div_ceil(ts), height.div_ceil(ts))
+}
+
 /// Columns and rows of squares of side `size` (tiles, pages) covering `level`.
 pub fn grid(width: u64, height: u64, level: u32, size: u32) -> (u64, u64) {
     let (lw, lh) = level_size(width, height, level);
@@ -33,5 +41,17 @@ mod tests {
         assert_eq!(level_size(5, 5, 200), (1, 1));
         assert_eq!(grid(1000, 300, 0, 256), (4, 2));
         assert_eq!(grid(1000, 300, 2, 128), (2, 1));
+    }
+
+    #[test]
+    fn tile_levels_end_at_the_first_level_in_one_tile() {
+        for (w, h) in [(1, 1), (256, 256), (257, 3), (100_000, 100_000), (3, 70_001), (512, 511)] {
+            for ts in [1, 16, 255, 256, 2048] {
+                let levels = tile_levels(w, h, ts);
+                assert_eq!(grid(w, h, levels - 1, ts), (1, 1), "{w}×{h}, tiles of {ts}");
+                assert!(levels == 1 || grid(w, h, levels - 2, ts) != (1, 1), "{w}×{h}, tiles of {ts}");
+            }
+        }
+        assert_eq!(tile_levels(100_000, 100_000, 256), 10);
     }
 }

@@ -1,5 +1,5 @@
 // vtex-synth in WebAssembly (the crate `wasm/`, built as vtex_synth.wasm): open an encoding
-// bundle, read its info, render regions and tiles as RGBA — the server's bytes exactly. The
+// bundle, read its info (the server's), render regions and tiles as RGBA — the server's bytes exactly. The
 // module's raw ABI (wasm/src/api.rs) takes numbers and two buffers it owns; this wrapper turns
 // it into objects and exceptions. It runs in a page, a Worker and Node alike.
 
@@ -31,13 +31,16 @@ export class Synth {
     this.exports.vtex_init();
   }
 
-  /** Opens bundle `bytes` (a Uint8Array or ArrayBuffer); throws a SynthError naming what is wrong. */
-  open(bytes) {
+  /**
+   * Opens bundle `bytes` (a Uint8Array or ArrayBuffer) to be cut into tiles of `tileSize`, as the
+   * server's are; throws a SynthError naming what is wrong.
+   */
+  open(bytes, tileSize) {
     const data = bytes instanceof Uint8Array ? bytes : new Uint8Array(bytes);
     const handle = this.call(() => {
       const ptr = this.exports.vtex_input(data.length);
       new Uint8Array(this.exports.memory.buffer, ptr, data.length).set(data);
-      return this.exports.vtex_open();
+      return this.exports.vtex_open(tileSize >>> 0);
     });
     if (handle === 0) throw new SynthError(this.outputText());
     return new SynthTexture(this, handle, JSON.parse(this.outputText()));
@@ -70,9 +73,9 @@ export class Synth {
 }
 
 /**
- * A texture open in a Synth. `info`: { id, name, model, width, height, levels (down to 1 × 1),
- * domain, wraps, animated, animation, encoding_bytes }; `id` is the bundle's content id, the
- * server's texture id.
+ * A texture open in a Synth. `info` is the server's texture info (wire/src/info.rs) for the same
+ * bytes and tile size: `id` is the bundle's content id, the server's texture id, and `levels`
+ * are those served as tiles.
  */
 export class SynthTexture {
   constructor(synth, handle, info) {
@@ -88,11 +91,9 @@ export class SynthTexture {
     return this.synth.outputBytes();
   }
 
-  /** Tile (tx, ty) of `level` at `frame` as the server cuts tiles of `tileSize`: { width, height, data }. */
-  renderTile(tileSize, level, tx, ty, frame = 0) {
-    const size = this.synth.call(() =>
-      this.synth.exports.vtex_render_tile(this.live(), tileSize >>> 0, level >>> 0, tx >>> 0, ty >>> 0, frame >>> 0),
-    );
+  /** Tile (tx, ty) of `level` at `frame` as the server cuts tiles of `info.tile_size`: { width, height, data }. */
+  renderTile(level, tx, ty, frame = 0) {
+    const size = this.synth.call(() => this.synth.exports.vtex_render_tile(this.live(), level >>> 0, tx >>> 0, ty >>> 0, frame >>> 0));
     if (size === 0) throw new SynthError(this.synth.outputText());
     return { width: size >>> 16, height: size & 0xffff, data: this.synth.outputBytes() };
   }

@@ -12,7 +12,6 @@ import { opaqueBitmap } from './opaque-bitmap.js';
 import { instantiate } from '../shared/vtex-synth.js';
 
 let texture = null;
-let tileSize = 0;
 /** Tiles waiting, in arrival order: key → message. Cancelling one deletes it. */
 const queue = new Map();
 let scheduled = false;
@@ -25,11 +24,10 @@ self.onmessage = ({ data }) => {
   } else if (data.type === 'cancel') queue.delete(data.key);
 };
 
-async function open({ module, bundle, tileSize: size }) {
+async function open({ module, bundle, tileSize }) {
   try {
     const synth = await instantiate(module);
-    texture = synth.open(new Uint8Array(bundle));
-    tileSize = size;
+    texture = synth.open(new Uint8Array(bundle), tileSize);
     self.postMessage({ type: 'opened', info: texture.info });
     schedule();
   } catch (e) {
@@ -54,7 +52,7 @@ function render({ key, level, x, y, frame, raw }) {
   const t0 = performance.now();
   let tile;
   try {
-    tile = texture.renderTile(tileSize, level, x, y, frame);
+    tile = texture.renderTile(level, x, y, frame);
   } catch (e) {
     self.postMessage({ type: 'tile', key, error: `tile ${level}/${x}/${y}: ${e.message}` });
     return;

@@ -2,8 +2,10 @@
 //!
 //! Every model is one module with the same layout — `mod.rs` (what the model is, and its
 //! [`Model`] implementation: the registry entry), `params.rs` (its creation parameters),
-//! `encoding.rs` (parameters and inputs to a [`Bundle`], and a bundle back to a validated
-//! texture), `demos.rs` — plus its own internals. [`REGISTRY`] lists one entry per model;
+//! `plan.rs` (the encoding's limits and checks, and its cost), `render.rs` (the loaded
+//! texture), `encoding.rs` (parameters and inputs to a [`Bundle`], and a bundle back to a
+//! validated texture), `demos.rs` — plus its own internals; `encoding` imports `render`,
+//! which imports `plan`, never the other way. [`REGISTRY`] lists one entry per model;
 //! nothing else in vtex names a model, so adding one is a module and a line there.
 
 use crate::resources::{Resources, Shared};

@@ -14,7 +14,7 @@ use vtex_synth::texture::{level_count, level_size, render_image};
 use vtex_synth::{Region, Texture};
 use vtex_synth_wasm::{client, probe};
 
-/// The server's default tile size: the tiles the viewer asks for.
+/// The server's default tile size: the tiles the viewer asks for, and every demo is opened with.
 const TILE_SIZE: u32 = 256;
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
@@ -25,7 +25,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         let bytes = bundle.to_bytes();
         let file = format!("{i:02}.vtex");
         std::fs::write(dir.join(&file), &bytes)?;
-        let opened = client::open(&bytes)?;
+        let opened = client::open(&bytes, TILE_SIZE)?;
         let tex = &*opened.texture;
         let mut cases = Vec::new();
         for region in probe::regions(tex) {
@@ -35,8 +35,8 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         }
         for (level, tx, ty, frame) in tiles(tex) {
             let region = server_tile(tex, level, tx, ty, frame);
-            let case = json!({ "kind": "tile", "tile_size": TILE_SIZE, "level": level, "tx": tx, "ty": ty,
-                "frame": frame, "width": region.width, "height": region.height });
+            let case = json!({ "kind": "tile", "level": level, "tx": tx, "ty": ty, "frame": frame,
+                "width": region.width, "height": region.height });
             cases.push(expect(&dir, &format!("{i:02}-{}", cases.len()), tex, &region, case)?);
         }
         demos.push(json!({ "bundle": file, "info": opened.info, "cases": cases }));
@@ -74,7 +74,7 @@ fn tiles(tex: &dyn Texture) -> Vec<(u32, u32, u32, u32)> {
 }
 
 /// Tile (`tx`, `ty`) of `level` as the server cuts it (server/src/api/tiles.rs), written here
-/// independently of `client::tile_region`, which the module uses.
+/// independently of `Opened::tile_region`, which the module uses.
 fn server_tile(tex: &dyn Texture, level: u32, tx: u32, ty: u32, frame: u32) -> Region {
     let ts = TILE_SIZE as u64;
     let (lw, lh) = level_size(tex.width(), tex.height(), level);

@@ -1,8 +1,9 @@
 //! The cascade's encoding: the parameters in the manifest, the optional `control` and
 //! `initial` images as sections, and their complete validation.
 
+use super::exact::auto_range;
 use super::plan::{build_engine, CONTROL_SECTION, INITIAL_SECTION};
-use super::render::{auto_range, Cascade};
+use super::render::Cascade;
 use super::MODEL;
 use crate::bundle::Bundle;
 use crate::models::{input_image, parse_params, Inputs};

@@ -9,7 +9,8 @@
 //!
 //! * [`kernel`], [`maps`], [`palette`] — the building blocks named in the manifest;
 //! * [`lattice`] — integer lattices, hashed noise, images sampled onto the plane;
-//! * [`engine`] — iteration and cascade over windows;
+//! * [`engine`] — iteration and cascade over windows; [`exact`] — level-0 pixels through the
+//!   palette, what every level is computed from;
 //! * [`params`] — the parameters; [`encoding`] — input images, `create`, `load` and validation;
 //! * [`prefilter`] — coarse mip levels without brute force; [`residual`] — their residual;
 //! * [`demos`] — the demo encodings and their procedural input images.
@@ -20,6 +21,7 @@ pub mod params;
 mod plan;
 
 pub mod engine;
+pub mod exact;
 pub mod kernel;
 pub mod lattice;
 pub mod maps;

@@ -23,9 +23,9 @@
 //! (σ and PSNR against the exact downsample).
 
 use super::engine::STREAM_CALIBRATION;
+use super::exact::Exact;
 use super::lattice::{upsample, upsample_footprint};
 use super::residual::{self, luminance, Residual};
-use super::Cascade;
 use crate::hash::hash4;
 use crate::pixels::Rgba8Image;
 use crate::Stop;
@@ -68,22 +68,14 @@ pub struct Calibration {
 
 /// The image whose value predicts the local mean beyond the coarsest stage: the structured
 /// initial image, else the dilation control map.
-fn guide(tex: &Cascade) -> Option<&super::lattice::ImageField> {
+fn guide(tex: &Exact) -> Option<&super::lattice::ImageField> {
     let e = tex.engine();
     e.initial.as_ref().map(|i| &i.field).or(e.control.as_ref().map(|c| &c.field))
 }
 
 /// Stage `s` of the cascade upsampled straight to level-0 pixels (bilinear, one step), or
 /// `None` once `stop` is requested.
-pub fn stage_at_pixels(
-    tex: &Cascade,
-    s: usize,
-    x: u64,
-    y: u64,
-    w: usize,
-    h: usize,
-    stop: &dyn Stop,
-) -> Option<Vec<f32>> {
+pub fn stage_at_pixels(tex: &Exact, s: usize, x: u64, y: u64, w: usize, h: usize, stop: &dyn Stop) -> Option<Vec<f32>> {
     let k = tex.engine().stages[s].shift;
     let (fw, fh) = (upsample_footprint(x, w, k), upsample_footprint(y, h, k));
     let g = tex.engine().field_until(s, x >> k, y >> k, fw, fh, stop)?;
@@ -94,7 +86,7 @@ pub fn stage_at_pixels(
 /// are stratified, one to each cell of a 16 × 16 grid over the guide's period: the guide's
 /// values weigh on the colour, and a plain random sample of 256 of them is a poor sample of
 /// their distribution.
-fn window(tex: &Cascade, i: u64) -> (u64, u64) {
+fn window(tex: &Exact, i: u64) -> (u64, u64) {
     let h = hash4(tex.engine().seed, STREAM_CALIBRATION, i as i64, 1);
     let align = !(WINDOW as u64 - 1);
     match guide(tex).filter(|g| g.repeat) {
@@ -113,7 +105,7 @@ fn window(tex: &Cascade, i: u64) -> (u64, u64) {
 
 impl Calibration {
     /// The statistics, or `None` once `stop` is requested.
-    pub fn compute(tex: &Cascade, stop: &dyn Stop) -> Option<Self> {
+    pub fn compute(tex: &Exact, stop: &dyn Stop) -> Option<Self> {
         let e = tex.engine();
         let n = e.stages.len();
         // One table per stage, plus one over the initial image's value.
@@ -175,7 +167,7 @@ impl Calibration {
     /// follow that chain's fall across those levels and are 2^−k elsewhere (box-filtered white
     /// noise: the short-range detail the residual stands for); z at level L + 1 is z at level
     /// L box-filtered, so the levels' residuals share their grains.
-    fn measure_residuals(&mut self, tex: &Cascade, windows: &[(u64, u64, Rgba8Image)], stop: &dyn Stop) -> Option<()> {
+    fn measure_residuals(&mut self, tex: &Exact, windows: &[(u64, u64, Rgba8Image)], stop: &dyn Stop) -> Option<()> {
         let e = tex.engine();
         let levels = self.weights.len() as u32;
         let first = tex.params().exact_levels + 1;
@@ -449,7 +441,7 @@ const BUDGET_PIXELS: u64 = 256 * 256;
 /// `None` once `stop` is requested.
 #[allow(clippy::too_many_arguments)]
 pub fn render(
-    tex: &Cascade,
+    tex: &Exact,
     cal: &Calibration,
     l: u32,
     x: u64,
@@ -470,7 +462,7 @@ pub fn render(
 /// `l` at (x, y), handed to `put(i, j, colour)`; `None` once `stop` is requested.
 #[allow(clippy::too_many_arguments)]
 fn predict(
-    tex: &Cascade,
+    tex: &Exact,
     cal: &Calibration,
     l: u32,
     x: u64,

@@ -1,13 +1,12 @@
-//! The loaded texture: the validated engine and palette, rendering level 0 and the exact
-//! levels by brute force over bounded chunks and coarser levels through [`prefilter`](super::prefilter).
+//! The loaded texture: level 0 and the exact levels by brute force over bounded chunks
+//! ([`exact`](super::exact)), coarser levels through [`prefilter`](super::prefilter).
 
-use super::engine::{Engine, STREAM_CALIBRATION};
+use super::exact::Exact;
 use super::params::Params;
-use super::plan::build_engine;
-use super::{palette, prefilter, MODEL};
+use super::{prefilter, MODEL};
 use crate::pixels::Rgba8Image;
 use crate::texture::{Domain, Region, Stop, Texture};
-use crate::{Error, Result};
+use crate::Result;
 use std::sync::OnceLock;
 
 /// Level-0 pixels computed per chunk: bounds the memory of one render call.
@@ -15,59 +14,27 @@ const CHUNK: u32 = 1024;
 
 /// A loaded, validated cascade texture.
 pub struct Cascade {
-    pub(super) params: Params,
-    pub(super) engine: Engine,
-    pub(super) lut: Vec<[u8; 4]>,
-    pub(super) lo: f32,
-    pub(super) scale: f32,
+    exact: Exact,
     /// Statistics for the prefiltered mip levels, computed on first use (a pure function of
     /// the encoding, so when it is computed never changes a result).
-    pub(super) calibration: OnceLock<prefilter::Calibration>,
+    calibration: OnceLock<prefilter::Calibration>,
 }
 
 impl std::fmt::Debug for Cascade {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        write!(f, "Cascade({} stages, seed {})", self.engine.stages.len(), self.engine.seed)
+        let e = self.exact.engine();
+        write!(f, "Cascade({} stages, seed {})", e.stages.len(), e.seed)
     }
 }
 
 impl Cascade {
     pub(super) fn build(params: Params, control: Option<&Rgba8Image>, initial: Option<&Rgba8Image>) -> Result<Self> {
-        let engine = build_engine(&params, control, initial)?;
-        let lut = palette::build(&params.palette)?;
-        let [lo, hi] = params.range.unwrap_or_else(|| auto_range(&engine));
-        let (lo, scale) = (lo as f32, (1.0 / (hi - lo)) as f32);
-        if !(scale.is_finite() && scale > 0.0) {
-            return Err(Error::param("range", format!("[{lo}, {hi}] is too narrow")));
-        }
-        Ok(Self { params, engine, lut, lo, scale, calibration: OnceLock::new() })
+        Ok(Self { exact: Exact::build(params, control, initial)?, calibration: OnceLock::new() })
     }
 
-    pub fn params(&self) -> &Params {
-        &self.params
-    }
-
-    pub fn engine(&self) -> &Engine {
-        &self.engine
-    }
-
-    /// The palette colour of a final-stage value.
-    #[inline]
-    pub fn colour(&self, v: f32) -> [u8; 4] {
-        let t = ((v - self.lo) * self.scale).clamp(0.0, 1.0);
-        self.lut[(t * (palette::LUT_SIZE - 1) as f32 + 0.5) as usize]
-    }
-
-    /// Level-0 pixels of the window at (x, y) (plane coordinates as u64 on the 2^64 torus),
-    /// or `None` once `stop` is requested.
-    pub fn level0(&self, x: u64, y: u64, w: u32, h: u32, stop: &dyn Stop) -> Option<Rgba8Image> {
-        let last = self.engine.stages.len() - 1;
-        let g = self.engine.field_until(last, x, y, w as usize, h as usize, stop)?;
-        let mut img = Rgba8Image::new(w, h);
-        for (px, v) in img.data.chunks_exact_mut(4).zip(&g.v) {
-            px.copy_from_slice(&self.colour(*v));
-        }
-        Some(img)
+    /// The exact evaluation every level is computed from.
+    pub fn exact(&self) -> &Exact {
+        &self.exact
     }
 
     /// The calibration, kept once a render has computed it whole; `None` when `stop` is
@@ -77,7 +44,7 @@ impl Cascade {
         if let Some(c) = self.calibration.get() {
             return Some(c);
         }
-        let c = prefilter::Calibration::compute(self, stop)?;
+        let c = prefilter::Calibration::compute(&self.exact, stop)?;
         Some(self.calibration.get_or_init(|| c))
     }
 }
@@ -87,10 +54,10 @@ impl Texture for Cascade {
         MODEL
     }
     fn width(&self) -> u64 {
-        self.params.width
+        self.exact.params().width
     }
     fn height(&self) -> u64 {
-        self.params.height
+        self.exact.params().height
     }
     fn domain(&self) -> Domain {
         Domain::Plane
@@ -99,18 +66,20 @@ impl Texture for Cascade {
     fn render(&self, region: &Region, out: &mut [u8], stop: &dyn Stop) {
         let l = region.level;
         // Chunks keep every buffer bounded; each pixel is independent of the chunking.
-        let step = if l <= self.params.exact_levels { (CHUNK >> l).max(1) } else { 256 };
+        let step = if l <= self.exact.params().exact_levels { (CHUNK >> l).max(1) } else { 256 };
         let row = region.width as usize * 4;
         for cy in (0..region.height).step_by(step as usize) {
             for cx in (0..region.width).step_by(step as usize) {
                 let (w, h) = (step.min(region.width - cx), step.min(region.height - cy));
                 let (x, y) = ((region.x as u64).wrapping_add(cx as u64), (region.y as u64).wrapping_add(cy as u64));
                 let img = if l == 0 {
-                    self.level0(x, y, w, h, stop)
-                } else if l <= self.params.exact_levels {
-                    self.level0(x << l, y << l, w << l, h << l, stop).map(|full| crate::mip::downsample_n(&full, l))
+                    self.exact.level0(x, y, w, h, stop)
+                } else if l <= self.exact.params().exact_levels {
+                    self.exact
+                        .level0(x << l, y << l, w << l, h << l, stop)
+                        .map(|full| crate::mip::downsample_n(&full, l))
                 } else {
-                    self.calibration(stop).and_then(|cal| prefilter::render(self, cal, l, x, y, w, h, stop))
+                    self.calibration(stop).and_then(|cal| prefilter::render(&self.exact, cal, l, x, y, w, h, stop))
                 };
                 let Some(img) = img else { return };
                 for r in 0..h as usize {
@@ -120,27 +89,6 @@ impl Texture for Cascade {
                 }
             }
         }
-    }
-}
-
-/// Final-stage value range from a deterministic sample of windows: the 0.5 % and 99.5 %
-/// quantiles, rounded to 1e-4 so the manifest stays short and parses exactly.
-pub(super) fn auto_range(engine: &Engine) -> [f64; 2] {
-    let last = engine.stages.len() - 1;
-    let mut v: Vec<f32> = Vec::new();
-    for i in 0..8 {
-        let h = crate::hash::hash4(engine.seed, STREAM_CALIBRATION, i, 7);
-        let g = engine.field(last, h, h.rotate_left(32), 48, 48);
-        v.extend(g.v);
-    }
-    v.sort_by(f32::total_cmp);
-    let q = |f: f64| v[((v.len() - 1) as f64 * f) as usize] as f64;
-    let round = |x: f64| (x * 1e4).round() / 1e4;
-    let (lo, hi) = (round(q(0.005)), round(q(0.995)));
-    if hi - lo < 1e-3 {
-        [round(lo - 0.05), round(lo + 0.05)]
-    } else {
-        [lo, hi]
     }
 }
 
@@ -164,7 +112,7 @@ mod tests {
             {"kernel": {"size": 5, "preset": "gauss"}, "map": {"kind": "logistic", "r": 3.8}},
             {"upsample": 2, "jitter": 0.1, "kernel": {"size": 3, "preset": "box"}, "map": {"kind": "tent", "mu": 1.7}, "iterations": 3},
             {"upsample": 4, "jitter": 0.1, "kernel": {"size": 7, "preset": "gauss"}, "map": {"kind": "sine", "r": 0.95}, "iterations": 2, "dilation": 2}]}));
-        let e = t.engine();
+        let e = t.exact().engine();
         let last = e.stages.len() - 1;
         let (x, y, w, h) = (u64::MAX - 20, 1 << 40, 48, 40);
         let full = e.field(last, x, y, w, h);
@@ -187,7 +135,7 @@ mod tests {
         let params = json!({"seed": 2, "stages": [{"kernel": {"size": 3, "preset": "box"}, "map": {"kind": "logistic", "r": 3.9}, "iterations": 4}],
                             "dilation_map": {"max": 2, "cell": 8}});
         let t = load(&create("d", &params, &inputs).unwrap()).unwrap();
-        let e = t.engine();
+        let e = t.exact().engine();
         // Dilated by 2 the 3×3 box spans 2·(1 + 1) = 4 points each side and vanishes at the
         // 4th: it reaches 3.
         assert_eq!(e.margin(0), 4 * 3);

@@ -2,9 +2,9 @@
 //! and, for an explicit sequence, the 12-byte block records in `blocks`.
 
 use super::blocks::{self, SizeRule};
-use super::mosaic::ChaosMosaic;
 use super::params::{Params, Sequence};
 use super::plan::{BLOCKS_SECTION, SAMPLE_SECTION};
+use super::render::ChaosMosaic;
 use super::MODEL;
 use crate::models::{input_image, parse_params, Inputs};
 use crate::{bundle::Bundle, pixels::Rgba8Image, Result};

@@ -22,15 +22,16 @@ pub mod catmap;
 mod compose;
 mod index;
 mod layout;
-mod mosaic;
 mod prefilter;
+mod render;
+mod sums;
 
 pub use blocks::{Block, RECORD_BYTES};
 pub use demos::demos;
 pub use encoding::{create, is_seamless, load};
-pub use mosaic::ChaosMosaic;
 pub use params::{Params, Sequence};
 pub use prefilter::EXACT_LEVELS;
+pub use render::ChaosMosaic;
 
 use super::{InputInfo, Inputs, MipGuarantee, Model, ModelInfo, Plan};
 use crate::{bundle::Bundle, Result, Texture};

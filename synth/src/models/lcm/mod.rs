@@ -15,8 +15,8 @@
 //! * [`period`] — the period that LCM sizes give the texture.
 //! * [`packing`] — §6's coding of the zeros of an LCM section.
 //! * [`colour`] — palette or per-channel planes.
-//! * [`params`] — the creation parameters; [`encoding`] — the stored parameters, sections,
-//!   `create` and `load`.
+//! * [`params`] — the creation parameters; `plan` — the sections, every check of a stored or
+//!   given encoding, and the cost model; [`encoding`] — `create` and `load`.
 //! * [`elements`], [`demos`] — project-made base elements and the paper's §3 examples.
 
 pub mod demos;

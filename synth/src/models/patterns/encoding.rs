@@ -1,9 +1,10 @@
 //! The `patterns` encoding: the parameters in the manifest, the reference texture as
 //! `reference.png`, the permutation tables σ as `sigma`, and explicit maps as sections.
 
-use super::model::{PatternTexture, MODEL};
 use super::params::{self, Params};
-use super::{pixel_map, sigma};
+use super::plan::{map_section, tables, with_range_tables};
+use super::render::PatternTexture;
+use super::{pixel_map, sigma, MODEL};
 use crate::models::{input_image, parse_params, Inputs};
 use crate::{bundle::Bundle, Error, Result};
 
@@ -17,8 +18,8 @@ pub fn create(name: &str, params: &serde_json::Value, inputs: &Inputs) -> Result
     let reference = input_image(inputs, "reference")?;
     let bundle = Bundle::new(MODEL, name, params.clone())
         .with_section("reference.png", reference.to_png())
-        .with_section("sigma", sigma::to_bytes(&super::plan::tables(&p)));
-    let mut bundle = super::plan::with_range_tables(bundle, &p);
+        .with_section("sigma", sigma::to_bytes(&tables(&p)));
+    let mut bundle = with_range_tables(bundle, &p);
     let pixel_maps: Vec<(String, u32)> = p
         .layers
         .iter()
@@ -32,25 +33,6 @@ pub fn create(name: &str, params: &serde_json::Value, inputs: &Inputs) -> Result
     }
     load(&bundle)?;
     Ok(bundle)
-}
-
-/// The section an explicit map input is stored as: its red channel, one byte a pixel, or
-/// compressed when `pixel_maps` (section, block side) names it.
-pub(super) fn map_section(input: &str, bytes: &[u8], pixel_maps: &[(String, u32)]) -> Result<Vec<u8>> {
-    let img = crate::pixels::decode_png(input, bytes)?;
-    let values: Vec<u8> = img.data.chunks_exact(4).map(|p| p[0]).collect();
-    match pixel_maps.iter().find(|(s, _)| s == input) {
-        Some(&(_, block)) => {
-            if block == 0 || !block.is_power_of_two() || img.width % block != 0 || img.height % block != 0 {
-                return Err(Error::image(
-                    input,
-                    format!("{}×{} is not a whole number of {block}-pixel blocks", img.width, img.height),
-                ));
-            }
-            Ok(pixel_map::encode(img.width, img.height, block, &values))
-        }
-        None => Ok(values),
-    }
 }
 
 /// The input images `create` made `bundle` from: the reference as stored, and every map

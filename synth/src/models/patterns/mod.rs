@@ -9,7 +9,9 @@
 //! maps), [`materials`] (Explicit Indirection, Probability, Materials, Areas and Dithered Areas
 //! Maps), [`pixel_map`], [`transitions`] (Transition Tiles), [`transform`] (Tile Transform with
 //! overflow), [`sprites`] (Explicit Positioning), [`animation`] (Animation Sequence, Animation
-//! Map, Temporal Transitions); [`model`] composes them; [`demos`] and [`art`] make the demos.
+//! Map, Temporal Transitions); [`render`] composes them into the texture. `plan` holds the
+//! encoding's limits and checks and the cost model, [`encoding`] `create` and `load`;
+//! [`demos`] and [`art`] make the demos.
 
 pub mod demos;
 pub mod encoding;
@@ -20,10 +22,10 @@ pub mod animation;
 pub mod art;
 pub mod maps;
 pub mod materials;
-pub mod model;
 pub mod pixel_map;
 pub mod random;
 pub mod reference;
+pub mod render;
 pub mod sigma;
 pub mod sprites;
 pub mod transform;
@@ -31,12 +33,15 @@ pub mod transitions;
 
 pub use demos::demos;
 pub use encoding::{create, load};
-pub use model::{PatternTexture, MODEL};
 pub use params::Params;
+pub use render::PatternTexture;
 
 use super::{InputInfo, Inputs, MipGuarantee, Model, ModelInfo, Plan};
 use crate::{bundle::Bundle, Result, Texture};
 use std::sync::Arc;
+
+/// The model id.
+pub const MODEL: &str = "patterns";
 
 /// The `patterns` registry entry.
 pub struct PatternsModel;

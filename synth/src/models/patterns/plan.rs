@@ -1,22 +1,25 @@
-//! The `patterns` cost model: from the manifest, the section lengths and the reference's PNG
-//! header, what a loaded texture holds and what its dearest tile and its making cost, before
-//! the reference is decoded or its mip chains built. An animated texture's period comes from
+//! The `patterns` encoding's limits and checks, and its cost model: from the manifest, the
+//! section lengths and the reference's PNG header, what a loaded texture holds and what its
+//! dearest tile and its making cost, before the reference is decoded or its mip chains built. An animated texture's period comes from
 //! its animation maps (small value maps, read as `load` reads them). Constants are work units
 //! (≈ 1 ns of one core) per item, calibrated by `examples/cost_calibration.rs`.
 
 use super::animation::{AnimationBlock, Context};
-use super::model::{MAX_LAYERS, MAX_SIDE};
 use super::params::{Choice, LayerKind, LayerParams, Params, ValueParams};
 use super::random::LayerRng;
 use super::sigma::{self, RangeTable, Sigma};
-use super::sprites;
 use super::transform::TransformBlock;
+use super::{pixel_map, sprites, MODEL};
 use crate::bundle::Bundle;
 use crate::models::{cost, parse_params, Cost, Inputs, Measure, Plan};
 use crate::pixels::png_dimensions;
 use crate::texture::level_count;
 use crate::{Animation, Domain, Error, Result};
 use std::sync::Arc;
+
+/// Largest side of a texture, in pixels.
+pub const MAX_SIDE: u64 = 1 << 24;
+pub const MAX_LAYERS: usize = 8;
 
 /// A tile's pixels.
 const TILE: f64 = 256.0 * 256.0;
@@ -55,7 +58,7 @@ pub fn plan(bundle: &Bundle) -> Result<Plan> {
 pub fn plan_create(params: &serde_json::Value, inputs: &Inputs) -> Result<Plan> {
     let p: Params = parse_params(params)?;
     let reference = inputs.get("reference").ok_or_else(|| Error::image("reference", "missing; this model needs it"))?;
-    let bundle = Bundle::new(super::MODEL, "plan", params.clone())
+    let bundle = Bundle::new(MODEL, "plan", params.clone())
         .with_section("reference.png", reference.clone())
         .with_section("sigma", sigma::to_bytes(&tables(&p)));
     let mut bundle = with_range_tables(bundle, &p);
@@ -66,11 +69,30 @@ pub fn plan_create(params: &serde_json::Value, inputs: &Inputs) -> Result<Plan> 
         .flat_map(|a| a.values().filter_map(|v: &ValueParams| v.map.as_ref()));
     for section in maps.filter_map(|m| m.section.as_deref()) {
         if let Some(bytes) = inputs.get(section) {
-            let data = super::encoding::map_section(section, bytes, &[])?;
+            let data = map_section(section, bytes, &[])?;
             bundle = bundle.with_section(section, data);
         }
     }
     plan_of(&p, &bundle, true)
+}
+
+/// The section an explicit map input is stored as: its red channel, one byte a pixel, or
+/// compressed when `pixel_maps` (section, block side) names it.
+pub(super) fn map_section(input: &str, bytes: &[u8], pixel_maps: &[(String, u32)]) -> Result<Vec<u8>> {
+    let img = crate::pixels::decode_png(input, bytes)?;
+    let values: Vec<u8> = img.data.chunks_exact(4).map(|p| p[0]).collect();
+    match pixel_maps.iter().find(|(s, _)| s == input) {
+        Some(&(_, block)) => {
+            if block == 0 || !block.is_power_of_two() || img.width % block != 0 || img.height % block != 0 {
+                return Err(Error::image(
+                    input,
+                    format!("{}×{} is not a whole number of {block}-pixel blocks", img.width, img.height),
+                ));
+            }
+            Ok(pixel_map::encode(img.width, img.height, block, &values))
+        }
+        None => Ok(values),
+    }
 }
 
 /// The permutation tables `create` generates for `p`.
@@ -155,7 +177,8 @@ fn gcd(a: u64, b: u64) -> u64 {
     }
 }
 
-fn in_layer(i: usize, e: Error) -> Error {
+/// `e` as an error of layer `i`'s parameters.
+pub(super) fn in_layer(i: usize, e: Error) -> Error {
     match e {
         Error::Param { name, reason } => Error::param(format!("layers[{i}].{name}"), reason),
         other => other,

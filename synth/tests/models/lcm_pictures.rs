@@ -1,5 +1,5 @@
 //! Renders the demos; with `LCM_PNG_DIR` set, writes them as PNG files to look at.
-//! `LCM_PNG_DIR=/tmp/lcm cargo test -p vtex-synth --test lcm_pictures`
+//! `LCM_PNG_DIR=/tmp/lcm cargo test -p vtex-synth --test models lcm_pictures::`
 
 use vtex_synth::models::lcm::demos;
 use vtex_synth::texture::render_image;

@@ -323,7 +323,7 @@ fn reported_periods_are_the_true_ones() {
 #[test]
 fn haar_representation_renders_like_the_explicit_copies() {
     let mut p = demos::brick_wall();
-    p.representation = lcm::encoding::Representation::Haar;
+    p.representation = lcm::params::Representation::Haar;
     let b = demos::make("haar", &p).unwrap();
     assert_eq!(b.section("haar.0").unwrap().len(), 2 * 32 * 32);
     let haar = lcm::load(&b).unwrap();

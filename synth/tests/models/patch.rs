@@ -8,7 +8,7 @@ use serde_json::{json, Value};
 use vtex_synth::bundle::{id_of, Bundle};
 use vtex_synth::models::{self, lcm, merge_patch, remake_within, Inputs, Limits};
 use vtex_synth::{texture::render_image, Region, Rgba8Image};
-#[path = "support/rgb_png.rs"]
+#[path = "../support/rgb_png.rs"]
 mod rgb_png;
 use rgb_png::rgb_png;
 

@@ -3,7 +3,7 @@
 //! within a few more polls). Work is counted in polls, never in time, so these hold on any
 //! machine; a render that ignored its stop would instead run to its end.
 //!
-//! `cargo test --release -p vtex-synth --test stop`
+//! `cargo test --release -p vtex-synth --test models stop::`
 
 use serde_json::json;
 use std::sync::atomic::{AtomicUsize, Ordering};

@@ -4,7 +4,7 @@
 use super::blocks::{self, SizeRule};
 use super::index::{self, TileIndex};
 use super::params::{self, Params, Sequence};
-use super::prefilter::{BoxTables, PeriodicSums};
+use super::sums::{BoxTables, PeriodicSums};
 use super::{Block, MODEL};
 use crate::{pixels::Rgba8Image, Domain, Error, Region, Result, Stop, Texture};
 

@@ -13,22 +13,20 @@
 use super::animation::{AnimationBlock, Context};
 use super::materials::ChoiceBlock;
 use super::params::{Choice, LayerKind, LayerParams, Params};
+use super::plan::{animation, in_layer};
 use super::random::LayerRng;
 use super::reference::{over_pm, over_u8, Reference};
 use super::sigma::{self, RangeTable, Sigma};
 use super::sprites::{self, Positioning};
 use super::transform::{Placed, TransformBlock};
 use super::transitions::{Pick, Transitions};
+use super::MODEL;
 use crate::texture::{level_size, wrap};
 use crate::{bundle::Bundle, Animation, Domain, Error, Region, Result, Stop, Texture};
 use std::sync::Arc;
 
-pub const MODEL: &str = "patterns";
 /// Sprites splatted between two polls of the [`Stop`] at levels where they are under a pixel.
 const SPRITES_A_POLL: usize = 64;
-/// Largest side of a texture, in pixels.
-pub const MAX_SIDE: u64 = 1 << 24;
-pub const MAX_LAYERS: usize = 8;
 /// Cells per pixel side up to which coarse levels combine exact cell means.
 const OVERSAMPLE: u64 = 4;
 
@@ -54,14 +52,10 @@ struct Layer {
 }
 
 impl PatternTexture {
-    pub fn load(bundle: &Bundle) -> Result<Self> {
+    /// Builds the texture of `bundle`, whose plan has checked it (its size, layer count,
+    /// reference header and sprites).
+    pub(super) fn load(bundle: &Bundle) -> Result<Self> {
         let p: Params = bundle.params()?;
-        if p.width == 0 || p.height == 0 || p.width > MAX_SIDE || p.height > MAX_SIDE {
-            return Err(Error::param(
-                "width/height",
-                format!("{}×{}: each side must be 1..={MAX_SIDE}", p.width, p.height),
-            ));
-        }
         let img = crate::pixels::decode_png("reference", bundle.section("reference.png")?)?;
         let reference = Reference::new(&img, p.pattern_size, p.reference[0], p.reference[1])?;
         let tables: Arc<[Sigma]> = sigma::from_bytes(bundle.section("sigma")?)?.into();
@@ -72,10 +66,6 @@ impl PatternTexture {
                 tables[0].tx, tables[0].ty, reference.tx, reference.ty
             )));
         }
-        if p.layers.is_empty() || p.layers.len() > MAX_LAYERS {
-            return Err(Error::param("layers", format!("{} layers; 1..={MAX_LAYERS}", p.layers.len())));
-        }
-        sprites::check_layers(&p.sprites, &p.layers)?;
         let mut layers = Vec::with_capacity(p.layers.len());
         for (i, lp) in p.layers.iter().enumerate() {
             let tables = (tables.clone(), ranges.clone());
@@ -83,7 +73,7 @@ impl PatternTexture {
         }
         let mut periods: Vec<u64> = layers.iter().filter_map(|l| l.animation.as_ref()?.period()).collect();
         periods.extend(sprites::moving_periods(&p.sprites, (p.width, p.height)));
-        let animation = super::plan::animation(&periods, p.fps)?;
+        let animation = animation(&periods, p.fps)?;
         Ok(Self { width: p.width, height: p.height, reference, background: p.background, layers, animation })
     }
 
@@ -110,13 +100,6 @@ impl PatternTexture {
     /// The pixel map's material at level-0 pixel (x, y) of layer `layer`, if it has one.
     pub fn pixel_material(&self, layer: usize, x: u64, y: u64) -> Option<u16> {
         self.layers[layer].choice.as_ref()?.pixel_map().map(|p| p.at(x, y))
-    }
-}
-
-fn in_layer(i: usize, e: Error) -> Error {
-    match e {
-        Error::Param { name, reason } => Error::param(format!("layers[{i}].{name}"), reason),
-        other => other,
     }
 }
 

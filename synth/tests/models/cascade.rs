@@ -69,7 +69,7 @@ fn renders_are_not_degenerate() {
 /// machinery: whole lattices in i128 coordinates, per-point convolution, floor-division
 /// upsampling. Used near and far from the origin (away from the 2^64 wrap).
 fn direct(t: &Cascade, x0: i128, y0: i128, w: usize, h: usize) -> Vec<f32> {
-    let e = t.engine();
+    let e = t.exact().engine();
     fn stage(
         e: &vtex_synth::models::cascade::engine::Engine,
         s: usize,
@@ -150,10 +150,10 @@ fn far_coordinates_agree_with_a_direct_evaluation() {
         ] {
             let img = render(&t, 0, x, y, 40, 24);
             let reference = direct(&t, x as i128, y as i128, 40, 24);
-            let field = t.engine().field(t.engine().stages.len() - 1, x as u64, y as u64, 40, 24);
+            let field = t.exact().engine().field(t.exact().engine().stages.len() - 1, x as u64, y as u64, 40, 24);
             let same = field.v.iter().zip(&reference).filter(|(a, b)| a == b).count();
             assert_eq!(same, reference.len(), "at ({x}, {y}): {same} of {} values agree", reference.len());
-            let expect: Vec<u8> = reference.iter().flat_map(|v| t.colour(*v)).collect();
+            let expect: Vec<u8> = reference.iter().flat_map(|v| t.exact().colour(*v)).collect();
             assert!(img.data == expect, "at ({x}, {y}): colours differ");
         }
     }
@@ -209,7 +209,7 @@ fn control(columns: &[u8]) -> Inputs {
 
 /// The final-stage lattice values (before the palette) of a `w × h` window at (x, y).
 fn lattice(t: &Cascade, x: u64, y: u64, w: usize, h: usize) -> Vec<f32> {
-    t.engine().field(t.engine().stages.len() - 1, x, y, w, h).v
+    t.exact().engine().field(t.exact().engine().stages.len() - 1, x, y, w, h).v
 }
 
 /// The control map scales the kernel by 1 + c·(max − 1) at each point: where the map is
@@ -246,7 +246,7 @@ fn the_dilation_map_dilates_the_lattice_by_its_control_value() {
     // (iterations × the dilated kernel's reach), so away from the transitions by that much
     // each half is the uniform texture; in the transitions it is neither.
     let split = with(1.0, Some((&[255, 255, 0, 0], 256)));
-    let m = by4.engine().margin(0) as u64;
+    let m = by4.exact().engine().margin(0) as u64;
     let period = 10u64 * 1024;
     let (white, black, ramp) = (period + 128 + m, period + 640 + m, period + 384 + m);
     let side = 256 - 2 * m as usize;
