@@ -27,7 +27,7 @@ mod record;
 
 pub use atomic::write_atomic;
 pub use index::{Bounds, OpenReport, Store, StoreError, ABSENT_TTL, STALE_TEMP_AGE};
-pub use record::{served_levels, Entry, Record, TextureInfo};
+pub use record::{Entry, Record, TextureInfo};
 
 pub const BUNDLE_EXT: &str = "vtex";
 /// Prefix of temporary files; anything carrying it at start-up is a crashed write.

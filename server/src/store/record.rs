@@ -5,21 +5,7 @@ use std::ops::Deref;
 use std::sync::Arc;
 use vtex_synth::bundle::{id_of, Bundle, Manifest};
 use vtex_synth::models::{self, Limits, Plan};
-use vtex_synth::texture::level_size;
 use vtex_synth::{Domain, Texture};
-
-/// Number of served levels: 0..n-1, where level n-1 is the first that fits in one tile.
-pub fn served_levels(width: u64, height: u64, tile_size: u32) -> u32 {
-    let ts = tile_size as u64;
-    let mut level = 0;
-    loop {
-        let (w, h) = level_size(width, height, level);
-        if w <= ts && h <= ts {
-            return level + 1;
-        }
-        level += 1;
-    }
-}
 
 pub use vtex_wire::TextureInfo;
 
@@ -54,7 +40,7 @@ impl Record {
             id,
             key,
             manifest: bundle.manifest.clone(),
-            levels: served_levels(plan.width, plan.height, tile_size),
+            levels: vtex_wire::levels::tile_levels(plan.width, plan.height, tile_size),
             plan,
             encoding_bytes: encoding_bytes as u64,
             tile_size,
@@ -78,7 +64,7 @@ impl Record {
             levels: self.levels,
             tile_size: self.tile_size,
             encoding_bytes: self.encoding_bytes,
-            explicit_bytes: p.width.saturating_mul(p.height).saturating_mul(3),
+            explicit_bytes: vtex_wire::info::explicit_bytes(p.width, p.height),
             wraps: p.domain == Domain::Torus,
             domain: p.domain,
             animated: p.animation.is_some(),
@@ -90,9 +76,7 @@ impl Record {
 
     /// Tiles across and down at `level`.
     pub fn tiles_at(&self, level: u32) -> (u64, u64) {
-        let (w, h) = level_size(self.plan.width, self.plan.height, level);
-        let ts = self.tile_size as u64;
-        (w.div_ceil(ts), h.div_ceil(ts))
+        vtex_wire::levels::grid(self.plan.width, self.plan.height, level, self.tile_size)
     }
 }
 
@@ -117,19 +101,5 @@ impl Entry {
         let record = Record::plan(&bundle, id_of(bytes), bytes.len(), tile_size, &Limits::NONE)?;
         let texture = models::load(&bundle)?;
         Ok(Entry { record: Arc::new(record), texture })
-    }
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn served_levels_stop_at_one_tile() {
-        assert_eq!(served_levels(256, 256, 256), 1);
-        assert_eq!(served_levels(257, 10, 256), 2);
-        assert_eq!(served_levels(100_000, 100_000, 256), 10); // 100000/2^9 = 196 ≤ 256
-        assert_eq!(served_levels(1, 1, 256), 1);
-        assert_eq!(served_levels(100_000, 3, 256), 10);
     }
 }

@@ -6,7 +6,7 @@
 //! An entry's value is a pure function of its tag, so the cache never changes a result: with a
 //! budget of 0 nothing is kept at all.
 
-use super::served::Rect;
+use super::rect::Rect;
 use super::structure::Structure;
 use crate::hash::fmix64;
 use lru::LruCache;

@@ -3,9 +3,9 @@
 
 use super::params::{ExemplarLevels, Generation0, Params, Search};
 use super::prefilter::{source, span, Source};
-use super::render::CHUNK;
+use super::rect::Rect;
 use super::search::{structure, PILOT};
-use super::served::{cone, Rect};
+use super::served::{cone, CHUNK};
 use super::MODEL;
 use crate::bundle::Bundle;
 use crate::models::{cost, parse_params, Cost, Inputs, Measure, Plan};

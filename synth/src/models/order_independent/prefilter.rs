@@ -15,13 +15,14 @@
 //! * Beyond: the texture's mean colour, flat (a pixel there averages thousands of independent
 //!   noise cells).
 
-use super::render::OrderIndependent;
-use super::served::Rect;
+use super::levels::SynthesisLevels;
+use super::rect::Rect;
 use crate::hash::hash4;
 use crate::mip::downsample_n;
 use crate::pixels::Rgba8Image;
 use crate::texture::wrap;
 use crate::Stop;
+use std::sync::OnceLock;
 
 /// Hash stream of the calibration windows' positions.
 pub const STREAM_CALIBRATION: u64 = 0x0043_414c_4942;
@@ -88,7 +89,7 @@ pub struct Contrast {
 
 impl Calibration {
     /// Measured over [`WINDOWS`] deterministic level-0 windows; `None` once `stop` is requested.
-    pub fn compute(tex: &OrderIndependent, stop: &dyn Stop) -> Option<Calibration> {
+    pub fn compute(tex: &SynthesisLevels, stop: &dyn Stop) -> Option<Calibration> {
         let p = tex.params();
         let fin = p.levels as u32 - 1;
         let block = 1i64 << fin;
@@ -214,12 +215,31 @@ impl Moments {
     }
 }
 
-/// Renders `w × h` pixels of level `l` ≥ 1 at (x, y), or `None` once `stop` is requested.
-pub fn render(tex: &OrderIndependent, l: u32, x: i64, y: i64, w: u32, h: u32, stop: &dyn Stop) -> Option<Rgba8Image> {
+/// The calibration kept in `cell`, computed there first if no render has yet; `None` when
+/// `stop` is requested before it is whole.
+fn calibration<'a>(tex: &SynthesisLevels, cell: &'a OnceLock<Calibration>, stop: &dyn Stop) -> Option<&'a Calibration> {
+    if let Some(c) = cell.get() {
+        return Some(c);
+    }
+    let c = Calibration::compute(tex, stop)?;
+    Some(cell.get_or_init(|| c))
+}
+
+/// Renders the pixels of `area` of level `l` ≥ 1 with the calibration kept in `cell`, or
+/// `None` once `stop` is requested.
+pub fn render(
+    tex: &SynthesisLevels,
+    cell: &OnceLock<Calibration>,
+    l: u32,
+    area: Rect,
+    stop: &dyn Stop,
+) -> Option<Rgba8Image> {
+    let Rect { x, y, w, h } = area;
+    let (w, h) = (w as u32, h as u32);
     match source(tex.params(), l) {
         Source::Exact => Some(downsample_n(&tex.level0(x << l, y << l, w << l, h << l, stop)?, l)),
         Source::Mean => {
-            let c = tex.calibration(stop)?.mean;
+            let c = calibration(tex, cell, stop)?.mean;
             let mut img = Rgba8Image::new(w, h);
             for px in img.data.chunks_exact_mut(4) {
                 px.copy_from_slice(&[c[0], c[1], c[2], 255]);
@@ -229,7 +249,7 @@ pub fn render(tex: &OrderIndependent, l: u32, x: i64, y: i64, w: u32, h: u32, st
         // The finest synthesis level coloured by the sample: exact.
         Source::Pyramid { r: 0 } => pyramid(tex, &[], 0, l, x, y, w, h, stop),
         Source::Pyramid { r } => {
-            let cal = tex.calibration(stop)?;
+            let cal = calibration(tex, cell, stop)?;
             let mut img = pyramid(tex, &cal.g, r, l - r, x, y, w, h, stop)?;
             cal.adjust(l, &mut img);
             Some(img)
@@ -241,7 +261,7 @@ pub fn render(tex: &OrderIndependent, l: u32, x: i64, y: i64, w: u32, h: u32, st
 /// coarsest) and box-filtered `d` times, or `None` once `stop` is requested.
 #[allow(clippy::too_many_arguments)]
 fn pyramid(
-    tex: &OrderIndependent,
+    tex: &SynthesisLevels,
     g: &[[u8; 3]],
     r: u32,
     d: u32,

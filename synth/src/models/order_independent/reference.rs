@@ -611,8 +611,9 @@ mod tests {
     #[test]
     fn the_reference_equals_the_served_evaluator_with_the_real_kernel() {
         use super::super::params::Params;
+        use super::super::rect::Rect;
         use super::super::search::Synthesizer;
-        use super::super::served::{evaluate, Counts, Rect};
+        use super::super::served::{evaluate, Counts};
         use serde_json::json;
 
         let sample = crate::samples::pebbles(32, 6, 4, false);

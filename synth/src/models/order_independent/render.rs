@@ -1,38 +1,32 @@
 //! The loaded texture: vtex level 0 is the finest synthesis level's latest generation, coloured
 //! by the exemplar; coarser levels come from [`prefilter`](super::prefilter).
 
-use super::cache::{BlockCache, Pyramid};
+use super::cache::BlockCache;
+use super::levels::SynthesisLevels;
 use super::params::{DomainSpec, Params};
 use super::prefilter::{self, Calibration};
-use super::search::{Synthesizer, PLANE_BITS};
-use super::served::{evaluate, Counts, Rect};
-use super::shared::{Shared, Work};
+use super::rect::Rect;
+use super::search::PLANE_BITS;
+use super::served::CHUNK;
+use super::shared::Shared;
 use super::MODEL;
 use crate::pixels::Rgba8Image;
 use crate::texture::{Domain, Region, Stop, Texture};
 use crate::Result;
 use std::sync::{Arc, OnceLock};
 
-/// Side of the chunks a large region is evaluated in, in pixels of the evaluated level:
-/// bounds the memory of one call (about 2 bytes an entry over the chunk's cone).
-pub const CHUNK: u32 = 256;
-
 /// A loaded, validated order-independent texture.
 pub struct OrderIndependent {
-    pub(super) params: Params,
-    pub(super) synthesizer: Synthesizer,
-    pyramid: Pyramid,
+    levels: SynthesisLevels,
     /// The colours of coarse levels beyond the pyramid, measured on first use (a pure
     /// function of the encoding, so when it is computed never changes a result).
     calibration: OnceLock<Calibration>,
-    /// This texture's share of the shared work, since it was loaded.
-    work: Work,
-    shared: Arc<Shared>,
 }
 
 impl std::fmt::Debug for OrderIndependent {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        write!(f, "OrderIndependent({} levels, seed {})", self.params.levels, self.params.seed)
+        let p = self.params();
+        write!(f, "OrderIndependent({} levels, seed {})", p.levels, p.seed)
     }
 }
 
@@ -40,71 +34,35 @@ impl OrderIndependent {
     /// The texture of `params` over `sample`, sharing `shared` with the other textures of its
     /// owner; `key` (the start of its bundle's hash) names its entries in the shared cache.
     pub fn new(params: Params, sample: &Rgba8Image, key: u64, shared: Arc<Shared>) -> Result<Self> {
-        let synthesizer = Synthesizer::new(&params, sample)?;
         Ok(OrderIndependent {
-            params,
-            synthesizer,
-            pyramid: Pyramid::new(key, shared.cache.clone()),
+            levels: SynthesisLevels::new(params, sample, key, shared)?,
             calibration: OnceLock::new(),
-            work: Work::default(),
-            shared,
         })
     }
 
     /// This texture with its entries kept in `cache` instead of the shared cache (the figures
     /// compare block sides and budgets with it).
     pub fn in_cache(self, cache: Arc<BlockCache>) -> Self {
-        OrderIndependent { pyramid: self.pyramid.in_cache(cache), ..self }
+        OrderIndependent { levels: self.levels.in_cache(cache), ..self }
     }
 
     pub fn params(&self) -> &Params {
-        &self.params
+        self.levels.params()
     }
 
     /// The work this texture's renders have done since it was loaded, by kind.
     pub fn work_counters(&self) -> Vec<(&'static str, u64)> {
-        self.work.counters()
-    }
-
-    /// The per-entry function, shared with the reference evaluator.
-    pub fn synthesizer(&self) -> &Synthesizer {
-        &self.synthesizer
-    }
-
-    /// The latest generation of synthesis level `s` over `rect` (exemplar indices), through
-    /// the shared cache when it has a budget; `None` once `stop` is requested.
-    pub fn entries(&self, s: u8, rect: Rect, stop: &dyn Stop) -> Option<Vec<u16>> {
-        let cache = (self.pyramid.cache().budget() > 0).then_some(&self.pyramid);
-        let mut counts = Counts::default();
-        let st = self.synthesizer.structure();
-        let values = evaluate(&self.synthesizer, st, cache, s, rect, &mut counts, stop);
-        for work in [&self.work, &self.shared.work] {
-            work.add(counts.computed + counts.noise, counts.noise, 0);
-        }
-        values
-    }
-
-    /// Level-0 pixels of a `w × h` window at (x, y), or `None` once `stop` is requested.
-    pub fn level0(&self, x: i64, y: i64, w: u32, h: u32, stop: &dyn Stop) -> Option<Rgba8Image> {
-        let fin = self.params.levels - 1;
-        let values = self.entries(fin, Rect { x, y, w: w as usize, h: h as usize }, stop)?;
-        let colour = &self.synthesizer.exemplar().levels[fin as usize].colour;
-        let mut img = Rgba8Image::new(w, h);
-        for (px, &v) in img.data.chunks_exact_mut(4).zip(&values) {
-            let c = colour[v as usize];
-            px.copy_from_slice(&[c[0], c[1], c[2], 255]);
-        }
-        Some(img)
+        self.levels.work_counters()
     }
 
     /// The sample pixel, as (column, row), that each level-0 pixel of a `w × h` window at
     /// (x, y) copies, row-major: where neighbours in the output were not neighbours in the
     /// sample there is a join (the quality report's seam mask, `Mask::from_sources`).
     pub fn sources(&self, x: i64, y: i64, w: u32, h: u32) -> Vec<(u32, u32)> {
-        let fin = self.params.levels - 1;
+        let fin = self.params().levels - 1;
         let (x, y) = self.reduce(0, x, y);
-        let values = self.entries(fin, Rect { x, y, w: w as usize, h: h as usize }, &crate::Never);
-        let side = self.synthesizer.exemplar().levels[fin as usize].w;
+        let values = self.levels.entries(fin, Rect { x, y, w: w as usize, h: h as usize }, &crate::Never);
+        let side = self.levels.synthesizer().exemplar().levels[fin as usize].w;
         values
             .expect("a render that is never stopped completes")
             .iter()
@@ -116,13 +74,14 @@ impl OrderIndependent {
     /// evaluated under a region overflows: by the torus's period, or the plane's 2^PLANE_BITS
     /// (its signed representative).
     fn reduce(&self, l: u32, x: i64, y: i64) -> (i64, i64) {
-        let fin = self.params.levels as u32 - 1;
-        match self.params.domain {
+        let p = self.params();
+        let fin = p.levels as u32 - 1;
+        match p.domain {
             DomainSpec::Torus => {
                 // Beyond the pyramid a level's size may not divide the texture's; the coarsest
                 // synthesis level's period is a whole number of its pixels.
                 let shift = l.min(fin);
-                let (w, h) = ((self.params.width >> shift) as i64, (self.params.height >> shift) as i64);
+                let (w, h) = ((p.width >> shift) as i64, (p.height >> shift) as i64);
                 (x.rem_euclid(w), y.rem_euclid(h))
             }
             DomainSpec::Plane => {
@@ -131,16 +90,6 @@ impl OrderIndependent {
             }
         }
     }
-
-    /// The calibration, kept once a render has computed it whole; `None` when `stop` is
-    /// requested first.
-    pub(super) fn calibration(&self, stop: &dyn Stop) -> Option<&Calibration> {
-        if let Some(c) = self.calibration.get() {
-            return Some(c);
-        }
-        let c = Calibration::compute(self, stop)?;
-        Some(self.calibration.get_or_init(|| c))
-    }
 }
 
 impl Texture for OrderIndependent {
@@ -148,35 +97,42 @@ impl Texture for OrderIndependent {
         MODEL
     }
     fn width(&self) -> u64 {
-        self.params.width
+        self.params().width
     }
     fn height(&self) -> u64 {
-        self.params.height
+        self.params().height
     }
     fn domain(&self) -> Domain {
-        match self.params.domain {
+        match self.params().domain {
             DomainSpec::Plane => Domain::Plane,
             DomainSpec::Torus => Domain::Torus,
         }
     }
 
     fn render(&self, region: &Region, out: &mut [u8], stop: &dyn Stop) {
-        for work in [&self.work, &self.shared.work] {
-            work.add(0, 0, region.pixel_count());
-        }
+        self.levels.count_request(region.pixel_count());
         let l = region.level;
         let (x, y) = self.reduce(l, region.x, region.y);
         let region = &Region { x, y, ..*region };
         // Each output pixel depends on its own block of finer pixels only, so chunking never
         // changes a pixel.
-        let step = (CHUNK >> prefilter::span(&self.params, l).min(8)).max(1);
+        let step = (CHUNK >> prefilter::span(self.params(), l).min(8)).max(1);
         let row = region.width as usize * 4;
         for cy in (0..region.height).step_by(step as usize) {
             for cx in (0..region.width).step_by(step as usize) {
                 let (w, h) = (step.min(region.width - cx), step.min(region.height - cy));
                 let (x, y) = (region.x.wrapping_add(cx as i64), region.y.wrapping_add(cy as i64));
-                let img =
-                    if l == 0 { self.level0(x, y, w, h, stop) } else { prefilter::render(self, l, x, y, w, h, stop) };
+                let img = if l == 0 {
+                    self.levels.level0(x, y, w, h, stop)
+                } else {
+                    prefilter::render(
+                        &self.levels,
+                        &self.calibration,
+                        l,
+                        Rect { x, y, w: w as usize, h: h as usize },
+                        stop,
+                    )
+                };
                 let Some(img) = img else { return };
                 for r in 0..h as usize {
                     let dst = (cy as usize + r) * row + cx as usize * 4;
@@ -190,7 +146,8 @@ impl Texture for OrderIndependent {
 
 #[cfg(test)]
 mod tests {
-    use super::super::cache::BLOCK_BYTES;
+    use super::super::cache::{Pyramid, BLOCK_BYTES};
+    use super::super::served::{evaluate, Counts};
     use super::super::{create, load, load_with, MODEL};
     use super::*;
     use crate::models::Inputs;
@@ -294,7 +251,7 @@ mod tests {
     fn a_cold_tile_computes_its_cone_once() {
         let paper = json!({"seed": 1, "generations": 3, "subpasses": 1});
         let t = texture(paper, crate::samples::pebbles(64, 9, 22, false));
-        let syn = t.synthesizer();
+        let syn = t.levels.synthesizer();
         let rect = Rect { x: 0, y: 0, w: 256, h: 256 };
         let count = |cache: Option<&Pyramid>| {
             let mut counts = Counts::default();

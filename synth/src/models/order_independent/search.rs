@@ -6,7 +6,8 @@
 
 use super::exemplar::{ssd_below, Exemplar, Level, Options, CHUNK};
 use super::params::{ExemplarLevels, Generation0, LowerShape, Params, SameShape, Search};
-use super::served::{evaluate, Counts, Rect};
+use super::rect::Rect;
+use super::served::{evaluate, Counts};
 use super::structure::{circle5, square, union, without_centre, Entry, Structure, Synthesis, Taps};
 use crate::hash::{below, hash4};
 use crate::pixels::Rgba8Image;
