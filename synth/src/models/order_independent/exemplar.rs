@@ -331,8 +331,10 @@ crate::simd::widest! {
             best.clear();
             let a = level.vector(u);
             let (ux, uy, su, tu) = (u as i64 % w, u as i64 / w, sums[u], total(u));
-            let (mut up, mut down) = (order.partition_point(|c| c.0 < tu), order.partition_point(|c| c.0 < tu));
-            while k > 1 {
+            // Nothing to visit when the set is the pixel alone.
+            let start = if k > 1 { order.partition_point(|c| c.0 < tu) } else { order.len() };
+            let (mut up, mut down) = (start, if k > 1 { start } else { 0 });
+            loop {
                 // The nearer total of the two directions; every later one is farther.
                 let next = match (order.get(up), down.checked_sub(1).map(|d| order[d])) {
                     (Some(&a), Some(b)) => if a.0 - tu <= tu - b.0 { up += 1; a } else { down -= 1; b },
