@@ -11,17 +11,18 @@
 
 use super::error::{echo, ApiError};
 use super::extract::{NoQuery, Path, Query};
+use super::inflight::Reservation;
 use super::jsonld;
 use super::openapi::text;
 use super::openapi::ErrorBody;
 use super::origin::Origin;
 use super::tiles;
-use super::view::{self, View};
 use super::App;
 use crate::config::MAX_REGION_SIDE;
 use crate::encode::Format;
 use crate::engine::address::frame_for;
 use crate::engine::cache::{Shape, TileKey};
+use crate::engine::view::View;
 use crate::engine::{ETag, Mark};
 use crate::store::Entry;
 use axum::extract::State;
@@ -490,13 +491,28 @@ async fn answer(app: &App, entry: Arc<Entry>, req: Request, headers: &HeaderMap)
     let reservation = app
         .inflight
         .reserve(v.peak_bytes(&entry, max_pixels) + crate::encode::peak_bytes(req.format, v.out_w, v.out_h))?;
-    let img = view::render(app, entry, v).await?;
+    let img = app.engine.view(entry, v, max_pixels).await?;
     let img = tokio::task::spawn_blocking(move || transform(img, req.mirror, req.turns, req.quality))
         .await
         .map_err(|e| ApiError::internal("transforming the image failed", e))?;
     let (w, h) = (img.width, img.height);
-    let body = view::encode_held(app, img, req.format, reservation).await?;
+    let body = encode_held(app, img, req.format, reservation).await?;
     Ok(tiles::image_response(body, req.format, &tag, w, h))
+}
+
+/// Encodes `img` off the I/O threads and keeps its body's length reserved in `reservation`.
+pub async fn encode_held(
+    app: &App,
+    img: Rgba8Image,
+    format: Format,
+    mut reservation: Reservation,
+) -> Result<bytes::Bytes, ApiError> {
+    let body = tokio::task::spawn_blocking(move || crate::encode::encode(img, format))
+        .await
+        .map_err(|e| ApiError::internal("encoding failed", e))?
+        .map_err(|e| ApiError::internal("encoding failed", e))?;
+    app.inflight.resize(&mut reservation, body.len() as u64)?;
+    Ok(reservation.hold(body))
 }
 
 /// Mirrors (left–right), then rotates clockwise by quarter turns, then maps the colours.

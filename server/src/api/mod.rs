@@ -20,7 +20,6 @@ mod presentation;
 mod textures;
 mod tilejson;
 pub mod tiles;
-mod view;
 mod web;
 pub mod writes;
 

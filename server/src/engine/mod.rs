@@ -1,12 +1,14 @@
 //! The engine: what vtex serves, below HTTP — textures looked up in the store, tiles and pages
 //! addressed ([`address`]), the tile cache with coalesced misses ([`cache`]), synthesis in
-//! bounded slots ([`slots`]) with its stop. It knows no HTTP type: `api` gives its [`Error`] a
+//! bounded slots ([`slots`]) with its stop, views of any rectangle at any output size
+//! ([`view`]). It knows no HTTP type: `api` gives its [`Error`] a
 //! status and puts its [`ETag`]s in headers.
 
 pub mod address;
 pub mod cache;
 mod error;
 pub mod slots;
+pub mod view;
 
 pub use address::{ETag, Mark};
 pub use error::{echo, Cause, Error};

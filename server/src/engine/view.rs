@@ -4,11 +4,9 @@
 //! level no finer than its output, then resampled — so its work is bounded by its output, like
 //! a region's, whatever rectangle it covers.
 
-use super::error::ApiError;
-use super::inflight::Reservation;
-use super::App;
+use super::{Engine, Error};
 use crate::config::MAX_REGION_SIDE;
-use crate::encode::{self, Format};
+use crate::encode::Format;
 use crate::store::Entry;
 use std::sync::Arc;
 use vtex_synth::texture::{level_count, level_size};
@@ -82,9 +80,9 @@ impl View {
     /// Refuses a view whose output is over the region bounds (`--max-region-pixels`,
     /// [`MAX_REGION_SIDE`] a side), before anything is reserved; its source is then within them
     /// too ([`View::source`]).
-    pub fn check(&self, max_pixels: u64) -> Result<(), ApiError> {
+    pub fn check(&self, max_pixels: u64) -> Result<(), Error> {
         if self.out_w == 0 || self.out_h == 0 || over(self.out_w as u64, self.out_h as u64, max_pixels) {
-            return Err(ApiError::bad_request(format!(
+            return Err(Error::Invalid(format!(
                 "output {}×{} is outside the limits: 1..={MAX_REGION_SIDE} pixels a side and at most \
                  {max_pixels} pixels in all",
                 self.out_w, self.out_h
@@ -100,20 +98,23 @@ impl View {
     }
 }
 
-/// The pixels of `view` (checked with [`View::check`]): its source region rendered holding a
-/// synthesis slot, then resampled to the output size unless it is exact.
-pub async fn render(app: &App, entry: Arc<Entry>, view: View) -> Result<Rgba8Image, ApiError> {
-    let Source { region, exact } = view.source(&entry, app.cfg.max_region_pixels);
-    vtex_synth::texture::check_region(&*entry.texture, &region)?;
-    let raw = app.engine.synthesize(entry, region, Format::Rgba).await?;
-    let src = Rgba8Image::from_raw(region.width, region.height, raw)
-        .map_err(|e| ApiError::internal("a rendered region has the wrong size", e))?;
-    if exact {
-        return Ok(src);
+impl Engine {
+    /// The pixels of `view` (checked with [`View::check`]) under the region bounds
+    /// `max_pixels`: its source region rendered holding a synthesis slot, then resampled to the
+    /// output size unless it is exact.
+    pub async fn view(&self, entry: Arc<Entry>, view: View, max_pixels: u64) -> Result<Rgba8Image, Error> {
+        let Source { region, exact } = view.source(&entry, max_pixels);
+        vtex_synth::texture::check_region(&*entry.texture, &region)?;
+        let raw = self.synthesize(entry, region, Format::Rgba).await?;
+        let src = Rgba8Image::from_raw(region.width, region.height, raw)
+            .map_err(|e| Error::failed("a rendered region has the wrong size", e))?;
+        if exact {
+            return Ok(src);
+        }
+        tokio::task::spawn_blocking(move || resample(&src, &region, &view))
+            .await
+            .map_err(|e| Error::failed("resampling failed", e))
     }
-    tokio::task::spawn_blocking(move || resample(&src, &region, &view))
-        .await
-        .map_err(|e| ApiError::internal("resampling failed", e))
 }
 
 /// Bilinear resampling of `src` (level `region.level` pixels from `region.x`, `region.y`) at the
@@ -146,21 +147,6 @@ fn resample(src: &Rgba8Image, region: &Region, view: &View) -> Rgba8Image {
         }
     }
     out
-}
-
-/// Encodes `img` off the I/O threads and keeps its body's length reserved in `reservation`.
-pub async fn encode_held(
-    app: &App,
-    img: Rgba8Image,
-    format: Format,
-    mut reservation: Reservation,
-) -> Result<bytes::Bytes, ApiError> {
-    let body = tokio::task::spawn_blocking(move || encode::encode(img, format))
-        .await
-        .map_err(|e| ApiError::internal("encoding failed", e))?
-        .map_err(|e| ApiError::internal("encoding failed", e))?;
-    app.inflight.resize(&mut reservation, body.len() as u64)?;
-    Ok(reservation.hold(body))
 }
 
 #[cfg(test)]
