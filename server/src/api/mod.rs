@@ -2,26 +2,15 @@
 //! table of routes: requests are matched there and nowhere else ([`router`] wraps it in the
 //! layers, and the OpenAPI description is checked against it).
 
-pub mod batch;
-mod deletion;
-mod dzi;
 pub mod error;
 pub mod extract;
-mod health;
-mod iiif;
 pub mod inflight;
-mod jsonld;
-pub mod models;
+pub mod interop;
 pub mod openapi;
+pub mod operations;
 pub mod origin;
-pub mod pages;
 pub mod params;
-mod presentation;
-mod textures;
-mod tilejson;
-pub mod tiles;
-mod web;
-pub mod writes;
+pub mod resources;
 
 use crate::config::ServeConfig;
 use crate::engine::{ETag, Engine};
@@ -38,6 +27,9 @@ use error::ApiError;
 use extract::{NoQuery, Query};
 use http_body_util::BodyExt;
 use inflight::Inflight;
+use interop::{dzi, iiif, presentation, tilejson};
+use operations::{health, web};
+use resources::{batch, deletion, models, pages, textures, tiles, writes};
 use serde::Deserialize;
 use std::sync::atomic::AtomicBool;
 use std::sync::Arc;

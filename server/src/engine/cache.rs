@@ -46,7 +46,7 @@ pub enum Shape {
     /// XYZ clients stretch every tile image to a full square.
     Square,
     /// A `size`² page of the page grid with `border` pixels of its neighbours on every side
-    /// (`api/pages.rs`).
+    /// (`api/resources/pages.rs`).
     Page { size: u32, border: u32 },
 }
 

@@ -11,7 +11,8 @@
 
 use super::cors::CorsHeaders;
 use crate::api::extract::{path_params, query_params};
-use crate::api::{self, tiles, App};
+use crate::api::resources::tiles;
+use crate::api::{self, App};
 use axum::http::{Method, Request};
 use axum::response::{IntoResponse, Response};
 use hyper::body::Incoming;

@@ -1,11 +1,11 @@
 //! Tiles and regions: validation, ETags, the cache, synthesis.
 
-use super::error::{echo, ApiError};
-use super::extract::{Path, Query};
-use super::openapi::text;
-use super::openapi::ErrorBody;
-use super::params::{de, format_value, named, u32_value};
-use super::{
+use crate::api::error::{echo, ApiError};
+use crate::api::extract::{Path, Query};
+use crate::api::openapi::text;
+use crate::api::openapi::ErrorBody;
+use crate::api::params::{de, format_value, named, u32_value};
+use crate::api::{
     lookup, not_modified, not_modified_response, App, TextureId, CACHE_IMMUTABLE, X_VTEX_CACHE, X_VTEX_HEIGHT,
     X_VTEX_WIDTH,
 };
@@ -29,12 +29,12 @@ use vtex_synth::Region;
 /// Headers on a tile response, CORS included: reserved at once rather than grown.
 const RESPONSE_HEADERS: usize = 12;
 
-pub(super) fn image_response(body: Bytes, format: Format, etag: &ETag, width: u32, height: u32) -> Response {
+pub(in crate::api) fn image_response(body: Bytes, format: Format, etag: &ETag, width: u32, height: u32) -> Response {
     let mut resp = Response::new(Body::from(body));
     let h = resp.headers_mut();
     h.reserve(RESPONSE_HEADERS);
     h.insert(header::CONTENT_TYPE, HeaderValue::from_static(format.content_type()));
-    h.insert(header::ETAG, super::etag_header(etag));
+    h.insert(header::ETAG, crate::api::etag_header(etag));
     h.insert(header::CACHE_CONTROL, CACHE_IMMUTABLE);
     h.insert(X_VTEX_WIDTH.clone(), HeaderValue::from(width));
     h.insert(X_VTEX_HEIGHT.clone(), HeaderValue::from(height));
@@ -65,9 +65,9 @@ pub struct TileQuery {
 }
 
 /// `GET /api/v1/textures/{id}/tiles/{level}/{x}/{y}.{format}[?frame=N]` (the route
-/// [`TILE`](super::TILE)).
+/// [`TILE`](crate::api::TILE)).
 #[utoipa::path(get,
-    path = super::TILE,
+    path = crate::api::TILE,
     tag = "tiles",
     params(
         ("id" = String, Path, description = text::TEXTURE_ID),
@@ -115,7 +115,7 @@ pub(crate) async fn answer(
 
 /// The response for tile `key` of `entry` (inside its pyramid): 304, or the tile from the
 /// cache or synthesized — for every route that serves tiles (tiles, Deep Zoom, IIIF, XYZ).
-pub(super) async fn respond(
+pub(in crate::api) async fn respond(
     app: &App,
     entry: &Arc<Entry>,
     key: TileKey,
@@ -128,7 +128,7 @@ pub(super) async fn respond(
         None => address::key_etag(entry, &key),
     };
     if not_modified(headers, tag.as_str()) {
-        return Ok(not_modified_response(super::etag_header(&tag)));
+        return Ok(not_modified_response(crate::api::etag_header(&tag)));
     }
     let (tile, source) = app.engine.tile(entry, key, cached, tag).await?;
     let mut resp = image_response(tile.body.clone(), key.format, &tile.etag, tile.width, tile.height);
@@ -206,7 +206,7 @@ pub async fn region(
     let what = [level as u64, x as u64, y as u64, w as u64, h as u64, frame as u64];
     let tag = ETag::new(&entry.key, Some(Mark::Region), &what, format);
     if not_modified(&headers, tag.as_str()) {
-        return Ok(not_modified_response(super::etag_header(&tag)));
+        return Ok(not_modified_response(crate::api::etag_header(&tag)));
     }
     let region = Region::new(level, x, y, w, h).at_frame(frame);
     vtex_synth::texture::check_region(&*entry.texture, &region)?;

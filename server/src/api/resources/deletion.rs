@@ -1,10 +1,10 @@
 //! `DELETE /api/v1/textures/{id}`: removes a texture's bundle from the data directory.
 
-use super::error::ApiError;
-use super::extract::{NoQuery, Path, Query};
-use super::openapi::text;
-use super::openapi::ErrorBody;
-use super::{App, TextureId};
+use crate::api::error::ApiError;
+use crate::api::extract::{NoQuery, Path, Query};
+use crate::api::openapi::text;
+use crate::api::openapi::ErrorBody;
+use crate::api::{App, TextureId};
 use axum::extract::State;
 use axum::http::StatusCode;
 

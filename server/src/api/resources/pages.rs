@@ -10,13 +10,13 @@
 //! every level down to 1×1. They share the tile cache, its coalescing and the synthesis slots
 //! with tiles (`Engine::tile`), carry strong ETags and are immutable.
 
-use super::error::{echo, ApiError};
-use super::extract::{Path, Query};
-use super::openapi::text;
-use super::openapi::ErrorBody;
-use super::params::{de, named, u32_value};
-use super::tiles;
-use super::{lookup, not_modified, not_modified_response, App, TextureId};
+use crate::api::error::{echo, ApiError};
+use crate::api::extract::{Path, Query};
+use crate::api::openapi::text;
+use crate::api::openapi::ErrorBody;
+use crate::api::params::{de, named, u32_value};
+use crate::api::resources::tiles;
+use crate::api::{lookup, not_modified, not_modified_response, App, TextureId};
 use crate::encode::Format;
 use crate::engine::address;
 use crate::engine::cache::{Shape, TileKey};
@@ -79,14 +79,16 @@ pub struct PageParams {
     pub frame: Option<u32>,
 }
 
-pub(super) fn de_codec<'de, D: Deserializer<'de>>(d: D) -> Result<Option<Codec>, D::Error> {
+pub(in crate::api) fn de_codec<'de, D: Deserializer<'de>>(d: D) -> Result<Option<Codec>, D::Error> {
     let s = String::deserialize(d)?;
     Codec::parse(&s)
         .map(Some)
         .ok_or_else(|| D::Error::custom(format!("names unknown codec `{}`; {}", echo(&s), Codec::EXPECTED)))
 }
 
-pub(super) fn de_supercompression<'de, D: Deserializer<'de>>(d: D) -> Result<Option<Supercompression>, D::Error> {
+pub(in crate::api) fn de_supercompression<'de, D: Deserializer<'de>>(
+    d: D,
+) -> Result<Option<Supercompression>, D::Error> {
     let s = String::deserialize(d)?;
     Supercompression::parse(&s)
         .map(Some)
@@ -262,7 +264,7 @@ pub async fn mip_chain(
     let (codec, sc) = (1 + k.codec as u64, 1 + k.supercompression as u64);
     let tag = ETag::new(&entry.key, Some(Mark::Chain), &[level as u64, frame as u64, codec, sc], Format::Ktx2(k));
     if not_modified(&headers, tag.as_str()) {
-        return Ok(not_modified_response(super::etag_header(&tag)));
+        return Ok(not_modified_response(crate::api::etag_header(&tag)));
     }
     let (bw, bh) = level_size(w, h, level);
     let (bw, bh) = (bw as u32, bh as u32);

@@ -1,6 +1,6 @@
 //! IIIF Image API 3.0 at compliance level 2: `/iiif/3/{identifier}/info.json` and
 //! `/iiif/3/{identifier}/{region}/{size}/{rotation}/{quality}.{format}`, over the same tiles
-//! and bounded renders as the rest of the API ([`super::view`]).
+//! and bounded renders as the rest of the API ([`crate::api::view`]).
 //!
 //! The identifier is a texture id; `{id};{frame}` names a frame of an animated texture (the
 //! meta-identifier form Cantaloupe uses for pages). Errors follow the specification's rules: a
@@ -9,15 +9,15 @@
 //! 400, an identifier that names no image a 404. Beyond level 2: mirroring, upscaling (`^`),
 //! WebP, `bitonal`, and the profile and canonical `Link` headers.
 
-use super::error::{echo, ApiError};
-use super::extract::{NoQuery, Path, Query};
-use super::inflight::Reservation;
-use super::jsonld;
-use super::openapi::text;
-use super::openapi::ErrorBody;
-use super::origin::Origin;
-use super::tiles;
-use super::App;
+use crate::api::error::{echo, ApiError};
+use crate::api::extract::{NoQuery, Path, Query};
+use crate::api::inflight::Reservation;
+use crate::api::interop::jsonld;
+use crate::api::openapi::text;
+use crate::api::openapi::ErrorBody;
+use crate::api::origin::Origin;
+use crate::api::resources::tiles;
+use crate::api::App;
 use crate::config::MAX_REGION_SIDE;
 use crate::encode::Format;
 use crate::engine::address::frame_for;
@@ -64,13 +64,13 @@ async fn image_of(app: &App, ident: &str) -> Result<(Arc<Entry>, u32), ApiError>
     if !vtex_synth::bundle::is_valid_id(id) || app.engine.store.record(id).is_none() {
         return Err(none());
     }
-    let entry = super::lookup(app, id).await?;
+    let entry = crate::api::lookup(app, id).await?;
     let frame = frame_for(&entry, frame);
     Ok((entry, frame))
 }
 
 /// The URL of the image service of `ident`, as the client reached this server.
-pub(super) fn service_url(origin: &Origin, ident: &str) -> String {
+pub(in crate::api) fn service_url(origin: &Origin, ident: &str) -> String {
     let ident: String = form_urlencoded::byte_serialize(ident.as_bytes()).collect();
     origin.url(&format!("{PREFIX}/{ident}"))
 }
@@ -485,8 +485,8 @@ async fn answer(app: &App, entry: Arc<Entry>, req: Request, headers: &HeaderMap)
         req.quality as u64,
     ];
     let tag = ETag::new(&entry.key, Some(Mark::Iiif), &what, req.format);
-    if super::not_modified(headers, tag.as_str()) {
-        return Ok(super::not_modified_response(super::etag_header(&tag)));
+    if crate::api::not_modified(headers, tag.as_str()) {
+        return Ok(crate::api::not_modified_response(crate::api::etag_header(&tag)));
     }
     let reservation = app
         .inflight

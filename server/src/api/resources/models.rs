@@ -1,12 +1,12 @@
 //! The model catalogue over HTTP (`GET /api/v1/models[/{id}]`, the example's input images):
 //! [`crate::catalogue`] with absolute URLs.
 
-use super::error::{echo, ApiError};
-use super::extract::{NoQuery, Path, Query};
-use super::openapi::text;
-use super::openapi::ErrorBody;
-use super::origin::Origin;
-use super::textures::{json_validated, validated};
+use crate::api::error::{echo, ApiError};
+use crate::api::extract::{NoQuery, Path, Query};
+use crate::api::openapi::text;
+use crate::api::openapi::ErrorBody;
+use crate::api::origin::Origin;
+use crate::api::resources::textures::{json_validated, validated};
 use crate::catalogue::{example_input, list, one, ModelDoc, ModelList, EXAMPLE_INPUT};
 use axum::http::HeaderMap;
 use axum::response::Response;

@@ -3,8 +3,8 @@
 //! store loaded; it is not ready while its data directory cannot be read (a shared volume gone)
 //! or once it drains for shutdown, so a balancer sends new requests elsewhere.
 
-use super::extract::{NoQuery, Query};
-use super::App;
+use crate::api::extract::{NoQuery, Query};
+use crate::api::App;
 use axum::extract::State;
 use axum::http::{header, StatusCode};
 use axum::response::{IntoResponse, Response};

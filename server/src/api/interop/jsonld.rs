@@ -3,7 +3,7 @@
 //! `profile`; otherwise whichever of JSON-LD and plain JSON the client weighs higher (RFC 9110
 //! §12.5.1, the most specific media range deciding each one's weight), JSON-LD on a tie.
 
-use super::error::{echo, ApiError};
+use crate::api::error::{echo, ApiError};
 use axum::http::{header, HeaderMap, HeaderValue};
 use axum::response::{IntoResponse, Response};
 

@@ -1,10 +1,10 @@
 //! Texture resources: list, info, upload, merge-patch, encoding download.
 
-use super::error::{echo, ApiError};
-use super::extract::{NoQuery, Path, Query};
-use super::openapi::text;
-use super::openapi::ErrorBody;
-use super::{
+use crate::api::error::{echo, ApiError};
+use crate::api::extract::{NoQuery, Path, Query};
+use crate::api::openapi::text;
+use crate::api::openapi::ErrorBody;
+use crate::api::{
     declared_length, not_modified, not_modified_response, read_body, record, refuse_oversized, App, TextureId,
     CACHE_IMMUTABLE,
 };
@@ -61,14 +61,14 @@ pub async fn info(
 /// `value` as JSON with a strong ETag (a hash of the body), revalidated on every use
 /// (`no-cache`): a 304 when `If-None-Match` names it. The list changes with the store, so it is
 /// never cached unchecked.
-pub(super) fn json_validated(headers: &HeaderMap, value: &impl serde::Serialize) -> Response {
+pub(in crate::api) fn json_validated(headers: &HeaderMap, value: &impl serde::Serialize) -> Response {
     let body = serde_json::to_vec(value).expect("plain data serializes");
     validated(headers, "application/json", body.into())
 }
 
 /// `body` of `content_type` with a strong ETag (a hash of the body), revalidated on every use
 /// (`no-cache`): a 304 when `If-None-Match` names it.
-pub(super) fn validated(headers: &HeaderMap, content_type: &'static str, body: bytes::Bytes) -> Response {
+pub(in crate::api) fn validated(headers: &HeaderMap, content_type: &'static str, body: bytes::Bytes) -> Response {
     let tag = format!("\"{}\"", &blake3::hash(&body).to_hex()[..32]);
     let tag = HeaderValue::from_str(&tag).expect("hex is a valid header value");
     let no_cache = HeaderValue::from_static("no-cache");

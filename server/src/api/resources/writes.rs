@@ -12,8 +12,8 @@
 //! without an `Origin` (curl, scripts, other servers) are not browsers' and pass that check.
 //! Behind trusted proxies (`--trusted-proxies`), the client is the address they forward for.
 
-use super::error::{echo, ApiError};
-use super::{drain, origin, App};
+use crate::api::error::{echo, ApiError};
+use crate::api::{drain, origin, App};
 use crate::config::{ServeConfig, WriteToken};
 use axum::extract::{Request, State};
 use axum::http::{header, HeaderMap, HeaderValue, Method, StatusCode};

@@ -1,16 +1,16 @@
 //! IIIF Presentation API 3: a Manifest per texture and a Collection of them all, so that a IIIF
 //! viewer (Mirador, the Universal Viewer) opens a texture from a URL alone. Each Manifest has one
 //! Canvas the texture's size, painted by one Image whose service is the texture's Image API 3
-//! service ([`super::iiif`]), which viewers then tile.
+//! service ([`crate::api::interop::iiif`]), which viewers then tile.
 
-use super::error::ApiError;
-use super::extract::{NoQuery, Path, Query};
-use super::iiif;
-use super::jsonld;
-use super::openapi::text;
-use super::openapi::ErrorBody;
-use super::origin::Origin;
-use super::{App, TextureId};
+use crate::api::error::ApiError;
+use crate::api::extract::{NoQuery, Path, Query};
+use crate::api::interop::iiif;
+use crate::api::interop::jsonld;
+use crate::api::openapi::text;
+use crate::api::openapi::ErrorBody;
+use crate::api::origin::Origin;
+use crate::api::{App, TextureId};
 use crate::store::Record;
 use axum::extract::State;
 use axum::http::HeaderMap;
@@ -109,7 +109,7 @@ pub async fn manifest_json(
     headers: HeaderMap,
     origin: Origin,
 ) -> Result<Response, ApiError> {
-    let record = super::record(&app, &id).await?;
+    let record = crate::api::record(&app, &id).await?;
     jsonld::respond(&headers, &jsonld::PRESENTATION, &manifest(&origin, &record))
 }
 

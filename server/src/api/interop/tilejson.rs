@@ -8,14 +8,14 @@
 //! texture's edge cuts is served whole, transparent beyond the texture; every other tile is the
 //! tile API's own (same cache entry, bytes and ETag).
 
-use super::error::{echo, ApiError};
-use super::extract::{Path, Query};
-use super::openapi::text;
-use super::openapi::ErrorBody;
-use super::origin::Origin;
-use super::params::{de, format_value, named, u32_value};
-use super::tiles;
-use super::{lookup, record, App, TextureId};
+use crate::api::error::{echo, ApiError};
+use crate::api::extract::{Path, Query};
+use crate::api::openapi::text;
+use crate::api::openapi::ErrorBody;
+use crate::api::origin::Origin;
+use crate::api::params::{de, format_value, named, u32_value};
+use crate::api::resources::tiles;
+use crate::api::{lookup, record, App, TextureId};
 use crate::encode::Format;
 use crate::engine::address::{frame_for, square_shape};
 use crate::engine::cache::TileKey;

@@ -1,6 +1,6 @@
 //! Many tiles in one response: `GET /api/v1/textures/{id}/tiles?tiles=L/x/y,…&format=F[&frame=N]`,
 //! or many pages: `…/tiles?pages=L/x/y,…&format=F[&size=S&border=B&codec=C&supercompression=Z&frame=N]`
-//! (the parameters of a single page, [`pages`](super::pages)).
+//! (the parameters of a single page, [`pages`](crate::api::resources::pages)).
 //!
 //! Why: a browser spends a fixed amount of CPU on every request, whatever its size, so a view
 //! of a few dozen tiles paid it a few dozen times before a pixel was drawn. One request for the
@@ -16,20 +16,20 @@
 //! repeated tile, more than [`MAX_TILES`] tiles, a list over [`MAX_LIST_BYTES`], an unknown
 //! format or parameter are 400s, a level the texture does not serve a 400 and a tile outside
 //! its level a 404, as for single tiles, each naming the problem; a spent in-flight budget
-//! ([`super::inflight`]) is a 503. Errors after that (a model failing to render; no synthesis
+//! ([`crate::api::inflight`]) is a 503. Errors after that (a model failing to render; no synthesis
 //! slot, 503) come as error frames. Dropping the response (a
 //! client that went away) aborts the tiles not yet done: a synthesis that has not started never
 //! starts, and one running stops unless another request waits for the same tile; a body not
 //! finished within the request deadline is cut off (the client sees a truncated stream).
 
-use super::error::{echo, ApiError};
-use super::extract::{Both, Path, Query};
-use super::inflight::Reservation;
-use super::openapi::text;
-use super::openapi::ErrorBody;
-use super::pages::{self, page_format_value, PageFormat, PageParams};
-use super::params::u32_value;
-use super::{lookup, not_modified, not_modified_response, App, TextureId, CACHE_IMMUTABLE};
+use crate::api::error::{echo, ApiError};
+use crate::api::extract::{Both, Path, Query};
+use crate::api::inflight::Reservation;
+use crate::api::openapi::text;
+use crate::api::openapi::ErrorBody;
+use crate::api::params::u32_value;
+use crate::api::resources::pages::{self, page_format_value, PageFormat, PageParams};
+use crate::api::{lookup, not_modified, not_modified_response, App, TextureId, CACHE_IMMUTABLE};
 use crate::encode::Format;
 use crate::engine::address::{self, frame_for};
 use crate::engine::cache::{Shape, Source, Tile, TileKey};
@@ -187,7 +187,7 @@ fn items(list: BatchList, page: &PageParams) -> Result<(Vec<TileRef>, Format, Sh
 /// may answer the same URL with it for ever); a batch with misses is `no-store`, since a render
 /// may still fail or be shed into an error frame.
 #[utoipa::path(get,
-    path = super::BATCH,
+    path = crate::api::BATCH,
     tag = "tiles",
     params(
         TextureId,
