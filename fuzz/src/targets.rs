@@ -7,12 +7,13 @@ use rand::seq::IndexedRandom;
 use rand::Rng;
 use std::time::Duration;
 use vtex_server::api::resources::{batch::BatchQuery, tiles};
-use vtex_server::api::{extract, params, TILE};
+use vtex_server::api::{extract, params};
 use vtex_synth::bundle::{Bundle, MAX_BUNDLE_BYTES};
 use vtex_synth::models::{self, Limits};
 use vtex_synth::pixels::{decode_png, MAX_IMAGE_ALLOC};
 use vtex_synth::texture::{level_count, render_image_until};
 use vtex_synth::{Never, Region};
+use vtex_wire::urls::TILE;
 
 /// What one input may take.
 #[derive(Clone, Copy, Debug)]

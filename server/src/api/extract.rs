@@ -19,9 +19,11 @@ use std::fmt;
 
 /// Longest query of every route but the tile batch; the others take a few short numbers.
 pub const MAX_QUERY_BYTES: usize = 2048;
-/// Longest query of a tile batch ([`super::BATCH`]): its longest list with every byte
+/// Longest query of a tile batch ([`BATCH`](vtex_wire::urls::BATCH)): its longest list with every byte
 /// percent-encoded, and its other parameters.
-pub const MAX_BATCH_QUERY_BYTES: usize = 3 * super::batch::MAX_LIST_BYTES + 256;
+pub const MAX_BATCH_QUERY_BYTES: usize = 3 * MAX_LIST_BYTES + 256;
+/// Longest `tiles` list accepted: 256 tiles of the largest coordinates fit with room to spare.
+pub const MAX_LIST_BYTES: usize = 8192;
 /// Most parameters any route takes (a region's seven); a query with more cannot be valid.
 pub const MAX_QUERY_KEYS: usize = 7;
 
@@ -310,7 +312,7 @@ mod tests {
     /// The longest batch list, every byte percent-encoded, fits the batch's bound.
     #[test]
     fn the_longest_batch_query_fits() {
-        let list = "%2C".repeat(crate::api::batch::MAX_LIST_BYTES);
+        let list = "%2C".repeat(MAX_LIST_BYTES);
         let q = format!("format=rgba&frame=4294967295&tiles={list}");
         assert!(check_query(Some(&q), MAX_BATCH_QUERY_BYTES).is_ok());
     }

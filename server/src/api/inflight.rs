@@ -12,7 +12,7 @@
 //! ([`Reservation::hold`]), it is returned when the last reference to the body drops: sent, or
 //! dropped with its connection (a send timeout, a reader below the minimum send rate).
 
-use crate::api::Error as ApiError;
+use crate::api::error::ApiError;
 use bytes::Bytes;
 use std::sync::Arc;
 use tokio::sync::{OwnedSemaphorePermit, Semaphore};

@@ -4,6 +4,7 @@
 
 pub mod error;
 pub mod extract;
+pub mod http;
 pub mod inflight;
 pub mod interop;
 pub mod openapi;
@@ -11,27 +12,23 @@ pub mod operations;
 pub mod origin;
 pub mod params;
 pub mod resources;
+pub mod state;
+pub mod write_policy;
 
-use crate::config::ServeConfig;
-use crate::engine::{ETag, Engine};
-use crate::metrics::Metrics;
-use crate::store::{Entry, Record, Store};
 use axum::error_handling::HandleErrorLayer;
 use axum::extract::{DefaultBodyLimit, MatchedPath, Request, State};
-use axum::http::{header, HeaderMap, HeaderName, HeaderValue, Method, StatusCode};
+use axum::http::{header, HeaderValue, Method};
 use axum::middleware::{self, Next};
 use axum::response::{IntoResponse, Response};
 use axum::routing::any;
-use axum::{BoxError, Router};
+use axum::{BoxError, Extension, Router};
 use error::ApiError;
 use extract::{NoQuery, Query};
-use http_body_util::BodyExt;
-use inflight::Inflight;
+use http::{timed_out, X_VTEX_CACHE, X_VTEX_HEIGHT, X_VTEX_WIDTH};
 use interop::{dzi, iiif, presentation, tilejson};
 use operations::{health, web};
-use resources::{batch, deletion, models, pages, textures, tiles, writes};
-use serde::Deserialize;
-use std::sync::atomic::AtomicBool;
+use resources::{batch, deletion, models, pages, textures, tiles};
+use state::{App, AppState};
 use std::sync::Arc;
 use std::time::Instant;
 use tower::ServiceBuilder;
@@ -44,56 +41,6 @@ use utoipa_axum::{router::OpenApiRouter, routes};
 
 pub use error::ApiError as Error;
 pub use web::Web;
-
-/// The route of a single tile: [`router`] serves it, and the fast tile path of the connection
-/// code (`serve/fast_tile.rs`) answers plain GETs of it directly, matching paths against this
-/// same template.
-pub const TILE: &str = vtex_wire::urls::TILE;
-/// The route of a tile batch, the one route whose query may be longer than
-/// [`extract::MAX_QUERY_BYTES`].
-pub const BATCH: &str = vtex_wire::urls::BATCH;
-
-pub const CACHE_IMMUTABLE: HeaderValue = HeaderValue::from_static("public, max-age=31536000, immutable");
-pub static X_VTEX_CACHE: HeaderName = HeaderName::from_static("x-vtex-cache");
-pub static X_VTEX_WIDTH: HeaderName = HeaderName::from_static("x-vtex-width");
-pub static X_VTEX_HEIGHT: HeaderName = HeaderName::from_static("x-vtex-height");
-
-/// Everything a request handler needs: the engine, and what only HTTP has.
-pub struct AppState {
-    pub engine: Arc<Engine>,
-    pub metrics: Arc<Metrics>,
-    /// The budget of response bodies in flight (`--inflight-mb`).
-    pub inflight: Inflight,
-    /// Set when shutdown begins: no longer ready (`/readyz`).
-    pub draining: AtomicBool,
-    /// Who may write (`VTEX_WRITE_TOKEN`, `--read-only`, `--cors-write-origins`).
-    pub writes: writes::WritePolicy,
-    pub cfg: ServeConfig,
-}
-
-pub type App = Arc<AppState>;
-
-impl AppState {
-    pub fn new(store: Arc<Store>, cfg: ServeConfig) -> App {
-        let metrics = Arc::new(Metrics::new());
-        metrics.textures_budget_bytes.set(store.bounds().limits.max_resident_bytes as i64);
-        metrics.model_cache_budget_bytes.set(store.resources().cache_budget() as i64);
-        let engine = Arc::new(Engine::new(store, &cfg, metrics.clone()));
-        let inflight = Inflight::new(cfg.inflight_bytes());
-        metrics.inflight_budget_bytes.set(inflight.budget_bytes() as i64);
-        let (draining, writes) = (AtomicBool::new(false), writes::WritePolicy::new(&cfg));
-        Arc::new(AppState { engine, metrics, inflight, draining, writes, cfg })
-    }
-}
-
-/// The path of the routes of one texture, `/api/v1/textures/{id}…`.
-#[derive(Deserialize, utoipa::IntoParams)]
-#[serde(deny_unknown_fields)]
-#[into_params(parameter_in = Path)]
-pub struct TextureId {
-    /// texture id: 64 lowercase hex characters, the BLAKE3 of its bundle
-    pub id: String,
-}
 
 /// The routes, the static viewer as the fallback, and the layers every request passes:
 /// the log outermost (so it sees every answer, a timeout's too), then compression, metrics
@@ -115,18 +62,24 @@ pub fn router(app: App) -> Router {
         .layer(middleware::map_response(weaken_encoded_etag))
         .layer(compression_layer())
         .layer(middleware::from_fn_with_state(app.clone(), observe))
-        .layer(middleware::from_fn_with_state(app.clone(), writes::guard))
+        .layer(middleware::from_fn_with_state(app.clone(), screen_writes))
         .layer(cors_layer())
         .layer(HandleErrorLayer::new(on_timeout))
         .timeout(limit)
         .layer(DefaultBodyLimit::max(app.cfg.max_upload_bytes()));
-    let (routes, _) = routes().split_for_parts();
-    routes.method_not_allowed_fallback(method_not_allowed).merge(viewer(&app)).layer(layers).with_state(app)
+    // The description the routes were declared with, for `GET /api/v1/openapi.json`.
+    let (routes, document) = routes().split_for_parts();
+    routes
+        .method_not_allowed_fallback(method_not_allowed)
+        .merge(viewer(&app))
+        .layer(Extension(Arc::new(document)))
+        .layer(layers)
+        .with_state(app)
 }
 
 /// The route table. A described route is declared once, by its handler: `routes!` takes the
 /// path and method from the handler's `#[utoipa::path]`, so the router and the OpenAPI
-/// description ([`openapi::document`]) cannot disagree.
+/// description cannot disagree.
 pub(crate) fn routes() -> OpenApiRouter<App> {
     OpenApiRouter::with_openapi(openapi::base())
         .routes(routes!(textures::list, textures::upload))
@@ -187,15 +140,6 @@ fn compression_layer() -> CompressionLayer<impl Predicate> {
     CompressionLayer::new().quality(CompressionLevel::Fastest).compress_when(predicate)
 }
 
-/// Whether `Accept-Encoding` names an encoding [`compression_layer`] might apply.
-pub fn accepts_compression(headers: &HeaderMap) -> bool {
-    headers.get_all(header::ACCEPT_ENCODING).iter().any(|v| {
-        v.to_str().is_ok_and(|v| {
-            v.split(',').any(|e| matches!(e.split(';').next().unwrap_or("").trim(), "gzip" | "br" | "zstd" | "*"))
-        })
-    })
-}
-
 /// A compressed body is another representation of the same resource: its strong ETag becomes
 /// weak (as nginx does), so `If-None-Match` still matches and byte ranges never mix them.
 async fn weaken_encoded_etag<B>(mut resp: Response<B>) -> Response<B> {
@@ -210,13 +154,8 @@ async fn weaken_encoded_etag<B>(mut resp: Response<B>) -> Response<B> {
     resp
 }
 
-/// The answer to a request not done within the deadline `limit`.
-pub(crate) fn timed_out(limit: std::time::Duration) -> ApiError {
-    ApiError::Timeout(format!("request not completed within {} s (slow client or overload)", limit.as_secs_f64()))
-}
-
 /// The CORS policy of reads: any origin, the read methods, any request header, and the
-/// response headers the viewer reads exposed. Writes have their own ([`writes::guard`]). The
+/// response headers the viewer reads exposed. Writes have their own ([`write_policy`]). The
 /// answers do not depend on the request's `Origin` or preflight headers, so they carry no
 /// `Vary` for them (caches keep one copy).
 pub(crate) fn cors_layer() -> CorsLayer {
@@ -226,6 +165,14 @@ pub(crate) fn cors_layer() -> CorsLayer {
         .allow_methods([Method::GET, Method::HEAD, Method::OPTIONS])
         .allow_headers(Any)
         .expose_headers([header::ETAG, X_VTEX_CACHE.clone(), X_VTEX_WIDTH.clone(), X_VTEX_HEIGHT.clone()])
+}
+
+/// The write policy ([`write_policy`]) in front of every route.
+async fn screen_writes(State(app): State<App>, req: Request, next: Next) -> Response {
+    match app.writes.screen(&app.cfg, req).await {
+        Ok(req) => next.run(req).await,
+        Err(answer) => answer,
+    }
 }
 
 /// Counts and times every request under the template of the route that matched it, so the
@@ -275,114 +222,4 @@ async fn api_not_found(req: Request) -> ApiError {
 
 async fn method_not_allowed(req: Request) -> ApiError {
     ApiError::MethodNotAllowed(format!("method {} is not allowed on {}", req.method(), error::echo(req.uri().path())))
-}
-
-/// True when `If-None-Match` names `etag` (weak comparison, as RFC 9110 requires) or is `*`.
-pub fn not_modified(headers: &HeaderMap, etag: &str) -> bool {
-    let bare = |t: &str| t.trim().trim_start_matches("W/").to_string();
-    headers
-        .get_all(header::IF_NONE_MATCH)
-        .iter()
-        .filter_map(|v| v.to_str().ok())
-        .any(|v| v.trim() == "*" || v.split(',').any(|t| bare(t) == bare(etag)))
-}
-
-/// A 304 carrying the validators a 200 would have carried.
-pub fn not_modified_response(etag: HeaderValue) -> Response {
-    let mut resp = StatusCode::NOT_MODIFIED.into_response();
-    resp.headers_mut().insert(header::ETAG, etag);
-    resp.headers_mut().insert(header::CACHE_CONTROL, CACHE_IMMUTABLE);
-    resp
-}
-
-/// How much more of an oversized body is read and thrown away, and for how long (in all, and
-/// waiting for each piece), so that a client still sending it receives the 413 rather than a
-/// reset connection; past any bound the connection is cut.
-const DRAIN_BYTES: usize = 16 << 20;
-const DRAIN_TIME: std::time::Duration = std::time::Duration::from_secs(5);
-const DRAIN_IDLE: std::time::Duration = std::time::Duration::from_millis(500);
-
-/// Reads a request body of at most `limit` bytes; larger is 413 naming the limit.
-pub async fn read_body(req: Request, limit: usize) -> Result<bytes::Bytes, ApiError> {
-    if declared_length(req.headers()).is_some_and(|n| n > limit as u64) {
-        return Err(refuse_oversized(req, limit).await);
-    }
-    let (parts, mut body) = req.into_parts();
-    let mut bytes = bytes::BytesMut::new();
-    while let Some(frame) = body.frame().await {
-        let frame = frame.map_err(|e| ApiError::bad_request(format!("could not read the request body: {e}")))?;
-        if let Some(data) = frame.data_ref() {
-            if bytes.len() + data.len() > limit {
-                return Err(refuse_oversized(Request::from_parts(parts, body), limit).await);
-            }
-            bytes.extend_from_slice(data);
-        }
-    }
-    Ok(bytes.freeze())
-}
-
-/// The request's `Content-Length`, when it has a valid one.
-pub fn declared_length(headers: &HeaderMap) -> Option<u64> {
-    headers.get(header::CONTENT_LENGTH).and_then(|v| v.to_str().ok()?.parse::<u64>().ok())
-}
-
-/// The 413 for a body over `limit`, given after [`drain`]ing the rest of the body.
-pub async fn refuse_oversized(req: Request, limit: usize) -> ApiError {
-    drain(req).await;
-    ApiError::PayloadTooLarge(format!("request body larger than the limit of {limit} bytes"))
-}
-
-/// Reads and throws away the body of a request about to be refused, within [`DRAIN_BYTES`]
-/// and [`DRAIN_TIME`] — unless the client waits for `100 Continue` before sending it, or
-/// sends nothing for [`DRAIN_IDLE`] — so that a client (or a proxy) still sending it receives
-/// the refusal rather than a reset connection.
-pub async fn drain(req: Request) {
-    let waits_to_send =
-        req.headers().get(header::EXPECT).is_some_and(|v| v.as_bytes().eq_ignore_ascii_case(b"100-continue"));
-    let mut body = req.into_body();
-    let drain = async {
-        let mut left = DRAIN_BYTES;
-        while let Ok(Some(Ok(frame))) = tokio::time::timeout(DRAIN_IDLE, body.frame()).await {
-            match frame.data_ref() {
-                Some(data) if data.len() >= left => return,
-                Some(data) => left -= data.len(),
-                None => {}
-            }
-        }
-    };
-    if !waits_to_send {
-        let _ = tokio::time::timeout(DRAIN_TIME, drain).await;
-    }
-}
-
-/// Texture `id`'s record, without loading it ([`Engine::record`]).
-pub async fn record(app: &AppState, id: &str) -> Result<Arc<Record>, ApiError> {
-    Ok(app.engine.record(id).await?)
-}
-
-/// Texture `id`, loaded ([`Engine::lookup`]).
-pub async fn lookup(app: &AppState, id: &str) -> Result<Arc<Entry>, ApiError> {
-    Ok(app.engine.lookup(id).await?)
-}
-
-/// An ETag as a header value (its bytes shared, not copied).
-pub fn etag_header(tag: &ETag) -> HeaderValue {
-    HeaderValue::from_maybe_shared(tag.bytes()).expect("quotes and hex digits are a valid header value")
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn if_none_match_forms() {
-        let mut h = HeaderMap::new();
-        h.insert(header::IF_NONE_MATCH, HeaderValue::from_static("\"a\", W/\"b\""));
-        assert!(not_modified(&h, "\"a\""));
-        assert!(not_modified(&h, "\"b\""));
-        assert!(!not_modified(&h, "\"c\""));
-        h.insert(header::IF_NONE_MATCH, HeaderValue::from_static("*"));
-        assert!(not_modified(&h, "\"c\""));
-        assert!(!not_modified(&HeaderMap::new(), "\"a\""));
-    }
 }

@@ -4,13 +4,14 @@
 //! `server/tests/api/openapi.rs` validates it and requests every described path.
 
 use super::extract::{NoQuery, Query};
+use super::http::json_validated;
 use super::origin::Origin;
-use super::textures::json_validated;
 use axum::http::HeaderMap;
 use axum::response::Response;
+use axum::Extension;
 use serde::Serialize;
-use std::sync::LazyLock;
-use utoipa::openapi::Server;
+use std::sync::Arc;
+use utoipa::openapi::{OpenApi as Document, Server};
 use utoipa::{OpenApi, ToSchema};
 
 /// Descriptions many operations share, written once.
@@ -54,20 +55,10 @@ pub struct ErrorBody {
 struct ApiDoc;
 
 /// What the description says beyond its operations: title, tags, shared schemas.
-pub(super) fn base() -> utoipa::openapi::OpenApi {
-    ApiDoc::openapi()
-}
-
-/// The description, built once from the route table.
-static DOCUMENT: LazyLock<utoipa::openapi::OpenApi> = LazyLock::new(|| {
-    let (_, mut doc) = super::routes().split_for_parts();
+pub(super) fn base() -> Document {
+    let mut doc = ApiDoc::openapi();
     doc.info.version = env!("CARGO_PKG_VERSION").into();
     doc
-});
-
-/// The OpenAPI document of the API.
-pub fn document() -> &'static utoipa::openapi::OpenApi {
-    &DOCUMENT
 }
 
 /// `GET /api/v1/openapi.json`, its `servers` the one URL this server is reached at.
@@ -76,8 +67,13 @@ pub fn document() -> &'static utoipa::openapi::OpenApi {
         (status = 200, description = "This OpenAPI 3.1 document (strong ETag, \
             `no-cache`)", content_type = "application/json"),
     ))]
-pub async fn openapi_json(_: Query<NoQuery>, origin: Origin, headers: HeaderMap) -> Response {
-    let mut doc = document().clone();
+pub async fn openapi_json(
+    _: Query<NoQuery>,
+    Extension(document): Extension<Arc<Document>>,
+    origin: Origin,
+    headers: HeaderMap,
+) -> Response {
+    let mut doc = Document::clone(&document);
     doc.servers = Some(vec![Server::new(origin.to_string())]);
     json_validated(&headers, &doc)
 }

@@ -18,14 +18,12 @@
 //! no such chain: their last value, the nearest proxy's, counts. A malformed `Forwarded` is
 //! ignored whole; a malformed value of another header is ignored.
 
-use super::App;
 use crate::config::ServeConfig;
 use crate::config::{PublicUrl, TrustedProxy};
-use axum::extract::{ConnectInfo, FromRequestParts};
+use axum::extract::ConnectInfo;
 use axum::http::request::Parts;
 use axum::http::uri::Authority;
 use axum::http::{header, HeaderMap};
-use std::convert::Infallible;
 use std::net::{IpAddr, Ipv4Addr, SocketAddr};
 
 /// Whether `ip` is one of the trusted proxies.
@@ -48,14 +46,6 @@ impl Origin {
 impl std::fmt::Display for Origin {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         f.write_str(&self.0)
-    }
-}
-
-impl FromRequestParts<App> for Origin {
-    type Rejection = Infallible;
-
-    async fn from_request_parts(parts: &mut Parts, app: &App) -> Result<Origin, Infallible> {
-        Ok(origin(&app.cfg, parts))
     }
 }
 

@@ -3,7 +3,7 @@
 //! Why: a warm tile is a cache lookup, and the router's per-request machinery (the route's
 //! boxed services, its layers, the request extensions) costs more than the rest of such a
 //! request. The fast path matches the path against the router's own template
-//! ([`api::TILE`]) with the router's matcher (`matchit`), fills the same extractor types,
+//! ([`TILE`]) with the router's matcher (`matchit`), fills the same extractor types,
 //! runs the same answer ([`tiles::answer`]: the engine's lookup, addressing and cache) and
 //! gives it the same CORS headers, metrics label and deadline. Anything else (HEAD, other
 //! methods, percent-encoded paths, other routes) takes the router, so answers are the same
@@ -12,21 +12,23 @@
 use super::cors::CorsHeaders;
 use crate::api::extract::{path_params, query_params};
 use crate::api::resources::tiles;
-use crate::api::{self, App};
+use crate::api::state::App;
+use crate::api::{self};
 use axum::http::{Method, Request};
 use axum::response::{IntoResponse, Response};
 use hyper::body::Incoming;
 use std::time::Instant;
+use vtex_wire::urls::TILE;
 
 pub(super) struct FastTile {
     app: App,
-    /// [`api::TILE`] alone, in the matcher the router uses.
+    /// [`TILE`] alone, in the matcher the router uses.
     tile: matchit::Router<()>,
 }
 
 impl FastTile {
     pub(super) fn new(app: App) -> FastTile {
-        FastTile { app, tile: super::head::matcher(api::TILE) }
+        FastTile { app, tile: super::head::matcher(TILE) }
     }
 
     /// The answer to `req` when it is a plain GET of a single tile, with the headers of `cors`;
@@ -35,7 +37,7 @@ impl FastTile {
         // Percent-encoded segments need decoding, which the router's extractor does; raw tiles
         // for a client that accepts compression, the router's compression layer.
         let path = req.uri().path();
-        let compressible = path.ends_with(".rgba") && api::accepts_compression(req.headers());
+        let compressible = path.ends_with(".rgba") && api::http::accepts_compression(req.headers());
         let plain = req.method() == Method::GET && !path.contains('%') && !compressible;
         let m = plain.then(|| self.tile.at(path).ok()).flatten()?;
         let start = Instant::now();
@@ -46,10 +48,10 @@ impl FastTile {
         };
         let mut resp = match tokio::time::timeout(limit, work).await {
             Ok(answer) => answer.into_response(),
-            Err(_) => api::timed_out(limit).into_response(),
+            Err(_) => api::http::timed_out(limit).into_response(),
         };
         cors.apply(resp.headers_mut());
-        api::count(&self.app, api::TILE, &Method::GET, start, &resp);
+        api::count(&self.app, TILE, &Method::GET, start, &resp);
         Some(resp)
     }
 }

@@ -5,9 +5,9 @@
 
 use crate::api::error::{echo, ApiError};
 use crate::api::extract::{check_query, MAX_BATCH_QUERY_BYTES, MAX_QUERY_BYTES};
-use crate::api::BATCH;
 use axum::http::uri::Authority;
 use axum::http::{header, HeaderMap, Request, Version};
+use vtex_wire::urls::BATCH;
 
 /// Largest request head (request line and headers) hyper reads, in either protocol: the longest
 /// query any route takes (a tile batch's) and room for ordinary headers.

@@ -30,7 +30,7 @@ mod cors;
 mod fast_tile;
 mod head;
 
-use crate::api::AppState;
+use crate::api::state::AppState;
 use crate::config::ServeConfig;
 use crate::store::Store;
 use crate::transport::{Activity, SendLimits, Transport};

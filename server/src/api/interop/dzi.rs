@@ -13,7 +13,7 @@ use crate::api::openapi::text;
 use crate::api::openapi::ErrorBody;
 use crate::api::params::{de, format_value, named, u32_value};
 use crate::api::resources::tiles;
-use crate::api::{lookup, App};
+use crate::api::state::{lookup, App};
 use crate::encode::{self, Format};
 use crate::engine::address::frame_for;
 use crate::engine::cache::{Shape, TileKey};
@@ -92,7 +92,7 @@ pub async fn descriptor(
     let id = file.strip_suffix(".dzi").ok_or_else(|| {
         ApiError::not_found(format!("`{}` is not a Deep Zoom descriptor (`{{id}}.dzi`)", echo(&file)))
     })?;
-    let record = crate::api::record(&app, id).await?;
+    let record = crate::api::state::record(&app, id).await?;
     let overlap = q.overlap()?;
     let format = q.format.unwrap_or(Format::Png);
     if format == Format::Rgba {
@@ -190,8 +190,8 @@ async fn rendered(app: &App, entry: Arc<Entry>, t: DziTile, headers: &HeaderMap)
     let ((x0, w), (y0, h)) = (span(t.x, lw), span(t.y, lh));
     let what = [t.level as u64, t.x as u64, t.y as u64, ov, t.frame as u64, ts];
     let tag = ETag::new(&entry.key, Some(Mark::Dzi), &what, t.format);
-    if crate::api::not_modified(headers, tag.as_str()) {
-        return Ok(crate::api::not_modified_response(crate::api::etag_header(&tag)));
+    if crate::api::http::not_modified(headers, tag.as_str()) {
+        return Ok(crate::api::http::not_modified_response(crate::api::http::etag_header(&tag)));
     }
     let (w, h) = (w as u32, h as u32);
     let mut reservation = app.inflight.reserve(encode::peak_bytes(t.format, w, h))?;

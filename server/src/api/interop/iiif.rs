@@ -17,7 +17,7 @@ use crate::api::openapi::text;
 use crate::api::openapi::ErrorBody;
 use crate::api::origin::Origin;
 use crate::api::resources::tiles;
-use crate::api::App;
+use crate::api::state::App;
 use crate::config::MAX_REGION_SIDE;
 use crate::encode::Format;
 use crate::engine::address::frame_for;
@@ -64,7 +64,7 @@ async fn image_of(app: &App, ident: &str) -> Result<(Arc<Entry>, u32), ApiError>
     if !vtex_synth::bundle::is_valid_id(id) || app.engine.store.record(id).is_none() {
         return Err(none());
     }
-    let entry = crate::api::lookup(app, id).await?;
+    let entry = crate::api::state::lookup(app, id).await?;
     let frame = frame_for(&entry, frame);
     Ok((entry, frame))
 }
@@ -485,8 +485,8 @@ async fn answer(app: &App, entry: Arc<Entry>, req: Request, headers: &HeaderMap)
         req.quality as u64,
     ];
     let tag = ETag::new(&entry.key, Some(Mark::Iiif), &what, req.format);
-    if crate::api::not_modified(headers, tag.as_str()) {
-        return Ok(crate::api::not_modified_response(crate::api::etag_header(&tag)));
+    if crate::api::http::not_modified(headers, tag.as_str()) {
+        return Ok(crate::api::http::not_modified_response(crate::api::http::etag_header(&tag)));
     }
     let reservation = app
         .inflight

@@ -10,7 +10,7 @@ use crate::api::interop::jsonld;
 use crate::api::openapi::text;
 use crate::api::openapi::ErrorBody;
 use crate::api::origin::Origin;
-use crate::api::{App, TextureId};
+use crate::api::state::{App, TextureId};
 use crate::store::Record;
 use axum::extract::State;
 use axum::http::HeaderMap;
@@ -109,7 +109,7 @@ pub async fn manifest_json(
     headers: HeaderMap,
     origin: Origin,
 ) -> Result<Response, ApiError> {
-    let record = crate::api::record(&app, &id).await?;
+    let record = crate::api::state::record(&app, &id).await?;
     jsonld::respond(&headers, &jsonld::PRESENTATION, &manifest(&origin, &record))
 }
 

@@ -15,7 +15,7 @@ use crate::api::openapi::ErrorBody;
 use crate::api::origin::Origin;
 use crate::api::params::{de, format_value, named, u32_value};
 use crate::api::resources::tiles;
-use crate::api::{lookup, record, App, TextureId};
+use crate::api::state::{lookup, record, App, TextureId};
 use crate::encode::Format;
 use crate::engine::address::{frame_for, square_shape};
 use crate::engine::cache::TileKey;

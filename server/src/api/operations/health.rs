@@ -4,7 +4,7 @@
 //! or once it drains for shutdown, so a balancer sends new requests elsewhere.
 
 use crate::api::extract::{NoQuery, Query};
-use crate::api::App;
+use crate::api::state::App;
 use axum::extract::State;
 use axum::http::{header, StatusCode};
 use axum::response::{IntoResponse, Response};

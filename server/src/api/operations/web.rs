@@ -12,7 +12,7 @@
 //! Files come with the brotli and gzip copies the viewer's build made; a client that accepts
 //! one gets it (`Vary: Accept-Encoding`), others the file as it is.
 
-use crate::api::not_modified;
+use crate::api::http::not_modified;
 use axum::body::Body;
 use axum::extract::Request;
 use axum::http::{header, HeaderMap, HeaderValue, Method, StatusCode};

@@ -23,13 +23,14 @@
 //! finished within the request deadline is cut off (the client sees a truncated stream).
 
 use crate::api::error::{echo, ApiError};
-use crate::api::extract::{Both, Path, Query};
+use crate::api::extract::{Both, Path, Query, MAX_LIST_BYTES};
+use crate::api::http::{not_modified, not_modified_response, CACHE_IMMUTABLE};
 use crate::api::inflight::Reservation;
 use crate::api::openapi::text;
 use crate::api::openapi::ErrorBody;
 use crate::api::params::u32_value;
 use crate::api::resources::pages::{self, page_format_value, PageFormat, PageParams};
-use crate::api::{lookup, not_modified, not_modified_response, App, TextureId, CACHE_IMMUTABLE};
+use crate::api::state::{lookup, App, TextureId};
 use crate::encode::Format;
 use crate::engine::address::{self, frame_for};
 use crate::engine::cache::{Shape, Source, Tile, TileKey};
@@ -51,8 +52,6 @@ use tokio::task::JoinSet;
 use utoipa::IntoParams;
 pub use vtex_wire::frame::{FrameHeader, TileRef, CONTENT_TYPE, HEADER_LEN, MAX_TILES};
 
-/// Longest `tiles` list accepted: 256 tiles of the largest coordinates fit with room to spare.
-pub const MAX_LIST_BYTES: usize = 8192;
 /// What a batch reserves from the in-flight budget for each of its tiles: the frame header it
 /// builds and, for a tile that fails, room for its error's JSON (one of the synthesis path's
 /// fixed messages). The tiles' bytes are the cache's, sent without a copy, and not charged.
@@ -187,7 +186,7 @@ fn items(list: BatchList, page: &PageParams) -> Result<(Vec<TileRef>, Format, Sh
 /// may answer the same URL with it for ever); a batch with misses is `no-store`, since a render
 /// may still fail or be shed into an error frame.
 #[utoipa::path(get,
-    path = crate::api::BATCH,
+    path = vtex_wire::urls::BATCH,
     tag = "tiles",
     params(
         TextureId,

@@ -4,7 +4,7 @@ use crate::api::error::ApiError;
 use crate::api::extract::{NoQuery, Path, Query};
 use crate::api::openapi::text;
 use crate::api::openapi::ErrorBody;
-use crate::api::{App, TextureId};
+use crate::api::state::{App, TextureId};
 use axum::extract::State;
 use axum::http::StatusCode;
 

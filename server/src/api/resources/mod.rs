@@ -7,4 +7,3 @@ pub mod models;
 pub mod pages;
 pub(in crate::api) mod textures;
 pub mod tiles;
-pub mod writes;

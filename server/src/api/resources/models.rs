@@ -3,10 +3,10 @@
 
 use crate::api::error::{echo, ApiError};
 use crate::api::extract::{NoQuery, Path, Query};
+use crate::api::http::{json_validated, validated};
 use crate::api::openapi::text;
 use crate::api::openapi::ErrorBody;
 use crate::api::origin::Origin;
-use crate::api::resources::textures::{json_validated, validated};
 use crate::catalogue::{example_input, list, one, ModelDoc, ModelList, EXAMPLE_INPUT};
 use axum::http::HeaderMap;
 use axum::response::Response;

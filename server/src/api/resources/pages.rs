@@ -12,11 +12,12 @@
 
 use crate::api::error::{echo, ApiError};
 use crate::api::extract::{Path, Query};
+use crate::api::http::{not_modified, not_modified_response};
 use crate::api::openapi::text;
 use crate::api::openapi::ErrorBody;
 use crate::api::params::{de, named, u32_value};
 use crate::api::resources::tiles;
-use crate::api::{lookup, not_modified, not_modified_response, App, TextureId};
+use crate::api::state::{lookup, App, TextureId};
 use crate::encode::Format;
 use crate::engine::address;
 use crate::engine::cache::{Shape, TileKey};
@@ -264,7 +265,7 @@ pub async fn mip_chain(
     let (codec, sc) = (1 + k.codec as u64, 1 + k.supercompression as u64);
     let tag = ETag::new(&entry.key, Some(Mark::Chain), &[level as u64, frame as u64, codec, sc], Format::Ktx2(k));
     if not_modified(&headers, tag.as_str()) {
-        return Ok(not_modified_response(crate::api::etag_header(&tag)));
+        return Ok(not_modified_response(crate::api::http::etag_header(&tag)));
     }
     let (bw, bh) = level_size(w, h, level);
     let (bw, bh) = (bw as u32, bh as u32);

@@ -2,12 +2,12 @@
 
 use crate::api::error::{echo, ApiError};
 use crate::api::extract::{NoQuery, Path, Query};
+use crate::api::http::{
+    declared_length, json_validated, not_modified, not_modified_response, read_body, refuse_oversized, CACHE_IMMUTABLE,
+};
 use crate::api::openapi::text;
 use crate::api::openapi::ErrorBody;
-use crate::api::{
-    declared_length, not_modified, not_modified_response, read_body, record, refuse_oversized, App, TextureId,
-    CACHE_IMMUTABLE,
-};
+use crate::api::state::{record, App, TextureId};
 use crate::store::{StoreError, TextureInfo};
 use axum::extract::{FromRequest, Multipart, Request, State};
 use axum::http::{header, HeaderMap, HeaderValue, StatusCode};
@@ -56,28 +56,6 @@ pub async fn info(
     headers: HeaderMap,
 ) -> Result<Response, ApiError> {
     Ok(json_validated(&headers, &record(&app, &id).await?.info()))
-}
-
-/// `value` as JSON with a strong ETag (a hash of the body), revalidated on every use
-/// (`no-cache`): a 304 when `If-None-Match` names it. The list changes with the store, so it is
-/// never cached unchecked.
-pub(in crate::api) fn json_validated(headers: &HeaderMap, value: &impl serde::Serialize) -> Response {
-    let body = serde_json::to_vec(value).expect("plain data serializes");
-    validated(headers, "application/json", body.into())
-}
-
-/// `body` of `content_type` with a strong ETag (a hash of the body), revalidated on every use
-/// (`no-cache`): a 304 when `If-None-Match` names it.
-pub(in crate::api) fn validated(headers: &HeaderMap, content_type: &'static str, body: bytes::Bytes) -> Response {
-    let tag = format!("\"{}\"", &blake3::hash(&body).to_hex()[..32]);
-    let tag = HeaderValue::from_str(&tag).expect("hex is a valid header value");
-    let no_cache = HeaderValue::from_static("no-cache");
-    if not_modified(headers, tag.to_str().unwrap_or_default()) {
-        return (StatusCode::NOT_MODIFIED, [(header::ETAG, tag), (header::CACHE_CONTROL, no_cache)]).into_response();
-    }
-    let content_type = HeaderValue::from_static(content_type);
-    ([(header::CONTENT_TYPE, content_type), (header::ETAG, tag), (header::CACHE_CONTROL, no_cache)], body)
-        .into_response()
 }
 
 /// The bundle bytes exactly as stored, read whole once their length is reserved from the

@@ -2,13 +2,13 @@
 
 use crate::api::error::{echo, ApiError};
 use crate::api::extract::{Path, Query};
+use crate::api::http::{
+    not_modified, not_modified_response, CACHE_IMMUTABLE, X_VTEX_CACHE, X_VTEX_HEIGHT, X_VTEX_WIDTH,
+};
 use crate::api::openapi::text;
 use crate::api::openapi::ErrorBody;
 use crate::api::params::{de, format_value, named, u32_value};
-use crate::api::{
-    lookup, not_modified, not_modified_response, App, TextureId, CACHE_IMMUTABLE, X_VTEX_CACHE, X_VTEX_HEIGHT,
-    X_VTEX_WIDTH,
-};
+use crate::api::state::{lookup, App, TextureId};
 use crate::config::MAX_REGION_SIDE;
 use crate::encode::{self, Format};
 use crate::engine::address;
@@ -34,7 +34,7 @@ pub(in crate::api) fn image_response(body: Bytes, format: Format, etag: &ETag, w
     let h = resp.headers_mut();
     h.reserve(RESPONSE_HEADERS);
     h.insert(header::CONTENT_TYPE, HeaderValue::from_static(format.content_type()));
-    h.insert(header::ETAG, crate::api::etag_header(etag));
+    h.insert(header::ETAG, crate::api::http::etag_header(etag));
     h.insert(header::CACHE_CONTROL, CACHE_IMMUTABLE);
     h.insert(X_VTEX_WIDTH.clone(), HeaderValue::from(width));
     h.insert(X_VTEX_HEIGHT.clone(), HeaderValue::from(height));
@@ -64,10 +64,10 @@ pub struct TileQuery {
     pub frame: Option<u32>,
 }
 
-/// `GET /api/v1/textures/{id}/tiles/{level}/{x}/{y}.{format}[?frame=N]` (the route
-/// [`TILE`](crate::api::TILE)).
+/// `GET /api/v1/textures/{id}/tiles/{level}/{x}/{y}.{format}[?frame=N]`: one tile of the
+/// pyramid.
 #[utoipa::path(get,
-    path = crate::api::TILE,
+    path = vtex_wire::urls::TILE,
     tag = "tiles",
     params(
         ("id" = String, Path, description = text::TEXTURE_ID),
@@ -128,7 +128,7 @@ pub(in crate::api) async fn respond(
         None => address::key_etag(entry, &key),
     };
     if not_modified(headers, tag.as_str()) {
-        return Ok(not_modified_response(crate::api::etag_header(&tag)));
+        return Ok(not_modified_response(crate::api::http::etag_header(&tag)));
     }
     let (tile, source) = app.engine.tile(entry, key, cached, tag).await?;
     let mut resp = image_response(tile.body.clone(), key.format, &tile.etag, tile.width, tile.height);
@@ -206,7 +206,7 @@ pub async fn region(
     let what = [level as u64, x as u64, y as u64, w as u64, h as u64, frame as u64];
     let tag = ETag::new(&entry.key, Some(Mark::Region), &what, format);
     if not_modified(&headers, tag.as_str()) {
-        return Ok(not_modified_response(crate::api::etag_header(&tag)));
+        return Ok(not_modified_response(crate::api::http::etag_header(&tag)));
     }
     let region = Region::new(level, x, y, w, h).at_frame(frame);
     vtex_synth::texture::check_region(&*entry.texture, &region)?;

@@ -1,6 +1,6 @@
 //! Who may write: the write token (`VTEX_WRITE_TOKEN`, a bearer token), read-only mode
 //! (`--read-only`) and the origins whose pages may write (`--cors-write-origins`), enforced by
-//! [`guard`] in front of every route, before CORS answers anything.
+//! [`WritePolicy::screen`] in front of every route, before CORS answers anything.
 //!
 //! A write is any method but GET, HEAD and OPTIONS. Reads stay open to every origin. With no
 //! token set, only loopback clients may write (a server reachable from elsewhere is not open
@@ -13,11 +13,11 @@
 //! Behind trusted proxies (`--trusted-proxies`), the client is the address they forward for.
 
 use crate::api::error::{echo, ApiError};
-use crate::api::{drain, origin, App};
+use crate::api::http::drain;
+use crate::api::origin;
 use crate::config::{ServeConfig, WriteToken};
-use axum::extract::{Request, State};
+use axum::extract::Request;
 use axum::http::{header, HeaderMap, HeaderValue, Method, StatusCode};
-use axum::middleware::Next;
 use axum::response::{IntoResponse, Response};
 use std::net::IpAddr;
 
@@ -146,27 +146,30 @@ fn refusal(e: ApiError) -> Response {
     resp
 }
 
-/// The layer enforcing [`WritePolicy`] on every request (see the module docs).
-pub async fn guard(State(app): State<App>, req: Request, next: Next) -> Response {
-    if req.method() == Method::OPTIONS {
-        let headers = req.headers();
-        let asks_to_write = headers
-            .get(header::ACCESS_CONTROL_REQUEST_METHOD)
-            .and_then(|v| Method::from_bytes(v.as_bytes()).ok())
-            .is_some_and(|m| is_write(&m));
-        if asks_to_write {
-            return app.writes.preflight(headers.get(header::ORIGIN).and_then(|v| v.to_str().ok()));
+impl WritePolicy {
+    /// `req` if the policy lets it through (see the module docs); otherwise the answer: a
+    /// write preflight's, or a refused write's after its body is drained.
+    pub async fn screen(&self, cfg: &ServeConfig, req: Request) -> Result<Request, Response> {
+        if req.method() == Method::OPTIONS {
+            let headers = req.headers();
+            let asks_to_write = headers
+                .get(header::ACCESS_CONTROL_REQUEST_METHOD)
+                .and_then(|v| Method::from_bytes(v.as_bytes()).ok())
+                .is_some_and(|m| is_write(&m));
+            if asks_to_write {
+                return Err(self.preflight(headers.get(header::ORIGIN).and_then(|v| v.to_str().ok())));
+            }
+        } else if is_write(req.method()) {
+            let (parts, body) = req.into_parts();
+            let client = origin::client_addr(cfg, &parts);
+            let req = Request::from_parts(parts, body);
+            if let Err(e) = self.admit(req.headers(), client) {
+                tracing::info!(method = %req.method(), path = %echo(req.uri().path()), reason = %e, "write refused");
+                drain(req).await;
+                return Err(refusal(e));
+            }
+            return Ok(req);
         }
-    } else if is_write(req.method()) {
-        let (parts, body) = req.into_parts();
-        let client = origin::client_addr(&app.cfg, &parts);
-        let req = Request::from_parts(parts, body);
-        if let Err(e) = app.writes.admit(req.headers(), client) {
-            tracing::info!(method = %req.method(), path = %echo(req.uri().path()), reason = %e, "write refused");
-            drain(req).await;
-            return refusal(e);
-        }
-        return next.run(req).await;
+        Ok(req)
     }
-    next.run(req).await
 }
