@@ -131,8 +131,8 @@ pub struct XyzQuery {
         XyzQuery,
     ),
     responses(
-        (status = 200, description = "the tile of vtex level `levels − 1 − z`, always `tileSize` square: transparent \
-            beyond the texture (black in jpg); strong ETag, \
+        (status = 200, description = "the tile of vtex level `levels − 1 − z`, always `tileSize` square: \
+            transparent beyond the texture (black in jpg); strong ETag, \
             immutable", content(("image/png"), ("image/webp"), ("image/jpeg"))),
         (status = 400, description = text::BAD_REQUEST, body = ErrorBody),
         (status = 404, description = text::NOT_FOUND, body = ErrorBody),
