@@ -14,7 +14,6 @@ use axum::http::request::Parts;
 use serde::de::value::MapDeserializer;
 use serde::de::{DeserializeOwned, IntoDeserializer};
 use serde::Deserialize;
-use std::borrow::Cow;
 use std::fmt;
 
 /// Longest query of every route but the tile batch; the others take a few short numbers.
@@ -100,12 +99,13 @@ impl<T: DeserializeOwned> FromQuery for T {
 
 impl<A: DeserializeOwned, B: DeserializeOwned> FromQuery for Both<A, B> {
     fn from_query(query: Option<&str>) -> Result<Both<A, B>, ApiError> {
-        let pairs: Vec<(Cow<str>, Cow<str>)> = pairs(query).collect();
         let (own, shared) = (fields::<A>(), fields::<B>());
         let is_shared = |key: &str| shared.contains(&key);
-        // Unknown parameters go to `A`, whose refusal names `B`'s parameters too.
-        let a = pairs.iter().filter(|(k, _)| !is_shared(k)).cloned();
-        let b = pairs.iter().filter(|(k, _)| is_shared(k)).cloned();
+        // Unknown parameters go to `A`, whose refusal names `B`'s parameters too. The query is
+        // parsed once for each, not collected: a hostile query of many empty pairs costs no
+        // memory in proportion.
+        let a = pairs(query).filter(|(k, _)| !is_shared(k));
+        let b = pairs(query).filter(|(k, _)| is_shared(k));
         let a = deserialize(MapDeserializer::new(a), Place::Query, shared)?;
         let b = deserialize(MapDeserializer::new(b), Place::Query, own)?;
         Ok(Both(a, b))
