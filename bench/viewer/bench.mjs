@@ -3,7 +3,7 @@
 //   node bench/viewer/bench.mjs [--steps 60] [--pan-seconds 5] [--shots DIR] [--json FILE]
 //        [--trace] [--texture NAME] [--server-args="--tile-size 512"] [--osd JSON] [--playwright]
 //        [--format rgba|png|webp|jpg] [--detail map|sharp] [--profile FILE.cpuprofile] [--chrome-trace FILE.json]
-//        [--phase random|after]
+//        [--phase random|after] [--shift SEED] [--width 1280] [--height 800] [--passes all|cold]
 //
 // The texture is the 100k × 100k chaos mosaic (the flagship demo, as bench/server/run.sh picks
 // it) unless --texture names another. Chromium is driven over a bare DevTools pipe (cdp.mjs):
@@ -70,6 +70,12 @@ const { values: args } = parseArgs({
     // When each view change is applied: at a seeded random point of an animation frame
     // (random), or right after the previous view was drawn (after).
     phase: { type: 'string', default: 'random' },
+    // Another user over the same places: every view of the session moved by a seeded random
+    // fraction (up to one) of a view each way (bench/replicas/viewer-hit-ratio.mjs).
+    shift: { type: 'string' },
+    // `cold`: the cold pass alone (no pans, no warm passes), as a user arriving at a server
+    // (or a cache in front of it) that others have used.
+    passes: { type: 'string', default: 'all' },
   },
 });
 const STEPS = Number(args.steps);
@@ -128,6 +134,9 @@ function cpuReference() {
   return rounds.map(([ms]) => ms).sort((a, b) => a - b)[2];
 }
 
+/** Screen pixels the session's pans are measured in, whatever the window: one path for all. */
+const PATH_WIDTH = 1280;
+
 /** The session: views (zoom in screen px per level-0 px, centre in level-0 px). */
 function session(info, steps) {
   const r = rng(1);
@@ -141,7 +150,7 @@ function session(info, steps) {
     } else if (kind === 1) {
       // pan by half to one screen
       const a = 2 * Math.PI * r();
-      const d = (0.5 + 0.5 * r()) * SIZE.width;
+      const d = (0.5 + 0.5 * r()) * PATH_WIDTH;
       v = { ...v, x: v.x + (Math.cos(a) * d) / v.zoom, y: v.y + (Math.sin(a) * d) / v.zoom };
     } else {
       // zoom in or out by 2 about the centre
@@ -152,7 +161,16 @@ function session(info, steps) {
     v.y = Math.min(info.height - 1, Math.max(0, v.y));
     views.push({ ...v });
   }
-  return views;
+  return args.shift === undefined ? views : views.map(shifted(info, rng(Number(args.shift))));
+}
+
+/** `view` moved by a random fraction in (−1, 1) of the view's width and height each way. */
+function shifted(info, r) {
+  return (v) => {
+    const dx = ((2 * r() - 1) * SIZE.width) / v.zoom;
+    const dy = ((2 * r() - 1) * SIZE.height) / v.zoom;
+    return { ...v, x: Math.min(info.width - 1, Math.max(0, v.x + dx)), y: Math.min(info.height - 1, Math.max(0, v.y + dy)) };
+  };
 }
 
 /** What --chrome-trace records: tasks, frames, canvas and compositing, network and IPC. */
@@ -217,14 +235,33 @@ function showView(page, view, delay = null) {
         // is committed, after style, layout and paint. A message posted now runs right after
         // that task: the end of the frame's work on the main thread (`rasterMs`, the usual
         // stand-in for "next paint"; the compositor's own work to put it on screen follows).
+        // The coarse preview (osd-adapter.js: PREVIEW_STEPS levels above the finest): drawn
+        // complete once every tile of its level under the view is loaded at a draw.
+        const info = state.info;
+        const top = info.levels - 1;
+        const finest = Math.min(top, Math.max(0, Math.floor(Math.log2((view.zoom * 2 ** top) / viewer.minPixelRatio))));
+        const coarse = Math.max(0, finest - 3);
+        const coarseDrawn = () => {
+          const b = state.item.viewportToImageRectangle(viewer.viewport.getBounds(true));
+          const side = info.tile_size * 2 ** (top - coarse);
+          const span = (a, len, size) => [Math.max(0, Math.floor(a / side)), Math.min(Math.ceil(size / side), Math.ceil((a + len) / side)) - 1];
+          const [x0, x1] = span(b.x, b.width, info.width);
+          const [y0, y1] = span(b.y, b.height, info.height);
+          const tiles = state.item.tilesMatrix[coarse] || {};
+          for (let x = x0; x <= x1; x++) for (let y = y0; y <= y1; y++) if (!(tiles[x] && tiles[x][y] && tiles[x][y].loaded)) return false;
+          return true;
+        };
+        let coarseMs = null;
         const check = () => {
-          if (state.item.getFullyLoaded() && !viewer.world.needsDraw()) {
+          const fully = state.item.getFullyLoaded();
+          if (coarseMs === null && (fully || coarseDrawn())) coarseMs = performance.now() - t0;
+          if (fully && !viewer.world.needsDraw()) {
             viewer.removeHandler('update-viewport', check);
             clearTimeout(timer);
             const t1 = performance.now();
             const after = new MessageChannel();
             after.port1.onmessage = () =>
-              resolve({ ms: t1 - t0, rasterMs: performance.now() - t0, t0, t1, tiles: stats.requested - requested0, requests: stats.batches - batches0 });
+              resolve({ ms: t1 - t0, rasterMs: performance.now() - t0, coarseMs, t0, t1, tiles: stats.requested - requested0, requests: stats.batches - batches0 });
             after.port2.postMessage(null);
           }
         };
@@ -248,6 +285,7 @@ async function measureViews(page, views, shots, tag, { back = false } = {}) {
   const delay = () => (args.phase === 'random' ? phase() * FRAME_MS : null);
   const times = [];
   const rasterTimes = [];
+  const coarseTimes = [];
   const tiles = [];
   const requests = [];
   const breakdowns = [];
@@ -278,6 +316,7 @@ async function measureViews(page, views, shots, tag, { back = false } = {}) {
     const r = await showView(page, back ? views[i - 1] : views[i], delay());
     times.push(r.ms);
     rasterTimes.push(r.rasterMs);
+    coarseTimes.push(r.coarseMs);
     tiles.push(r.tiles);
     requests.push(r.requests);
     if (args.trace) {
@@ -292,7 +331,7 @@ async function measureViews(page, views, shots, tag, { back = false } = {}) {
   for (const k of ['drawnTiles', 'drawnPixels']) canvas[k] = canvas1[k] === undefined ? null : (canvas1[k] - canvas0[k]) / times.length;
   const perView = (v) => v.reduce((a, b) => a + (b || 0), 0) / v.length;
   const cpuReferenceMs = [referenceBefore, cpuReference()];
-  return { ...summary(times), raster: summary(rasterTimes), tilesPerView: perView(tiles), requestsPerView: perView(requests), canvasPerView: canvas, cpuReferenceMs, times, rasterTimes, tiles, breakdowns };
+  return { ...summary(times), raster: summary(rasterTimes), coarse: summary(coarseTimes), tilesPerView: perView(tiles), requestsPerView: perView(requests), canvasPerView: canvas, cpuReferenceMs, times, rasterTimes, tiles, breakdowns };
 }
 
 /**
@@ -499,48 +538,51 @@ try {
   results.cold = await measureViews(page, views, args.shots, 'cold');
   let c1 = await serverCounters(server.url);
   results.server.cold = serverDelta(c0, c1);
-  if (args.shots) await midLoadShots(page, args.shots, big);
-  results.panCold = panSummary(await measurePan(page, panStart));
-  await idle(page);
-  results.panWarm = panSummary(await measurePan(page, panStart));
-  // Warm browser: reload in the same profile (HTTP cache warm, OpenSeadragon's memory empty).
-  await page.reload();
-  await page.waitFor(() => window.vtexViewer && window.vtexViewer.state.item);
-  await idle(page);
-  results.warmBrowser = await measureViews(page, views, args.shots, 'warm-browser');
-  await page.close();
+  if (args.passes === 'cold') await page.close();
+  else {
+    if (args.shots) await midLoadShots(page, args.shots, big);
+    results.panCold = panSummary(await measurePan(page, panStart));
+    await idle(page);
+    results.panWarm = panSummary(await measurePan(page, panStart));
+    // Warm browser: reload in the same profile (HTTP cache warm, OpenSeadragon's memory empty).
+    await page.reload();
+    await page.waitFor(() => window.vtexViewer && window.vtexViewer.state.item);
+    await idle(page);
+    results.warmBrowser = await measureViews(page, views, args.shots, 'warm-browser');
+    await page.close();
 
-  // Warm server: a fresh browser profile; every tile comes from the server's cache.
-  page = await openPage(url);
-  await idle(page);
-  c0 = await serverCounters(server.url);
-  if (args.profile) {
-    await page.send('Profiler.enable');
-    await page.send('Profiler.setSamplingInterval', { interval: 100 });
-    await page.send('Profiler.start');
+    // Warm server: a fresh browser profile; every tile comes from the server's cache.
+    page = await openPage(url);
+    await idle(page);
+    c0 = await serverCounters(server.url);
+    if (args.profile) {
+      await page.send('Profiler.enable');
+      await page.send('Profiler.setSamplingInterval', { interval: 100 });
+      await page.send('Profiler.start');
+    }
+    const endTrace = args['chrome-trace'] && (await page.startTrace(CHROME_TRACE_CATEGORIES));
+    results.warmServer = await measureViews(page, views, args.shots, 'warm-server');
+    if (endTrace) writeFileSync(args['chrome-trace'], await endTrace());
+    if (args.profile) {
+      const { profile } = await page.send('Profiler.stop');
+      writeFileSync(args.profile, JSON.stringify(profile));
+      results.profile = profileSummary(profile, STEPS);
+    }
+    c1 = await serverCounters(server.url);
+    results.server.warmServer = serverDelta(c0, c1);
+    // Warm viewer: back to the view before (its tiles still in OpenSeadragon's memory).
+    results.warmViewer = await measureViews(page, views, args.shots, 'warm-viewer', { back: true });
+    results.serverStats = await page.evaluate(() => window.vtexViewer.stats.snapshot());
+    await page.close();
   }
-  const endTrace = args['chrome-trace'] && (await page.startTrace(CHROME_TRACE_CATEGORIES));
-  results.warmServer = await measureViews(page, views, args.shots, 'warm-server');
-  if (endTrace) writeFileSync(args['chrome-trace'], await endTrace());
-  if (args.profile) {
-    const { profile } = await page.send('Profiler.stop');
-    writeFileSync(args.profile, JSON.stringify(profile));
-    results.profile = profileSummary(profile, STEPS);
-  }
-  c1 = await serverCounters(server.url);
-  results.server.warmServer = serverDelta(c0, c1);
-  // Warm viewer: back to the view before (its tiles still in OpenSeadragon's memory).
-  results.warmViewer = await measureViews(page, views, args.shots, 'warm-viewer', { back: true });
-  results.serverStats = await page.evaluate(() => window.vtexViewer.stats.snapshot());
-  await page.close();
 } finally {
   await server.stop();
 }
 
 const f = (v) => v.toFixed(1);
 console.log(`texture ${results.texture.name} (${results.texture.model}), ${results.viewport.width}×${results.viewport.height} browser viewport, ${STEPS} view changes (phase ${args.phase})${args.format ? `, ${args.format} tiles` : ''}${args.detail ? `, detail ${args.detail}` : ''}${args.osd ? `, OSD options ${args.osd}` : ''}, server ${serverArgs.join(' ')}, driven by ${results.driver}`);
-console.log('| view change → every visible tile drawn: draw calls issued, p50 / p95 / max ms | rastered (the frame\'s main-thread work done), p50 / p95 / max ms | tiles/view | requests/view | machine reference ms, before / after |');
-console.log('|---|---|---|---|---|---|');
+console.log('| view change → every visible tile drawn: draw calls issued, p50 / p95 / max ms | rastered (the frame\'s main-thread work done), p50 / p95 / max ms | first complete coarse frame (preview level drawn), p50 / p95 ms | tiles/view | requests/view | machine reference ms, before / after |');
+console.log('|---|---|---|---|---|---|---|');
 for (const [k, label] of [
   ['cold', 'cold (empty server cache, fresh browser)'],
   ['warmServer', 'warm server cache, fresh browser'],
@@ -548,7 +590,8 @@ for (const [k, label] of [
   ['warmViewer', 'warm viewer: back to the previous view (tiles in memory)'],
 ]) {
   const r = results[k];
-  console.log(`| ${label} | ${f(r.p50)} / ${f(r.p95)} / ${f(r.max)} | ${f(r.raster.p50)} / **${f(r.raster.p95)}** / ${f(r.raster.max)} | ${r.tilesPerView.toFixed(1)} | ${r.requestsPerView.toFixed(1)} | ${r.cpuReferenceMs.map(f).join(' / ')} |`);
+  if (!r) continue;
+  console.log(`| ${label} | ${f(r.p50)} / ${f(r.p95)} / ${f(r.max)} | ${f(r.raster.p50)} / **${f(r.raster.p95)}** / ${f(r.raster.max)} | ${f(r.coarse.p50)} / **${f(r.coarse.p95)}** | ${r.tilesPerView.toFixed(1)} | ${r.requestsPerView.toFixed(1)} | ${r.cpuReferenceMs.map(f).join(' / ')} |`);
 }
 console.log('(machine reference: a fixed piece of JS timed in this process before and after the pass; lower is a faster machine)');
 console.log(`\n| continuous pan, ${PAN_SPEED} px/frame for ${PAN_SECONDS} s at level 0 | frames | p50 ms | p95 ms | max ms | > 33 ms | > 50 ms | tiles |`);
@@ -558,6 +601,7 @@ for (const [k, label] of [
   ['panWarm', 'warm (same path again)'],
 ]) {
   const r = results[k];
+  if (!r) continue;
   console.log(`| ${label} | ${r.n} | ${f(r.p50)} | ${f(r.p95)} | ${f(r.max)} | ${r.over33} | ${r.over50} | ${r.tiles} |`);
 }
 // Mpx drawn: the drawn tiles' rectangles on the canvas.
@@ -569,6 +613,7 @@ for (const [k, label] of [
   ['warmBrowser', 'warm browser'],
   ['warmViewer', 'warm viewer'],
 ]) {
+  if (!results[k]) continue;
   const c = results[k].canvasPerView;
   const n = (v, scale = 1) => (v === null ? '–' : (v / scale).toFixed(scale === 1 ? 1 : 2));
   console.log(`| ${label} | ${n(c.drawnTiles)} | ${n(c.drawnPixels, 1e6)} |`);
@@ -578,6 +623,7 @@ for (const [k, label] of [
   ['warmServer', 'server, warm-server pass'],
 ]) {
   const d = results.server[k];
+  if (!d) continue;
   const levels = Object.entries(d.missesByLevel).map(([l, n]) => `L${l}: ${n}`).join(', ') || 'none';
   console.log(`\n${label}: ${d.syntheses} syntheses, mean ${Number.isFinite(d.synthMeanMs) ? f(d.synthMeanMs) : '–'} ms; misses by level ${levels}`);
 }
@@ -588,7 +634,7 @@ if (args.trace) {
     ['warmBrowser', 'warm browser'],
     ['warmViewer', 'warm viewer'],
   ]) {
-    console.log(formatBreakdown(label, results[k].breakdowns));
+    if (results[k]) console.log(formatBreakdown(label, results[k].breakdowns));
   }
 }
 if (results.profile) {

@@ -2,12 +2,23 @@
 // the early view update (against a stand-in for OpenSeadragon's viewer), batch frames.
 import test from 'node:test';
 import assert from 'node:assert/strict';
-import { DETAIL, inPyramid, levelSize, osdLevel, tileCount, tileUrl, vtexLevel, drawLevel } from '../src/viewer/pyramid.js';
+import {
+  DETAIL,
+  drawLevel,
+  inPyramid,
+  levelSize,
+  metatilesOf,
+  metatileUrl,
+  osdLevel,
+  tileCount,
+  tileUrl,
+  vtexLevel,
+} from '../src/viewer/pyramid.js';
 import { formatView, parseView } from '../src/viewer/view-url.js';
 import { TileStats, formatBytes, formatRatio, percentile } from '../src/viewer/stats.js';
 import { updateEarly } from '../src/viewer/loader.js';
 import { PREVIEW_STEPS, fetchWantedLevels, wantedLevel } from '../src/viewer/osd-adapter.js';
-import { FrameReader, HEADER_LEN, MAGIC, MAX_BATCH, READ_BUFFER_BYTES, batchUrl, readChunks, tileKey } from '../src/shared/batch.js';
+import { FrameReader, HEADER_LEN, MAGIC, READ_BUFFER_BYTES, readChunks, tileKey } from '../src/shared/batch.js';
 
 const big = { id: 'ab'.repeat(32), width: 100_000, height: 100_000, levels: 10, tile_size: 256, animated: false };
 const odd = { id: 'cd'.repeat(32), width: 3000, height: 700, levels: 5, tile_size: 256, animated: true };
@@ -195,15 +206,27 @@ test('a view set at once is evaluated in the same task, at most once a frame', a
   }
 });
 
-test('batch URLs list level/x/y and send the frame only for animated textures', () => {
-  const tiles = [{ level: 0, x: 285, y: 160 }, { level: 3, x: 1, y: 2 }];
-  assert.equal(batchUrl(big, tiles, 5, 'rgba'), `api/v1/textures/${big.id}/tiles?format=rgba&tiles=0/285/160,3/1/2`);
-  assert.equal(batchUrl(odd, tiles, 7, 'png'), `api/v1/textures/${odd.id}/tiles?format=png&tiles=0/285/160,3/1/2&frame=7`);
+test('metatile URLs name the block and send the frame only for animated textures', () => {
+  assert.equal(metatileUrl(big, 0, 142, 80, 5, 'jpg'), `api/v1/textures/${big.id}/metatiles/0/142/80.jpg`);
+  assert.equal(metatileUrl(odd, 3, 0, 1, 7, 'png'), `api/v1/textures/${odd.id}/metatiles/3/0/1.png?frame=7`);
   assert.equal(tileKey(3, 1, 2), '3/1/2');
-  assert.equal(MAX_BATCH, 256);
-  // The longest list the viewer can send stays well inside the server's 8 KiB query bound.
-  const worst = Array.from({ length: MAX_BATCH }, (_, i) => ({ level: 0, x: 390 - (i % 10), y: 390 - i }));
-  assert.ok(batchUrl(big, worst).length < 8192);
+});
+
+test('tiles group into the metatiles that hold them, coarsest level first', () => {
+  const info = { ...big, metatile: 2 };
+  const t = (level, x, y) => ({ level, x, y });
+  const tiles = [t(0, 4, 6), t(0, 5, 7), t(0, 6, 6), t(3, 1, 1), t(0, 5, 6), t(3, 0, 0)];
+  const blocks = metatilesOf(info, tiles);
+  assert.deepEqual(
+    blocks.map((b) => [b.level, b.x, b.y, b.tiles.length]),
+    [
+      [3, 0, 0, 2],
+      [0, 2, 3, 3],
+      [0, 3, 3, 1],
+    ],
+  );
+  assert.deepEqual(blocks[1].tiles, [t(0, 4, 6), t(0, 5, 7), t(0, 5, 6)], 'each tile once, in the order given');
+  assert.equal(metatilesOf({ ...big, metatile: 1 }, tiles).length, tiles.length, 'one tile a block');
 });
 
 test('batch frames are read whatever the chunk boundaries', () => {

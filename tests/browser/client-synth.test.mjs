@@ -24,7 +24,7 @@ let textures;
 before(async () => ({ server, browser, textures } = await startSession({ browserSize: { width: 800, height: 520 } })));
 after(() => closeSession({ server, browser }));
 
-const tileRequests = (urls) => urls.filter((u) => /\/api\/v1\/textures\/[^/]+\/tiles/.test(u));
+const tileRequests = (urls) => urls.filter((u) => /\/api\/v1\/textures\/[^/]+\/(meta)?tiles/.test(u));
 const encodingRequests = (urls) => urls.filter((u) => /\/api\/v1\/textures\/[^/]+\/encoding$/.test(u));
 
 /** The largest texture of each model, and the largest animated one. */

@@ -242,8 +242,9 @@ export async function setAlignedView(page, zoom, x, y) {
 }
 
 /**
- * Every tile asked for in `urls`, parsed: single-tile URLs and each tile listed by a batched
- * request (`/tiles?format=…&tiles=L/x/y,…`, what the viewer sends).
+ * Every tile asked for in `urls`, parsed: single-tile URLs, each tile listed by a batched
+ * request (`/tiles?format=…&tiles=L/x/y,…`), and metatiles (what the viewer sends), with
+ * `metatile: true` and the block's coordinates as x and y.
  */
 export function tileRequests(urls) {
   const out = [];
@@ -251,6 +252,11 @@ export function tileRequests(urls) {
     const url = new URL(u);
     const m = url.pathname.match(/^\/api\/v1\/textures\/([^/]+)\/tiles\/(\d+)\/(\d+)\/(\d+)\.(\w+)$/);
     if (m) out.push({ id: m[1], level: +m[2], x: +m[3], y: +m[4], format: m[5], frame: url.searchParams.get('frame') });
+    const meta = url.pathname.match(/^\/api\/v1\/textures\/([^/]+)\/metatiles\/(\d+)\/(\d+)\/(\d+)\.(\w+)$/);
+    if (meta) {
+      const [, id, level, x, y, format] = meta;
+      out.push({ id, level: +level, x: +x, y: +y, format, frame: url.searchParams.get('frame'), metatile: true });
+    }
     const b = url.pathname.match(/^\/api\/v1\/textures\/([^/]+)\/tiles$/);
     if (b) {
       for (const t of url.searchParams.get('tiles').split(',')) {

@@ -161,7 +161,7 @@ test('the viewer built into the binary draws tiles under /vtex/ (--public-url), 
   let requests;
   const lines = await nginxSaw(async () => {
     const { page, log } = await viewerDraws(base, `${base}/?texture=${big.id}`);
-    assert.ok(log.requests.some((u) => u.startsWith(`${base}/api/v1/textures/${big.id}/tiles`)), 'tiles fetched through the prefix');
+    assert.ok(log.requests.some((u) => u.startsWith(`${base}/api/v1/textures/${big.id}/metatiles/`)), 'tiles fetched through the prefix');
     assert.ok(log.requests.some((u) => new URL(u).pathname.startsWith('/vtex/assets/')), 'fingerprinted scripts through the prefix');
     assert.equal(await page.$eval('#vt-demo', (a) => a.href), `${base}/vt.html`);
     requests = log.requests;
@@ -177,7 +177,7 @@ test('client mode under /vtex/: the module, the encoding and the Workers through
     const { page, log } = await viewerDraws(base, `${base}/?texture=${big.id}&synth=client`);
     assert.ok(log.requests.includes(`${base}/vtex_synth.wasm`), 'the synthesis module');
     assert.ok(log.requests.includes(`${base}/api/v1/textures/${big.id}/encoding`), 'the encoding');
-    assert.deepEqual(log.requests.filter((u) => /\/api\/v1\/textures\/[^/]+\/tiles/.test(u)), [], 'no tile from the server');
+    assert.deepEqual(log.requests.filter((u) => /\/api\/v1\/textures\/[^/]+\/(meta)?tiles/.test(u)), [], 'no tile from the server');
     requests = log.requests;
     await page.close();
   });

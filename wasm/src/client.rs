@@ -9,7 +9,7 @@ use vtex_synth::models::{self, Limits};
 use vtex_synth::texture::{level_size, render_image};
 use vtex_synth::{Domain, Region, Texture};
 use vtex_wire::info::explicit_bytes;
-use vtex_wire::levels::tile_levels;
+use vtex_wire::levels::{metatile_tiles, tile_levels};
 use vtex_wire::TextureInfo;
 
 /// What one texture may hold and cost in a page: the server's per-tile and build bounds, and
@@ -50,6 +50,7 @@ pub fn open(bytes: &[u8], tile_size: u32) -> Result<Opened, String> {
         height,
         levels: tile_levels(width, height, tile_size),
         tile_size,
+        metatile: metatile_tiles(tile_size),
         encoding_bytes: bytes.len() as u64,
         explicit_bytes: explicit_bytes(width, height),
         wraps: texture.domain() == Domain::Torus,

@@ -7,7 +7,7 @@
 //! | 0–3 | magic `vtb` and the format version, 1 |
 //! | 4–7, 8–11, 12–15 | level, x, y |
 //! | 16–17 | HTTP status of the item: 200, or its error's |
-//! | 18 | the server's cache: 1 hit, 2 miss, 0 error |
+//! | 18 | the server's cache: 1 hit, 2 miss, 0 error or not told (a metatile's frames) |
 //! | 19 | 0 |
 //! | 20–23, 24–27 | width, height of the image (0 for an error) |
 //! | 28–31 | length of what follows |
@@ -35,7 +35,7 @@ pub struct TileRef {
 pub struct FrameHeader {
     pub tile: TileRef,
     pub status: u16,
-    /// 1 hit, 2 miss, 0 error.
+    /// 1 hit, 2 miss, 0 error or not told.
     pub cache: u8,
     pub width: u32,
     pub height: u32,
@@ -93,6 +93,22 @@ pub fn frames(body: &[u8]) -> Result<Vec<(FrameHeader, Range<usize>)>, String> {
     Ok(out)
 }
 
+/// Frame `index` (from 0) of a body of whole frames, without reading the ones after it;
+/// `None` when the body has fewer or a bad header comes first.
+pub fn frame_at(body: &[u8], index: usize) -> Option<(FrameHeader, Range<usize>)> {
+    let mut at = 0;
+    for i in 0..=index {
+        let header = FrameHeader::decode(body.get(at..)?)?;
+        let start = at + HEADER_LEN;
+        let end = start.checked_add(header.len as usize).filter(|&end| end <= body.len())?;
+        if i == index {
+            return Some((header, start..end));
+        }
+        at = end;
+    }
+    None
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -109,6 +125,11 @@ mod tests {
         let f = frames(&body).unwrap();
         assert_eq!((f[0].0.tile, &body[f[0].1.clone()]), (TileRef { level: 0, x: 1, y: 2 }, &b"abc"[..]));
         assert_eq!((f[1].0.tile, f[1].1.len(), f[1].0.cache), (TileRef { level: 3, x: 4, y: 5 }, 0, 2));
+        assert_eq!(frame_at(&body, 1), Some(f[1].clone()));
+        assert_eq!(frame_at(&body, 0), Some(f[0].clone()));
+        assert_eq!(frame_at(&body, 2), None);
+        assert_eq!(frame_at(&body[..body.len() - 1], 1), None, "a cut header");
+        assert_eq!(frame_at(&body[..34], 0), None, "cut inside the first body");
         assert!(frames(&body[..body.len() - 1]).is_err());
         assert!(frames(&body[..10]).is_err());
         let mut bad = body.clone();

@@ -33,6 +33,8 @@ pub struct TextureInfo {
     // description would show.
     pub levels: u32,
     pub tile_size: u32,
+    /// Tiles a side of a metatile (`levels::metatile_tiles`).
+    pub metatile: u32,
     pub encoding_bytes: u64,
     /// Bytes of the explicit 24-bit level 0 the encoding stands for.
     pub explicit_bytes: u64,

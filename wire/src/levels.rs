@@ -28,6 +28,16 @@ pub fn grid(width: u64, height: u64, level: u32, size: u32) -> (u64, u64) {
     (lw.div_ceil(size as u64), lh.div_ceil(size as u64))
 }
 
+/// Level pixels a side of a metatile: the unit a viewer fetches and a cache in front shares.
+/// Larger blocks render no cheaper a tile for any model (`synth/examples/metatile_costs.rs`),
+/// while a view at a block's edge fetches more of it the larger it is.
+pub const METATILE_PIXELS: u32 = 512;
+
+/// Tiles a side of a metatile, for tiles of side `tile_size`: at least 1.
+pub fn metatile_tiles(tile_size: u32) -> u32 {
+    (METATILE_PIXELS / tile_size.max(1)).max(1)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -53,5 +63,14 @@ mod tests {
             }
         }
         assert_eq!(tile_levels(100_000, 100_000, 256), 10);
+    }
+
+    #[test]
+    fn metatiles_are_512_pixels_a_side_or_one_tile() {
+        assert_eq!(metatile_tiles(256), 2);
+        assert_eq!(metatile_tiles(128), 4);
+        assert_eq!(metatile_tiles(300), 1);
+        assert_eq!(metatile_tiles(4096), 1);
+        assert_eq!(metatile_tiles(0), 512);
     }
 }

@@ -5,6 +5,9 @@
 pub const TILE: &str = "/api/v1/textures/{id}/tiles/{level}/{x}/{file}";
 /// A bordered page of a level's page grid.
 pub const PAGE: &str = "/api/v1/textures/{id}/pages/{level}/{x}/{file}";
+/// A metatile: the aligned block of tiles ([`crate::levels::metatile_tiles`] a side) whose
+/// tile (`x`, `y`) is tile (`x·n`, `y·n`) of the level, answered as [`crate::frame`]s.
+pub const METATILE: &str = "/api/v1/textures/{id}/metatiles/{level}/{x}/{file}";
 /// Many tiles or pages at once (the `tiles` query), answered as [`crate::frame`]s.
 pub const BATCH: &str = "/api/v1/textures/{id}/tiles";
 
@@ -17,6 +20,11 @@ pub fn tile_path(id: &str, level: u32, x: u32, y: u32, ext: &str) -> String {
 /// codec go in the query).
 pub fn page_path(id: &str, level: u32, x: u32, y: u32, ext: &str) -> String {
     fill(PAGE, id, level, x, y, ext)
+}
+
+/// The path of metatile (`level`, `x`, `y`) of texture `id` in format `ext`.
+pub fn metatile_path(id: &str, level: u32, x: u32, y: u32, ext: &str) -> String {
+    fill(METATILE, id, level, x, y, ext)
 }
 
 /// The path of a batch of texture `id` (its items and format go in the query).
@@ -40,6 +48,7 @@ mod tests {
     fn paths_fill_the_templates() {
         assert_eq!(tile_path("ab", 3, 4, 5, "png"), "/api/v1/textures/ab/tiles/3/4/5.png");
         assert_eq!(page_path("ab", 0, 1, 2, "ktx2"), "/api/v1/textures/ab/pages/0/1/2.ktx2");
+        assert_eq!(metatile_path("ab", 2, 0, 1, "jpg"), "/api/v1/textures/ab/metatiles/2/0/1.jpg");
         assert_eq!(batch_path("ab"), "/api/v1/textures/ab/tiles");
     }
 }

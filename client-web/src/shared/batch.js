@@ -1,22 +1,11 @@
-// The batched tile endpoint: one request for many tiles, answered as a stream of frames
-// (server/src/api/batch.rs). Pure functions, tested in Node.
+// Bodies of tile frames, as batches and metatiles are answered (vtex_wire::frame; the server's
+// api/resources/batch.rs and metatiles.rs). Pure functions, tested in Node.
 
 /** First bytes of every frame: "vtb" and the format version. */
 export const MAGIC = [0x76, 0x74, 0x62, 0x01];
 export const HEADER_LEN = 32;
 /** Most tiles the server accepts in one request. */
 export const MAX_BATCH = 256;
-
-/**
- * URL of a batch of `tiles` ([{ level, x, y }], vtex levels) of texture `info`, relative to the
- * viewer's page (vtex may be served under a sub-path). `frame` is sent only for animated
- * textures, as for single tiles.
- */
-export function batchUrl(info, tiles, frame = 0, format = 'rgba') {
-  const list = tiles.map((t) => `${t.level}/${t.x}/${t.y}`).join(',');
-  const base = `api/v1/textures/${encodeURIComponent(info.id)}/tiles?format=${format}&tiles=${list}`;
-  return info.animated ? `${base}&frame=${frame >>> 0}` : base;
-}
 
 /** The key of a tile in a batch: "level/x/y". */
 export function tileKey(level, x, y) {

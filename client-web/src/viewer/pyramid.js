@@ -63,6 +63,33 @@ export function tileUrl(info, level, x, y, frame = 0, format = 'png') {
 }
 
 /**
+ * URL of metatile (level, x, y) relative to the viewer's page: the aligned block of
+ * `info.metatile` × `info.metatile` tiles from tile (x × metatile, y × metatile), one cacheable
+ * response of the tiles' frames (shared/batch.js FrameReader).
+ */
+export function metatileUrl(info, level, x, y, frame = 0, format = 'png') {
+  const base = `api/v1/textures/${encodeURIComponent(info.id)}/metatiles/${level}/${x}/${y}.${format}`;
+  return info.animated ? `${base}?frame=${frame >>> 0}` : base;
+}
+
+/**
+ * The metatiles holding `tiles` ({ level, x, y } inside the pyramid), each as { level, x, y,
+ * tiles } with the given tiles it holds, coarsest level first: a view's coarse preview is one
+ * or two cheap metatiles, asked for before the finest level's.
+ */
+export function metatilesOf(info, tiles) {
+  const side = info.metatile;
+  const blocks = new Map();
+  for (const t of tiles) {
+    const b = { level: t.level, x: Math.floor(t.x / side), y: Math.floor(t.y / side) };
+    const key = `${b.level}/${b.x}/${b.y}`;
+    if (!blocks.has(key)) blocks.set(key, { ...b, tiles: [] });
+    blocks.get(key).tiles.push(t);
+  }
+  return [...blocks.values()].sort((a, b) => b.level - a.level);
+}
+
+/**
  * How fine a level the viewer draws, as OpenSeadragon's `minPixelRatio`: the smallest on-screen
  * size of a tile pixel before the next finer level is fetched.
  * - `map`: the level nearest the screen's resolution, as a GPU picks a mip level and as map

@@ -17,7 +17,7 @@ export class TileStats {
 
   reset() {
     this.requested = 0; // tiles asked for
-    this.batches = 0; // requests made for them (shared/batch.js: one per view, most of the time)
+    this.batches = 0; // requests made for them (the metatiles holding them)
     this.loaded = 0; // tiles decoded and handed to OpenSeadragon
     this.failed = 0;
     this.aborted = 0;

@@ -1,13 +1,15 @@
 // An OpenSeadragon tile source over the vtex tile API. The tiles OpenSeadragon asks for in one
-// update go out as one request (OpenSeadragon's tile batching; shared/batch.js), fetched and
-// turned into ImageBitmaps by a Worker (workers/fetch-tiles.js) and handed to OpenSeadragon as
+// update (OpenSeadragon's tile batching) go out as the metatiles that hold them (pyramid.js
+// metatilesOf): aligned blocks that every viewer over the same area asks for alike, so a cache
+// in front of the server shares them and a consistent hash spreads them over replicas. Each is
+// fetched and its wanted tiles turned into ImageBitmaps by a Worker (workers/fetch-tiles.js) and handed to OpenSeadragon as
 // data type "imageBitmap", which the viewer's drawer draws as it is (osd-adapter.js). Each tile
 // reports what the server says about it (cache hit or miss) and how long it took. Formats: png /
 // webp (lossless), jpg (lossy, smallest) and rgba (raw: no decoding, the fastest on a fast link).
 // In client mode the tiles are synthesized in the page instead (client-synth.js): no request.
 
-import { inPyramid, sourceTile, tileUrl, vtexLevel } from './pyramid.js';
-import { MAX_BATCH, batchUrl, tileKey } from '../shared/batch.js';
+import { inPyramid, metatilesOf, metatileUrl, sourceTile, tileUrl, vtexLevel } from './pyramid.js';
+import { MAX_BATCH, tileKey } from '../shared/batch.js';
 
 /**
  * Makes the tile source for texture `info` (the server's info JSON) at animation `frame`.
@@ -18,7 +20,7 @@ export function createTileSource(OSD, info, { frame = 0, format = 'png', stats, 
   const loader = synth ? null : tileLoader(stats);
   const inFlight = new Set();
   const context = { loader, info, frame, format, stats, inFlight };
-  const load = synth ? (jobs, c) => synth.loadJobs(jobs, c) : loadBatch;
+  const load = synth ? (jobs, c) => synth.loadJobs(jobs, c) : loadMetatiles;
   const abort = synth ? (job, c) => synth.abortJob(job, c) : abortJob;
   const source = new OSD.TileSource({
     width: info.width,
@@ -46,7 +48,7 @@ export function createTileSource(OSD, info, { frame = 0, format = 'png', stats, 
     },
 
     // The jobs OpenSeadragon stages while it updates the view (every tile the view needs) go
-    // out as one request once the update's task is over. The navigator has an image loader of
+    // out together once the update's task is over, as the metatiles that hold them. The navigator has an image loader of
     // its own: its jobs make batches of their own.
     batchEnabled() {
       return true;
@@ -151,12 +153,28 @@ function pageTime(t) {
 }
 
 /**
- * Fetches the tiles of `jobs` in one request (through `loader`'s Worker) and finishes each job
- * with its tile's ImageBitmap as it arrives (in the server's completion order). Jobs aborted
- * meanwhile are skipped; a batch with none left is aborted. A tile the response does not carry
- * (error, cut-off stream) fails its job with the reason.
+ * Fetches the tiles of `jobs` as the metatiles that hold them, coarsest first (loadMetatile).
  */
-function loadBatch(jobs, { loader, info, frame, format, stats, inFlight }) {
+function loadMetatiles(jobs, context) {
+  const { info, frame, format } = context;
+  const tiles = jobs.map((job) => ({ ...sourceTile(info, job.tile), job }));
+  for (const block of metatilesOf(info, tiles)) {
+    const url = metatileUrl(info, block.level, block.x, block.y, frame, format);
+    loadMetatile(
+      block.tiles.map((t) => t.job),
+      url,
+      context,
+    );
+  }
+}
+
+/**
+ * Fetches metatile `url` (through `loader`'s Worker, which decodes only the tiles `jobs` want)
+ * and finishes each job with its tile's ImageBitmap. Jobs aborted meanwhile are skipped; a
+ * request with none left is aborted. A tile the response does not carry (error, cut-off
+ * stream) fails its job with the reason.
+ */
+function loadMetatile(jobs, relativeUrl, { loader, info, format, stats, inFlight }) {
   const id = loader.nextId++;
   const controller = { abort: () => loader.worker.postMessage({ type: 'abort', id }) };
   // Jobs by tile: two tiled images of one source may want the same tile.
@@ -178,7 +196,7 @@ function loadBatch(jobs, { loader, info, frame, format, stats, inFlight }) {
     }
   }
   // Absolute: the Worker would resolve a relative URL against its own script's.
-  const url = new URL(batchUrl(info, tiles, frame, format), document.baseURI).href;
+  const url = new URL(relativeUrl, document.baseURI).href;
   for (const job of jobs) job.userData.batchUrl = url; // for bench/viewer/trace.mjs
   stats.batchStarted();
   // Ends a job once, with its bitmap or the reason it has none.
@@ -213,7 +231,7 @@ function loadBatch(jobs, { loader, info, frame, format, stats, inFlight }) {
     const waiting = byKey.get(tileKey(t.level, t.x, t.y));
     if (!waiting) {
       if (t.bitmap) t.bitmap.close();
-      onEnd(`the batch answered tile ${t.level}/${t.x}/${t.y}, which it did not ask for`);
+      onEnd(`the metatile answered tile ${t.level}/${t.x}/${t.y}, which it did not ask for`);
       return;
     }
     // Jobs sharing a tile each get a bitmap of their own (OpenSeadragon's cache frees each):
@@ -236,12 +254,13 @@ function loadBatch(jobs, { loader, info, frame, format, stats, inFlight }) {
   const onEnd = (error) => {
     loader.batches.delete(id);
     if (error === 'aborted') return; // every tile left was aborted
-    const message = error || 'the tile batch ended without this tile';
+    const message = error || 'the metatile ended without this tile';
     for (const job of [...byKey.values()].flat()) {
       settle(job);
       end(job, null, `${message} (${job.src})`);
     }
   };
   loader.batches.set(id, { onTile, onEnd });
-  loader.worker.postMessage({ type: 'load', id, url, format });
+  const want = tiles.map((t) => tileKey(t.level, t.x, t.y));
+  loader.worker.postMessage({ type: 'load', id, url, format, want });
 }

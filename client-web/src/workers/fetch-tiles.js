@@ -1,10 +1,11 @@
-// The network side of the tile batches, in a dedicated Worker (viewer/tilesource.js starts it): fetches
-// a batch, splits its body into frames (shared/batch.js) and turns each tile into an ImageBitmap that
-// it transfers to the page. On the page's main thread the body could only be read between
+// The network side of the tiles, in a dedicated Worker (viewer/tilesource.js starts it): fetches a
+// metatile (or any body of tile frames), splits it into frames (shared/batch.js) and turns each
+// tile the page wants into an ImageBitmap that it transfers to the page. On the page's main thread the body could only be read between
 // animation frames, each busy with canvas raster and OpenSeadragon's update while a view loads,
 // so a view's bytes would trickle in over several frames. Here they flow while the page draws.
 //
-// Messages in:  { type: 'load', id, url, format }   { type: 'abort', id }
+// Messages in:  { type: 'load', id, url, format, want }   { type: 'abort', id }
+//               (`want`: the "level/x/y" keys of the tiles to decode; the others are skipped)
 // Messages out: { type: 'tiles', id, tiles: [{ level, x, y, status, cache, length, arrived,
 //                 bitmap | error }] }  (the tiles of one chunk of the body, together: one task
 //                 on the page for all of them, so a frame cannot fall between them)
@@ -13,7 +14,7 @@
 // `arrived` (the frame was complete) and the timing entry are on the worker's clock shifted to
 // the epoch (performance.timeOrigin + now); the page shifts them back to its own.
 
-import { FrameReader, readChunks } from '../shared/batch.js';
+import { FrameReader, readChunks, tileKey } from '../shared/batch.js';
 import { opaqueBitmap } from './opaque-bitmap.js';
 import { errorText, fetchOk } from '../shared/http.js';
 
@@ -49,7 +50,7 @@ new PerformanceObserver((list) => {
   performance.clearResourceTimings();
 }).observe({ type: 'resource' });
 
-async function load({ id, url, format }) {
+async function load({ id, url, format, want }) {
   const controller = new AbortController();
   inFlight.set(id, controller);
   const sent = [];
@@ -59,7 +60,15 @@ async function load({ id, url, format }) {
     // Chunks and split frames live in buffers that are reused: each tile takes its bytes
     // while its frame is handed over (tileBitmap and errorText copy at once).
     let tiles = [];
-    const reader = new FrameReader((f) => tiles.push(tileMessage(f, format)), { reuse: true });
+    const wanted = new Set(want);
+    // A metatile's frames tell no cache state; its response does, for all of them.
+    const cache = response.headers.get('x-vtex-cache');
+    const reader = new FrameReader(
+      (f) => {
+        if (wanted.has(tileKey(f.level, f.x, f.y))) tiles.push(tileMessage({ ...f, cache: f.cache || cache }, format));
+      },
+      { reuse: true },
+    );
     await readChunks(
       response.body,
       (chunk) => {
@@ -69,7 +78,7 @@ async function load({ id, url, format }) {
       },
       readBuffers,
     );
-    if (!reader.complete) error = 'the tile batch ended inside a frame';
+    if (!reader.complete) error = 'the response ended inside a tile frame';
   } catch (e) {
     error = e && e.name === 'AbortError' ? 'aborted' : String(e && e.message ? e.message : e);
   } finally {

@@ -27,7 +27,7 @@ use extract::{NoQuery, Query};
 use http::{timed_out, X_VTEX_CACHE, X_VTEX_HEIGHT, X_VTEX_WIDTH};
 use interop::{dzi, iiif, presentation, tilejson};
 use operations::{health, web};
-use resources::{batch, deletion, models, pages, textures, tiles};
+use resources::{batch, deletion, metatiles, models, pages, textures, tiles};
 use state::{App, AppState};
 use std::sync::Arc;
 use std::time::Instant;
@@ -87,6 +87,7 @@ pub(crate) fn routes() -> OpenApiRouter<App> {
         .routes(routes!(textures::encoding))
         .routes(routes!(batch::batch))
         .routes(routes!(tiles::tile))
+        .routes(routes!(metatiles::metatile))
         .routes(routes!(tiles::region))
         // Deployment: liveness and readiness.
         .routes(routes!(health::healthz))

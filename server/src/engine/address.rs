@@ -28,6 +28,8 @@ pub enum Mark {
     Dzi,
     /// A IIIF Image API image.
     Iiif,
+    /// A metatile.
+    Metatile,
 }
 
 impl Mark {
@@ -40,6 +42,7 @@ impl Mark {
             Mark::Chain => 3 << 61,
             Mark::Square => 5 << 61,
             Mark::Iiif => 3 << 62,
+            Mark::Metatile => 7 << 61,
         }
     }
 }
@@ -102,6 +105,51 @@ pub fn check_tile(entry: &Entry, level: u32, x: u32, y: u32) -> Result<(), Error
     Ok(())
 }
 
+/// Whether `entry` serves metatile (`level`, `x`, `y`): as [`check_tile`] for its grid of
+/// blocks of `side` × `side` tiles.
+pub fn check_metatile(entry: &Entry, level: u32, x: u32, y: u32, side: u32) -> Result<(), Error> {
+    if level >= entry.levels {
+        return Err(Error::Invalid(format!(
+            "metatile {level}/{x}/{y}: level {level} does not exist; this texture serves levels 0..={}",
+            entry.levels - 1
+        )));
+    }
+    let (cols, rows) = entry.tiles_at(level);
+    let (cols, rows) = (cols.div_ceil(side as u64), rows.div_ceil(side as u64));
+    if x as u64 >= cols || y as u64 >= rows {
+        return Err(Error::Missing(format!(
+            "metatile {level}/{x}/{y} is outside level {level}, which has {cols}×{rows} metatiles of {side}×{side} tiles"
+        )));
+    }
+    Ok(())
+}
+
+/// The metatile holding tile `key` of `entry` (a [`Shape::Tile`]), and where the tile is in it
+/// (its frame's index, row by row).
+pub fn metatile_of(entry: &Entry, key: &TileKey) -> (TileKey, usize) {
+    let side = entry.metatile;
+    let (cols, _) = entry.tiles_at(key.level);
+    let (mx, my) = (key.x / side, key.y / side);
+    let width = (cols - (mx * side) as u64).min(side as u64) as usize;
+    let index = (key.y - my * side) as usize * width + (key.x - mx * side) as usize;
+    (TileKey { x: mx, y: my, shape: Shape::Metatile { side }, ..*key }, index)
+}
+
+/// The tiles of metatile `key` of `entry`, row by row, each with its region.
+pub fn metatile_tiles(entry: &Entry, key: &TileKey) -> Vec<(TileKey, Region)> {
+    let Shape::Metatile { side } = key.shape else { panic!("not a metatile: {key:?}") };
+    let (cols, rows) = entry.tiles_at(key.level);
+    let (x0, y0) = (key.x * side, key.y * side);
+    let (x1, y1) = (((x0 + side) as u64).min(cols) as u32, ((y0 + side) as u64).min(rows) as u32);
+    (y0..y1)
+        .flat_map(|y| (x0..x1).map(move |x| (x, y)))
+        .map(|(x, y)| {
+            let tile = TileKey { x, y, shape: Shape::Tile, ..*key };
+            (tile, key_region(entry, &tile).0)
+        })
+        .collect()
+}
+
 /// Whether `entry` serves page (`level`, `x`, `y`) of side `size`: a level it does not have is
 /// invalid, a page outside the level's grid missing.
 pub fn check_page(entry: &Entry, level: u32, x: u32, y: u32, size: u32) -> Result<(), Error> {
@@ -149,6 +197,12 @@ pub fn key_etag(entry: &Entry, key: &TileKey) -> ETag {
         Shape::Square => {
             ETag::new(&entry.key, Some(Mark::Square), &[level, x, y, frame, entry.tile_size as u64], key.format)
         }
+        Shape::Metatile { side } => ETag::new(
+            &entry.key,
+            Some(Mark::Metatile),
+            &[level, x, y, frame, entry.tile_size as u64, side as u64],
+            key.format,
+        ),
         Shape::Page { size, border } => {
             let (codec, sc) = match key.format {
                 Format::Ktx2(k) => (1 + k.codec as u64, 1 + k.supercompression as u64),
@@ -171,6 +225,12 @@ pub fn key_region(entry: &Entry, key: &TileKey) -> (Region, (u32, u32)) {
             let (w, h) = ((lw - px).min(ts) as u32, (lh - py).min(ts) as u32);
             let canvas = if key.shape == Shape::Square { (ts as u32, ts as u32) } else { (w, h) };
             (Region::new(key.level, px as i64, py as i64, w, h).at_frame(key.frame), canvas)
+        }
+        Shape::Metatile { .. } => {
+            let tiles = metatile_tiles(entry, key);
+            let (first, last) = (tiles[0].1, tiles[tiles.len() - 1].1);
+            let (w, h) = ((last.x - first.x) as u32 + last.width, (last.y - first.y) as u32 + last.height);
+            (Region::new(key.level, first.x, first.y, w, h).at_frame(key.frame), (w, h))
         }
         Shape::Page { size, border } => {
             let at = |v: u32| v as i64 * size as i64 - border as i64;

@@ -45,6 +45,10 @@ pub enum Shape {
     /// An edge tile drawn on the whole `--tile-size` square, transparent beyond the level:
     /// XYZ clients stretch every tile image to a full square.
     Square,
+    /// A metatile: the aligned block of `side` × `side` tiles whose top left tile is
+    /// (`x`·side, `y`·side), clipped at the level's edges, as one body of
+    /// [`vtex_wire::frame`]s (row by row). The tiles' own keys find their bytes in it.
+    Metatile { side: u32 },
     /// A `size`² page of the page grid with `border` pixels of its neighbours on every side
     /// (`api/resources/pages.rs`).
     Page { size: u32, border: u32 },

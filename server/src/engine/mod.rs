@@ -18,12 +18,13 @@ use crate::encode::{self, Format};
 use crate::metrics::Metrics;
 use crate::store::{Entry, Record, Store, StoreError};
 use crate::transport::Transport;
-use cache::{Source, Tile, TileCache, TileKey};
+use cache::{Shape, Source, Tile, TileCache, TileKey};
 use slots::{Refused, Slots};
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
 use std::time::Instant;
 use vtex_synth::{Region, Rgba8Image, Stop};
+use vtex_wire::frame::{FrameHeader, TileRef};
 
 const SYNTHESIS_FAILED: &str = "synthesis failed inside the model; the texture cannot render this region";
 
@@ -74,11 +75,30 @@ impl Engine {
         }
     }
 
-    /// Tile or page `key` (inside `entry`'s pyramid or page grid): `cached` when the caller
-    /// found it in the cache, else from the cache or synthesized, one computation shared by
-    /// every concurrent request for it (holding a synthesis slot, and stopped once none of them
-    /// waits any more). Counted as a hit or a miss. Every route that serves tiles or pages
-    /// comes through here, so they share the cache, coalescing and bounds.
+    /// Tile `key` if the cache holds it, on its own or inside its cached metatile (a view of
+    /// the metatile's bytes, with the tile's own ETag).
+    pub fn cached(&self, entry: &Entry, key: &TileKey) -> Option<Arc<Tile>> {
+        if let Some(tile) = self.cache.get(key) {
+            return Some(tile);
+        }
+        if key.shape != Shape::Tile {
+            return None;
+        }
+        let (block, index) = address::metatile_of(entry, key);
+        let body = self.cache.get(&block)?.body.clone();
+        let (header, bytes) = vtex_wire::frame::frame_at(&body, index)?;
+        let tile = TileRef { level: key.level, x: key.x, y: key.y };
+        debug_assert_eq!(header.tile, tile, "a metatile's frames are its tiles, row by row");
+        let etag = address::key_etag(entry, key);
+        Some(Arc::new(Tile { body: body.slice(bytes), etag, width: header.width, height: header.height }))
+    }
+
+    /// Tile, page or metatile `key` (inside `entry`'s pyramid or page grid): `cached` when the
+    /// caller found it in the cache, else from the cache or synthesized, one computation
+    /// shared by every concurrent request for it (holding a synthesis slot, and stopped once
+    /// none of them waits any more). Counted as a hit or a miss. Every route that serves
+    /// tiles, pages or metatiles comes through here, so they share the cache, coalescing and
+    /// bounds.
     pub async fn tile(
         self: &Arc<Self>,
         entry: &Arc<Entry>,
@@ -94,8 +114,19 @@ impl Engine {
                     .get_or_compute(key, move || async move {
                         let (region, (width, height)) = address::key_region(&entry, &key);
                         let send = owner.send;
+                        let tiles = match key.shape {
+                            Shape::Metatile { .. } => address::metatile_tiles(&entry, &key),
+                            _ => Vec::new(),
+                        };
+                        let encode = owner.encoder(key.format);
                         let body = owner
-                            .synthesize_then(entry, region, (width, height), key.format, move |b| send.seal(b))
+                            .render_then(entry, region, move |img| {
+                                let body = match tiles.is_empty() {
+                                    true => encode.image(img, (width, height))?,
+                                    false => encode.frames(&img, &region, &tiles)?,
+                                };
+                                Ok(send.seal(body))
+                            })
                             .await?;
                         Ok(Tile { body, etag, width, height })
                     })
@@ -113,26 +144,27 @@ impl Engine {
     /// Returns the encoded bytes. A bad region is the model's error; a panicking model a
     /// failure; no slot (queue full, shutting down) or a render stopped by shutdown is busy.
     pub async fn synthesize(&self, entry: Arc<Entry>, region: Region, format: Format) -> Result<Vec<u8>, Error> {
-        let canvas = (region.width, region.height);
-        self.synthesize_then(entry, region, canvas, format, |bytes| bytes).await
+        let encode = self.encoder(format);
+        self.render_then(entry, region, move |img| encode.image(img, (region.width, region.height))).await
     }
 
-    /// [`Self::synthesize`], then `finish` on the encoded bytes in the same blocking task — for
-    /// tiles, [`Transport::seal`], whose copy (and the first touch of a fresh huge-page arena,
-    /// which may wait for the kernel to compact memory) then stays off the I/O runtimes.
-    ///
-    /// The render is drawn at the top left of a transparent `canvas` (width, height), for
-    /// tiles that must be whole squares though the texture ends inside them.
+    /// The encoder of `format`, timing each image in the metrics.
+    pub fn encoder(&self, format: Format) -> Encoder {
+        Encoder { format, seconds: self.metrics.encode_seconds.with_label_values(&[format.ext()]) }
+    }
+
+    /// Renders `region` of `entry`, then `finish` on the image in the same blocking task
+    /// (encoding, and for cached bodies [`Transport::seal`], whose copy and the first touch of
+    /// a fresh huge-page arena, which may wait for the kernel to compact memory, then stay off
+    /// the I/O runtimes), holding a synthesis slot throughout.
     ///
     /// Dropping the future (its request gone) stops the render: the model returns at its next
     /// band, and the slot is free again.
-    pub async fn synthesize_then<T: Send + 'static>(
+    pub async fn render_then<T: Send + 'static>(
         &self,
         entry: Arc<Entry>,
         region: Region,
-        canvas: (u32, u32),
-        format: Format,
-        finish: impl FnOnce(Vec<u8>) -> T + Send + 'static,
+        finish: impl FnOnce(Rgba8Image) -> Result<T, Error> + Send + 'static,
     ) -> Result<T, Error> {
         let slot = self.slots.acquire(entry.key).await.map_err(|refused| {
             if refused == Refused::Full {
@@ -143,9 +175,8 @@ impl Engine {
         let stop = Arc::new(SynthesisStop { abandoned: AtomicBool::new(false), server: self.stopping.clone() });
         let _stop_on_drop = StopOnDrop(stop.clone());
         let m = &self.metrics;
-        let (synth_s, encode_s, in_flight, count, stopped) = (
+        let (synth_s, in_flight, count, stopped) = (
             m.synthesis_seconds.clone(),
-            m.encode_seconds.with_label_values(&[format.ext()]),
             m.syntheses_in_flight.clone(),
             m.syntheses.clone(),
             m.syntheses_stopped.clone(),
@@ -163,17 +194,7 @@ impl Engine {
                     return Err(busy(Refused::Closed));
                 };
                 synth_s.observe(t0.elapsed().as_secs_f64());
-                let img = if (img.width, img.height) == canvas {
-                    img
-                } else {
-                    let mut on = Rgba8Image::new(canvas.0, canvas.1);
-                    on.blit(&img, 0, 0);
-                    on
-                };
-                let t1 = Instant::now();
-                let bytes = encode::encode(img, format).map_err(|e| Error::failed("encoding failed", e))?;
-                encode_s.observe(t1.elapsed().as_secs_f64());
-                Ok(finish(bytes))
+                finish(img)
             };
             let result = std::panic::catch_unwind(std::panic::AssertUnwindSafe(work));
             in_flight.dec();
@@ -182,6 +203,46 @@ impl Engine {
         })
         .await
         .map_err(|e| Error::failed(SYNTHESIS_FAILED, e))?
+    }
+}
+
+/// Encodes rendered images in one format, timing each in the metrics.
+pub struct Encoder {
+    format: Format,
+    seconds: prometheus::Histogram,
+}
+
+impl Encoder {
+    /// `img` drawn at the top left of a transparent `canvas` (width, height) — for tiles that
+    /// must be whole squares though the texture ends inside them — and encoded.
+    pub fn image(&self, img: Rgba8Image, canvas: (u32, u32)) -> Result<Vec<u8>, Error> {
+        let img = if (img.width, img.height) == canvas {
+            img
+        } else {
+            let mut on = Rgba8Image::new(canvas.0, canvas.1);
+            on.blit(&img, 0, 0);
+            on
+        };
+        let t = Instant::now();
+        let bytes = encode::encode(img, self.format).map_err(|e| Error::failed("encoding failed", e))?;
+        self.seconds.observe(t.elapsed().as_secs_f64());
+        Ok(bytes)
+    }
+
+    /// The tiles of a metatile, cut from `img` (its `region`) and encoded, as one body of
+    /// frames in the order given.
+    pub fn frames(&self, img: &Rgba8Image, region: &Region, tiles: &[(TileKey, Region)]) -> Result<Vec<u8>, Error> {
+        let mut body = Vec::new();
+        for (key, r) in tiles {
+            let (x, y) = ((r.x - region.x) as u32, (r.y - region.y) as u32);
+            let bytes = self.image(img.crop(x, y, r.width, r.height), (r.width, r.height))?;
+            let tile = TileRef { level: key.level, x: key.x, y: key.y };
+            let header =
+                FrameHeader { tile, status: 200, cache: 0, width: r.width, height: r.height, len: bytes.len() as u32 };
+            body.extend_from_slice(&header.encode());
+            body.extend_from_slice(&bytes);
+        }
+        Ok(body)
     }
 }
 

@@ -19,6 +19,8 @@ pub struct Record {
     pub encoding_bytes: u64,
     pub levels: u32,
     pub tile_size: u32,
+    /// Tiles a side of its metatiles.
+    pub metatile: u32,
     /// Held while the texture loads, so that concurrent first uses share one load.
     pub(super) loading: Arc<tokio::sync::Mutex<()>>,
 }
@@ -44,6 +46,7 @@ impl Record {
             plan,
             encoding_bytes: encoding_bytes as u64,
             tile_size,
+            metatile: vtex_wire::levels::metatile_tiles(tile_size),
             loading: Default::default(),
         })
     }
@@ -63,6 +66,7 @@ impl Record {
             height: p.height,
             levels: self.levels,
             tile_size: self.tile_size,
+            metatile: self.metatile,
             encoding_bytes: self.encoding_bytes,
             explicit_bytes: vtex_wire::info::explicit_bytes(p.width, p.height),
             wraps: p.domain == Domain::Torus,

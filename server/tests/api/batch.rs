@@ -9,18 +9,18 @@ use std::time::Duration;
 
 /// One frame of a batch body, parsed here independently of the server's code.
 #[derive(Debug)]
-struct Frame {
-    level: u32,
-    x: u32,
-    y: u32,
-    status: u16,
-    cache: u8,
-    width: u32,
-    height: u32,
-    body: Vec<u8>,
+pub(crate) struct Frame {
+    pub level: u32,
+    pub x: u32,
+    pub y: u32,
+    pub status: u16,
+    pub cache: u8,
+    pub width: u32,
+    pub height: u32,
+    pub body: Vec<u8>,
 }
 
-fn frames(mut b: &[u8]) -> Vec<Frame> {
+pub(crate) fn frames(mut b: &[u8]) -> Vec<Frame> {
     let mut out = Vec::new();
     let u32_at = |b: &[u8], i: usize| u32::from_le_bytes(b[i..i + 4].try_into().unwrap());
     while !b.is_empty() {

@@ -13,6 +13,7 @@ mod iiif;
 mod inflight_bounds;
 mod interop;
 mod ktx2_spec;
+mod metatiles;
 mod metrics;
 mod models;
 mod openapi;

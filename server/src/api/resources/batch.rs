@@ -212,8 +212,8 @@ pub async fn batch(
     let entry = lookup(&app, &id).await?;
     for t in &tiles {
         match shape {
-            Shape::Tile | Shape::Square => address::check_tile(&entry, t.level, t.x, t.y)?,
             Shape::Page { size, .. } => address::check_page(&entry, t.level, t.x, t.y, size)?,
+            _ => address::check_tile(&entry, t.level, t.x, t.y)?,
         }
     }
     let frame = frame_for(&entry, frame);
@@ -230,7 +230,7 @@ pub async fn batch(
     let turns = Arc::new(Semaphore::new(app.cfg.syntheses_per_texture()));
     for tile in tiles {
         let key = TileKey { texture: entry.key, level: tile.level, x: tile.x, y: tile.y, frame, format, shape };
-        match app.engine.cache.get(&key) {
+        match app.engine.cached(&entry, &key) {
             Some(hit) => {
                 app.metrics.cache_hit(tile.level);
                 push_tile(&mut ready, tile, &hit, Source::Hit);

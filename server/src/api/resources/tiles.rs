@@ -113,8 +113,9 @@ pub(crate) async fn answer(
     respond(app, &entry, key, headers).await
 }
 
-/// The response for tile `key` of `entry` (inside its pyramid): 304, or the tile from the
-/// cache or synthesized — for every route that serves tiles (tiles, Deep Zoom, IIIF, XYZ).
+/// The response for tile or metatile `key` of `entry` (inside its pyramid): 304, or the tile
+/// from the cache or synthesized — for every route that serves tiles (tiles, metatiles, Deep
+/// Zoom, IIIF, XYZ).
 pub(in crate::api) async fn respond(
     app: &App,
     entry: &Arc<Entry>,
@@ -122,7 +123,7 @@ pub(in crate::api) async fn respond(
     headers: &HeaderMap,
 ) -> Result<Response, ApiError> {
     // A cached tile carries its ETag; only a tile not in the cache needs it hashed.
-    let cached = app.engine.cache.get(&key);
+    let cached = app.engine.cached(entry, &key);
     let tag = match &cached {
         Some(tile) => tile.etag.clone(),
         None => address::key_etag(entry, &key),
@@ -132,6 +133,9 @@ pub(in crate::api) async fn respond(
     }
     let (tile, source) = app.engine.tile(entry, key, cached, tag).await?;
     let mut resp = image_response(tile.body.clone(), key.format, &tile.etag, tile.width, tile.height);
+    if let Shape::Metatile { .. } = key.shape {
+        resp.headers_mut().insert(header::CONTENT_TYPE, HeaderValue::from_static(vtex_wire::frame::CONTENT_TYPE));
+    }
     let cache_state = if source == Source::Hit { "hit" } else { "miss" };
     resp.headers_mut().insert(X_VTEX_CACHE.clone(), HeaderValue::from_static(cache_state));
     Ok(resp)

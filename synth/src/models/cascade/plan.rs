@@ -365,7 +365,7 @@ fn plan_params(p: &Params, control: Option<(u32, u32)>, initial: Option<(u32, u3
         .map(|l| {
             if l <= measured {
                 CALIBRATION_WINDOWS * predicted(l, CALIBRATION_WINDOW >> l)
-            } else if (1..=CARRIED).contains(&(l - base)) {
+            } else if l.checked_sub(base).is_some_and(|d| (1..=CARRIED).contains(&d)) {
                 let chain = if l == base + 1 { predicted(measured, CARRIED_SIDE << (base - measured)) } else { 0.0 };
                 CARRY_SPOTS * (chain + predicted(l, CARRIED_SIDE >> (l - base)))
             } else {
