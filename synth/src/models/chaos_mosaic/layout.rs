@@ -147,7 +147,7 @@ impl ChaosMosaic {
         let dy = (y - band.y0) as u32;
         for s in layout.spans(band) {
             let at = (s.sy + dy) as usize * sw + s.sx as usize;
-            out[s.x..s.end].copy_from_slice(&self.sample_px[at..at + s.end - s.x]);
+            out[s.x..s.end].copy_from_slice(&self.sample.px[at..at + s.end - s.x]);
         }
     }
 

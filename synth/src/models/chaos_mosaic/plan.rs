@@ -5,6 +5,7 @@
 
 use super::blocks::SizeRule;
 use super::params::{self, Params, Sequence};
+use super::sums::PeriodicSums;
 use crate::bundle::Bundle;
 use crate::models::{cost, parse_params, Cost, Inputs, Measure, Plan};
 use crate::pixels::png_dimensions;
@@ -51,6 +52,8 @@ const BLOCK: f64 = 300.0;
 const BLOCK_MISS: f64 = 4000.0;
 const CACHED_BLOCKS: f64 = 131_072.0;
 
+/// The texture's parts of fixed size (its parameters, the table slots, the allocations' rounding).
+const FIXED: f64 = 65536.0;
 /// The size of box table the prefiltered levels use at most, as in `prefilter::BoxTables`.
 const TABLE_SIDES: u32 = 13;
 /// Samples up to this many pixels get box tables, as `prefilter::BoxTable` decides.
@@ -105,19 +108,19 @@ fn plan_params(p: &Params, sw: u32, sh: u32, create: bool) -> Result<Plan> {
     let px = sw as f64 * sh as f64;
     let levels = level_count(width, height);
 
-    // Resident: the sample three ways (RGBA8, packed u32s, i64 prefix sums of 4 lanes), the
-    // blocks with their sequence numbers, the index (each block lists in at most 4 tiles),
-    // and the box tables of the prefiltered levels (one per power-of-two side a level uses).
-    let sums = 32.0 * (sw as f64 + 1.0) * (sh as f64 + 1.0);
+    // Resident: the sample (RGBA8) and its prefix sums, the blocks with their sequence
+    // numbers, the index (each block lists in at most 4 tiles), and the box tables of the
+    // prefiltered levels (one per power-of-two side a level uses).
+    let sums = PeriodicSums::bytes_for(sw as u64, sh as u64) as f64;
     let structure = 20.0 * n + 16.0 * n + 8.0 * (tiles + 1.0);
     let table_sides = TABLE_SIDES.min(levels);
     let tables = match sw as u64 * sh as u64 <= TABLE_MAX_PIXELS {
         true => (0..table_sides).map(|k| table_bytes(sw, sh, k)).sum(),
         false => 0.0,
     };
-    let resident = 8.0 * px + sums + structure + tables;
+    let resident = 4.0 * px + sums + structure + tables + FIXED;
     let resident_why = format!(
-        "sample {sw}×{sh} × (8 + 32) B + {n} blocks (tiles_x {} × tiles_y {} × blocks_per_tile {}) × 36 B \
+        "sample {sw}×{sh} × (4 + 10) B + {n} blocks (tiles_x {} × tiles_y {} × blocks_per_tile {}) × 36 B \
          + {table_sides} box tables of the sample",
         p.tiles_x, p.tiles_y, p.blocks_per_tile
     );

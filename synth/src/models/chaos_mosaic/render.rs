@@ -4,16 +4,14 @@
 use super::blocks::{self, SizeRule};
 use super::index::{self, TileIndex};
 use super::params::{self, Params, Sequence};
-use super::sums::{BoxTables, PeriodicSums};
+use super::sums::{BoxTables, PeriodicSums, Sample};
 use super::{Block, MODEL};
 use crate::{pixels::Rgba8Image, Domain, Error, Region, Result, Stop, Texture};
 
 /// A loaded chaos mosaic: everything needed to evaluate any region, validated.
 pub struct ChaosMosaic {
     pub(super) params: Params,
-    pub(super) sample: Rgba8Image,
-    /// The sample's pixels as little-endian `u32`s, for copying a pixel at a time.
-    pub(super) sample_px: Vec<u32>,
+    pub(super) sample: Sample,
     pub(super) seamless: bool,
     pub(super) width: u64,
     pub(super) height: u64,
@@ -63,29 +61,17 @@ impl ChaosMosaic {
         };
         let (blocks, seq) = index::by_home_tile(blocks, params.tiles_x, params.tiles_y, sw, sh);
         let index = TileIndex::build(&blocks, &seq, params.tiles_x, params.tiles_y, sw, sh);
-        let sample_px = sample.data.chunks_exact(4).map(|p| u32::from_le_bytes(p.try_into().unwrap())).collect();
-        let sums = PeriodicSums::new(&sample);
-        Ok(Self {
-            params,
-            sample_px,
-            seamless,
-            width,
-            height,
-            blocks,
-            seq,
-            index,
-            sums,
-            sample,
-            tables: BoxTables::default(),
-        })
+        let (sums, sample) = (PeriodicSums::new(&sample), Sample::new(&sample));
+        Ok(Self { params, seamless, width, height, blocks, seq, index, sums, sample, tables: BoxTables::default() })
     }
 
     pub fn params(&self) -> &Params {
         &self.params
     }
 
-    pub fn sample(&self) -> &Rgba8Image {
-        &self.sample
+    /// A copy of the sample (the texture keeps it as packed pixels).
+    pub fn sample(&self) -> Rgba8Image {
+        self.sample.to_image()
     }
 
     /// The random block sequence R_ε in paste order.
@@ -100,6 +86,12 @@ impl ChaosMosaic {
     /// Heap bytes of the block list and the per-tile index.
     pub fn structure_heap_bytes(&self) -> usize {
         self.blocks.capacity() * std::mem::size_of::<Block>() + self.seq.capacity() * 4 + self.index.heap_bytes()
+    }
+
+    /// Heap bytes of the sample and its prefix sums, held from the load on (the box tables
+    /// of the prefiltered levels come on top, built on first use).
+    pub fn sample_heap_bytes(&self) -> usize {
+        self.sample.px.capacity() * 4 + self.sums.heap_bytes()
     }
 }
 
