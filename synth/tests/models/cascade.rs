@@ -223,7 +223,8 @@ fn a_stored_manifest_keeps_the_mip_defaults_it_was_made_with() {
     let e = new.exact().engine();
     let stages = |budget| (1..=6).map(|l| prefilter::predicting_stage(&e.stages, false, budget, l)).collect::<Vec<_>>();
     assert_eq!(stages(None), vec![Some(2), Some(2), Some(1), Some(0), Some(0), None]);
-    assert_ne!(stages(Some(cascade::params::STAGE_BUDGET)), stages(None));
+    assert_ne!(stages(Some(cascade::params::STAGE_BUDGET))[..2], stages(None)[..2]);
+    assert_eq!(stages(Some(cascade::params::STAGE_BUDGET))[2..], stages(None)[2..]);
 }
 
 /// A grey control map of `w × 2` texels, column i at luminance `columns[i]`.

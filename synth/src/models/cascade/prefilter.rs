@@ -25,6 +25,7 @@
 use super::engine::{Stage, STREAM_CALIBRATION};
 use super::exact::Exact;
 use super::lattice::{upsample, upsample_footprint};
+use super::maps::Map;
 use super::residual::{self, luminance, Residual};
 use crate::hash::hash4;
 use crate::pixels::Rgba8Image;
@@ -61,19 +62,31 @@ fn window_work(stages: &[Stage], dilated: bool, s: usize, n: u64) -> f64 {
     let st = &stages[s];
     let reach = st.kernels.iter().map(|k| k.reach).max().unwrap_or(0) as u64;
     let taps = st.kernels.iter().map(|k| k.taps.len()).max().unwrap_or(0) as f64 * if dilated { 2.0 } else { 1.0 };
+    // A map through `sinf` or `expf` costs a point as much as tens of vectorised taps.
+    let map = match st.map {
+        Map::Logistic(_) | Map::Tent(_) => 1.0,
+        Map::Sigmoid { .. } => 8.0,
+        Map::Sine(_) => 25.0,
+        Map::Circle { .. } => 30.0,
+    };
     let side = n + 2 * st.iterations as u64 * reach;
-    let own = (side * side) as f64 * (taps * st.iterations as f64 + 4.0);
+    let own = (side * side) as f64 * ((taps + map) * st.iterations as f64 + 4.0);
     own + if s > 0 { window_work(stages, dilated, s - 1, ((side + (1 << st.up) - 1) >> st.up) + 2) } else { 0.0 }
 }
 
+/// Levels a stage budget applies to. Beyond, the finest stage is kept whatever it costs: a
+/// coarser one there predicts too little of the block means (a residual that the gates' PSNR
+/// floor and σ cannot take).
+pub const BUDGETED_LEVELS: u32 = 2;
+
 /// The stage that predicts level `l ≥ 1`, among those whose spacing is at least 2^l / 4 (at
-/// most 4 × 4 samples a pixel): without a budget the finest; with one the finest whose tile
-/// window costs at most `budget` level-0 tiles, else the cheapest. `None` past the coarsest
-/// stage.
+/// most 4 × 4 samples a pixel): the finest, or with a budget and `l ≤ BUDGETED_LEVELS` the
+/// finest whose tile window costs at most `budget` level-0 tiles, else the cheapest. `None`
+/// past the coarsest stage.
 pub fn predicting_stage(stages: &[Stage], dilated: bool, budget: Option<f64>, l: u32) -> Option<usize> {
     let last = stages.len() - 1;
     let mut candidates = (0..=last).rev().filter(|&s| stages[s].shift + 2 >= l);
-    let Some(budget) = budget else { return candidates.next() };
+    let Some(budget) = budget.filter(|_| l <= BUDGETED_LEVELS) else { return candidates.next() };
     let limit = budget * window_work(stages, dilated, last, TILE);
     let tile = |s: usize| window_work(stages, dilated, s, ((TILE << l) >> stages[s].shift).max(1) + 3);
     let costs: Vec<(usize, f64)> = candidates.map(|s| (s, tile(s))).collect();
