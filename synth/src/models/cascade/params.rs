@@ -43,19 +43,18 @@ pub struct Params {
     /// A stored manifest without it means 2; `create` writes [`EXACT_LEVELS`].
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub exact_levels: Option<u32>,
-    /// Levels 1 and 2 above `exact_levels` are predicted by the finest stage whose window for a
-    /// tile costs at most this many level-0 tiles (kernel taps and map × iterations × points),
-    /// else by the cheapest stage that can predict them; a level the final stage predicts is
-    /// exact. Without it (a stored manifest) every prefiltered level takes the finest stage at
+    /// Level 1 (above `exact_levels`) is predicted by the finest stage whose window for a tile
+    /// costs at most this many level-0 tiles (kernel taps and map × iterations × points), else
+    /// by the cheapest stage that can predict it; a level the final stage predicts is exact. Without it (a stored manifest) every prefiltered level takes the finest stage at
     /// up to 4 × 4 samples a pixel, whatever that costs; `create` writes [`STAGE_BUDGET`].
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub stage_budget: Option<f64>,
 }
 
-/// What `create` writes for new textures: levels 1 and 2 within about two level-0 tiles of
-/// work where a coarser stage can predict them.
+/// What `create` writes for new textures: level 1 within about two level-0 tiles of work
+/// where a coarser stage predicts it; levels the final stage predicts exact.
 pub const EXACT_LEVELS: u32 = 0;
-pub const STAGE_BUDGET: f64 = 2.0;
+pub const STAGE_BUDGET: f64 = 2.5;
 
 impl Params {
     /// Levels 1..=exact_levels are exact.

@@ -2,11 +2,13 @@
 //! the level below, which a 100k texture cannot afford to compute.
 //!
 //! Level L must approximate the 2×2-box chain of level 0, i.e. the mean colour of each
-//! 2^L × 2^L block. Levels up to `exact_levels` are computed exactly (render level 0,
-//! downsample). Coarser ones are prefiltered through the cascade's own coarse stages:
+//! 2^L × 2^L block. Levels up to `exact_levels`, and with a `stage_budget` those only the
+//! final stage predicts, are computed exactly (render level 0, downsample). The others are
+//! prefiltered through the cascade's own coarse stages:
 //!
 //! * pick the finest stage s whose lattice spacing 2^shift is at least 2^L / 4, so a block
-//!   spans at most 4 × 4 of its lattice points;
+//!   spans at most 4 × 4 of its lattice points (with a budget, at level 1 the finest such
+//!   stage whose window a tile can afford, [`predicting_stage`]);
 //! * evaluate that stage's field (cheap: its lattice is coarse), upsample it bilinearly to
 //!   q × q sample points per block (q = 2^L / 2^shift, at most 4) and map each value a to
 //!   g_s(a) = E[final colour | stage-s value = a], a table measured once per texture from a
@@ -75,9 +77,10 @@ fn window_work(stages: &[Stage], dilated: bool, s: usize, n: u64) -> f64 {
 }
 
 /// Levels a stage budget applies to. Beyond, the finest stage is kept whatever it costs: a
-/// coarser one there predicts too little of the block means (a residual that the gates' PSNR
-/// floor and σ cannot take).
-pub const BUDGETED_LEVELS: u32 = 2;
+/// coarser one there leaves so much of the block means to the residual that the gates' mean
+/// and PSNR floor fail over small windows (the demos' level 2, and levels 3–6 past their
+/// coarsest stage's spacing).
+pub const BUDGETED_LEVELS: u32 = 1;
 
 /// The stage that predicts level `l ≥ 1`, among those whose spacing is at least 2^l / 4 (at
 /// most 4 × 4 samples a pixel): the finest, or with a budget and `l ≤ BUDGETED_LEVELS` the
