@@ -6,7 +6,7 @@ use serde_json::json;
 use std::sync::Arc;
 use vtex_synth::bundle::Bundle;
 use vtex_synth::mip::{downsample_n, mean_rgba};
-use vtex_synth::models::cascade::{self, demos::control_map, demos::initial_image, Cascade};
+use vtex_synth::models::cascade::{self, demos::control_map, demos::initial_image, prefilter, Cascade};
 use vtex_synth::models::{self, Inputs};
 use vtex_synth::texture::{render_image, Region, Texture};
 use vtex_synth::Rgba8Image;
@@ -178,22 +178,56 @@ fn demos_cover_the_papers_looks_at_scale_in_kilobytes() {
     assert!(names.iter().any(|b| b.section("initial.png").is_ok()));
 }
 
-/// Levels 1..=exact_levels are rendered by brute force: exactly the 2×2 box chain of level 0.
+/// The levels the model serves exactly (up to `exact_levels`, and those its final stage
+/// predicts) are rendered by brute force: exactly the 2×2 box chain of level 0.
 #[test]
 fn exact_levels_are_the_box_chain_of_level_0() {
-    for (name, t) in all_textures() {
-        let exact = cascade::demos()
-            .iter()
-            .find(|b| b.manifest.name == name)
-            .and_then(|b| b.manifest.params["exact_levels"].as_u64())
-            .unwrap_or(2) as u32;
+    let mut textures: Vec<(String, Cascade)> = cascade::demos()
+        .iter()
+        .map(|b| (b.manifest.name.clone(), cascade::load(&Bundle::from_bytes(&b.to_bytes()).unwrap()).unwrap()))
+        .collect();
+    textures.push(("single".into(), tex(single())));
+    textures.push(("cascade3".into(), tex(cascade3())));
+    for (name, t) in textures {
         let (x, y) = (1i64 << 24, 3i64 << 22);
-        let base = render(t.as_ref(), 0, x, y, 256, 256);
-        for l in 1..=exact {
-            let served = render(t.as_ref(), l, x >> l, y >> l, 256 >> l, 256 >> l);
+        let base = render(&t, 0, x, y, 256, 256);
+        for l in (1..=3).filter(|&l| prefilter::is_exact(t.exact(), l)) {
+            let served = render(&t, l, x >> l, y >> l, 256 >> l, 256 >> l);
             assert!(served == downsample_n(&base, l), "{name}: level {l} is not the exact downsample");
         }
     }
+}
+
+/// `create` writes the defaults of new textures (no exact levels, a stage budget) into the
+/// manifest, and a stored manifest without them keeps their old meaning: levels 1 and 2
+/// exact, every coarser level predicted by its finest stage.
+#[test]
+fn a_stored_manifest_keeps_the_mip_defaults_it_was_made_with() {
+    let made = models::create("cascade", "c", &cascade3(), &Inputs::new()).unwrap();
+    let derived = &made.manifest.derived;
+    assert_eq!(derived.get("exact_levels"), Some(&json!(cascade::params::EXACT_LEVELS)));
+    assert_eq!(derived.get("stage_budget"), Some(&json!(cascade::params::STAGE_BUDGET)));
+    let mut old = made.clone();
+    old.manifest.derived.retain(|k, _| k != "exact_levels" && k != "stage_budget");
+    let (new, old) =
+        (cascade::load(&made).unwrap(), cascade::load(&Bundle::from_bytes(&old.to_bytes()).unwrap()).unwrap());
+    let (x, y) = (5i64 << 20, -(3i64 << 21));
+    let base = render(&new, 0, x, y, 256, 256);
+    for l in 1..=2 {
+        let exact = downsample_n(&base, l);
+        assert!(render(&old, l, x >> l, y >> l, 256 >> l, 256 >> l) == exact, "level {l} of a stored texture");
+        // A new texture's level 1 comes from a coarser stage; its level 2, which only the
+        // final stage predicts within the gates, stays exact.
+        let new_l = render(&new, l, x >> l, y >> l, 256 >> l, 256 >> l);
+        assert_eq!(new_l == exact, l == 2, "level {l} of a new texture");
+    }
+    // The old rule predicts by the finest stage whatever it costs; the budget takes a coarser
+    // one at level 1, where the finest costs too much.
+    let e = new.exact().engine();
+    let stages = |budget| (1..=6).map(|l| prefilter::predicting_stage(&e.stages, false, budget, l)).collect::<Vec<_>>();
+    assert_eq!(stages(None), vec![Some(2), Some(2), Some(1), Some(0), Some(0), None]);
+    assert_ne!(stages(Some(cascade::params::STAGE_BUDGET))[0], stages(None)[0]);
+    assert_eq!(stages(Some(cascade::params::STAGE_BUDGET))[1..], stages(None)[1..]);
 }
 
 /// A grey control map of `w × 2` texels, column i at luminance `columns[i]`.
@@ -663,23 +697,14 @@ enum Source {
 
 /// The source of each level of `b`, as the model chooses it.
 fn sources(b: &Bundle) -> impl Fn(u32) -> Source {
-    let p = &b.manifest.params;
-    let exact = p["exact_levels"].as_u64().unwrap_or(2) as u32;
-    let guide = p.get("initial").is_some();
-    let ups: Vec<u32> = p["stages"]
-        .as_array()
-        .unwrap()
-        .iter()
-        .skip(1)
-        .map(|s| s["upsample"].as_u64().unwrap().trailing_zeros())
-        .collect();
-    // Stage s's spacing: the upsampling of the stages after it.
-    let shifts: Vec<u32> = (0..=ups.len()).map(|s| ups[s..].iter().sum()).collect();
+    let t = cascade::load(b).unwrap();
+    let guide = b.manifest.full_params().unwrap().get("initial").is_some();
     move |l| {
-        if l <= exact {
+        let (p, e) = (t.exact().params(), t.exact().engine());
+        if prefilter::is_exact(t.exact(), l) {
             Source::Exact
-        } else if let Some(&shift) = shifts.iter().rev().find(|&&k| k + 2 >= l) {
-            Source::Stage(shift)
+        } else if let Some(s) = prefilter::predicting_stage(&e.stages, e.control.is_some(), p.stage_budget, l) {
+            Source::Stage(e.stages[s].shift)
         } else if guide {
             Source::Guide
         } else {

@@ -21,11 +21,13 @@ pub fn section_image(bundle: &crate::bundle::Bundle, section: &str, name: &str) 
 }
 
 /// Makes an encoding from parameters and the optional `control` / `initial` images; a missing
-/// `range` is estimated from a sample of the texture.
+/// `range` is estimated from a sample of the texture, and the defaults that depend on when
+/// the encoding was made are written ([`Params::filled`]).
 pub fn create(name: &str, params: &serde_json::Value, inputs: &Inputs) -> Result<Bundle> {
     super::plan::plan_create(params, inputs)?;
     let mut p: Params = parse_params(params)?;
     let given = serde_json::to_value(&p).map_err(|e| Error::param("params", e.to_string()))?;
+    p = p.filled();
     let control = inputs.contains_key("control").then(|| input_image(inputs, "control")).transpose()?;
     let initial = inputs.contains_key("initial").then(|| input_image(inputs, "initial")).transpose()?;
     if p.range.is_none() {

@@ -10,7 +10,7 @@
 //!  "palette": "earth", "range": [0.1, 0.9],
 //!  "dilation_map": {"max": 3, "cell": 64},          // needs input/section `control`
 //!  "initial": {"cell": 8, "strength": 0.7, "repeat": false},  // needs input/section `initial`
-//!  "exact_levels": 2}
+//!  "exact_levels": 0, "stage_budget": 1}
 //! ```
 //! Stages run coarse to fine; each after the first is `upsample` (1, 2, 4 or 8) times finer.
 
@@ -40,8 +40,35 @@ pub struct Params {
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub initial: Option<InitialSpec>,
     /// Mip levels 1..=exact_levels are the exact box downsample; coarser ones prefiltered.
-    #[serde(default = "default_exact_levels")]
-    pub exact_levels: u32,
+    /// A stored manifest without it means 2; `create` writes [`EXACT_LEVELS`].
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub exact_levels: Option<u32>,
+    /// Level 1 (above `exact_levels`) is predicted by the finest stage whose window for a tile
+    /// costs at most this many level-0 tiles (kernel taps and map × iterations × points), else
+    /// by the cheapest stage that can predict it; a level the final stage predicts is exact. Without it (a stored manifest) every prefiltered level takes the finest stage at
+    /// up to 4 × 4 samples a pixel, whatever that costs; `create` writes [`STAGE_BUDGET`].
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub stage_budget: Option<f64>,
+}
+
+/// What `create` writes for new textures: level 1 within about two level-0 tiles of work
+/// where a coarser stage predicts it; levels the final stage predicts exact.
+pub const EXACT_LEVELS: u32 = 0;
+pub const STAGE_BUDGET: f64 = 2.5;
+
+impl Params {
+    /// Levels 1..=exact_levels are exact.
+    pub fn exact_levels(&self) -> u32 {
+        self.exact_levels.unwrap_or(2)
+    }
+
+    /// The parameters as stored: every default that depends on when the encoding was made
+    /// filled in, so a later change of default never changes a stored texture.
+    pub fn filled(mut self) -> Params {
+        self.exact_levels = Some(self.exact_levels.unwrap_or(EXACT_LEVELS));
+        self.stage_budget = Some(self.stage_budget.unwrap_or(STAGE_BUDGET));
+        self
+    }
 }
 
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize, JsonSchema)]
@@ -104,7 +131,4 @@ fn is_one(v: &f64) -> bool {
 }
 fn is_zero(v: &f64) -> bool {
     *v == 0.0
-}
-fn default_exact_levels() -> u32 {
-    2
 }

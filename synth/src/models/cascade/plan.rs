@@ -11,6 +11,7 @@ use super::kernel::{Kernel, Shape};
 use super::lattice::ImageField;
 use super::maps::Map;
 use super::params::Params;
+use super::prefilter::predicting_stage;
 use super::{palette, MODEL};
 use crate::bundle::Bundle;
 use crate::models::{cost, parse_params, Cost, Inputs, Measure, Plan};
@@ -68,8 +69,13 @@ pub fn check(p: &Params, control: Option<(u32, u32)>, initial: Option<(u32, u32)
     if p.stages.is_empty() || p.stages.len() > MAX_STAGES {
         return Err(Error::param("stages", format!("{} stages; 1 to {MAX_STAGES}", p.stages.len())));
     }
-    if p.exact_levels > MAX_EXACT_LEVELS {
-        return Err(Error::param("exact_levels", format!("{}: at most {MAX_EXACT_LEVELS}", p.exact_levels)));
+    if p.exact_levels() > MAX_EXACT_LEVELS {
+        return Err(Error::param("exact_levels", format!("{}: at most {MAX_EXACT_LEVELS}", p.exact_levels())));
+    }
+    if let Some(b) = p.stage_budget {
+        if !(b.is_finite() && b >= 0.0) {
+            return Err(Error::param("stage_budget", format!("{b}: level-0 tiles, a number ≥ 0")));
+        }
     }
     if let Some([lo, hi]) = p.range {
         if !(lo.is_finite() && hi.is_finite() && lo < hi) {
@@ -245,7 +251,7 @@ pub fn plan_create(params: &serde_json::Value, inputs: &Inputs) -> Result<Plan> 
     if let Some(other) = inputs.keys().find(|k| !["control", "initial"].contains(&k.as_str())) {
         return Err(Error::image(other.as_str(), "not an input of `cascade` (it takes `control` and `initial`)"));
     }
-    let p: Params = parse_params(params)?;
+    let p: Params = parse_params::<Params>(params)?.filled();
     let header = |name: &str| inputs.get(name).map(|b| png_dimensions(name, b)).transpose();
     plan_params(&p, header("control")?, header("initial")?, true)
 }
@@ -336,7 +342,7 @@ fn plan_params(p: &Params, control: Option<(u32, u32)>, initial: Option<(u32, u3
         let pixels = (side * side) as f64;
         let residual = pixels * (levels - l) as f64 * NOISE;
         residual
-            + match (0..=last).rev().find(|&s| stages[s].shift + 2 >= l) {
+            + match predicting_stage(&stages, control.is_some(), p.stage_budget, l) {
                 Some(s) => {
                     let shift = stages[s].shift;
                     let q = 1u64 << l.saturating_sub(shift);
@@ -361,9 +367,15 @@ fn plan_params(p: &Params, control: Option<(u32, u32)>, initial: Option<(u32, u3
     // whose 16·2^depth-pixel side at the last measured level is served once.
     let measured = CALIBRATION_WINDOW.trailing_zeros();
     let base = stages.iter().map(|s| s.shift + 2).max().unwrap_or(0).max(measured);
-    let residuals: f64 = (p.exact_levels + 1..levels)
+    let is_exact = |l: u32| {
+        l <= p.exact_levels()
+            || p.stage_budget.is_some() && predicting_stage(&stages, control.is_some(), p.stage_budget, l) == Some(last)
+    };
+    let residuals: f64 = (p.exact_levels() + 1..levels)
         .map(|l| {
-            if l <= measured {
+            if is_exact(l) {
+                0.0
+            } else if l <= measured {
                 CALIBRATION_WINDOWS * predicted(l, CALIBRATION_WINDOW >> l)
             } else if l.checked_sub(base).is_some_and(|d| (1..=CARRIED).contains(&d)) {
                 let chain = if l == base + 1 { predicted(measured, CARRIED_SIDE << (base - measured)) } else { 0.0 };
@@ -375,7 +387,7 @@ fn plan_params(p: &Params, control: Option<(u32, u32)>, initial: Option<(u32, u3
         .sum();
     let prefiltered = |l: u32| predicted(l, TILE) + calibration + residuals;
     let (tile_work, worst) = (0..levels)
-        .map(|l| (if l <= p.exact_levels { exact(l) } else { prefiltered(l) }, l))
+        .map(|l| (if is_exact(l) { exact(l) } else { prefiltered(l) }, l))
         .fold((0.0, 0), |a, b| if b.0 > a.0 { b } else { a });
     let taps: Vec<String> = stages.iter().map(|s| s.kernel().taps.len().to_string()).collect();
     let iterations: Vec<String> = stages.iter().map(|s| s.iterations.to_string()).collect();

@@ -2,11 +2,13 @@
 //! the level below, which a 100k texture cannot afford to compute.
 //!
 //! Level L must approximate the 2×2-box chain of level 0, i.e. the mean colour of each
-//! 2^L × 2^L block. Levels up to `exact_levels` are computed exactly (render level 0,
-//! downsample). Coarser ones are prefiltered through the cascade's own coarse stages:
+//! 2^L × 2^L block. Levels up to `exact_levels`, and with a `stage_budget` those only the
+//! final stage predicts, are computed exactly (render level 0, downsample). The others are
+//! prefiltered through the cascade's own coarse stages:
 //!
 //! * pick the finest stage s whose lattice spacing 2^shift is at least 2^L / 4, so a block
-//!   spans at most 4 × 4 of its lattice points;
+//!   spans at most 4 × 4 of its lattice points (with a budget, at level 1 the finest such
+//!   stage whose window a tile can afford, [`predicting_stage`]);
 //! * evaluate that stage's field (cheap: its lattice is coarse), upsample it bilinearly to
 //!   q × q sample points per block (q = 2^L / 2^shift, at most 4) and map each value a to
 //!   g_s(a) = E[final colour | stage-s value = a], a table measured once per texture from a
@@ -22,9 +24,10 @@
 //! exact downsample's σ. This is an approximation and the tests report how close it gets
 //! (σ and PSNR against the exact downsample).
 
-use super::engine::STREAM_CALIBRATION;
+use super::engine::{Stage, STREAM_CALIBRATION};
 use super::exact::Exact;
 use super::lattice::{upsample, upsample_footprint};
+use super::maps::Map;
 use super::residual::{self, luminance, Residual};
 use crate::hash::hash4;
 use crate::pixels::Rgba8Image;
@@ -49,6 +52,59 @@ const MIN_COUNT: f64 = 4.0;
 /// The finest level whose blocks the calibration windows measure whole. (Larger windows for
 /// level 6 would take the dilation-map demo's first coarse tile past the cost bound.)
 const MEASURED_LEVELS: u32 = WINDOW.trailing_zeros();
+
+/// A tile's side, for the work of a level's stage window.
+const TILE: u64 = 256;
+
+/// Work of stage `s` on an `n × n` window of its lattice, with the coarser stages it starts
+/// from: kernel taps × iterations (plus the map and the noise) over the margin-grown windows.
+/// It ranks the stages that can predict a level; it is part of what the pixels are (it picks
+/// the stage), so it is a fixed formula rather than the plan's cost estimate.
+fn window_work(stages: &[Stage], dilated: bool, s: usize, n: u64) -> f64 {
+    let st = &stages[s];
+    let reach = st.kernels.iter().map(|k| k.reach).max().unwrap_or(0) as u64;
+    let taps = st.kernels.iter().map(|k| k.taps.len()).max().unwrap_or(0) as f64 * if dilated { 2.0 } else { 1.0 };
+    // A map through `sinf` or `expf` costs a point as much as tens of vectorised taps.
+    let map = match st.map {
+        Map::Logistic(_) | Map::Tent(_) => 1.0,
+        Map::Sigmoid { .. } => 8.0,
+        Map::Sine(_) => 25.0,
+        Map::Circle { .. } => 30.0,
+    };
+    let side = n + 2 * st.iterations as u64 * reach;
+    let own = (side * side) as f64 * ((taps + map) * st.iterations as f64 + 4.0);
+    own + if s > 0 { window_work(stages, dilated, s - 1, ((side + (1 << st.up) - 1) >> st.up) + 2) } else { 0.0 }
+}
+
+/// Levels a stage budget applies to. Beyond, the finest stage is kept whatever it costs: a
+/// coarser one there leaves so much of the block means to the residual that the gates' mean
+/// and PSNR floor fail over small windows (the demos' level 2, and levels 3–6 past their
+/// coarsest stage's spacing).
+pub const BUDGETED_LEVELS: u32 = 1;
+
+/// The stage that predicts level `l ≥ 1`, among those whose spacing is at least 2^l / 4 (at
+/// most 4 × 4 samples a pixel): the finest, or with a budget and `l ≤ BUDGETED_LEVELS` the
+/// finest whose tile window costs at most `budget` level-0 tiles, else the cheapest. `None`
+/// past the coarsest stage.
+pub fn predicting_stage(stages: &[Stage], dilated: bool, budget: Option<f64>, l: u32) -> Option<usize> {
+    let last = stages.len() - 1;
+    let mut candidates = (0..=last).rev().filter(|&s| stages[s].shift + 2 >= l);
+    let Some(budget) = budget.filter(|_| l <= BUDGETED_LEVELS) else { return candidates.next() };
+    let limit = budget * window_work(stages, dilated, last, TILE);
+    let tile = |s: usize| window_work(stages, dilated, s, ((TILE << l) >> stages[s].shift).max(1) + 3);
+    let costs: Vec<(usize, f64)> = candidates.map(|s| (s, tile(s))).collect();
+    costs.iter().find(|(_, w)| *w <= limit).or_else(|| costs.iter().min_by(|a, b| a.1.total_cmp(&b.1))).map(|(s, _)| *s)
+}
+
+/// Whether level `l` of `tex` is the exact box downsample of level 0: up to `exact_levels`,
+/// and with a stage budget wherever the final stage is the one that predicts it (its
+/// prediction would be the exact block mean, at the same cost).
+pub fn is_exact(tex: &Exact, l: u32) -> bool {
+    let (p, e) = (tex.params(), tex.engine());
+    l <= p.exact_levels()
+        || p.stage_budget.is_some()
+            && predicting_stage(&e.stages, e.control.is_some(), p.stage_budget, l) == Some(e.stages.len() - 1)
+}
 
 /// Measured statistics of a texture for its prefiltered levels.
 #[derive(Clone, Debug, PartialEq)]
@@ -170,7 +226,7 @@ impl Calibration {
     fn measure_residuals(&mut self, tex: &Exact, windows: &[(u64, u64, Rgba8Image)], stop: &dyn Stop) -> Option<()> {
         let e = tex.engine();
         let levels = self.weights.len() as u32;
-        let first = tex.params().exact_levels + 1;
+        let first = tex.params().exact_levels() + 1;
         for k in first as usize..levels as usize - 1 {
             self.weights[k] = libm::exp2f(-(k as f32));
         }
@@ -197,6 +253,9 @@ impl Calibration {
         for l in first..levels {
             let at = l as usize;
             if l <= MEASURED_LEVELS {
+                if is_exact(tex, l) {
+                    continue;
+                }
                 let mut pairs = Vec::new();
                 for (x, y, img) in windows {
                     let exact = crate::mip::downsample_n(img, l);
@@ -324,8 +383,10 @@ impl Calibration {
             (Some(r), z) => r.at(luminance(colour), z.map_or(0.0, |z| z[at])),
             (None, _) => [0.0; 3],
         };
-        let p = [0, 1, 2].map(|c| (colour[c] + r[c] + 0.5).floor().clamp(0.0, 255.0) as u8);
-        [p[0], p[1], p[2], 255]
+        // Rounded half up and clamped to [0, 255]: a float-to-u8 cast truncates toward zero and
+        // saturates (NaN to 0), which on these values is floor and clamp without a libm call.
+        let round = |c: usize| (colour[c] + r[c] + 0.5) as u8;
+        [round(0), round(1), round(2), 255]
     }
 }
 
@@ -474,7 +535,7 @@ fn predict(
 ) -> Option<()> {
     let e = tex.engine();
     let last = e.stages.len() - 1;
-    let Some(s) = (0..=last).rev().find(|&s| e.stages[s].shift + 2 >= l) else {
+    let Some(s) = predicting_stage(&e.stages, e.control.is_some(), tex.params().stage_budget, l) else {
         if let (Some(guide), Some(table)) = (guide(tex), &cal.image) {
             // A guide image (texture transfer, dilation map) carries structure at every
             // scale; average g over n × n samples of it per block, about one per texel

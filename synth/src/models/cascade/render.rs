@@ -66,7 +66,8 @@ impl Texture for Cascade {
     fn render(&self, region: &Region, out: &mut [u8], stop: &dyn Stop) {
         let l = region.level;
         // Chunks keep every buffer bounded; each pixel is independent of the chunking.
-        let step = if l <= self.exact.params().exact_levels { (CHUNK >> l).max(1) } else { 256 };
+        let exact = prefilter::is_exact(&self.exact, l);
+        let step = if exact { (CHUNK >> l).max(1) } else { 256 };
         let row = region.width as usize * 4;
         for cy in (0..region.height).step_by(step as usize) {
             for cx in (0..region.width).step_by(step as usize) {
@@ -74,7 +75,7 @@ impl Texture for Cascade {
                 let (x, y) = ((region.x as u64).wrapping_add(cx as u64), (region.y as u64).wrapping_add(cy as u64));
                 let img = if l == 0 {
                     self.exact.level0(x, y, w, h, stop)
-                } else if l <= self.exact.params().exact_levels {
+                } else if exact {
                     self.exact
                         .level0(x << l, y << l, w << l, h << l, stop)
                         .map(|full| crate::mip::downsample_n(&full, l))

@@ -98,14 +98,18 @@ impl Residual {
         let pos = (u * QUANTILES as f32 - 0.5).clamp(0.0, (QUANTILES - 1) as f32);
         let i = (pos as usize).min(QUANTILES - 2);
         let f = pos - i as f32;
-        let quantile = |t: &[[f32; 3]]| [0, 1, 2].map(|c| t[i][c] + (t[i + 1][c] - t[i][c]) * f);
+        // Written out per channel: this runs once a pixel at every prefiltered level.
+        let quantile = |t: &[[f32; 3]]| {
+            let (a, b) = (t[i], t[i + 1]);
+            [a[0] + (b[0] - a[0]) * f, a[1] + (b[1] - a[1]) * f, a[2] + (b[2] - a[2]) * f]
+        };
         let above = self.centres.iter().position(|&c| c > lum).unwrap_or(self.centres.len());
         if above == 0 || above == self.centres.len() {
             return quantile(&self.tables[above.min(self.centres.len() - 1)]);
         }
         let (lo, hi) = (quantile(&self.tables[above - 1]), quantile(&self.tables[above]));
         let t = (lum - self.centres[above - 1]) / (self.centres[above] - self.centres[above - 1]);
-        [0, 1, 2].map(|c| lo[c] + (hi[c] - lo[c]) * t)
+        [lo[0] + (hi[0] - lo[0]) * t, lo[1] + (hi[1] - lo[1]) * t, lo[2] + (hi[2] - lo[2]) * t]
     }
 }
 
