@@ -5,7 +5,7 @@ use super::params::{ExemplarLevels, Generation0, Params, Search};
 use super::prefilter::{source, span, Source};
 use super::rect::Rect;
 use super::search::{structure, PILOT};
-use super::served::{cone, CHUNK};
+use super::served::{cone_to, CHUNK};
 use super::MODEL;
 use crate::bundle::Bundle;
 use crate::models::{cost, parse_params, Cost, Inputs, Measure, Plan};
@@ -94,8 +94,9 @@ fn plan_params(p: &Params, sw: u32, sh: u32, create: bool) -> Result<Plan> {
             _ => subpass(pixels(s) * vector(s) * SCAN_BYTE),
         }
     };
-    let work = |s: u8, side: usize| -> f64 {
-        let rects = cone(&st, s, Rect { x: 0, y: 0, w: side, h: side });
+    // The work of generation m of an s-level rectangle, and of its latest generation.
+    let work_to = |s: u8, m: u8, side: usize| -> f64 {
+        let rects = cone_to(&st, s, m, Rect { x: 0, y: 0, w: side, h: side });
         rects
             .iter()
             .enumerate()
@@ -103,6 +104,7 @@ fn plan_params(p: &Params, sw: u32, sh: u32, create: bool) -> Result<Plan> {
             .map(|(l, m, r)| r.area() as f64 * entry(l as u8, m as u8))
             .sum()
     };
+    let work = |s: u8, side: usize| work_to(s, st.last(s), side);
     let tile = (CHUNK * CHUNK) as f64;
     let calibration = CALIBRATION_WINDOWS * work(fin, CALIBRATION_WINDOW.max(2 << fin));
     let levels = level_count(p.width, p.height);
@@ -114,10 +116,10 @@ fn plan_params(p: &Params, sw: u32, sh: u32, create: bool) -> Result<Plan> {
         let chunks = (1u64 << (2 * d)) as f64;
         match source(p, l) {
             Source::Exact => chunks * (work(fin, CHUNK as usize) + tile * COLOUR) + chunks * tile * DOWNSAMPLE,
-            Source::Pyramid { r } => {
+            Source::Pyramid { r, m } => {
                 let s = fin - r as u8;
-                let cal = if r > 0 { calibration } else { 0.0 };
-                chunks * (work(s, CHUNK as usize) + tile * (COLOUR + DOWNSAMPLE)) + cal
+                let cal = if r > 0 || m < st.last(s) { calibration } else { 0.0 };
+                chunks * (work_to(s, m, CHUNK as usize) + tile * (COLOUR + DOWNSAMPLE)) + cal
             }
             Source::Mean => calibration + tile * COLOUR,
         }
