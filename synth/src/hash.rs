@@ -16,10 +16,21 @@ pub fn fmix64(mut k: u64) -> u64 {
 /// Hash of (seed, stream, x, y). Streams keep unrelated uses of one seed independent.
 #[inline]
 pub fn hash4(seed: u64, stream: u64, x: i64, y: i64) -> u64 {
+    hash4_y(hash4_x(seed, stream, x), y)
+}
+
+/// The part of [`hash4`] that `y` does not change, for loops over many rows of one column.
+#[inline]
+pub fn hash4_x(seed: u64, stream: u64, x: i64) -> u64 {
     let mut h = fmix64(seed ^ 0x9e37_79b9_7f4a_7c15);
     h = fmix64(h ^ stream.wrapping_mul(0xd6e8_feb8_6659_fd93));
-    h = fmix64(h ^ (x as u64).wrapping_mul(0xa076_1d64_78bd_642f));
-    fmix64(h ^ (y as u64).wrapping_mul(0xe703_7ed1_a0b4_28db))
+    fmix64(h ^ (x as u64).wrapping_mul(0xa076_1d64_78bd_642f))
+}
+
+/// [`hash4`] from its [`hash4_x`] part.
+#[inline]
+pub fn hash4_y(hx: u64, y: i64) -> u64 {
+    fmix64(hx ^ (y as u64).wrapping_mul(0xe703_7ed1_a0b4_28db))
 }
 
 /// A uniform integer in `0..n` from a hash (Lemire's multiply-shift; `n` > 0).

@@ -120,7 +120,7 @@ pub fn fig_mip(out: &Out) {
         for m in psnr_by_level(&texture, WINDOW, LEVELS).expect("valid regions") {
             let source = match prefilter::source(texture.params(), m.level) {
                 prefilter::Source::Exact => "exact".to_string(),
-                prefilter::Source::Pyramid { r } => format!("pyramid r={r}"),
+                prefilter::Source::Pyramid { r, .. } => format!("pyramid r={r}"),
                 prefilter::Source::Mean => "mean".to_string(),
             };
             writeln!(csv, "{name},{},{source},{:.2},{:.2}", m.level, m.served_db, m.point_db).unwrap();

@@ -6,7 +6,7 @@ use super::cache::{BlockCache, Pyramid};
 use super::params::Params;
 use super::rect::Rect;
 use super::search::Synthesizer;
-use super::served::{evaluate, Counts};
+use super::served::{evaluate_generation, Counts};
 use super::shared::{Shared, Work};
 use crate::pixels::Rgba8Image;
 use crate::texture::Stop;
@@ -60,14 +60,32 @@ impl SynthesisLevels {
     /// The latest generation of synthesis level `s` over `rect` (exemplar indices), through
     /// the shared cache when it has a budget; `None` once `stop` is requested.
     pub fn entries(&self, s: u8, rect: Rect, stop: &dyn Stop) -> Option<Vec<u16>> {
+        self.entries_at(s, self.synthesizer.structure().last(s), rect, stop)
+    }
+
+    /// Generation `m` of synthesis level `s` over `rect`, as [`entries`](Self::entries).
+    pub fn entries_at(&self, s: u8, m: u8, rect: Rect, stop: &dyn Stop) -> Option<Vec<u16>> {
+        let st = self.synthesizer.structure();
+        if st.is_noise(s, m) {
+            return self.noise(rect, stop);
+        }
         let cache = (self.pyramid.cache().budget() > 0).then_some(&self.pyramid);
         let mut counts = Counts::default();
-        let st = self.synthesizer.structure();
-        let values = evaluate(&self.synthesizer, st, cache, s, rect, &mut counts, stop);
+        let values = evaluate_generation(&self.synthesizer, st, cache, s, m, rect, &mut counts, stop);
         for work in [&self.work, &self.shared.work] {
             work.add(counts.computed + counts.noise, counts.noise, 0);
         }
         values
+    }
+
+    /// The noise over `rect`, drawn directly: a hash an entry costs less than the evaluator's
+    /// bookkeeping around it, and caching it would only evict dearer entries.
+    fn noise(&self, rect: Rect, stop: &dyn Stop) -> Option<Vec<u16>> {
+        let values = self.synthesizer.noise_over(rect, stop)?;
+        for work in [&self.work, &self.shared.work] {
+            work.add(values.len() as u64, values.len() as u64, 0);
+        }
+        Some(values)
     }
 
     /// Level-0 pixels of a `w × h` window at (x, y), or `None` once `stop` is requested.

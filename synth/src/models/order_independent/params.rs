@@ -6,7 +6,7 @@
 //! {"seed": 7, "width": 100000, "height": 100000, "levels": 4, "generations": 5,
 //!  "neighbourhood": {"same": "circle5", "lower": "square3"}, "search": "kcoherence", "k": 2,
 //!  "k_exclusion": 2, "kappa": 100, "jitter": 1, "subpasses": 4,
-//!  "mip": {"exact_levels": 0, "lookahead": 1, "noise_levels": 3}}
+//!  "mip": {"exact_levels": 0, "lookahead": 1, "noise_levels": 3}, "mip_generations": [1, 1, 2]}
 //! ```
 
 use crate::{Error, Result};
@@ -203,6 +203,13 @@ pub struct Params {
     pub exemplar_wrap: bool,
     #[serde(default)]
     pub mip: MipSpec,
+    /// Per vtex level 1, 2, …: the generation of the synthesis level it reads (see `mip`),
+    /// capped at that level's latest; levels past the list read the latest. An earlier
+    /// generation skips the last subpasses, the dearest part of a coarse tile. Unset when
+    /// creating: [`DEFAULT_MIP_GENERATIONS`] with four subpasses; a stored encoding without it
+    /// reads the latest everywhere.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub mip_generations: Option<Vec<u8>>,
 }
 
 fn default_extent() -> u64 {
@@ -225,6 +232,12 @@ fn four() -> u8 {
 pub const DEFAULT_JITTER: u8 = 1;
 pub const DEFAULT_KAPPA: u16 = 100;
 pub const DEFAULT_BALANCE: u8 = 1;
+/// The generations vtex levels 1, 2 and 3 read when `create` is given none and the synthesis
+/// has four subpasses: the fewest subpasses with which each level still keeps the model's mip
+/// guarantee on the demos (`docs/models/order-independent.md`, levels).
+pub const DEFAULT_MIP_GENERATIONS: [u8; 3] = [0, 1, 2];
+/// The longest `mip_generations` list.
+pub const MAX_MIP_GENERATIONS: usize = 8;
 
 impl Params {
     /// Generations of every level but the coarsest.
@@ -276,7 +289,16 @@ impl Params {
         let exemplar = if upsampled { ExemplarLevels::Stack } else { ExemplarLevels::Pyramid };
         self.exemplar = Some(self.exemplar.unwrap_or(exemplar));
         self.balance = Some(self.balance.unwrap_or(if kcoherence { DEFAULT_BALANCE } else { 0 }));
+        if self.mip_generations.is_none() && self.subpasses() == 4 {
+            self.mip_generations = Some(DEFAULT_MIP_GENERATIONS.to_vec());
+        }
         self
+    }
+
+    /// The generation vtex level `l` ≥ 1 reads of a synthesis level whose latest is `last`.
+    pub fn mip_generation(&self, l: u32, last: u8) -> u8 {
+        let listed = self.mip_generations.as_ref().and_then(|g| g.get(l as usize - 1).copied());
+        listed.map_or(last, |m| m.min(last))
     }
 
     /// `generation0`, or the default for the search mode.
@@ -314,6 +336,17 @@ impl Params {
         range("mip.exact_levels", self.mip.exact_levels, 0, MAX_EXACT_LEVELS)?;
         range("mip.lookahead", self.mip.lookahead, 0, 1)?;
         range("mip.noise_levels", self.mip.noise_levels, 0, MAX_NOISE_LEVELS)?;
+        if let Some(g) = &self.mip_generations {
+            if g.len() > MAX_MIP_GENERATIONS {
+                return Err(Error::param(
+                    "mip_generations",
+                    format!("{} entries: at most {MAX_MIP_GENERATIONS}", g.len()),
+                ));
+            }
+            for &m in g {
+                range("mip_generations", m, 0, MAX_GENERATIONS - 1)?;
+            }
+        }
         if self.subpasses() != 1 && self.subpasses() != 4 {
             return Err(Error::param("subpasses", format!("{}: must be 1 or 4", self.subpasses())));
         }
@@ -404,5 +437,10 @@ mod tests {
         assert_eq!(named(json!({"seed": 1, "mip": {"lookahead": 2}}), 64, 64), "mip.lookahead");
         assert_eq!(named(json!({"seed": 1, "mip": {"noise_levels": 5}}), 64, 64), "mip.noise_levels");
         assert_eq!(named(json!({"seed": 1, "mip": {"exact_levels": 3}}), 64, 64), "mip.exact_levels");
+        assert_eq!(named(json!({"seed": 1, "mip_generations": [1, 6]}), 64, 64), "mip_generations");
+        assert_eq!(
+            named(json!({"seed": 1, "mip_generations": [0, 0, 0, 0, 0, 0, 0, 0, 0]}), 64, 64),
+            "mip_generations"
+        );
     }
 }

@@ -5,7 +5,7 @@ use super::params::{ExemplarLevels, Generation0, Params, Search};
 use super::prefilter::{source, span, Source};
 use super::rect::Rect;
 use super::search::{structure, PILOT};
-use super::served::{cone, CHUNK};
+use super::served::{cone_to, CHUNK};
 use super::MODEL;
 use crate::bundle::Bundle;
 use crate::models::{cost, parse_params, Cost, Inputs, Measure, Plan};
@@ -94,8 +94,9 @@ fn plan_params(p: &Params, sw: u32, sh: u32, create: bool) -> Result<Plan> {
             _ => subpass(pixels(s) * vector(s) * SCAN_BYTE),
         }
     };
-    let work = |s: u8, side: usize| -> f64 {
-        let rects = cone(&st, s, Rect { x: 0, y: 0, w: side, h: side });
+    // The work of generation m of an s-level rectangle, and of its latest generation.
+    let work_to = |s: u8, m: u8, side: usize| -> f64 {
+        let rects = cone_to(&st, s, m, Rect { x: 0, y: 0, w: side, h: side });
         rects
             .iter()
             .enumerate()
@@ -103,6 +104,7 @@ fn plan_params(p: &Params, sw: u32, sh: u32, create: bool) -> Result<Plan> {
             .map(|(l, m, r)| r.area() as f64 * entry(l as u8, m as u8))
             .sum()
     };
+    let work = |s: u8, side: usize| work_to(s, st.last(s), side);
     let tile = (CHUNK * CHUNK) as f64;
     let calibration = CALIBRATION_WINDOWS * work(fin, CALIBRATION_WINDOW.max(2 << fin));
     let levels = level_count(p.width, p.height);
@@ -114,10 +116,10 @@ fn plan_params(p: &Params, sw: u32, sh: u32, create: bool) -> Result<Plan> {
         let chunks = (1u64 << (2 * d)) as f64;
         match source(p, l) {
             Source::Exact => chunks * (work(fin, CHUNK as usize) + tile * COLOUR) + chunks * tile * DOWNSAMPLE,
-            Source::Pyramid { r } => {
+            Source::Pyramid { r, m } => {
                 let s = fin - r as u8;
-                let cal = if r > 0 { calibration } else { 0.0 };
-                chunks * (work(s, CHUNK as usize) + tile * (COLOUR + DOWNSAMPLE)) + cal
+                let cal = if r > 0 || m < st.last(s) { calibration } else { 0.0 };
+                chunks * (work_to(s, m, CHUNK as usize) + tile * (COLOUR + DOWNSAMPLE)) + cal
             }
             Source::Mean => calibration + tile * COLOUR,
         }
@@ -137,7 +139,17 @@ fn plan_params(p: &Params, sw: u32, sh: u32, create: bool) -> Result<Plan> {
     // Resident: per exemplar pixel of each level, colours and box colours, its balance, the
     // valid masks, and where searched its vector, its k-coherence set and the set shifted 9
     // ways (with whether each shifted set starts with the coherent continuation); the
-    // calibration's colours; the empty cache and counters of a texture loaded alone.
+    // calibration's colours (g, and g_s of each synthesis level read before its latest
+    // generation); the empty cache and counters of a texture loaded alone.
+    let measured: f64 = (1..levels)
+        .filter_map(|l| match source(p, l) {
+            Source::Pyramid { r, m } if m < st.last(fin - r as u8) && r < fin as u32 => Some(fin - r as u8),
+            _ => None,
+        })
+        .collect::<std::collections::BTreeSet<u8>>()
+        .into_iter()
+        .map(|s| pixels(s) * 3.0)
+        .sum();
     let resident: f64 = (0..p.levels)
         .map(|s| {
             let n = pixels(s);
@@ -147,6 +159,7 @@ fn plan_params(p: &Params, sw: u32, sh: u32, create: bool) -> Result<Plan> {
         })
         .sum::<f64>()
         + pixels(0) * 3.0
+        + measured
         + 8192.0;
     let resident_why = format!("a {sw}×{sh} sample in {} levels: colours, vectors, k-coherence sets", p.levels);
 

@@ -12,6 +12,12 @@
 //!   block only in part and the averages lose contrast; each level's deviations from the mean
 //!   are scaled by a gain measured on the calibration windows, where the exact chain is known,
 //!   so its σ is the chain's.
+//! * With `mip_generations`, level j reads an earlier generation m of its synthesis level,
+//!   skipping the last subpasses (most of a tile one level finer than itself costs). Generation
+//!   0 (the upsampled coordinates) is coloured whole; a later one by its searched entries
+//!   alone, which with four subpasses are final, the others being upsampled guesses whose
+//!   errors would not average out at coarser levels. Either is coloured with g_s, the measured
+//!   mean colour of the level-0 blocks grown from an entry, as the coarsest level is with g.
 //! * Beyond: the texture's mean colour, flat (a pixel there averages thousands of independent
 //!   noise cells).
 
@@ -35,10 +41,31 @@ const WINDOW: u32 = 64;
 pub enum Source {
     /// Level 0, box-filtered.
     Exact,
-    /// Synthesis level K − 1 − r, coloured with B_r (g at the coarsest), box-filtered j − r times.
-    Pyramid { r: u32 },
+    /// Generation m of synthesis level K − 1 − r, coloured with B_r (g at the coarsest),
+    /// box-filtered j − r times.
+    Pyramid { r: u32, m: u8 },
     /// The mean colour.
     Mean,
+}
+
+impl Source {
+    /// Whether the source is level 0 itself, box-filtered.
+    fn exact(self, p: &super::Params) -> bool {
+        match self {
+            Source::Exact => true,
+            Source::Pyramid { r: 0, m } => m == latest(p, p.levels - 1),
+            _ => false,
+        }
+    }
+}
+
+/// The latest generation of synthesis level `s`.
+fn latest(p: &super::Params, s: u8) -> u8 {
+    if s == 0 {
+        p.coarsest_generations - 1
+    } else {
+        p.generations() - 1
+    }
 }
 
 /// The source of vtex level `l` ≥ 1.
@@ -49,7 +76,9 @@ pub fn source(p: &super::Params, l: u32) -> Source {
     } else if l > fin + p.mip.noise_levels as u32 {
         Source::Mean
     } else {
-        Source::Pyramid { r: (l - p.mip.lookahead as u32).min(fin) }
+        let r = (l - p.mip.lookahead as u32).min(fin);
+        let last = latest(p, (fin - r) as u8);
+        Source::Pyramid { r, m: p.mip_generation(l, last) }
     }
 }
 
@@ -58,7 +87,7 @@ pub fn span(p: &super::Params, l: u32) -> u32 {
     match (l, source(p, l.max(1))) {
         (0, _) => 0,
         (_, Source::Exact) => l,
-        (_, Source::Pyramid { r }) => l - r,
+        (_, Source::Pyramid { r, .. }) => l - r,
         (_, Source::Mean) => 0,
     }
 }
@@ -70,6 +99,10 @@ pub struct Calibration {
     /// g(u): mean level-0 colour of the blocks whose coarsest-level coordinate is u (B at u
     /// where no block of the windows grew from u, and everywhere in a stack).
     pub g: Vec<[u8; 3]>,
+    /// Per synthesis level s above the coarsest that a coarse vtex level reads before its
+    /// latest generation: g_s(u), the mean level-0 colour of the blocks grown from an entry u
+    /// of the generation read (B_s where none grew, binned in a stack as g is).
+    pub measured: Vec<Option<Vec<[u8; 3]>>>,
     pub mean: [u8; 3],
     /// Per vtex level, how its pyramid source is brought to the exact chain's contrast around
     /// the texture's mean; `None` where the source is exact, or a window is smaller than a
@@ -147,21 +180,36 @@ impl Calibration {
         };
         let mean = total.map(|t| ((t + weight / 2) / weight) as u8);
         let top = fin + p.mip.noise_levels as u32;
+        let mut measured = vec![None; fin as usize + 1];
+        for (s, slot) in measured.iter_mut().enumerate().skip(1) {
+            let r = fin - s as u32;
+            let read = (1..=top).find_map(|l| match source(p, l) {
+                Source::Pyramid { r: rr, m } if rr == r && m < latest(p, s as u8) => Some(m),
+                _ => None,
+            });
+            // Generation 0 is coloured whole; a later one by its searched entries, which are
+            // the latest's.
+            if let Some(m) = read {
+                let m = if m == 0 { 0 } else { latest(p, s as u8) };
+                *slot = Some(measure(tex, &windows, s as u8, m, stop)?);
+            }
+        }
         let mut contrast = vec![None; top as usize + 1];
         for (l, contrast) in contrast.iter_mut().enumerate().skip(1) {
             let l = l as u32;
-            let Source::Pyramid { r } = source(p, l) else { continue };
-            if r == 0 || side >> l == 0 {
+            let src = source(p, l);
+            let Source::Pyramid { r, m } = src else { continue };
+            if src.exact(p) || side >> l == 0 {
                 continue;
             }
             let (mut exact, mut raw) = (Moments::default(), Moments::default());
             for (x, y, img) in &windows {
                 exact.add(&downsample_n(img, l));
-                raw.add(&pyramid(tex, &g, r, l - r, x >> l, y >> l, side >> l, side >> l, stop)?);
+                raw.add(&pyramid(tex, &g, &measured, r, m, l - r, x >> l, y >> l, side >> l, side >> l, stop)?);
             }
             *contrast = Some(Contrast { centre: raw.mean_q8(), gain: exact.gain_over(&raw) });
         }
-        Some(Calibration { g, mean, contrast })
+        Some(Calibration { g, measured, mean, contrast })
     }
 
     /// `img` (a source of level `l`) brought to the exact chain's contrast.
@@ -174,6 +222,49 @@ impl Calibration {
             }
         }
     }
+}
+
+/// g_s: the mean level-0 colour over `windows` of the blocks whose level-`s` entry at generation
+/// `m` is u, per bin of u (see [`Calibration::measured`]); `None` once `stop` is requested.
+fn measure(
+    tex: &SynthesisLevels,
+    windows: &[(i64, i64, Rgba8Image)],
+    s: u8,
+    m: u8,
+    stop: &dyn Stop,
+) -> Option<Vec<[u8; 3]>> {
+    let shift = tex.params().levels as u32 - 1 - s as u32;
+    let block = 1usize << shift;
+    let level = &tex.synthesizer().exemplar().levels[s as usize];
+    let bin: usize = if tex.synthesizer().exemplar().stack { block } else { 1 };
+    let (w, n) = (level.w as usize, level.colour.len());
+    let bins_w = w.div_ceil(bin);
+    let key = |u: usize| (u / w / bin) * bins_w + u % w / bin;
+    let mut sums = vec![[0u64; 4]; bins_w * (n / w).div_ceil(bin)];
+    for (x, y, img) in windows {
+        let side = img.width as usize;
+        let cells = side >> shift;
+        let entries = tex.entries_at(s, m, Rect { x: x >> shift, y: y >> shift, w: cells, h: cells }, stop)?;
+        for (k, &u) in entries.iter().enumerate() {
+            let (bx, by) = ((k % cells) << shift, (k / cells) << shift);
+            let acc = &mut sums[key(u as usize)];
+            for j in 0..block {
+                let row = (by + j) * side + bx;
+                for px in img.data[row * 4..(row + block) * 4].chunks_exact(4) {
+                    (0..3).for_each(|c| acc[c] += px[c] as u64);
+                    acc[3] += 1;
+                }
+            }
+        }
+    }
+    Some(
+        (0..n)
+            .map(|u| match sums[key(u)] {
+                s if s[3] == 0 => level.boxed[u],
+                s => [0, 1, 2].map(|c| ((s[c] + s[3] / 2) / s[3]) as u8),
+            })
+            .collect(),
+    )
 }
 
 /// Sums of the RGB channels and their squares over some images, for σ.
@@ -236,7 +327,8 @@ pub fn render(
 ) -> Option<Rgba8Image> {
     let Rect { x, y, w, h } = area;
     let (w, h) = (w as u32, h as u32);
-    match source(tex.params(), l) {
+    let src = source(tex.params(), l);
+    match src {
         Source::Exact => Some(downsample_n(&tex.level0(x << l, y << l, w << l, h << l, stop)?, l)),
         Source::Mean => {
             let c = calibration(tex, cell, stop)?.mean;
@@ -246,24 +338,26 @@ pub fn render(
             }
             Some(img)
         }
-        // The finest synthesis level coloured by the sample: exact.
-        Source::Pyramid { r: 0 } => pyramid(tex, &[], 0, l, x, y, w, h, stop),
-        Source::Pyramid { r } => {
+        // The finest synthesis level's latest generation coloured by the sample: exact.
+        Source::Pyramid { r, m } if src.exact(tex.params()) => pyramid(tex, &[], &[], r, m, l, x, y, w, h, stop),
+        Source::Pyramid { r, m } => {
             let cal = calibration(tex, cell, stop)?;
-            let mut img = pyramid(tex, &cal.g, r, l - r, x, y, w, h, stop)?;
+            let mut img = pyramid(tex, &cal.g, &cal.measured, r, m, l - r, x, y, w, h, stop)?;
             cal.adjust(l, &mut img);
             Some(img)
         }
     }
 }
 
-/// `w × h` pixels at (x, y) of synthesis level K − 1 − `r` coloured with B_r (`g` at the
-/// coarsest) and box-filtered `d` times, or `None` once `stop` is requested.
+/// `w × h` pixels at (x, y) of generation `m` of synthesis level K − 1 − `r` coloured with
+/// B_r (`g` at the coarsest) and box-filtered `d` times, or `None` once `stop` is requested.
 #[allow(clippy::too_many_arguments)]
 fn pyramid(
     tex: &SynthesisLevels,
     g: &[[u8; 3]],
+    measured: &[Option<Vec<[u8; 3]>>],
     r: u32,
+    m: u8,
     d: u32,
     x: i64,
     y: i64,
@@ -273,12 +367,40 @@ fn pyramid(
 ) -> Option<Rgba8Image> {
     let s = tex.params().levels as u32 - 1 - r;
     let rect = Rect { x: x << d, y: y << d, w: (w as usize) << d, h: (h as usize) << d };
-    let colours = if s == 0 { g } else { &tex.synthesizer().exemplar().levels[s as usize].boxed };
-    let values = tex.entries(s as u8, rect, stop)?;
-    let mut img = Rgba8Image::new(w << d, h << d);
-    for (px, &v) in img.data.chunks_exact_mut(4).zip(&values) {
-        let c = colours[v as usize];
+    let colours = match measured.get(s as usize) {
+        _ if s == 0 => g,
+        Some(Some(g)) => g,
+        _ => &tex.synthesizer().exemplar().levels[s as usize].boxed,
+    };
+    let values = tex.entries_at(s as u8, m, rect, stop)?;
+    let st = tex.synthesizer().structure();
+    if d == 0 || m == 0 || m == st.last(s as u8) {
+        let mut img = Rgba8Image::new(w << d, h << d);
+        for (px, &v) in img.data.chunks_exact_mut(4).zip(&values) {
+            let c = colours[v as usize];
+            px.copy_from_slice(&[c[0], c[1], c[2], 255]);
+        }
+        return Some(downsample_n(&img, d));
+    }
+    // Before a level's latest generation, the entries some generation has updated are the
+    // searched ones (with four subpasses, final), the others still upsampled guesses whose
+    // errors do not average out over coarser levels: each 2×2 block is coloured by its
+    // updated entries alone.
+    let updated = |i: usize, j: usize| (1..=m).any(|g| st.updates(g, rect.x + i as i64, rect.y + j as i64));
+    let (bw, bh) = (rect.w / 2, rect.h / 2);
+    let mut img = Rgba8Image::new(bw as u32, bh as u32);
+    for (k, px) in img.data.chunks_exact_mut(4).enumerate() {
+        let (bx, by) = (2 * (k % bw), 2 * (k / bw));
+        let (mut sum, mut n) = ([0u32; 3], 0u32);
+        for (i, j) in [(bx, by), (bx + 1, by), (bx, by + 1), (bx + 1, by + 1)] {
+            if updated(i, j) {
+                let c = colours[values[j * rect.w + i] as usize];
+                (0..3).for_each(|ch| sum[ch] += c[ch] as u32);
+                n += 1;
+            }
+        }
+        let c = sum.map(|v| ((v + n / 2) / n) as u8);
         px.copy_from_slice(&[c[0], c[1], c[2], 255]);
     }
-    Some(downsample_n(&img, d))
+    Some(downsample_n(&img, d - 1))
 }

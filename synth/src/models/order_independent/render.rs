@@ -185,8 +185,9 @@ mod tests {
         out
     }
 
+    /// Entries computed other than noise (drawn directly, never cached).
     fn computed(t: &OrderIndependent) -> u64 {
-        t.work_counters()[0].1
+        t.work_counters()[0].1 - t.work_counters()[1].1
     }
 
     /// Budgets of 0, a few blocks and plenty; cold and warm; shuffled orders on two threads:
@@ -240,6 +241,76 @@ mod tests {
             assert_eq!(at(l, i64::MIN, -20, 30, 40), big.crop(30, 0, 30, 40), "level {l}: at i64::MIN");
             assert_eq!(at(l, i64::MAX - 30, i64::MAX - 40, 30, 40), at(l, -31, -41, 30, 40), "level {l}: at i64::MAX");
         }
+    }
+
+    /// Searches (the dear entries) under a 256² tile of every vtex level 1–6 of each demo, as
+    /// `render` chunks it, are at most twice those under a level-0 tile.
+    #[test]
+    fn a_coarse_tile_searches_at_most_twice_what_a_level_0_tile_does() {
+        use super::super::prefilter::{source, span, Source};
+        use super::super::search::Synthesizer;
+        use super::super::structure::{Entry, Synthesis};
+        use std::cell::Cell;
+        struct Searches<'a>(&'a Synthesizer, Cell<u64>);
+        impl Synthesis for Searches<'_> {
+            fn noise(&self, x: i64, y: i64) -> u16 {
+                self.0.noise(x, y)
+            }
+            fn entry(&self, e: Entry, same: &[u16], lower: &[u16]) -> u16 {
+                if e.m > 0 && self.0.structure().updates(e.m, e.x, e.y) {
+                    self.1.set(self.1.get() + 1);
+                }
+                self.0.entry(e, same, lower)
+            }
+        }
+        for bundle in super::super::demos() {
+            let t = load(&bundle).unwrap();
+            let (p, syn) = (t.params(), t.levels.synthesizer());
+            let fin = p.levels - 1;
+            let searches = |s: u8, m: u8| {
+                let counting = Searches(syn, Cell::new(0));
+                let rect = Rect { x: 4096, y: -8192, w: CHUNK as usize, h: CHUNK as usize };
+                super::super::served::evaluate_generation(
+                    &counting,
+                    syn.structure(),
+                    None,
+                    s,
+                    m,
+                    rect,
+                    &mut Counts::default(),
+                    &Never,
+                );
+                counting.1.get()
+            };
+            let level0 = searches(fin, syn.structure().last(fin));
+            for l in 1..=6 {
+                let tile = match source(p, l) {
+                    Source::Pyramid { r, m } => (1u64 << (2 * span(p, l))) * searches(fin - r as u8, m),
+                    Source::Mean => 0,
+                    Source::Exact => unreachable!("the demos have no exact levels"),
+                };
+                assert!(tile <= 2 * level0, "{}: level {l} searches {tile}, level 0 {level0}", bundle.manifest.name);
+            }
+        }
+    }
+
+    /// A stored encoding without `mip_generations` keeps its coarse levels (level 1 the exact
+    /// box of level 0); `create` writes the default, with which level 1 is coloured from an
+    /// earlier generation.
+    #[test]
+    fn a_stored_encoding_without_mip_generations_keeps_its_coarse_levels() {
+        let made =
+            bundle(json!({"seed": 5, "levels": 3, "width": 4096, "height": 4096}), crate::samples::lichen(32, 2));
+        let written = made.manifest.full_params().unwrap()["mip_generations"].clone();
+        assert_eq!(written, json!(super::super::params::DEFAULT_MIP_GENERATIONS));
+        let mut stored = made.clone();
+        stored.manifest.derived.remove("mip_generations");
+        let region = Region::new(1, 40, -24, 32, 16);
+        let exact = crate::mip::downsample(
+            &crate::texture::render_image(&load(&stored).unwrap(), &Region::new(0, 80, -48, 64, 32)).unwrap(),
+        );
+        assert_eq!(crate::texture::render_image(&load(&stored).unwrap(), &region).unwrap(), exact);
+        assert_ne!(crate::texture::render_image(&load(&made).unwrap(), &region).unwrap(), exact);
     }
 
     /// The paper's computation ratio for an isolated cold 256² tile of the paper's structure

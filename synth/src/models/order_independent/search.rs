@@ -9,7 +9,7 @@ use super::params::{ExemplarLevels, Generation0, LowerShape, Params, SameShape, 
 use super::rect::Rect;
 use super::served::{evaluate, Counts};
 use super::structure::{circle5, square, union, without_centre, Entry, Structure, Synthesis, Taps};
-use crate::hash::{below, hash4};
+use crate::hash::{below, hash4, hash4_x, hash4_y};
 use crate::pixels::Rgba8Image;
 use crate::{Error, Result};
 
@@ -292,6 +292,31 @@ fn argmin(level: &Level, pixels: &[u16], target: &[u8], range: std::ops::Range<u
 }
 
 impl Synthesizer {
+    /// The noise entry drawn by hash `h`.
+    #[inline]
+    fn noise_of(&self, h: u64) -> u16 {
+        let (nw, nh) = self.noise_area();
+        let i = below(h, (nw * nh) as u64) as u32;
+        (i / nw * self.exemplar.levels[0].w + i % nw) as u16
+    }
+
+    /// The noise over `rect`, row-major, as [`Synthesis::noise`] draws it entry by entry (the
+    /// hash's steps that depend on the column alone are taken once a column), or `None` once
+    /// `stop` is requested.
+    pub fn noise_over(&self, rect: Rect, stop: &dyn crate::Stop) -> Option<Vec<u16>> {
+        let at = |i: usize, j: usize| self.hashed_at(0, rect.x.wrapping_add(i as i64), rect.y.wrapping_add(j as i64));
+        let columns: Vec<u64> = (0..rect.w).map(|i| hash4_x(self.seed, STREAM_NOISE, at(i, 0).0)).collect();
+        let mut values = Vec::with_capacity(rect.area());
+        for j in 0..rect.h {
+            if stop.requested() {
+                return None;
+            }
+            let y = at(0, j).1;
+            values.extend(columns.iter().map(|&hx| self.noise_of(hash4_y(hx, y))));
+        }
+        Some(values)
+    }
+
     /// The coordinates a pixel of level `s` is hashed at: reduced onto the torus, and on the
     /// plane to their signed representatives modulo the plane's period at that level (which
     /// repeats every 2^PLANE_BITS pixels of level 0, so that no evaluation comes near the i64
@@ -351,9 +376,7 @@ fn argmin_weighted(level: &Level, candidates: &[(u16, u64)], target: &[u8]) -> O
 impl Synthesis for Synthesizer {
     fn noise(&self, x: i64, y: i64) -> u16 {
         let (x, y) = self.hashed_at(0, x, y);
-        let (nw, nh) = self.noise_area();
-        let i = below(hash4(self.seed, STREAM_NOISE, x, y), (nw * nh) as u64) as u32;
-        (i / nw * self.exemplar.levels[0].w + i % nw) as u16
+        self.noise_of(hash4(self.seed, STREAM_NOISE, x, y))
     }
 
     fn entry(&self, e: Entry, same: &[u16], lower: &[u16]) -> u16 {
@@ -418,6 +441,28 @@ mod tests {
     fn synthesizer(params: serde_json::Value) -> Synthesizer {
         let p: Params = serde_json::from_value(params).unwrap();
         Synthesizer::new(&p, &crate::samples::lichen(32, 1)).unwrap()
+    }
+
+    /// A rectangle's noise drawn at once is the noise drawn entry by entry: on the plane
+    /// (across its period's wrap and at the ends of i64) and on a torus.
+    #[test]
+    fn noise_over_a_rectangle_is_the_noise_of_each_entry() {
+        for params in [
+            json!({"seed": 4, "levels": 3}),
+            json!({"seed": 5, "levels": 3, "exemplar": "stack", "jitter": 1}),
+            json!({"seed": 6, "levels": 3, "domain": "torus", "width": 24, "height": 40}),
+        ] {
+            let syn = synthesizer(params.clone());
+            let coarsest = 1i64 << (PLANE_BITS - 2);
+            for (x, y) in [(-7, 3), (coarsest - 5, -coarsest - 4), (i64::MIN, i64::MAX - 8), (i64::MAX - 10, 30)] {
+                let rect = Rect { x, y, w: 13, h: 9 };
+                let got = syn.noise_over(rect, &crate::Never).unwrap();
+                for (k, &v) in got.iter().enumerate() {
+                    let (i, j) = ((k % rect.w) as i64, (k / rect.w) as i64);
+                    assert_eq!(v, syn.noise(x.wrapping_add(i), y.wrapping_add(j)), "{params}: ({x}, {y}) + ({i}, {j})");
+                }
+            }
+        }
     }
 
     /// The noise is a pure function of (seed, x, y), covers the coarsest level, and is

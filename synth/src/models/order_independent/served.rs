@@ -43,7 +43,23 @@ pub fn evaluate<S: Synthesis>(
     counts: &mut Counts,
     stop: &dyn Stop,
 ) -> Option<Vec<u16>> {
-    let mut layers: Vec<Vec<Layer>> = cone(st, s, rect)
+    evaluate_generation(syn, st, cache, s, st.last(s), rect, counts, stop)
+}
+
+/// Generation `m` of level `s` over `rect` (the later generations of `s` are not computed),
+/// or `None` once `stop` is requested.
+#[allow(clippy::too_many_arguments)]
+pub fn evaluate_generation<S: Synthesis>(
+    syn: &S,
+    st: &Structure,
+    cache: Option<&Pyramid>,
+    s: u8,
+    m: u8,
+    rect: Rect,
+    counts: &mut Counts,
+    stop: &dyn Stop,
+) -> Option<Vec<u16>> {
+    let mut layers: Vec<Vec<Layer>> = cone_to(st, s, m, rect)
         .into_iter()
         .map(|gens| gens.into_iter().map(|rect| Layer { rect, values: vec![0; rect.area()], compute: None }).collect())
         .collect();
@@ -51,7 +67,7 @@ pub fn evaluate<S: Synthesis>(
         prune(st, cache, &mut layers);
     }
     for l in 0..=s {
-        for m in 0..st.generations_of(l) {
+        for m in 0..layers[l as usize].len() as u8 {
             compute(syn, st, &mut layers, l, m, counts, stop)?;
             if let Some(cache) = cache {
                 let layer = &layers[l as usize][m as usize];
@@ -59,16 +75,23 @@ pub fn evaluate<S: Synthesis>(
             }
         }
     }
-    Some(std::mem::take(&mut layers[s as usize][st.last(s) as usize].values))
+    Some(std::mem::take(&mut layers[s as usize][m as usize].values))
 }
 
 /// The rectangle of every (level, generation) the latest generation of `s` over `rect` reads,
 /// indexed [level][generation].
 pub fn cone(st: &Structure, s: u8, rect: Rect) -> Vec<Vec<Rect>> {
-    let mut rects: Vec<Vec<Rect>> = (0..=s).map(|l| vec![rect; st.generations_of(l) as usize]).collect();
+    cone_to(st, s, st.last(s), rect)
+}
+
+/// The rectangle of every (level, generation) generation `last` of `s` over `rect` reads,
+/// indexed [level][generation]; level `s` ends at generation `last`.
+pub fn cone_to(st: &Structure, s: u8, last: u8, rect: Rect) -> Vec<Vec<Rect>> {
+    let gens = |l: u8| if l == s { last + 1 } else { st.generations_of(l) };
+    let mut rects: Vec<Vec<Rect>> = (0..=s).map(|l| vec![rect; gens(l) as usize]).collect();
     let mut top = rect;
     for l in (0..=s).rev() {
-        let g = st.generations_of(l) as usize;
+        let g = gens(l) as usize;
         rects[l as usize][g - 1] = top;
         for m in (1..g).rev() {
             let same = if l == 0 { &st.coarsest_same } else { &st.same };
@@ -245,6 +268,15 @@ mod tests {
                     for (k, &v) in dense.iter().enumerate() {
                         let (x, y) = (rect.x + (k % rect.w) as i64, rect.y + (k / rect.w) as i64);
                         assert_eq!(v, recurse(&syn, st.output(s, x, y), &mut memo), "{params}: ({s}, {x}, {y})");
+                    }
+                }
+                // An earlier generation, as the coarse vtex levels read it.
+                for m in 0..st.last(fin) {
+                    let dense = evaluate_generation(&syn, st, None, fin, m, rect, &mut Counts::default(), &Never);
+                    for (k, &v) in dense.unwrap().iter().enumerate() {
+                        let (x, y) = (rect.x + (k % rect.w) as i64, rect.y + (k / rect.w) as i64);
+                        let e = st.canonical(Entry { s: fin, m, x, y });
+                        assert_eq!(v, recurse(&syn, e, &mut memo), "{params}: ({fin}, {m}, {x}, {y})");
                     }
                 }
             }
