@@ -13,14 +13,12 @@
 //! pure function of the URL, so the response is `immutable` with a strong ETag. It is rendered
 //! in one call, cached as one entry, and the tile route and batches serve its tiles from it.
 
-use crate::api::error::{echo, ApiError};
+use crate::api::error::ApiError;
 use crate::api::extract::{Path, Query};
 use crate::api::openapi::text;
 use crate::api::openapi::ErrorBody;
-use crate::api::params::{format_value, named, u32_value};
-use crate::api::resources::tiles::{respond, TilePath, TileQuery};
+use crate::api::resources::tiles::{respond, row_and_format, TilePath, TileQuery};
 use crate::api::state::{lookup, App};
-use crate::encode::Format;
 use crate::engine::address;
 use crate::engine::cache::{Shape, TileKey};
 use axum::extract::State;
@@ -53,11 +51,7 @@ pub async fn metatile(
     headers: HeaderMap,
 ) -> Result<Response, ApiError> {
     let entry = lookup(&app, &id).await?;
-    let (y, ext) = file.rsplit_once('.').ok_or_else(|| {
-        ApiError::bad_request(format!("metatile `{}` has no format extension; {}", echo(&file), Format::EXPECTED))
-    })?;
-    let format = named("format", ext, format_value)?;
-    let y = named("y", y, u32_value)?;
+    let (y, format) = row_and_format("metatile", &file)?;
     let side = entry.metatile;
     address::check_metatile(&entry, level, x, y, side)?;
     let frame = address::frame_for(&entry, frame);

@@ -102,15 +102,20 @@ pub(crate) async fn answer(
     headers: &HeaderMap,
 ) -> Result<Response, ApiError> {
     let entry = lookup(app, &id).await?;
-    let (y, ext) = file.rsplit_once('.').ok_or_else(|| {
-        ApiError::bad_request(format!("tile `{}` has no format extension; {}", echo(&file), Format::EXPECTED))
-    })?;
-    let format = named("format", ext, format_value)?;
-    let y = named("y", y, u32_value)?;
+    let (y, format) = row_and_format("tile", &file)?;
     address::check_tile(&entry, level, x, y)?;
     let frame = address::frame_for(&entry, frame);
     let key = TileKey { texture: entry.key, level, x, y, frame, format, shape: Shape::Tile };
     respond(app, &entry, key, headers).await
+}
+
+/// The row and format of a tile's or metatile's `file` (`{y}.{format}`); `what` names it in
+/// the error.
+pub(in crate::api) fn row_and_format(what: &str, file: &str) -> Result<(u32, Format), ApiError> {
+    let (y, ext) = file.rsplit_once('.').ok_or_else(|| {
+        ApiError::bad_request(format!("{what} `{}` has no format extension; {}", echo(file), Format::EXPECTED))
+    })?;
+    Ok((named("y", y, u32_value)?, named("format", ext, format_value)?))
 }
 
 /// The response for tile or metatile `key` of `entry` (inside its pyramid): 304, or the tile
