@@ -2,7 +2,7 @@
 // (client-web/src/vt/ktx2.js).
 import test from 'node:test';
 import assert from 'node:assert/strict';
-import { PageCache, ancestor, decodeFeedback, pageKey, plan, pyramid } from '../src/vt/pages.js';
+import { METATILE_PAGES, PageCache, ancestor, decodeFeedback, fetchPlan, metatileOf, pageKey, plan, pyramid } from '../src/vt/pages.js';
 import { parseKtx2 } from '../src/vt/ktx2.js';
 
 test('the page pyramid of a 100k texture: a 1024² table, level 10 one page', () => {
@@ -15,6 +15,25 @@ test('the page pyramid of a 100k texture: a 1024² table, level 10 one page', ()
   for (let l = 0; l <= p.maxLevel; l++) assert.ok(p.grid(l)[0] <= p.tableSide >> l, `level ${l} fits its table mip`);
   assert.equal(pyramid({ width: 64, height: 64 }).maxLevel, 0);
   assert.throws(() => pyramid({ width: 1 << 20, height: 10 }), /needs more than 4096/);
+});
+
+test('pages of 128 come in metatiles of 4 × 4, the server’s 512 level pixels', () => {
+  assert.equal(METATILE_PAGES, 4);
+  assert.deepEqual(metatileOf(3, 5, 9), { key: '3/1/2', level: 3, x: 1, y: 2 });
+  assert.deepEqual(metatileOf(0, 781, 3), { key: '0/195/0', level: 0, x: 195, y: 0 });
+});
+
+test('a metatile is fetched where at least half of one is wanted, or on its way; other pages alone', () => {
+  const page = (level, x, y) => ({ key: pageKey(level, x, y), level, x, y });
+  const block = (level, x0, y0, n) => Array.from({ length: n }, (_, i) => page(level, x0 + (i % 4), y0 + Math.floor(i / 4)));
+  const shape = (plan) => plan.map((f) => (f.metatile ? `metatile ${f.metatile.key} ×${f.pages.length}` : `page ${f.pages[0].key}`));
+  // 8 of 16 pages: the metatile; 7 of 16: page by page, in the order asked.
+  assert.deepEqual(shape(fetchPlan([...block(0, 8, 8, 8), ...block(0, 0, 0, 7)], () => false)), [
+    'metatile 0/2/2 ×8',
+    ...block(0, 0, 0, 7).map((p) => `page ${p.key}`),
+  ]);
+  // The same 7 join their metatile when it is on its way.
+  assert.deepEqual(shape(fetchPlan(block(0, 0, 0, 7), (k) => k === '0/0/0')), ['metatile 0/0/0 ×7']);
 });
 
 test('ancestors and feedback decoding', () => {

@@ -83,9 +83,11 @@ async fn main() -> Result<(), Box<dyn std::error::Error>> {
         "{} ({}×{}, {}), pages 128² + 4 px borders, BC7 + zstd, view 1280×720",
         tex.name, tex.width, tex.height, tex.model
     );
-    println!("frame  needed  requested  hit rate  latency ms  bytes");
+    println!("frame  needed  requested  metatiles  hit rate  latency ms  bytes  not asked for");
     let mut latencies = Vec::new();
-    let (mut total_bytes, mut total_requested, mut total_needed, mut total_hits) = (0u64, 0usize, 0usize, 0usize);
+    let (mut total_bytes, mut total_unused, mut total_requested, mut total_needed, mut total_hits) =
+        (0u64, 0, 0usize, 0usize, 0usize);
+    let mut total_metatiles = 0;
     let start = Instant::now();
     for f in 0..frames {
         let t = f as f64;
@@ -96,23 +98,34 @@ async fn main() -> Result<(), Box<dyn std::error::Error>> {
         let ms = t0.elapsed().as_secs_f64() * 1e3;
         latencies.push(ms);
         total_bytes += stats.bytes;
+        total_unused += stats.unused;
+        total_metatiles += stats.metatiles;
         total_requested += stats.requested;
         total_needed += need.len();
         total_hits += stats.hits;
         let hit_rate = 100.0 * stats.hits as f64 / need.len().max(1) as f64;
-        println!("{f:5}  {:6}  {:9}  {hit_rate:7.1}%  {ms:10.1}  {}", need.len(), stats.requested, stats.bytes);
+        println!(
+            "{f:5}  {:6}  {:9}  {:9}  {hit_rate:7.1}%  {ms:10.1}  {}  {}",
+            need.len(),
+            stats.requested,
+            stats.metatiles,
+            stats.bytes,
+            stats.unused
+        );
     }
     let secs = start.elapsed().as_secs_f64();
     latencies.sort_by(f64::total_cmp);
     println!(
-        "{frames} frames in {secs:.1} s: frame latency p50 {:.1} ms, p95 {:.1} ms; {} pages requested ({:.0} pages/s), \
-         hit rate {:.1}%, {:.1} MB received; client cache {} pages, {:.1} MB",
+        "{frames} frames in {secs:.1} s: frame latency p50 {:.1} ms, p95 {:.1} ms; {} pages requested ({:.0} pages/s) \
+         in {total_metatiles} metatiles, hit rate {:.1}%, {:.1} MB received ({:.1} MB of pages not asked for); \
+         client cache {} pages, {:.1} MB",
         percentile(&latencies, 0.5),
         percentile(&latencies, 0.95),
         total_requested,
         total_requested as f64 / secs,
         100.0 * total_hits as f64 / total_needed.max(1) as f64,
         total_bytes as f64 / 1e6,
+        total_unused as f64 / 1e6,
         client.cached_pages(),
         client.cached_bytes() as f64 / 1e6,
     );

@@ -1,9 +1,10 @@
-//! The batch body's frames ([`vtex_wire::frame`]), each with its bytes as a slice of the body.
+//! The frames ([`vtex_wire::frame`]) of a metatile's or a batch's body, each with its bytes as a
+//! slice of the body.
 
-use crate::Error;
+use crate::{Error, PageAddr};
 use bytes::Bytes;
 
-/// One frame of a batch.
+/// One frame of a metatile or a batch.
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub struct Frame {
     pub level: u32,
@@ -19,7 +20,14 @@ pub struct Frame {
     pub body: Bytes,
 }
 
-/// Every frame of a complete batch body; a truncated body or a bad header is an error.
+impl Frame {
+    /// The page (or tile) it holds.
+    pub fn addr(&self) -> PageAddr {
+        PageAddr { level: self.level, x: self.x, y: self.y }
+    }
+}
+
+/// Every frame of a complete body; a truncated body or a bad header is an error.
 pub fn parse(body: &Bytes) -> Result<Vec<Frame>, Error> {
     let frames = vtex_wire::frame::frames(body).map_err(Error::Protocol)?;
     Ok(frames

@@ -1,10 +1,12 @@
 //! vtex-client: what a game engine needs to stream virtual-texture pages from a vtex server.
 //!
 //! * discovery of textures ([`Client::textures`]) and the URLs of pages and tiles;
-//! * pages fetched many at a time through the batch endpoint ([`Client::pages`]), its frames
-//!   parsed by [`frames`], pages already held answered from a byte-bounded LRU ([`cache`]);
+//! * pages fetched alone or as the server's page metatile (an aligned block of pages) where
+//!   most of one is wanted ([`Client::pages`]): immutable URLs that a cache in front shares
+//!   between clients, several in flight at once, a metatile's frames parsed by [`frames`];
+//!   pages already held answered from a byte-bounded LRU ([`cache`]);
 //! * retries with exponential back-off (honouring `Retry-After`) of what can succeed later:
-//!   connection failures, 408, 429 and 5xx, a batch's failed frames included;
+//!   connection failures, 408, 429 and 5xx;
 //! * ETag revalidation of a held page ([`Client::revalidate`]): a 304 keeps the bytes.
 
 pub mod cache;
@@ -12,7 +14,9 @@ pub mod frames;
 
 use bytes::Bytes;
 use cache::PageCache;
+use futures_util::StreamExt;
 use serde::Deserialize;
+use std::collections::{BTreeMap, HashMap};
 use std::sync::Mutex;
 use std::time::Duration;
 use vtex_wire::urls;
@@ -148,14 +152,50 @@ pub struct FetchStats {
     pub hits: usize,
     /// Pages requested from the server.
     pub requested: usize,
+    /// Page metatiles fetched for them (the others came alone).
+    pub metatiles: usize,
     /// Bytes of page bodies received.
     pub bytes: u64,
-    /// Requests retried.
-    pub retries: u32,
+    /// Of those, the bytes of pages a metatile brought that were not asked for (kept in the
+    /// cache, behind the pages asked for).
+    pub unused: u64,
 }
 
-/// Most pages one batch request names (the server's limit).
-pub const MAX_BATCH: usize = 256;
+/// Requests [`Client::pages`] has in flight at once: a browser's connections to one host.
+pub const REQUESTS_IN_FLIGHT: usize = 6;
+
+/// A fetch of [`Client::pages`]: a page metatile and the pages asked of it, or one page alone.
+enum Fetch {
+    Metatile(PageAddr, Vec<PageAddr>),
+    Page(PageAddr),
+}
+
+/// The fetches of the pages `missing` (by page metatile, for pages of side `size`): a metatile
+/// where at least half of a whole one is asked for, else each page alone.
+fn fetch_plan(missing: BTreeMap<PageAddr, Vec<PageAddr>>, size: u32) -> Vec<Fetch> {
+    let side = vtex_wire::levels::metatile_tiles(size) as usize;
+    missing
+        .into_iter()
+        .flat_map(|(m, asked)| match 2 * asked.len() >= side * side {
+            true => vec![Fetch::Metatile(m, asked)],
+            false => asked.into_iter().map(Fetch::Page).collect(),
+        })
+        .collect()
+}
+
+/// A page from the single-page endpoint's answer: its size and validator from the headers.
+fn page_from(addr: PageAddr, headers: &reqwest::header::HeaderMap, bytes: Bytes) -> Page {
+    let dim = |name: &str| headers.get(name).and_then(|v| v.to_str().ok()?.parse().ok()).unwrap_or(0);
+    let etag = headers.get("etag").and_then(|v| v.to_str().ok()).map(String::from);
+    Page { addr, width: dim("x-vtex-width"), height: dim("x-vtex-height"), bytes, etag }
+}
+
+/// The page metatile holding page `addr` for pages of side `size`: its place in the level's
+/// grid of metatiles ([`vtex_wire::levels::metatile_tiles`] pages a side).
+pub fn page_metatile(addr: PageAddr, size: u32) -> PageAddr {
+    let side = vtex_wire::levels::metatile_tiles(size);
+    PageAddr { level: addr.level, x: addr.x / side, y: addr.y / side }
+}
 
 /// A client of one vtex server.
 pub struct Client {
@@ -203,11 +243,10 @@ impl Client {
         format!("{}{}", self.base, urls::tile_path(texture, level, x, y, ext))
     }
 
-    /// The URL of a batch of `addrs` (at most [`MAX_BATCH`]).
-    pub fn batch_url(&self, texture: &str, addrs: &[PageAddr], spec: &PageSpec) -> String {
-        let list: Vec<String> = addrs.iter().map(|a| format!("{}/{}/{}", a.level, a.x, a.y)).collect();
-        let path = urls::batch_path(texture);
-        format!("{}{path}?pages={}&format={}&{}", self.base, list.join(","), spec.ext(), spec.query())
+    /// The URL of page metatile `m` ([`page_metatile`]).
+    pub fn page_metatile_url(&self, texture: &str, m: PageAddr, spec: &PageSpec) -> String {
+        let path = urls::page_metatile_path(texture, m.level, m.x, m.y, spec.ext());
+        format!("{}{path}?{}", self.base, spec.query())
     }
 
     /// Pages held by the client's cache now.
@@ -220,69 +259,80 @@ impl Client {
         self.cache.lock().unwrap().bytes()
     }
 
-    /// Pages `addrs` of `texture` in `spec`, in the order asked: from the cache, the others in
-    /// batches of at most [`MAX_BATCH`], retried (the whole batch on a failed request, the
-    /// failed frames on a batch that answered some) until [`Retry::attempts`] run out.
+    /// Pages `addrs` of `texture` in `spec`, in the order asked: from the cache, the others
+    /// fetched — grouped by page metatile, a group as its metatile when it asks for at least
+    /// half of a whole one (one request; the metatile's other pages are kept in the cache,
+    /// behind the pages asked for), else page by page, so no fetch brings more than twice the
+    /// bytes asked for. [`REQUESTS_IN_FLIGHT`] requests at once, each retried until
+    /// [`Retry::attempts`] run out; their pages enter the cache in the order of the fetches.
     pub async fn pages(&self, texture: &str, addrs: &[PageAddr], spec: &PageSpec) -> Result<(Vec<Page>, FetchStats)> {
         let mut stats = FetchStats::default();
         let key = |addr: PageAddr| PageKey { texture: texture.to_string(), addr, spec: *spec };
-        let mut found: std::collections::HashMap<PageAddr, Page> = std::collections::HashMap::new();
-        let mut missing = Vec::new();
+        let mut found: HashMap<PageAddr, Page> = HashMap::new();
+        let mut missing: BTreeMap<PageAddr, Vec<PageAddr>> = BTreeMap::new();
         {
             let mut cache = self.cache.lock().unwrap();
             for &a in addrs {
+                if found.contains_key(&a) || missing.values().any(|m| m.contains(&a)) {
+                    continue;
+                }
                 match cache.get(&key(a)) {
                     Some(p) => {
                         stats.hits += 1;
                         found.insert(a, p);
                     }
-                    None if !missing.contains(&a) => missing.push(a),
-                    None => {}
+                    None => missing.entry(page_metatile(a, spec.size)).or_default().push(a),
                 }
             }
         }
-        stats.requested = missing.len();
-        for chunk in missing.chunks(MAX_BATCH) {
-            let mut want: Vec<PageAddr> = chunk.to_vec();
-            let mut attempt = 0;
-            loop {
-                // The request itself is retried inside `get`; here, the frames that failed.
-                let body = self.get(&self.batch_url(texture, &want, spec), None).await?.1;
-                let mut failed = Vec::new();
-                for f in frames::parse(&body)? {
-                    let addr = PageAddr { level: f.level, x: f.x, y: f.y };
-                    if f.status != 200 {
-                        if !retryable(f.status) {
-                            return Err(Error::Status { status: f.status, message: error_message(&f.body) });
-                        }
-                        failed.push(addr);
-                        continue;
-                    }
-                    stats.bytes += f.body.len() as u64;
-                    let page = Page { addr, width: f.width, height: f.height, bytes: f.body, etag: None };
-                    self.cache.lock().unwrap().insert(key(addr), page.clone());
-                    found.insert(addr, page);
+        stats.requested = missing.values().map(Vec::len).sum();
+        let plan = fetch_plan(missing, spec.size);
+        stats.metatiles = plan.iter().filter(|f| matches!(f, Fetch::Metatile(..))).count();
+        let fetches = plan.into_iter().map(|f| self.fetch(texture, f, spec));
+        let mut fetched = futures_util::stream::iter(fetches).buffered(REQUESTS_IN_FLIGHT);
+        while let Some(result) = fetched.next().await {
+            let (asked, pages) = result?;
+            let (asked_for, others): (Vec<_>, Vec<_>) = pages.into_iter().partition(|p| asked.contains(&p.addr));
+            let mut cache = self.cache.lock().unwrap();
+            for page in others.into_iter().chain(asked_for) {
+                stats.bytes += page.bytes.len() as u64;
+                cache.insert(key(page.addr), page.clone());
+                match asked.contains(&page.addr) {
+                    true => _ = found.insert(page.addr, page),
+                    false => stats.unused += page.bytes.len() as u64,
                 }
-                if failed.is_empty() {
-                    break;
-                }
-                attempt += 1;
-                if attempt >= self.retry.attempts {
-                    return Err(Error::Status {
-                        status: 503,
-                        message: format!("{} pages still failing", failed.len()),
-                    });
-                }
-                stats.retries += 1;
-                tokio::time::sleep(self.retry.delay(attempt - 1, None)).await;
-                want = failed;
             }
         }
         addrs
             .iter()
-            .map(|a| found.get(a).cloned().ok_or_else(|| Error::Protocol(format!("page {a:?} missing from the batch"))))
+            .map(|a| {
+                found.get(a).cloned().ok_or_else(|| Error::Protocol(format!("page {a:?} missing from its answer")))
+            })
             .collect::<Result<Vec<_>>>()
             .map(|pages| (pages, stats))
+    }
+
+    /// One fetch of [`Client::pages`]: the pages asked of it, and every page it brought.
+    async fn fetch(&self, texture: &str, fetch: Fetch, spec: &PageSpec) -> Result<(Vec<PageAddr>, Vec<Page>)> {
+        match fetch {
+            Fetch::Page(addr) => {
+                let (headers, body) = self.get(&self.page_url(texture, addr, spec), None).await?;
+                Ok((vec![addr], vec![page_from(addr, &headers, body)]))
+            }
+            Fetch::Metatile(m, asked) => {
+                let body = self.get(&self.page_metatile_url(texture, m, spec), None).await?.1;
+                let pages = frames::parse(&body)?
+                    .into_iter()
+                    .map(|f| match f.status {
+                        200 => Ok(Page { addr: f.addr(), width: f.width, height: f.height, bytes: f.body, etag: None }),
+                        status => {
+                            Err(Error::Protocol(format!("page {:?} of a metatile has status {status}", f.addr())))
+                        }
+                    })
+                    .collect::<Result<Vec<_>>>()?;
+                Ok((asked, pages))
+            }
+        }
     }
 
     /// Page `addr` from the single-page endpoint, asking the server whether the copy held is
@@ -296,14 +346,7 @@ impl Client {
         if let (Some(held), None) = (held, &body_if_modified(&headers, &body)) {
             return Ok((held, true));
         }
-        let dim = |name: &str| headers.get(name).and_then(|v| v.to_str().ok()?.parse().ok()).unwrap_or(0);
-        let page = Page {
-            addr,
-            width: dim("x-vtex-width"),
-            height: dim("x-vtex-height"),
-            bytes: body,
-            etag: headers.get("etag").and_then(|v| v.to_str().ok()).map(String::from),
-        };
+        let page = page_from(addr, &headers, body);
         self.cache.lock().unwrap().insert(key, page.clone());
         Ok((page, false))
     }

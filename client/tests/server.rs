@@ -52,7 +52,7 @@ fn serve() -> Server {
 async fn upload(base: &str) -> String {
     let sample = vtex_synth::samples::pebbles(32, 12, 3, true);
     let inputs = vtex_synth::models::Inputs::from([("sample".to_string(), sample.to_png())]);
-    let params = serde_json::json!({"tiles_x": 8, "tiles_y": 8, "iterations": 10, "seed": 3});
+    let params = serde_json::json!({"tiles_x": 16, "tiles_y": 16, "iterations": 10, "seed": 3});
     let bundle = vtex_synth::models::create("chaos-mosaic", "client test", &params, &inputs).unwrap();
     let r = reqwest::Client::new()
         .post(format!("{base}/api/v1/textures"))
@@ -70,29 +70,54 @@ fn addrs(level: u32, n: u32) -> Vec<PageAddr> {
 }
 
 #[tokio::test]
-async fn discovery_batched_pages_and_the_cache() {
+async fn discovery_pages_alone_or_from_their_metatiles_and_the_cache() {
     let s = serve();
     let id = upload(&s.base).await;
     let client = Client::new(&s.base, 1 << 20);
     let textures = client.textures().await.unwrap();
     let t = textures.iter().find(|t| t.id == id).unwrap();
-    assert_eq!((t.width, t.domain, vtex_client::page_levels(t)), (256, vtex_client::Domain::Torus, 9));
-    assert_eq!(vtex_client::page_grid(t, 0, 64), (4, 4));
+    assert_eq!((t.width, t.domain, vtex_client::page_levels(t)), (512, vtex_client::Domain::Torus, 10));
+    assert_eq!(vtex_client::page_grid(t, 0, 64), (8, 8));
     let spec = PageSpec { size: 64, border: 4, format: PageFormat::Ktx2 { codec: "bc1", zstd: true } };
-    let want = [addrs(0, 4), addrs(1, 2), vec![PageAddr { level: 8, x: 0, y: 0 }]].concat();
+    // Pages of 64 come 8 × 8 a metatile: level 0 is one, and 40 of its 64 pages asked for
+    // fetch it; 2 of level 1's pages and level 9's one page come alone.
+    let level0 = addrs(0, 8);
+    let (asked0, others) = level0.split_at(40);
+    let alone =
+        [PageAddr { level: 1, x: 3, y: 1 }, PageAddr { level: 1, x: 0, y: 0 }, PageAddr { level: 9, x: 0, y: 0 }];
+    let want = [asked0, &alone].concat();
     let (pages, stats) = client.pages(&id, &want, &spec).await.unwrap();
-    assert_eq!((stats.hits, stats.requested), (0, want.len()));
+    assert_eq!((stats.hits, stats.requested, stats.metatiles), (0, want.len(), 1));
     let http = reqwest::Client::new();
+    let single = |a: PageAddr| {
+        let url = client.page_url(&id, a, &spec);
+        let http = http.clone();
+        async move { http.get(url).send().await.unwrap().bytes().await.unwrap() }
+    };
     for (a, p) in want.iter().zip(&pages) {
         assert_eq!(p.addr, *a, "pages come in the order asked");
         assert_eq!((p.width, p.height), (72, 72));
-        let single = http.get(client.page_url(&id, *a, &spec)).send().await.unwrap().bytes().await.unwrap();
-        assert_eq!(p.bytes, single, "page {a:?}: the batch frame is the single page");
+        assert_eq!(p.bytes, single(*a).await, "page {a:?}: the single page's bytes");
+        assert_eq!(p.etag.is_some(), a.level > 0, "page {a:?}: a validator where it came alone");
     }
-    assert_eq!(stats.bytes, pages.iter().map(|p| p.bytes.len() as u64).sum::<u64>());
-    let (again, stats) = client.pages(&id, &want, &spec).await.unwrap();
-    assert_eq!((stats.hits, stats.requested, stats.bytes), (want.len(), 0, 0), "all from the client's cache");
+    let mut unused = 0;
+    for &a in others {
+        unused += single(a).await.len() as u64;
+    }
+    assert_eq!(stats.unused, unused, "level 0's pages not asked for");
+    assert_eq!(stats.bytes, pages.iter().map(|p| p.bytes.len() as u64).sum::<u64>() + unused);
+    assert_eq!(client.cached_pages(), want.len() + others.len());
+    let (again, stats) = client.pages(&id, &[want.clone(), others.to_vec()].concat(), &spec).await.unwrap();
+    assert_eq!(
+        (stats.hits, stats.requested, stats.bytes),
+        (want.len() + others.len(), 0, 0),
+        "all from the client's cache"
+    );
     assert!(again.iter().zip(&pages).all(|(a, b)| a.bytes == b.bytes));
+    let m = client.page_metatile_url(&id, vtex_client::page_metatile(PageAddr { level: 2, x: 9, y: 17 }, 64), &spec);
+    let path =
+        format!("/api/v1/textures/{id}/page-metatiles/2/1/2.ktx2?size=64&border=4&codec=bc1&supercompression=zstd");
+    assert!(m.ends_with(&path), "{m}");
     assert!(client.tile_url(&id, 0, 1, 2, "png").ends_with(&format!("/api/v1/textures/{id}/tiles/0/1/2.png")));
 }
 
@@ -128,7 +153,7 @@ async fn revalidation_keeps_the_held_page_on_304() {
 }
 
 /// A socket that answers its first `failures` requests with `status` (Retry-After: 0), then a
-/// batch of one page; counts the requests.
+/// page; counts the requests.
 fn scripted(failures: usize, status: u16) -> (String, Arc<AtomicUsize>) {
     let listener = TcpListener::bind("127.0.0.1:0").unwrap();
     let base = format!("http://{}", listener.local_addr().unwrap());
@@ -153,20 +178,9 @@ fn scripted(failures: usize, status: u16) -> (String, Arc<AtomicUsize>) {
                 r.extend_from_slice(body);
                 r
             } else {
-                let mut frame = b"vtb\x01".to_vec();
-                for v in [0u32, 0, 0] {
-                    frame.extend_from_slice(&v.to_le_bytes());
-                }
-                frame.extend_from_slice(&200u16.to_le_bytes());
-                frame.extend_from_slice(&[2, 0]);
-                for v in [1u32, 1, 4] {
-                    frame.extend_from_slice(&v.to_le_bytes());
-                }
-                frame.extend_from_slice(&[1, 2, 3, 4]);
-                let mut r = format!("HTTP/1.1 200 OK\r\ncontent-length: {}\r\nconnection: close\r\n\r\n", frame.len())
-                    .into_bytes();
-                r.extend_from_slice(&frame);
-                r
+                let page = [1u8, 2, 3, 4];
+                let head = "HTTP/1.1 200 OK\r\nx-vtex-width: 1\r\nx-vtex-height: 1\r\ncontent-length: 4\r\nconnection: close\r\n\r\n";
+                [head.as_bytes(), &page].concat()
             };
             let _ = stream.write_all(&response);
         }

@@ -1,7 +1,8 @@
 // The WebGL virtual-texturing demo (client-web/src/vt.html) in headless Chromium's software
 // WebGL against a real vtex serve: at a fixed camera, once every page it needs is resident, its
 // frame equals a reference render computed here from the server's regions (not its pages); no
-// page is requested while resident or in flight, also in a fly-through that evicts.
+// page is requested while resident or in flight, also in a fly-through that evicts; the network
+// is asked for single pages and page metatiles only, each one a fetch the demo logged.
 // Run: node --test tests/browser/   (needs target/release/vtex and client-web/dist built)
 import test, { after, before } from 'node:test';
 import assert from 'node:assert/strict';
@@ -31,16 +32,18 @@ after(async () => {
   await server?.stop();
 });
 
-/** Opens the demo with `query`, recording every page the network is asked for, in order. */
+/** Opens the demo with `query`, recording every page and page metatile the network is asked for, in order. */
 async function openDemo(query) {
   const page = await browser.context.newPage();
-  const log = { errors: [], bad: [], pages: [] };
+  const log = { errors: [], bad: [], fetches: [], other: [] };
   page.on('pageerror', (e) => log.errors.push(String(e)));
   page.on('console', (m) => m.type() === 'error' && log.errors.push(m.text()));
   page.on('response', (r) => r.status() >= 400 && log.bad.push(`${r.status()} ${r.url()}`));
   page.on('request', (r) => {
-    const u = new URL(r.url());
-    if (u.pathname.endsWith('/tiles') && u.searchParams.has('pages')) log.pages.push(...u.searchParams.get('pages').split(','));
+    const path = new URL(r.url()).pathname;
+    const m = path.match(/^\/api\/v1\/textures\/\w+\/(page-metatiles|pages)\/(\d+)\/(\d+)\/(\d+)\.\w+$/);
+    if (m) log.fetches.push(`${m[1] === 'pages' ? 'page' : 'metatile'} ${m[2]}/${m[3]}/${m[4]}`);
+    else if (/^\/api\/v1\/textures\/\w+\/tiles/.test(path)) log.other.push(path);
   });
   await page.goto(debugUrl(`${server.url}/vt.html?${query}`));
   await page.waitForFunction(() => window.vtDemo && (window.vtDemo.error || window.vtDemo.state.settled || window.vtDemo.state.done), null, {
@@ -76,6 +79,24 @@ function checkNoRequestWhileHeld(events) {
     }
   }
   return evictions;
+}
+
+/**
+ * The network was asked for the pages and page metatiles the demo's log names, in order, and
+ * for no batch; every page requested came by a fetch of itself or of its metatile.
+ */
+function checkNetwork(log, events) {
+  const logged = events.filter((e) => e.event === 'fetch').map((e) => e.key);
+  assert.deepEqual(log.fetches, logged, 'the demo’s log holds every fetch the network was asked for');
+  assert.deepEqual(log.other, [], 'no batches');
+  const side = 4; // pages of 128: 512 level pixels a side
+  const fetched = new Set(logged);
+  for (const { key } of events.filter((e) => e.event === 'request')) {
+    const [l, x, y] = key.split('/').map(Number);
+    const m = `metatile ${l}/${Math.floor(x / side)}/${Math.floor(y / side)}`;
+    assert.ok(fetched.has(`page ${key}`) || fetched.has(m), `page ${key}: fetched alone or in ${m}`);
+  }
+  return { pages: logged.filter((k) => k.startsWith('page')).length, metatiles: logged.filter((k) => k.startsWith('metatile')).length };
 }
 
 const toLinear = (c) => {
@@ -162,8 +183,8 @@ test('at a fixed camera the frame equals a render from the server’s regions', 
   assert.ok(worst <= 2, `largest difference ${worst.toFixed(1)}`);
 
   checkNoRequestWhileHeld(demo.log);
-  const logged = demo.log.filter((e) => e.event === 'request').map((e) => e.key);
-  assert.deepEqual(log.pages, logged, 'the demo’s log holds every page the network was asked for');
+  const fetches = checkNetwork(log, demo.log);
+  assert.ok(fetches.metatiles > 0 && fetches.pages > 0, `the pinned levels come as metatiles, sparse pages alone: ${JSON.stringify(fetches)}`);
   assert.deepEqual(log.errors, []);
   assert.deepEqual(log.bad, []);
   await page.close();
@@ -177,7 +198,7 @@ test('a fly-through through a small atlas evicts, and never asks for a page it h
   const evictions = checkNoRequestWhileHeld(demo.log);
   assert.ok(evictions > 0, 'the flight overflows the atlas');
   assert.ok(demo.size <= demo.slots);
-  assert.deepEqual(log.pages, demo.log.filter((e) => e.event === 'request').map((e) => e.key));
+  checkNetwork(log, demo.log);
   assert.deepEqual(log.errors, []);
   assert.deepEqual(log.bad, []);
   await page.close();

@@ -8,6 +8,10 @@ pub const PAGE: &str = "/api/v1/textures/{id}/pages/{level}/{x}/{file}";
 /// A metatile: the aligned block of tiles ([`crate::levels::metatile_tiles`] a side) whose
 /// tile (`x`, `y`) is tile (`x·n`, `y·n`) of the level, answered as [`crate::frame`]s.
 pub const METATILE: &str = "/api/v1/textures/{id}/metatiles/{level}/{x}/{file}";
+/// A page metatile: the aligned block of bordered pages ([`crate::levels::metatile_tiles`] of
+/// the page size a side) whose page (`x`, `y`) is page (`x·n`, `y·n`) of the level's page grid,
+/// answered as [`crate::frame`]s.
+pub const PAGE_METATILE: &str = "/api/v1/textures/{id}/page-metatiles/{level}/{x}/{file}";
 /// Many tiles or pages at once (the `tiles` query), answered as [`crate::frame`]s.
 pub const BATCH: &str = "/api/v1/textures/{id}/tiles";
 
@@ -25,6 +29,12 @@ pub fn page_path(id: &str, level: u32, x: u32, y: u32, ext: &str) -> String {
 /// The path of metatile (`level`, `x`, `y`) of texture `id` in format `ext`.
 pub fn metatile_path(id: &str, level: u32, x: u32, y: u32, ext: &str) -> String {
     fill(METATILE, id, level, x, y, ext)
+}
+
+/// The path of page metatile (`level`, `x`, `y`) of texture `id` in format `ext` (its page
+/// size, border and codec go in the query).
+pub fn page_metatile_path(id: &str, level: u32, x: u32, y: u32, ext: &str) -> String {
+    fill(PAGE_METATILE, id, level, x, y, ext)
 }
 
 /// The path of a batch of texture `id` (its items and format go in the query).
@@ -49,6 +59,7 @@ mod tests {
         assert_eq!(tile_path("ab", 3, 4, 5, "png"), "/api/v1/textures/ab/tiles/3/4/5.png");
         assert_eq!(page_path("ab", 0, 1, 2, "ktx2"), "/api/v1/textures/ab/pages/0/1/2.ktx2");
         assert_eq!(metatile_path("ab", 2, 0, 1, "jpg"), "/api/v1/textures/ab/metatiles/2/0/1.jpg");
+        assert_eq!(page_metatile_path("ab", 1, 2, 3, "rgba"), "/api/v1/textures/ab/page-metatiles/1/2/3.rgba");
         assert_eq!(batch_path("ab"), "/api/v1/textures/ab/tiles");
     }
 }

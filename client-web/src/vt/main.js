@@ -1,7 +1,9 @@
 // The virtual-texturing demo (vt.html): a camera flies over a virtual texture lying on the ground
 // plane; each frame a feedback pass names the pages the visible fragments need, the missing ones
-// (and their coarser ancestors) stream from vtex's batch endpoint into an atlas of bordered
-// pages, and the colour pass samples the atlas through the page table.
+// (and their coarser ancestors) stream from vtex — a page alone, or the page metatile (an aligned
+// block of pages) where most of one is wanted: immutable URLs that a cache in front shares
+// between clients — into an atlas of bordered pages, and the colour pass samples the atlas
+// through the page table.
 //
 // URL parameters: texture (id, name or id prefix; default the 100k chaos mosaic),
 // camera=x,y,height,yaw,pitch (a fixed camera, drawn until every page it needs is resident;
@@ -10,20 +12,20 @@
 // slots a side, at least 5: the 21 pinned pages fit), feedback=N (the feedback buffer N times
 // smaller than the view).
 // debug (shared/debug.js): `window.vtDemo` exposes the state and a log of every page requested,
-// made resident or evicted, or the error that stopped the demo.
+// made resident or evicted and every fetch, or the error that stopped the demo.
 
 import { FrameReader, readChunks } from '../shared/batch.js';
 import { MAX_ANISOTROPY, VtRenderer } from './gl.js';
 import { parseKtx2, VK_FORMAT_BC7_SRGB } from './ktx2.js';
-import { BORDER, PAGE_SIZE, PINNED_LEVELS, PageCache, decodeFeedback, pageKey, plan, pyramid } from './pages.js';
+import { BORDER, PAGE_SIZE, PINNED_LEVELS, PageCache, decodeFeedback, fetchPlan, pageKey, plan, pyramid } from './pages.js';
 import { findTexture } from '../shared/texture-lookup.js';
 import { expose } from '../shared/debug.js';
 import { fetchOk, getJson } from '../shared/http.js';
 
 const FLAGSHIP = 'Pebbles — chaos mosaic 100k';
-/** Pages a batch request asks for, and batches in flight at once. */
-const BATCH_PAGES = 32;
-const BATCHES_IN_FLIGHT = 2;
+/** Pages in flight at once, and requests (a browser's connections to one host). */
+const PAGES_IN_FLIGHT = 64;
+const REQUESTS_IN_FLIGHT = 6;
 /** The fly-through: height above the ground and distance a frame, in level-0 texels. */
 const FLIGHT = { height: 220, pitch: 20, step: 20, fov: 60 };
 
@@ -78,16 +80,23 @@ async function start() {
   }
   const camera = fixed || { x: info.width / 2, y: info.height / 2, height: FLIGHT.height, yaw: 0, pitch: FLIGHT.pitch, fov: FLIGHT.fov };
 
-  const query = `size=${PAGE_SIZE}&border=${BORDER}&format=${format === 'bc7' ? 'ktx2&codec=bc7' : 'rgba'}`;
+  const [ext, query] = format === 'bc7' ? ['ktx2', 'codec=bc7&'] : ['rgba', ''];
+  const pageQuery = `${query}size=${PAGE_SIZE}&border=${BORDER}`;
   const state = {
     texture: info,
     format,
     anisotropy: renderer.anisotropy,
     frame: 0,
     inFlight: new Set(),
+    /** Metatiles being fetched: key → the keys of the pages wanted from it. */
+    fetching: new Map(),
+    requests: 0,
     arrived: [],
-    log: [], // { frame, event: 'request' | 'resident' | 'evict' | 'drop', key }
-    stats: { requested: 0, resident: 0, evicted: 0, bytes: 0, missing: 0 },
+    // { frame, event: 'request' | 'resident' | 'evict' | 'drop' | 'fetch', key }; a fetch's key is
+    // 'page L/x/y' or 'metatile L/x/y'.
+    log: [],
+    // bytes: every page received; unused: those of pages a metatile brought that were not asked for.
+    stats: { requested: 0, resident: 0, evicted: 0, bytes: 0, unused: 0, metatiles: 0, missing: 0 },
     frameMs: [], // from one frame's start to the next's
     cpuMs: [], // each frame's own work: feedback, read back, uploads, draw
     settled: false,
@@ -95,33 +104,76 @@ async function start() {
     error: null,
   };
 
-  /** Streams `pages` through one batch request; each arrives in `state.arrived`. */
-  async function stream(pages) {
-    for (const p of pages) {
-      state.inFlight.add(p.key);
-      state.log.push({ frame: state.frame, event: 'request', key: p.key });
+  /**
+   * Asks for `pages` (in priority order) as `fetchPlan` groups them, while fewer than `limit`
+   * requests are in flight; a page whose metatile is on its way is taken from it as it
+   * arrives. Answers the fetches started.
+   */
+  function request(pages, limit) {
+    const started = [];
+    for (const { metatile, pages: group } of fetchPlan(pages, (k) => state.fetching.has(k))) {
+      const joining = metatile && state.fetching.get(metatile.key);
+      if (!joining && state.requests >= limit) continue;
+      for (const p of group) {
+        state.inFlight.add(p.key);
+        state.log.push({ frame: state.frame, event: 'request', key: p.key });
+        state.stats.requested++;
+        if (joining) joining.add(p.key);
+      }
+      if (joining) continue;
+      if (metatile) {
+        const { level, x, y, key } = metatile;
+        const wanted = new Set(group.map((p) => p.key));
+        state.fetching.set(key, wanted);
+        state.stats.metatiles++;
+        const url = `api/v1/textures/${info.id}/page-metatiles/${level}/${x}/${y}.${ext}?${pageQuery}`;
+        started.push(fetchPages(`metatile ${key}`, url, wanted, readFrames).finally(() => state.fetching.delete(key)));
+      } else {
+        const { level, x, y, key } = group[0];
+        const url = `api/v1/textures/${info.id}/pages/${level}/${x}/${y}.${ext}?${pageQuery}`;
+        started.push(fetchPages(`page ${key}`, url, new Set([key]), async (r, take) => take(level, x, y, new Uint8Array(await r.arrayBuffer()))));
+      }
     }
-    state.stats.requested += pages.length;
+    return started;
+  }
+
+  /** A metatile's frames, each handed to `take` as it arrives. */
+  async function readFrames(r, take) {
+    const reader = new FrameReader((f) => {
+      if (f.status !== 200) throw new Error(`page ${f.level}/${f.x}/${f.y}: status ${f.status}`);
+      take(f.level, f.x, f.y, f.body);
+    });
+    await readChunks(r.body, (c) => reader.push(c));
+  }
+
+  /**
+   * Fetches `url` (named `what` in the log), read by `read(response, take)`: each page `take`n
+   * that is `wanted` arrives in `state.arrived`, the others are left.
+   */
+  async function fetchPages(what, url, wanted, read) {
+    state.requests++;
+    state.log.push({ frame: state.frame, event: 'fetch', key: what });
     const arrived = new Set();
-    const url = `api/v1/textures/${info.id}/tiles?pages=${pages.map((p) => p.key).join(',')}&${query}`;
+    const take = (level, x, y, body) => {
+      const key = pageKey(level, x, y);
+      state.stats.bytes += body.length;
+      if (!wanted.has(key)) {
+        state.stats.unused += body.length;
+        return;
+      }
+      arrived.add(key);
+      state.arrived.push({ key, level, x, y, body: body.slice() });
+    };
     try {
-      const r = await fetchOk(url);
-      const reader = new FrameReader((f) => {
-        if (f.status !== 200) throw new Error(`page ${f.level}/${f.x}/${f.y}: status ${f.status}`);
-        const body = f.body.slice();
-        const key = pageKey(f.level, f.x, f.y);
-        state.stats.bytes += body.length;
-        arrived.add(key);
-        state.arrived.push({ key, level: f.level, x: f.x, y: f.y, body });
-      });
-      await readChunks(r.body, (c) => reader.push(c));
+      await read(await fetchOk(url), take);
     } catch (e) {
       state.error = String(e);
       overlay.classList.add('error');
     } finally {
-      // Pages this batch failed to bring are no longer in flight (and may be asked again).
-      for (const p of pages) {
-        if (!arrived.has(p.key) && state.inFlight.delete(p.key)) state.log.push({ frame: state.frame, event: 'drop', key: p.key });
+      state.requests--;
+      // Pages this fetch failed to bring are no longer in flight (and may be asked again).
+      for (const key of wanted) {
+        if (!arrived.has(key) && state.inFlight.delete(key)) state.log.push({ frame: state.frame, event: 'drop', key });
       }
     }
   }
@@ -155,7 +207,7 @@ async function start() {
     const [cols, rows] = pyr.grid(l);
     for (let y = 0; y < rows; y++) for (let x = 0; x < cols; x++) pinned.push({ key: pageKey(l, x, y), level: l, x, y });
   }
-  for (let i = 0; i < pinned.length; i += BATCH_PAGES) await stream(pinned.slice(i, i + BATCH_PAGES));
+  await Promise.all(request(pinned, Infinity));
   if (state.error) fail(state.error);
   makeResident(true);
 
@@ -174,11 +226,9 @@ async function start() {
     makeResident(false);
     state.stats.missing = missing;
     // No more in flight than the atlas could take now: a page that finds no slot is dropped.
-    const room = Math.min(BATCH_PAGES * BATCHES_IN_FLIGHT, cache.available(state.frame));
+    const room = Math.min(PAGES_IN_FLIGHT, cache.available(state.frame));
     const queue = plan(needed, (k) => cache.has(k), (k) => state.inFlight.has(k), pyr.maxLevel);
-    while (queue.length && state.inFlight.size < room) {
-      stream(queue.splice(0, Math.min(BATCH_PAGES, room - state.inFlight.size)));
-    }
+    request(queue.slice(0, Math.max(0, room - state.inFlight.size)), REQUESTS_IN_FLIGHT);
     renderer.draw(camera, width, height);
     state.needed = needed.size;
     state.cpuMs.push(performance.now() - t0);
@@ -197,7 +247,7 @@ async function start() {
     overlay.textContent = [
       `${info.name} · ${format.toUpperCase()} pages ${PAGE_SIZE}² + ${BORDER} px border · aniso ${renderer.anisotropy}×`,
       `resident ${cache.size}/${cache.slots.length} · needed ${state.needed} (missing ${state.stats.missing})`,
-      `requested ${state.stats.requested} · in flight ${state.inFlight.size} · evicted ${state.stats.evicted} · ${(state.stats.bytes / 1e6).toFixed(1)} MB`,
+      `requested ${state.stats.requested} in ${state.stats.metatiles} metatiles · in flight ${state.inFlight.size} · evicted ${state.stats.evicted} · ${(state.stats.bytes / 1e6).toFixed(1)} MB (${(state.stats.unused / 1e6).toFixed(1)} not asked for)`,
       `frame ${mean.toFixed(1)} ms (${(1000 / mean).toFixed(0)} fps) · CPU ${cpuMs.toFixed(1)} ms · frame #${state.frame}`,
       state.error ? `error: ${state.error}` : '',
     ].join('\n');

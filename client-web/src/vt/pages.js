@@ -12,9 +12,43 @@ export const MAX_TABLE_SIDE = 4096;
 /** Levels kept resident from the start, counted from the coarsest: nothing is ever black. */
 export const PINNED_LEVELS = 3;
 
-/** The key of page (level, x, y): "level/x/y", as the batch endpoint lists pages. */
+/**
+ * Pages a side of the server's page metatiles: 512 level pixels a side (`GET
+ * …/page-metatiles/{level}/{x}/{y}`, docs/server.md). A metatile and a single page are both one
+ * immutable URL that a cache in front of vtex shares between clients; the demo fetches the
+ * metatile where it wants most of it (`fetchPlan`).
+ */
+export const METATILE_PAGES = Math.max(1, Math.floor(512 / PAGE_SIZE));
+
+/** The key of page (level, x, y): "level/x/y", as the server's frames name pages. */
 export function pageKey(level, x, y) {
   return `${level}/${x}/${y}`;
+}
+
+/** The page metatile holding page (level, x, y): { key, level, x, y } in the metatile grid. */
+export function metatileOf(level, x, y) {
+  const [mx, my] = [Math.floor(x / METATILE_PAGES), Math.floor(y / METATILE_PAGES)];
+  return { key: pageKey(level, mx, my), level, x: mx, y: my };
+}
+
+/**
+ * How to fetch `pages` ({ key, level, x, y }, in priority order): grouped by page metatile, a
+ * group as its metatile when it wants at least half of a whole one or when that metatile is on
+ * its way already (`fetching(key)`), else page by page — so no fetch brings more than twice the
+ * bytes asked for. Answers [{ metatile, pages }] in the order of each group's first page,
+ * `metatile` null for a single page.
+ */
+export function fetchPlan(pages, fetching) {
+  const groups = new Map();
+  for (const p of pages) {
+    const m = metatileOf(p.level, p.x, p.y);
+    if (!groups.has(m.key)) groups.set(m.key, { metatile: m, pages: [] });
+    groups.get(m.key).pages.push(p);
+  }
+  return [...groups.values()].flatMap((g) => {
+    if (fetching(g.metatile.key) || 2 * g.pages.length >= METATILE_PAGES * METATILE_PAGES) return [g];
+    return g.pages.map((p) => ({ metatile: null, pages: [p] }));
+  });
 }
 
 /**

@@ -94,6 +94,7 @@ pub(crate) fn routes() -> OpenApiRouter<App> {
         .routes(routes!(health::readyz))
         // Virtual-texture pages with borders and KTX2 mip chains for game engines (pages.rs).
         .routes(routes!(pages::page))
+        .routes(routes!(pages::page_metatile))
         .routes(routes!(pages::mip_chain))
         // Deep Zoom and IIIF Image API 3 (dzi.rs, iiif.rs), over the same tiles and renders, and
         // IIIF Presentation 3 documents for viewers (presentation.rs).

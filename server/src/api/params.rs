@@ -45,6 +45,20 @@ pub fn named<T>(name: &str, s: &str, parse: fn(&str) -> Result<T, String>) -> Re
     parse(s).map_err(|why| ApiError::bad_request(format!("`{name}` {why}")))
 }
 
+/// The row and format of a tile's, page's or metatile's file name, `{y}.{format}` (`what` names
+/// it in errors, `expected` lists the formats `format` parses).
+pub fn row_and_format<T>(
+    what: &str,
+    file: &str,
+    format: fn(&str) -> Result<T, String>,
+    expected: &str,
+) -> Result<(u32, T), ApiError> {
+    let (y, ext) = file
+        .rsplit_once('.')
+        .ok_or_else(|| ApiError::bad_request(format!("{what} `{}` has no format extension; {expected}", echo(file))))?;
+    Ok((named("y", y, u32_value)?, named("format", ext, format)?))
+}
+
 /// The parsers above as serde field deserializers (`#[serde(deserialize_with = "…")]`).
 pub mod de {
     use super::*;

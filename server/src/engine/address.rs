@@ -30,6 +30,8 @@ pub enum Mark {
     Iiif,
     /// A metatile.
     Metatile,
+    /// A page metatile.
+    PageMetatile,
 }
 
 impl Mark {
@@ -43,6 +45,7 @@ impl Mark {
             Mark::Square => 5 << 61,
             Mark::Iiif => 3 << 62,
             Mark::Metatile => 7 << 61,
+            Mark::PageMetatile => 1 << 61,
         }
     }
 }
@@ -105,47 +108,78 @@ pub fn check_tile(entry: &Entry, level: u32, x: u32, y: u32) -> Result<(), Error
     Ok(())
 }
 
-/// Whether `entry` serves metatile (`level`, `x`, `y`): as [`check_tile`] for its grid of
-/// blocks of `side` × `side` tiles.
-pub fn check_metatile(entry: &Entry, level: u32, x: u32, y: u32, side: u32) -> Result<(), Error> {
-    if level >= entry.levels {
+/// Whether `entry` serves metatile (`level`, `x`, `y`) of `side` × `side` parts (tiles or pages
+/// of shape `part`): as [`check_tile`] and [`check_page`] for its grid of blocks.
+pub fn check_metatile(entry: &Entry, level: u32, x: u32, y: u32, part: Shape, side: u32) -> Result<(), Error> {
+    let (levels, what) = match part {
+        Shape::Page { size, .. } => {
+            (level_count(entry.texture.width(), entry.texture.height()), format!("pages of {size}²"))
+        }
+        _ => (entry.levels, "tiles".to_string()),
+    };
+    if level >= levels {
         return Err(Error::Invalid(format!(
             "metatile {level}/{x}/{y}: level {level} does not exist; this texture serves levels 0..={}",
-            entry.levels - 1
+            levels - 1
         )));
     }
-    let (cols, rows) = entry.tiles_at(level);
+    let (cols, rows) = grid(entry, level, part);
     let (cols, rows) = (cols.div_ceil(side as u64), rows.div_ceil(side as u64));
     if x as u64 >= cols || y as u64 >= rows {
         return Err(Error::Missing(format!(
-            "metatile {level}/{x}/{y} is outside level {level}, which has {cols}×{rows} metatiles of {side}×{side} tiles"
+            "metatile {level}/{x}/{y} is outside level {level}, which has {cols}×{rows} metatiles of {side}×{side} {what}"
         )));
     }
     Ok(())
 }
 
-/// The metatile holding tile `key` of `entry` (a [`Shape::Tile`]), and where the tile is in it
-/// (its frame's index, row by row).
-pub fn metatile_of(entry: &Entry, key: &TileKey) -> (TileKey, usize) {
-    let side = entry.metatile;
-    let (cols, _) = entry.tiles_at(key.level);
+/// Columns and rows of `level`'s grid of tiles, or of pages.
+fn grid(entry: &Entry, level: u32, part: Shape) -> (u64, u64) {
+    match part {
+        Shape::Page { size, .. } => page_grid(entry.texture.width(), entry.texture.height(), level, size),
+        _ => entry.tiles_at(level),
+    }
+}
+
+/// The metatile holding tile or page `key` of `entry` (a [`Shape::Tile`] or [`Shape::Page`]),
+/// and where it is in it (its frame's index, row by row); `None` for other shapes.
+pub fn metatile_of(entry: &Entry, key: &TileKey) -> Option<(TileKey, usize)> {
+    let (side, block) = match key.shape {
+        Shape::Tile => (entry.metatile, Shape::Metatile { side: entry.metatile }),
+        Shape::Page { size, border } => {
+            let side = page_metatile_pages(size);
+            (side, Shape::PageMetatile { size, border, side })
+        }
+        _ => return None,
+    };
+    let (cols, _) = grid(entry, key.level, key.shape);
     let (mx, my) = (key.x / side, key.y / side);
     let width = (cols - (mx * side) as u64).min(side as u64) as usize;
     let index = (key.y - my * side) as usize * width + (key.x - mx * side) as usize;
-    (TileKey { x: mx, y: my, shape: Shape::Metatile { side }, ..*key }, index)
+    Some((TileKey { x: mx, y: my, shape: block, ..*key }, index))
 }
 
-/// The tiles of metatile `key` of `entry`, row by row, each with its region.
-pub fn metatile_tiles(entry: &Entry, key: &TileKey) -> Vec<(TileKey, Region)> {
-    let Shape::Metatile { side } = key.shape else { panic!("not a metatile: {key:?}") };
-    let (cols, rows) = entry.tiles_at(key.level);
+/// Pages a side of a page metatile, for pages of side `size`: as many as make the metatile's
+/// level pixels.
+pub fn page_metatile_pages(size: u32) -> u32 {
+    vtex_wire::levels::metatile_tiles(size)
+}
+
+/// The parts of metatile `key` of `entry` (tiles or pages), row by row, each with its region.
+pub fn metatile_parts(entry: &Entry, key: &TileKey) -> Vec<(TileKey, Region)> {
+    let (side, part) = match key.shape {
+        Shape::Metatile { side } => (side, Shape::Tile),
+        Shape::PageMetatile { size, border, side } => (side, Shape::Page { size, border }),
+        _ => panic!("not a metatile: {key:?}"),
+    };
+    let (cols, rows) = grid(entry, key.level, part);
     let (x0, y0) = (key.x * side, key.y * side);
     let (x1, y1) = (((x0 + side) as u64).min(cols) as u32, ((y0 + side) as u64).min(rows) as u32);
     (y0..y1)
         .flat_map(|y| (x0..x1).map(move |x| (x, y)))
         .map(|(x, y)| {
-            let tile = TileKey { x, y, shape: Shape::Tile, ..*key };
-            (tile, key_region(entry, &tile).0)
+            let part = TileKey { x, y, shape: part, ..*key };
+            (part, key_region(entry, &part).0)
         })
         .collect()
 }
@@ -204,13 +238,23 @@ pub fn key_etag(entry: &Entry, key: &TileKey) -> ETag {
             key.format,
         ),
         Shape::Page { size, border } => {
-            let (codec, sc) = match key.format {
-                Format::Ktx2(k) => (1 + k.codec as u64, 1 + k.supercompression as u64),
-                _ => (0, 0),
-            };
+            let (codec, sc) = ktx2_ids(key.format);
             let what = [level, x, y, frame, size as u64, border as u64, codec, sc];
             ETag::new(&entry.key, Some(Mark::Page), &what, key.format)
         }
+        Shape::PageMetatile { size, border, side } => {
+            let (codec, sc) = ktx2_ids(key.format);
+            let what = [level, x, y, frame, size as u64, border as u64, codec, sc, side as u64];
+            ETag::new(&entry.key, Some(Mark::PageMetatile), &what, key.format)
+        }
+    }
+}
+
+/// A page format's KTX2 codec and supercompression as hashed into ETags: 0 for image formats.
+pub fn ktx2_ids(format: Format) -> (u64, u64) {
+    match format {
+        Format::Ktx2(k) => (1 + k.codec as u64, 1 + k.supercompression as u64),
+        _ => (0, 0),
     }
 }
 
@@ -226,9 +270,9 @@ pub fn key_region(entry: &Entry, key: &TileKey) -> (Region, (u32, u32)) {
             let canvas = if key.shape == Shape::Square { (ts as u32, ts as u32) } else { (w, h) };
             (Region::new(key.level, px as i64, py as i64, w, h).at_frame(key.frame), canvas)
         }
-        Shape::Metatile { .. } => {
-            let tiles = metatile_tiles(entry, key);
-            let (first, last) = (tiles[0].1, tiles[tiles.len() - 1].1);
+        Shape::Metatile { .. } | Shape::PageMetatile { .. } => {
+            let parts = metatile_parts(entry, key);
+            let (first, last) = (parts[0].1, parts[parts.len() - 1].1);
             let (w, h) = ((last.x - first.x) as u32 + last.width, (last.y - first.y) as u32 + last.height);
             (Region::new(key.level, first.x, first.y, w, h).at_frame(key.frame), (w, h))
         }

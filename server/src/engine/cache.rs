@@ -52,6 +52,17 @@ pub enum Shape {
     /// A `size`² page of the page grid with `border` pixels of its neighbours on every side
     /// (`api/resources/pages.rs`).
     Page { size: u32, border: u32 },
+    /// A page metatile: the aligned block of `side` × `side` pages of the page grid whose top
+    /// left page is (`x`·side, `y`·side), clipped at the grid's edges, as one body of frames.
+    /// The pages' own keys find their bytes in it.
+    PageMetatile { size: u32, border: u32, side: u32 },
+}
+
+impl Shape {
+    /// Whether the key names a block of tiles or pages, answered as frames.
+    pub fn is_metatile(self) -> bool {
+        matches!(self, Shape::Metatile { .. } | Shape::PageMetatile { .. })
+    }
 }
 
 /// An encoded tile as served.

@@ -18,7 +18,7 @@ use crate::encode::{self, Format};
 use crate::metrics::Metrics;
 use crate::store::{Entry, Record, Store, StoreError};
 use crate::transport::Transport;
-use cache::{Shape, Source, Tile, TileCache, TileKey};
+use cache::{Source, Tile, TileCache, TileKey};
 use slots::{Refused, Slots};
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
@@ -75,20 +75,17 @@ impl Engine {
         }
     }
 
-    /// Tile `key` if the cache holds it, on its own or inside its cached metatile (a view of
-    /// the metatile's bytes, with the tile's own ETag).
+    /// Tile or page `key` if the cache holds it, on its own or inside its cached metatile (a
+    /// view of the metatile's bytes, with the tile's or page's own ETag).
     pub fn cached(&self, entry: &Entry, key: &TileKey) -> Option<Arc<Tile>> {
         if let Some(tile) = self.cache.get(key) {
             return Some(tile);
         }
-        if key.shape != Shape::Tile {
-            return None;
-        }
-        let (block, index) = address::metatile_of(entry, key);
+        let (block, index) = address::metatile_of(entry, key)?;
         let body = self.cache.get(&block)?.body.clone();
         let (header, bytes) = vtex_wire::frame::frame_at(&body, index)?;
         let tile = TileRef { level: key.level, x: key.x, y: key.y };
-        debug_assert_eq!(header.tile, tile, "a metatile's frames are its tiles, row by row");
+        debug_assert_eq!(header.tile, tile, "a metatile's frames are its parts, row by row");
         let etag = address::key_etag(entry, key);
         Some(Arc::new(Tile { body: body.slice(bytes), etag, width: header.width, height: header.height }))
     }
@@ -114,16 +111,16 @@ impl Engine {
                     .get_or_compute(key, move || async move {
                         let (region, (width, height)) = address::key_region(&entry, &key);
                         let send = owner.send;
-                        let tiles = match key.shape {
-                            Shape::Metatile { .. } => address::metatile_tiles(&entry, &key),
-                            _ => Vec::new(),
+                        let parts = match key.shape.is_metatile() {
+                            true => address::metatile_parts(&entry, &key),
+                            false => Vec::new(),
                         };
                         let encode = owner.encoder(key.format);
                         let body = owner
                             .render_then(entry, region, move |img| {
-                                let body = match tiles.is_empty() {
+                                let body = match parts.is_empty() {
                                     true => encode.image(img, (width, height))?,
-                                    false => encode.frames(&img, &region, &tiles)?,
+                                    false => encode.frames(&img, &region, &parts)?,
                                 };
                                 Ok(send.seal(body))
                             })
@@ -229,11 +226,11 @@ impl Encoder {
         Ok(bytes)
     }
 
-    /// The tiles of a metatile, cut from `img` (its `region`) and encoded, as one body of
-    /// frames in the order given.
-    pub fn frames(&self, img: &Rgba8Image, region: &Region, tiles: &[(TileKey, Region)]) -> Result<Vec<u8>, Error> {
+    /// The tiles or pages of a metatile, cut from `img` (its `region`; pages overlap by their
+    /// borders) and encoded, as one body of frames in the order given.
+    pub fn frames(&self, img: &Rgba8Image, region: &Region, parts: &[(TileKey, Region)]) -> Result<Vec<u8>, Error> {
         let mut body = Vec::new();
-        for (key, r) in tiles {
+        for (key, r) in parts {
             let (x, y) = ((r.x - region.x) as u32, (r.y - region.y) as u32);
             let bytes = self.image(img.crop(x, y, r.width, r.height), (r.width, r.height))?;
             let tile = TileRef { level: key.level, x: key.x, y: key.y };

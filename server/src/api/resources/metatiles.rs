@@ -17,8 +17,10 @@ use crate::api::error::ApiError;
 use crate::api::extract::{Path, Query};
 use crate::api::openapi::text;
 use crate::api::openapi::ErrorBody;
-use crate::api::resources::tiles::{respond, row_and_format, TilePath, TileQuery};
+use crate::api::params::{format_value, row_and_format};
+use crate::api::resources::tiles::{respond, TilePath, TileQuery};
 use crate::api::state::{lookup, App};
+use crate::encode::Format;
 use crate::engine::address;
 use crate::engine::cache::{Shape, TileKey};
 use axum::extract::State;
@@ -51,9 +53,9 @@ pub async fn metatile(
     headers: HeaderMap,
 ) -> Result<Response, ApiError> {
     let entry = lookup(&app, &id).await?;
-    let (y, format) = row_and_format("metatile", &file)?;
+    let (y, format) = row_and_format("metatile", &file, format_value, Format::EXPECTED)?;
     let side = entry.metatile;
-    address::check_metatile(&entry, level, x, y, side)?;
+    address::check_metatile(&entry, level, x, y, Shape::Tile, side)?;
     let frame = address::frame_for(&entry, frame);
     let key = TileKey { texture: entry.key, level, x, y, frame, format, shape: Shape::Metatile { side } };
     respond(&app, &entry, key, &headers).await

@@ -15,7 +15,7 @@ use crate::api::extract::{Path, Query};
 use crate::api::http::{not_modified, not_modified_response};
 use crate::api::openapi::text;
 use crate::api::openapi::ErrorBody;
-use crate::api::params::{de, named, u32_value};
+use crate::api::params::{de, row_and_format};
 use crate::api::resources::tiles;
 use crate::api::state::{lookup, App, TextureId};
 use crate::encode::Format;
@@ -182,15 +182,53 @@ pub async fn page(
     headers: HeaderMap,
 ) -> Result<Response, ApiError> {
     let entry = lookup(&app, &id).await?;
-    let (y, ext) = file.rsplit_once('.').ok_or_else(|| {
-        ApiError::bad_request(format!("page `{}` has no format extension; {FORMATS_EXPECTED}", echo(&file)))
-    })?;
-    let format = named("format", ext, page_format_value)?;
-    let y = named("y", y, u32_value)?;
+    let (y, format) = row_and_format("page", &file, page_format_value, FORMATS_EXPECTED)?;
     let (format, shape) = page_spec(format, &q)?;
     let Shape::Page { size, .. } = shape else { unreachable!("page_spec gives pages") };
     address::check_page(&entry, level, x, y, size)?;
     let frame = address::frame_for(&entry, q.frame);
+    let key = TileKey { texture: entry.key, level, x, y, frame, format, shape };
+    tiles::respond(&app, &entry, key, &headers).await
+}
+
+/// `GET /api/v1/textures/{id}/page-metatiles/{level}/{x}/{y}.{format}[?size=S&border=B&codec=C&supercompression=Z&frame=N]`:
+/// the aligned block of pages (512 level pixels a side: 4 × 4 pages of 128, 1 of 512) whose top
+/// left page is (`x`·n, `y`·n), clipped at the page grid's edges, as frames row by row — each
+/// exactly the page's bytes. The unit a virtual-texturing client fetches so that a cache in
+/// front shares it between clients (see `metatiles.rs`); the page route and batches serve its
+/// pages from it.
+#[utoipa::path(get,
+    path = vtex_wire::urls::PAGE_METATILE,
+    tag = "pages",
+    params(
+        ("id" = String, Path, description = text::TEXTURE_ID),
+        ("level" = u32, Path),
+        ("x" = u32, Path, description = "page metatile column: pages x·n … x·n + n − 1, n = 512 / size (at least 1)"),
+        ("file" = String, Path, description = "`{y}.{format}`, format png, webp, jpg, rgba or ktx2"),
+        PageParams,
+    ),
+    responses(
+        (status = 200, description = "the block's pages as frames, row by row: a 32-byte header then the page's \
+            bytes (strong ETag, immutable)", content(("application/x-vtex-tile-batch"))),
+        (status = 304, description = "`If-None-Match` names its ETag"),
+        (status = 400, description = text::BAD_REQUEST, body = ErrorBody),
+        (status = 404, description = text::NOT_FOUND, body = ErrorBody),
+        (status = 503, description = text::UNAVAILABLE, body = ErrorBody),
+    ))]
+pub async fn page_metatile(
+    State(app): State<App>,
+    Path(PagePath { id, level, x, file }): Path<PagePath>,
+    Query(q): Query<PageParams>,
+    headers: HeaderMap,
+) -> Result<Response, ApiError> {
+    let entry = lookup(&app, &id).await?;
+    let (y, format) = row_and_format("page metatile", &file, page_format_value, FORMATS_EXPECTED)?;
+    let (format, page) = page_spec(format, &q)?;
+    let Shape::Page { size, border } = page else { unreachable!("page_spec gives pages") };
+    let side = address::page_metatile_pages(size);
+    address::check_metatile(&entry, level, x, y, page, side)?;
+    let frame = address::frame_for(&entry, q.frame);
+    let shape = Shape::PageMetatile { size, border, side };
     let key = TileKey { texture: entry.key, level, x, y, frame, format, shape };
     tiles::respond(&app, &entry, key, &headers).await
 }
@@ -262,7 +300,7 @@ pub async fn mip_chain(
         )));
     }
     let frame = address::frame_for(&entry, q.frame);
-    let (codec, sc) = (1 + k.codec as u64, 1 + k.supercompression as u64);
+    let (codec, sc) = address::ktx2_ids(Format::Ktx2(k));
     let tag = ETag::new(&entry.key, Some(Mark::Chain), &[level as u64, frame as u64, codec, sc], Format::Ktx2(k));
     if not_modified(&headers, tag.as_str()) {
         return Ok(not_modified_response(crate::api::http::etag_header(&tag)));

@@ -1,13 +1,13 @@
 //! Tiles and regions: validation, ETags, the cache, synthesis.
 
-use crate::api::error::{echo, ApiError};
+use crate::api::error::ApiError;
 use crate::api::extract::{Path, Query};
 use crate::api::http::{
     not_modified, not_modified_response, CACHE_IMMUTABLE, X_VTEX_CACHE, X_VTEX_HEIGHT, X_VTEX_WIDTH,
 };
 use crate::api::openapi::text;
 use crate::api::openapi::ErrorBody;
-use crate::api::params::{de, format_value, named, u32_value};
+use crate::api::params::{de, format_value, row_and_format};
 use crate::api::state::{lookup, App, TextureId};
 use crate::config::MAX_REGION_SIDE;
 use crate::encode::{self, Format};
@@ -102,20 +102,11 @@ pub(crate) async fn answer(
     headers: &HeaderMap,
 ) -> Result<Response, ApiError> {
     let entry = lookup(app, &id).await?;
-    let (y, format) = row_and_format("tile", &file)?;
+    let (y, format) = row_and_format("tile", &file, format_value, Format::EXPECTED)?;
     address::check_tile(&entry, level, x, y)?;
     let frame = address::frame_for(&entry, frame);
     let key = TileKey { texture: entry.key, level, x, y, frame, format, shape: Shape::Tile };
     respond(app, &entry, key, headers).await
-}
-
-/// The row and format of a tile's or metatile's `file` (`{y}.{format}`); `what` names it in
-/// the error.
-pub(in crate::api) fn row_and_format(what: &str, file: &str) -> Result<(u32, Format), ApiError> {
-    let (y, ext) = file.rsplit_once('.').ok_or_else(|| {
-        ApiError::bad_request(format!("{what} `{}` has no format extension; {}", echo(file), Format::EXPECTED))
-    })?;
-    Ok((named("y", y, u32_value)?, named("format", ext, format_value)?))
 }
 
 /// The response for tile or metatile `key` of `entry` (inside its pyramid): 304, or the tile
@@ -138,7 +129,7 @@ pub(in crate::api) async fn respond(
     }
     let (tile, source) = app.engine.tile(entry, key, cached, tag).await?;
     let mut resp = image_response(tile.body.clone(), key.format, &tile.etag, tile.width, tile.height);
-    if let Shape::Metatile { .. } = key.shape {
+    if key.shape.is_metatile() {
         resp.headers_mut().insert(header::CONTENT_TYPE, HeaderValue::from_static(vtex_wire::frame::CONTENT_TYPE));
     }
     let cache_state = if source == Source::Hit { "hit" } else { "miss" };
