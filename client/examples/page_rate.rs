@@ -1,5 +1,5 @@
-//! Pages per second through `vtex-client`: [`Client::pages`] (batches of up to 256 pages)
-//! beside a baseline from the same run, one request per page to the single-page endpoint on
+//! Pages per second through `vtex-client`: [`Client::pages`] (a block of pages, so whole page
+//! metatiles) beside a baseline from the same run, one request per page to the single-page endpoint on
 //! one keep-alive connection. Each is measured cold (pages the server has never made: a block
 //! of level-0 pages of its own) and warm (the same block again, from the server's cache); every
 //! run starts with an empty client cache, so every page crosses the network.
@@ -51,9 +51,9 @@ async fn main() -> Result<(), Box<dyn std::error::Error>> {
     println!("{:<34} {:>9} {:>9} {:>9}", "run", "seconds", "pages/s", "MB/s");
     // Blocks far apart, so the two cold runs share no page.
     for (temperature, offset) in [("cold", 100), ("warm", 100)] {
-        let batched = block(offset, offset, side);
+        let blocked = block(offset, offset, side);
         let single = block(offset + 2 * side, offset, side);
-        for (how, addrs) in [("Client::pages (batched)", &batched), ("one request per page", &single)] {
+        for (how, addrs) in [("Client::pages (metatiles)", &blocked), ("one request per page", &single)] {
             let client = Client::new(base, 1 << 30);
             let t0 = Instant::now();
             let bytes = if how.starts_with("Client") {

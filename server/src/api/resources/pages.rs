@@ -23,6 +23,7 @@ use crate::engine::address;
 use crate::engine::cache::{Shape, TileKey};
 use crate::engine::{ETag, Mark};
 use crate::ktx2::{self, Codec, Ktx2, Supercompression};
+use crate::store::Entry;
 use axum::extract::State;
 use axum::http::HeaderMap;
 use axum::response::Response;
@@ -182,12 +183,7 @@ pub async fn page(
     headers: HeaderMap,
 ) -> Result<Response, ApiError> {
     let entry = lookup(&app, &id).await?;
-    let (y, format) = row_and_format("page", &file, page_format_value, FORMATS_EXPECTED)?;
-    let (format, shape) = page_spec(format, &q)?;
-    let Shape::Page { size, .. } = shape else { unreachable!("page_spec gives pages") };
-    address::check_page(&entry, level, x, y, size)?;
-    let frame = address::frame_for(&entry, q.frame);
-    let key = TileKey { texture: entry.key, level, x, y, frame, format, shape };
+    let key = page_key(&entry, level, x, &file, &q, false)?;
     tiles::respond(&app, &entry, key, &headers).await
 }
 
@@ -222,15 +218,33 @@ pub async fn page_metatile(
     headers: HeaderMap,
 ) -> Result<Response, ApiError> {
     let entry = lookup(&app, &id).await?;
-    let (y, format) = row_and_format("page metatile", &file, page_format_value, FORMATS_EXPECTED)?;
-    let (format, page) = page_spec(format, &q)?;
-    let Shape::Page { size, border } = page else { unreachable!("page_spec gives pages") };
-    let side = address::page_metatile_pages(size);
-    address::check_metatile(&entry, level, x, y, page, side)?;
-    let frame = address::frame_for(&entry, q.frame);
-    let shape = Shape::PageMetatile { size, border, side };
-    let key = TileKey { texture: entry.key, level, x, y, frame, format, shape };
+    let key = page_key(&entry, level, x, &file, &q, true)?;
     tiles::respond(&app, &entry, key, &headers).await
+}
+
+/// The key of page (`level`, `x`, `file`) of `entry` — of the page metatile there when
+/// `metatile` — checked against the level's page grid.
+fn page_key(
+    entry: &Entry,
+    level: u32,
+    x: u32,
+    file: &str,
+    q: &PageParams,
+    metatile: bool,
+) -> Result<TileKey, ApiError> {
+    let what = if metatile { "page metatile" } else { "page" };
+    let (y, format) = row_and_format(what, file, page_format_value, FORMATS_EXPECTED)?;
+    let (format, page) = page_spec(format, q)?;
+    let Shape::Page { size, border } = page else { unreachable!("page_spec gives pages") };
+    let shape = if metatile {
+        let side = address::page_metatile_pages(size);
+        address::check_metatile(entry, level, x, y, page, side)?;
+        Shape::PageMetatile { size, border, side }
+    } else {
+        address::check_page(entry, level, x, y, size)?;
+        page
+    };
+    Ok(TileKey { texture: entry.key, level, x, y, frame: address::frame_for(entry, q.frame), format, shape })
 }
 
 /// The query of a mip chain: `[?level=L][&codec=C][&supercompression=Z][&frame=N]`.
