@@ -80,7 +80,7 @@ const md = [
   '',
   `\`flock /tmp/vtex-bench.lock node bench/vt-demo/run.mjs ${frames}\` — ${frames} frames at ${VIEW.width}×${VIEW.height}, headless Chromium ` +
     `(software WebGL, SwiftShader), ${cpus().length} cores shared with other builds, load average ${load.map((l) => f(l)).join(' → ')}. ` +
-    'Pages 128² + 4 px borders in page metatiles of 4 × 4 pages (the pages not asked for are received, not used); the flight moves 20 texels a frame at 220 texels above the ' +
+    'Pages 128² + 4 px borders, fetched alone or as their page metatile (4 × 4 pages) where half of one is wanted (a metatile's pages not asked for are received, not used); the flight moves 20 texels a frame at 220 texels above the ' +
     'Pebbles chaos mosaic 100k (the same path in every run); the atlas holds 256 pages.',
   '',
   '| run | frame ms mean | p50 | p95 | CPU ms/frame | pages streamed | metatiles fetched | pages/s of flight | MB/s | bytes not asked for | evictions |',

@@ -23,9 +23,8 @@ import { expose } from '../shared/debug.js';
 import { fetchOk, getJson } from '../shared/http.js';
 
 const FLAGSHIP = 'Pebbles — chaos mosaic 100k';
-/** Pages in flight at once, and requests (a browser's connections to one host). */
+/** Pages in flight at once (so at most as many requests; the browser queues those past its connections). */
 const PAGES_IN_FLIGHT = 64;
-const REQUESTS_IN_FLIGHT = 6;
 /** The fly-through: height above the ground and distance a frame, in level-0 texels. */
 const FLIGHT = { height: 220, pitch: 20, step: 20, fov: 60 };
 
@@ -90,7 +89,6 @@ async function start() {
     inFlight: new Set(),
     /** Metatiles being fetched: key → the keys of the pages wanted from it. */
     fetching: new Map(),
-    requests: 0,
     arrived: [],
     // { frame, event: 'request' | 'resident' | 'evict' | 'drop' | 'fetch', key }; a fetch's key is
     // 'page L/x/y' or 'metatile L/x/y'.
@@ -105,15 +103,13 @@ async function start() {
   };
 
   /**
-   * Asks for `pages` (in priority order) as `fetchPlan` groups them, while fewer than `limit`
-   * requests are in flight; a page whose metatile is on its way is taken from it as it
-   * arrives. Answers the fetches started.
+   * Asks for `pages` (in priority order) as `fetchPlan` groups them; a page whose metatile is on
+   * its way is taken from it as it arrives. Answers the fetches started.
    */
-  function request(pages, limit) {
+  function request(pages) {
     const started = [];
     for (const { metatile, pages: group } of fetchPlan(pages, (k) => state.fetching.has(k))) {
       const joining = metatile && state.fetching.get(metatile.key);
-      if (!joining && state.requests >= limit) continue;
       for (const p of group) {
         state.inFlight.add(p.key);
         state.log.push({ frame: state.frame, event: 'request', key: p.key });
@@ -151,7 +147,6 @@ async function start() {
    * that is `wanted` arrives in `state.arrived`, the others are left.
    */
   async function fetchPages(what, url, wanted, read) {
-    state.requests++;
     state.log.push({ frame: state.frame, event: 'fetch', key: what });
     const arrived = new Set();
     const take = (level, x, y, body) => {
@@ -170,7 +165,6 @@ async function start() {
       state.error = String(e);
       overlay.classList.add('error');
     } finally {
-      state.requests--;
       // Pages this fetch failed to bring are no longer in flight (and may be asked again).
       for (const key of wanted) {
         if (!arrived.has(key) && state.inFlight.delete(key)) state.log.push({ frame: state.frame, event: 'drop', key });
@@ -207,7 +201,7 @@ async function start() {
     const [cols, rows] = pyr.grid(l);
     for (let y = 0; y < rows; y++) for (let x = 0; x < cols; x++) pinned.push({ key: pageKey(l, x, y), level: l, x, y });
   }
-  await Promise.all(request(pinned, Infinity));
+  await Promise.all(request(pinned));
   if (state.error) fail(state.error);
   makeResident(true);
 
@@ -228,7 +222,7 @@ async function start() {
     // No more in flight than the atlas could take now: a page that finds no slot is dropped.
     const room = Math.min(PAGES_IN_FLIGHT, cache.available(state.frame));
     const queue = plan(needed, (k) => cache.has(k), (k) => state.inFlight.has(k), pyr.maxLevel);
-    request(queue.slice(0, Math.max(0, room - state.inFlight.size)), REQUESTS_IN_FLIGHT);
+    request(queue.slice(0, Math.max(0, room - state.inFlight.size)));
     renderer.draw(camera, width, height);
     state.needed = needed.size;
     state.cpuMs.push(performance.now() - t0);
