@@ -166,7 +166,7 @@ impl Engine {
         region: Region,
         finish: impl FnOnce(Rgba8Image) -> Result<T, Error> + Send + 'static,
     ) -> Result<T, Error> {
-        let slot = self.slots.acquire(entry.key, region.level).await.map_err(|refused| {
+        let slot = self.slots.acquire(entry.key).await.map_err(|refused| {
             if refused == Refused::Full {
                 self.metrics.syntheses_shed.inc();
             }

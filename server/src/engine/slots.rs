@@ -6,11 +6,6 @@
 //! few. One texture holds at most `--max-syntheses-per-texture` slots (all but one by
 //! default): however slow its renders, another texture's miss finds a slot.
 //!
-//! Within a texture the coarsest level waiting goes first (the oldest among equals): a viewer
-//! asks for a view's coarse preview with its finer tiles and after the views before it, and the
-//! preview, which covers the whole view for a few tiles, must not wait behind them. Finer
-//! misses wait only while coarser ones keep coming, which a viewer's view bounds.
-//!
 //! The queue is bounded (`--max-queued`): a miss that would make it longer is refused at once
 //! ([`Refused::Full`]) rather than left to wait past its deadline. When the queue is full the
 //! texture with the most waiters gives up its newest one, so one texture flooding the server
@@ -55,8 +50,6 @@ struct State {
 
 struct Waiter {
     seq: u64,
-    /// The level of the tiles it renders: higher is coarser.
-    level: u32,
     wake: oneshot::Sender<Result<(), Refused>>,
 }
 
@@ -114,9 +107,9 @@ impl Slots {
         Arc::new(Slots { state: Mutex::new(state), per_texture: per_texture.min(slots), max_queued })
     }
 
-    /// A slot for a synthesis of `texture` at `level`: at once when one is free for it, else
-    /// after waiting its turn; refused when the queue is full or the slots are closed.
-    pub async fn acquire(self: &Arc<Self>, texture: Texture, level: u32) -> Result<Slot, Refused> {
+    /// A slot for a synthesis of `texture`: at once when one is free for it, else after
+    /// waiting its turn; refused when the queue is full or the slots are closed.
+    pub async fn acquire(self: &Arc<Self>, texture: Texture) -> Result<Slot, Refused> {
         let (seq, rx) = {
             let mut st = self.state.lock().unwrap();
             if st.closed {
@@ -125,7 +118,7 @@ impl Slots {
             let (tx, rx) = oneshot::channel();
             let seq = st.next_seq;
             st.next_seq += 1;
-            st.queues.entry(texture).or_default().push_back(Waiter { seq, level, wake: tx });
+            st.queues.entry(texture).or_default().push_back(Waiter { seq, wake: tx });
             st.queued += 1;
             st.dispatch(self.per_texture);
             if st.queued > self.max_queued {
@@ -158,8 +151,7 @@ impl Slots {
 
 impl State {
     /// Hands free slots to waiters: each to the texture holding the fewest slots among those
-    /// under `per_texture` (the one whose oldest waiter came first among equals), and there to
-    /// its coarsest waiter.
+    /// under `per_texture`, oldest first among equals.
     fn dispatch(&mut self, per_texture: usize) {
         while self.free > 0 {
             let next = self
@@ -169,10 +161,7 @@ impl State {
                 .filter(|&(held, _, _)| held < per_texture)
                 .min();
             let Some((_, _, texture)) = next else { return };
-            let waiter = self.pop(texture, |q| {
-                let coarsest = q.iter().enumerate().max_by_key(|(i, w)| (w.level, std::cmp::Reverse(*i)))?.0;
-                q.remove(coarsest)
-            });
+            let waiter = self.pop(texture, |q| q.pop_front());
             self.free -= 1;
             *self.running.entry(texture).or_default() += 1;
             // The receiver is alive: a dropped waiter leaves the queue under this lock first.
@@ -253,11 +242,11 @@ mod tests {
     #[test]
     fn free_slots_are_taken_at_once_up_to_the_share_of_a_texture() {
         let s = Slots::new(3, 2, 8);
-        let a1 = now(pin!(s.acquire(A, 0))).unwrap().unwrap();
-        let _a2 = now(pin!(s.acquire(A, 0))).unwrap().unwrap();
-        let mut a3 = pin!(s.acquire(A, 0));
+        let a1 = now(pin!(s.acquire(A))).unwrap().unwrap();
+        let _a2 = now(pin!(s.acquire(A))).unwrap().unwrap();
+        let mut a3 = pin!(s.acquire(A));
         assert!(now(a3.as_mut()).is_none(), "a texture holds at most its share");
-        let _b = now(pin!(s.acquire(B, 0))).unwrap().unwrap();
+        let _b = now(pin!(s.acquire(B))).unwrap().unwrap();
         assert_eq!(s.queued(), 1);
         drop(a1);
         assert!(now(a3.as_mut()).unwrap().is_ok(), "a freed slot goes to the waiter");
@@ -267,12 +256,12 @@ mod tests {
     #[test]
     fn a_freed_slot_goes_to_the_texture_holding_fewest() {
         let s = Slots::new(2, 2, 8);
-        let a1 = now(pin!(s.acquire(A, 0))).unwrap().unwrap();
-        let _a2 = now(pin!(s.acquire(A, 0))).unwrap().unwrap();
+        let a1 = now(pin!(s.acquire(A))).unwrap().unwrap();
+        let _a2 = now(pin!(s.acquire(A))).unwrap().unwrap();
         // A asks first, then B, then C: A holds two, B and C none.
-        let mut a3 = pin!(s.acquire(A, 0));
-        let mut b = pin!(s.acquire(B, 0));
-        let mut c = pin!(s.acquire(C, 0));
+        let mut a3 = pin!(s.acquire(A));
+        let mut b = pin!(s.acquire(B));
+        let mut c = pin!(s.acquire(C));
         assert!(now(a3.as_mut()).is_none() && now(b.as_mut()).is_none() && now(c.as_mut()).is_none());
         drop(a1);
         let _b = now(b.as_mut()).unwrap().expect("B holds none and waited longest of those");
@@ -283,9 +272,9 @@ mod tests {
     #[test]
     fn ties_go_to_the_oldest_waiter() {
         let s = Slots::new(1, 1, 8);
-        let held = now(pin!(s.acquire(C, 0))).unwrap().unwrap();
-        let mut b = pin!(s.acquire(B, 0));
-        let mut a = pin!(s.acquire(A, 0));
+        let held = now(pin!(s.acquire(C))).unwrap().unwrap();
+        let mut b = pin!(s.acquire(B));
+        let mut a = pin!(s.acquire(A));
         assert!(now(b.as_mut()).is_none() && now(a.as_mut()).is_none());
         drop(held);
         let _b = now(b.as_mut()).unwrap().expect("B came first");
@@ -293,50 +282,16 @@ mod tests {
     }
 
     #[test]
-    fn a_texture_s_coarsest_waiter_goes_first_oldest_among_equals() {
-        let s = Slots::new(1, 1, 8);
-        let held = now(pin!(s.acquire(A, 0))).unwrap().unwrap();
-        let mut fine = pin!(s.acquire(A, 0));
-        let mut mid = pin!(s.acquire(A, 2));
-        let mut coarse_first = pin!(s.acquire(A, 5));
-        let mut coarse_second = pin!(s.acquire(A, 5));
-        assert!(now(fine.as_mut()).is_none() && now(mid.as_mut()).is_none());
-        assert!(now(coarse_first.as_mut()).is_none() && now(coarse_second.as_mut()).is_none());
-        drop(held);
-        let slot = now(coarse_first.as_mut()).unwrap().expect("the coarsest level, asked first");
-        assert!(now(coarse_second.as_mut()).is_none() && now(mid.as_mut()).is_none());
-        drop(slot);
-        let slot = now(coarse_second.as_mut()).unwrap().expect("the same level, asked next");
-        drop(slot);
-        let slot = now(mid.as_mut()).unwrap().expect("then the next coarsest");
-        assert!(now(fine.as_mut()).is_none());
-        drop(slot);
-        assert!(now(fine.as_mut()).unwrap().is_ok());
-    }
-
-    #[test]
-    fn a_coarse_waiter_does_not_jump_another_texture_s_turn() {
-        let s = Slots::new(1, 1, 8);
-        let held = now(pin!(s.acquire(C, 0))).unwrap().unwrap();
-        let mut b = pin!(s.acquire(B, 0));
-        let mut a = pin!(s.acquire(A, 9));
-        assert!(now(b.as_mut()).is_none() && now(a.as_mut()).is_none());
-        drop(held);
-        let _b = now(b.as_mut()).unwrap().expect("B waited longest; A's coarser level does not count between textures");
-        assert!(now(a.as_mut()).is_none());
-    }
-
-    #[test]
     fn a_full_queue_sheds_the_newest_waiter_of_the_longest_queue() {
         let s = Slots::new(1, 1, 2);
-        let _held = now(pin!(s.acquire(A, 0))).unwrap().unwrap();
-        let mut a2 = pin!(s.acquire(A, 0));
-        let mut a3 = pin!(s.acquire(A, 0));
+        let _held = now(pin!(s.acquire(A))).unwrap().unwrap();
+        let mut a2 = pin!(s.acquire(A));
+        let mut a3 = pin!(s.acquire(A));
         assert!(now(a2.as_mut()).is_none() && now(a3.as_mut()).is_none());
         // A third waiter of A is over the bound: refused at once.
-        assert!(matches!(now(pin!(s.acquire(A, 0))), Some(Err(Refused::Full))));
+        assert!(matches!(now(pin!(s.acquire(A))), Some(Err(Refused::Full))));
         // B's waiter is admitted; A, with the longest queue, gives up its newest.
-        let mut b = pin!(s.acquire(B, 0));
+        let mut b = pin!(s.acquire(B));
         assert!(now(b.as_mut()).is_none(), "B waits");
         assert!(matches!(now(a3.as_mut()), Some(Err(Refused::Full))));
         assert!(now(a2.as_mut()).is_none(), "A's older waiter keeps its place");
@@ -346,24 +301,24 @@ mod tests {
     #[test]
     fn no_queue_means_misses_without_a_free_slot_are_refused() {
         let s = Slots::new(1, 1, 0);
-        let held = now(pin!(s.acquire(A, 0))).unwrap().unwrap();
-        assert!(matches!(now(pin!(s.acquire(B, 0))), Some(Err(Refused::Full))));
+        let held = now(pin!(s.acquire(A))).unwrap().unwrap();
+        assert!(matches!(now(pin!(s.acquire(B))), Some(Err(Refused::Full))));
         drop(held);
-        assert!(now(pin!(s.acquire(B, 0))).unwrap().is_ok());
+        assert!(now(pin!(s.acquire(B))).unwrap().is_ok());
     }
 
     #[test]
     fn a_waiter_dropped_leaves_the_queue_and_a_grant_dropped_is_handed_on() {
         let s = Slots::new(1, 1, 8);
-        let held = now(pin!(s.acquire(A, 0))).unwrap().unwrap();
+        let held = now(pin!(s.acquire(A))).unwrap().unwrap();
         {
-            let mut gone = pin!(s.acquire(B, 0));
+            let mut gone = pin!(s.acquire(B));
             assert!(now(gone.as_mut()).is_none());
             assert_eq!(s.queued(), 1);
         }
         assert_eq!(s.queued(), 0, "a dropped waiter leaves the queue");
-        let mut granted_then_dropped = Box::pin(s.acquire(B, 0));
-        let mut c = pin!(s.acquire(C, 0));
+        let mut granted_then_dropped = Box::pin(s.acquire(B));
+        let mut c = pin!(s.acquire(C));
         assert!(now(granted_then_dropped.as_mut()).is_none() && now(c.as_mut()).is_none());
         drop(held);
         // B was granted the slot but never took it: dropping it hands the slot to C.
@@ -374,12 +329,12 @@ mod tests {
     #[test]
     fn closing_refuses_waiters_and_later_misses() {
         let s = Slots::new(1, 1, 8);
-        let held = now(pin!(s.acquire(A, 0))).unwrap().unwrap();
-        let mut b = pin!(s.acquire(B, 0));
+        let held = now(pin!(s.acquire(A))).unwrap().unwrap();
+        let mut b = pin!(s.acquire(B));
         assert!(now(b.as_mut()).is_none());
         s.close();
         assert!(matches!(now(b.as_mut()), Some(Err(Refused::Closed))));
-        assert!(matches!(now(pin!(s.acquire(C, 0))), Some(Err(Refused::Closed))));
+        assert!(matches!(now(pin!(s.acquire(C))), Some(Err(Refused::Closed))));
         drop(held);
         assert_eq!(s.queued(), 0);
     }
@@ -397,7 +352,7 @@ mod tests {
             let (s, running, total) = (s.clone(), running.clone(), total.clone());
             tasks.push(tokio::spawn(async move {
                 let t = i % 3;
-                let slot = s.acquire([t as u8; 32], 0).await.unwrap();
+                let slot = s.acquire([t as u8; 32]).await.unwrap();
                 assert!(running[t].fetch_add(1, SeqCst) < 2, "over the share of a texture");
                 assert!(total.fetch_add(1, SeqCst) < 3, "over the slots");
                 tokio::task::yield_now().await;
