@@ -2,10 +2,13 @@
 //! a fixed number of connections busy against a running `vtex serve`, mixing well-behaved
 //! clients (cached tiles, uncached tiles of every stored texture, uploads) with slow readers
 //! (reading a large region a few bytes a second) and clients that never read, while sampling
-//! the server's resident memory from `/proc/<pid>/status` every 100 ms. It reports each class's
-//! answers, the cached tiles' latency percentiles and the largest RSS against the budgets. A
-//! slow reader's region refused with 503 (the in-flight budget spent) is the intended answer for
-//! that class: it is counted apart and asked again, never as an error.
+//! the server's resident memory from `/proc/<pid>/status` every 100 ms. Beside them, attackers
+//! hold as many sockets again as the server's connection limit, of each of two kinds — silent
+//! sockets and idle keep-alives — making each one again as soon as the server closes it, so the
+//! server is at its limit throughout. It reports each class's answers, the cached tiles'
+//! latency percentiles, how long the attackers' sockets lived, and the largest RSS against the
+//! budgets. A slow reader's region refused with 503 (the in-flight budget spent) is the
+//! intended answer for that class: it is counted apart and asked again, never as an error.
 
 use clap::Parser;
 use rand::rngs::StdRng;
@@ -300,6 +303,91 @@ async fn slow_request(addr: &str, path: &str, per_second: usize, stop: &AtomicBo
     }
 }
 
+/// What the attackers of one kind saw.
+#[derive(Debug, Default)]
+struct Held {
+    /// Connections made.
+    made: u64,
+    /// Seconds each lived, from its accept (silent) or its answer (keep-alive) until the server
+    /// closed it.
+    lived: Vec<f64>,
+    /// Connections answered 503 (the server full of requests in flight) instead of admitted.
+    refused: u64,
+}
+
+impl Held {
+    fn merge(&mut self, other: Held) {
+        self.made += other.made;
+        self.lived.extend(other.lived);
+        self.refused += other.refused;
+    }
+}
+
+/// How long an attacker waits after the server closes one of its sockets before making the
+/// next: enough to keep a slot's worth of pressure without spinning the machine's two cores.
+const ATTACKER_PAUSE: Duration = Duration::from_millis(250);
+
+/// Holds one socket open until the end of the run, making it again whenever the server closes
+/// it: a silent one (connects, never sends a byte) or, with `keep_alive`, one that is answered
+/// once and then sends nothing more.
+async fn attacker(addr: String, keep_alive: bool, stop: Arc<AtomicBool>) -> Held {
+    let mut h = Held::default();
+    while !stop.load(Relaxed) {
+        let Ok(mut sock) = tokio::net::TcpStream::connect(&addr).await else {
+            tokio::time::sleep(ATTACKER_PAUSE).await;
+            continue;
+        };
+        h.made += 1;
+        let mut got = Vec::new();
+        let mut buf = [0u8; 4096];
+        if keep_alive {
+            let req = format!("GET /healthz HTTP/1.1\r\nHost: {addr}\r\n\r\n");
+            if sock.write_all(req.as_bytes()).await.is_err() {
+                continue;
+            }
+        }
+        let mut since = Instant::now();
+        // Reads until the server closes the socket or the run ends; a keep-alive's answer
+        // (a `/healthz` body ends with `}`) restarts the clock.
+        loop {
+            let read = tokio::select! {
+                r = sock.read(&mut buf) => r,
+                () = until(&stop) => break,
+            };
+            match read {
+                Ok(0) | Err(_) => {
+                    h.lived.push(since.elapsed().as_secs_f64());
+                    break;
+                }
+                Ok(n) => {
+                    got.extend_from_slice(&buf[..n]);
+                    if got.starts_with(b"HTTP/1.1 503") {
+                        h.refused += 1;
+                    } else if keep_alive && got.ends_with(b"}") {
+                        since = Instant::now();
+                    }
+                }
+            }
+        }
+        tokio::time::sleep(ATTACKER_PAUSE).await;
+    }
+    h
+}
+
+/// Resolves once `stop` is set (checked every 100 ms).
+async fn until(stop: &AtomicBool) {
+    while !stop.load(Relaxed) {
+        tokio::time::sleep(Duration::from_millis(100)).await;
+    }
+}
+
+/// The server's connection limit, from its metrics.
+async fn connection_limit(base: &str) -> usize {
+    let text = reqwest::get(format!("{base}/metrics")).await.unwrap().text().await.unwrap();
+    let line = text.lines().find(|l| l.starts_with("vtex_http_connections_max ")).expect("the connection limit");
+    line.split_whitespace().nth(1).and_then(|v| v.parse().ok()).expect("a number")
+}
+
 /// RSS and its high-water mark (kB) from `/proc/<pid>/status`.
 fn rss_kb(pid: u32) -> Option<(u64, u64)> {
     let status = std::fs::read_to_string(format!("/proc/{pid}/status")).ok()?;
@@ -354,6 +442,7 @@ async fn main() {
     // 3/16 uncached, the rest cached.
     let n = args.connections;
     let (slow, silent, up) = ((n / 16).max(1), (n / 16).max(1), (n / 16).max(1));
+    let limit = connection_limit(&base).await;
     let cold = (3 * n / 16).max(1);
     let warm_clients = n.saturating_sub(slow + silent + up + cold).max(1);
 
@@ -388,6 +477,11 @@ async fn main() {
         .map(|_| tokio::spawn(slow_reader(addr.clone(), region.clone(), 16, stop.clone())))
         .chain((0..silent).map(|_| tokio::spawn(slow_reader(addr.clone(), region.clone(), 0, stop.clone()))))
         .collect();
+    let attack_tasks: Vec<_> = [false, true]
+        .iter()
+        .flat_map(|&keep_alive| (0..limit).map(move |_| keep_alive))
+        .map(|keep_alive| tokio::spawn(attacker(addr.clone(), keep_alive, stop.clone())))
+        .collect();
 
     tokio::time::sleep(Duration::from_secs(args.seconds)).await;
     stop.store(true, Relaxed);
@@ -399,6 +493,7 @@ async fn main() {
         classes.push((name, clients, t));
     }
     let slow_seen: Vec<Slow> = join_all(slow_tasks).await;
+    let held: Vec<Held> = join_all(attack_tasks).await;
     sampler.join().unwrap();
 
     let samples = samples.lock().unwrap();
@@ -406,8 +501,10 @@ async fn main() {
     let hwm = rss_kb(args.pid).map(|r| r.1 as f64 / 1024.0).unwrap_or(f64::NAN);
     let bound = args.budget_mb * 1.2;
     println!(
-        "{} s at {n} connections; {} textures of models {:?}; {} cached tiles in the warm set",
+        "{} s at {n} connections and {} attackers' sockets (connection limit {limit}); {} textures of models {:?}; {} \
+         cached tiles in the warm set",
         args.seconds,
+        2 * limit,
         texs.len(),
         models,
         urls.len()
@@ -436,6 +533,24 @@ async fn main() {
             seen.answers,
             closed.len(),
             closed.join(", ")
+        );
+    }
+    let mut held = held.into_iter();
+    for kind in ["silent sockets", "idle keep-alives"] {
+        let mut seen = Held::default();
+        held.by_ref().take(limit).for_each(|one| seen.merge(one));
+        let mut lived = seen.lived.clone();
+        lived.sort_by(f64::total_cmp);
+        let at = |p: f64| lived.get(((lived.len() as f64 * p) as usize).min(lived.len().saturating_sub(1)));
+        println!(
+            "attackers, {kind}: {limit} held (the connection limit), {} connections made, {} closed by the server \
+             (after p50 {:.3} s, p99 {:.3} s, max {:.3} s), {} answered 503",
+            seen.made,
+            lived.len(),
+            at(0.5).copied().unwrap_or(f64::NAN),
+            at(0.99).copied().unwrap_or(f64::NAN),
+            lived.last().copied().unwrap_or(f64::NAN),
+            seen.refused
         );
     }
     println!(
