@@ -305,7 +305,7 @@ async fn slow_request(addr: &str, path: &str, per_second: usize, stop: &AtomicBo
 
 /// What the attackers of one kind saw.
 #[derive(Debug, Default)]
-struct Held {
+struct Attack {
     /// Connections made.
     made: u64,
     /// Seconds each lived, from its accept (silent) or its answer (keep-alive) until the server
@@ -315,8 +315,8 @@ struct Held {
     refused: u64,
 }
 
-impl Held {
-    fn merge(&mut self, other: Held) {
+impl Attack {
+    fn merge(&mut self, other: Attack) {
         self.made += other.made;
         self.lived.extend(other.lived);
         self.refused += other.refused;
@@ -330,8 +330,8 @@ const ATTACKER_PAUSE: Duration = Duration::from_millis(250);
 /// Holds one socket open until the end of the run, making it again whenever the server closes
 /// it: a silent one (connects, never sends a byte) or, with `keep_alive`, one that is answered
 /// once and then sends nothing more.
-async fn attacker(addr: String, keep_alive: bool, stop: Arc<AtomicBool>) -> Held {
-    let mut h = Held::default();
+async fn attacker(addr: String, keep_alive: bool, stop: Arc<AtomicBool>) -> Attack {
+    let mut h = Attack::default();
     while !stop.load(Relaxed) {
         let Ok(mut sock) = tokio::net::TcpStream::connect(&addr).await else {
             tokio::time::sleep(ATTACKER_PAUSE).await;
@@ -379,6 +379,37 @@ async fn until(stop: &AtomicBool) {
     while !stop.load(Relaxed) {
         tokio::time::sleep(Duration::from_millis(100)).await;
     }
+}
+
+/// Sums the series of gauge `name` in a metrics exposition (MiB, or a count with `count`).
+fn gauge_sum(text: &str, name: &str) -> f64 {
+    text.lines()
+        .filter(|l| l.split(['{', ' ']).next() == Some(name))
+        .filter_map(|l| l.rsplit(' ').next()?.parse::<f64>().ok())
+        .sum()
+}
+
+/// The server's RSS and its metrics, sampled together.
+struct Peak {
+    rss_mib: f64,
+    metrics: String,
+}
+
+/// Samples the server's metrics with its RSS every second until `stop`; returns the sample of
+/// the largest RSS.
+async fn budgets_at_peak(base: String, pid: u32, stop: Arc<AtomicBool>) -> Option<Peak> {
+    let http = client();
+    let mut peak: Option<Peak> = None;
+    while !stop.load(Relaxed) {
+        tokio::time::sleep(Duration::from_secs(1)).await;
+        let Ok(r) = http.get(format!("{base}/metrics")).send().await else { continue };
+        let (Ok(metrics), Some((rss, _))) = (r.text().await, rss_kb(pid)) else { continue };
+        let rss_mib = rss as f64 / 1024.0;
+        if peak.as_ref().is_none_or(|p| rss_mib > p.rss_mib) {
+            peak = Some(Peak { rss_mib, metrics });
+        }
+    }
+    peak
 }
 
 /// The server's connection limit, from its metrics.
@@ -482,6 +513,7 @@ async fn main() {
         .flat_map(|&keep_alive| (0..limit).map(move |_| keep_alive))
         .map(|keep_alive| tokio::spawn(attacker(addr.clone(), keep_alive, stop.clone())))
         .collect();
+    let peak_task = tokio::spawn(budgets_at_peak(base.clone(), args.pid, stop.clone()));
 
     tokio::time::sleep(Duration::from_secs(args.seconds)).await;
     stop.store(true, Relaxed);
@@ -493,7 +525,8 @@ async fn main() {
         classes.push((name, clients, t));
     }
     let slow_seen: Vec<Slow> = join_all(slow_tasks).await;
-    let held: Vec<Held> = join_all(attack_tasks).await;
+    let held: Vec<Attack> = join_all(attack_tasks).await;
+    let peak = peak_task.await.unwrap();
     sampler.join().unwrap();
 
     let samples = samples.lock().unwrap();
@@ -537,7 +570,7 @@ async fn main() {
     }
     let mut held = held.into_iter();
     for kind in ["silent sockets", "idle keep-alives"] {
-        let mut seen = Held::default();
+        let mut seen = Attack::default();
         held.by_ref().take(limit).for_each(|one| seen.merge(one));
         let mut lived = seen.lived.clone();
         lived.sort_by(f64::total_cmp);
@@ -559,6 +592,20 @@ async fn main() {
         args.budget_mb,
         if max_rss <= bound { "within" } else { "OVER" }
     );
+    if let Some(p) = peak {
+        let mib = |name: &str| gauge_sum(&p.metrics, name) / (1024.0 * 1024.0);
+        println!(
+            "at the largest RSS sampled with the metrics (every second), {:.1} MiB: tile cache {:.1} MiB ({:.1} \
+             mapped), textures loaded {:.1} MiB, bodies in flight {:.1} MiB, model caches {:.1} MiB; {} connections",
+            p.rss_mib,
+            mib("vtex_tile_cache_bytes"),
+            mib("vtex_tile_cache_mapped_bytes"),
+            mib("vtex_textures_loaded_bytes"),
+            mib("vtex_inflight_bytes"),
+            mib("vtex_model_cache_bytes"),
+            gauge_sum(&p.metrics, "vtex_http_connections")
+        );
+    }
     let well_behaved_errors: u64 = classes.iter().map(|c| c.2.errors.values().sum::<u64>()).sum();
     println!("well-behaved clients' errors: {well_behaved_errors}");
 }

@@ -155,9 +155,14 @@ impl Ticket {
     /// Resolves when the acceptor asks this connection to make room and no request is in flight
     /// on it: it is then closed without losing anything. A request started since it was chosen
     /// keeps it open; the acceptor then chooses again.
+    ///
+    /// Its connection must be polled before it (a biased `select!`): the yield lets the runtime
+    /// read the socket's readiness first, so a request whose head has already arrived starts
+    /// before the check rather than being lost with the connection.
     pub async fn evicted(&self) {
         loop {
             self.evict.notified().await;
+            tokio::task::yield_now().await;
             if self.activity.in_flight() == 0 {
                 self.admission.evicted.inc();
                 return;

@@ -304,7 +304,10 @@ impl Conns {
         let (header_timeout, idle) = (self.header_timeout, self.idle_timeout);
         tokio::spawn(async move {
             // Dropping the connection when it is closable loses nothing: no request is in flight.
+            // The connection is polled first, so a request whose head has arrived starts (and
+            // keeps the connection open) before the connection is judged closable.
             tokio::select! {
+                biased;
                 ended = conn => if let Err(e) = ended {
                     tracing::debug!(error = %e, "connection ended with an error");
                 },
