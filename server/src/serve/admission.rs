@@ -1,11 +1,10 @@
 //! Who holds the server's connections: at most `--max-connections` at once and, when
 //! `--max-connections-per-client` is set, that many from one address.
 //!
-//! At the limit, a connection with no request in flight is closed to admit the new one, as nginx
+//! At the limit, the connection with no request in flight for longest — one that never sent a
+//! request head, or a keep-alive between requests — is closed to admit the new one, as nginx
 //! closes its idle keep-alive connections when it runs out of them: a connection that sends
-//! nothing cannot then hold a slot a client needs. Those that never sent a request head go
-//! first, then keep-alives between requests, each longest quiet first: closing a keep-alive
-//! costs its client a new connection, and may race a request it is sending. Only when every connection has a request in
+//! nothing cannot then hold a slot a client needs. Only when every connection has a request in
 //! flight is the new one refused (503). Over its address's limit a connection is refused (429).
 //! A refusal is a complete answer, then a close ([`Refusal`]).
 
@@ -100,12 +99,11 @@ impl Admission {
         if open.evicting.is_some() {
             return Attempt::Wait;
         }
-        // Connections that never sent a request first: closing one costs no client anything.
         let quietest = open
             .conns
             .iter()
             .filter(|(_, slot)| slot.activity.in_flight() == 0)
-            .min_by_key(|(_, slot)| (slot.activity.started() > 0, slot.activity.quiet_since()));
+            .min_by_key(|(_, slot)| slot.activity.quiet_since());
         match quietest {
             None => Attempt::Decided(Verdict::Full),
             Some((&id, slot)) => {
