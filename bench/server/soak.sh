@@ -10,9 +10,10 @@
 # p50/p99 of cached tiles, how long the attackers' sockets lived, and the server's RSS sampled
 # every 100 ms against the budgets + 20 %. Appends to bench/results/soak-<date>.txt.
 # Usage: flock /tmp/vtex-bench.lock bench/server/soak.sh [SECONDS, default 60]
-# Environment: CACHE_MB (default 64), TEXTURES_MB (default 256), INFLIGHT_MB (default 64: four
-#              of the slow readers' regions; regions are then limited to their size, 2048²,
-#              so that the budget holds the largest), CONNECTIONS (default 64), MAX_CONNECTIONS
+# Environment: CACHE_MB (default 64), TEXTURES_MB (default 256), SYNTH_CACHE_MB (default 64),
+#              INFLIGHT_MB (default 64: four of the slow readers' regions; regions are then
+#              limited to their size, 2048², so that the budget holds the largest; uploads are
+#              charged there too), CONNECTIONS (default 64), MAX_CONNECTIONS
 #              (default 128: the server's limit, which the attackers fill twice over), SEED
 #              (default 1), EXTRA_FLAGS (more `vtex serve` flags).
 set -euo pipefail
@@ -20,6 +21,7 @@ ROOT=$(cd "$(dirname "$0")/../.." && pwd)
 SECS=${1:-60}
 CACHE_MB=${CACHE_MB:-64}
 TEXTURES_MB=${TEXTURES_MB:-256}
+SYNTH_CACHE_MB=${SYNTH_CACHE_MB:-64}
 INFLIGHT_MB=${INFLIGHT_MB:-64}
 CONNECTIONS=${CONNECTIONS:-64}
 MAX_CONNECTIONS=${MAX_CONNECTIONS:-128}
@@ -37,9 +39,11 @@ trap cleanup EXIT
 
 flags=(--bind 127.0.0.1:0 --data-dir "$WORK/data" --cache-mb "$CACHE_MB" --web-dir "$WORK/none"
   --max-connections "$MAX_CONNECTIONS")
-# RSS is held to the budgets together, + 20 %.
-budget=$((CACHE_MB + TEXTURES_MB))
-note="budgets: tiles $CACHE_MB MiB, textures $TEXTURES_MB MiB"
+# RSS is held to the budgets together, + 20 %: the synthesis cache's once, as one model
+# (order-independent) keeps one.
+flags+=(--synth-cache-mb "$SYNTH_CACHE_MB")
+budget=$((CACHE_MB + TEXTURES_MB + SYNTH_CACHE_MB))
+note="budgets: tiles $CACHE_MB MiB, textures $TEXTURES_MB MiB, synthesis cache $SYNTH_CACHE_MB MiB"
 if "$BIN/vtex" serve --help | grep -q -- '--textures-mb'; then
   flags+=(--textures-mb "$TEXTURES_MB")
 else
@@ -48,9 +52,9 @@ fi
 if "$BIN/vtex" serve --help | grep -q -- '--inflight-mb'; then
   flags+=(--inflight-mb "$INFLIGHT_MB" --max-region-pixels $((2048 * 2048)))
   budget=$((budget + INFLIGHT_MB))
-  note="$note, response bodies in flight $INFLIGHT_MB MiB"
+  note="$note, bodies in flight $INFLIGHT_MB MiB"
 else
-  note="$note; this build has no --inflight-mb, so response bodies in flight are not bounded"
+  note="$note; this build has no --inflight-mb, so bodies in flight are not bounded"
 fi
 # shellcheck disable=SC2206
 flags+=(${EXTRA_FLAGS:-})

@@ -69,6 +69,8 @@ struct Tally {
     shed: BTreeMap<u16, u64>,
     /// Anything else: other statuses and transport errors, by description.
     errors: BTreeMap<String, u64>,
+    /// Requests sent again once because the server closed their connection before answering.
+    retried: u64,
     latencies: Vec<Duration>,
 }
 
@@ -96,6 +98,7 @@ impl Tally {
 
     fn merge(&mut self, other: Tally) {
         self.ok += other.ok;
+        self.retried += other.retried;
         other.shed.into_iter().for_each(|(k, v)| *self.shed.entry(k).or_default() += v);
         other.errors.into_iter().for_each(|(k, v)| *self.errors.entry(k).or_default() += v);
         self.latencies.extend(other.latencies);
@@ -104,9 +107,23 @@ impl Tally {
     fn line(&self, class: &str, clients: usize) -> String {
         let errors: u64 = self.errors.values().sum();
         format!(
-            "{class:<16} {clients:>3} clients  {:>7} ok  shed {:?}  errors {errors} {:?}",
-            self.ok, self.shed, self.errors
+            "{class:<16} {clients:>3} clients  {:>7} ok  shed {:?}  errors {errors} {:?}  retried {}",
+            self.ok, self.shed, self.errors, self.retried
         )
+    }
+}
+
+/// Sends `req`, and once more when the server closed the connection before answering: what a
+/// browser does when a keep-alive it reused was closed as idle meanwhile (RFC 9112 §9.3.1
+/// allows it; every upload here is a new bundle, and the same one again would be answered 200).
+async fn send(req: reqwest::RequestBuilder, t: &mut Tally) -> reqwest::Result<reqwest::Response> {
+    let again = req.try_clone();
+    match (req.send().await, again) {
+        (Err(e), Some(again)) if !e.is_timeout() && !e.is_connect() => {
+            t.retried += 1;
+            again.send().await
+        }
+        (sent, _) => sent,
     }
 }
 
@@ -141,7 +158,7 @@ async fn cached(urls: Arc<Vec<String>>, stop: Arc<AtomicBool>, seed: u64) -> Tal
     while !stop.load(Relaxed) {
         let url = &urls[rng.random_range(0..urls.len())];
         let start = Instant::now();
-        match http.get(url).send().await {
+        match send(http.get(url), &mut t).await {
             Ok(r) => {
                 let status = r.status().as_u16();
                 let body = r.bytes().await;
@@ -169,7 +186,7 @@ async fn uncached(base: String, texs: Arc<Vec<Texture>>, stop: Arc<AtomicBool>, 
         let (cols, rows) = tex.tiles_at(level);
         let ext = ["png", "webp", "jpg", "rgba"][rng.random_range(0..4)];
         let url = tex.tile_url(&base, level, rng.random_range(0..cols), rng.random_range(0..rows), ext);
-        match http.get(url).send().await {
+        match send(http.get(url), &mut t).await {
             Ok(r) => {
                 let status = r.status().as_u16();
                 match r.bytes().await {
@@ -195,7 +212,7 @@ async fn uploads(base: String, bundle: Arc<Vec<u8>>, stop: Arc<AtomicBool>, who:
             .post(format!("{base}/api/v1/textures"))
             .header("content-type", "application/octet-stream")
             .body(b.to_bytes());
-        match req.send().await {
+        match send(req, &mut t).await {
             Ok(r) => {
                 let status = r.status().as_u16();
                 let _ = r.bytes().await;

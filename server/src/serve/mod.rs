@@ -14,8 +14,9 @@
 //! `--send-timeout-secs`, or that its reader takes slower than `--min-send-rate`, is abandoned
 //! (in [`crate::transport::Io`]); a connection that sends no request head within
 //! `--header-timeout-secs` of its accept, or is idle for `--idle-timeout-secs`, is closed
-//! ([`lifetime`]); at `--max-connections` the connection quiet longest makes room for a new one,
-//! which is refused (503) only when every connection has a request in flight, and
+//! ([`lifetime`]); at `--max-connections` the connection with no request in flight for longest
+//! makes room for a new one, which is refused (503) only when every connection has a request in
+//! flight, and
 //! `--max-connections-per-client` bounds one address's ([`admission`]).
 //!
 //! Shutdown stops accepting, lets requests in flight finish within the drain time, stops the
