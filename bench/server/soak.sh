@@ -14,8 +14,9 @@
 #              INFLIGHT_MB (default 64: four of the slow readers' regions; regions are then
 #              limited to their size, 2048², so that the budget holds the largest; uploads are
 #              charged there too), CONNECTIONS (default 64), MAX_CONNECTIONS
-#              (default 128: the server's limit, which the attackers fill twice over), SEED
-#              (default 1), EXTRA_FLAGS (more `vtex serve` flags).
+#              (default 128: the server's limit), ATTACKERS (sockets each kind of attacker
+#              holds, default MAX_CONNECTIONS: the limit filled twice over), SEED (default 1),
+#              EXTRA_FLAGS (more `vtex serve` flags).
 set -euo pipefail
 ROOT=$(cd "$(dirname "$0")/../.." && pwd)
 SECS=${1:-60}
@@ -69,7 +70,8 @@ out=bench/results/soak-$(date -u +%Y-%m-%d).txt
   echo "== $(date -u +%FT%TZ) $(git rev-parse --short HEAD)$(git diff --quiet || echo '+dirty') soak ${SECS}s, $(nproc) cores"
   echo "vtex serve ${flags[*]}"
   echo "($note)"
-  "$BIN/soak" --url "$URL" --pid "$PID" --seconds "$SECS" --connections "$CONNECTIONS" --budget-mb "$budget" --seed "$SEED"
+  "$BIN/soak" --url "$URL" --pid "$PID" --seconds "$SECS" --connections "$CONNECTIONS" --budget-mb "$budget" --seed "$SEED" \
+    --attackers "${ATTACKERS:-$MAX_CONNECTIONS}"
   echo "server log lines: $(wc -l < "$WORK/err") (warnings and errors); server still running: $(kill -0 "$PID" 2>/dev/null && echo yes || echo NO)"
   echo
 } | tee -a "$out"

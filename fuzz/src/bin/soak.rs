@@ -37,6 +37,9 @@ struct Args {
     budget_mb: f64,
     #[arg(long, default_value_t = 1)]
     seed: u64,
+    /// Sockets each kind of attacker holds [default: the server's connection limit].
+    #[arg(long)]
+    attackers: Option<usize>,
 }
 
 /// A stored texture, as `GET /api/v1/textures` lists it.
@@ -491,6 +494,7 @@ async fn main() {
     let n = args.connections;
     let (slow, silent, up) = ((n / 16).max(1), (n / 16).max(1), (n / 16).max(1));
     let limit = connection_limit(&base).await;
+    let attackers = args.attackers.unwrap_or(limit);
     let cold = (3 * n / 16).max(1);
     let warm_clients = n.saturating_sub(slow + silent + up + cold).max(1);
 
@@ -527,7 +531,7 @@ async fn main() {
         .collect();
     let attack_tasks: Vec<_> = [false, true]
         .iter()
-        .flat_map(|&keep_alive| (0..limit).map(move |_| keep_alive))
+        .flat_map(|&keep_alive| (0..attackers).map(move |_| keep_alive))
         .map(|keep_alive| tokio::spawn(attacker(addr.clone(), keep_alive, stop.clone())))
         .collect();
     let peak_task = tokio::spawn(budgets_at_peak(base.clone(), args.pid, stop.clone()));
@@ -554,7 +558,7 @@ async fn main() {
         "{} s at {n} connections and {} attackers' sockets (connection limit {limit}); {} textures of models {:?}; {} \
          cached tiles in the warm set",
         args.seconds,
-        2 * limit,
+        2 * attackers,
         texs.len(),
         models,
         urls.len()
@@ -588,12 +592,12 @@ async fn main() {
     let mut held = held.into_iter();
     for kind in ["silent sockets", "idle keep-alives"] {
         let mut seen = Attack::default();
-        held.by_ref().take(limit).for_each(|one| seen.merge(one));
+        held.by_ref().take(attackers).for_each(|one| seen.merge(one));
         let mut lived = seen.lived.clone();
         lived.sort_by(f64::total_cmp);
         let at = |p: f64| lived.get(((lived.len() as f64 * p) as usize).min(lived.len().saturating_sub(1)));
         println!(
-            "attackers, {kind}: {limit} held (the connection limit), {} connections made, {} closed by the server \
+            "attackers, {kind}: {attackers} held, {} connections made, {} closed by the server \
              (after p50 {:.3} s, p99 {:.3} s, max {:.3} s), {} answered 503",
             seen.made,
             lived.len(),
