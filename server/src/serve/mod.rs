@@ -16,8 +16,7 @@
 //! `--header-timeout-secs` of its accept, or is idle for `--idle-timeout-secs`, is closed
 //! ([`lifetime`]); at `--max-connections` the connection with no request in flight for longest
 //! makes room for a new one, which is refused (503) only when every connection has a request in
-//! flight, and
-//! `--max-connections-per-client` bounds one address's ([`admission`]).
+//! flight, and `--max-connections-per-client` bounds one address's ([`admission`]).
 //!
 //! Shutdown stops accepting, lets requests in flight finish within the drain time, stops the
 //! renders that would outlast it (their requests get 503), and exits without waiting for
