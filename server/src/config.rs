@@ -145,7 +145,8 @@ pub struct ServeConfig {
     pub request_timeout_secs: f64,
     /// Deadline for a client to send its request headers, in seconds.
     ///
-    /// The connection is closed after it.
+    /// Counted from the connection's accept, and on HTTP/1.1 keep-alive from its previous
+    /// response; the connection is closed after it. Covers HTTP/2's preface and first request.
     #[arg(
         long,
         value_name = "SECS",
@@ -201,10 +202,17 @@ pub struct ServeConfig {
     pub idle_timeout_secs: f64,
     /// Open connections served at once [default: from the open-file limit].
     ///
-    /// Beyond it a new one gets a 503 and is closed. The default is (open-file limit − 64) ÷
-    /// descriptors per connection (3 under `splice`, 1 under `copy`).
+    /// At it, the connection with no request in flight for longest is closed to admit a new one;
+    /// only when every connection has a request in flight does a new one get a 503. The default
+    /// is (open-file limit − 64) ÷ descriptors per connection (3 under `splice`, 1 under `copy`).
     #[arg(long, value_name = "N", env = "VTEX_MAX_CONNECTIONS", help_heading = heading::CONNECTIONS)]
     pub max_connections: Option<usize>,
+    /// Open connections from one client address [default: no limit].
+    ///
+    /// Beyond it a new connection from that address gets a 429 and is closed. The address is the
+    /// TCP peer's: behind a reverse proxy, every client shares the proxy's.
+    #[arg(long, value_name = "N", env = "VTEX_MAX_CONNECTIONS_PER_CLIENT", help_heading = heading::CONNECTIONS)]
+    pub max_connections_per_client: Option<usize>,
     /// Byte budget of loaded textures, in MiB.
     ///
     /// Each texture is charged what its plan says it holds: textures load on first use and the
@@ -259,10 +267,11 @@ pub struct ServeConfig {
     #[arg(long, value_name = "N", env = "VTEX_MAX_QUEUED", help_heading = heading::BUDGETS,
         help = max_queued_help(false), long_help = max_queued_help(true))]
     pub max_queued: Option<usize>,
-    /// Byte budget of response bodies in flight, in MiB.
+    /// Byte budget of bodies in flight, in MiB.
     ///
     /// Regions (from their render until sent), bundle downloads and batch frames reserve their
-    /// bytes first; past it, 503. Cached tiles are the tile cache's and are not charged.
+    /// bytes first, and uploads their body's length (`--max-upload-mb` when it declares none)
+    /// until stored; past it, 503. Cached tiles are the tile cache's and are not charged.
     #[arg(
         long,
         value_name = "MIB",
@@ -414,6 +423,13 @@ impl ServeConfig {
                 largest as f64 / (1 << 20) as f64
             ));
         }
+        if self.inflight_bytes() < self.max_upload_bytes() as u64 {
+            return Err(format!(
+                "inflight-mb ({} MiB) must hold the largest upload, max-upload-mb ({} MiB): an upload reserves \
+                 its body there while it is read and stored",
+                self.inflight_mb, self.max_upload_mb
+            ));
+        }
         if self.max_region_pixels < self.tile_size as u64 * self.tile_size as u64 {
             return Err("max-region-pixels must allow at least one tile".into());
         }
@@ -430,6 +446,9 @@ impl ServeConfig {
         positive(self.idle_timeout_secs, "idle-timeout-secs")?;
         if self.max_connections == Some(0) {
             return Err("max-connections must be at least 1".into());
+        }
+        if self.max_connections_per_client == Some(0) {
+            return Err("max-connections-per-client must be at least 1".into());
         }
         for origin in &self.cors_write_origins {
             if origin != "*" && !(origin.starts_with("http://") || origin.starts_with("https://")) {

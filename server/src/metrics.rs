@@ -53,8 +53,11 @@ pub struct Metrics {
     pub connections: IntGaugeVec,
     /// The limit on open connections (`--max-connections`).
     pub connections_max: IntGauge,
-    /// Connections refused (503) because the limit was reached.
-    pub connections_refused: IntCounter,
+    /// Connections refused, by the limit that refused them (`limit` = `max-connections`, a 503,
+    /// or `max-connections-per-client`, a 429).
+    pub connections_refused: IntCounterVec,
+    /// Connections with no request in flight closed to admit a new one at the limit.
+    pub connections_evicted: IntCounter,
     /// Bytes reserved by response bodies in flight.
     pub inflight_bytes: IntGauge,
     pub inflight_budget_bytes: IntGauge,
@@ -151,17 +154,28 @@ impl Metrics {
         ));
         let connections_max =
             must(IntGauge::new("vtex_http_connections_max", "Open connections served at once (--max-connections)"));
-        let connections_refused = must(IntCounter::new(
-            "vtex_http_connections_refused_total",
-            "Connections answered 503 and closed because the connection limit was reached",
+        let connections_refused = must(IntCounterVec::new(
+            Opts::new(
+                "vtex_http_connections_refused_total",
+                "Connections answered and closed at a connection limit: 503 at --max-connections (every \
+                 connection with a request in flight), 429 at --max-connections-per-client",
+            ),
+            &["limit"],
+        ));
+        let connections_evicted = must(IntCounter::new(
+            "vtex_http_connections_evicted_total",
+            "Connections with no request in flight (silent, or idle keep-alive) closed to admit a new one at \
+             --max-connections",
         ));
         let inflight_bytes = must(IntGauge::new(
             "vtex_inflight_bytes",
-            "Bytes reserved by response bodies in flight (regions from their render until sent, bundle \
-             downloads, batch frames)",
+            "Bytes reserved by bodies in flight (regions from their render until sent, bundle downloads, \
+             batch frames, uploads while read and stored)",
         ));
-        let inflight_budget_bytes =
-            must(IntGauge::new("vtex_inflight_budget_bytes", "Byte budget of response bodies in flight"));
+        let inflight_budget_bytes = must(IntGauge::new(
+            "vtex_inflight_budget_bytes",
+            "Byte budget of bodies in flight (responses, and uploads while read and stored)",
+        ));
         let model_cache_bytes = must(IntGaugeVec::new(
             Opts::new("vtex_model_cache_bytes", "Bytes held by each model's synthesis cache"),
             &["model"],
@@ -208,6 +222,7 @@ impl Metrics {
             Box::new(connections.clone()),
             Box::new(connections_max.clone()),
             Box::new(connections_refused.clone()),
+            Box::new(connections_evicted.clone()),
             Box::new(inflight_bytes.clone()),
             Box::new(inflight_budget_bytes.clone()),
             Box::new(model_cache_bytes.clone()),
@@ -252,6 +267,7 @@ impl Metrics {
             connections,
             connections_max,
             connections_refused,
+            connections_evicted,
             inflight_bytes,
             inflight_budget_bytes,
             model_cache_bytes,

@@ -2,10 +2,13 @@
 //! a fixed number of connections busy against a running `vtex serve`, mixing well-behaved
 //! clients (cached tiles, uncached tiles of every stored texture, uploads) with slow readers
 //! (reading a large region a few bytes a second) and clients that never read, while sampling
-//! the server's resident memory from `/proc/<pid>/status` every 100 ms. It reports each class's
-//! answers, the cached tiles' latency percentiles and the largest RSS against the budgets. A
-//! slow reader's region refused with 503 (the in-flight budget spent) is the intended answer for
-//! that class: it is counted apart and asked again, never as an error.
+//! the server's resident memory from `/proc/<pid>/status` every 100 ms. Beside them, attackers
+//! hold as many sockets again as the server's connection limit, of each of two kinds — silent
+//! sockets and idle keep-alives — making each one again as soon as the server closes it, so the
+//! server is at its limit throughout. It reports each class's answers, the cached tiles'
+//! latency percentiles, how long the attackers' sockets lived, and the largest RSS against the
+//! budgets. A slow reader's region refused with 503 (the in-flight budget spent) is the
+//! intended answer for that class: it is counted apart and asked again, never as an error.
 
 use clap::Parser;
 use rand::rngs::StdRng;
@@ -34,6 +37,9 @@ struct Args {
     budget_mb: f64,
     #[arg(long, default_value_t = 1)]
     seed: u64,
+    /// Sockets each kind of attacker holds [default: the server's connection limit].
+    #[arg(long)]
+    attackers: Option<usize>,
 }
 
 /// A stored texture, as `GET /api/v1/textures` lists it.
@@ -66,6 +72,8 @@ struct Tally {
     shed: BTreeMap<u16, u64>,
     /// Anything else: other statuses and transport errors, by description.
     errors: BTreeMap<String, u64>,
+    /// Requests sent again once because the server closed their connection before answering.
+    retried: u64,
     latencies: Vec<Duration>,
 }
 
@@ -93,6 +101,7 @@ impl Tally {
 
     fn merge(&mut self, other: Tally) {
         self.ok += other.ok;
+        self.retried += other.retried;
         other.shed.into_iter().for_each(|(k, v)| *self.shed.entry(k).or_default() += v);
         other.errors.into_iter().for_each(|(k, v)| *self.errors.entry(k).or_default() += v);
         self.latencies.extend(other.latencies);
@@ -101,9 +110,23 @@ impl Tally {
     fn line(&self, class: &str, clients: usize) -> String {
         let errors: u64 = self.errors.values().sum();
         format!(
-            "{class:<16} {clients:>3} clients  {:>7} ok  shed {:?}  errors {errors} {:?}",
-            self.ok, self.shed, self.errors
+            "{class:<16} {clients:>3} clients  {:>7} ok  shed {:?}  errors {errors} {:?}  retried {}",
+            self.ok, self.shed, self.errors, self.retried
         )
+    }
+}
+
+/// Sends `req`, and once more when the server closed the connection before answering: what a
+/// browser does when a keep-alive it reused was closed as idle meanwhile (RFC 9112 §9.3.1
+/// allows it; every upload here is a new bundle, and the same one again would be answered 200).
+async fn send(req: reqwest::RequestBuilder, t: &mut Tally) -> reqwest::Result<reqwest::Response> {
+    let again = req.try_clone();
+    match (req.send().await, again) {
+        (Err(e), Some(again)) if !e.is_timeout() && !e.is_connect() => {
+            t.retried += 1;
+            again.send().await
+        }
+        (sent, _) => sent,
     }
 }
 
@@ -138,7 +161,7 @@ async fn cached(urls: Arc<Vec<String>>, stop: Arc<AtomicBool>, seed: u64) -> Tal
     while !stop.load(Relaxed) {
         let url = &urls[rng.random_range(0..urls.len())];
         let start = Instant::now();
-        match http.get(url).send().await {
+        match send(http.get(url), &mut t).await {
             Ok(r) => {
                 let status = r.status().as_u16();
                 let body = r.bytes().await;
@@ -166,7 +189,7 @@ async fn uncached(base: String, texs: Arc<Vec<Texture>>, stop: Arc<AtomicBool>, 
         let (cols, rows) = tex.tiles_at(level);
         let ext = ["png", "webp", "jpg", "rgba"][rng.random_range(0..4)];
         let url = tex.tile_url(&base, level, rng.random_range(0..cols), rng.random_range(0..rows), ext);
-        match http.get(url).send().await {
+        match send(http.get(url), &mut t).await {
             Ok(r) => {
                 let status = r.status().as_u16();
                 match r.bytes().await {
@@ -192,7 +215,7 @@ async fn uploads(base: String, bundle: Arc<Vec<u8>>, stop: Arc<AtomicBool>, who:
             .post(format!("{base}/api/v1/textures"))
             .header("content-type", "application/octet-stream")
             .body(b.to_bytes());
-        match req.send().await {
+        match send(req, &mut t).await {
             Ok(r) => {
                 let status = r.status().as_u16();
                 let _ = r.bytes().await;
@@ -300,6 +323,122 @@ async fn slow_request(addr: &str, path: &str, per_second: usize, stop: &AtomicBo
     }
 }
 
+/// What the attackers of one kind saw.
+#[derive(Debug, Default)]
+struct Attack {
+    /// Connections made.
+    made: u64,
+    /// Seconds each lived, from its accept (silent) or its answer (keep-alive) until the server
+    /// closed it.
+    lived: Vec<f64>,
+    /// Connections answered 503 (the server full of requests in flight) instead of admitted.
+    refused: u64,
+}
+
+impl Attack {
+    fn merge(&mut self, other: Attack) {
+        self.made += other.made;
+        self.lived.extend(other.lived);
+        self.refused += other.refused;
+    }
+}
+
+/// How long an attacker waits after the server closes one of its sockets before making the
+/// next: enough to keep a slot's worth of pressure without spinning the machine's two cores.
+const ATTACKER_PAUSE: Duration = Duration::from_millis(250);
+
+/// Holds one socket open until the end of the run, making it again whenever the server closes
+/// it: a silent one (connects, never sends a byte) or, with `keep_alive`, one that is answered
+/// once and then sends nothing more.
+async fn attacker(addr: String, keep_alive: bool, stop: Arc<AtomicBool>) -> Attack {
+    let mut h = Attack::default();
+    while !stop.load(Relaxed) {
+        let Ok(mut sock) = tokio::net::TcpStream::connect(&addr).await else {
+            tokio::time::sleep(ATTACKER_PAUSE).await;
+            continue;
+        };
+        h.made += 1;
+        let mut got = Vec::new();
+        let mut buf = [0u8; 4096];
+        if keep_alive {
+            let req = format!("GET /healthz HTTP/1.1\r\nHost: {addr}\r\n\r\n");
+            if sock.write_all(req.as_bytes()).await.is_err() {
+                continue;
+            }
+        }
+        let mut since = Instant::now();
+        // Reads until the server closes the socket or the run ends; a keep-alive's answer
+        // (a `/healthz` body ends with `}`) restarts the clock.
+        loop {
+            let read = tokio::select! {
+                r = sock.read(&mut buf) => r,
+                () = until(&stop) => break,
+            };
+            match read {
+                Ok(0) | Err(_) => {
+                    h.lived.push(since.elapsed().as_secs_f64());
+                    break;
+                }
+                Ok(n) => {
+                    got.extend_from_slice(&buf[..n]);
+                    if got.starts_with(b"HTTP/1.1 503") {
+                        h.refused += 1;
+                    } else if keep_alive && got.ends_with(b"}") {
+                        since = Instant::now();
+                    }
+                }
+            }
+        }
+        tokio::time::sleep(ATTACKER_PAUSE).await;
+    }
+    h
+}
+
+/// Resolves once `stop` is set (checked every 100 ms).
+async fn until(stop: &AtomicBool) {
+    while !stop.load(Relaxed) {
+        tokio::time::sleep(Duration::from_millis(100)).await;
+    }
+}
+
+/// Sums the series of gauge `name` in a metrics exposition (MiB, or a count with `count`).
+fn gauge_sum(text: &str, name: &str) -> f64 {
+    text.lines()
+        .filter(|l| l.split(['{', ' ']).next() == Some(name))
+        .filter_map(|l| l.rsplit(' ').next()?.parse::<f64>().ok())
+        .sum()
+}
+
+/// The server's RSS and its metrics, sampled together.
+struct Peak {
+    rss_mib: f64,
+    metrics: String,
+}
+
+/// Samples the server's metrics with its RSS every second until `stop`; returns the sample of
+/// the largest RSS.
+async fn budgets_at_peak(base: String, pid: u32, stop: Arc<AtomicBool>) -> Option<Peak> {
+    let http = client();
+    let mut peak: Option<Peak> = None;
+    while !stop.load(Relaxed) {
+        tokio::time::sleep(Duration::from_secs(1)).await;
+        let Ok(r) = http.get(format!("{base}/metrics")).send().await else { continue };
+        let (Ok(metrics), Some((rss, _))) = (r.text().await, rss_kb(pid)) else { continue };
+        let rss_mib = rss as f64 / 1024.0;
+        if peak.as_ref().is_none_or(|p| rss_mib > p.rss_mib) {
+            peak = Some(Peak { rss_mib, metrics });
+        }
+    }
+    peak
+}
+
+/// The server's connection limit, from its metrics.
+async fn connection_limit(base: &str) -> usize {
+    let text = reqwest::get(format!("{base}/metrics")).await.unwrap().text().await.unwrap();
+    let line = text.lines().find(|l| l.starts_with("vtex_http_connections_max ")).expect("the connection limit");
+    line.split_whitespace().nth(1).and_then(|v| v.parse().ok()).expect("a number")
+}
+
 /// RSS and its high-water mark (kB) from `/proc/<pid>/status`.
 fn rss_kb(pid: u32) -> Option<(u64, u64)> {
     let status = std::fs::read_to_string(format!("/proc/{pid}/status")).ok()?;
@@ -354,6 +493,8 @@ async fn main() {
     // 3/16 uncached, the rest cached.
     let n = args.connections;
     let (slow, silent, up) = ((n / 16).max(1), (n / 16).max(1), (n / 16).max(1));
+    let limit = connection_limit(&base).await;
+    let attackers = args.attackers.unwrap_or(limit);
     let cold = (3 * n / 16).max(1);
     let warm_clients = n.saturating_sub(slow + silent + up + cold).max(1);
 
@@ -388,6 +529,12 @@ async fn main() {
         .map(|_| tokio::spawn(slow_reader(addr.clone(), region.clone(), 16, stop.clone())))
         .chain((0..silent).map(|_| tokio::spawn(slow_reader(addr.clone(), region.clone(), 0, stop.clone()))))
         .collect();
+    let attack_tasks: Vec<_> = [false, true]
+        .iter()
+        .flat_map(|&keep_alive| (0..attackers).map(move |_| keep_alive))
+        .map(|keep_alive| tokio::spawn(attacker(addr.clone(), keep_alive, stop.clone())))
+        .collect();
+    let peak_task = tokio::spawn(budgets_at_peak(base.clone(), args.pid, stop.clone()));
 
     tokio::time::sleep(Duration::from_secs(args.seconds)).await;
     stop.store(true, Relaxed);
@@ -399,6 +546,8 @@ async fn main() {
         classes.push((name, clients, t));
     }
     let slow_seen: Vec<Slow> = join_all(slow_tasks).await;
+    let held: Vec<Attack> = join_all(attack_tasks).await;
+    let peak = peak_task.await.unwrap();
     sampler.join().unwrap();
 
     let samples = samples.lock().unwrap();
@@ -406,8 +555,10 @@ async fn main() {
     let hwm = rss_kb(args.pid).map(|r| r.1 as f64 / 1024.0).unwrap_or(f64::NAN);
     let bound = args.budget_mb * 1.2;
     println!(
-        "{} s at {n} connections; {} textures of models {:?}; {} cached tiles in the warm set",
+        "{} s at {n} connections and {} attackers' sockets (connection limit {limit}); {} textures of models {:?}; {} \
+         cached tiles in the warm set",
         args.seconds,
+        2 * attackers,
         texs.len(),
         models,
         urls.len()
@@ -438,12 +589,44 @@ async fn main() {
             closed.join(", ")
         );
     }
+    let mut held = held.into_iter();
+    for kind in ["silent sockets", "idle keep-alives"] {
+        let mut seen = Attack::default();
+        held.by_ref().take(attackers).for_each(|one| seen.merge(one));
+        let mut lived = seen.lived.clone();
+        lived.sort_by(f64::total_cmp);
+        let at = |p: f64| lived.get(((lived.len() as f64 * p) as usize).min(lived.len().saturating_sub(1)));
+        println!(
+            "attackers, {kind}: {attackers} held, {} connections made, {} closed by the server \
+             (after p50 {:.3} s, p99 {:.3} s, max {:.3} s), {} answered 503",
+            seen.made,
+            lived.len(),
+            at(0.5).copied().unwrap_or(f64::NAN),
+            at(0.99).copied().unwrap_or(f64::NAN),
+            lived.last().copied().unwrap_or(f64::NAN),
+            seen.refused
+        );
+    }
     println!(
         "RSS: {} samples every 100 ms, max {max_rss:.1} MiB (VmHWM {hwm:.1} MiB); budgets {:.1} MiB + 20 % = {bound:.1} MiB: {}",
         samples.len(),
         args.budget_mb,
         if max_rss <= bound { "within" } else { "OVER" }
     );
+    if let Some(p) = peak {
+        let mib = |name: &str| gauge_sum(&p.metrics, name) / (1024.0 * 1024.0);
+        println!(
+            "at the largest RSS sampled with the metrics (every second), {:.1} MiB: tile cache {:.1} MiB ({:.1} \
+             mapped), textures loaded {:.1} MiB, bodies in flight {:.1} MiB, model caches {:.1} MiB; {} connections",
+            p.rss_mib,
+            mib("vtex_tile_cache_bytes"),
+            mib("vtex_tile_cache_mapped_bytes"),
+            mib("vtex_textures_loaded_bytes"),
+            mib("vtex_inflight_bytes"),
+            mib("vtex_model_cache_bytes"),
+            gauge_sum(&p.metrics, "vtex_http_connections")
+        );
+    }
     let well_behaved_errors: u64 = classes.iter().map(|c| c.2.errors.values().sum::<u64>()).sum();
     println!("well-behaved clients' errors: {well_behaved_errors}");
 }

@@ -55,11 +55,13 @@ const DRAIN_IDLE: std::time::Duration = std::time::Duration::from_millis(500);
 
 /// Reads a request body of at most `limit` bytes; larger is 413 naming the limit.
 pub async fn read_body(req: Request, limit: usize) -> Result<bytes::Bytes, ApiError> {
-    if declared_length(req.headers()).is_some_and(|n| n > limit as u64) {
+    let declared = declared_length(req.headers());
+    if declared.is_some_and(|n| n > limit as u64) {
         return Err(refuse_oversized(req, limit).await);
     }
     let (parts, mut body) = req.into_parts();
-    let mut bytes = bytes::BytesMut::new();
+    // Sized once when the length is known, so the buffer holds the body and no more.
+    let mut bytes = bytes::BytesMut::with_capacity(declared.map_or(0, |n| n as usize));
     while let Some(frame) = body.frame().await {
         let frame = frame.map_err(|e| ApiError::bad_request(format!("could not read the request body: {e}")))?;
         if let Some(data) = frame.data_ref() {

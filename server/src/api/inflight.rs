@@ -1,6 +1,7 @@
-//! The budget of response bodies in flight: memory the server builds for an answer and that no
-//! other budget counts — a region's pixels and encoding while it renders and its body until it
-//! is sent, a downloaded bundle, a tile batch's frames.
+//! The budget of bodies in flight: memory the server builds for an answer and that no other
+//! budget counts — a region's pixels and encoding while it renders and its body until it is
+//! sent, a downloaded bundle, a tile batch's frames — and the body of an upload while it is read
+//! and stored (its declared length, or `--max-upload-mb` when it declares none).
 //!
 //! Why: synthesis slots bound how many renders run at once, but a finished body waits for its
 //! reader, so without a budget many slow readers of large regions hold many bodies. A response
@@ -57,7 +58,7 @@ impl Inflight {
     /// The answer when the budget cannot hold a response.
     fn spent(&self) -> ApiError {
         ApiError::Unavailable(format!(
-            "the budget of response bodies in flight (--inflight-mb, {} MiB) is spent; retry shortly",
+            "the budget of bodies in flight (--inflight-mb, {} MiB) is spent; retry shortly",
             self.budget_kib / 1024
         ))
     }

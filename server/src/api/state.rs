@@ -20,7 +20,7 @@ use std::sync::Arc;
 pub struct AppState {
     pub engine: Arc<Engine>,
     pub metrics: Arc<Metrics>,
-    /// The budget of response bodies in flight (`--inflight-mb`).
+    /// The budget of bodies in flight (`--inflight-mb`).
     pub inflight: Inflight,
     /// Set when shutdown begins: no longer ready (`/readyz`).
     pub draining: AtomicBool,

@@ -12,9 +12,11 @@
 //!
 //! Every connection is bounded in time and number: a response that cannot be sent for
 //! `--send-timeout-secs`, or that its reader takes slower than `--min-send-rate`, is abandoned
-//! (in [`crate::transport::Io`]), a connection idle for
-//! `--idle-timeout-secs` is closed ([`until_idle`]), and beyond `--max-connections` a new
-//! connection is answered 503 and closed ([`Refusal`]) rather than left to hold a descriptor.
+//! (in [`crate::transport::Io`]); a connection that sends no request head within
+//! `--header-timeout-secs` of its accept, or is idle for `--idle-timeout-secs`, is closed
+//! ([`lifetime`]); at `--max-connections` the connection with no request in flight for longest
+//! makes room for a new one, which is refused (503) only when every connection has a request in
+//! flight, and `--max-connections-per-client` bounds one address's ([`admission`]).
 //!
 //! Shutdown stops accepting, lets requests in flight finish within the drain time, stops the
 //! renders that would outlast it (their requests get 503), and exits without waiting for
@@ -25,30 +27,31 @@
 //! is sent ([`access`]).
 
 mod access;
+mod admission;
 mod connection;
 mod cors;
 mod fast_tile;
 mod head;
+mod lifetime;
 
 use crate::api::state::AppState;
 use crate::config::ServeConfig;
 use crate::store::Store;
-use crate::transport::{Activity, SendLimits, Transport};
+use crate::transport::{SendLimits, Transport};
 use crate::watch::Watch;
+use admission::{Admission, Refusal, Ticket, Verdict};
 use connection::Front;
 use head::MAX_HEAD_BYTES;
 use hyper_util::rt::{TokioExecutor, TokioTimer};
 use hyper_util::server::conn::auto;
-use prometheus::{IntCounter, IntGauge};
+use prometheus::IntGauge;
 use std::future::Future;
 use std::io::Write;
 use std::net::SocketAddr;
 use std::path::Path;
 use std::sync::Arc;
 use std::time::{Duration, Instant};
-use tokio::io::{AsyncReadExt, AsyncWriteExt};
 use tokio::net::{TcpListener, TcpStream};
-use tokio::sync::Semaphore;
 use vtex_synth::Resources;
 
 /// How long shutdown waits for requests in flight before it gives up on them.
@@ -152,7 +155,9 @@ pub async fn run(
     let mut workers: Vec<Worker> = (0..cfg.io_threads()).map(|i| Worker { live: live(i), tx: None }).collect();
     let max_connections = cfg.max_connections();
     app.metrics.connections_max.set(i64::try_from(max_connections).unwrap_or(i64::MAX));
-    let refusal = Refusal::new(max_connections, app.metrics.connections_refused.clone());
+    let per_client = cfg.max_connections_per_client;
+    let admission = Admission::new(max_connections, per_client, app.metrics.connections_evicted.clone());
+    let refusal = Refusal::new(max_connections, per_client, app.metrics.connections_refused.clone());
     let front = Front::new(app);
 
     let addr = listener.local_addr()?;
@@ -162,6 +167,7 @@ pub async fn run(
         syntheses = cfg.syntheses(),
         send = %cfg.send,
         max_connections,
+        max_connections_per_client = per_client,
         "serving"
     );
     listening(addr)?;
@@ -183,7 +189,7 @@ pub async fn run(
         })?);
     }
     let own = Conns::new(front, &cfg, workers[0].live.clone());
-    accept_loop(listener, workers, own, refusal, shutdown).await;
+    accept_loop(listener, workers, own, (admission, refusal), shutdown).await;
     for t in threads {
         tokio::task::spawn_blocking(move || t.join())
             .await?
@@ -246,8 +252,11 @@ struct Worker {
     /// The `vtex_http_connections` series of this runtime.
     live: IntGauge,
     /// `None` for the accepting runtime itself.
-    tx: Option<tokio::sync::mpsc::UnboundedSender<std::net::TcpStream>>,
+    tx: Option<tokio::sync::mpsc::UnboundedSender<Handed>>,
 }
+
+/// A connection handed to another runtime, with its slot.
+type Handed = (std::net::TcpStream, Ticket);
 
 /// How one runtime serves its connections: hyper's settings, graceful shutdown, and the count
 /// of connections it serves (shared with the acceptor).
@@ -256,6 +265,7 @@ struct Conns {
     builder: auto::Builder<TokioExecutor>,
     send: Transport,
     send_limits: SendLimits,
+    header_timeout: Duration,
     idle_timeout: Duration,
     graceful: hyper_util::server::graceful::GracefulShutdown,
     live: IntGauge,
@@ -272,33 +282,40 @@ impl Conns {
             builder,
             send: cfg.send,
             send_limits: cfg.send_limits(),
+            header_timeout: cfg.header_timeout(),
             idle_timeout: cfg.idle_timeout(),
             graceful: hyper_util::server::graceful::GracefulShutdown::new(),
             live,
         }
     }
 
-    /// Serves `stream` on the current runtime until it closes or idles; counted in `live`
-    /// meanwhile (the acceptor counted it already).
-    fn serve(&self, stream: TcpStream) {
+    /// Serves `stream` on the current runtime until it closes or is closed with no request in
+    /// flight ([`lifetime`]); counted in `live` meanwhile (the acceptor counted it already).
+    fn serve(&self, stream: TcpStream, ticket: Ticket) {
         let _ = stream.set_nodelay(true);
         // A socket already closed has no peer: unspecified, so never taken for loopback.
         let peer = stream.peer_addr().unwrap_or_else(|_| SocketAddr::from(([0, 0, 0, 0], 0)));
-        let activity = Arc::new(Activity::default());
+        let activity = ticket.activity().clone();
         let io = self.send.wrap(stream, activity.clone(), self.send_limits);
-        let service = self.front.connection(activity.clone(), peer);
+        let service = self.front.connection(activity, peer);
         let conn = self.builder.serve_connection_with_upgrades(io, service).into_owned();
         let conn = self.graceful.watch(conn);
-        let (live, idle) = (LiveGuard(self.live.clone()), self.idle_timeout);
+        let live = LiveGuard(self.live.clone());
+        let (header_timeout, idle) = (self.header_timeout, self.idle_timeout);
         tokio::spawn(async move {
-            // Dropping an idle connection loses nothing: no request is in flight on it.
+            // Dropping the connection when it is closable loses nothing: no request is in flight.
+            // The connection is polled first, so a request whose head has arrived starts (and
+            // keeps the connection open) before the connection is judged closable.
             tokio::select! {
+                biased;
                 ended = conn => if let Err(e) = ended {
                     tracing::debug!(error = %e, "connection ended with an error");
                 },
-                () = until_idle(&activity, idle) => tracing::debug!("closed an idle connection"),
+                why = lifetime::until_closable(&ticket, header_timeout, idle) => {
+                    tracing::debug!(reason = why, "closed a connection with no request in flight");
+                }
             }
-            drop(live);
+            drop((live, ticket));
         });
     }
 
@@ -308,100 +325,6 @@ impl Conns {
             () = self.graceful.shutdown() => tracing::debug!("all connections closed"),
             () = tokio::time::sleep(DRAIN_TIMEOUT) => tracing::warn!("drain timed out; exiting with connections open"),
         }
-    }
-}
-
-/// Resolves once `activity` has shown no bytes moving and no request in flight for `idle`.
-///
-/// Sampled at quarters of `idle`, so a connection closes between one and one and a quarter
-/// idle times after its last byte, at the cost of four timer wake-ups per idle time.
-async fn until_idle(activity: &Activity, idle: Duration) {
-    const SAMPLES: u32 = 4;
-    let period = idle / SAMPLES;
-    let mut ticks = tokio::time::interval_at(tokio::time::Instant::now() + period, period);
-    ticks.set_missed_tick_behavior(tokio::time::MissedTickBehavior::Delay);
-    let (mut seen, mut quiet) = (activity.moved(), 0);
-    loop {
-        ticks.tick().await;
-        let now = activity.moved();
-        if now != seen || activity.in_flight() > 0 {
-            (seen, quiet) = (now, 0);
-        } else {
-            quiet += 1;
-            if quiet == SAMPLES {
-                return;
-            }
-        }
-    }
-}
-
-/// How a connection over `--max-connections` is turned away: a complete `503` naming the limit,
-/// then a close — a clear answer where waiting in the backlog or a reset would tell the
-/// client nothing.
-struct Refusal {
-    max: usize,
-    answer: bytes::Bytes,
-    /// Refusals being answered at once; each holds a descriptor from [`FD_RESERVE`].
-    ///
-    /// [`FD_RESERVE`]: crate::config::FD_RESERVE
-    answering: Arc<Semaphore>,
-    refused: IntCounter,
-}
-
-/// Refusals answered at once, their descriptors taken from the reserve; beyond it a refusal
-/// writes what the socket takes at once and closes.
-const REFUSALS_AT_ONCE: usize = 16;
-/// How long a refusal may take, waiting for the client to read it and close.
-const REFUSAL_TIME: Duration = Duration::from_secs(2);
-/// Most request bytes a refusal reads (and discards) while it waits for the client to close.
-const REFUSAL_DRAIN_BYTES: usize = 64 * 1024;
-
-impl Refusal {
-    fn new(max: usize, refused: IntCounter) -> Refusal {
-        let body = serde_json::json!({
-            "error": format!("the server is serving its limit of {max} connections; retry later")
-        })
-        .to_string();
-        let answer = format!(
-            "HTTP/1.1 503 Service Unavailable\r\ncontent-type: application/json\r\ncontent-length: {}\r\n\
-             retry-after: 1\r\nconnection: close\r\naccess-control-allow-origin: *\r\n\r\n{body}",
-            body.len()
-        );
-        Refusal { max, answer: answer.into(), answering: Arc::new(Semaphore::new(REFUSALS_AT_ONCE)), refused }
-    }
-
-    /// Whether a new connection would exceed the limit, with `open` served now.
-    fn full(&self, open: i64) -> bool {
-        usize::try_from(open).is_ok_and(|open| open >= self.max)
-    }
-
-    /// Answers `stream` 503 and closes it, on the current runtime.
-    fn refuse(&self, mut stream: TcpStream) {
-        self.refused.inc();
-        let Ok(permit) = self.answering.clone().try_acquire_owned() else {
-            let _ = stream.try_write(&self.answer);
-            return;
-        };
-        let answer = self.answer.clone();
-        tokio::spawn(async move {
-            let exchange = async {
-                stream.write_all(&answer).await?;
-                stream.shutdown().await?;
-                // Closing with the request unread would reset the connection, and a reset
-                // may discard the answer before the client reads it: read until it closes.
-                let mut sink = [0u8; 4096];
-                let mut left = REFUSAL_DRAIN_BYTES;
-                while left > 0 {
-                    match stream.read(&mut sink).await? {
-                        0 => break,
-                        n => left = left.saturating_sub(n),
-                    }
-                }
-                std::io::Result::Ok(())
-            };
-            let _ = tokio::time::timeout(REFUSAL_TIME, exchange).await;
-            drop(permit);
-        });
     }
 }
 
@@ -415,14 +338,14 @@ impl Drop for LiveGuard {
 }
 
 /// Accepts connections until `shutdown` resolves, serving each on the runtime of `workers`
-/// with the fewest live ones (`workers[0]` is this runtime: `own`), or refusing it when they
-/// serve the limit already; then drains this
-/// runtime's connections (closing the channels tells the other runtimes to drain theirs).
+/// with the fewest live ones (`workers[0]` is this runtime: `own`) once admitted, or refusing
+/// it; then drains this runtime's connections (closing the channels tells the other runtimes to
+/// drain theirs).
 async fn accept_loop(
     listener: TcpListener,
     workers: Vec<Worker>,
     own: Conns,
-    refusal: Refusal,
+    (admission, refusal): (Arc<Admission>, Refusal),
     shutdown: impl Future<Output = ()>,
 ) {
     let mut next = 0;
@@ -430,7 +353,7 @@ async fn accept_loop(
     loop {
         tokio::select! {
             accepted = listener.accept() => {
-                let (stream, _) = match accepted {
+                let (stream, peer) = match accepted {
                     Ok(c) => c,
                     Err(e) => {
                         // Out of file descriptors and the like: back off instead of spinning.
@@ -439,10 +362,13 @@ async fn accept_loop(
                         continue;
                     }
                 };
-                if refusal.full(workers.iter().map(|w| w.live.get()).sum()) {
-                    refusal.refuse(stream);
-                    continue;
-                }
+                let ticket = match admission.admit(peer.ip()).await {
+                    Verdict::Admitted(ticket) => ticket,
+                    refused => {
+                        refusal.refuse(stream, &refused);
+                        continue;
+                    }
+                };
                 // The least-loaded runtime; ties go round-robin.
                 let n = workers.len();
                 let k = (0..n).map(|i| (next + i) % n).min_by_key(|&k| workers[k].live.get()).unwrap_or(0);
@@ -450,13 +376,13 @@ async fn accept_loop(
                 let w = &workers[k];
                 w.live.inc();
                 match &w.tx {
-                    None => own.serve(stream),
+                    None => own.serve(stream, ticket),
                     Some(tx) => {
                         // Deregistered here, registered again on the receiving runtime.
                         let sent = stream
                             .into_std()
                             .map_err(|e| e.to_string())
-                            .and_then(|s| tx.send(s).map_err(|_| "runtime gone".into()));
+                            .and_then(|s| tx.send((s, ticket)).map_err(|_| "runtime gone".into()));
                         if let Err(e) = sent {
                             w.live.dec();
                             tracing::warn!(error = %e, "could not hand a connection to its runtime");
@@ -475,10 +401,10 @@ async fn accept_loop(
 
 /// Serves the connections the acceptor hands this runtime until it stops (closes the channel),
 /// then drains them.
-async fn serve_handed(mut rx: tokio::sync::mpsc::UnboundedReceiver<std::net::TcpStream>, conns: Conns) {
-    while let Some(stream) = rx.recv().await {
+async fn serve_handed(mut rx: tokio::sync::mpsc::UnboundedReceiver<Handed>, conns: Conns) {
+    while let Some((stream, ticket)) = rx.recv().await {
         match TcpStream::from_std(stream) {
-            Ok(s) => conns.serve(s),
+            Ok(s) => conns.serve(s, ticket),
             Err(e) => {
                 conns.live.dec();
                 tracing::warn!(error = %e, "cannot register a handed connection");

@@ -30,7 +30,7 @@ use std::io::{self, IoSlice};
 use std::pin::Pin;
 use std::str::FromStr;
 use std::sync::atomic::{AtomicU64, AtomicUsize, Ordering};
-use std::sync::Arc;
+use std::sync::{Arc, LazyLock};
 use std::task::{Context, Poll};
 use std::time::Duration;
 use tokio::net::TcpStream;
@@ -155,30 +155,56 @@ pub fn descriptor_limit() -> Option<u64> {
     }
 }
 
-/// Sends buffers of 64 KiB and more straight to `mmap` on glibc, whatever the transport.
+/// Sends buffers of 64 KiB and more straight to `mmap` on glibc, whatever the transport, and
+/// keeps glibc to two heaps (arenas).
 ///
 /// Why: encoding makes buffers of that size (pixels, the encoded tile before it is sealed or
 /// cached); taken from glibc's heap they fragment it, and a long pan leaves the process holding
 /// far more memory than the tile cache's budget. Mapped, each returns to the system when freed.
+/// And glibc gives each new thread its own heap, up to eight per core: a texture loaded on one
+/// blocking-pool thread and freed on another leaves free memory in a heap the next load may not
+/// use, outside every budget. Two heaps are what two busy I/O runtimes need.
 pub fn tune_allocator() {
     #[cfg(all(target_os = "linux", target_env = "gnu"))]
     // SAFETY: mallopt only sets a parameter of glibc's allocator; it takes the allocator's own
     // locks, so any thread may call it at any time.
     unsafe {
         libc::mallopt(libc::M_MMAP_THRESHOLD, 64 * 1024);
+        libc::mallopt(libc::M_ARENA_MAX, 2);
     }
 }
 
-/// What a connection's idle timeout watches: a count of I/O calls that moved bytes (or saw the
-/// peer close), and the requests in flight — from the moment hyper hands one to the service
-/// until its response body is finished or dropped.
+/// What a connection's timeouts and the admission of new connections watch: a count of I/O
+/// calls that moved bytes (or saw the peer close), the requests started and those in flight —
+/// from the moment hyper hands one to the service until its response body is finished or
+/// dropped — and since when none has been in flight.
 ///
 /// A counter rather than a timestamp keeps a clock read off every read and write; the watcher
-/// samples it.
-#[derive(Debug, Default)]
+/// samples it. The clock is read once per request, when it ends.
+#[derive(Debug)]
 pub struct Activity {
     moved: AtomicU64,
+    started: AtomicU64,
     in_flight: AtomicUsize,
+    /// When the connection was accepted or its last request in flight ended, as [`stamp`].
+    quiet_since: AtomicU64,
+}
+
+impl Default for Activity {
+    fn default() -> Activity {
+        Activity {
+            moved: AtomicU64::new(0),
+            started: AtomicU64::new(0),
+            in_flight: AtomicUsize::new(0),
+            quiet_since: AtomicU64::new(stamp()),
+        }
+    }
+}
+
+/// Nanoseconds since the first call in this process: a clock connections compare by.
+fn stamp() -> u64 {
+    static EPOCH: LazyLock<std::time::Instant> = LazyLock::new(std::time::Instant::now);
+    u64::try_from(EPOCH.elapsed().as_nanos()).unwrap_or(u64::MAX)
 }
 
 impl Activity {
@@ -191,14 +217,26 @@ impl Activity {
         self.moved.load(Ordering::Relaxed)
     }
 
+    /// Requests started on the connection.
+    pub fn started(&self) -> u64 {
+        self.started.load(Ordering::Relaxed)
+    }
+
     /// Requests whose answer is not finished.
     pub fn in_flight(&self) -> usize {
         self.in_flight.load(Ordering::Relaxed)
     }
 
+    /// Since when no request has been in flight (meaningful while none is): comparable between
+    /// connections, smaller is longer.
+    pub fn quiet_since(&self) -> u64 {
+        self.quiet_since.load(Ordering::Relaxed)
+    }
+
     /// Counts a request in flight until the guard is dropped.
     pub fn start(self: &Arc<Self>) -> InFlight {
         self.in_flight.fetch_add(1, Ordering::Relaxed);
+        self.started.fetch_add(1, Ordering::Relaxed);
         self.touch();
         InFlight(self.clone())
     }
@@ -210,7 +248,9 @@ pub struct InFlight(Arc<Activity>);
 
 impl Drop for InFlight {
     fn drop(&mut self) {
-        self.0.in_flight.fetch_sub(1, Ordering::Relaxed);
+        if self.0.in_flight.fetch_sub(1, Ordering::Relaxed) == 1 {
+            self.0.quiet_since.store(stamp(), Ordering::Relaxed);
+        }
         self.0.touch();
     }
 }

@@ -164,3 +164,37 @@ async fn a_reader_below_the_minimum_send_rate_is_dropped_and_its_reservation_fre
         tokio::task::block_in_place(|| eventually(Duration::from_secs(10), || gauge(&s, "vtex_inflight_bytes") == 0.0));
     assert!(freed, "its reservation returns");
 }
+
+/// An upload reserves its declared length in the budget before its body is read, and keeps it
+/// until it is stored or abandoned: with 72 MiB, an upload of 40 MiB still arriving leaves no
+/// room for a second one, which is a 503 naming the budget, while a small upload is stored; the
+/// reservation returns when the first client goes.
+#[test]
+fn an_upload_reserves_its_body_in_the_budget_until_it_is_done() {
+    let dir = tempdir();
+    let s = Server::start(dir.path(), &["--inflight-mb", "72", "--max-region-pixels", "4194304"]);
+    let large = |addr: &str| {
+        let mut c = TcpStream::connect(addr).unwrap();
+        let head = "POST /api/v1/textures HTTP/1.1\r\nHost: x\r\nContent-Type: application/octet-stream\r\n\
+                    Content-Length: 41943040\r\n\r\nVTEX";
+        c.write_all(head.as_bytes()).unwrap();
+        c
+    };
+    let first = large(&s.addr);
+    let reserved = eventually(Duration::from_secs(10), || gauge(&s, "vtex_inflight_bytes") == 40.0 * MIB);
+    assert!(reserved, "the upload reserves its length: {} MiB", gauge(&s, "vtex_inflight_bytes") / MIB);
+
+    let mut second = large(&s.addr);
+    second.set_read_timeout(Some(Duration::from_secs(30))).unwrap();
+    let mut refused = Vec::new();
+    let _ = second.read_to_end(&mut refused);
+    let (head, body) = split(&refused);
+    assert_eq!(status(&head), 503, "{head}");
+    let why: serde_json::Value = serde_json::from_slice(body).unwrap();
+    assert!(why["error"].as_str().unwrap().contains("--inflight-mb, 72 MiB"), "{why}");
+
+    upload_mosaic(&s);
+    drop(first);
+    let freed = eventually(Duration::from_secs(10), || gauge(&s, "vtex_inflight_bytes") == 0.0);
+    assert!(freed, "the reservation returns: {} MiB still reserved", gauge(&s, "vtex_inflight_bytes") / MIB);
+}

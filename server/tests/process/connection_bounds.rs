@@ -1,12 +1,17 @@
 //! Connections are bounded in time, number and request size, over real sockets against a real
 //! `vtex serve`: slow readers are dropped after the send timeout and their memory freed, idle
 //! connections (HTTP/1.1 keep-alive, HTTP/2, silent) are closed while a long synthesis is not,
-//! past the connection limit a new client gets a clear 503, long and crowded queries are
-//! refused before parsing, and `Host` is checked as RFC 9112 §3.2 asks.
+//! a connection without a request head is closed at the header deadline from its accept, at the
+//! connection limit silent and idle connections make room for a new client, which gets a clear
+//! 503 only when every connection has a request in flight, one address's connections are
+//! bounded, long and crowded queries are refused before parsing, and `Host` is checked as
+//! RFC 9112 §3.2 asks.
 
 use crate::support::*;
 use std::io::{ErrorKind, Read, Write};
 use std::net::TcpStream;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::Arc;
 use std::time::{Duration, Instant};
 use vtex_synth::models::{self, Inputs};
 
@@ -270,11 +275,11 @@ fn a_long_synthesis_is_not_idle() {
     assert!(took > Duration::from_millis(400), "the synthesis outlasted the idle timeout twice ({took:?})");
 }
 
-/// With the server's open-file limit at 128, 200 idle connections do not lock a new client
-/// out: past `--max-connections` (derived from the limit) it is answered a clear 503 at once,
-/// and served once the idle ones go.
+/// With the server's open-file limit at 128, the limit is derived from it; connections that
+/// each have a request in flight (uploads whose bodies are still coming) fill it, and a new
+/// client is answered a clear 503 at once, then served once they go.
 #[test]
-fn past_the_connection_limit_a_new_client_gets_a_clear_refusal() {
+fn at_the_connection_limit_with_every_request_in_flight_a_new_client_gets_a_clear_refusal() {
     let dir = tempdir();
     let s = Server::spawn_under(&["prlimit", "--nofile=128:128", "--"], dir.path(), &[], &[]);
     let log = s.log_text();
@@ -282,22 +287,214 @@ fn past_the_connection_limit_a_new_client_gets_a_clear_refusal() {
     let max = metric(&metrics_of(&s), "vtex_http_connections_max", &[]);
     assert_eq!(max, ((128 - 64) / per) as f64, "the limit is (RLIMIT_NOFILE − 64) / descriptors per connection");
 
-    let idle: Vec<TcpStream> = (0..200).map(|_| TcpStream::connect(&s.addr).unwrap()).collect();
+    let busy: Vec<TcpStream> = (0..max as usize).map(|_| upload_in_flight(&s.addr)).collect();
+    // Time for every upload to start: a connection whose request has not is closed to make room.
+    std::thread::sleep(Duration::from_millis(500));
     let t0 = Instant::now();
     let refused = get(&s.addr, "/healthz");
-    assert!(t0.elapsed() < Duration::from_secs(10), "the refusal is immediate ({:?})", t0.elapsed());
+    assert!(t0.elapsed() < Duration::from_secs(1), "the refusal is immediate ({:?})", t0.elapsed());
     assert_eq!(status(&refused), 503, "{refused}");
     let head = refused.to_ascii_lowercase();
     for h in ["retry-after: 1\r\n", "connection: close\r\n", "content-type: application/json\r\n"] {
         assert!(head.contains(h), "{h:?} in {refused}");
     }
     let why: serde_json::Value = serde_json::from_str(body(&refused)).unwrap();
-    assert!(why["error"].as_str().unwrap().contains(&format!("limit of {max} connections")), "{why}");
+    let says = why["error"].as_str().unwrap();
+    assert!(says.contains(&format!("limit of {max} connections")) && says.contains("request in flight"), "{why}");
 
-    drop(idle);
+    drop(busy);
     assert!(eventually(Duration::from_secs(20), || status(&get(&s.addr, "/healthz")) == 200), "served again");
     let m = metrics_of(&s);
-    assert!(metric(&m, "vtex_http_connections_refused_total", &[]) >= 200.0 - max, "{m}");
+    assert!(metric(&m, "vtex_http_connections_refused_total", &[("limit", "max-connections")]) >= 1.0, "{m}");
+}
+
+/// A connection on which an upload has started, its body still coming: a request in flight.
+fn upload_in_flight(addr: &str) -> TcpStream {
+    let mut c = TcpStream::connect(addr).unwrap();
+    c.write_all(
+        b"POST /api/v1/textures HTTP/1.1\r\nHost: x\r\nContent-Type: application/octet-stream\r\n\
+          Content-Length: 100000\r\n\r\nVTEX",
+    )
+    .unwrap();
+    c
+}
+
+/// A connection that has been answered once and stays open, idle, between requests.
+fn idle_keep_alive(addr: &str) -> std::io::Result<TcpStream> {
+    let mut c = TcpStream::connect(addr)?;
+    c.write_all(b"GET /healthz HTTP/1.1\r\nHost: x\r\n\r\n")?;
+    c.set_read_timeout(Some(Duration::from_secs(30)))?;
+    let (mut answer, mut buf) = (Vec::new(), [0u8; 1024]);
+    while !answer.ends_with(b"}") {
+        match c.read(&mut buf)? {
+            0 => return Err(ErrorKind::UnexpectedEof.into()),
+            n => answer.extend_from_slice(&buf[..n]),
+        }
+    }
+    Ok(c)
+}
+
+/// Seconds from `since` until the server closes `c`, which must happen within `limit`.
+fn closed_after(c: &mut TcpStream, since: Instant, limit: Duration) -> f64 {
+    let closed = closed_within(c, limit).expect("the server closes the connection");
+    (closed - since).as_secs_f64()
+}
+
+/// With a header deadline of 2 s, each of these is closed 2 ± 1 s after its accept (or after
+/// its response, on keep-alive), long before the idle timeout: a socket that never sends a
+/// byte, a head sent a byte at a time from 1.5 s on, HTTP/2's preface alone, and an HTTP/1.1
+/// keep-alive connection after its answer.
+#[test]
+fn a_connection_without_a_request_head_is_closed_at_the_header_deadline() {
+    let dir = tempdir();
+    let s = Server::spawn(dir.path(), &["--header-timeout-secs", "2"]);
+    let window = 1.0..=3.0;
+
+    let t0 = Instant::now();
+    let mut silent = TcpStream::connect(&s.addr).unwrap();
+    let mut h2 = TcpStream::connect(&s.addr).unwrap();
+    h2.write_all(b"PRI * HTTP/2.0\r\n\r\nSM\r\n\r\n").unwrap();
+    let mut trickle = TcpStream::connect(&s.addr).unwrap();
+    let trickler = std::thread::spawn({
+        let mut c = trickle.try_clone().unwrap();
+        move || {
+            std::thread::sleep(Duration::from_millis(1500));
+            for b in b"GET /healthz HTTP/1.1\r\nHost: x\r\n".iter() {
+                if c.write_all(&[*b]).is_err() {
+                    return;
+                }
+                std::thread::sleep(Duration::from_millis(100));
+            }
+        }
+    });
+    let mut kept = idle_keep_alive(&s.addr).expect("a keep-alive answer");
+    let answered = Instant::now();
+
+    for (name, conn, since) in
+        [("silent", &mut silent, t0), ("HTTP/2 preface alone", &mut h2, t0), ("a byte at a time", &mut trickle, t0)]
+    {
+        let after = closed_after(conn, since, Duration::from_secs(20));
+        eprintln!("{name}: closed {after:.2} s after its accept");
+        assert!(window.contains(&after), "{name}: closed {after:.2} s after its accept, not at the 2 s deadline");
+    }
+    let after = closed_after(&mut kept, answered, Duration::from_secs(20));
+    eprintln!("keep-alive: closed {after:.2} s after its answer");
+    assert!(window.contains(&after), "keep-alive: closed {after:.2} s after its answer, not at the 2 s deadline");
+    trickler.join().unwrap();
+}
+
+/// Keeps `n` connections made by `open` to `addr` open until `stop`: each one the server closes
+/// is made again at once, as an attacker holding slots would. Returns how many were made.
+fn hold(addr: &str, n: usize, open: Opener, stop: Arc<AtomicBool>) -> std::thread::JoinHandle<usize> {
+    let addr = addr.to_string();
+    std::thread::spawn(move || {
+        let mut made = 0;
+        let mut conns: Vec<Option<TcpStream>> = (0..n).map(|_| None).collect();
+        while !stop.load(Ordering::Relaxed) {
+            for slot in conns.iter_mut() {
+                let closed = slot.as_mut().is_none_or(|c| {
+                    c.set_nonblocking(true).unwrap();
+                    match c.read(&mut [0u8; 256]) {
+                        Ok(0) => true,
+                        Ok(_) => false,
+                        Err(e) => e.kind() != ErrorKind::WouldBlock,
+                    }
+                });
+                if closed {
+                    *slot = open(&addr).ok();
+                    made += 1;
+                }
+            }
+            std::thread::sleep(Duration::from_millis(10));
+        }
+        made
+    })
+}
+
+/// How an attacker opens a connection it then holds.
+type Opener = fn(&str) -> std::io::Result<TcpStream>;
+
+/// At a limit of 8 connections, 16 held by `open` — made again as soon as they are closed —
+/// do not keep clients out: a client's request is answered in under a second, every time, and
+/// health checks are 200 throughout; the held connections are the ones closed to make room.
+fn clients_are_served_past_connections_held_by(open: Opener) {
+    let dir = tempdir();
+    const MAX: usize = 8;
+    let s = Server::spawn(dir.path(), &["--max-connections", &MAX.to_string()]);
+    let id = upload(&s, &mosaic(64, 8, 1));
+    let stop = Arc::new(AtomicBool::new(false));
+    let attacker = hold(&s.addr, 2 * MAX, open, stop.clone());
+    std::thread::sleep(Duration::from_millis(500));
+
+    let tile = format!("/api/v1/textures/{id}/tiles/0/0/0.png");
+    let end = Instant::now() + Duration::from_secs(3);
+    let (mut served, mut slowest) = (0, Duration::ZERO);
+    while Instant::now() < end {
+        let t = Instant::now();
+        let health = get(&s.addr, "/healthz");
+        assert_eq!(status(&health), 200, "a health check while the connections are held: {health}");
+        let resp = get(&s.addr, &tile);
+        assert_eq!(status(&resp), 200, "a client while the connections are held: {}", &resp[..resp.len().min(300)]);
+        slowest = slowest.max(t.elapsed());
+        served += 1;
+        std::thread::sleep(Duration::from_millis(50));
+    }
+    stop.store(true, Ordering::Relaxed);
+    let made = attacker.join().unwrap();
+    let m = metrics_of(&s);
+    let evicted = metric(&m, "vtex_http_connections_evicted_total", &[]);
+    eprintln!(
+        "{served} clients served, slowest {slowest:?}; {made} held connections made, {evicted} closed to make room"
+    );
+    assert!(slowest < Duration::from_secs(1), "every client served in under a second (slowest {slowest:?})");
+    assert!(evicted >= served as f64, "the held connections made room ({evicted} closed for {served} clients)");
+    assert_eq!(metric(&m, "vtex_http_connections_refused_total", &[]), 0.0, "nobody refused: {m}");
+}
+
+#[test]
+fn silent_connections_at_the_limit_make_room_for_clients() {
+    clients_are_served_past_connections_held_by(|addr| TcpStream::connect(addr));
+}
+
+#[test]
+fn idle_keep_alive_connections_at_the_limit_make_room_for_clients() {
+    clients_are_served_past_connections_held_by(idle_keep_alive);
+}
+
+/// With `--max-connections-per-client 3`, a fourth connection from the same address is
+/// answered a clear 429 naming the limit, whatever room the server has; once one of the three
+/// closes, the address is served again.
+#[test]
+fn one_address_is_held_to_its_connection_limit() {
+    let dir = tempdir();
+    let s = Server::spawn(dir.path(), &["--max-connections-per-client", "3"]);
+    let mut three: Vec<TcpStream> = (0..3).map(|_| TcpStream::connect(&s.addr).unwrap()).collect();
+    let refused = eventually_answer(&s.addr, 429);
+    let head = refused.to_ascii_lowercase();
+    for h in ["retry-after: 1\r\n", "connection: close\r\n", "content-type: application/json\r\n"] {
+        assert!(head.contains(h), "{h:?} in {refused}");
+    }
+    let why: serde_json::Value = serde_json::from_str(body(&refused)).unwrap();
+    assert!(why["error"].as_str().unwrap().contains("limit of 3 connections"), "{why}");
+
+    three.pop();
+    let served = eventually_answer(&s.addr, 200);
+    assert!(body(&served).contains("ok"), "{served}");
+    drop(three);
+    let m = metrics_of(&s);
+    assert!(metric(&m, "vtex_http_connections_refused_total", &[("limit", "max-connections-per-client")]) >= 1.0);
+}
+
+/// The answer to `/healthz` once it is `want` (the server sees a connection open or close a
+/// moment after the client does), within 10 s.
+fn eventually_answer(addr: &str, want: u16) -> String {
+    let mut last = String::new();
+    let seen = eventually(Duration::from_secs(10), || {
+        last = get(addr, "/healthz");
+        status(&last) == want
+    });
+    assert!(seen, "never answered {want}; last: {last}");
+    last
 }
 
 /// Queries over the length bound are 414s and queries with more parameters than any route

@@ -3,7 +3,8 @@
 use crate::api::error::{echo, ApiError};
 use crate::api::extract::{NoQuery, Path, Query};
 use crate::api::http::{
-    declared_length, json_validated, not_modified, not_modified_response, read_body, refuse_oversized, CACHE_IMMUTABLE,
+    declared_length, drain, json_validated, not_modified, not_modified_response, read_body, refuse_oversized,
+    CACHE_IMMUTABLE,
 };
 use crate::api::openapi::text;
 use crate::api::openapi::ErrorBody;
@@ -132,6 +133,7 @@ async fn store_bundle(app: &App, bytes: Vec<u8>) -> Result<(StatusCode, Json<Tex
         (status = 413, description = "body over `--max-upload-mb`", body = ErrorBody),
         (status = 415, description = "neither a bundle nor multipart", body = ErrorBody),
         (status = 422, description = text::OVER_BOUND, body = ErrorBody),
+        (status = 503, description = text::UNAVAILABLE, body = ErrorBody),
         (status = 507, description = "the store is full", body = ErrorBody),
     ))]
 pub async fn upload(
@@ -145,22 +147,36 @@ pub async fn upload(
         .and_then(|v| v.to_str().ok())
         .unwrap_or("application/octet-stream")
         .to_ascii_lowercase();
-    let limit = app.cfg.max_upload_bytes();
-    if content_type.starts_with("multipart/form-data") {
-        if declared_length(req.headers()).is_some_and(|n| n > limit as u64) {
-            return Err(refuse_oversized(req, limit).await);
+    let multipart = match content_type.as_str() {
+        t if t.starts_with("multipart/form-data") => true,
+        t if t.starts_with("application/octet-stream") => false,
+        _ => {
+            return Err(ApiError::UnsupportedMediaType(format!(
+                "content type `{}`; expected application/octet-stream (a bundle) or multipart/form-data",
+                echo(&content_type)
+            )))
         }
-        let bytes = bundle_from_multipart(req, limit, app.engine.store.bounds().limits).await?;
-        store_bundle(&app, bytes).await
-    } else if content_type.starts_with("application/octet-stream") {
-        let bytes = read_body(req, limit).await?;
-        store_bundle(&app, bytes.to_vec()).await
-    } else {
-        Err(ApiError::UnsupportedMediaType(format!(
-            "content type `{}`; expected application/octet-stream (a bundle) or multipart/form-data",
-            echo(&content_type)
-        )))
+    };
+    let limit = app.cfg.max_upload_bytes();
+    let declared = declared_length(req.headers());
+    if declared.is_some_and(|n| n > limit as u64) {
+        return Err(refuse_oversized(req, limit).await);
     }
+    // What reading the body holds, reserved before a byte of it is read and kept until the
+    // texture is stored (a body of unknown length may reach the limit).
+    let _body = match app.inflight.reserve(declared.unwrap_or(limit as u64)) {
+        Ok(reservation) => reservation,
+        Err(spent) => {
+            drain(req).await;
+            return Err(spent);
+        }
+    };
+    let bytes = if multipart {
+        bundle_from_multipart(req, limit, app.engine.store.bounds().limits).await?
+    } else {
+        read_body(req, limit).await?.into()
+    };
+    store_bundle(&app, bytes).await
 }
 
 /// The bundle a multipart upload describes, created only when its plan is within `bounds`.
