@@ -155,22 +155,17 @@ pub fn descriptor_limit() -> Option<u64> {
     }
 }
 
-/// Sends buffers of 64 KiB and more straight to `mmap` on glibc, whatever the transport, and
-/// keeps glibc to two heaps (arenas).
+/// Sends buffers of 64 KiB and more straight to `mmap` on glibc, whatever the transport.
 ///
 /// Why: encoding makes buffers of that size (pixels, the encoded tile before it is sealed or
 /// cached); taken from glibc's heap they fragment it, and a long pan leaves the process holding
 /// far more memory than the tile cache's budget. Mapped, each returns to the system when freed.
-/// And glibc gives each new thread its own heap, up to eight per core: a texture loaded on one
-/// blocking-pool thread and freed on another leaves free memory in a heap the next load may not
-/// use, outside every budget. Two heaps are what two busy I/O runtimes need.
 pub fn tune_allocator() {
     #[cfg(all(target_os = "linux", target_env = "gnu"))]
     // SAFETY: mallopt only sets a parameter of glibc's allocator; it takes the allocator's own
     // locks, so any thread may call it at any time.
     unsafe {
         libc::mallopt(libc::M_MMAP_THRESHOLD, 64 * 1024);
-        libc::mallopt(libc::M_ARENA_MAX, 2);
     }
 }
 
