@@ -201,7 +201,10 @@ test('the VT demo under /vtex/ streams its pages through the prefix', async () =
       polling: 100,
     });
     assert.equal(await page.evaluate(() => window.vtDemo.error || window.vtDemo.state.error), null, 'the demo reports no error');
-    assert.ok(requests.some((u) => u.startsWith(`${base}/api/v1/textures/${big.id}/tiles?pages=`)), 'pages requested through the prefix');
+    for (const route of ['pages', 'page-metatiles']) {
+      const under = `${base}/api/v1/textures/${big.id}/${route}/`;
+      assert.ok(requests.some((u) => u.startsWith(under)), `${route} requested through the prefix`);
+    }
     assert.deepEqual(bad, [], 'error responses');
     assert.equal(await page.$eval('#back', (a) => a.href), `${base}/`);
     await page.close();
