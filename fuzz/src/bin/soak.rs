@@ -96,7 +96,12 @@ impl Tally {
         } else {
             "transport"
         };
-        *self.errors.entry(kind.into()).or_default() += 1;
+        // The innermost cause says where the exchange broke (before the head, mid-body, …).
+        let mut cause: &dyn std::error::Error = e;
+        while let Some(inner) = cause.source() {
+            cause = inner;
+        }
+        *self.errors.entry(format!("{kind}: {cause}")).or_default() += 1;
     }
 
     fn merge(&mut self, other: Tally) {

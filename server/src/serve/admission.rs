@@ -102,7 +102,7 @@ impl Admission {
         let quietest = open
             .conns
             .iter()
-            .filter(|(_, slot)| slot.activity.in_flight() == 0)
+            .filter(|(_, slot)| slot.activity.closable())
             .min_by_key(|(_, slot)| slot.activity.quiet_since());
         match quietest {
             None => Attempt::Decided(Verdict::Full),
@@ -163,7 +163,7 @@ impl Ticket {
         loop {
             self.evict.notified().await;
             tokio::task::yield_now().await;
-            if self.activity.in_flight() == 0 {
+            if self.activity.closable() {
                 self.admission.evicted.inc();
                 return;
             }

@@ -45,7 +45,7 @@ async fn until_idle(activity: &Activity, idle: Duration) {
     loop {
         ticks.tick().await;
         let now = activity.moved();
-        if now != seen || activity.in_flight() > 0 {
+        if now != seen || !activity.closable() {
             (seen, quiet) = (now, 0);
         } else {
             quiet += 1;

@@ -29,7 +29,7 @@ use std::future::Future;
 use std::io::{self, IoSlice};
 use std::pin::Pin;
 use std::str::FromStr;
-use std::sync::atomic::{AtomicU64, AtomicUsize, Ordering};
+use std::sync::atomic::{AtomicBool, AtomicU64, AtomicUsize, Ordering};
 use std::sync::{Arc, LazyLock};
 use std::task::{Context, Poll};
 use std::time::Duration;
@@ -172,7 +172,9 @@ pub fn tune_allocator() {
 /// What a connection's timeouts and the admission of new connections watch: a count of I/O
 /// calls that moved bytes (or saw the peer close), the requests started and those in flight —
 /// from the moment hyper hands one to the service until its response body is finished or
-/// dropped — and since when none has been in flight.
+/// dropped — whether the end of a response is still on its way to the socket (hyper drops a
+/// body once it has taken its last chunk, maybe long before the reader has it), and since when
+/// none has been in flight.
 ///
 /// A counter rather than a timestamp keeps a clock read off every read and write; the watcher
 /// samples it. The clock is read once per request, when it ends.
@@ -181,6 +183,9 @@ pub struct Activity {
     moved: AtomicU64,
     started: AtomicU64,
     in_flight: AtomicUsize,
+    /// The last write left bytes unsent: hyper's buffer or the splice pipe still holds the end
+    /// of a response whose body is finished.
+    owing: AtomicBool,
     /// When the connection was accepted or its last request in flight ended, as [`stamp`].
     quiet_since: AtomicU64,
 }
@@ -191,6 +196,7 @@ impl Default for Activity {
             moved: AtomicU64::new(0),
             started: AtomicU64::new(0),
             in_flight: AtomicUsize::new(0),
+            owing: AtomicBool::new(false),
             quiet_since: AtomicU64::new(stamp()),
         }
     }
@@ -220,6 +226,12 @@ impl Activity {
     /// Requests whose answer is not finished.
     pub fn in_flight(&self) -> usize {
         self.in_flight.load(Ordering::Relaxed)
+    }
+
+    /// Whether closing the connection now loses nothing: no request in flight, and every byte
+    /// of the last response handed to the socket.
+    pub fn closable(&self) -> bool {
+        self.in_flight() == 0 && !self.owing.load(Ordering::Relaxed)
     }
 
     /// Since when no request has been in flight (meaningful while none is): comparable between
@@ -435,6 +447,7 @@ impl Io {
         if accepted > 0 || sent > 0 {
             this.activity.touch();
         }
+        this.activity.owing.store(polled.is_pending() || this.inner.unsent() > 0, Ordering::Relaxed);
         this.send.check(cx, polled, sent).unwrap_or_else(|abandoned| {
             // Reset rather than close, so the kernel drops what it still holds for this reader
             // too (as nginx's `reset_timedout_connection`).

@@ -2,8 +2,9 @@
 //! `vtex serve`: slow readers are dropped after the send timeout and their memory freed, idle
 //! connections (HTTP/1.1 keep-alive, HTTP/2, silent) are closed while a long synthesis is not,
 //! a connection without a request head is closed at the header deadline from its accept, at the
-//! connection limit silent and idle connections make room for a new client, which gets a clear
-//! 503 only when every connection has a request in flight, one address's connections are
+//! connection limit silent and idle connections make room for a new client (a reader pausing
+//! mid-response does not), which gets a clear 503 only when every connection has a request in
+//! flight, one address's connections are
 //! bounded, long and crowded queries are refused before parsing, and `Host` is checked as
 //! RFC 9112 §3.2 asks.
 
@@ -459,6 +460,45 @@ fn silent_connections_at_the_limit_make_room_for_clients() {
 #[test]
 fn idle_keep_alive_connections_at_the_limit_make_room_for_clients() {
     clients_are_served_past_connections_held_by(idle_keep_alive);
+}
+
+/// A response whose body hyper has taken whole but the socket has not (a reader pausing with
+/// 16 MiB on its way) still has a request in flight: at the limit, with twice the limit in
+/// silent connections made again as fast as they are closed, the reader is not the one closed
+/// to make room, and gets every byte once it reads; with either transport (the bytes wait in
+/// hyper's buffer, or in the splice pipe).
+#[test]
+fn a_response_still_on_its_way_is_not_closed_to_make_room() {
+    a_paused_reader_gets_its_whole_response("copy");
+    #[cfg(target_os = "linux")]
+    a_paused_reader_gets_its_whole_response("splice");
+}
+
+fn a_paused_reader_gets_its_whole_response(send: &str) {
+    let dir = tempdir();
+    const MAX: usize = 8;
+    let s = Server::spawn(dir.path(), &["--max-connections", &MAX.to_string(), "--send", send]);
+    let id = upload(&s, &mosaic(64, 8, 1));
+    let region = format!("/api/v1/textures/{id}/region?level=0&x=0&y=0&w=2048&h=2048&format=rgba");
+    assert_eq!(status(&get(&s.addr, &region)), 200);
+
+    let mut reader = TcpStream::connect(&s.addr).unwrap();
+    reader.write_all(format!("GET {region} HTTP/1.1\r\nHost: x\r\nConnection: close\r\n\r\n").as_bytes()).unwrap();
+    std::thread::sleep(Duration::from_millis(500));
+    let stop = Arc::new(AtomicBool::new(false));
+    let attacker = hold(&s.addr, 2 * MAX, |addr| TcpStream::connect(addr), stop.clone());
+    std::thread::sleep(Duration::from_secs(2));
+    let evicted = metric(&metrics_of(&s), "vtex_http_connections_evicted_total", &[]);
+
+    let mut got = Vec::new();
+    reader.set_read_timeout(Some(Duration::from_secs(20))).unwrap();
+    let _ = reader.read_to_end(&mut got);
+    stop.store(true, Ordering::Relaxed);
+    attacker.join().unwrap();
+    assert!(evicted >= MAX as f64, "{send}: the silent connections were closed to make room ({evicted})");
+    let head = got.windows(4).position(|w| w == b"\r\n\r\n").expect("a response head") + 4;
+    assert_eq!(status(&String::from_utf8_lossy(&got[..head])), 200);
+    assert_eq!(got.len() - head, 2048 * 2048 * 4, "{send}: the paused reader got its whole response");
 }
 
 /// With `--max-connections-per-client 3`, a fourth connection from the same address is
