@@ -8,7 +8,7 @@
 //! flight is the new one refused (503). Over its address's limit a connection is refused (429).
 //! A refusal is a complete answer, then a close ([`Refusal`]).
 
-use crate::transport::Activity;
+use crate::transport::{Activity, InputProbe};
 use prometheus::{IntCounter, IntCounterVec};
 use std::collections::HashMap;
 use std::net::IpAddr;
@@ -158,12 +158,13 @@ impl Ticket {
     ///
     /// Its connection must be polled before it (a biased `select!`): the yield lets the runtime
     /// read the socket's readiness first, so a request whose head has already arrived starts
-    /// before the check rather than being lost with the connection.
-    pub async fn evicted(&self) {
+    /// before the check rather than being lost with the connection; bytes that arrived but are
+    /// not yet seen (`socket`) keep it open too.
+    pub async fn evicted(&self, socket: InputProbe) {
         loop {
             self.evict.notified().await;
             tokio::task::yield_now().await;
-            if self.activity.closable() {
+            if self.activity.closable() && !socket.input_waiting() {
                 self.admission.evicted.inc();
                 return;
             }

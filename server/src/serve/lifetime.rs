@@ -10,17 +10,22 @@
 //! * chosen to make room for a new connection at the limit ([`Ticket::evicted`]).
 
 use super::admission::Ticket;
-use crate::transport::Activity;
+use crate::transport::{Activity, InputProbe};
 use std::time::Duration;
 use tokio::time::Instant;
 
 /// Resolves, naming why, once the connection of `ticket` is to be closed.
-pub async fn until_closable(ticket: &Ticket, header_timeout: Duration, idle: Duration) -> &'static str {
+pub async fn until_closable(
+    ticket: &Ticket,
+    socket: InputProbe,
+    header_timeout: Duration,
+    idle: Duration,
+) -> &'static str {
     let activity = ticket.activity();
     tokio::select! {
         () = no_head_by(activity, ticket.accepted() + header_timeout) => "no request head within the header timeout of its accept",
         () = until_idle(activity, idle) => "idle",
-        () = ticket.evicted() => "closed to admit a new connection at the connection limit",
+        () = ticket.evicted(socket) => "closed to admit a new connection at the connection limit",
     }
 }
 

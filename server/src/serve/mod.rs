@@ -37,7 +37,7 @@ mod lifetime;
 use crate::api::state::AppState;
 use crate::config::ServeConfig;
 use crate::store::Store;
-use crate::transport::{SendLimits, Transport};
+use crate::transport::{InputProbe, SendLimits, Transport};
 use crate::watch::Watch;
 use admission::{Admission, Refusal, Ticket, Verdict};
 use connection::Front;
@@ -296,6 +296,7 @@ impl Conns {
         // A socket already closed has no peer: unspecified, so never taken for loopback.
         let peer = stream.peer_addr().unwrap_or_else(|_| SocketAddr::from(([0, 0, 0, 0], 0)));
         let activity = ticket.activity().clone();
+        let socket = InputProbe::of(&stream);
         let io = self.send.wrap(stream, activity.clone(), self.send_limits);
         let service = self.front.connection(activity, peer);
         let conn = self.builder.serve_connection_with_upgrades(io, service).into_owned();
@@ -311,7 +312,7 @@ impl Conns {
                 ended = conn => if let Err(e) = ended {
                     tracing::debug!(error = %e, "connection ended with an error");
                 },
-                why = lifetime::until_closable(&ticket, header_timeout, idle) => {
+                why = lifetime::until_closable(&ticket, socket, header_timeout, idle) => {
                     tracing::debug!(reason = why, "closed a connection with no request in flight");
                 }
             }

@@ -249,6 +249,39 @@ impl Activity {
     }
 }
 
+/// Looks at a connection's socket for bytes the runtime has not yet seen: a request head that
+/// arrived just as the connection was chosen to make room (its readiness is delivered to the
+/// connection only when the runtime next polls its I/O driver, which a yield does not ensure).
+#[derive(Clone, Copy, Debug)]
+pub struct InputProbe {
+    #[cfg(target_os = "linux")]
+    fd: std::os::fd::RawFd,
+}
+
+impl InputProbe {
+    pub fn of(stream: &TcpStream) -> InputProbe {
+        InputProbe {
+            #[cfg(target_os = "linux")]
+            fd: std::os::fd::AsRawFd::as_raw_fd(stream),
+        }
+    }
+
+    /// Whether bytes wait to be read (a peek that never blocks); always false off Linux, where
+    /// the yield before the check is all there is. Call it only while the probed stream is open.
+    pub fn input_waiting(&self) -> bool {
+        #[cfg(target_os = "linux")]
+        {
+            use rustix::net::{recv, RecvFlags};
+            // SAFETY: the probe is used by its connection's own task, before that task drops the
+            // connection owning the stream: the descriptor is open and is this socket.
+            let fd = unsafe { std::os::fd::BorrowedFd::borrow_raw(self.fd) };
+            matches!(recv(fd, &mut [0u8; 1], RecvFlags::PEEK | RecvFlags::DONTWAIT), Ok((_, n)) if n > 0)
+        }
+        #[cfg(not(target_os = "linux"))]
+        false
+    }
+}
+
 /// One request in flight on a connection (see [`Activity::start`]).
 #[derive(Debug)]
 pub struct InFlight(Arc<Activity>);
