@@ -1,0 +1,89 @@
+// The per-model WebAssembly modules against the single module that held every model: each
+// module's size (raw, gzip -9, brotli as the viewer's build makes it) and the time to render
+// tiles of every demo in Node, the baseline module and each candidate on the same bundles in
+// the same run, alternating, so load drifts alike on both.
+//
+//   cargo run --release -p vtex-synth-wasm --bin reference -- DIR      (the demo bundles)
+//   flock /tmp/vtex-bench.lock node bench/wasm-modules.mjs --bundles DIR --baseline ALL.wasm \
+//        [--modules target/wasm-modules] [--modules OTHER_DIR …] [--rounds 5] [--json OUT]
+//
+// A tile is one of the server's 256² tiles: level 0's first and one of the middle level, each
+// rendered `rounds` times in a fresh texture (no cache carried over); the figure is the median.
+import { readFileSync, writeFileSync } from 'node:fs';
+import { loadavg } from 'node:os';
+import { join } from 'node:path';
+import { parseArgs } from 'node:util';
+import { brotliCompressSync, constants, gzipSync } from 'node:zlib';
+import { instantiate, moduleFile } from '../client-web/src/shared/vtex-synth.js';
+
+const { values: args } = parseArgs({
+  options: {
+    bundles: { type: 'string' },
+    baseline: { type: 'string' },
+    modules: { type: 'string', multiple: true, default: ['target/wasm-modules'] },
+    rounds: { type: 'string', default: '5' },
+    json: { type: 'string' },
+  },
+});
+if (!args.bundles || !args.baseline) throw new Error('usage: --bundles DIR --baseline ALL.wasm [--modules DIR …]');
+const ROUNDS = Number(args.rounds);
+const TILE = 256;
+
+const sizes = (bytes) => ({
+  raw: bytes.length,
+  gzip: gzipSync(bytes, { level: 9 }).length,
+  brotli: brotliCompressSync(bytes, {
+    params: { [constants.BROTLI_PARAM_QUALITY]: 11, [constants.BROTLI_PARAM_LGWIN]: 24, [constants.BROTLI_PARAM_SIZE_HINT]: bytes.length },
+  }).length,
+});
+const median = (xs) => [...xs].sort((a, b) => a - b)[xs.length >> 1];
+
+/** Milliseconds to open `bundle` and render tile (level, x, y) in a fresh instance of `module`. */
+async function time(module, bundle, level, x, y) {
+  const synth = await instantiate(module);
+  const tex = synth.open(bundle, TILE);
+  const t0 = performance.now();
+  tex.renderTile(level, x, y, 0);
+  return performance.now() - t0;
+}
+
+const reference = JSON.parse(readFileSync(join(args.bundles, 'reference.json'), 'utf8'));
+const baselineBytes = readFileSync(args.baseline);
+const baseline = await WebAssembly.compile(baselineBytes);
+const result = { load: loadavg(), baseline: { file: args.baseline, ...sizes(baselineBytes) }, sets: [] };
+for (const dir of args.modules) {
+  const set = { dir, models: {} };
+  for (const model of new Set(reference.demos.map((d) => d.info.model))) {
+    const bytes = readFileSync(join(dir, moduleFile(model)));
+    set.models[model] = { ...sizes(bytes), module: await WebAssembly.compile(bytes), tiles: [] };
+  }
+  result.sets.push(set);
+}
+for (const demo of reference.demos) {
+  const bundle = readFileSync(join(args.bundles, demo.bundle));
+  const middle = demo.info.levels >> 1;
+  for (const [level, x, y] of [[0, 0, 0], [middle, 0, 0]]) {
+    for (const set of result.sets) {
+      const entry = set.models[demo.info.model];
+      const old = [];
+      const now = [];
+      for (let r = 0; r < ROUNDS; r++) {
+        old.push(await time(baseline, bundle, level, x, y));
+        now.push(await time(entry.module, bundle, level, x, y));
+      }
+      entry.tiles.push({ demo: demo.info.name, level, baseline_ms: median(old), ms: median(now) });
+    }
+  }
+}
+console.log(`load average ${result.load.map((l) => l.toFixed(2)).join(' ')}`);
+console.log(`baseline ${args.baseline}: ${result.baseline.raw} B raw, ${result.baseline.gzip} B gzip, ${result.baseline.brotli} B brotli`);
+for (const set of result.sets) {
+  console.log(`\n${set.dir}\n| model | raw | gzip -9 | brotli | tiles | render, baseline | render, this module | ratio |\n|---|---|---|---|---|---|---|---|`);
+  for (const [model, m] of Object.entries(set.models)) {
+    const old = m.tiles.reduce((s, t) => s + t.baseline_ms, 0);
+    const now = m.tiles.reduce((s, t) => s + t.ms, 0);
+    console.log(`| ${model} | ${m.raw} | ${m.gzip} | ${m.brotli} | ${m.tiles.length} | ${old.toFixed(1)} ms | ${now.toFixed(1)} ms | ${(now / old).toFixed(2)}× |`);
+    delete m.module;
+  }
+}
+if (args.json) writeFileSync(args.json, JSON.stringify(result, null, 2));
