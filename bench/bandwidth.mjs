@@ -12,8 +12,8 @@
 //        [--samples 6] [--out docs] [--json bench/results/bandwidth.json]
 //   node bench/bandwidth.mjs --render bench/results/bandwidth.json   (tables and plot again)
 //
-// (It takes the lock itself when started without it.) Needs the viewer built with the module
-// (client-web/dist/vtex_synth.wasm), then target/release/vtex built (it embeds the viewer, whose
+// (It takes the lock itself when started without it.) Needs the viewer built with the modules
+// (scripts/build-wasm, then client-web's `npm run build`: dist/vtex_synth_<model>.wasm), then target/release/vtex built (it embeds the viewer, whose
 // files it serves as deployed: brotli copies from the viewer's build), and Debian's Chromium.
 //
 // For each session: bytes on the wire (DevTools' encodedDataLength of the page's requests — the
@@ -29,6 +29,7 @@ import { cpus, loadavg, tmpdir } from 'node:os';
 import { dirname, join } from 'node:path';
 import { parseArgs } from 'node:util';
 import { ROOT, CHROMIUM, launchBrowser, startServer, waitForIdle } from '../tests/browser/lib.mjs';
+import { moduleFile } from '../client-web/src/shared/vtex-synth.js';
 
 const LOCK = '/tmp/vtex-bench.lock';
 if (!process.env.VTEX_BENCH_LOCKED && !process.argv.includes('--render')) {
@@ -389,9 +390,10 @@ async function main() {
     // One start writes the demos into the data directory every session then reuses.
     const first = await startServer({ dataDir, embeddedViewer: true });
     const textures = (await (await fetch(`${first.url}/api/v1/textures`)).json()).textures;
-    const served = Buffer.from(await (await fetch(`${first.url}/vtex_synth.wasm`)).arrayBuffer());
+    const module = moduleFile(textures[0].model);
+    const served = Buffer.from(await (await fetch(`${first.url}/${module}`)).arrayBuffer());
     await first.stop();
-    if (!served.equals(readFileSync(join(ROOT, 'client-web', 'dist', 'vtex_synth.wasm')))) {
+    if (!served.equals(readFileSync(join(ROOT, 'client-web', 'dist', module)))) {
       throw new Error('target/release/vtex embeds another viewer build than client-web/dist: build it again (cargo build --release -p vtex-server)');
     }
     const commit = spawnSync('git', ['rev-parse', '--short', 'HEAD'], { cwd: ROOT, encoding: 'utf8' }).stdout.trim();

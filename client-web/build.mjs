@@ -2,10 +2,9 @@
 // `/`; vt.html, the VT demo), their code in its folders (viewer/, vt/, workers/, shared/; the
 // modules import each other relatively, so the tree is served as it is, with no bundler) — plus
 // OpenSeadragon and its navigation images copied from node_modules (the server serves this
-// directory at `/`; nothing comes from a CDN), and the synthesis module for client mode
-// (`vtex_synth.wasm`, built by
-// `cargo build -p vtex-synth-wasm --lib --target wasm32-unknown-unknown --profile wasm`).
-// Every text file and the module get a brotli (quality 11) and a gzip (level 9) copy beside
+// directory at `/`; nothing comes from a CDN), and the synthesis modules for client mode, one
+// per model (`vtex_synth_<model>.wasm`, built into target/wasm-modules/ by `scripts/build-wasm`).
+// Every text file and the modules get a brotli (quality 11) and a gzip (level 9) copy beside
 // them, `X.br` and `X.gz`, which vtex (embedded or --web-dir) and any static server that looks
 // for such copies (nginx's gzip_static) send to clients that accept them. Not the pages: vtex
 // (and `vtex export-web`, the viewer's) rewrite them.
@@ -18,7 +17,7 @@ const here = dirname(fileURLToPath(import.meta.url));
 const src = join(here, 'src');
 const dist = join(here, 'dist');
 const osd = join(here, 'node_modules', 'openseadragon', 'build', 'openseadragon');
-const wasm = join(here, '..', 'target', 'wasm32-unknown-unknown', 'wasm', 'vtex_synth_wasm.wasm');
+const modules = join(here, '..', 'target', 'wasm-modules');
 
 if (!existsSync(join(osd, 'openseadragon.min.js'))) {
   console.error('openseadragon is not installed: run `npm ci` in client-web/ first');
@@ -31,8 +30,9 @@ cpSync(join(osd, 'openseadragon.min.js'), join(dist, 'osd', 'openseadragon.min.j
 cpSync(join(osd, 'images'), join(dist, 'osd', 'images'), { recursive: true });
 const license = ['LICENSE.txt', 'LICENSE'].map((n) => join(here, 'node_modules', 'openseadragon', n)).find(existsSync);
 if (license) cpSync(license, join(dist, 'osd', 'LICENSE.txt'));
-if (existsSync(wasm)) cpSync(wasm, join(dist, 'vtex_synth.wasm'));
-else console.warn(`${wasm} is not built: the viewer's client mode (?synth=client) will say so`);
+const built = existsSync(modules) ? readdirSync(modules).filter((n) => /^vtex_synth_.+\.wasm$/.test(n)) : [];
+for (const name of built) cpSync(join(modules, name), join(dist, name));
+if (built.length === 0) console.warn(`no module in ${modules} (scripts/build-wasm): the viewer's client mode (?synth=client) will say so`);
 
 const COMPRESSIBLE = new Set(['.js', '.mjs', '.css', '.wasm', '.json', '.svg', '.map', '.txt']);
 

@@ -205,15 +205,15 @@ user=$(podman top "$container" user | sed -n 2p)
 [ "$user" = vtex ] || fail "the server's process runs as $user, not as the image's non-root user vtex"
 echo "healthy; the server runs as $user"
 
-step "the viewer, client mode's module, a tile and a region"
+step "the viewer, client mode's module of a texture's model, a tile and a region"
 get "$base/" -o "$tmp/index.html"
 grep -q '<html' "$tmp/index.html" || fail "/ is not the viewer: $(head -c 300 "$tmp/index.html")"
-get "$base/vtex_synth.wasm" -o "$tmp/module.wasm"
+read -r id model < <(get "$base/api/v1/textures" | python3 -c 'import json, sys; t = json.load(sys.stdin)["textures"][0]; print(t["id"], t["model"])')
+get "$base/vtex_synth_$model.wasm" -o "$tmp/module.wasm"
 [ "$(head -c 4 "$tmp/module.wasm" | od -An -tx1 | tr -d ' ')" = 0061736d ] ||
-    fail "/vtex_synth.wasm is not a WebAssembly module"
-echo "viewer and module ($(stat -c %s "$tmp/module.wasm") bytes) served"
+    fail "/vtex_synth_$model.wasm is not a WebAssembly module"
+echo "viewer and the $model module ($(stat -c %s "$tmp/module.wasm") bytes) served"
 
-id=$(get "$base/api/v1/textures" | python3 -c 'import json, sys; print(json.load(sys.stdin)["textures"][0]["id"])')
 get "$base/api/v1/textures/$id/tiles/0/0/0.png" -o "$tmp/tile.png"
 get "$base/api/v1/textures/$id/region?level=0&x=0&y=0&w=300&h=200&format=png" -o "$tmp/region.png"
 for f in tile region; do

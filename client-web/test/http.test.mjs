@@ -47,7 +47,7 @@ test('a failed fetch names the URL; an abort stays an AbortError', async () => {
     () => {
       throw new TypeError('Failed to fetch');
     },
-    async () => await assert.rejects(fetchOk('vtex_synth.wasm', 'the synthesis module'), { message: 'the synthesis module: could not fetch vtex_synth.wasm: Failed to fetch' }),
+    async () => await assert.rejects(fetchOk('vtex_synth_lcm.wasm', 'the synthesis module'), { message: 'the synthesis module: could not fetch vtex_synth_lcm.wasm: Failed to fetch' }),
   );
   await withFetch(
     () => {

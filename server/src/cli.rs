@@ -110,7 +110,7 @@ pub struct ExportWebArgs {
     pub dir: PathBuf,
     #[arg(long, env = "VTEX_DATA_DIR", default_value = "./vtex-data")]
     pub data_dir: PathBuf,
-    /// The built viewer, with its synthesis module (`vtex_synth.wasm`).
+    /// The built viewer, with its synthesis modules (`vtex_synth_<model>.wasm`).
     #[arg(long, env = "VTEX_WEB_DIR", default_value = "client-web/dist")]
     pub web_dir: PathBuf,
     /// Tile side in pixels the viewer asks for.

@@ -13,6 +13,9 @@ pub enum Error {
     Region(String),
     #[error("unknown model `{model}`; known models: {known}")]
     UnknownModel { model: String, known: String },
+    /// A model of vtex that this build was made without (its `model-*` feature is off).
+    #[error("model `{model}` is not in this build, which holds only: {built}")]
+    NotBuilt { model: String, built: String },
     /// An encoding whose cost is over a bound the caller set (see `models::cost`).
     #[error("{model}: {value} {what} ({why}) exceeds the bound of {bound}")]
     TooCostly { model: String, what: &'static str, value: u64, why: String, bound: u64 },

@@ -23,7 +23,9 @@ pub mod mip;
 pub mod models;
 pub mod pixels;
 pub mod resources;
+#[cfg(feature = "create")]
 pub mod samples;
+#[cfg(feature = "model-order-independent")]
 pub mod simd;
 pub mod texture;
 

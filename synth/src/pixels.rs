@@ -75,6 +75,7 @@ impl Rgba8Image {
     }
 
     /// The PNG encoding of this image (lossless; used for samples inside bundles).
+    #[cfg(feature = "create")]
     pub fn to_png(&self) -> Vec<u8> {
         let mut out = Vec::new();
         let encoder = image::codecs::png::PngEncoder::new(&mut out);

@@ -2,7 +2,7 @@
 // module from the encoding, byte for byte the server's, for every model and for animation
 // frames; exploring on with the server stopped; bad encodings shown as messages in the page.
 // Run: node --test tests/browser/   (needs target/release/vtex and client-web/dist built with
-// the wasm module; see scripts/test)
+// the wasm modules; see scripts/test)
 import test, { after, before } from 'node:test';
 import assert from 'node:assert/strict';
 import {
@@ -26,6 +26,7 @@ after(() => closeSession({ server, browser }));
 
 const tileRequests = (urls) => urls.filter((u) => /\/api\/v1\/textures\/[^/]+\/(meta)?tiles/.test(u));
 const encodingRequests = (urls) => urls.filter((u) => /\/api\/v1\/textures\/[^/]+\/encoding$/.test(u));
+const moduleRequests = (urls) => urls.filter((u) => /\/vtex_synth[^/]*\.wasm$/.test(u));
 
 /** The largest texture of each model, and the largest animated one. */
 function flagships() {
@@ -73,6 +74,7 @@ test('client mode draws every model (and an animation frame) exactly as the serv
       assert.equal(await compareScreenToServerTile(page, server.url, info, 2, x0 >> 2, y0 >> 2, 32, frame), 0, 'level-2 pixels exact');
       assert.deepEqual(tileRequests(log.requests), [], 'no tile requested from the server by the viewer');
       assert.equal(encodingRequests(log.requests).length, 1, 'the encoding fetched once');
+      assert.deepEqual(moduleRequests(log.requests), [`${server.url}/vtex_synth_${info.model}.wasm`], "only the module of the texture's model");
       // Tile bytes in the page: level 0, the last (clipped) tile of level 0, a middle level, the coarsest.
       const n = (level) => [Math.ceil(Math.ceil(info.width / 2 ** level) / info.tile_size), Math.ceil(Math.ceil(info.height / 2 ** level) / info.tile_size)];
       const mid = info.levels >> 1;
@@ -130,15 +132,17 @@ async function openWithEncoding(info, edit) {
   return { page, errors, message: await page.locator('#error').textContent() };
 }
 
-test('a truncated, corrupted, foreign or unknown-version encoding is a clear message, and the page works on', async () => {
+test('a truncated, corrupted, foreign, other-model or unknown-version encoding is a clear message, and the page works on', async () => {
   const info = textures.find((t) => t.model === 'chaos-mosaic' && t.width >= 100_000);
-  const other = textures.find((t) => t.model === 'lcm');
-  const otherBytes = new Uint8Array(await (await fetch(`${server.url}/api/v1/textures/${other.id}/encoding`)).arrayBuffer());
+  const bytesOf = async (t) => new Uint8Array(await (await fetch(`${server.url}/api/v1/textures/${t.id}/encoding`)).arrayBuffer());
+  const otherBytes = await bytesOf(textures.find((t) => t.model === 'chaos-mosaic' && t.id !== info.id));
+  const otherModelBytes = await bytesOf(textures.find((t) => t.model === 'lcm'));
   const cases = [
     ['truncated', (b) => b.slice(0, b.length >> 1), /is not possible: invalid bundle: truncated: section `.+` needs \d+ bytes, \d+ left/],
     ['an unknown version', (b) => { const c = b.slice(); new DataView(c.buffer).setUint32(8, 2, true); return c; }, /invalid bundle: container version 2; this build reads 1/],
     ['corrupted', (b) => { const c = b.slice(); c[20] ^= 0xff; return c; }, /is not possible: invalid bundle: manifest/],
     ['another texture’s', () => otherBytes, /the encoding received is not this texture's: its content id is [0-9a-f]{64}, expected [0-9a-f]{64}/],
+    ['another model’s', () => otherModelBytes, /is not possible: model `lcm` is not in this build, which holds only: chaos-mosaic$/],
   ];
   for (const [what, edit, pattern] of cases) {
     const { page, errors, message } = await openWithEncoding(info, edit);

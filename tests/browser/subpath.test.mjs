@@ -175,7 +175,7 @@ test('client mode under /vtex/: the module, the encoding and the Workers through
   let requests;
   const lines = await nginxSaw(async () => {
     const { page, log } = await viewerDraws(base, `${base}/?texture=${big.id}&synth=client`);
-    assert.ok(log.requests.includes(`${base}/vtex_synth.wasm`), 'the synthesis module');
+    assert.ok(log.requests.includes(`${base}/vtex_synth_${big.model}.wasm`), "the synthesis module of the texture's model");
     assert.ok(log.requests.includes(`${base}/api/v1/textures/${big.id}/encoding`), 'the encoding');
     assert.deepEqual(log.requests.filter((u) => /\/api\/v1\/textures\/[^/]+\/(meta)?tiles/.test(u)), [], 'no tile from the server');
     requests = log.requests;

@@ -1,26 +1,28 @@
-// The WebAssembly module as clients use it (client-web/src/shared/vtex-synth.js over wasm/src/api.rs)
-// renders exactly the native bytes: every demo, its probe regions (levels 0 to the coarsest,
-// far and negative coordinates, a later animation frame) and a few server tiles, against the
-// native reference (`cargo run --bin reference`); and bad bundles and calls are errors that
-// name the problem, never a trap.
-// Needs: cargo build -p vtex-synth-wasm --lib --target wasm32-unknown-unknown --profile wasm
+// The WebAssembly modules as clients use them (client-web/src/shared/vtex-synth.js over
+// wasm/src/api.rs), one per model, render exactly the native bytes: every demo through its
+// model's module, its probe regions (levels 0 to the coarsest, far and negative coordinates, a
+// later animation frame) and a few server tiles, against the native reference (`cargo run
+// --bin reference`); a module refuses other models' bundles, naming the model it holds; and
+// bad bundles and calls are errors that name the problem, never a trap.
+// Needs: scripts/build-wasm
 import { test, before, after } from 'node:test';
 import assert from 'node:assert/strict';
 import { execFileSync } from 'node:child_process';
 import { mkdtempSync, readFileSync, rmSync } from 'node:fs';
 import { tmpdir } from 'node:os';
-import { dirname, join, resolve } from 'node:path';
-import { fileURLToPath } from 'node:url';
+import { join } from 'node:path';
 import { instantiate, SynthError } from '../../client-web/src/shared/vtex-synth.js';
+import { MODELS, ROOT, modulePath } from './modules.mjs';
 
-const ROOT = resolve(dirname(fileURLToPath(import.meta.url)), '..', '..');
-const WASM = join(ROOT, 'target', 'wasm32-unknown-unknown', 'wasm', 'vtex_synth_wasm.wasm');
 /** The reference's tile size (wasm/src/bin/reference.rs TILE_SIZE). */
 const TILE_SIZE = 256;
 
 let dir;
 let reference;
-let synth;
+/** model → an instance of that model's module. */
+const synths = new Map();
+/** The instance of the module of `demo`'s model. */
+const synthOf = (demo) => synths.get(demo.info.model);
 
 before(async () => {
   dir = mkdtempSync(join(tmpdir(), 'vtex-wasm-reference-'));
@@ -29,7 +31,7 @@ before(async () => {
     stdio: ['ignore', 'inherit', 'inherit'],
   });
   reference = JSON.parse(readFileSync(join(dir, 'reference.json'), 'utf8'));
-  synth = await instantiate(readFileSync(WASM));
+  for (const model of MODELS) synths.set(model, await instantiate(readFileSync(modulePath(model))));
 });
 
 after(() => rmSync(dir, { recursive: true, force: true }));
@@ -47,7 +49,7 @@ test('every demo renders its probe regions and tiles byte for byte like native',
   const models = new Set();
   let compared = 0;
   for (const demo of reference.demos) {
-    const tex = synth.open(bundleOf(demo), TILE_SIZE);
+    const tex = synthOf(demo).open(bundleOf(demo), TILE_SIZE);
     assert.deepEqual(tex.info, demo.info, `info of ${demo.info.name}`);
     models.add(tex.info.model);
     for (const c of demo.cases) {
@@ -66,6 +68,7 @@ test('every demo renders its probe regions and tiles byte for byte like native',
     tex.close();
   }
   assert.deepEqual([...models].sort(), ['cascade', 'chaos-mosaic', 'lcm', 'order-independent', 'patterns']);
+  assert.deepEqual([...models].sort(), [...MODELS].sort(), 'a module for every model of the demos, and no other');
   assert.ok(compared >= reference.demos.length * 10, `only ${compared} regions and tiles compared`);
 });
 
@@ -73,17 +76,30 @@ test('animated demos move: a tile differs at frames 0, 1, 10 and 37', () => {
   const animated = reference.demos.filter((d) => d.info.animated);
   assert.ok(animated.length > 0, 'no animated demo');
   for (const demo of animated) {
-    const tex = synth.open(bundleOf(demo), TILE_SIZE);
+    const tex = synthOf(demo).open(bundleOf(demo), TILE_SIZE);
     const frames = [0, 1, 10, 37].map((frame) => Buffer.from(tex.renderTile(2, 0, 0, frame).data).toString('base64'));
     assert.equal(new Set(frames).size, 4, `${demo.info.name}: some of frames 0, 1, 10 and 37 are identical`);
     tex.close();
   }
 });
 
-const rejects = (bytes, pattern) =>
-  assert.throws(() => synth.open(bytes, TILE_SIZE), (e) => e instanceof SynthError && pattern.test(e.message), `expected ${pattern}`);
+test("a module refuses another model's bundle, naming the model it holds", () => {
+  for (const [model, synth] of synths) {
+    for (const demo of reference.demos.filter((d) => d.info.model !== model)) {
+      assert.throws(
+        () => synth.open(bundleOf(demo), TILE_SIZE),
+        (e) => e instanceof SynthError && e.message === `model \`${demo.info.model}\` is not in this build, which holds only: ${model}`,
+        `${model}'s module opening ${demo.info.name}`,
+      );
+    }
+    assert.equal(synth.failure, null);
+  }
+});
 
 test('bad bundles are errors that say what is wrong', () => {
+  const synth = synthOf(reference.demos[0]);
+  const rejects = (bytes, pattern) =>
+    assert.throws(() => synth.open(bytes, TILE_SIZE), (e) => e instanceof SynthError && pattern.test(e.message), `expected ${pattern}`);
   const good = new Uint8Array(bundleOf(reference.demos[0]));
   const edited = (edit) => {
     const b = good.slice();
@@ -104,6 +120,7 @@ test('bad bundles are errors that say what is wrong', () => {
 
 test('flipped bytes all through a bundle give errors or textures, never a trap', () => {
   for (const demo of reference.demos.filter((d, i, all) => all.findIndex((e) => e.info.model === d.info.model) === i)) {
+    const synth = synthOf(demo);
     const good = new Uint8Array(bundleOf(demo));
     const step = Math.max(1, Math.floor(good.length / 150));
     let refused = 0;
@@ -126,6 +143,7 @@ test('flipped bytes all through a bundle give errors or textures, never a trap',
 
 test('bad calls are errors and leave the module working', () => {
   const demo = reference.demos[0];
+  const synth = synthOf(demo);
   const tex = synth.open(bundleOf(demo), TILE_SIZE);
   assert.throws(() => tex.render({ level: 99, x: 0, y: 0, width: 4, height: 4 }), /level 99 does not exist/);
   assert.throws(() => tex.render({ level: 0, x: 0.5, y: 0, width: 4, height: 4 }), /x = 0.5 is not an integer/);

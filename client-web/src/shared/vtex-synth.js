@@ -1,5 +1,6 @@
-// vtex-synth in WebAssembly (the crate `wasm/`, built as vtex_synth.wasm): open an encoding
-// bundle, read its info (the server's), render regions and tiles as RGBA — the server's bytes exactly. The
+// vtex-synth in WebAssembly (the crate `wasm/`, built once per model as vtex_synth_<model>.wasm,
+// each holding only the renderer of its model: moduleFile): open an encoding bundle, read its
+// info (the server's), render regions and tiles as RGBA — the server's bytes exactly. The
 // module's raw ABI (wasm/src/api.rs) takes numbers and two buffers it owns; this wrapper turns
 // it into objects and exceptions. It runs in a page, a Worker and Node alike.
 
@@ -9,6 +10,14 @@ export class SynthError extends Error {
     super(message);
     this.name = 'SynthError';
   }
+}
+
+/**
+ * The file name of the module that renders textures of `model` (the `model` of a texture's info),
+ * as `scripts/build-wasm` names it and the viewer's build ships it.
+ */
+export function moduleFile(model) {
+  return `vtex_synth_${model}.wasm`;
 }
 
 /**

@@ -1,6 +1,7 @@
 // The viewer's client mode (`?synth=client`, or the Synthesis control): the texture's encoding
 // is fetched once and every tile is synthesized in this browser, by Workers each running the
-// WebAssembly module (workers/synth-tiles.js over shared/vtex-synth.js), byte for byte the server's tile.
+// WebAssembly module of the texture's model (workers/synth-tiles.js over shared/vtex-synth.js),
+// byte for byte the server's tile.
 // Once the encoding is in, panning, zooming and animation need no server at all.
 //
 // A ClientSynth serves the tile sources of one texture (every animation frame): tilesource.js
@@ -8,24 +9,22 @@
 
 import { sourceTile } from './pyramid.js';
 import { fetchOk, getJson } from '../shared/http.js';
-
-/** The synthesis module, beside the viewer's files (client-web/build.mjs copies it there). */
-export const WASM_URL = 'vtex_synth.wasm';
+import { moduleFile } from '../shared/vtex-synth.js';
 
 /** Synthesis Workers: one per core, at most four. */
 export const WORKERS = Math.max(1, Math.min(4, globalThis.navigator?.hardwareConcurrency || 2));
 
-/** The module compiled once per page, for every texture and Worker. */
-let compiled = null;
+/** Each model's module compiled once per page, for every texture of that model and every Worker. */
+const compiled = new Map();
 
 /**
- * The synthesis module, compiled; fetched once per page. The viewer calls it as soon as it knows
- * it will synthesize (before listing textures), so the download overlaps the rest of start-up.
+ * The synthesis module of `model` (beside the viewer's files, where client-web/build.mjs copies
+ * it), compiled; fetched once per page and model, while the encoding is fetched.
  */
-export function loadModule(stats) {
-  if (!compiled) {
-    const url = new URL(WASM_URL, document.baseURI).href;
-    compiled = fetchOk(url, 'the synthesis module').then(async (response) => {
+export function loadModule(model, stats) {
+  if (!compiled.has(model)) {
+    const url = new URL(moduleFile(model), document.baseURI).href;
+    const compiling = fetchOk(url, 'the synthesis module').then(async (response) => {
       // Streaming compilation compiles while the bytes arrive; it needs the wasm media type,
       // which a static file server may not send.
       const streaming = response.headers.get('content-type')?.startsWith('application/wasm');
@@ -33,9 +32,10 @@ export function loadModule(stats) {
       count(url, stats);
       return module;
     });
-    compiled.catch(() => (compiled = null)); // a failed fetch may be retried by the next texture
+    compiled.set(model, compiling);
+    compiling.catch(() => compiled.delete(model)); // a failed fetch may be retried by the next texture
   }
-  return compiled;
+  return compiled.get(model);
 }
 
 /** Counts the transfer of `url` (its Resource Timing entry; `bytes` when there is none) in `stats`. */
@@ -71,7 +71,7 @@ export class ClientSynth {
   }
 
   async start(encodingUrl, stats) {
-    const [bundle, module] = await Promise.all([fetchBytes(encodingUrl, 'the encoding', stats), loadModule(stats)]);
+    const [bundle, module] = await Promise.all([fetchBytes(encodingUrl, 'the encoding', stats), loadModule(this.info.model, stats)]);
     if (this.closed) throw new Error('closed');
     const opened = [];
     for (let i = 0; i < WORKERS; i++) {

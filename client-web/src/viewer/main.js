@@ -9,7 +9,7 @@ import { updateEarly } from './loader.js';
 import { findTexture as lookupTexture } from '../shared/texture-lookup.js';
 import { firstView, openingView } from './first-view.js';
 import { fetchWantedLevels, keepBatchesOnDraw, vtexDrawer } from './osd-adapter.js';
-import { ClientSynth, loadModule, staticExport } from './client-synth.js';
+import { ClientSynth, staticExport } from './client-synth.js';
 import { setupCreatePanel } from './create-panel.js';
 import { expose, keepDebug } from '../shared/debug.js';
 import { getJson } from '../shared/http.js';
@@ -517,7 +517,6 @@ async function openCreated(info) {
 async function start() {
   renderStats();
   const view = parseView(location.search);
-  if (view.synth === 'client' || document.querySelector('meta[name="vtex-export"]')) loadModule(stats).catch(() => {});
   try {
     state.exported = await staticExport();
     state.textures = state.exported ? state.exported.textures : (await getJson('api/v1/textures')).textures;

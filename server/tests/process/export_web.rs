@@ -13,12 +13,17 @@ fn text(out: &Output) -> String {
     format!("{}{}", String::from_utf8_lossy(&out.stdout), String::from_utf8_lossy(&out.stderr))
 }
 
-/// A stand-in for the built viewer: an index.html, a module, a nested folder.
+/// A stand-in for the built viewer: an index.html, two models' modules with compressed copies,
+/// a nested folder.
 fn web_dir(root: &Path) -> std::path::PathBuf {
     let web = root.join("web");
     std::fs::create_dir_all(web.join("osd/images")).unwrap();
     std::fs::write(web.join("index.html"), "<!doctype html>\n<head>\n  <meta charset=\"utf-8\">\n</head>\n").unwrap();
-    std::fs::write(web.join("vtex_synth.wasm"), b"\0asm module").unwrap();
+    for model in ["chaos-mosaic", "lcm"] {
+        for ext in ["", ".br", ".gz"] {
+            std::fs::write(web.join(format!("vtex_synth_{model}.wasm{ext}")), format!("\0asm {model}{ext}")).unwrap();
+        }
+    }
     std::fs::write(web.join("osd/images/home.png"), b"png").unwrap();
     web
 }
@@ -39,7 +44,7 @@ fn tree(dir: &Path) -> (usize, u64) {
 }
 
 #[test]
-fn the_folder_holds_the_viewer_the_module_the_bundle_and_its_description() {
+fn the_folder_holds_the_viewer_its_models_module_the_bundle_and_its_description() {
     let dir = tempdir();
     let bundle = mosaic(64, 4, 3).to_bytes();
     let file = dir.path().join("m.vtex");
@@ -51,14 +56,21 @@ fn the_folder_holds_the_viewer_the_module_the_bundle_and_its_description() {
         vtex(&["export-web", file.to_str().unwrap(), out_dir.to_str().unwrap(), "--web-dir", web.to_str().unwrap()]);
     assert!(out.status.success(), "{}", text(&out));
     let (files, bytes) = tree(&out_dir);
-    assert_eq!(files, 5, "index.html, vtex_synth.wasm, osd/images/home.png, the bundle, the description");
+    assert_eq!(
+        files, 7,
+        "index.html, the chaos mosaic's module and its 2 copies, home.png, the bundle, the description"
+    );
     assert!(
         text(&out).contains(&format!("{files} files, {bytes} bytes ({} the encoding)", bundle.len())),
         "{}",
         text(&out)
     );
     assert_eq!(std::fs::read(out_dir.join(format!("textures/{id}.vtex"))).unwrap(), bundle);
-    assert_eq!(std::fs::read(out_dir.join("vtex_synth.wasm")).unwrap(), b"\0asm module");
+    for ext in ["", ".br", ".gz"] {
+        let module = format!("vtex_synth_chaos-mosaic.wasm{ext}");
+        assert_eq!(std::fs::read_to_string(out_dir.join(&module)).unwrap(), format!("\0asm chaos-mosaic{ext}"));
+        assert!(!out_dir.join(format!("vtex_synth_lcm.wasm{ext}")).exists(), "another model's module");
+    }
     assert_eq!(std::fs::read(out_dir.join("osd/images/home.png")).unwrap(), b"png");
     let index = std::fs::read_to_string(out_dir.join("index.html")).unwrap();
     assert!(
@@ -90,10 +102,10 @@ fn a_folder_in_use_a_viewer_without_the_module_and_a_bad_bundle_are_refused_with
     assert!(text(&out).contains("is not empty: export into a new or empty directory"), "{}", text(&out));
     assert_eq!(std::fs::read_to_string(used.join("notes.txt")).unwrap(), "mine");
 
-    std::fs::remove_file(web.join("vtex_synth.wasm")).unwrap();
+    std::fs::remove_file(web.join("vtex_synth_chaos-mosaic.wasm")).unwrap();
     let out = vtex(&["export-web", file, dir.path().join("a").to_str().unwrap(), "--web-dir", web_arg]);
     assert!(
-        text(&out).contains("has no vtex_synth.wasm: build the viewer with the synthesis module first"),
+        text(&out).contains("has no vtex_synth_chaos-mosaic.wasm: build the viewer with the synthesis modules first"),
         "{}",
         text(&out)
     );

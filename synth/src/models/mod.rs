@@ -6,36 +6,53 @@
 //! texture), `encoding.rs` (parameters and inputs to a [`Bundle`], and a bundle back to a
 //! validated texture), `demos.rs` — plus its own internals; `encoding` imports `render`,
 //! which imports `plan`, never the other way. [`REGISTRY`] lists one entry per model;
-//! nothing else in vtex names a model, so adding one is a module and a line there.
+//! nothing else in vtex names a model, so adding one is a module and a line there (and in
+//! [`ALL`], with its `model-*` feature in `Cargo.toml`).
+//!
+//! A build holds the models of its `model-*` features; without the `create` feature it only
+//! loads and renders (no `create`, demos, examples or parameter schemas), which is what a
+//! client that synthesizes tiles of one model needs.
 
 use crate::resources::{Resources, Shared};
 use crate::{bundle::Bundle, Error, Result, Texture};
+#[cfg(feature = "create")]
 use std::collections::BTreeMap;
 use std::sync::{Arc, LazyLock};
 
 pub use cost::{Cost, Limits, Measure, Plan};
 
+#[cfg(feature = "model-cascade")]
 pub mod cascade;
+#[cfg(feature = "model-chaos-mosaic")]
 pub mod chaos_mosaic;
 pub mod cost;
+#[cfg(feature = "model-lcm")]
 pub mod lcm;
+#[cfg(feature = "model-order-independent")]
 pub mod order_independent;
+#[cfg(feature = "model-patterns")]
 pub mod patterns;
+#[cfg(feature = "create")]
 mod remake;
 
+#[cfg(feature = "create")]
 pub use remake::{merge_patch, remake_within};
 
 /// Input images by name (PNG bytes), e.g. `sample` for the chaos mosaic.
+#[cfg(feature = "create")]
 pub type Inputs = BTreeMap<String, Vec<u8>>;
 
 /// One texture model: everything the rest of vtex may know about it.
 pub trait Model: Send + Sync + 'static {
     /// The id used in bundles, URLs and the CLI (`chaos-mosaic`, `lcm`, …).
     fn id(&self) -> &'static str;
+    #[cfg(feature = "create")]
     /// What it is and how it is made: for listings, `--help`, and generic checks.
     fn describe(&self) -> ModelInfo;
+    #[cfg(feature = "create")]
     /// Makes a new encoding from JSON parameters and named input images (PNG bytes).
     fn create(&self, name: &str, params: &serde_json::Value, inputs: &Inputs) -> Result<Bundle>;
+    #[cfg(feature = "create")]
     /// The input images `create` made `bundle` from, recovered from its sections: `create`
     /// with them and the manifest's params makes the bundle again, bit for bit (held for every
     /// demo by the tests; [`remake_within`] checks it before it changes a parameter).
@@ -46,11 +63,14 @@ pub trait Model: Send + Sync + 'static {
     /// What `load(bundle)` would give and cost, from the manifest, section lengths and image
     /// headers alone: nothing drawn, generated, indexed or decoded.
     fn plan(&self, bundle: &Bundle) -> Result<Plan>;
+    #[cfg(feature = "create")]
     /// What `create(name, params, inputs)` would give and cost, from the parameters and the
     /// inputs' headers alone; refuses every parameter `create` would refuse.
     fn plan_create(&self, params: &serde_json::Value, inputs: &Inputs) -> Result<Plan>;
+    #[cfg(feature = "create")]
     /// Its demo encodings, from project-made inputs only.
     fn demos(&self) -> Vec<Bundle>;
+    #[cfg(feature = "create")]
     /// Parameters and project-made inputs that `create` turns into a small texture quickly:
     /// what a newcomer starts from (`GET /api/v1/models`, `vtex models`).
     fn example(&self) -> Example;
@@ -64,6 +84,7 @@ pub trait Model: Send + Sync + 'static {
 }
 
 /// A model's self-description.
+#[cfg(feature = "create")]
 #[derive(Clone, Debug, PartialEq)]
 pub struct ModelInfo {
     pub id: &'static str,
@@ -80,6 +101,7 @@ pub struct ModelInfo {
 }
 
 /// One input image of [`Model::create`].
+#[cfg(feature = "create")]
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct InputInfo {
     /// The key in [`Inputs`]; `*` stands for any name the parameters give an input.
@@ -90,6 +112,7 @@ pub struct InputInfo {
 }
 
 /// A small, quick creation of a model ([`Model::example`]).
+#[cfg(feature = "create")]
 #[derive(Clone, Debug, PartialEq)]
 pub struct Example {
     /// `create`'s parameters.
@@ -99,6 +122,7 @@ pub struct Example {
 }
 
 /// One input image of an [`Example`].
+#[cfg(feature = "create")]
 #[derive(Clone, Debug, PartialEq)]
 pub struct ExampleInput {
     /// The key in [`Inputs`].
@@ -109,6 +133,8 @@ pub struct ExampleInput {
     pub png: Vec<u8>,
 }
 
+#[cfg(feature = "create")]
+#[cfg(feature = "create")]
 impl Example {
     /// The inputs as `create` takes them.
     pub fn inputs(&self) -> Inputs {
@@ -138,25 +164,37 @@ pub struct MipGuarantee {
     pub beats_trivial_answers: bool,
 }
 
-/// Every model this build knows, one line each.
+/// Every model of vtex by id, in registry order, whether or not this build holds it.
+pub const ALL: &[&str] = &["cascade", "chaos-mosaic", "lcm", "order-independent", "patterns"];
+
+/// Every model this build holds (its `model-*` features), one line each.
 pub static REGISTRY: &[&dyn Model] = &[
+    #[cfg(feature = "model-cascade")]
     &cascade::CASCADE,
+    #[cfg(feature = "model-chaos-mosaic")]
     &chaos_mosaic::CHAOS_MOSAIC,
+    #[cfg(feature = "model-lcm")]
     &lcm::LCM,
+    #[cfg(feature = "model-order-independent")]
     &order_independent::ORDER_INDEPENDENT,
+    #[cfg(feature = "model-patterns")]
     &patterns::PATTERNS,
 ];
 
 /// The model ids as a list, in registry order.
 pub static MODELS: LazyLock<Vec<&'static str>> = LazyLock::new(|| ids().collect());
 
-/// The registered model called `id`.
+/// The registered model called `id`; a model of vtex that this build leaves out is an error
+/// naming the models it holds.
 pub fn get(id: &str) -> Result<&'static dyn Model> {
-    REGISTRY
-        .iter()
-        .copied()
-        .find(|m| m.id() == id)
-        .ok_or_else(|| Error::UnknownModel { model: id.into(), known: ids().collect::<Vec<_>>().join(", ") })
+    REGISTRY.iter().copied().find(|m| m.id() == id).ok_or_else(|| {
+        let known = ids().collect::<Vec<_>>().join(", ");
+        if ALL.contains(&id) {
+            Error::NotBuilt { model: id.into(), built: known }
+        } else {
+            Error::UnknownModel { model: id.into(), known }
+        }
+    })
 }
 
 /// The registered model ids, in registry order.
@@ -165,12 +203,14 @@ pub fn ids() -> impl Iterator<Item = &'static str> {
 }
 
 /// Makes a new encoding of `model` from its JSON parameters and input images.
+#[cfg(feature = "create")]
 pub fn create(model: &str, name: &str, params: &serde_json::Value, inputs: &Inputs) -> Result<Bundle> {
     check_name(name)?;
     get(model)?.create(name, params, inputs)
 }
 
 /// [`create`], refused before any heavy work when its [`Plan`] is over `limits`.
+#[cfg(feature = "create")]
 pub fn create_within(
     model: &str,
     name: &str,
@@ -209,6 +249,7 @@ pub fn plan(bundle: &Bundle) -> Result<Plan> {
 }
 
 /// Every model's demo encodings, sorted by name.
+#[cfg(feature = "create")]
 pub fn demos() -> Vec<Bundle> {
     let mut all: Vec<Bundle> = REGISTRY.iter().flat_map(|m| m.demos()).collect();
     all.sort_by(|a, b| a.manifest.name.cmp(&b.manifest.name));
@@ -225,6 +266,7 @@ fn check_name(name: &str) -> Result<()> {
 
 /// The sections of `bundle` that hold input images as given, by input name: `(input, section)`
 /// pairs, those present.
+#[cfg(feature = "create")]
 pub fn section_inputs(bundle: &Bundle, pairs: &[(&str, &str)]) -> Inputs {
     pairs
         .iter()
@@ -233,6 +275,7 @@ pub fn section_inputs(bundle: &Bundle, pairs: &[(&str, &str)]) -> Inputs {
 }
 
 /// The input image called `name`, decoded, or an error naming it.
+#[cfg(feature = "create")]
 pub fn input_image(inputs: &Inputs, name: &str) -> Result<crate::Rgba8Image> {
     let bytes = inputs.get(name).ok_or_else(|| Error::image(name, "missing; this model needs it"))?;
     crate::pixels::decode_png(name, bytes)
@@ -263,6 +306,7 @@ fn json_kind(v: &serde_json::Value) -> &'static str {
 }
 
 /// The JSON Schema of a model's parameter type, for [`ModelInfo::params_schema`].
+#[cfg(feature = "create")]
 pub fn params_schema<P: schemars::JsonSchema>() -> serde_json::Value {
     schemars::schema_for!(P).into()
 }
@@ -290,6 +334,7 @@ mod tests {
             assert!(info.params_schema["properties"].is_object(), "{}: {}", m.id(), info.params_schema);
         }
         assert_eq!(*MODELS, ids().collect::<Vec<_>>());
+        assert_eq!(*MODELS, ALL, "every model of vtex is in the default build, in the order of `ALL`");
     }
 
     /// Every model's example is small and quick: it names every input the model requires, is

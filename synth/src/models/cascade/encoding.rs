@@ -1,12 +1,18 @@
 //! The cascade's encoding: the parameters in the manifest, the optional `control` and
 //! `initial` images as sections, and their complete validation.
 
+// Loading and creation share this file; a build without `create` (render-only) leaves the
+// creation half and what only it uses unused.
+#![cfg_attr(not(feature = "create"), allow(unused_imports, dead_code))]
+
 use super::exact::auto_range;
 use super::plan::{build_engine, CONTROL_SECTION, INITIAL_SECTION};
 use super::render::Cascade;
 use super::MODEL;
 use crate::bundle::Bundle;
-use crate::models::{input_image, parse_params, Inputs};
+use crate::models::parse_params;
+#[cfg(feature = "create")]
+use crate::models::{input_image, Inputs};
 use crate::pixels::{decode_png, Rgba8Image};
 use crate::{Error, Result};
 
@@ -23,6 +29,7 @@ pub fn section_image(bundle: &crate::bundle::Bundle, section: &str, name: &str) 
 /// Makes an encoding from parameters and the optional `control` / `initial` images; a missing
 /// `range` is estimated from a sample of the texture, and the defaults that depend on when
 /// the encoding was made are written ([`Params::filled`]).
+#[cfg(feature = "create")]
 pub fn create(name: &str, params: &serde_json::Value, inputs: &Inputs) -> Result<Bundle> {
     super::plan::plan_create(params, inputs)?;
     let mut p: Params = parse_params(params)?;
@@ -54,7 +61,7 @@ pub fn load(bundle: &Bundle) -> Result<Cascade> {
         return Err(Error::bundle(format!("unexpected section `{}`", s.name)));
     }
     super::plan::plan(bundle)?;
-    let p: Params = parse_params(&bundle.manifest.full_params()?)?;
+    let p: Params = bundle.params()?;
     let control = section_image(bundle, CONTROL_SECTION, "control")?;
     let initial = section_image(bundle, INITIAL_SECTION, "initial")?;
     Cascade::build(p, control.as_ref(), initial.as_ref())

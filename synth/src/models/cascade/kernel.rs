@@ -7,14 +7,14 @@
 //! with its argument transformed, sampled at every lattice offset it covers.
 
 use crate::{Error, Result};
-use schemars::JsonSchema;
 use serde::{Deserialize, Serialize};
 
 /// Largest kernel side the paper allows (7 × 7).
 pub const MAX_KERNEL_SIZE: u32 = 7;
 
 /// A kernel as written in the manifest.
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, JsonSchema)]
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[cfg_attr(feature = "create", derive(schemars::JsonSchema))]
 #[serde(deny_unknown_fields)]
 pub struct KernelSpec {
     /// Side length: 1, 3, 5 or 7.

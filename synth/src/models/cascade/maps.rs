@@ -7,11 +7,11 @@
 //! and native agree bit for bit (no fused multiply-add anywhere).
 
 use crate::{Error, Result};
-use schemars::JsonSchema;
 use serde::{Deserialize, Serialize};
 
 /// A map as written in the manifest, e.g. `{"kind": "logistic", "r": 3.7}`.
-#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize, JsonSchema)]
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+#[cfg_attr(feature = "create", derive(schemars::JsonSchema))]
 #[serde(tag = "kind", rename_all = "lowercase", deny_unknown_fields)]
 pub enum MapSpec {
     /// r·x·(1 − x), r ∈ [0, 4]; chaotic above ≈ 3.57.

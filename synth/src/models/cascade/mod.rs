@@ -15,6 +15,7 @@
 //! * [`prefilter`] — coarse mip levels without brute force; [`residual`] — their residual;
 //! * [`demos`] — the demo encodings and their procedural input images.
 
+#[cfg(feature = "create")]
 pub mod demos;
 pub mod encoding;
 pub mod params;
@@ -30,14 +31,19 @@ pub mod prefilter;
 mod render;
 pub mod residual;
 
-use super::{InputInfo, Inputs, MipGuarantee, Model, ModelInfo, Plan};
+#[cfg(feature = "create")]
+use super::{InputInfo, Inputs, ModelInfo};
+use super::{MipGuarantee, Model, Plan};
 use crate::bundle::Bundle;
 use crate::texture::Texture;
 use crate::Result;
 use std::sync::Arc;
 
+#[cfg(feature = "create")]
 pub use demos::demos;
-pub use encoding::{create, load};
+#[cfg(feature = "create")]
+pub use encoding::create;
+pub use encoding::load;
 pub use params::Params;
 pub use render::Cascade;
 
@@ -51,6 +57,7 @@ impl Model for CascadeModel {
     fn id(&self) -> &'static str {
         MODEL
     }
+    #[cfg(feature = "create")]
     fn describe(&self) -> ModelInfo {
         ModelInfo {
             id: MODEL,
@@ -75,9 +82,11 @@ impl Model for CascadeModel {
             ],
         }
     }
+    #[cfg(feature = "create")]
     fn create(&self, name: &str, params: &serde_json::Value, inputs: &Inputs) -> Result<Bundle> {
         create(name, params, inputs)
     }
+    #[cfg(feature = "create")]
     fn inputs_of(&self, bundle: &Bundle) -> Result<Inputs> {
         Ok(super::section_inputs(bundle, &[("control", plan::CONTROL_SECTION), ("initial", plan::INITIAL_SECTION)]))
     }
@@ -87,12 +96,15 @@ impl Model for CascadeModel {
     fn plan(&self, bundle: &Bundle) -> Result<Plan> {
         plan::plan(bundle)
     }
+    #[cfg(feature = "create")]
     fn plan_create(&self, params: &serde_json::Value, inputs: &Inputs) -> Result<Plan> {
         plan::plan_create(params, inputs)
     }
+    #[cfg(feature = "create")]
     fn demos(&self) -> Vec<Bundle> {
         demos()
     }
+    #[cfg(feature = "create")]
     fn example(&self) -> super::Example {
         demos::example()
     }

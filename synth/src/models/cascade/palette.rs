@@ -2,14 +2,14 @@
 //! `range`, indexes a lookup table built once (in f64) from colour stops.
 
 use crate::{Error, Result};
-use schemars::JsonSchema;
 use serde::{Deserialize, Serialize};
 
 /// Entries of the lookup table: finer than 8-bit output so steep gradients do not band.
 pub const LUT_SIZE: usize = 1024;
 
 /// A named palette or explicit stops `[[t, "#rrggbb"], …]` with t rising from 0 to 1.
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, JsonSchema)]
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[cfg_attr(feature = "create", derive(schemars::JsonSchema))]
 #[serde(untagged)]
 pub enum PaletteSpec {
     Named(String),

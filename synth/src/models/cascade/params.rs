@@ -17,10 +17,10 @@
 use super::kernel::KernelSpec;
 use super::maps::MapSpec;
 use super::palette::PaletteSpec;
-use schemars::JsonSchema;
 use serde::{Deserialize, Serialize};
 
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, JsonSchema)]
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[cfg_attr(feature = "create", derive(schemars::JsonSchema))]
 #[serde(deny_unknown_fields)]
 pub struct Params {
     pub seed: u64,
@@ -71,7 +71,8 @@ impl Params {
     }
 }
 
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, JsonSchema)]
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[cfg_attr(feature = "create", derive(schemars::JsonSchema))]
 #[serde(deny_unknown_fields)]
 pub struct StageSpec {
     #[serde(default)]
@@ -96,7 +97,8 @@ pub struct StageSpec {
     pub jitter: f64,
 }
 
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, JsonSchema)]
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[cfg_attr(feature = "create", derive(schemars::JsonSchema))]
 #[serde(deny_unknown_fields)]
 pub struct DilationMapSpec {
     /// Dilation where the control map is white (black is 1), real.
@@ -105,7 +107,8 @@ pub struct DilationMapSpec {
     pub cell: u64,
 }
 
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, JsonSchema)]
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[cfg_attr(feature = "create", derive(schemars::JsonSchema))]
 #[serde(deny_unknown_fields)]
 pub struct InitialSpec {
     /// Pixels per image texel.

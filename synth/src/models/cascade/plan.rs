@@ -6,6 +6,10 @@
 //! Constants are work units (≈ 1 ns of one core) per item, calibrated by
 //! `examples/cost_calibration.rs`.
 
+// Loading and creation share this file; a build without `create` (render-only) leaves the
+// creation half and what only it uses unused.
+#![cfg_attr(not(feature = "create"), allow(unused_imports, dead_code))]
+
 use super::engine::{Control, Engine, Initial, Stage};
 use super::kernel::{Kernel, Shape};
 use super::lattice::ImageField;
@@ -14,7 +18,9 @@ use super::params::Params;
 use super::prefilter::predicting_stage;
 use super::{palette, MODEL};
 use crate::bundle::Bundle;
-use crate::models::{cost, parse_params, Cost, Inputs, Measure, Plan};
+#[cfg(feature = "create")]
+use crate::models::Inputs;
+use crate::models::{cost, parse_params, Cost, Measure, Plan};
 use crate::pixels::{png_dimensions, Rgba8Image};
 use crate::texture::{level_count, level_size};
 use crate::{Domain, Error, Result};
@@ -239,7 +245,7 @@ pub fn plan(bundle: &Bundle) -> Result<Plan> {
     if let Some(s) = bundle.sections.iter().find(|s| s.name != CONTROL_SECTION && s.name != INITIAL_SECTION) {
         return Err(Error::bundle(format!("unexpected section `{}`", s.name)));
     }
-    let p: Params = parse_params(&bundle.manifest.full_params()?)?;
+    let p: Params = bundle.params()?;
     let header = |section: &str, name: &str| {
         bundle.sections.iter().find(|s| s.name == section).map(|s| png_dimensions(name, &s.data)).transpose()
     };
@@ -247,6 +253,7 @@ pub fn plan(bundle: &Bundle) -> Result<Plan> {
 }
 
 /// What `create` gives and costs, from the parameters and the input images' headers.
+#[cfg(feature = "create")]
 pub fn plan_create(params: &serde_json::Value, inputs: &Inputs) -> Result<Plan> {
     if let Some(other) = inputs.keys().find(|k| !["control", "initial"].contains(&k.as_str())) {
         return Err(Error::image(other.as_str(), "not an input of `cascade` (it takes `control` and `initial`)"));

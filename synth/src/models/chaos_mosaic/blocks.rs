@@ -79,6 +79,7 @@ pub fn generate(p: &Params, sample_w: u32, sample_h: u32, rule: &SizeRule) -> Ve
 }
 
 /// Packs blocks into 12-byte records.
+#[cfg(feature = "create")]
 pub fn pack(blocks: &[Block]) -> Vec<u8> {
     let mut out = Vec::with_capacity(blocks.len() * RECORD_BYTES);
     for b in blocks {

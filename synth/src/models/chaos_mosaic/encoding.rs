@@ -1,16 +1,23 @@
 //! The chaos mosaic's encoding: the sample as `sample.png`, the parameters in the manifest,
 //! and, for an explicit sequence, the 12-byte block records in `blocks`.
 
+// Loading and creation share this file; a build without `create` (render-only) leaves the
+// creation half and what only it uses unused.
+#![cfg_attr(not(feature = "create"), allow(unused_imports, dead_code))]
+
 use super::blocks::{self, SizeRule};
 use super::params::{Params, Sequence};
 use super::plan::{BLOCKS_SECTION, SAMPLE_SECTION};
 use super::render::ChaosMosaic;
 use super::MODEL;
-use crate::models::{input_image, parse_params, Inputs};
+use crate::models::parse_params;
+#[cfg(feature = "create")]
+use crate::models::{input_image, Inputs};
 use crate::{bundle::Bundle, pixels::Rgba8Image, Result};
 
 /// Makes an encoding from `params` (JSON, see [`Params`]) and the input image `sample`.
 /// When `seamless` is not given it is measured from the sample.
+#[cfg(feature = "create")]
 pub fn create(name: &str, params: &serde_json::Value, inputs: &Inputs) -> Result<Bundle> {
     super::plan::plan_create(params, inputs)?;
     let mut p: Params = parse_params(params)?;

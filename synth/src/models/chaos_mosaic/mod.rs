@@ -12,6 +12,7 @@
 //! (straight alpha); non-square textures run the cat map on a square torus of side
 //! lcm(W, H) scaled onto the texture (see [`catmap::iterate`]).
 
+#[cfg(feature = "create")]
 mod demos;
 mod encoding;
 mod params;
@@ -27,13 +28,18 @@ mod render;
 mod sums;
 
 pub use blocks::{Block, RECORD_BYTES};
+#[cfg(feature = "create")]
 pub use demos::demos;
-pub use encoding::{create, is_seamless, load};
+#[cfg(feature = "create")]
+pub use encoding::create;
+pub use encoding::{is_seamless, load};
 pub use params::{Params, Sequence};
 pub use prefilter::EXACT_LEVELS;
 pub use render::ChaosMosaic;
 
-use super::{InputInfo, Inputs, MipGuarantee, Model, ModelInfo, Plan};
+#[cfg(feature = "create")]
+use super::{InputInfo, Inputs, ModelInfo};
+use super::{MipGuarantee, Model, Plan};
 use crate::{bundle::Bundle, Result, Texture};
 use std::sync::Arc;
 
@@ -47,6 +53,7 @@ impl Model for ChaosMosaicModel {
     fn id(&self) -> &'static str {
         MODEL
     }
+    #[cfg(feature = "create")]
     fn describe(&self) -> ModelInfo {
         ModelInfo {
             id: MODEL,
@@ -62,9 +69,11 @@ impl Model for ChaosMosaicModel {
             }],
         }
     }
+    #[cfg(feature = "create")]
     fn create(&self, name: &str, params: &serde_json::Value, inputs: &Inputs) -> Result<Bundle> {
         create(name, params, inputs)
     }
+    #[cfg(feature = "create")]
     fn inputs_of(&self, bundle: &Bundle) -> Result<Inputs> {
         Ok(super::section_inputs(bundle, &[("sample", plan::SAMPLE_SECTION)]))
     }
@@ -74,12 +83,15 @@ impl Model for ChaosMosaicModel {
     fn plan(&self, bundle: &Bundle) -> Result<Plan> {
         plan::plan(bundle)
     }
+    #[cfg(feature = "create")]
     fn plan_create(&self, params: &serde_json::Value, inputs: &Inputs) -> Result<Plan> {
         plan::plan_create(params, inputs)
     }
+    #[cfg(feature = "create")]
     fn demos(&self) -> Vec<Bundle> {
         demos()
     }
+    #[cfg(feature = "create")]
     fn example(&self) -> super::Example {
         demos::example()
     }

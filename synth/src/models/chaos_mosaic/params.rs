@@ -1,7 +1,6 @@
 //! The parameters of a chaos mosaic, as stored in the bundle manifest, and their validation.
 
 use crate::{Error, Result};
-use schemars::JsonSchema;
 use serde::{Deserialize, Serialize};
 
 /// Most blocks (tiles) one texture may have: bounds the block index's memory (~30 B a block).
@@ -15,7 +14,8 @@ pub const MAX_BLOCKS_PER_TILE: u32 = 8;
 pub const MAX_FILTER_WIDTH: u32 = 8;
 
 /// How the random block sequence R_ε is kept.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize, JsonSchema)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[cfg_attr(feature = "create", derive(schemars::JsonSchema))]
 #[serde(rename_all = "lowercase")]
 pub enum Sequence {
     /// Derived from `seed` when loaded: a few bytes for any texture size.
@@ -27,7 +27,8 @@ pub enum Sequence {
 
 /// T_ε and the recipe of R_ε (paper §3.1). The texture is `tiles_x·n_w × tiles_y·n_h`
 /// for an `n_w × n_h` sample, and is a torus of exactly that size.
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, JsonSchema)]
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[cfg_attr(feature = "create", derive(schemars::JsonSchema))]
 #[serde(deny_unknown_fields)]
 pub struct Params {
     /// m_τ: tiles across.

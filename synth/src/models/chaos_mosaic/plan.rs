@@ -3,11 +3,17 @@
 //! decoded, generated or indexed. Constants are work units (≈ 1 ns of one core) per item,
 //! calibrated by `examples/cost_calibration.rs`.
 
+// Loading and creation share this file; a build without `create` (render-only) leaves the
+// creation half and what only it uses unused.
+#![cfg_attr(not(feature = "create"), allow(unused_imports, dead_code))]
+
 use super::blocks::SizeRule;
 use super::params::{self, Params, Sequence};
 use super::sums::PeriodicSums;
 use crate::bundle::Bundle;
-use crate::models::{cost, parse_params, Cost, Inputs, Measure, Plan};
+#[cfg(feature = "create")]
+use crate::models::Inputs;
+use crate::models::{cost, parse_params, Cost, Measure, Plan};
 use crate::pixels::png_dimensions;
 use crate::texture::level_count;
 use crate::{Domain, Error, Result};
@@ -79,6 +85,7 @@ pub fn plan(bundle: &Bundle) -> Result<Plan> {
 }
 
 /// What `create` gives and costs, from the parameters and the sample's header.
+#[cfg(feature = "create")]
 pub fn plan_create(params: &serde_json::Value, inputs: &Inputs) -> Result<Plan> {
     let p: Params = parse_params(params)?;
     p.validate()?;

@@ -2,6 +2,10 @@
 //! [`load`]; both check everything first ([`super::plan`], which holds the sections' layout
 //! and their checks).
 
+// Loading and creation share this file; a build without `create` (render-only) leaves the
+// creation half and what only it uses unused.
+#![cfg_attr(not(feature = "create"), allow(unused_imports, dead_code))]
+
 use super::colour::QI;
 use super::element::{self, Copies, Plane, Stored};
 use super::haar;
@@ -12,7 +16,9 @@ use super::plan::{check, drawn_lcms, quantized_weight, stored_resolutions, Check
 use super::render::LcmTexture;
 use super::{elements, MODEL};
 use crate::bundle::Bundle;
-use crate::models::{input_image, parse_params, Inputs};
+use crate::models::parse_params;
+#[cfg(feature = "create")]
+use crate::models::{input_image, Inputs};
 use crate::{Error, Result, Rgba8Image};
 
 /// The element planes of a built-in that [`element_shape`](super::plan::element_shape) accepted.
@@ -30,6 +36,7 @@ pub const PEBBLE_STONE: [f64; 3] = [120.0, 116.0, 112.0];
 pub const PEBBLE_SAND: [f64; 3] = [176.0, 156.0, 120.0];
 
 /// Element planes from the input image `element`.
+#[cfg(feature = "create")]
 fn image_planes(inputs: &Inputs, planes: usize) -> Result<Vec<Plane>> {
     let img = input_image(inputs, "element")?;
     if img.width != img.height {
@@ -56,6 +63,7 @@ fn image_planes(inputs: &Inputs, planes: usize) -> Result<Vec<Plane>> {
 
 /// Makes an encoding: the base element, the LCMs drawn from the tables with the seed. Every
 /// parameter is checked ([`super::plan::plan_create`]) before anything is drawn.
+#[cfg(feature = "create")]
 pub fn create(name: &str, params: &serde_json::Value, inputs: &Inputs) -> Result<Bundle> {
     super::plan::plan_create(params, inputs)?;
     let mut p: Params = parse_params(params)?;
@@ -109,6 +117,7 @@ pub fn create(name: &str, params: &serde_json::Value, inputs: &Inputs) -> Result
 
 /// The input images `create` made `bundle` from: none for a built-in element, else the image
 /// `element` rebuilt from the resolution-K plane(s), grey level − 128 the intensity.
+#[cfg(feature = "create")]
 pub fn inputs_of(bundle: &Bundle) -> Result<Inputs> {
     let p: Params = bundle.params()?;
     if p.element.is_some() {

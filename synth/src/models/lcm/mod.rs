@@ -19,6 +19,7 @@
 //!   given encoding, and the cost model; [`encoding`] — `create` and `load`.
 //! * [`elements`], [`demos`] — project-made base elements and the paper's §3 examples.
 
+#[cfg(feature = "create")]
 pub mod demos;
 pub mod encoding;
 pub mod params;
@@ -35,12 +36,17 @@ pub mod period;
 pub mod render;
 pub mod table;
 
+#[cfg(feature = "create")]
 pub use demos::demos;
-pub use encoding::{create, load};
+#[cfg(feature = "create")]
+pub use encoding::create;
+pub use encoding::load;
 pub use params::Params;
 pub use render::{LcmTexture, OpCount};
 
-use super::{InputInfo, Inputs, MipGuarantee, Model, ModelInfo, Plan};
+#[cfg(feature = "create")]
+use super::{InputInfo, Inputs, ModelInfo};
+use super::{MipGuarantee, Model, Plan};
 use crate::{bundle::Bundle, Result, Texture};
 use std::sync::Arc;
 
@@ -55,6 +61,7 @@ impl Model for LcmModel {
     fn id(&self) -> &'static str {
         MODEL
     }
+    #[cfg(feature = "create")]
     fn describe(&self) -> ModelInfo {
         ModelInfo {
             id: MODEL,
@@ -71,9 +78,11 @@ impl Model for LcmModel {
             }],
         }
     }
+    #[cfg(feature = "create")]
     fn create(&self, name: &str, params: &serde_json::Value, inputs: &Inputs) -> Result<Bundle> {
         create(name, params, inputs)
     }
+    #[cfg(feature = "create")]
     fn inputs_of(&self, bundle: &Bundle) -> Result<Inputs> {
         encoding::inputs_of(bundle)
     }
@@ -83,12 +92,15 @@ impl Model for LcmModel {
     fn plan(&self, bundle: &Bundle) -> Result<Plan> {
         plan::plan(bundle)
     }
+    #[cfg(feature = "create")]
     fn plan_create(&self, params: &serde_json::Value, inputs: &Inputs) -> Result<Plan> {
         plan::plan_create(params, inputs)
     }
+    #[cfg(feature = "create")]
     fn demos(&self) -> Vec<Bundle> {
         demos()
     }
+    #[cfg(feature = "create")]
     fn example(&self) -> super::Example {
         demos::example()
     }

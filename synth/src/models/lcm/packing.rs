@@ -13,11 +13,11 @@
 use super::event::Event;
 use super::table::{Cell, Table};
 use crate::{Error, Result};
-use schemars::JsonSchema;
 use serde::{Deserialize, Serialize};
 
 /// How the `lcm.{n}` sections code their masks.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize, JsonSchema)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[cfg_attr(feature = "create", derive(schemars::JsonSchema))]
 #[serde(rename_all = "snake_case")]
 pub enum MaskCoding {
     /// One event byte a point.

@@ -3,11 +3,11 @@
 
 use super::packing::MaskCoding;
 use super::table::Table;
-use schemars::JsonSchema;
 use serde::{Deserialize, Serialize};
 
 /// How the base element is stored.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize, JsonSchema)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[cfg_attr(feature = "create", derive(schemars::JsonSchema))]
 #[serde(rename_all = "snake_case")]
 pub enum Representation {
     /// Scaled copies in explicit form, like a mip chain (fast; what the paper counts).
@@ -18,7 +18,8 @@ pub enum Representation {
 }
 
 /// Order of application of the layers (§2.2).
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize, JsonSchema)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[cfg_attr(feature = "create", derive(schemars::JsonSchema))]
 #[serde(rename_all = "snake_case")]
 pub enum Order {
     /// Layer 0 (the largest elements) first.
@@ -29,7 +30,8 @@ pub enum Order {
 }
 
 /// One layer as the manifest describes it.
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, JsonSchema)]
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[cfg_attr(feature = "create", derive(schemars::JsonSchema))]
 #[serde(deny_unknown_fields)]
 pub struct LayerParams {
     /// The paper's layer number n: resolution K + magnify − n.
@@ -55,7 +57,8 @@ pub(super) fn one_tile() -> [u32; 2] {
 }
 
 /// A base element made in code, by name.
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, JsonSchema)]
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[cfg_attr(feature = "create", derive(schemars::JsonSchema))]
 #[serde(deny_unknown_fields)]
 pub struct Builtin {
     /// `stroke`, `hole`, `brick` (one plane) or `pebble` (three).
@@ -68,7 +71,8 @@ pub struct Builtin {
 /// the manifest's `derived`. A manifest's params posted back to `create` (with the element image
 /// when `element` names no built-in) make the same encoding again; a derived field that is
 /// given must agree with what it derives.
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, JsonSchema)]
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[cfg_attr(feature = "create", derive(schemars::JsonSchema))]
 #[serde(deny_unknown_fields)]
 pub struct Params {
     /// A built-in element; without it the input image `element` is used: a square PNG of

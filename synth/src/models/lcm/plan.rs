@@ -16,6 +16,10 @@
 //! Constants are work units (≈ 1 ns of one core) per item, calibrated by
 //! `examples/cost_calibration.rs`.
 
+// Loading and creation share this file; a build without `create` (render-only) leaves the
+// creation half and what only it uses unused.
+#![cfg_attr(not(feature = "create"), allow(unused_imports, dead_code))]
+
 use super::colour::Colour;
 use super::element::{self, MAX_K, MAX_TOP};
 use super::event::Event;
@@ -24,7 +28,9 @@ use super::packing::{self, MaskCoding};
 use super::params::{LayerParams, Params, Representation};
 use super::period::{lcm, mask_period};
 use crate::bundle::Bundle;
-use crate::models::{cost, parse_params, Cost, Inputs, Measure, Plan};
+#[cfg(feature = "create")]
+use crate::models::Inputs;
+use crate::models::{cost, parse_params, Cost, Measure, Plan};
 use crate::texture::level_count;
 use crate::{Domain, Error, Result};
 
@@ -42,6 +48,7 @@ pub const MAX_WEIGHT: f64 = 64.0;
 
 /// The side exponent K and plane count of the element `create` would use, checked from the
 /// parameters and the input image's header, without drawing or decoding it.
+#[cfg(feature = "create")]
 pub(super) fn element_shape(p: &Params, inputs: &Inputs) -> Result<(u32, u32)> {
     let Some(b) = &p.element else {
         let bytes = inputs.get("element").ok_or_else(|| Error::image("element", "missing; this model needs it"))?;
@@ -369,6 +376,7 @@ pub fn plan(bundle: &Bundle) -> Result<Plan> {
 }
 
 /// What `create` gives and costs: the parameters checked, then the LCMs drawn for the period.
+#[cfg(feature = "create")]
 pub fn plan_create(params: &serde_json::Value, inputs: &Inputs) -> Result<Plan> {
     let p: Params = parse_params(params)?;
     let (k, planes) = element_shape(&p, inputs)?;

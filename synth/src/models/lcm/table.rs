@@ -9,14 +9,14 @@
 
 use super::event::{Event, Operation, Sign};
 use crate::{hash, Error, Result};
-use schemars::JsonSchema;
 use serde::{Deserialize, Serialize};
 
 /// Probabilities may be off 1 by this much (decimal fractions such as 0.33 + 0.33 + 0.34).
 const SUM_TOLERANCE: f64 = 1e-6;
 
 /// The distribution of events at one replication point.
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, JsonSchema)]
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[cfg_attr(feature = "create", derive(schemars::JsonSchema))]
 #[serde(deny_unknown_fields)]
 pub struct Cell {
     /// P(positive), P(negative), P(no replication).
@@ -130,7 +130,8 @@ fn distribution(p: &[f64], what: &str) -> Result<()> {
 }
 
 /// An event table: `width × height` cells, row-major, repeated over the replication points.
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, JsonSchema)]
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[cfg_attr(feature = "create", derive(schemars::JsonSchema))]
 #[serde(deny_unknown_fields)]
 pub struct Table {
     pub width: u32,

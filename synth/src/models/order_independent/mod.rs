@@ -20,6 +20,7 @@
 //! * [`demos`] — the demo encodings.
 
 pub mod cache;
+#[cfg(feature = "create")]
 pub mod demos;
 pub mod encoding;
 pub mod exemplar;
@@ -35,14 +36,19 @@ pub mod served;
 pub mod shared;
 pub mod structure;
 
-use super::{InputInfo, Inputs, MipGuarantee, Model, ModelInfo, Plan};
+#[cfg(feature = "create")]
+use super::{InputInfo, Inputs, ModelInfo};
+use super::{MipGuarantee, Model, Plan};
 use crate::bundle::Bundle;
 use crate::texture::Texture;
 use crate::{Resources, Result};
 use std::sync::Arc;
 
+#[cfg(feature = "create")]
 pub use demos::demos;
-pub use encoding::{create, load, load_with};
+#[cfg(feature = "create")]
+pub use encoding::create;
+pub use encoding::{load, load_with};
 pub use params::Params;
 pub use render::OrderIndependent;
 pub use search::Synthesizer;
@@ -57,6 +63,7 @@ impl Model for OrderIndependentModel {
     fn id(&self) -> &'static str {
         MODEL
     }
+    #[cfg(feature = "create")]
     fn describe(&self) -> ModelInfo {
         ModelInfo {
             id: MODEL,
@@ -73,9 +80,11 @@ impl Model for OrderIndependentModel {
             }],
         }
     }
+    #[cfg(feature = "create")]
     fn create(&self, name: &str, params: &serde_json::Value, inputs: &Inputs) -> Result<Bundle> {
         create(name, params, inputs)
     }
+    #[cfg(feature = "create")]
     fn inputs_of(&self, bundle: &Bundle) -> Result<Inputs> {
         Ok(super::section_inputs(bundle, &[("sample", plan::SAMPLE_SECTION)]))
     }
@@ -85,12 +94,15 @@ impl Model for OrderIndependentModel {
     fn plan(&self, bundle: &Bundle) -> Result<Plan> {
         plan::plan(bundle)
     }
+    #[cfg(feature = "create")]
     fn plan_create(&self, params: &serde_json::Value, inputs: &Inputs) -> Result<Plan> {
         plan::plan_create(params, inputs)
     }
+    #[cfg(feature = "create")]
     fn demos(&self) -> Vec<Bundle> {
         demos()
     }
+    #[cfg(feature = "create")]
     fn example(&self) -> super::Example {
         demos::example()
     }

@@ -10,7 +10,6 @@
 //! ```
 
 use crate::{Error, Result};
-use schemars::JsonSchema;
 use serde::{Deserialize, Serialize};
 
 /// Largest served extent per side.
@@ -31,7 +30,8 @@ pub const MAX_EXACT_LEVELS: u8 = 2;
 pub const MAX_NOISE_LEVELS: u8 = 4;
 
 /// Where the texture is defined.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize, JsonSchema)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[cfg_attr(feature = "create", derive(schemars::JsonSchema))]
 #[serde(rename_all = "lowercase")]
 pub enum DomainSpec {
     /// The unbounded plane; `width × height` is only the extent served.
@@ -42,7 +42,8 @@ pub enum DomainSpec {
 }
 
 /// Taps read at the entry's own level, from the previous generation (centre excluded).
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize, JsonSchema)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[cfg_attr(feature = "create", derive(schemars::JsonSchema))]
 #[serde(rename_all = "lowercase")]
 pub enum SameShape {
     /// The paper's "circular 5×5" (Fig. 7): 20 taps.
@@ -55,7 +56,8 @@ pub enum SameShape {
 }
 
 /// Taps read around the parent at the next coarser level, latest generation.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize, JsonSchema)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[cfg_attr(feature = "create", derive(schemars::JsonSchema))]
 #[serde(rename_all = "lowercase")]
 pub enum LowerShape {
     #[default]
@@ -64,7 +66,8 @@ pub enum LowerShape {
 }
 
 /// The neighbourhood compared when searching (paper: "circular 5×5 with 2 levels").
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize, JsonSchema)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[cfg_attr(feature = "create", derive(schemars::JsonSchema))]
 #[serde(deny_unknown_fields)]
 pub struct Neighbourhood {
     #[serde(default)]
@@ -74,7 +77,8 @@ pub struct Neighbourhood {
 }
 
 /// How an entry's best exemplar pixel is found.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize, JsonSchema)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[cfg_attr(feature = "create", derive(schemars::JsonSchema))]
 #[serde(rename_all = "lowercase")]
 pub enum Search {
     /// Every valid exemplar pixel (the paper's Table 1): the reference, slow.
@@ -85,7 +89,8 @@ pub enum Search {
 }
 
 /// How generation 0 of a level above the coarsest is made.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, JsonSchema)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[cfg_attr(feature = "create", derive(schemars::JsonSchema))]
 #[serde(rename_all = "lowercase")]
 pub enum Generation0 {
     /// The parent's exemplar coordinate, doubled, plus the pixel's parity (Lefebvre–Hoppe 2005).
@@ -95,7 +100,8 @@ pub enum Generation0 {
 }
 
 /// What the levels of the search compare against.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, JsonSchema)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[cfg_attr(feature = "create", derive(schemars::JsonSchema))]
 #[serde(rename_all = "lowercase")]
 pub enum ExemplarLevels {
     /// A Gaussian pyramid: level s is the sample subsampled 2^(K−1−s) times, and a coordinate
@@ -109,7 +115,8 @@ pub enum ExemplarLevels {
 }
 
 /// How coarse vtex levels are made (see `prefilter`).
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, JsonSchema)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[cfg_attr(feature = "create", derive(schemars::JsonSchema))]
 #[serde(deny_unknown_fields)]
 pub struct MipSpec {
     /// Levels 1..=exact_levels are rendered at level 0 and box-filtered (4^level tiles each).
@@ -129,7 +136,8 @@ impl Default for MipSpec {
     }
 }
 
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, JsonSchema)]
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[cfg_attr(feature = "create", derive(schemars::JsonSchema))]
 #[serde(deny_unknown_fields)]
 pub struct Params {
     /// Noise seed: the whole texture is a function of it and the sample.

@@ -1,6 +1,10 @@
 //! The cost model: from the parameters and the sample's PNG header alone, what a loaded texture
 //! holds and what its dearest tile and its making cost. Work units are about 1 ns of one core.
 
+// Loading and creation share this file; a build without `create` (render-only) leaves the
+// creation half and what only it uses unused.
+#![cfg_attr(not(feature = "create"), allow(unused_imports, dead_code))]
+
 use super::params::{ExemplarLevels, Generation0, Params, Search};
 use super::prefilter::{source, span, Source};
 use super::rect::Rect;
@@ -8,7 +12,9 @@ use super::search::{structure, PILOT};
 use super::served::{cone_to, CHUNK};
 use super::MODEL;
 use crate::bundle::Bundle;
-use crate::models::{cost, parse_params, Cost, Inputs, Measure, Plan};
+#[cfg(feature = "create")]
+use crate::models::Inputs;
+use crate::models::{cost, parse_params, Cost, Measure, Plan};
 use crate::pixels::png_dimensions;
 use crate::texture::level_count;
 use crate::{Domain, Error, Result};
@@ -50,13 +56,14 @@ pub fn plan(bundle: &Bundle) -> Result<Plan> {
     if let Some(s) = bundle.sections.iter().find(|s| s.name != SAMPLE_SECTION) {
         return Err(Error::bundle(format!("unexpected section `{}`", s.name)));
     }
-    let p: Params = parse_params(&bundle.manifest.full_params()?)?;
+    let p: Params = bundle.params()?;
     check_stored(&p)?;
     let (w, h) = png_dimensions(SAMPLE_SECTION, bundle.section(SAMPLE_SECTION)?)?;
     plan_params(&p, w, h, false)
 }
 
 /// What `create` gives and costs, from the parameters and the sample's header.
+#[cfg(feature = "create")]
 pub fn plan_create(params: &serde_json::Value, inputs: &Inputs) -> Result<Plan> {
     if let Some(other) = inputs.keys().find(|k| k.as_str() != "sample") {
         return Err(Error::image(other.as_str(), "not an input of `order-independent` (it takes `sample`)"));

@@ -1,17 +1,24 @@
 //! The `patterns` encoding: the parameters in the manifest, the reference texture as
 //! `reference.png`, the permutation tables σ as `sigma`, and explicit maps as sections.
 
+// Loading and creation share this file; a build without `create` (render-only) leaves the
+// creation half and what only it uses unused.
+#![cfg_attr(not(feature = "create"), allow(unused_imports, dead_code))]
+
 use super::params::{self, Params};
 use super::plan::{map_section, tables, with_range_tables};
 use super::render::PatternTexture;
 use super::{pixel_map, sigma, MODEL};
-use crate::models::{input_image, parse_params, Inputs};
+use crate::models::parse_params;
+#[cfg(feature = "create")]
+use crate::models::{input_image, Inputs};
 use crate::{bundle::Bundle, Error, Result};
 
 /// Makes an encoding from params (see [`Params`]) and input images: `reference` (the packed
 /// patterns, required); any other input is an explicit map whose red channel gives its
 /// values, stored as a section of the same name — compressed when a pixel map names it.
 /// The parameters are checked ([`super::plan::plan_create`]) before any image is decoded.
+#[cfg(feature = "create")]
 pub fn create(name: &str, params: &serde_json::Value, inputs: &Inputs) -> Result<Bundle> {
     super::plan::plan_create(params, inputs)?;
     let p: Params = parse_params(params)?;
@@ -38,6 +45,7 @@ pub fn create(name: &str, params: &serde_json::Value, inputs: &Inputs) -> Result
 /// The input images `create` made `bundle` from: the reference as stored, and every map
 /// section the params name (an object with `section`: a pixel map when it has a `block`,
 /// else a map of one byte a value) as a PNG whose red channel holds its values.
+#[cfg(feature = "create")]
 pub fn inputs_of(bundle: &Bundle) -> Result<Inputs> {
     let mut inputs = Inputs::from([("reference".to_string(), bundle.section("reference.png")?.to_vec())]);
     let mut refs = Vec::new();

@@ -13,6 +13,7 @@
 //! encoding's limits and checks and the cost model, [`encoding`] `create` and `load`;
 //! [`demos`] and [`art`] make the demos.
 
+#[cfg(feature = "create")]
 pub mod demos;
 pub mod encoding;
 pub mod params;
@@ -31,12 +32,17 @@ pub mod sprites;
 pub mod transform;
 pub mod transitions;
 
+#[cfg(feature = "create")]
 pub use demos::demos;
-pub use encoding::{create, load};
+#[cfg(feature = "create")]
+pub use encoding::create;
+pub use encoding::load;
 pub use params::Params;
 pub use render::PatternTexture;
 
-use super::{InputInfo, Inputs, MipGuarantee, Model, ModelInfo, Plan};
+#[cfg(feature = "create")]
+use super::{InputInfo, Inputs, ModelInfo};
+use super::{MipGuarantee, Model, Plan};
 use crate::{bundle::Bundle, Result, Texture};
 use std::sync::Arc;
 
@@ -51,6 +57,7 @@ impl Model for PatternsModel {
     fn id(&self) -> &'static str {
         MODEL
     }
+    #[cfg(feature = "create")]
     fn describe(&self) -> ModelInfo {
         ModelInfo {
             id: MODEL,
@@ -75,9 +82,11 @@ impl Model for PatternsModel {
             ],
         }
     }
+    #[cfg(feature = "create")]
     fn create(&self, name: &str, params: &serde_json::Value, inputs: &Inputs) -> Result<Bundle> {
         create(name, params, inputs)
     }
+    #[cfg(feature = "create")]
     fn inputs_of(&self, bundle: &Bundle) -> Result<Inputs> {
         encoding::inputs_of(bundle)
     }
@@ -87,12 +96,15 @@ impl Model for PatternsModel {
     fn plan(&self, bundle: &Bundle) -> Result<Plan> {
         plan::plan(bundle)
     }
+    #[cfg(feature = "create")]
     fn plan_create(&self, params: &serde_json::Value, inputs: &Inputs) -> Result<Plan> {
         plan::plan_create(params, inputs)
     }
+    #[cfg(feature = "create")]
     fn demos(&self) -> Vec<Bundle> {
         demos()
     }
+    #[cfg(feature = "create")]
     fn example(&self) -> super::Example {
         demos::example()
     }

@@ -7,12 +7,12 @@
 //! convolution (Fig. 18–19); `sprites` is explicit positioning (texture sprites, Fig. 21d);
 //! an `animation` block makes a tiling layer an animated tiling (Fig. 20).
 
-use schemars::JsonSchema;
 use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
 
 /// Everything in the manifest's `params`.
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, JsonSchema)]
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[cfg_attr(feature = "create", derive(schemars::JsonSchema))]
 #[serde(deny_unknown_fields)]
 pub struct Params {
     /// Level-0 size in pixels; every layer's cell size must divide both (the texture is a torus).
@@ -38,7 +38,8 @@ pub struct Params {
     pub fps: Option<f32>,
 }
 
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, JsonSchema)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[cfg_attr(feature = "create", derive(schemars::JsonSchema))]
 #[serde(rename_all = "lowercase")]
 pub enum LayerKind {
     /// One pattern per cell of the virtual tile map (aperiodic tiling).
@@ -49,7 +50,8 @@ pub enum LayerKind {
     Sprites,
 }
 
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, JsonSchema)]
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[cfg_attr(feature = "create", derive(schemars::JsonSchema))]
 #[serde(deny_unknown_fields)]
 pub struct LayerParams {
     pub kind: LayerKind,
@@ -70,7 +72,8 @@ pub struct LayerParams {
 }
 
 /// The pattern-choice blocks.
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, JsonSchema)]
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[cfg_attr(feature = "create", derive(schemars::JsonSchema))]
 #[serde(tag = "kind", rename_all = "snake_case", deny_unknown_fields)]
 pub enum Choice {
     /// Virtual indirection map: σ-hashed vectorial pattern index over the whole reference.
@@ -90,7 +93,8 @@ pub enum Choice {
 
 /// A material: a probability map (pattern indices, duplicated in proportion; -1 = blank)
 /// and the family of compatible tiles it belongs to (§3.3).
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, JsonSchema)]
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[cfg_attr(feature = "create", derive(schemars::JsonSchema))]
 #[serde(deny_unknown_fields)]
 pub struct MaterialParams {
     pub patterns: Vec<i32>,
@@ -99,7 +103,8 @@ pub struct MaterialParams {
 }
 
 /// An areas map: one material index per area; each area covers (grid / size) cells.
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, JsonSchema)]
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[cfg_attr(feature = "create", derive(schemars::JsonSchema))]
 #[serde(deny_unknown_fields)]
 pub struct AreasParams {
     pub map: MapRef,
@@ -109,7 +114,8 @@ pub struct AreasParams {
 }
 
 /// A high-resolution material mask stored as an adaptive (indirection-compressed) map.
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, JsonSchema)]
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[cfg_attr(feature = "create", derive(schemars::JsonSchema))]
 #[serde(deny_unknown_fields)]
 pub struct PixelMapParams {
     /// Section holding the compressed map (see `pixel_map.rs`).
@@ -122,7 +128,8 @@ pub struct PixelMapParams {
 }
 
 /// A map: `size` values given inline or in a bundle section (`depth` bytes each, LE).
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, JsonSchema)]
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[cfg_attr(feature = "create", derive(schemars::JsonSchema))]
 #[serde(deny_unknown_fields)]
 pub struct MapRef {
     pub size: [u32; 2],
@@ -142,7 +149,8 @@ fn is_one(v: &u8) -> bool {
     *v == 1
 }
 
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, JsonSchema)]
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[cfg_attr(feature = "create", derive(schemars::JsonSchema))]
 #[serde(deny_unknown_fields)]
 pub struct TransformParams {
     /// Scale range relative to the cell: s = min + r (max − min).
@@ -158,7 +166,8 @@ pub struct TransformParams {
 
 /// Transition tiles: for every family f ≥ 1, 14 pattern indices drawn with a transparent
 /// background, indexed by the 4-bit mask (1..=14) of the corners that belong to f.
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, JsonSchema)]
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[cfg_attr(feature = "create", derive(schemars::JsonSchema))]
 #[serde(deny_unknown_fields)]
 pub struct TransitionParams {
     pub tiles: Vec<Vec<u32>>,
@@ -166,7 +175,8 @@ pub struct TransitionParams {
 
 /// Animation sequence + animation map + temporal transitions (§3.4), driven by time or by
 /// the distance to target sprites (Fig. 21a).
-#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize, JsonSchema)]
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+#[cfg_attr(feature = "create", derive(schemars::JsonSchema))]
 #[serde(deny_unknown_fields)]
 pub struct AnimationParams {
     /// Pattern indices of the sequence; the first is the rest state; -1 = blank (sparse
@@ -220,14 +230,16 @@ impl AnimationParams {
 }
 
 /// One earlier parameter set, or several.
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, JsonSchema)]
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[cfg_attr(feature = "create", derive(schemars::JsonSchema))]
 #[serde(untagged)]
 pub enum Previous {
     One(PreviousParams),
     Many(Vec<PreviousParams>),
 }
 
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, JsonSchema)]
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[cfg_attr(feature = "create", derive(schemars::JsonSchema))]
 #[serde(deny_unknown_fields)]
 pub struct PreviousParams {
     pub a: f64,
@@ -237,7 +249,8 @@ pub struct PreviousParams {
 
 /// The sequence parameter is the distance from a cell's centre to the nearest target: the
 /// last pattern at distance 0, the rest state at `radius` and beyond (Fig. 21a).
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, JsonSchema)]
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[cfg_attr(feature = "create", derive(schemars::JsonSchema))]
 #[serde(deny_unknown_fields)]
 pub struct DistanceParams {
     /// Names in `params.sprites`: their centres (moving with them) are the targets.
@@ -249,7 +262,8 @@ pub struct DistanceParams {
 /// A per-cell integer: an explicit map (per cell, wrapping) plus a virtual random value in
 /// `0..random` (drawn without the bias of Fig. 2.2: from σ when it divides 256, else from a
 /// range table).
-#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize, JsonSchema)]
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+#[cfg_attr(feature = "create", derive(schemars::JsonSchema))]
 #[serde(deny_unknown_fields)]
 pub struct ValueParams {
     #[serde(default, skip_serializing_if = "Option::is_none")]
@@ -262,7 +276,8 @@ pub struct ValueParams {
 /// drawn by one sprites layer (each layer is one positioning map: n grids for n patterns in
 /// a cell, §3.2), then transformed about its centre (the Tile Transform plugged after the
 /// Explicit Positioning) and, when it has a velocity, moving with time.
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, JsonSchema)]
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[cfg_attr(feature = "create", derive(schemars::JsonSchema))]
 #[serde(deny_unknown_fields)]
 pub struct SpriteParams {
     pub pattern: u32,

@@ -4,6 +4,10 @@
 //! its animation maps (small value maps, read as `load` reads them). Constants are work units
 //! (≈ 1 ns of one core) per item, calibrated by `examples/cost_calibration.rs`.
 
+// Loading and creation share this file; a build without `create` (render-only) leaves the
+// creation half and what only it uses unused.
+#![cfg_attr(not(feature = "create"), allow(unused_imports, dead_code))]
+
 use super::animation::{AnimationBlock, Context};
 use super::params::{Choice, LayerKind, LayerParams, Params, ValueParams};
 use super::random::LayerRng;
@@ -11,7 +15,9 @@ use super::sigma::{self, RangeTable, Sigma};
 use super::transform::TransformBlock;
 use super::{pixel_map, sprites, MODEL};
 use crate::bundle::Bundle;
-use crate::models::{cost, parse_params, Cost, Inputs, Measure, Plan};
+#[cfg(feature = "create")]
+use crate::models::Inputs;
+use crate::models::{cost, parse_params, Cost, Measure, Plan};
 use crate::pixels::png_dimensions;
 use crate::texture::level_count;
 use crate::{Animation, Domain, Error, Result};
@@ -55,6 +61,7 @@ pub fn plan(bundle: &Bundle) -> Result<Plan> {
 /// What `create` gives and costs: the bundle it would make, less the pixels — the reference
 /// kept as given (only its header is read) and the animation maps among the inputs, as
 /// `create` stores them.
+#[cfg(feature = "create")]
 pub fn plan_create(params: &serde_json::Value, inputs: &Inputs) -> Result<Plan> {
     let p: Params = parse_params(params)?;
     let reference = inputs.get("reference").ok_or_else(|| Error::image("reference", "missing; this model needs it"))?;
