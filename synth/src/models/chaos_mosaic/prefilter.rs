@@ -14,6 +14,7 @@
 //! table look-ups a pixel at every level, so the coarsest level of a 100k × 100k texture costs
 //! no more than level 4.
 
+use super::homes::Indexed;
 use super::render::ChaosMosaic;
 use super::sums::{pack, BoxTable};
 use crate::{mip, pixels::Rgba8Image, texture::level_size, Region, Stop};
@@ -280,10 +281,11 @@ impl ChaosMosaic {
                 }
             } else if !coarse {
                 // The tile index walked in row order.
+                let whole = self.homes.indexed();
                 for (cj, &(_, _, y)) in rows.iter().enumerate().take(r1).skip(r0) {
                     let (ty, ym) = ((y / sh) as u32, y % sh);
                     for (l, &(x, tx, xm)) in layer[(cj - r0) * gw..(cj - r0 + 1) * gw].iter_mut().zip(&indexed) {
-                        *l = self.layer_at(x, y, tx, ty, (xm, ym));
+                        *l = self.layer_at(whole, x, y, tx, ty, (xm, ym));
                     }
                 }
             }
@@ -365,14 +367,13 @@ impl ChaosMosaic {
     }
 
     /// The packed offset (see [`pack`]) of the top layer at a level-0 point (x, y) of the
-    /// torus, in tile (tx, ty), through the tile index; (xm, ym) is the point modulo the sample.
+    /// torus, in tile (tx, ty), through the whole index; (xm, ym) is the point modulo the sample.
     #[inline]
-    fn layer_at(&self, x: i64, y: i64, tx: u32, ty: u32, (xm, ym): (i64, i64)) -> u32 {
+    fn layer_at(&self, whole: &Indexed, x: i64, y: i64, tx: u32, ty: u32, (xm, ym): (i64, i64)) -> u32 {
         let (tw, th) = (self.width as i64, self.height as i64);
         let (sw, sh) = (self.sample.width as i64, self.sample.height as i64);
-        let indexed = self.homes.indexed();
-        for &pos in indexed.index.blocks(tx, ty).iter().rev() {
-            let b = &indexed.blocks[pos as usize].block;
+        for &pos in whole.index.blocks(tx, ty).iter().rev() {
+            let b = &whole.blocks[pos as usize].block;
             // x and b.s both lie on [0, width): the wrapped difference needs no division.
             let (u, v) = (x - b.s as i64, y - b.t as i64);
             let (u, v) = (u + tw * (u < 0) as i64, v + th * (v < 0) as i64);
