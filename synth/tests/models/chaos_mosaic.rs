@@ -250,6 +250,25 @@ fn mid_levels_of_the_100k_mosaics_are_pinned() {
     }
 }
 
+#[test]
+fn opening_the_100k_demo_and_rendering_a_tile_draws_only_the_blocks_near_it() {
+    let demo = chaos_mosaic::demos().swap_remove(0);
+    let (tex, eager) = (chaos_mosaic::load(&demo).unwrap(), chaos_mosaic::load(&demo).unwrap());
+    let all = eager.blocks();
+    assert_eq!(tex.blocks_held(), 0, "nothing is drawn when the texture is opened");
+    let (x0, y0, size) = (51_200i64, 76_800i64, 256u32);
+    let tile = render(&tex, 0, x0, y0, size, size);
+    // The blocks meeting the tile and its filter margin have their corner in the tiles under it
+    // or one tile left of or above it: those home tiles' blocks, and no others, are drawn.
+    let (side, margin) = (160i64, tex.params().filter_width as i64);
+    let homes = |a: i64| (a - margin).div_euclid(side) - 1..=(a + size as i64 + margin - 1).div_euclid(side);
+    let near =
+        all.iter().filter(|b| homes(x0).contains(&(b.s as i64 / side)) && homes(y0).contains(&(b.t as i64 / side)));
+    assert_eq!(tex.blocks_held(), near.count());
+    assert!(tex.blocks_held() < 100, "{} of {} blocks drawn", tex.blocks_held(), all.len());
+    assert_eq!(tile, render(&eager, 0, x0, y0, size, size), "the same pixels as from the whole index");
+}
+
 /// Renders `tiles × tiles` tiles of `size` and one region covering them, and compares.
 fn assert_tiles_match_region(tex: &dyn Texture, level: u32, x0: i64, y0: i64, size: u32, tiles: u32) {
     let whole = render(tex, level, x0, y0, size * tiles, size * tiles);

@@ -9,7 +9,7 @@ pub const RECORD_BYTES: usize = 12;
 
 /// One random block: the sample rectangle B_γ = (x, y, w, h) pasted with its top-left corner
 /// at L_γ = (s, t) on the texture torus.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, PartialOrd, Ord)]
 pub struct Block {
     pub x: u16,
     pub y: u16,
@@ -52,30 +52,124 @@ impl SizeRule {
     }
 }
 
-/// The sequence of the paper: `blocks_per_tile` blocks per tile (one in the paper), in
-/// row-major tile order, each block's size drawn
-/// under the area constraint and its position inside the sample uniformly, its tile corner
-/// moved by `iterations` steps of the cat map.
-pub fn generate(p: &Params, sample_w: u32, sample_h: u32, rule: &SizeRule) -> Vec<Block> {
-    let (tex_w, tex_h) = (p.tiles_x as u64 * sample_w as u64, p.tiles_y as u64 * sample_h as u64);
-    let map = catmap::CatMap::new(tex_w, tex_h, p.iterations);
-    let mut out = Vec::with_capacity(p.tiles_x as usize * p.tiles_y as usize * p.blocks_per_tile as usize);
-    for ty in 0..p.tiles_y as i64 {
-        for tx in 0..p.tiles_x as i64 {
-            for k in 0..p.blocks_per_tile as u64 {
-                let draw = |stream: u64| hash::hash4(p.seed, stream + 8 * k, tx, ty);
-                let (w, h_lo, h_hi) = rule.widths[hash::below(draw(1), rule.widths.len() as u64) as usize];
-                let h = h_lo + hash::below(draw(2), (h_hi - h_lo + 1) as u64) as u16;
-                let x = hash::below(draw(3), (sample_w - w as u32 + 1) as u64) as u16;
-                let y = hash::below(draw(4), (sample_h - h as u32 + 1) as u64) as u16;
-                let x0 = x as u64 + tx as u64 * sample_w as u64;
-                let y0 = y as u64 + ty as u64 * sample_h as u64;
-                let (s, t) = map.apply(x0, y0);
-                out.push(Block { x, y, w, h, s: s as u32, t: t as u32 });
+/// A block with its sequence number (its place in paste order).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct Numbered {
+    pub block: Block,
+    pub id: u32,
+}
+
+/// The sequence of the paper, drawn from the seed: `blocks_per_tile` blocks per tile (one in
+/// the paper), in row-major tile order, each block's size drawn under the area constraint and
+/// its position inside the sample uniformly, its tile corner moved by `iterations` steps of
+/// the cat map. Any block can be drawn alone, so the blocks landing in one part of the texture
+/// can be found without drawing the others ([`landing_in`](Self::landing_in)).
+pub struct Generator {
+    params: Params,
+    sample: (u32, u32),
+    rule: SizeRule,
+    map: catmap::CatMap,
+    /// The largest offsets of a block's corner in its tile (for the smallest width and height).
+    reach: (u32, u32),
+}
+
+impl Generator {
+    pub fn new(params: &Params, sample_w: u32, sample_h: u32, rule: SizeRule) -> Self {
+        let (tex_w, tex_h) = (params.tiles_x as u64 * sample_w as u64, params.tiles_y as u64 * sample_h as u64);
+        let map = catmap::CatMap::new(tex_w, tex_h, params.iterations);
+        let narrowest = rule.widths.iter().map(|&(w, _, _)| w).min().unwrap_or(1) as u32;
+        let shortest = rule.widths.iter().map(|&(_, lo, _)| lo).min().unwrap_or(1) as u32;
+        let reach = (sample_w - narrowest, sample_h - shortest);
+        Self { params: params.clone(), sample: (sample_w, sample_h), rule, map, reach }
+    }
+
+    /// The number of blocks in the sequence.
+    pub fn len(&self) -> u64 {
+        self.params.tiles_x as u64 * self.params.tiles_y as u64 * self.params.blocks_per_tile as u64
+    }
+
+    /// Every block, in sequence order.
+    pub fn all(&self) -> Vec<Block> {
+        let p = &self.params;
+        let mut out = Vec::with_capacity(self.len() as usize);
+        for ty in 0..p.tiles_y {
+            for tx in 0..p.tiles_x {
+                for k in 0..p.blocks_per_tile {
+                    let (x, y, w, h) = self.draw(tx, ty, k);
+                    out.push(self.paste(tx, ty, (x, y, w, h)));
+                }
             }
         }
+        out
     }
-    out
+
+    /// The blocks whose pasted corner lies in `[x0, x0 + w) × [y0, y0 + h)` (inside the
+    /// texture), in sequence order: each point of the rectangle is taken back by the cat map to
+    /// the point it comes from, which is a block's corner when its tile's draws put one there.
+    pub fn landing_in(&self, at: (u64, u64), size: (u64, u64)) -> Vec<Numbered> {
+        let (sw, sh) = (self.sample.0 as u64, self.sample.1 as u64);
+        let mut out = Vec::new();
+        self.map.preimages(at, size, |cx, cy| {
+            let (x, y) = ((cx % sw) as u32, (cy % sh) as u32);
+            if x > self.reach.0 || y > self.reach.1 {
+                return;
+            }
+            let (tx, ty) = ((cx / sw) as u32, (cy / sh) as u32);
+            for k in 0..self.params.blocks_per_tile {
+                if let Some(drawn) = self.draw_at(tx, ty, k, (x, y)) {
+                    let id = (ty as u64 * self.params.tiles_x as u64 + tx as u64) * self.params.blocks_per_tile as u64;
+                    out.push(Numbered { block: self.paste(tx, ty, drawn), id: (id + k as u64) as u32 });
+                }
+            }
+        });
+        out.sort_unstable_by_key(|n| n.id);
+        out
+    }
+
+    /// The points [`landing_in`](Self::landing_in) visits for a `w × h` rectangle.
+    pub fn points_for(&self, w: u64, h: u64) -> u64 {
+        let (sx, sy) = self.map.scale();
+        w * sx * h * sy
+    }
+
+    /// Hash `stream` of block `k` of tile (tx, ty).
+    fn hash(&self, stream: u64, tx: u32, ty: u32, k: u32) -> u64 {
+        hash::hash4(self.params.seed, stream + 8 * k as u64, tx as i64, ty as i64)
+    }
+
+    /// Block `k` of tile (tx, ty): its rectangle (x, y, w, h) in the sample.
+    fn draw(&self, tx: u32, ty: u32, k: u32) -> (u16, u16, u16, u16) {
+        let (sw, sh) = self.sample;
+        let (w, h_lo, h_hi) = self.width(tx, ty, k);
+        let h = h_lo + hash::below(self.hash(2, tx, ty, k), (h_hi - h_lo + 1) as u64) as u16;
+        let x = hash::below(self.hash(3, tx, ty, k), (sw - w as u32 + 1) as u64) as u16;
+        let y = hash::below(self.hash(4, tx, ty, k), (sh - h as u32 + 1) as u64) as u16;
+        (x, y, w, h)
+    }
+
+    /// [`draw`](Self::draw) when block `k` of tile (tx, ty) is cut at (x, y) of the sample,
+    /// drawing no more than it takes to tell.
+    fn draw_at(&self, tx: u32, ty: u32, k: u32, (x, y): (u32, u32)) -> Option<(u16, u16, u16, u16)> {
+        let (sw, _) = self.sample;
+        let (w, _, _) = self.width(tx, ty, k);
+        let fits = x + w as u32 <= sw && hash::below(self.hash(3, tx, ty, k), (sw - w as u32 + 1) as u64) == x as u64;
+        let drawn = fits.then(|| self.draw(tx, ty, k))?;
+        (drawn.1 as u32 == y).then_some(drawn)
+    }
+
+    /// The width of block `k` of tile (tx, ty) with the range of heights allowed for it.
+    fn width(&self, tx: u32, ty: u32, k: u32) -> (u16, u16, u16) {
+        self.rule.widths[hash::below(self.hash(1, tx, ty, k), self.rule.widths.len() as u64) as usize]
+    }
+
+    /// The block cut at `(x, y, w, h)` of the sample for tile (tx, ty), its corner moved by the
+    /// cat map.
+    fn paste(&self, tx: u32, ty: u32, (x, y, w, h): (u16, u16, u16, u16)) -> Block {
+        let x0 = x as u64 + tx as u64 * self.sample.0 as u64;
+        let y0 = y as u64 + ty as u64 * self.sample.1 as u64;
+        let (s, t) = self.map.apply(x0, y0);
+        Block { x, y, w, h, s: s as u32, t: t as u32 }
+    }
 }
 
 /// Packs blocks into 12-byte records.

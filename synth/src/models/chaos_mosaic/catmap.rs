@@ -39,6 +39,40 @@ impl CatMap {
         let row = |p: u64, q: u64| add(mul_mod(p, u, n), mul_mod(q, v, n), n);
         (row(a, b) / self.scale.0, row(c, d) / self.scale.1)
     }
+
+    /// The factors scaling the texture onto the square torus (1 × 1 for square textures).
+    pub fn scale(&self) -> (u64, u64) {
+        self.scale
+    }
+
+    /// Points of the square torus taken back to the `width × height` torus each `[x0, x0 + w) ×
+    /// [y0, y0 + h)` point of the texture comes from: `visit(x, y)` for every (x, y) that
+    /// [`apply`](Self::apply) moves into that rectangle (which must lie in the texture), found
+    /// by running the inverse matrix over the rectangle scaled onto the square torus. The work
+    /// is the rectangle's area times the scale's, whatever the size of the torus.
+    pub fn preimages(&self, (x0, y0): (u64, u64), (w, h): (u64, u64), mut visit: impl FnMut(u64, u64)) {
+        let n = self.n;
+        let (sx, sy) = self.scale;
+        // The matrix has determinant 1: its inverse is [[d, −b], [−c, a]].
+        let [[a, b], [c, d]] = self.matrix;
+        let neg = |v: u64| (n - v) % n;
+        let [[ia, ib], [ic, id]] = [[d, neg(b)], [neg(c), a]];
+        let (u0, u1) = (x0 * sx, (x0 + w) * sx);
+        let unscaled = |v: u64, s: u64| match s {
+            1 => Some(v),
+            _ => (v % s == 0).then(|| v / s),
+        };
+        for v in y0 * sy..(y0 + h) * sy {
+            let (mut x, mut y) =
+                (add(mul_mod(ia, u0, n), mul_mod(ib, v, n), n), add(mul_mod(ic, u0, n), mul_mod(id, v, n), n));
+            for _ in u0..u1 {
+                if let (Some(x), Some(y)) = (unscaled(x, sx), unscaled(y, sy)) {
+                    visit(x, y);
+                }
+                (x, y) = (add(x, ia, n), add(y, ic, n));
+            }
+        }
+    }
 }
 
 fn mul(x: &[[u64; 2]; 2], y: &[[u64; 2]; 2], n: u64) -> [[u64; 2]; 2] {
@@ -138,6 +172,22 @@ mod tests {
                     assert_eq!(map.apply(x, y), stepped(x, y, w, h, i), "{w}×{h}, {i} iterations, ({x}, {y})");
                 }
             }
+        }
+    }
+
+    #[test]
+    fn preimages_are_exactly_the_points_moved_into_the_rectangle() {
+        for (w, h, i) in [(64, 64, 10), (60, 40, 3), (48, 80, 10), (30, 30, 0), (17, 51, 7)] {
+            let map = CatMap::new(w, h, i);
+            let (at, size) = ((w / 3, h / 4), (w / 5 + 1, h / 3 + 2));
+            let inside = |(u, v): (u64, u64)| (at.0..at.0 + size.0).contains(&u) && (at.1..at.1 + size.1).contains(&v);
+            let mut want: Vec<(u64, u64)> =
+                (0..h).flat_map(|y| (0..w).map(move |x| (x, y))).filter(|&(x, y)| inside(map.apply(x, y))).collect();
+            let mut got = Vec::new();
+            map.preimages(at, size, |x, y| got.push((x, y)));
+            want.sort_unstable();
+            got.sort_unstable();
+            assert_eq!(got, want, "{w}×{h}, {i} iterations");
         }
     }
 

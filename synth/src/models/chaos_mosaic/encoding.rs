@@ -28,8 +28,8 @@ pub fn create(name: &str, params: &serde_json::Value, inputs: &Inputs) -> Result
     let mut bundle = Bundle::created(MODEL, name, given, serde_json::to_value(&p).expect("params serialize"))
         .with_section(SAMPLE_SECTION, sample.to_png());
     if p.sequence == Sequence::Explicit {
-        bundle = bundle
-            .with_section(BLOCKS_SECTION, blocks::pack(&blocks::generate(&p, sample.width, sample.height, &rule)));
+        let generator = blocks::Generator::new(&p, sample.width, sample.height, rule);
+        bundle = bundle.with_section(BLOCKS_SECTION, blocks::pack(&generator.all()));
     }
     load(&bundle)?;
     Ok(bundle)

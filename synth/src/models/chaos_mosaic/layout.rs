@@ -8,7 +8,7 @@
 //! (neighbours whose sample coordinates are not consecutive) are found per band and per band
 //! boundary, never per pixel.
 
-use super::ChaosMosaic;
+use super::{Block, ChaosMosaic};
 use crate::texture::wrap;
 use std::ops::Range;
 
@@ -19,8 +19,7 @@ pub(super) struct Placed {
     pub id: u32,
     pub x: i64,
     pub y: i64,
-    /// The position in the model's block list.
-    pub pos: u32,
+    pub block: Block,
 }
 
 /// Columns `[x, end)` of a band's rows, copied from sample columns `sx..` of sample row `sy`
@@ -65,31 +64,32 @@ impl ChaosMosaic {
     /// Every placement of a block whose rectangle meets `[x0, x0+w) × [y0, y0+h)`, in
     /// sequence order: the blocks whose corner lies in the tiles under the rectangle or one
     /// tile left of or above it (a block is never larger than a tile), each once per unrolled
-    /// copy of its home tile, in a few runs of the block list.
+    /// copy of its home tile.
     pub(super) fn placements(&self, x0: i64, y0: i64, w: u64, h: u64) -> Vec<Placed> {
         let (sw, sh) = (self.sample.width as i64, self.sample.height as i64);
         let (tiles_x, tiles_y) = (self.params.tiles_x as i64, self.params.tiles_y as i64);
         let (x1, y1) = (x0 + w as i64, y0 + h as i64);
-        let mut out = Vec::new();
         let (tx0, ty0) = (x0.div_euclid(sw) - 1, y0.div_euclid(sh) - 1);
-        let mut wty = ty0.rem_euclid(tiles_y);
-        for ty in ty0..=(y1 - 1).div_euclid(sh) {
-            let mut wtx = tx0.rem_euclid(tiles_x);
-            for tx in tx0..=(x1 - 1).div_euclid(sw) {
+        let unrolled: Vec<(i64, i64)> = (ty0..=(y1 - 1).div_euclid(sh))
+            .flat_map(|ty| (tx0..=(x1 - 1).div_euclid(sw)).map(move |tx| (tx, ty)))
+            .collect();
+        let homes: Vec<(u32, u32)> =
+            unrolled.iter().map(|&(tx, ty)| (tx.rem_euclid(tiles_x) as u32, ty.rem_euclid(tiles_y) as u32)).collect();
+        let mut out = Vec::new();
+        self.homes.with_homed(&homes, |lists| {
+            for ((&(tx, ty), &(htx, hty)), list) in unrolled.iter().zip(&homes).zip(lists) {
                 // The home tile's blocks lie in it: the unrolled corner is the tile's plus the
                 // corner's place in the tile.
-                let (dx, dy) = ((tx - wtx) * sw, (ty - wty) * sh);
-                for pos in self.index.homed(wtx as u32, wty as u32) {
-                    let b = &self.blocks[pos];
+                let (dx, dy) = ((tx - htx as i64) * sw, (ty - hty as i64) * sh);
+                for n in list.iter() {
+                    let b = n.block;
                     let (px, py) = (b.s as i64 + dx, b.t as i64 + dy);
                     if px < x1 && px + b.w as i64 > x0 && py < y1 && py + b.h as i64 > y0 {
-                        out.push(Placed { id: self.seq[pos], x: px, y: py, pos: pos as u32 });
+                        out.push(Placed { id: n.id, x: px, y: py, block: b });
                     }
                 }
-                wtx = if wtx + 1 == tiles_x { 0 } else { wtx + 1 };
             }
-            wty = if wty + 1 == tiles_y { 0 } else { wty + 1 };
-        }
+        });
         sort_in_sequence(&mut out);
         out
     }
@@ -102,7 +102,7 @@ impl ChaosMosaic {
         let mut cuts = vec![0, h];
         cuts.extend(((sh - wrap(y0, sh as u64) as usize) % sh..h).step_by(sh));
         for p in &placed {
-            let b = &self.blocks[p.pos as usize];
+            let b = &p.block;
             cuts.extend([p.y - y0, p.y + b.h as i64 - y0].into_iter().filter_map(inside));
         }
         cuts.sort_unstable();
@@ -125,7 +125,7 @@ impl ChaosMosaic {
             // The blocks covering the band (a block meeting it covers it: its edges are cuts).
             let (top, bottom) = (y0 + ya as i64, y0 + yb as i64);
             for p in &placed {
-                let b = &self.blocks[p.pos as usize];
+                let b = &p.block;
                 if p.y <= top && p.y + b.h as i64 >= bottom {
                     let (from, to) = ((p.x - x0).max(0) as usize, (p.x + b.w as i64 - x0).min(w as i64) as usize);
                     let sx = b.x as u32 + (x0 + from as i64 - p.x) as u32;
@@ -197,7 +197,7 @@ impl ChaosMosaic {
     }
 }
 
-/// Sorts placements as `sort_unstable` does (by sequence number, then position), by a radix
+/// Sorts placements as `sort_unstable` does (by sequence number, then place), by a radix
 /// sort of the sequence numbers: placements of one block (a region wider than the torus) are
 /// then put in order among themselves.
 fn sort_in_sequence(v: &mut Vec<Placed>) {
@@ -258,7 +258,7 @@ fn paint(spans: &mut Vec<Span>, new: Span, scratch: &mut Vec<Span>) {
 
 #[cfg(test)]
 mod tests {
-    use super::{sort_in_sequence, Placed};
+    use super::{sort_in_sequence, Block, Placed};
 
     #[test]
     fn the_radix_sort_orders_placements_like_a_full_sort() {
@@ -271,7 +271,7 @@ mod tests {
                         id: (h % (1 << 22)) as u32 / (1 + (i % 3) * 1000),
                         x: (h >> 40) as i64 % 7 - 3,
                         y: i as i64 % 5,
-                        pos: i,
+                        block: Block { x: i as u16, ..Block::default() },
                     }
                 })
                 .collect();

@@ -21,6 +21,7 @@ mod plan;
 mod blocks;
 pub mod catmap;
 mod compose;
+mod homes;
 mod index;
 mod layout;
 mod prefilter;

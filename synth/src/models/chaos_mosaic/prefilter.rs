@@ -14,6 +14,7 @@
 //! table look-ups a pixel at every level, so the coarsest level of a 100k × 100k texture costs
 //! no more than level 4.
 
+use super::homes::Indexed;
 use super::render::ChaosMosaic;
 use super::sums::{pack, BoxTable};
 use crate::{mip, pixels::Rgba8Image, texture::level_size, Region, Stop};
@@ -112,10 +113,12 @@ impl ChaosMosaic {
         // One cell from half a sample on: 4× fewer layer look-ups through the tile index, for
         // a small loss of accuracy at the levels where a footprint spans half a sample.
         let cells = if 2 * f >= sw.min(sh) { 1 } else { CELLS.min(f / 2) } as usize;
-        let tiles_met = ((x1 - x0 + 2 * reach) / sw + 2) as u64 * ((y1 - y0 + 2 * reach) / sh + 2) as u64;
-        let (entries, tiles) = self.index.blocks_per_tile();
-        let cheaper = 4 * tiles_met * entries / tiles < (nx * ny * cells * cells) as u64;
-        let rasterize = fine || (!coarse && paths.rasterize.unwrap_or(cheaper));
+        let cheaper = || {
+            let tiles_met = ((x1 - x0 + 2 * reach) / sw + 2) as u64 * ((y1 - y0 + 2 * reach) / sh + 2) as u64;
+            let (entries, tiles) = self.homes.indexed().index.blocks_per_tile();
+            4 * tiles_met * entries / tiles < (nx * ny * cells * cells) as u64
+        };
+        let rasterize = fine || (!coarse && paths.rasterize.unwrap_or_else(cheaper));
         let placed = match rasterize {
             true => self.placements(x0 - reach, y0 - reach, (x1 - x0 + 2 * reach) as u64, (y1 - y0 + 2 * reach) as u64),
             false => Vec::new(),
@@ -144,7 +147,7 @@ impl ChaosMosaic {
             // Per placement, the columns whose grown footprint lies inside it, then row by row.
             let mut cols_in = Vec::new();
             for (k, p) in placed.iter().enumerate() {
-                let b = &self.blocks[p.pos as usize];
+                let b = &p.block;
                 let (bx1, by1) = (p.x + b.w as i64, p.y + b.h as i64);
                 let (i0, i1) = meets(p.x, bx1, lx, nx);
                 let (j0, j1) = meets(p.y, by1, ly, ny);
@@ -188,7 +191,7 @@ impl ChaosMosaic {
         let offsets: Vec<u32> = std::iter::once(0)
             .chain(placed.iter().map(|p| {
                 // The placement's corner reduced by a multiplication, then within one period.
-                let b = &self.blocks[p.pos as usize];
+                let b = &p.block;
                 let (rx, ry) = (self.sums.w.div_rem(p.x).1, self.sums.h.div_rem(p.y).1);
                 pack(b.x as i64 - rx, b.y as i64 - ry, sw, sh)
             }))
@@ -213,7 +216,7 @@ impl ChaosMosaic {
         let painted: Vec<_> = placed
             .iter()
             .map(|p| {
-                let b = &self.blocks[p.pos as usize];
+                let b = &p.block;
                 (inside(&cols, lx, p.x, p.x + b.w as i64), inside(&rows, ly, p.y, p.y + b.h as i64))
             })
             .collect();
@@ -278,10 +281,11 @@ impl ChaosMosaic {
                 }
             } else if !coarse {
                 // The tile index walked in row order.
+                let whole = self.homes.indexed();
                 for (cj, &(_, _, y)) in rows.iter().enumerate().take(r1).skip(r0) {
                     let (ty, ym) = ((y / sh) as u32, y % sh);
                     for (l, &(x, tx, xm)) in layer[(cj - r0) * gw..(cj - r0 + 1) * gw].iter_mut().zip(&indexed) {
-                        *l = self.layer_at(x, y, tx, ty, (xm, ym));
+                        *l = self.layer_at(whole, x, y, tx, ty, (xm, ym));
                     }
                 }
             }
@@ -363,13 +367,13 @@ impl ChaosMosaic {
     }
 
     /// The packed offset (see [`pack`]) of the top layer at a level-0 point (x, y) of the
-    /// torus, in tile (tx, ty), through the tile index; (xm, ym) is the point modulo the sample.
+    /// torus, in tile (tx, ty), through the whole index; (xm, ym) is the point modulo the sample.
     #[inline]
-    fn layer_at(&self, x: i64, y: i64, tx: u32, ty: u32, (xm, ym): (i64, i64)) -> u32 {
+    fn layer_at(&self, whole: &Indexed, x: i64, y: i64, tx: u32, ty: u32, (xm, ym): (i64, i64)) -> u32 {
         let (tw, th) = (self.width as i64, self.height as i64);
         let (sw, sh) = (self.sample.width as i64, self.sample.height as i64);
-        for &pos in self.index.blocks(tx, ty).iter().rev() {
-            let b = &self.blocks[pos as usize];
+        for &pos in whole.index.blocks(tx, ty).iter().rev() {
+            let b = &whole.blocks[pos as usize].block;
             // x and b.s both lie on [0, width): the wrapped difference needs no division.
             let (u, v) = (x - b.s as i64, y - b.t as i64);
             let (u, v) = (u + tw * (u < 0) as i64, v + th * (v < 0) as i64);

@@ -1,8 +1,8 @@
-//! The loaded texture: the validated sample, block list and index from which
+//! The loaded texture: the validated sample and the blocks by home tile from which
 //! [`compose`](super::compose) and [`prefilter`](super::prefilter) evaluate any region.
 
-use super::blocks::{self, SizeRule};
-use super::index::{self, TileIndex};
+use super::blocks::{self, Generator, SizeRule};
+use super::homes::{Homes, Tiling};
 use super::params::{self, Params, Sequence};
 use super::sums::{BoxTables, PeriodicSums, Sample};
 use super::{Block, MODEL};
@@ -15,11 +15,8 @@ pub struct ChaosMosaic {
     pub(super) seamless: bool,
     pub(super) width: u64,
     pub(super) height: u64,
-    /// The blocks grouped by the tile of their corner ([`index::by_home_tile`]) and their
-    /// sequence numbers: the index and placements refer to blocks by position in this list.
-    pub(super) blocks: Vec<Block>,
-    pub(super) seq: Vec<u32>,
-    pub(super) index: TileIndex,
+    /// The blocks by home tile, found as regions need them.
+    pub(super) homes: Homes,
     pub(super) sums: PeriodicSums,
     /// Box sums of the sample at each power-of-two side, built on first use (mid mip levels).
     pub(super) tables: BoxTables,
@@ -40,8 +37,9 @@ impl ChaosMosaic {
             ));
         }
         let rule = SizeRule::new(sw, sh, &params)?;
-        let blocks = match (params.sequence, explicit) {
-            (Sequence::Seed, None) => blocks::generate(&params, sw, sh, &rule),
+        let tiling = Tiling { tiles_x: params.tiles_x, tiles_y: params.tiles_y, tile_w: sw, tile_h: sh };
+        let homes = match (params.sequence, explicit) {
+            (Sequence::Seed, None) => Homes::seeded(Generator::new(&params, sw, sh, rule), tiling),
             (Sequence::Explicit, Some(bytes)) => {
                 super::plan::check_explicit_sample(sw, sh)?;
                 let blocks = blocks::unpack(bytes, sw, sh, width, height, &rule)?;
@@ -52,17 +50,15 @@ impl ChaosMosaic {
                         blocks.len()
                     )));
                 }
-                blocks
+                Homes::explicit(&blocks, tiling)
             }
             (Sequence::Seed, Some(_)) => {
                 return Err(Error::bundle("section `blocks` present for a seed-derived sequence"))
             }
             (Sequence::Explicit, None) => return Err(Error::bundle("missing section `blocks`")),
         };
-        let (blocks, seq) = index::by_home_tile(blocks, params.tiles_x, params.tiles_y, sw, sh);
-        let index = TileIndex::build(&blocks, &seq, params.tiles_x, params.tiles_y, sw, sh);
         let (sums, sample) = (PeriodicSums::new(&sample), Sample::new(&sample));
-        Ok(Self { params, seamless, width, height, blocks, seq, index, sums, sample, tables: BoxTables::default() })
+        Ok(Self { params, seamless, width, height, homes, sums, sample, tables: BoxTables::default() })
     }
 
     pub fn params(&self) -> &Params {
@@ -74,18 +70,25 @@ impl ChaosMosaic {
         self.sample.to_image()
     }
 
-    /// The random block sequence R_ε in paste order.
+    /// The random block sequence R_ε in paste order (drawing and indexing all of it).
     pub fn blocks(&self) -> Vec<Block> {
-        let mut out = self.blocks.clone();
-        for (b, &id) in self.blocks.iter().zip(&self.seq) {
-            out[id as usize] = *b;
+        let indexed = self.homes.indexed();
+        let mut out = vec![Block::default(); indexed.blocks.len()];
+        for n in &indexed.blocks {
+            out[n.id as usize] = n.block;
         }
         out
     }
 
-    /// Heap bytes of the block list and the per-tile index.
+    /// Blocks drawn and held so far: those of the home tiles the rendered regions needed,
+    /// or the whole sequence once it is indexed.
+    pub fn blocks_held(&self) -> usize {
+        self.homes.blocks_held()
+    }
+
+    /// Heap bytes of the blocks held and their index.
     pub fn structure_heap_bytes(&self) -> usize {
-        self.blocks.capacity() * std::mem::size_of::<Block>() + self.seq.capacity() * 4 + self.index.heap_bytes()
+        self.homes.heap_bytes()
     }
 
     /// Heap bytes of the sample and its prefix sums, held from the load on (the box tables
