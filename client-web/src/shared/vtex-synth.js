@@ -3,6 +3,14 @@
 // module's raw ABI (wasm/src/api.rs) takes numbers and two buffers it owns; this wrapper turns
 // it into objects and exceptions. It runs in a page, a Worker and Node alike.
 
+/**
+ * The URL of the module that renders textures of `model`, relative to the page (client-web's
+ * build copies it there): one module for every model.
+ */
+export function moduleUrl(_model) {
+  return 'vtex_synth.wasm';
+}
+
 /** Why the module refused a call (its message names the problem), or why it stopped. */
 export class SynthError extends Error {
   constructor(message) {
