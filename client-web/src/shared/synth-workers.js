@@ -15,7 +15,7 @@ const compiled = new Map();
 /**
  * The synthesis module for textures of `model`, compiled; fetched once per page. A page calls it
  * as soon as it knows it will synthesize, so the download overlaps the rest of its start-up.
- * `stats.resource(timing)` counts the transfer.
+ * `stats.resource(timing)`, when given, counts the transfer.
  */
 export function loadModule(stats, model) {
   const url = new URL(moduleUrl(model), document.baseURI).href;
@@ -34,10 +34,10 @@ export function loadModule(stats, model) {
   return compiled.get(url);
 }
 
-/** Counts the transfer of `url` (its Resource Timing entry; `bytes` when there is none) in `stats`. */
+/** Counts the transfer of `url` (its Resource Timing entry; `bytes` when there is none) in `stats`, if any. */
 function count(url, stats, bytes = 0) {
   const timing = performance.getEntriesByName(url).at(-1);
-  stats.resource(timing || { transferSize: bytes, decodedBodySize: bytes });
+  stats?.resource(timing || { transferSize: bytes, decodedBodySize: bytes });
 }
 
 /** Fetches `url`'s bytes, counting them in `stats`. */
@@ -50,10 +50,11 @@ async function fetchBytes(url, what, stats) {
 export class SynthWorkers {
   /**
    * Starts synthesizing texture `info` (the server's info: id, name, model, tile_size) from the
-   * encoding at `encodingUrl`. `ready` resolves once every Worker has it open, or rejects with
-   * a message that says why client synthesis is impossible.
+   * encoding at `encodingUrl`, counting the fetches in `stats` (loadModule). `ready` resolves
+   * once every Worker has it open, or rejects with a message that says why client synthesis is
+   * impossible.
    */
-  constructor(info, { encodingUrl = `api/v1/textures/${encodeURIComponent(info.id)}/encoding`, stats, workers = WORKERS }) {
+  constructor(info, { encodingUrl = `api/v1/textures/${encodeURIComponent(info.id)}/encoding`, stats = null, workers = WORKERS } = {}) {
     this.info = info;
     this.workerCount = workers;
     this.workers = [];

@@ -19,36 +19,20 @@ import { BORDER, PAGE_SIZE, decodeFeedback, pyramid } from '../shared/vt-pages.j
 import { PageStream, ServerPages } from '../shared/vt-stream.js';
 import { findTexture } from '../shared/texture-lookup.js';
 import { expose } from '../shared/debug.js';
+import { GlPage, frameRate } from '../shared/gl-page.js';
 import { getJson } from '../shared/http.js';
 
 const FLAGSHIP = 'Pebbles — chaos mosaic 100k';
 /** The fly-through: height above the ground and distance a frame, in level-0 texels. */
 const FLIGHT = { height: 220, pitch: 20, step: 20, fov: 60 };
 
-const params = new URLSearchParams(location.search);
-const overlay = document.getElementById('overlay');
-/** The message that stopped the demo, once it has stopped. */
-let failure = null;
-
-function fail(message) {
-  failure = message;
-  overlay.textContent = message;
-  overlay.classList.add('error');
-  expose('vtDemo', { error: message });
-  throw new Error(message);
-}
-
-function number(name, fallback, min, max) {
-  if (!params.has(name)) return fallback;
-  const v = Number(params.get(name));
-  if (!Number.isFinite(v) || v < min || v > max) fail(`?${name}= must be a number from ${min} to ${max}`);
-  return v;
-}
+const page = new GlPage('vtDemo');
+const { params, overlay, canvas } = page;
+const fail = (message) => page.fail(message);
+const number = (...args) => page.number(...args);
 
 async function start() {
-  const canvas = document.getElementById('view');
-  const gl = canvas.getContext('webgl2', { antialias: false, preserveDrawingBuffer: true });
-  if (!gl) fail('This browser has no WebGL2.');
+  const gl = page.webgl2();
   const list = await getJson('api/v1/textures', 'the texture list');
   const info = findTexture(list.textures, params.get('texture') || FLAGSHIP) || (!params.has('texture') && list.textures[0]);
   if (!info) fail(`no texture named ${params.get('texture')}`);
@@ -69,12 +53,7 @@ async function start() {
   const surfaces = [renderer.ground(texture)];
   const stream = new PageStream(gpu, new ServerPages(info.id, format));
 
-  let fixed = null;
-  if (params.has('camera')) {
-    const c = params.get('camera').split(',').map(Number);
-    if (c.length !== 5 || c.some((v) => !Number.isFinite(v)) || c[2] <= 0) fail('?camera= must be x,y,height,yaw,pitch (height > 0)');
-    fixed = { x: c[0], y: c[1], height: c[2], yaw: c[3], pitch: c[4], fov: FLIGHT.fov };
-  }
+  const fixed = page.camera(FLIGHT.fov);
   const camera = fixed || { x: info.width / 2, y: info.height / 2, height: FLIGHT.height, yaw: 0, pitch: FLIGHT.pitch, fov: FLIGHT.fov };
 
   const state = {
@@ -95,12 +74,7 @@ async function start() {
 
   await stream.pin();
 
-  let last = performance.now();
-  let idleFrames = 0;
-  function step(now) {
-    const t0 = performance.now();
-    state.frameMs.push(now - last);
-    last = now;
+  function draw() {
     if (!fixed) fly(camera, state.frame);
     const width = canvas.width;
     const height = canvas.height;
@@ -110,42 +84,24 @@ async function start() {
     if (stream.error) overlay.classList.add('error');
     renderer.draw(camera, width, height, surfaces);
     state.needed = needed.size;
-    state.cpuMs.push(performance.now() - t0);
-    showOverlay(state.cpuMs.at(-1));
-    idleFrames = stream.idle ? idleFrames + 1 : 0;
-    // A fixed camera stops drawing once every page it needs is resident and drawn (unless a
-    // number of frames is asked for).
-    state.settled = fixed !== null && idleFrames >= 2 && frames === Infinity;
-    if (state.frame >= frames) state.done = true;
-    if (!state.settled && !state.done) requestAnimationFrame(step);
+    showOverlay();
+    return stream.idle;
   }
 
-  function showOverlay(cpuMs) {
-    const recent = state.frameMs.slice(-30);
-    const mean = recent.reduce((a, b) => a + b, 0) / recent.length;
+  function showOverlay() {
     overlay.textContent = [
       `${info.name} · ${format.toUpperCase()} pages ${PAGE_SIZE}² + ${BORDER} px border · aniso ${gpu.anisotropy}×`,
       `resident ${stream.cache.size}/${stream.cache.slots.length} · needed ${state.needed} (missing ${state.stats.missing})`,
       `requested ${state.stats.requested} in ${state.stats.metatiles} metatiles · in flight ${stream.inFlight.size} · evicted ${state.stats.evicted} · ${(state.stats.bytes / 1e6).toFixed(1)} MB (${(state.stats.unused / 1e6).toFixed(1)} not asked for)`,
-      `frame ${mean.toFixed(1)} ms (${(1000 / mean).toFixed(0)} fps) · CPU ${cpuMs.toFixed(1)} ms · frame #${state.frame}`,
+      `${frameRate(state)} · CPU ${(state.cpuMs.at(-1) ?? 0).toFixed(1)} ms the frame before`,
       state.error ? `error: ${state.error}` : '',
     ].join('\n');
   }
 
-  function resize() {
-    canvas.width = Math.max(1, Math.round(canvas.clientWidth));
-    canvas.height = Math.max(1, Math.round(canvas.clientHeight));
-    if (state.settled) {
-      state.settled = false;
-      idleFrames = 0;
-      requestAnimationFrame(step);
-    }
-  }
-  window.addEventListener('resize', resize);
-  resize();
-
   expose('vtDemo', { state, cache: stream.cache, pyramid: gpu.pyramid, camera, resident: (key) => stream.cache.has(key) });
-  requestAnimationFrame(step);
+  // A fixed camera stops drawing once every page it needs is resident and drawn (unless a
+  // number of frames is asked for).
+  page.animate(state, { settles: fixed !== null && frames === Infinity, finished: () => state.frame >= frames, draw });
 }
 
 /** The fly-through at `frame`: forward a constant step a frame, turning slowly from side to side. */
@@ -156,6 +112,4 @@ function fly(camera, frame) {
   camera.y -= Math.cos(yaw) * FLIGHT.step;
 }
 
-start().catch((e) => {
-  if (failure === null) fail(String(e));
-});
+page.run(start);

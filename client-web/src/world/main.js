@@ -20,30 +20,17 @@ import { PageStream, ServerPages, SynthPages } from '../shared/vt-stream.js';
 import { SynthWorkers } from '../shared/synth-workers.js';
 import { findTexture } from '../shared/texture-lookup.js';
 import { expose } from '../shared/debug.js';
+import { GlPage, frameRate } from '../shared/gl-page.js';
 import { getJson } from '../shared/http.js';
 import { FOV, SURFACES, rectangles, walk } from './scene.js';
 
 const PAGE_MODES = ['client', 'jpg', 'ktx2', 'rgba'];
 const BENCH_STEPS = 240;
 
-const params = new URLSearchParams(location.search);
-const overlay = document.getElementById('overlay');
-let failure = null;
-
-function fail(message) {
-  failure = message;
-  overlay.textContent = message;
-  overlay.classList.add('error');
-  expose('vtexWorld', { error: message });
-  throw new Error(message);
-}
-
-function number(name, fallback, min, max) {
-  if (!params.has(name)) return fallback;
-  const v = Number(params.get(name));
-  if (!Number.isFinite(v) || v < min || v > max) fail(`?${name}= must be a number from ${min} to ${max}`);
-  return v;
-}
+const page = new GlPage('vtexWorld');
+const { params, overlay, canvas } = page;
+const fail = (message) => page.fail(message);
+const number = (...args) => page.number(...args);
 
 /** The texture each surface shows (scene.js SURFACES): the URL's, else the preferred demo, else the first of its model that fits. */
 function pickTextures(textures) {
@@ -81,9 +68,7 @@ async function start() {
   performance.setResourceTimingBufferSize(1e6);
   const mode = params.get('pages') || 'client';
   if (!PAGE_MODES.includes(mode)) fail(`?pages= must be one of ${PAGE_MODES.join(', ')}`);
-  const canvas = document.getElementById('view');
-  const gl = canvas.getContext('webgl2', { antialias: false, preserveDrawingBuffer: true });
-  if (!gl) fail('This browser has no WebGL2.');
+  const gl = page.webgl2();
   const bptc = gl.getExtension('EXT_texture_compression_bptc');
   if (mode === 'ktx2' && !bptc) fail('this GPU has no BC7 (EXT_texture_compression_bptc): use ?pages=rgba or ?pages=jpg');
   const surfaces = pickTextures((await getJson('api/v1/textures', 'the texture list')).textures);
@@ -93,23 +78,16 @@ async function start() {
   const frames = number('frames', params.get('path') === 'bench' ? BENCH_STEPS : Infinity, 1, 1e9);
   if (params.has('path') && params.get('path') !== 'bench') fail('?path= must be bench');
   const renderer = new VtRenderer(gl, { feedbackScale: number('feedback', 8, 1, 32) });
-  // Encodings are counted from Resource Timing (transfers), as every other fetch.
-  const uncounted = { resource() {} };
   const streams = surfaces.map(({ info }) => {
     const texture = renderer.addTexture(pyramid(info), { slotsPerSide, bc7: mode === 'ktx2' ? bptc : null, anisotropy });
-    const source = mode === 'client' ? new SynthPages(new SynthWorkers(info, { stats: uncounted })) : new ServerPages(info.id, mode === 'ktx2' ? 'bc7' : mode);
+    const source = mode === 'client' ? new SynthPages(new SynthWorkers(info)) : new ServerPages(info.id, mode === 'ktx2' ? 'bc7' : mode);
     return new PageStream(renderer.textures[texture], source);
   });
   const index = Object.fromEntries(surfaces.map((s, i) => [s.role, i]));
   const sizes = Object.fromEntries(surfaces.map((s) => [s.role, s.info]));
   const drawn = [renderer.ground(index.floor), ...rectangles(sizes).map((r) => renderer.quad(index[r.role], r.corners, r.texels))];
 
-  let fixed = null;
-  if (params.has('camera')) {
-    const c = params.get('camera').split(',').map(Number);
-    if (c.length !== 5 || c.some((v) => !Number.isFinite(v)) || c[2] <= 0) fail('?camera= must be x,y,height,yaw,pitch (height > 0)');
-    fixed = { x: c[0], y: c[1], height: c[2], yaw: c[3], pitch: c[4], fov: FOV };
-  }
+  const fixed = page.camera(FOV);
   const steps = frames === Infinity ? 2 * BENCH_STEPS : frames;
   const camera = fixed || walk(0, steps);
 
@@ -132,12 +110,7 @@ async function start() {
 
   await Promise.all(streams.map((s) => s.pin()));
 
-  let last = performance.now();
-  let idleFrames = 0;
-  function step(now) {
-    const t0 = performance.now();
-    state.frameMs.push(now - last);
-    last = now;
+  function draw() {
     if (!fixed && state.firstComplete !== null) Object.assign(camera, walk(++state.step % steps, steps));
     const width = canvas.width;
     const height = canvas.height;
@@ -145,49 +118,29 @@ async function start() {
     state.frame++;
     streams.forEach((s, i) => s.update(needed[i]));
     renderer.draw(camera, width, height, drawn);
-    state.cpuMs.push(performance.now() - t0);
-    const idle = streams.every((s) => s.idle);
-    if (idle && state.firstComplete === null) state.firstComplete = performance.now();
-    showOverlay(needed);
-    idleFrames = idle ? idleFrames + 1 : 0;
-    state.settled = fixed !== null && idleFrames >= 2 && frames === Infinity;
-    if ((fixed ? state.frame : state.step) >= frames) state.done = true;
+    const complete = streams.every((s) => s.idle);
+    if (complete && state.firstComplete === null) state.firstComplete = performance.now();
     if (state.error) overlay.classList.add('error');
-    if (!state.settled && !state.done) requestAnimationFrame(step);
+    showOverlay(needed);
+    return complete;
   }
 
   function showOverlay(needed) {
-    const recent = state.frameMs.slice(-30);
-    const mean = recent.reduce((a, b) => a + b, 0) / recent.length;
     const { bytes } = transfers();
     const kB = (b) => `${(b / 1e3).toFixed(0)} kB`;
     overlay.textContent = [
       `${mode === 'client' ? 'pages synthesized in this browser' : `${mode.toUpperCase()} pages from the server`} · ${PAGE_SIZE}² + ${BORDER} px border`,
       ...surfaces.map((s, i) => `${s.role}: ${s.info.name} · resident ${streams[i].cache.size} · needed ${needed[i].size} (missing ${streams[i].stats.missing}) · in flight ${streams[i].inFlight.size}`),
       `fetched: encodings ${kB(bytes.encodings)} · module ${kB(bytes.module)} · pages ${kB(bytes.pages)}`,
-      `frame ${mean.toFixed(1)} ms (${(1000 / mean).toFixed(0)} fps) · frame #${state.frame}${state.firstComplete === null ? '' : ` · first complete at ${(state.firstComplete / 1000).toFixed(2)} s`}`,
+      `${frameRate(state)}${state.firstComplete === null ? '' : ` · first complete at ${(state.firstComplete / 1000).toFixed(2)} s`}`,
       state.error ? `error: ${state.error}` : '',
     ].join('\n');
   }
 
-  function resize() {
-    canvas.width = Math.max(1, Math.round(canvas.clientWidth));
-    canvas.height = Math.max(1, Math.round(canvas.clientHeight));
-    if (state.settled) {
-      state.settled = false;
-      idleFrames = 0;
-      requestAnimationFrame(step);
-    }
-  }
-  window.addEventListener('resize', resize);
-  resize();
-
   /** The figures a bench reads: frame times, bytes and requests by kind, the first complete frame. */
   const stats = () => ({ mode, frames: state.frame, steps: state.step, frameMs: state.frameMs.slice(), cpuMs: state.cpuMs.slice(), firstComplete: state.firstComplete, ...transfers(), error: state.error });
   expose('vtexWorld', { state, streams, camera, stats });
-  requestAnimationFrame(step);
+  page.animate(state, { settles: fixed !== null && frames === Infinity, finished: () => (fixed ? state.frame : state.step) >= frames, draw });
 }
 
-start().catch((e) => {
-  if (failure === null) fail(String(e));
-});
+page.run(start);
