@@ -97,6 +97,8 @@ async function start() {
     frame: 0,
     /** Steps of the walk taken: the walk starts once the first view is complete. */
     step: 0,
+    /** Steps of the walk drawn with every page they need resident (the others drew coarser pages where one was missing). */
+    completeSteps: 0,
     frameMs: [],
     cpuMs: [],
     /** ms from navigation start to the end of the first frame with every page it needs resident. */
@@ -111,7 +113,8 @@ async function start() {
   await Promise.all(streams.map((s) => s.pin()));
 
   function draw() {
-    if (!fixed && state.firstComplete !== null) Object.assign(camera, walk(++state.step % steps, steps));
+    const walking = !fixed && state.firstComplete !== null;
+    if (walking) Object.assign(camera, walk(++state.step % steps, steps));
     const width = canvas.width;
     const height = canvas.height;
     const needed = decodeFeedback(renderer.feedback(camera, width, height, drawn), streams.length);
@@ -120,6 +123,7 @@ async function start() {
     renderer.draw(camera, width, height, drawn);
     const complete = streams.every((s) => s.idle);
     if (complete && state.firstComplete === null) state.firstComplete = performance.now();
+    if (walking && complete) state.completeSteps++;
     if (state.error) overlay.classList.add('error');
     showOverlay(needed);
     return complete;
@@ -137,8 +141,8 @@ async function start() {
     ].join('\n');
   }
 
-  /** The figures a bench reads: frame times, bytes and requests by kind, the first complete frame. */
-  const stats = () => ({ mode, frames: state.frame, steps: state.step, frameMs: state.frameMs.slice(), cpuMs: state.cpuMs.slice(), firstComplete: state.firstComplete, ...transfers(), error: state.error });
+  /** The figures a bench reads: frame times, bytes and requests by kind, the first complete frame, the walk's complete steps. */
+  const stats = () => ({ mode, frames: state.frame, steps: state.step, completeSteps: state.completeSteps, frameMs: state.frameMs.slice(), cpuMs: state.cpuMs.slice(), firstComplete: state.firstComplete, ...transfers(), error: state.error });
   expose('vtexWorld', { state, streams, camera, stats });
   page.animate(state, { settles: fixed !== null && frames === Infinity, finished: () => (fixed ? state.frame : state.step) >= frames, draw });
 }
