@@ -97,8 +97,8 @@ async function start() {
     frame: 0,
     /** Steps of the walk taken: the walk starts once the first view is complete. */
     step: 0,
-    /** Steps of the walk drawn with every page they need resident (the others drew coarser pages where one was missing). */
-    completeSteps: 0,
+    /** Per step of the walk: the share of the pages it needed that were resident (a missing one is drawn from a coarser level). */
+    residentShare: [],
     frameMs: [],
     cpuMs: [],
     /** ms from navigation start to the end of the first frame with every page it needs resident. */
@@ -123,7 +123,11 @@ async function start() {
     renderer.draw(camera, width, height, drawn);
     const complete = streams.every((s) => s.idle);
     if (complete && state.firstComplete === null) state.firstComplete = performance.now();
-    if (walking && complete) state.completeSteps++;
+    if (walking) {
+      const wanted = needed.reduce((n, m) => n + m.size, 0);
+      const missing = streams.reduce((n, st) => n + st.stats.missing, 0);
+      state.residentShare.push(wanted ? 1 - missing / wanted : 1);
+    }
     if (state.error) overlay.classList.add('error');
     showOverlay(needed);
     return complete;
@@ -141,8 +145,8 @@ async function start() {
     ].join('\n');
   }
 
-  /** The figures a bench reads: frame times, bytes and requests by kind, the first complete frame, the walk's complete steps. */
-  const stats = () => ({ mode, frames: state.frame, steps: state.step, completeSteps: state.completeSteps, frameMs: state.frameMs.slice(), cpuMs: state.cpuMs.slice(), firstComplete: state.firstComplete, ...transfers(), error: state.error });
+  /** The figures a bench reads: frame times, bytes and requests by kind, the first complete frame, the walk's resident shares. */
+  const stats = () => ({ mode, frames: state.frame, steps: state.step, residentShare: state.residentShare.slice(), frameMs: state.frameMs.slice(), cpuMs: state.cpuMs.slice(), firstComplete: state.firstComplete, ...transfers(), error: state.error });
   expose('vtexWorld', { state, streams, camera, stats });
   page.animate(state, { settles: fixed !== null && frames === Infinity, finished: () => (fixed ? state.frame : state.step) >= frames, draw });
 }
