@@ -11,18 +11,13 @@ import { writeFileSync } from 'node:fs';
 import { loadavg, cpus } from 'node:os';
 import { join } from 'node:path';
 import { launchBrowser, ROOT, startServer } from '../../tests/browser/lib.mjs';
+import { mean, quantile } from '../stats.mjs';
 
 const args = process.argv.slice(2);
 const frames = Number(args.find((a) => /^\d+$/.test(a)) || 240);
 const shotAt = args.includes('--screenshot') ? args[args.indexOf('--screenshot') + 1] : null;
 const VIEW = { width: 1280, height: 720 };
 const START = '50000,50000,220,0,20';
-
-const quantile = (xs, q) => {
-  const s = [...xs].sort((a, b) => a - b);
-  return s[Math.min(s.length - 1, Math.floor(q * s.length))];
-};
-const mean = (xs) => xs.reduce((a, b) => a + b, 0) / xs.length;
 
 const server = await startServer();
 const browser = await launchBrowser(VIEW);
@@ -80,7 +75,7 @@ const md = [
   '',
   `\`flock /tmp/vtex-bench.lock node bench/vt-demo/run.mjs ${frames}\` — ${frames} frames at ${VIEW.width}×${VIEW.height}, headless Chromium ` +
     `(software WebGL, SwiftShader), ${cpus().length} cores shared with other builds, load average ${load.map((l) => f(l)).join(' → ')}. ` +
-    'Pages 128² + 4 px borders, fetched alone or as their page metatile (4 × 4 pages) where half of one is wanted (a metatile's pages not asked for are received, not used); the flight moves 20 texels a frame at 220 texels above the ' +
+    'Pages 128² + 4 px borders, fetched alone or as their page metatile (4 × 4 pages) where half of one is wanted (a metatile’s pages not asked for are received, not used); the flight moves 20 texels a frame at 220 texels above the ' +
     'Pebbles chaos mosaic 100k (the same path in every run); the atlas holds 256 pages.',
   '',
   '| run | frame ms mean | p50 | p95 | CPU ms/frame | pages streamed | metatiles fetched | pages/s of flight | MB/s | bytes not asked for | evictions |',

@@ -5,16 +5,14 @@
 // bundles); the module runs through client-web/src/shared/vtex-synth.js, a fresh instance a run.
 //
 // Usage: node bench/wasm/first-tile.mjs [RUNS]   (median of RUNS, 3 by default)
-// Needs: cargo build -p vtex-synth-wasm --lib --target wasm32-unknown-unknown --profile wasm
+// Needs: scripts/build-wasm (each demo runs through its model's module)
 import { execFileSync } from 'node:child_process';
 import { mkdtempSync, readFileSync, rmSync } from 'node:fs';
 import { tmpdir } from 'node:os';
-import { dirname, join, resolve } from 'node:path';
-import { fileURLToPath } from 'node:url';
+import { join } from 'node:path';
 import { instantiate } from '../../client-web/src/shared/vtex-synth.js';
+import { ROOT, modulePath } from '../../tests/wasm/modules.mjs';
 
-const ROOT = resolve(dirname(fileURLToPath(import.meta.url)), '..', '..');
-const WASM = join(ROOT, 'target', 'wasm32-unknown-unknown', 'wasm', 'vtex_synth_wasm.wasm');
 const TILE_SIZE = 256;
 const runs = Number(process.argv[2] ?? 3);
 
@@ -25,11 +23,13 @@ try {
     ['run', '--quiet', '--release', '--locked', '-p', 'vtex-synth-wasm', '--example', 'first_tile', '--', dir, String(runs)],
     { cwd: ROOT, encoding: 'utf8', stdio: ['ignore', 'pipe', 'inherit'] },
   );
-  const module = await WebAssembly.compile(readFileSync(WASM));
+  const modules = new Map();
   const median = (xs) => xs.sort((a, b) => a - b)[Math.floor(xs.length / 2)];
   const rows = [];
   for (const demo of native.trim().split('\n').map((line) => JSON.parse(line))) {
     const bytes = readFileSync(join(dir, demo.bundle));
+    if (!modules.has(demo.model)) modules.set(demo.model, await WebAssembly.compile(readFileSync(modulePath(demo.model))));
+    const module = modules.get(demo.model);
     for (const tile of demo.tiles) {
       const [open, total] = [[], []];
       for (let i = 0; i < runs; i++) {

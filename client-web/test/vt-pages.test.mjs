@@ -1,9 +1,9 @@
-// The virtual-texturing demo's bookkeeping (client-web/src/vt/pages.js) and KTX2 reading
-// (client-web/src/vt/ktx2.js).
+// Virtual texturing's bookkeeping (client-web/src/shared/vt-pages.js) and KTX2 reading
+// (client-web/src/shared/ktx2.js).
 import test from 'node:test';
 import assert from 'node:assert/strict';
-import { METATILE_PAGES, PageCache, ancestor, decodeFeedback, fetchPlan, metatileOf, pageKey, plan, pyramid } from '../src/vt/pages.js';
-import { parseKtx2 } from '../src/vt/ktx2.js';
+import { METATILE_PAGES, PageCache, ancestor, decodeFeedback, fetchPlan, metatileOf, pageKey, plan, pyramid } from '../src/shared/vt-pages.js';
+import { parseKtx2 } from '../src/shared/ktx2.js';
 
 test('the page pyramid of a 100k texture: a 1024² table, level 10 one page', () => {
   const p = pyramid({ width: 100_000, height: 100_000 });
@@ -42,11 +42,15 @@ test('ancestors and feedback decoding', () => {
     0x0e, 0x03, 0x21, 1, // level 0, x = 0x10e, y = 0x203
     0x0e, 0x03, 0x21, 1, // the same page again
     5, 6, 0, 4, // level 3, (5, 6)
-    9, 9, 9, 0, // no ground
+    9, 9, 9, 0, // no surface
+    7, 8, 0, 0x23, // texture 2, level 2, (7, 8)
   ]);
-  const pages = decodeFeedback(px);
+  const [pages, none, third] = decodeFeedback(px, 3);
   assert.deepEqual([...pages.keys()], ['0/270/515', '3/5/6']);
   assert.equal(pages.get('0/270/515').count, 2);
+  assert.equal(none.size, 0);
+  assert.deepEqual([...third.keys()], ['2/7/8']);
+  assert.throws(() => decodeFeedback(px, 2), /texture 2 of 2/);
 });
 
 test('the cache evicts the least recently used unpinned page, never one used this frame', () => {
@@ -62,14 +66,14 @@ test('the cache evicts the least recently used unpinned page, never one used thi
   assert.ok(!c.has('0/2/2') && c.has('0/3/3') && c.has('2/0/0'));
   assert.equal(c.insert(page(0, 4, 4), 3), null, 'every other page is pinned or used in frame 3');
   // Using a fine page keeps its resident ancestors too.
-  const needed = decodeFeedback(new Uint8Array([3, 3, 0, 1]));
+  const [needed] = decodeFeedback(new Uint8Array([3, 3, 0, 1]));
   c.insert(page(1, 1, 1), 4);
   assert.equal(c.use(needed, 5, 2), 0);
   assert.equal(c.available(5), 0, '0/3/3, its ancestor 1/1/1 and the pinned 2/0/0 are all in use');
 });
 
 test('the plan asks for missing pages and their ancestors, coarsest first', () => {
-  const needed = decodeFeedback(new Uint8Array([4, 4, 0, 1, 5, 4, 0, 1, 5, 4, 0, 1]));
+  const [needed] = decodeFeedback(new Uint8Array([4, 4, 0, 1, 5, 4, 0, 1, 5, 4, 0, 1]));
   const resident = new Set(['2/1/1']);
   const inFlight = new Set(['1/2/2']);
   const keys = plan(needed, (k) => resident.has(k), (k) => inFlight.has(k), 3).map((p) => p.key);

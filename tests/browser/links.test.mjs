@@ -51,6 +51,9 @@ test('the pages define their debugging hooks only when the link asks for them, a
   await page.goto(`${server.url}/vt.html?format=rgba&camera=50000,50000,220,17,35`);
   await page.waitForFunction(() => document.getElementById('overlay').textContent.includes('resident'));
   assert.deepEqual(await own(page), [], 'the VT demo defines none');
+  await page.goto(`${server.url}/world.html?pages=rgba&camera=50000,51000,160,0,8`);
+  await page.waitForFunction(() => document.getElementById('overlay').textContent.includes('resident'));
+  assert.deepEqual(await own(page), [], 'the world defines none');
   assert.deepEqual(errors, []);
   await page.close();
 

@@ -212,6 +212,31 @@ test('the VT demo under /vtex/ streams its pages through the prefix', async () =
   assertUnder(base, requests, lines);
 });
 
+test('the 3D world under /fwd/ synthesizes its pages from encodings fetched through the prefix', async () => {
+  const base = mounted('/fwd');
+  let requests;
+  const lines = await nginxSaw(async () => {
+    const page = await browser.context.newPage();
+    await page.setViewportSize({ width: 480, height: 300 });
+    requests = [];
+    const bad = [];
+    page.on('request', (r) => requests.push(r.url()));
+    page.on('response', (r) => r.status() >= 400 && bad.push(`${r.status()} ${r.url()}`));
+    await page.goto(debugUrl(`${base}/world.html?camera=50000,51000,160,0,8`));
+    await page.waitForFunction(() => window.vtexWorld && (window.vtexWorld.error || window.vtexWorld.state.settled), null, { timeout: 300_000, polling: 100 });
+    assert.equal(await page.evaluate(() => window.vtexWorld.error || window.vtexWorld.state.error), null, 'the world reports no error');
+    const textures = await page.evaluate(() => window.vtexWorld.state.textures.map((t) => ({ id: t.id, model: t.model })));
+    for (const { id, model } of textures) {
+      assert.ok(requests.includes(`${base}/api/v1/textures/${id}/encoding`), `encoding ${id} through the prefix`);
+      assert.ok(requests.includes(`${base}/vtex_synth_${model}.wasm`), `the ${model} module through the prefix`);
+    }
+    assert.deepEqual(requests.filter((u) => /\/api\/v1\/textures\/[^/]+\/(pages|page-metatiles|tiles|metatiles)\//.test(u)), [], 'no page from the server');
+    assert.deepEqual(bad, [], 'error responses');
+    await page.close();
+  });
+  assertUnder(base, requests, lines);
+});
+
 /** GET `url` through nginx: its status, headers and body. */
 async function get(url, init = {}) {
   const r = await fetch(url, { redirect: 'manual', ...init });

@@ -1,10 +1,12 @@
-// One synthesis Worker of the viewer's client mode (viewer/client-synth.js starts several): opens the
-// texture's encoding in its own instance of the WebAssembly module and renders the tiles it is
-// given, one at a time, as opaque ImageBitmaps (opaque-bitmap.js, as raw RGBA tiles from the
-// server), or as raw bytes when asked for them (the tests compare those).
+// One synthesis Worker of client synthesis (shared/synth-workers.js starts several): opens the
+// texture's encoding in its own instance of the WebAssembly module and renders the jobs it is
+// given, one at a time: tiles as opaque ImageBitmaps (opaque-bitmap.js, as raw RGBA tiles from
+// the server) or as raw bytes when asked for them (the tests compare those), and regions (the 3D
+// world's pages) as raw bytes.
 //
 // Messages in:  { type: 'open', module (WebAssembly.Module), bundle (ArrayBuffer), tileSize }
-//               { type: 'tile', key, level, x, y, frame, raw }   { type: 'cancel', key }
+//               { type: 'tile', key, level, x, y, frame, raw }
+//               { type: 'region', key, level, x, y, width, height, frame }   { type: 'cancel', key }
 // Messages out: { type: 'opened', info } | { type: 'failed', error }
 //               { type: 'tile', key, ms, bitmap | bytes, width, height } | { type: 'tile', key, error }
 
@@ -18,7 +20,7 @@ let scheduled = false;
 
 self.onmessage = ({ data }) => {
   if (data.type === 'open') open(data);
-  else if (data.type === 'tile') {
+  else if (data.type === 'tile' || data.type === 'region') {
     queue.set(data.key, data);
     schedule();
   } else if (data.type === 'cancel') queue.delete(data.key);
@@ -48,17 +50,17 @@ function schedule() {
   }, 0);
 }
 
-function render({ key, level, x, y, frame, raw }) {
+function render({ type, key, level, x, y, width: w, height: h, frame, raw }) {
   const t0 = performance.now();
   let tile;
   try {
-    tile = texture.renderTile(level, x, y, frame);
+    tile = type === 'region' ? { width: w, height: h, data: texture.render({ level, x, y, width: w, height: h, frame }) } : texture.renderTile(level, x, y, frame);
   } catch (e) {
-    self.postMessage({ type: 'tile', key, error: `tile ${level}/${x}/${y}: ${e.message}` });
+    self.postMessage({ type: 'tile', key, error: `${type} ${level}/${x}/${y}: ${e.message}` });
     return;
   }
   const { width, height, data } = tile;
-  if (raw) {
+  if (raw || type === 'region') {
     self.postMessage({ type: 'tile', key, ms: performance.now() - t0, bytes: data, width, height }, [data.buffer]);
     return;
   }

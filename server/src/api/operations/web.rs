@@ -2,12 +2,12 @@
 //!
 //! Every file is served twice: at `/{path}`, revalidated (`no-cache` and an ETag), and at
 //! `/assets/{build}/{path}`, cached for a year (`immutable`), `build` being a hash of every
-//! file. The pages (`/` or `/index.html`, the viewer; `/vt.html`, the virtual-texturing demo),
-//! at the build's root, are revalidated and name their stylesheets and scripts (in the build's
-//! folders: `viewer/main.js`, `vt/main.js`, …) by their `assets/{build}/` URLs, so a
-//! browser fetches those once per build; the modules they import relatively resolve inside the
-//! same fingerprinted directory. Those URLs are relative, as every URL of the viewer is: under a
-//! proxy's sub-path (`/vtex/`) they stay below it.
+//! file. The pages (`/` or `/index.html`, the viewer; `/vt.html`, the virtual-texturing demo;
+//! `/world.html`, the 3D world), at the build's root, are revalidated and name their stylesheets
+//! and scripts (in the build's folders: `viewer/main.js`, `vt/main.js`, …) by their
+//! `assets/{build}/` URLs, so a browser fetches those once per build; the modules they import
+//! relatively resolve inside the same fingerprinted directory. Those URLs are relative, as every
+//! URL of the viewer is: under a proxy's sub-path (`/vtex/`) they stay below it.
 //!
 //! Files come with the brotli and gzip copies the viewer's build made; a client that accepts
 //! one gets it (`Vary: Accept-Encoding`), others the file as it is.

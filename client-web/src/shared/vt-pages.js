@@ -1,13 +1,14 @@
-// The bookkeeping of the virtual-texturing demo (vt.html): the page pyramid of a texture, the
-// physical page cache (atlas slots, LRU, pinned coarse levels), the feedback buffer's decoding and
-// the plan of which pages to stream next. Pure functions and classes, tested in Node.
+// The bookkeeping of virtual texturing (the VT demo, vt.html, and the 3D world, world.html): the
+// page pyramid of a texture, the physical page cache (atlas slots, LRU, pinned coarse levels), the
+// feedback buffer's decoding and the plan of which pages to stream next. Pure functions and
+// classes, tested in Node.
 
 /** Page side and border asked of vtex: Unreal's default virtual-texture page. */
 export const PAGE_SIZE = 128;
 export const BORDER = 4;
 /** Side of an atlas slot: the page and its border on every side. */
 export const SLOT_SIDE = PAGE_SIZE + 2 * BORDER;
-/** Page coordinates the feedback buffer can name: 12 bits a coordinate. */
+/** Page coordinates the feedback buffer can name: 12 bits a coordinate (and levels to 12, alpha's low nibble). */
 export const MAX_TABLE_SIDE = 4096;
 /** Levels kept resident from the start, counted from the coarsest: nothing is ever black. */
 export const PINNED_LEVELS = 3;
@@ -76,17 +77,23 @@ export function ancestor(from, x, y, level) {
   return [Math.floor(x / d), Math.floor(y / d)];
 }
 
+/** Virtual textures one feedback buffer can name: the high nibble of its alpha. */
+export const MAX_TEXTURES = 16;
+
 /**
  * Decodes a feedback buffer (RGBA8 pixels as the feedback shader writes them: x and y's low
- * bytes in R and G, their high nibbles in B, level + 1 in A, 0 where no ground is seen) into a
- * Map from page key to { level, x, y, count } (count: fragments asking for it).
+ * bytes in R and G, their high nibbles in B, level + 1 in alpha's low nibble and the texture's
+ * index in its high one, 0 where no surface is seen) into one Map per texture (`textures` of
+ * them) from page key to { level, x, y, count } (count: fragments asking for it).
  */
-export function decodeFeedback(pixels) {
-  const pages = new Map();
+export function decodeFeedback(pixels, textures = 1) {
+  const maps = Array.from({ length: textures }, () => new Map());
   for (let i = 0; i < pixels.length; i += 4) {
     const a = pixels[i + 3];
     if (a === 0) continue;
-    const level = a - 1;
+    const pages = maps[a >> 4];
+    if (!pages) throw new Error(`the feedback names texture ${a >> 4} of ${textures}`);
+    const level = (a & 15) - 1;
     const x = pixels[i] | ((pixels[i + 2] & 15) << 8);
     const y = pixels[i + 1] | ((pixels[i + 2] >> 4) << 8);
     const key = pageKey(level, x, y);
@@ -94,7 +101,7 @@ export function decodeFeedback(pixels) {
     if (p) p.count++;
     else pages.set(key, { level, x, y, count: 1 });
   }
-  return pages;
+  return maps;
 }
 
 /**
