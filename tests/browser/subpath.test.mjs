@@ -184,18 +184,24 @@ test('client mode under /vtex/: the module, the encoding and the Workers through
   assertUnder(base, requests, lines);
 });
 
+/** Opens `url` (with `?debug`) in a small page, logging every request and every error response. */
+async function openLogged(url) {
+  const page = await browser.context.newPage();
+  await page.setViewportSize({ width: 480, height: 300 });
+  const [requests, bad] = [[], []];
+  page.on('request', (r) => requests.push(r.url()));
+  page.on('response', (r) => r.status() >= 400 && bad.push(`${r.status()} ${r.url()}`));
+  await page.goto(debugUrl(url));
+  return { page, requests, bad };
+}
+
 test('the VT demo under /vtex/ streams its pages through the prefix', async () => {
   const base = mounted('/vtex');
   let requests;
   const lines = await nginxSaw(async () => {
-    const page = await browser.context.newPage();
-    await page.setViewportSize({ width: 480, height: 300 });
-    requests = [];
-    const bad = [];
-    page.on('request', (r) => requests.push(r.url()));
-    page.on('response', (r) => r.status() >= 400 && bad.push(`${r.status()} ${r.url()}`));
     // A fixed camera: the demo settles once every page the view needs is resident.
-    await page.goto(debugUrl(`${base}/vt.html?texture=${big.id}&format=rgba&camera=50000,50000,220,17,35`));
+    const { page, bad, requests: seen } = await openLogged(`${base}/vt.html?texture=${big.id}&format=rgba&camera=50000,50000,220,17,35`);
+    requests = seen;
     await page.waitForFunction(() => window.vtDemo && (window.vtDemo.error || window.vtDemo.state.settled || window.vtDemo.state.done), null, {
       timeout: 120_000,
       polling: 100,
@@ -216,13 +222,8 @@ test('the 3D world under /fwd/ synthesizes its pages from encodings fetched thro
   const base = mounted('/fwd');
   let requests;
   const lines = await nginxSaw(async () => {
-    const page = await browser.context.newPage();
-    await page.setViewportSize({ width: 480, height: 300 });
-    requests = [];
-    const bad = [];
-    page.on('request', (r) => requests.push(r.url()));
-    page.on('response', (r) => r.status() >= 400 && bad.push(`${r.status()} ${r.url()}`));
-    await page.goto(debugUrl(`${base}/world.html?camera=50000,51000,160,0,8`));
+    const { page, bad, requests: seen } = await openLogged(`${base}/world.html?camera=50000,51000,160,0,8`);
+    requests = seen;
     await page.waitForFunction(() => window.vtexWorld && (window.vtexWorld.error || window.vtexWorld.state.settled), null, { timeout: 300_000, polling: 100 });
     assert.equal(await page.evaluate(() => window.vtexWorld.error || window.vtexWorld.state.error), null, 'the world reports no error');
     const textures = await page.evaluate(() => window.vtexWorld.state.textures.map((t) => ({ id: t.id, model: t.model })));
