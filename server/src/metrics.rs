@@ -37,6 +37,7 @@ pub struct Metrics {
     pub cache_budget_bytes: IntGauge,
     /// Memory mapped for cached tile bodies (their whole pages, and arena pages between them).
     pub cache_mapped_bytes: IntGauge,
+    pub cache_outside_bytes: IntGauge,
     pub cache_entries: IntGauge,
     /// Read from the cache's own total at each scrape, with [`Metrics::catch_up`].
     pub cache_evictions: IntCounter,
@@ -135,6 +136,10 @@ impl Metrics {
             "vtex_tile_cache_mapped_bytes",
             "Memory mapped for tile bodies (whole pages; huge-page arenas with their free pages)",
         ));
+        let cache_outside_bytes = must(IntGauge::new(
+            "vtex_tile_cache_outside_bytes",
+            "Memory of tile bodies no longer cached that responses still send (charged to the cache's budget)",
+        ));
         let cache_entries = must(IntGauge::new("vtex_tile_cache_entries", "Tiles held by the tile cache"));
         let cache_evictions = must(IntCounter::new("vtex_tile_cache_evictions_total", "Tiles evicted from the cache"));
         let textures = must(IntGauge::new("vtex_textures", "Textures in the store (indexed and served)"));
@@ -210,6 +215,7 @@ impl Metrics {
             Box::new(cache_bytes.clone()),
             Box::new(cache_budget_bytes.clone()),
             Box::new(cache_mapped_bytes.clone()),
+            Box::new(cache_outside_bytes.clone()),
             Box::new(cache_entries.clone()),
             Box::new(cache_evictions.clone()),
             Box::new(textures.clone()),
@@ -255,6 +261,7 @@ impl Metrics {
             cache_bytes,
             cache_budget_bytes,
             cache_mapped_bytes,
+            cache_outside_bytes,
             cache_entries,
             cache_evictions,
             textures,

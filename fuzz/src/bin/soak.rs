@@ -621,10 +621,11 @@ async fn main() {
     if let Some(p) = peak {
         let mib = |name: &str| gauge_sum(&p.metrics, name) / (1024.0 * 1024.0);
         println!(
-            "at the largest RSS sampled with the metrics (every second), {:.1} MiB: tile cache {:.1} MiB ({:.1} \
-             mapped), textures loaded {:.1} MiB, bodies in flight {:.1} MiB, model caches {:.1} MiB; {} connections",
+            "at the largest RSS sampled with the metrics (every second), {:.1} MiB: tile cache {:.1} MiB (+{:.1} \
+             still sent outside it; {:.1} mapped), textures loaded {:.1} MiB, bodies in flight {:.1} MiB, model caches {:.1} MiB; {} connections",
             p.rss_mib,
             mib("vtex_tile_cache_bytes"),
+            mib("vtex_tile_cache_outside_bytes"),
             mib("vtex_tile_cache_mapped_bytes"),
             mib("vtex_textures_loaded_bytes"),
             mib("vtex_inflight_bytes"),

@@ -204,6 +204,7 @@ async fn metrics(State(app): State<App>, _: Query<NoQuery>) -> Response {
     let (cache, store) = (&app.engine.cache, &app.engine.store);
     m.cache_bytes.set(cache.bytes() as i64);
     m.cache_mapped_bytes.set(app.cfg.send.mapped_bytes() as i64);
+    m.cache_outside_bytes.set(cache.outside() as i64);
     m.cache_entries.set(cache.len() as i64);
     m.catch_up(&m.cache_evictions, cache.evictions());
     m.textures.set(store.len() as i64);

@@ -4,6 +4,11 @@
 //! Each shard has an equal share of the budget and evicts least-recently-used tiles until
 //! its bytes fit, under its own lock, so the sum over shards never exceeds the budget. A
 //! tile larger than a quarter of a shard is served but not cached (it would flush the shard).
+//!
+//! The budget also covers the cache's bodies that live on outside it: a body evicted (or never
+//! cached) while responses still send it keeps its memory until the last one is done. Every body
+//! the cache makes is counted while it lives, and each insert shrinks the shards' share by what
+//! lives outside, so the memory behind the cache stays within its budget while readers are slow.
 
 use super::{ETag, Error};
 use crate::byte_lru::ByteLru;
@@ -80,6 +85,10 @@ pub struct TileCache {
     shard_budget: u64,
     budget: u64,
     bytes: AtomicU64,
+    /// Memory of the bodies counted in `bytes` (their [`Transport::footprint`]).
+    held: AtomicU64,
+    /// Memory of every body this cache made that is still alive, cached or not.
+    alive: Arc<AtomicU64>,
     evictions: AtomicU64,
     hasher: std::hash::RandomState,
     pending: Mutex<HashMap<TileKey, Flight>>,
@@ -107,6 +116,8 @@ impl TileCache {
             shard_budget: budget_bytes / n,
             budget: budget_bytes / n * n,
             bytes: AtomicU64::new(0),
+            held: AtomicU64::new(0),
+            alive: Arc::new(AtomicU64::new(0)),
             evictions: AtomicU64::new(0),
             hasher: std::hash::RandomState::new(),
             pending: Mutex::new(HashMap::new()),
@@ -123,6 +134,12 @@ impl TileCache {
     /// Bytes held now (tile bytes plus [`ENTRY_OVERHEAD`] each); never above [`Self::budget`].
     pub fn bytes(&self) -> u64 {
         self.bytes.load(Ordering::Relaxed)
+    }
+
+    /// Memory of bodies the cache made that it no longer holds (evicted, or too large to keep)
+    /// but that responses still send: charged against its budget too.
+    pub fn outside(&self) -> u64 {
+        self.alive.load(Ordering::Relaxed).saturating_sub(self.held.load(Ordering::Relaxed))
     }
 
     pub fn len(&self) -> usize {
@@ -151,19 +168,38 @@ impl TileCache {
         self.send.footprint(tile.body.len()) as u64 + ENTRY_OVERHEAD
     }
 
-    pub fn insert(&self, key: TileKey, tile: Arc<Tile>) {
+    /// What a computation passes its tile through: its body counted in `alive` for as long as
+    /// any part of it lives (a slice served from a metatile included).
+    fn counter(&self) -> impl FnOnce(Tile) -> Tile + Send + 'static {
+        let (alive, send) = (self.alive.clone(), self.send);
+        move |tile| {
+            let memory = send.footprint(tile.body.len()) as u64;
+            alive.fetch_add(memory, Ordering::Relaxed);
+            Tile { body: Bytes::from_owner(Counted { body: tile.body, memory, alive }), ..tile }
+        }
+    }
+
+    fn insert(&self, key: TileKey, tile: Arc<Tile>) {
         let cost = self.cost(&tile);
         if cost > self.shard_budget / 4 {
             return;
         }
         let mut shard = self.shard(&key).lock().unwrap();
-        if let Some(old) = shard.put(key, tile, cost) {
-            self.bytes.fetch_sub(old, Ordering::Relaxed);
-        }
         self.bytes.fetch_add(cost, Ordering::Relaxed);
-        let (evicted, freed) = shard.evict_to(self.shard_budget);
-        self.bytes.fetch_sub(freed, Ordering::Relaxed);
+        self.held.fetch_add(cost - ENTRY_OVERHEAD, Ordering::Relaxed);
+        if let Some(old) = shard.put(key, tile, cost) {
+            self.release(old, 1);
+        }
+        let share = self.shard_budget.saturating_sub(self.outside() / self.shards.len() as u64);
+        let (evicted, freed) = shard.evict_to(share);
+        self.release(freed, evicted);
         self.evictions.fetch_add(evicted, Ordering::Relaxed);
+    }
+
+    /// Uncharges `entries` tiles that were charged `cost` in all.
+    fn release(&self, cost: u64, entries: u64) {
+        self.bytes.fetch_sub(cost, Ordering::Relaxed);
+        self.held.fetch_sub(cost - entries * ENTRY_OVERHEAD, Ordering::Relaxed);
     }
 
     /// The tile for `key`, computing it with `compute` on a miss. Concurrent callers with
@@ -192,8 +228,9 @@ impl TileCache {
                 }
                 let (tx, rx) = watch::channel(None);
                 let fut = compute();
+                let counted = self.counter();
                 let task = tokio::spawn(async move {
-                    let _ = tx.send(Some(fut.await.map(Arc::new)));
+                    let _ = tx.send(Some(fut.await.map(|tile| Arc::new(counted(tile)))));
                 });
                 let id = self.next_flight.fetch_add(1, Ordering::Relaxed);
                 pending.insert(key, Flight { result: rx.clone(), waiters: 1, task: task.abort_handle(), id });
@@ -223,6 +260,25 @@ impl TileCache {
     /// Keys waiting on a computation now (for tests and metrics).
     pub fn pending(&self) -> usize {
         self.pending.lock().unwrap().len()
+    }
+}
+
+/// A body made by the cache, uncounted from its `alive` when the last reference goes.
+struct Counted {
+    body: Bytes,
+    memory: u64,
+    alive: Arc<AtomicU64>,
+}
+
+impl AsRef<[u8]> for Counted {
+    fn as_ref(&self) -> &[u8] {
+        &self.body
+    }
+}
+
+impl Drop for Counted {
+    fn drop(&mut self) {
+        self.alive.fetch_sub(self.memory, Ordering::Relaxed);
     }
 }
 
@@ -319,6 +375,34 @@ mod tests {
         assert_eq!(cache.bytes(), 5 * 4096 + ENTRY_OVERHEAD);
         cache.insert(key(2), tile(100));
         assert_eq!(cache.bytes(), 5 * 4096 + 100 + 2 * ENTRY_OVERHEAD, "small bodies stay unsealed");
+    }
+
+    /// Tiles still being sent after their eviction keep their memory: the cache holds less
+    /// while they live, and fills its budget again once they are gone.
+    #[tokio::test]
+    async fn bodies_alive_outside_the_cache_count_against_its_budget() {
+        let cache = TileCache::new(1 << 20, Transport::Copy);
+        let make = |x| cache.get_or_compute(key(x), || async { Ok(Arc::into_inner(tile(100_000)).unwrap()) });
+        let per = 100_000 + ENTRY_OVERHEAD;
+        let mut sending = Vec::new();
+        for x in 0..6 {
+            sending.push(make(x).await.unwrap().0);
+        }
+        for x in 6..40 {
+            make(x).await.unwrap();
+            // From the insert after the last of the six was evicted on.
+            if x >= 20 {
+                assert!(cache.bytes() + cache.outside() <= cache.budget(), "tile {x}: cached and still sent");
+            }
+        }
+        assert_eq!(cache.outside(), 6 * 100_000, "the six tiles being sent were evicted");
+        assert_eq!(cache.len() as u64, ((1 << 20) - 6 * 100_000) / per);
+        drop(sending);
+        assert_eq!(cache.outside(), 0);
+        for x in 40..60 {
+            make(x).await.unwrap();
+        }
+        assert_eq!(cache.len() as u64, (1 << 20) / per, "the whole budget is the cache's again");
     }
 
     fn small(body: &'static [u8]) -> Tile {
