@@ -70,6 +70,23 @@ export async function startServer({ extraArgs = [], env = {}, dataDir: keptDir =
   };
 }
 
+/** `python3 -m http.server` on a free loopback port serving `dir`: { url, stop }. */
+export async function staticServer(dir) {
+  const proc = spawn('python3', ['-u', '-m', 'http.server', '0', '--bind', '127.0.0.1', '--directory', dir], { stdio: ['ignore', 'pipe', 'pipe'] });
+  const url = await new Promise((resolve, reject) => {
+    const timer = setTimeout(() => reject(new Error('http.server did not start within 30 s')), 30_000);
+    createInterface({ input: proc.stdout }).on('line', (line) => {
+      const m = line.match(/port (\d+)/);
+      if (m) {
+        clearTimeout(timer);
+        resolve(`http://127.0.0.1:${m[1]}`);
+      }
+    });
+    proc.on('exit', (code) => reject(new Error(`http.server exited with ${code}`)));
+  });
+  return { url, stop: () => (proc.kill('SIGTERM'), exited(proc)) };
+}
+
 /** Chromium's flags for the tests and the bench: headless, software only, no background traffic. */
 /** Resolves once `proc` has exited, killing it if it is still running after `ms`. */
 export function exited(proc, ms = 5000) {
