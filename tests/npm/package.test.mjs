@@ -12,6 +12,7 @@ import { execFileSync, spawnSync } from 'node:child_process';
 import { cpSync, mkdirSync, mkdtempSync, readFileSync, rmSync, writeFileSync } from 'node:fs';
 import { tmpdir } from 'node:os';
 import { join } from 'node:path';
+import { pathToFileURL } from 'node:url';
 import { moduleFile } from '../../client-web/src/shared/vtex-synth.js';
 import { fetchServerTile, launchBrowser, startServer, staticServer } from '../browser/lib.mjs';
 import { MODELS, ROOT, modulePath } from '../wasm/modules.mjs';
@@ -48,18 +49,19 @@ after(async () => {
   if (work) rmSync(work, { recursive: true, force: true });
 });
 
-/** The first ```js block of the README's section `## heading`. */
-function readmeCode(heading) {
+/** The ```js blocks of the README's section `## heading`. */
+function readmeBlocks(heading) {
   const at = README.indexOf(`\n## ${heading}\n`);
   assert.ok(at >= 0, `no section "${heading}" in the package's README`);
-  const block = README.slice(at).match(/```js\n([\s\S]*?)```/);
-  assert.ok(block, `no js block in "${heading}"`);
-  return block[1];
+  const section = README.slice(at + 1).split(/\n## /)[0];
+  const blocks = [...section.matchAll(/```js\n([\s\S]*?)```/g)].map((m) => m[1]);
+  assert.ok(blocks.length > 0, `no js block in "${heading}"`);
+  return blocks;
 }
 
 /** The README's example, rendering `info`'s texture on our server. */
 function example(info) {
-  const code = readmeCode('Render a tile in ten lines');
+  const [code] = readmeBlocks('Render a tile in ten lines');
   assert.equal(code.split(PLACEHOLDER).length, 2, `the example names its texture once, as ${PLACEHOLDER}`);
   return code.replace(PLACEHOLDER, `${server.url}/api/v1/textures/${info.id}`);
 }
@@ -115,7 +117,7 @@ console.log(JSON.stringify({
 }));`,
     ),
   );
-  const at = (path) => new URL(`node_modules/vtex-synth/${path}`, `file://${app}/`).href;
+  const at = (path) => new URL(`node_modules/vtex-synth/${path}`, pathToFileURL(`${app}/`)).href;
   assert.equal(resolved.node, at('node.js'));
   assert.deepEqual(resolved.modules, MODELS.map((m) => at(`wasm/${moduleFile(m)}`)));
   assert.equal(resolved.wrapper, 'ERR_PACKAGE_PATH_NOT_EXPORTED', 'files outside the exports map are not importable');
@@ -124,16 +126,20 @@ console.log(JSON.stringify({
   assert.deepEqual(resolved.browser_exports, declared);
 });
 
-test("the README's example, as written there, renders every model's tiles in Node like the server", async () => {
-  const code = readmeCode('Render a tile in ten lines');
+test("the README's examples, as written there, render every model's tiles and a region in Node like the server", async () => {
+  const [code] = readmeBlocks('Render a tile in ten lines');
   const lines = code.split('\n').filter((l) => l.trim() !== '');
   assert.ok(lines.length <= 10, `the example takes ${lines.length} lines`);
+  // The README's region: its render call, and the server's region endpoint for the same.
+  const regionCode = readmeBlocks('In a page: an ImageData, a canvas').find((b) => b.includes('texture.render('));
+  const region = new Function(`return ${regionCode.match(/texture\.render\((\{[^}]*\})\)/)[1]}`)();
+  const regionQuery = `level=${region.level}&x=${region.x}&y=${region.y}&w=${region.width}&h=${region.height}&frame=${region.frame}&format=rgba`;
   const chosen = texturePerModel();
   assert.ok(chosen.some((t) => t.animated), 'no animated texture among those compared');
   for (const info of chosen) {
     const out = join(work, `out-${info.model}`);
     mkdirSync(out);
-    // After the example: what it made, written out for the comparison.
+    // After the examples: what they made, written out for the comparison.
     runInApp(
       `example-${info.model}.mjs`,
       `${example(info)}
@@ -142,6 +148,8 @@ const rendered = { info: texture.info, tiles: [[0, 0, 0, 0, tile]] };
 for (const [level, tx, ty, frame] of ${JSON.stringify(moreTiles(info))}) rendered.tiles.push([level, tx, ty, frame, texture.renderTile(level, tx, ty, frame)]);
 rendered.tiles.forEach(([, , , , t], i) => writeFileSync(\`\${process.argv[2]}/\${i}.rgba\`, t.data));
 writeFileSync(\`\${process.argv[2]}/rendered.json\`, JSON.stringify({ info: rendered.info, tiles: rendered.tiles.map(([l, x, y, f, t]) => [l, x, y, f, t.width, t.height]) }));
+${regionCode}
+writeFileSync(\`\${process.argv[2]}/region.rgba\`, rgba);
 `,
       [out],
     );
@@ -153,6 +161,9 @@ writeFileSync(\`\${process.argv[2]}/rendered.json\`, JSON.stringify({ info: rend
       assert.deepEqual([width, height], [theirs.width, theirs.height], what);
       assert.ok(readFileSync(join(out, `${i}.rgba`)).equals(theirs.data), `${what}: other bytes than the server's`);
     }
+    const theirs = await fetch(`${server.url}/api/v1/textures/${info.id}/region?${regionQuery}`);
+    assert.equal(theirs.status, 200, `${info.name}: region ${regionQuery}`);
+    assert.ok(readFileSync(join(out, 'region.rgba')).equals(Buffer.from(await theirs.arrayBuffer())), `${info.name}: region ${regionQuery}: other bytes than the server's`);
   }
 });
 
@@ -166,7 +177,7 @@ test("in Chromium, through the README's import map, the example draws the server
     `${example(info)}
 const canvas = document.body.appendChild(document.createElement('canvas'));
 [canvas.width, canvas.height] = [tile.width, tile.height];
-${readmeCode('In a page: an ImageData, a canvas')}
+${readmeBlocks('In a page: an ImageData, a canvas')[0]}
 const missing = await loadModule('no-such-model').then(() => 'loaded', (e) => \`\${e.name}: \${e.message}\`);
 window.drawn = { width: tile.width, height: tile.height, pixels: Array.from(canvas.getContext('2d').getImageData(0, 0, tile.width, tile.height).data), missing };
 `,
@@ -212,11 +223,11 @@ console.log(JSON.stringify([
 ]));`,
     ),
   );
-  const missing = new URL(`node_modules/vtex-synth/wasm/vtex_synth_no-such-model.wasm`, `file://${app}/`).href;
+  const missing = new URL(`node_modules/vtex-synth/wasm/vtex_synth_no-such-model.wasm`, pathToFileURL(`${app}/`)).href;
   assert.deepEqual(said, [
     `SynthError: no module for model \`no-such-model\`: ${missing} does not exist`,
     'SynthError: not a model name: "../../../etc/passwd"',
-    'SynthError: not a vtex bundle (bad magic)',
+    'SynthError: invalid bundle: not a vtex bundle (bad magic)',
   ]);
 });
 
