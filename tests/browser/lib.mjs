@@ -29,7 +29,7 @@ export async function startServer({ extraArgs = [], env = {}, dataDir: keptDir =
   // VTEX_URL: a server already running (e.g. nginx in front of replicas: bench/replicas).
   if (process.env.VTEX_URL) return { url: process.env.VTEX_URL, dataDir: null, stderr: () => '', async stop() {} };
   if (!existsSync(VTEX_BIN)) throw new Error(`${VTEX_BIN} not found: run cargo build --release -p vtex-server`);
-  if (!existsSync(join(WEB_DIR, 'index.html'))) throw new Error(`${WEB_DIR} not built: run npm ci && npm run build in client-web/`);
+  if (!embeddedViewer && !existsSync(join(WEB_DIR, 'index.html'))) throw new Error(`${WEB_DIR} not built: run npm ci && npm run build in client-web/`);
   const dataDir = keptDir || mkdtempSync(join(tmpdir(), 'vtex-browser-data-'));
   const proc = spawn(
     VTEX_BIN,
