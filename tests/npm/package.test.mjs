@@ -161,10 +161,10 @@ writeFileSync(\`\${process.argv[2]}/region.rgba\`, rgba);
       assert.deepEqual([width, height], [theirs.width, theirs.height], what);
       assert.ok(readFileSync(join(out, `${i}.rgba`)).equals(theirs.data), `${what}: other bytes than the server's`);
     }
-    console.log(`${info.model}: ${info.name} (${info.width} × ${info.height}), ${rendered.tiles.length} tiles and a region equal to the server's`);
     const theirs = await fetch(`${server.url}/api/v1/textures/${info.id}/region?${regionQuery}`);
     assert.equal(theirs.status, 200, `${info.name}: region ${regionQuery}`);
     assert.ok(readFileSync(join(out, 'region.rgba')).equals(Buffer.from(await theirs.arrayBuffer())), `${info.name}: region ${regionQuery}: other bytes than the server's`);
+    console.log(`${info.model}: ${info.name} (${info.width} × ${info.height}), ${rendered.tiles.length} tiles and a region equal to the server's`);
   }
 });
 
