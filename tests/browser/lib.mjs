@@ -87,7 +87,6 @@ export async function staticServer(dir) {
   return { url, stop: () => (proc.kill('SIGTERM'), exited(proc)) };
 }
 
-/** Chromium's flags for the tests and the bench: headless, software only, no background traffic. */
 /** Resolves once `proc` has exited, killing it if it is still running after `ms`. */
 export function exited(proc, ms = 5000) {
   return new Promise((r) => {
@@ -103,6 +102,7 @@ export function exited(proc, ms = 5000) {
   });
 }
 
+/** Chromium's flags for the tests and the bench: headless, software only, no background traffic. */
 export const CHROMIUM_ARGS = [
   '--headless',
   '--no-sandbox',
