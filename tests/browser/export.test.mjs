@@ -4,12 +4,11 @@
 // the wasm module; see scripts/test)
 import test, { after, before } from 'node:test';
 import assert from 'node:assert/strict';
-import { execFileSync, spawn } from 'node:child_process';
+import { execFileSync } from 'node:child_process';
 import { mkdtempSync, readFileSync, readdirSync, rmSync } from 'node:fs';
 import { tmpdir } from 'node:os';
 import { join } from 'node:path';
-import { createInterface } from 'node:readline';
-import { VTEX_BIN, WEB_DIR, compareScreenToImage, exited, launchBrowser, openViewer, setAlignedView, startServer, waitForIdle } from './lib.mjs';
+import { VTEX_BIN, WEB_DIR, compareScreenToImage, exited, launchBrowser, openViewer, setAlignedView, startServer, staticServer, waitForIdle } from './lib.mjs';
 
 let work;
 let browser;
@@ -23,23 +22,6 @@ after(async () => {
   await browser?.close();
   rmSync(work, { recursive: true, force: true });
 });
-
-/** `python3 -m http.server` on a free loopback port serving `dir`: { url, stop }. */
-async function staticServer(dir) {
-  const proc = spawn('python3', ['-u', '-m', 'http.server', '0', '--bind', '127.0.0.1', '--directory', dir], { stdio: ['ignore', 'pipe', 'pipe'] });
-  const url = await new Promise((resolve, reject) => {
-    const timer = setTimeout(() => reject(new Error('http.server did not start within 30 s')), 30_000);
-    createInterface({ input: proc.stdout }).on('line', (line) => {
-      const m = line.match(/port (\d+)/);
-      if (m) {
-        clearTimeout(timer);
-        resolve(`http://127.0.0.1:${m[1]}`);
-      }
-    });
-    proc.on('exit', (code) => reject(new Error(`http.server exited with ${code}`)));
-  });
-  return { url, stop: () => (proc.kill('SIGTERM'), exited(proc)) };
-}
 
 const vtex = (...args) => execFileSync(VTEX_BIN, args, { encoding: 'utf8', env: { ...process.env, VTEX_LOG: 'warn' } });
 

@@ -29,7 +29,7 @@ export async function startServer({ extraArgs = [], env = {}, dataDir: keptDir =
   // VTEX_URL: a server already running (e.g. nginx in front of replicas: bench/replicas).
   if (process.env.VTEX_URL) return { url: process.env.VTEX_URL, dataDir: null, stderr: () => '', async stop() {} };
   if (!existsSync(VTEX_BIN)) throw new Error(`${VTEX_BIN} not found: run cargo build --release -p vtex-server`);
-  if (!existsSync(join(WEB_DIR, 'index.html'))) throw new Error(`${WEB_DIR} not built: run npm ci && npm run build in client-web/`);
+  if (!embeddedViewer && !existsSync(join(WEB_DIR, 'index.html'))) throw new Error(`${WEB_DIR} not built: run npm ci && npm run build in client-web/`);
   const dataDir = keptDir || mkdtempSync(join(tmpdir(), 'vtex-browser-data-'));
   const proc = spawn(
     VTEX_BIN,
@@ -70,7 +70,23 @@ export async function startServer({ extraArgs = [], env = {}, dataDir: keptDir =
   };
 }
 
-/** Chromium's flags for the tests and the bench: headless, software only, no background traffic. */
+/** `python3 -m http.server` on a free loopback port serving `dir`: { url, stop }. */
+export async function staticServer(dir) {
+  const proc = spawn('python3', ['-u', '-m', 'http.server', '0', '--bind', '127.0.0.1', '--directory', dir], { stdio: ['ignore', 'pipe', 'pipe'] });
+  const url = await new Promise((resolve, reject) => {
+    const timer = setTimeout(() => reject(new Error('http.server did not start within 30 s')), 30_000);
+    createInterface({ input: proc.stdout }).on('line', (line) => {
+      const m = line.match(/port (\d+)/);
+      if (m) {
+        clearTimeout(timer);
+        resolve(`http://127.0.0.1:${m[1]}`);
+      }
+    });
+    proc.on('exit', (code) => reject(new Error(`http.server exited with ${code}`)));
+  });
+  return { url, stop: () => (proc.kill('SIGTERM'), exited(proc)) };
+}
+
 /** Resolves once `proc` has exited, killing it if it is still running after `ms`. */
 export function exited(proc, ms = 5000) {
   return new Promise((r) => {
@@ -86,6 +102,7 @@ export function exited(proc, ms = 5000) {
   });
 }
 
+/** Chromium's flags for the tests and the bench: headless, software only, no background traffic. */
 export const CHROMIUM_ARGS = [
   '--headless',
   '--no-sandbox',

@@ -2,7 +2,8 @@
 // each holding only the renderer of its model: moduleFile): open an encoding bundle, read its
 // info (the server's), render regions and tiles as RGBA — the server's bytes exactly. The
 // module's raw ABI (wasm/src/api.rs) takes numbers and two buffers it owns; this wrapper turns
-// it into objects and exceptions. It runs in a page, a Worker and Node alike.
+// it into objects and exceptions. It runs in a page, a Worker and Node alike, and is the API of
+// the npm package vtex-synth too (packages/vtex-synth, whose index.d.ts types it).
 
 /** Why the module refused a call (its message names the problem), or why it stopped. */
 export class SynthError extends Error {
