@@ -12,6 +12,8 @@ import socket
 import subprocess
 import sys
 import tempfile
+import time
+import urllib.error
 import urllib.request
 from pathlib import Path
 
@@ -99,7 +101,15 @@ def live_metrics(vtex):
                 sys.exit("the third connection of one client was not refused (429)")
             for s in [*held, refused]:
                 s.close()
-            return get(f"{base}/metrics").decode()
+            # The server sees the held connections close a moment later; until then, 429.
+            for _ in range(50):
+                try:
+                    return get(f"{base}/metrics").decode()
+                except urllib.error.HTTPError as e:
+                    if e.code != 429:
+                        raise
+                    time.sleep(0.1)
+            sys.exit("/metrics stayed refused (429) after the held connections closed")
         finally:
             proc.terminate()
             proc.wait(timeout=15)

@@ -83,8 +83,9 @@ export async function startReplica(dataDir, { args = [], env = {} } = {}) {
 }
 
 /** Starts `replicas` vtex processes on one fresh data directory (the first alone, writing the
- * demos; then the others) and nginx in front. `stop()` ends them all and removes the files. */
-export async function startTopology({ replicas = 3, env = {}, args = [] } = {}) {
+ * demos; then the others) and nginx in front, its configuration passed through `editConf` (a
+ * benchmark's variant). `stop()` ends them all and removes the files. */
+export async function startTopology({ replicas = 3, env = {}, args = [], editConf = (conf) => conf } = {}) {
   const dir = mkdtempSync(join(tmpdir(), 'vtex-replicas-'));
   // nginx's workers run as an unprivileged user when started as root: they write the cache here.
   chmodSync(dir, 0o755);
@@ -100,7 +101,7 @@ export async function startTopology({ replicas = 3, env = {}, args = [] } = {}) 
   );
   const port = await freePort();
   const confPath = join(nginxDir, 'nginx.conf');
-  writeFileSync(confPath, nginxConf(started.map((r) => r.addr), `127.0.0.1:${port}`, nginxDir));
+  writeFileSync(confPath, editConf(nginxConf(started.map((r) => r.addr), `127.0.0.1:${port}`, nginxDir)));
   const nginx = spawn(NGINX, ['-p', nginxDir, '-c', confPath, '-e', 'stderr', '-g', 'daemon off;'], {
     stdio: ['ignore', 'ignore', 'pipe'],
   });
