@@ -15,6 +15,7 @@ import subprocess
 import sys
 import tempfile
 import time
+import urllib.error
 import urllib.request
 from pathlib import Path
 
@@ -122,7 +123,18 @@ def main():
                     if procs[-1].poll() is not None:
                         sys.exit("nginx did not start")
                     time.sleep(0.05)
-            textures = json.loads(urllib.request.urlopen(f"{base}/api/v1/textures", timeout=30).read())["textures"]
+            # nginx resolves the name once it runs: until the first answer, no replica (502).
+            for _ in range(100):
+                try:
+                    listing = urllib.request.urlopen(f"{base}/api/v1/textures", timeout=30).read()
+                    break
+                except urllib.error.HTTPError as e:
+                    if e.code != 502:
+                        raise
+                    time.sleep(0.05)
+            else:
+                sys.exit("nginx found no replica by the name within 5 s")
+            textures = json.loads(listing)["textures"]
             texture = max((t for t in textures if t["model"] == "chaos-mosaic"), key=lambda t: t["width"])
             row = [0]
 
