@@ -24,7 +24,8 @@ from dnslib import QTYPE, RR, A
 from dnslib.server import BaseResolver, DNSLogger, DNSServer
 
 PODS = ["127.0.0.2", "127.0.0.3", "127.0.0.4"]
-# What nginx is told: look the name up again every second (the cluster's config says 5 s).
+# What nginx is told: look the name up again every second (the cluster's config says 5 s);
+# a change of the answer is given two seconds more than that to be seen.
 VALID = 1
 
 
@@ -155,10 +156,10 @@ def main():
 
             tiles_reach(PODS[:2], "two pods ready")
             pods.ready = PODS
-            time.sleep(VALID + 1)
+            time.sleep(VALID + 2)
             tiles_reach(PODS, "a third pod ready")
             pods.ready = PODS[1:]
-            time.sleep(VALID + 1)
+            time.sleep(VALID + 2)
             tiles_reach(PODS[1:], "the first pod gone from the answer")
         finally:
             for p in procs:
