@@ -7,6 +7,7 @@
 import { readFileSync } from 'node:fs';
 import { dirname, join } from 'node:path';
 import { fileURLToPath } from 'node:url';
+import { readNginxConf, rewrite } from '../../docker/nginx-conf.mjs';
 
 const ROOT = join(dirname(fileURLToPath(import.meta.url)), '..', '..');
 
@@ -14,9 +15,9 @@ const ROOT = join(dirname(fileURLToPath(import.meta.url)), '..', '..');
  * namespace.yaml: pod i of the StatefulSet is `vtex-i.vtex-replicas.vtex.svc.cluster.local`. */
 const SERVICE = 'vtex-replicas.vtex.svc.cluster.local';
 const STATEFUL_SET = 'vtex';
-export const PORT = 8080;
+const PORT = 8080;
 /** The cluster's DNS Service, by the name every distribution gives it. */
-export const CLUSTER_DNS = 'kube-dns.kube-system.svc.cluster.local';
+const CLUSTER_DNS = 'kube-dns.kube-system.svc.cluster.local';
 
 /** The StatefulSet's replica count, read from vtex.yaml. */
 function replicaCount() {
@@ -30,17 +31,9 @@ export function replicas() {
   return Array.from({ length: replicaCount() }, (_, i) => `${STATEFUL_SET}-${i}.${SERVICE}:${PORT}`);
 }
 
-/** Replaces `pattern` in `text`, requiring exactly `count` matches: a docker/nginx.conf that
- * drifted from what is rewritten fails loudly instead of shipping something else. */
-function rewrite(text, pattern, replace, count) {
-  const found = text.match(new RegExp(pattern.source, 'g')) || [];
-  if (found.length !== count) throw new Error(`docker/nginx.conf: expected ${count} × ${pattern}, found ${found.length}`);
-  return text.replace(new RegExp(pattern.source, 'g'), replace);
-}
-
 /** docker/nginx.conf as Kubernetes runs it. */
-export function k8sNginxConf() {
-  let conf = readFileSync(join(ROOT, 'docker', 'nginx.conf'), 'utf8');
+function k8sNginxConf() {
+  let conf = readNginxConf();
   // `auto` counts the node's cores, not the pod's share of them.
   conf = rewrite(conf, /worker_processes auto;/, 'worker_processes 2;', 1);
   conf = rewrite(conf, /\/var\/run\/nginx\.pid/, '/tmp/nginx.pid', 1);
@@ -78,7 +71,7 @@ export function k8sNginxConf() {
 }
 
 /** The ConfigMap holding `conf` as its nginx.conf. */
-export function configMap(conf) {
+function configMap(conf) {
   const body = conf
     .trimEnd()
     .split('\n')

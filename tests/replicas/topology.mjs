@@ -8,11 +8,12 @@ import { tmpdir } from 'node:os';
 import { dirname, join, resolve } from 'node:path';
 import { createInterface } from 'node:readline';
 import { fileURLToPath } from 'node:url';
+import { NGINX_CONF, readNginxConf, rewrite } from '../../docker/nginx-conf.mjs';
 
 export const ROOT = resolve(dirname(fileURLToPath(import.meta.url)), '..', '..');
 export const VTEX_BIN = process.env.VTEX_BIN || join(ROOT, 'target', 'release', 'vtex');
 export const NGINX = process.env.NGINX || '/usr/sbin/nginx';
-export const NGINX_CONF = join(ROOT, 'docker', 'nginx.conf');
+export { NGINX_CONF };
 
 /** A free loopback port (closed again before it is used: a brief race, loopback only). */
 export async function freePort() {
@@ -26,18 +27,10 @@ export async function freePort() {
   });
 }
 
-/** Replaces `pattern` in `text`, requiring exactly `count` matches: a config that drifted
- * from what the test rewrites fails loudly instead of running something else. */
-function rewrite(text, pattern, replace, count) {
-  const found = text.match(new RegExp(pattern.source, 'g')) || [];
-  if (found.length !== count) throw new Error(`docker/nginx.conf: expected ${count} × ${pattern}, found ${found.length}`);
-  return text.replace(new RegExp(pattern.source, 'g'), replace);
-}
-
 /** docker/nginx.conf with its upstream servers at `upstreams` (host:port), listening on
  * `listen`, its paths under `dir`. */
 export function nginxConf(upstreams, listen, dir) {
-  let conf = readFileSync(NGINX_CONF, 'utf8');
+  let conf = readNginxConf();
   // Compose's replicas vtex-1…vtex-3: the first `upstreams.length` take these addresses, the
   // others are left out (a topology of fewer replicas, for the benchmark's baseline).
   let i = 0;
