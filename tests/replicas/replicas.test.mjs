@@ -1,7 +1,9 @@
 // The deployment of docker/compose.yaml, proven on loopback: 3 `vtex serve` on one data
 // directory behind Debian's nginx running docker/nginx.conf (see topology.mjs).
 import assert from 'node:assert/strict';
+import http from 'node:http';
 import { after, before, test } from 'node:test';
+import zlib from 'node:zlib';
 import { startTopology } from './topology.mjs';
 
 const TOKEN = 'replicas-test-token';
@@ -50,6 +52,42 @@ test('nginx answers a repeated tile from its cache', async () => {
   const list = `${topo.url}/api/v1/textures/${'f'.repeat(64)}`;
   await get(list);
   assert.notEqual((await get(list)).headers.get('x-cache-status'), 'HIT');
+});
+
+/** A GET through node:http, whose headers are exactly `headers` (fetch adds Accept-Encoding
+ * and decodes the body): the body as it came over the wire. */
+function rawGet(url, headers) {
+  return new Promise((resolve, reject) => {
+    http
+      .get(url, { headers, agent: false }, (res) => {
+        const chunks = [];
+        res.on('data', (c) => chunks.push(c));
+        res.on('end', () => resolve({ status: res.statusCode, headers: res.headers, body: Buffer.concat(chunks) }));
+      })
+      .on('error', reject);
+  });
+}
+
+test('what nginx passes on, a CDN in front may cache: Cache-Control, ETag and Vary, each encoding apart', async () => {
+  // A metatile, the viewer's tile traffic: one immutable URL for every viewer.
+  const block = await rawGet(`${topo.url}/api/v1/textures/${texture.id}/metatiles/2/3/4.webp`, {});
+  assert.equal(block.status, 200);
+  assert.equal(block.headers['cache-control'], 'public, max-age=31536000, immutable');
+  assert.match(block.headers.etag, /^"[^"]+"$/);
+  // A raw tile is compressed for a client that accepts it: the answer names what it varies by,
+  // and nginx's cache keeps the encodings apart (a client that accepts none gets no gzip).
+  const raw = `${topo.url}${tilePath(texture.id, 1, 7, 9, 'rgba')}`;
+  const gzip = await rawGet(raw, { 'accept-encoding': 'gzip' });
+  assert.equal(gzip.status, 200);
+  assert.equal(gzip.headers['content-encoding'], 'gzip');
+  assert.match(gzip.headers.vary, /accept-encoding/i);
+  assert.equal(gzip.headers['cache-control'], 'public, max-age=31536000, immutable');
+  for (const attempt of ['first', 'again']) {
+    const plain = await rawGet(raw, {});
+    assert.equal(plain.headers['content-encoding'], undefined, `${attempt}: gzip served to a client that accepts none`);
+    assert.ok(plain.body.equals(zlib.gunzipSync(gzip.body)), `${attempt}: identity bytes differ`);
+  }
+  assert.equal((await rawGet(raw, { 'accept-encoding': 'gzip' })).headers['x-cache-status'], 'HIT');
 });
 
 test('writes through nginx need the token; an upload through nginx is served by all three', async () => {

@@ -8,11 +8,12 @@ import { tmpdir } from 'node:os';
 import { dirname, join, resolve } from 'node:path';
 import { createInterface } from 'node:readline';
 import { fileURLToPath } from 'node:url';
+import { NGINX_CONF, readNginxConf, rewrite } from '../../docker/nginx-conf.mjs';
 
 export const ROOT = resolve(dirname(fileURLToPath(import.meta.url)), '..', '..');
 export const VTEX_BIN = process.env.VTEX_BIN || join(ROOT, 'target', 'release', 'vtex');
 export const NGINX = process.env.NGINX || '/usr/sbin/nginx';
-export const NGINX_CONF = join(ROOT, 'docker', 'nginx.conf');
+export { NGINX_CONF };
 
 /** A free loopback port (closed again before it is used: a brief race, loopback only). */
 export async function freePort() {
@@ -26,18 +27,10 @@ export async function freePort() {
   });
 }
 
-/** Replaces `pattern` in `text`, requiring exactly `count` matches: a config that drifted
- * from what the test rewrites fails loudly instead of running something else. */
-function rewrite(text, pattern, replace, count) {
-  const found = text.match(new RegExp(pattern.source, 'g')) || [];
-  if (found.length !== count) throw new Error(`docker/nginx.conf: expected ${count} × ${pattern}, found ${found.length}`);
-  return text.replace(new RegExp(pattern.source, 'g'), replace);
-}
-
 /** docker/nginx.conf with its upstream servers at `upstreams` (host:port), listening on
  * `listen`, its paths under `dir`. */
 export function nginxConf(upstreams, listen, dir) {
-  let conf = readFileSync(NGINX_CONF, 'utf8');
+  let conf = readNginxConf();
   // Compose's replicas vtex-1…vtex-3: the first `upstreams.length` take these addresses, the
   // others are left out (a topology of fewer replicas, for the benchmark's baseline).
   let i = 0;
@@ -83,8 +76,9 @@ export async function startReplica(dataDir, { args = [], env = {} } = {}) {
 }
 
 /** Starts `replicas` vtex processes on one fresh data directory (the first alone, writing the
- * demos; then the others) and nginx in front. `stop()` ends them all and removes the files. */
-export async function startTopology({ replicas = 3, env = {}, args = [] } = {}) {
+ * demos; then the others) and nginx in front, its configuration passed through `editConf` (a
+ * benchmark's variant). `stop()` ends them all and removes the files. */
+export async function startTopology({ replicas = 3, env = {}, args = [], editConf = (conf) => conf } = {}) {
   const dir = mkdtempSync(join(tmpdir(), 'vtex-replicas-'));
   // nginx's workers run as an unprivileged user when started as root: they write the cache here.
   chmodSync(dir, 0o755);
@@ -100,7 +94,7 @@ export async function startTopology({ replicas = 3, env = {}, args = [] } = {}) 
   );
   const port = await freePort();
   const confPath = join(nginxDir, 'nginx.conf');
-  writeFileSync(confPath, nginxConf(started.map((r) => r.addr), `127.0.0.1:${port}`, nginxDir));
+  writeFileSync(confPath, editConf(nginxConf(started.map((r) => r.addr), `127.0.0.1:${port}`, nginxDir)));
   const nginx = spawn(NGINX, ['-p', nginxDir, '-c', confPath, '-e', 'stderr', '-g', 'daemon off;'], {
     stdio: ['ignore', 'ignore', 'pipe'],
   });
