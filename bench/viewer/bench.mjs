@@ -408,12 +408,17 @@ async function serverCounters(url) {
   };
   const misses = {};
   for (const m of text.matchAll(/^vtex_tile_cache_misses_total\{level="(\d+)"\} (\S+)$/gm)) misses[m[1]] = Number(m[2]);
-  const buckets = [];
-  for (const m of text.matchAll(/^vtex_synthesis_seconds_bucket\{le="([^"]+)"\} (\S+)$/gm)) buckets.push([m[1], Number(m[2])]);
+  // The synthesis histogram has a series per model: summed over models.
+  const sum = (re) => [...text.matchAll(re)].reduce((total, m) => total + Number(m[1]), 0);
+  const byBound = new Map();
+  for (const m of text.matchAll(/^vtex_synthesis_seconds_bucket\{[^}]*le="([^"]+)"[^}]*\} (\S+)$/gm)) {
+    byBound.set(m[1], (byBound.get(m[1]) || 0) + Number(m[2]));
+  }
+  const buckets = [...byBound];
   return {
     syntheses: value(/^vtex_syntheses_total (\S+)$/m),
-    synthSeconds: value(/^vtex_synthesis_seconds_sum (\S+)$/m),
-    synthCount: value(/^vtex_synthesis_seconds_count (\S+)$/m),
+    synthSeconds: sum(/^vtex_synthesis_seconds_sum\{[^}]*\} (\S+)$/gm),
+    synthCount: sum(/^vtex_synthesis_seconds_count\{[^}]*\} (\S+)$/gm),
     buckets,
     misses,
   };

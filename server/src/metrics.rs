@@ -3,8 +3,7 @@
 //! `process_*` family (memory, CPU, descriptors, start time) is collected on Linux.
 
 use prometheus::{
-    Encoder, Histogram, HistogramOpts, HistogramVec, IntCounter, IntCounterVec, IntGauge, IntGaugeVec, Opts, Registry,
-    TextEncoder,
+    Encoder, HistogramOpts, HistogramVec, IntCounter, IntCounterVec, IntGauge, IntGaugeVec, Opts, Registry, TextEncoder,
 };
 use vtex_synth::Resources;
 
@@ -23,7 +22,7 @@ pub struct Metrics {
     hits: Vec<IntCounter>,
     misses: Vec<IntCounter>,
     pub syntheses: IntCounter,
-    pub synthesis_seconds: Histogram,
+    pub synthesis_seconds: HistogramVec,
     pub encode_seconds: HistogramVec,
     /// Whole tile batches, from the request to the body's end, by how the body ended.
     pub batch_seconds: HistogramVec,
@@ -104,8 +103,10 @@ impl Metrics {
         ));
         let syntheses =
             must(IntCounter::new("vtex_syntheses_total", "Tile syntheses run (a coalesced miss counts once)"));
-        let synthesis_seconds = must(Histogram::with_opts(
-            HistogramOpts::new("vtex_synthesis_seconds", "Time to render one tile or region").buckets(fast.clone()),
+        let synthesis_seconds = must(HistogramVec::new(
+            HistogramOpts::new("vtex_synthesis_seconds", "Time to render one tile or region, by model")
+                .buckets(fast.clone()),
+            &["model"],
         ));
         let encode_seconds = must(HistogramVec::new(
             HistogramOpts::new("vtex_encode_seconds", "Time to encode one tile or region, by format").buckets(fast),

@@ -118,6 +118,7 @@ async fn concurrent_misses_on_one_tile_synthesize_once() {
     assert!(bodies.windows(2).all(|w| w[0] == w[1]));
     let m = metrics(&c, &s).await;
     assert_eq!(metric(&m, "vtex_syntheses_total", &[]), 1.0, "64 concurrent requests, one synthesis");
+    assert_eq!(metric(&m, "vtex_synthesis_seconds_count", &[("model", "chaos-mosaic")]), 1.0, "timed under its model");
     assert_eq!(
         metric(&m, "vtex_tile_cache_hits_total", &[("level", "0")])
             + metric(&m, "vtex_tile_cache_misses_total", &[("level", "0")]),
