@@ -7,11 +7,6 @@
 //! nothing cannot then hold a slot a client needs. Only when every connection has a request in
 //! flight is the new one refused (503). Over its address's limit a connection is refused (429).
 //! A refusal is a complete answer, then a close ([`Refusal`]).
-//!
-//! A connection is closed to make room only once it has been quiet for [`EVICTION_GRACE`]:
-//! however fast others arrive, a client that has just connected has that long to send its
-//! request head. Until then new connections wait in the listen backlog, where the head of a
-//! client's request arrives before its accept, so once admitted it is not chosen.
 
 use crate::transport::{Activity, InputProbe};
 use prometheus::{IntCounter, IntCounterVec};
@@ -27,9 +22,6 @@ use tokio::time::Instant;
 /// How long the acceptor waits for a connection asked to make room to close (one hop to the
 /// runtime serving it, unless that runtime is stalled) before refusing the new one.
 const EVICTION_WAIT: Duration = Duration::from_millis(250);
-
-/// The shortest quiet time after which a connection may be closed to make room.
-pub const EVICTION_GRACE: Duration = Duration::from_millis(250);
 
 /// The open connections, shared by the acceptor and the runtimes serving them.
 pub struct Admission {
@@ -70,9 +62,6 @@ enum Attempt {
     Decided(Verdict),
     /// A connection was asked to make room: wait until it closes or declines.
     Wait,
-    /// Every connection that could make room has been quiet for less than [`EVICTION_GRACE`]:
-    /// try again once the quietest has been, or when one closes.
-    After(Duration),
 }
 
 impl Admission {
@@ -93,9 +82,6 @@ impl Admission {
                     if tokio::time::timeout(EVICTION_WAIT, changed).await.is_err() {
                         return Verdict::Full;
                     }
-                }
-                Attempt::After(wait) => {
-                    let _ = tokio::time::timeout(wait, changed).await;
                 }
             }
         }
@@ -121,10 +107,6 @@ impl Admission {
         match quietest {
             None => Attempt::Decided(Verdict::Full),
             Some((&id, slot)) => {
-                let grace_left = EVICTION_GRACE.saturating_sub(slot.activity.quiet_for());
-                if !grace_left.is_zero() {
-                    return Attempt::After(grace_left);
-                }
                 slot.evict.notify_one();
                 open.evicting = Some(id);
                 Attempt::Wait

@@ -240,11 +240,6 @@ impl Activity {
         self.quiet_since.load(Ordering::Relaxed)
     }
 
-    /// How long no request has been in flight (meaningful while none is).
-    pub fn quiet_for(&self) -> Duration {
-        Duration::from_nanos(stamp().saturating_sub(self.quiet_since()))
-    }
-
     /// Counts a request in flight until the guard is dropped.
     pub fn start(self: &Arc<Self>) -> InFlight {
         self.in_flight.fetch_add(1, Ordering::Relaxed);
