@@ -2,7 +2,7 @@
 // Garage (crates.io `garage`, installed by scripts/test under target/garage), one node, one
 // bucket and one key, set up with its own CLI as its quick start does.
 import { execFileSync, spawn } from 'node:child_process';
-import { randomBytes } from 'node:crypto';
+import { createHash, randomBytes } from 'node:crypto';
 import { existsSync, mkdtempSync, rmSync, writeFileSync } from 'node:fs';
 import { tmpdir } from 'node:os';
 import { join } from 'node:path';
@@ -87,6 +87,8 @@ export async function startGarage() {
       execFileSync(
         'curl',
         ['-sSf', '--aws-sigv4', `aws:amz:${REGION}:s3`, '--user', `${keyId}:${secret}`, '-X', 'PUT',
+          // S3 wants the payload's hash among the signed headers; curl signs what it is given.
+          '-H', `x-amz-content-sha256: ${createHash('sha256').update(bytes).digest('hex')}`,
           '-H', 'content-type: application/octet-stream', '--data-binary', '@-', `${endpoint}/${BUCKET}/${key}`],
         { input: bytes },
       );

@@ -3,9 +3,10 @@
 //!
 //! Credentials, region and endpoint come from the usual variables (`AWS_ACCESS_KEY_ID`,
 //! `AWS_SECRET_ACCESS_KEY`, `AWS_REGION`, `AWS_ENDPOINT_URL`, `AWS_ALLOW_HTTP`, …). A bundle is
-//! written once, with a conditional put (`If-None-Match: *`): of concurrent identical uploads
-//! one writes and the others find it there; a server that ignores the condition overwrites
-//! the same bytes.
+//! written once: an upload whose object exists writes nothing, and the write is a conditional
+//! put (`If-None-Match: *`), so of concurrent identical uploads one writes and the others find
+//! it there. A server that ignores the condition (Garage) lets racing uploads overwrite the
+//! object with the same bytes: they still agree, each answering the same texture.
 //!
 //! Every call is bounded in time: each try by a timeout, the tries (with backoff) by the
 //! deadline. A call that fails opens an outage of [`OUTAGE_SECS`] during which calls fail at
@@ -17,9 +18,9 @@ use super::bundles::Listed;
 use super::local_cache::LocalCache;
 use super::{StoreError, BUNDLE_EXT};
 use futures::TryStreamExt;
-use object_store::aws::{AmazonS3Builder, S3ConditionalPut};
+use object_store::aws::{AmazonS3Builder, AmazonS3ConfigKey, S3ConditionalPut};
 use object_store::path::Path as ObjectPath;
-use object_store::{BackoffConfig, ClientOptions, ObjectStore, ObjectStoreExt, PutMode, PutOptions, RetryConfig};
+use object_store::{BackoffConfig, ClientConfigKey, ObjectStore, ObjectStoreExt, PutMode, PutOptions, RetryConfig};
 use std::future::Future;
 use std::path::PathBuf;
 use std::sync::{Arc, Mutex};
@@ -71,10 +72,10 @@ impl ObjectBundles {
             false => format!("s3://{}/{}", settings.bucket, settings.prefix),
         };
         let deadline = settings.deadline;
-        // Three tries fit in the deadline, each bounded to a third of it.
-        let options = ClientOptions::new()
-            .with_connect_timeout(deadline.mul_f64(0.2).min(Duration::from_secs(5)))
-            .with_timeout(deadline / 3);
+        // Three tries fit in the deadline, each bounded to a third of it. Set as configuration
+        // keys, over the client options the environment gave (`AWS_ALLOW_HTTP`, proxies …).
+        let millis = |d: Duration| format!("{}ms", d.as_millis().max(1));
+        let connect_timeout = millis(deadline.mul_f64(0.2).min(Duration::from_secs(5)));
         let retry = RetryConfig {
             backoff: BackoffConfig {
                 init_backoff: Duration::from_millis(50),
@@ -86,7 +87,8 @@ impl ObjectBundles {
         };
         let bucket = AmazonS3Builder::from_env()
             .with_bucket_name(&settings.bucket)
-            .with_client_options(options)
+            .with_config(AmazonS3ConfigKey::Client(ClientConfigKey::ConnectTimeout), connect_timeout)
+            .with_config(AmazonS3ConfigKey::Client(ClientConfigKey::Timeout), millis(deadline / 3))
             .with_retry(retry)
             .with_conditional_put(S3ConditionalPut::ETagMatch)
             .build()
@@ -134,7 +136,8 @@ impl ObjectBundles {
             return Err(StoreError::Unavailable("the object store failed less than a second ago".into()));
         }
         let runtime = self.runtime.as_ref().expect("dropped only with the backend");
-        let result = match runtime.block_on(tokio::time::timeout(self.deadline, call)) {
+        // The timer is made inside the runtime: the caller may be a thread of no runtime (the poll).
+        let result = match runtime.block_on(async { tokio::time::timeout(self.deadline, call).await }) {
             Ok(Ok(value)) => Ok(value),
             Ok(Err(e)) => Err(e.to_string()),
             Err(_) => Err(format!("no answer within {:.1} s", self.deadline.as_secs_f64())),
@@ -219,11 +222,17 @@ impl ObjectBundles {
         })
     }
 
-    /// Writes bundle `id` unless its object exists; true when this call wrote it.
+    /// Writes bundle `id` unless its object exists; true when this call wrote it. The object
+    /// is looked for first, since some servers (Garage) ignore the put's condition.
     pub fn create(&self, id: &str, bytes: &[u8]) -> Result<bool, StoreError> {
         let (bucket, path) = (self.bucket.clone(), self.path_of(id));
         let payload = bytes::Bytes::copy_from_slice(bytes).into();
         let created = self.call(async move {
+            match bucket.head(&path).await {
+                Ok(_) => return Ok(false),
+                Err(object_store::Error::NotFound { .. }) => {}
+                Err(e) => return Err(e),
+            }
             let create = PutOptions { mode: PutMode::Create, ..Default::default() };
             match bucket.put_opts(&path, payload, create).await {
                 Ok(_) => Ok(true),
