@@ -222,8 +222,9 @@ fn open_store(cfg: &ServeConfig) -> anyhow::Result<(Arc<Store>, OpenReport, Foll
             check_data_dir(&settings.cache_dir, true)?;
             let bundles = ObjectBundles::open(&settings).map_err(anyhow::Error::msg)?;
             let url = bundles.url().to_string();
-            let store = Store::open_in(Bundles::Object(bundles), cfg.store_bounds(), resources, demos, &mut report)
-                .map_err(|e| anyhow::anyhow!("cannot open the object store {url}: {e}"))?;
+            let store =
+                Store::open_in(Bundles::Object(Box::new(bundles)), cfg.store_bounds(), resources, demos, &mut report)
+                    .map_err(|e| anyhow::anyhow!("cannot open the object store {url}: {e}"))?;
             (store, Follow::Poll(cfg.store_poll()))
         }
         Location::Dir(dir) => {

@@ -16,7 +16,8 @@ pub struct Listed {
 
 pub enum Bundles {
     Dir(DirBundles),
-    Object(ObjectBundles),
+    /// Boxed: it is large, and there is one per store.
+    Object(Box<ObjectBundles>),
 }
 
 impl Bundles {

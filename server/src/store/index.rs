@@ -97,7 +97,7 @@ pub struct OpenReport {
 
 /// What is stored under a name, once read and planned.
 enum Found {
-    Servable(Record),
+    Servable(Box<Record>),
     Absent,
     /// Not a servable bundle, and why.
     Refused(String),
@@ -149,7 +149,7 @@ impl Store {
         listed.sort_by(|a, b| a.name.cmp(&b.name));
         for item in &listed {
             match store.read_and_plan(&item.name)? {
-                Found::Servable(record) => store.insert(Arc::new(record)),
+                Found::Servable(record) => store.insert(Arc::new(*record)),
                 Found::Absent => {}
                 Found::Refused(why) => {
                     report.rejected.push((store.bundles.name_of(&item.name), why));
@@ -199,7 +199,7 @@ impl Store {
             return Ok(Found::Refused(format!("content hash {id} does not match the name it is stored under")));
         }
         Ok(match Record::plan(&bundle, id, bytes.len(), self.bounds.tile_size, &self.bounds.limits) {
-            Ok(record) => Found::Servable(record),
+            Ok(record) => Found::Servable(Box::new(record)),
             Err(e) => Found::Refused(e.to_string()),
         })
     }
@@ -293,7 +293,7 @@ impl Store {
             return Ok(None);
         }
         match self.read_and_plan(id)? {
-            Found::Servable(record) => Ok(Some(self.admit(record))),
+            Found::Servable(record) => Ok(Some(self.admit(*record))),
             Found::Absent => {
                 self.remember_absent(id);
                 Ok(None)
@@ -331,7 +331,7 @@ impl Store {
             }
             match self.read_and_plan(&item.name)? {
                 Found::Servable(record) => {
-                    self.admit(record);
+                    self.admit(*record);
                     self.refused.lock().unwrap().remove(&item.name);
                 }
                 Found::Absent => {}

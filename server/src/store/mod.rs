@@ -40,10 +40,9 @@ mod record;
 
 pub use atomic::write_atomic;
 pub use bundles::Bundles;
-pub use dir::DirBundles;
 pub use index::{Bounds, OpenReport, Store, StoreError, ABSENT_TTL, STALE_TEMP_AGE};
 pub use location::Location;
-pub use object::{ObjectBundles, ObjectSettings, OUTAGE_SECS};
+pub use object::{ObjectBundles, ObjectSettings};
 pub use record::{Entry, Record, TextureInfo};
 
 pub const BUNDLE_EXT: &str = "vtex";

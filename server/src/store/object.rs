@@ -16,6 +16,7 @@
 
 use super::bundles::Listed;
 use super::local_cache::LocalCache;
+use super::location::Location;
 use super::{StoreError, BUNDLE_EXT};
 use futures::TryStreamExt;
 use object_store::aws::{AmazonS3Builder, AmazonS3ConfigKey, S3ConditionalPut};
@@ -28,7 +29,7 @@ use std::time::{Duration, Instant};
 use vtex_synth::bundle::{id_of, MAX_BUNDLE_BYTES};
 
 /// How long calls fail at once after one failed: the `Retry-After` of the 503s they become.
-pub const OUTAGE_SECS: u64 = 1;
+const OUTAGE_SECS: u64 = 1;
 
 /// Where the bucket is and how calls to it are bounded.
 #[derive(Clone, Debug)]
@@ -67,10 +68,7 @@ impl ObjectBundles {
     /// Configures the client from the environment and opens the local copies; no request is
     /// made yet. The error names what is wrong.
     pub fn open(settings: &ObjectSettings) -> Result<ObjectBundles, String> {
-        let url = match settings.prefix.is_empty() {
-            true => format!("s3://{}", settings.bucket),
-            false => format!("s3://{}/{}", settings.bucket, settings.prefix),
-        };
+        let url = Location::S3 { bucket: settings.bucket.clone(), prefix: settings.prefix.clone() }.to_string();
         let deadline = settings.deadline;
         // Three tries fit in the deadline, each bounded to a third of it. Set as configuration
         // keys, over the client options the environment gave (`AWS_ALLOW_HTTP`, proxies …).
