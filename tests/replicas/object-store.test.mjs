@@ -69,7 +69,7 @@ test('every replica starts on the bucket alone and lists the same textures', asy
   for (const l of lists) assert.deepEqual(l, lists[0]);
 });
 
-test('an upload through one replica is served by all, byte for byte, and listed by all within the poll', async () => {
+test('an upload through one replica is served by all at once, byte for byte', async () => {
   const made = await rename(topo.replicas[0].url, 'uploaded through replica 0');
   assert.equal(made.status, 201);
   const { id } = await made.json();
@@ -82,8 +82,22 @@ test('an upload through one replica is served by all, byte for byte, and listed 
       assert.ok(a.body.equals(answers[0].body), `${path}: bytes differ between replicas`);
     }
   }
-  for (const r of topo.replicas) {
+});
+
+test('the lists follow uploads and deletions through other replicas within the poll', async () => {
+  const [a, b, c] = topo.replicas;
+  const made = await rename(a.url, 'listed by the others');
+  assert.equal(made.status, 201);
+  const { id } = await made.json();
+  // Nothing asks b or c for this id: only their poll can list it.
+  for (const r of [b, c]) {
     await eventually(`${r.url} lists ${id}`, async () => (await listed(r.url)).includes(id), (POLL_SECS + 5) * 1000);
+  }
+  const gone = await fetch(`${b.url}/api/v1/textures/${id}`, { method: 'DELETE', headers: { authorization: `Bearer ${TOKEN}` } });
+  assert.equal(gone.status, 204);
+  for (const r of [a, c]) {
+    await eventually(`${r.url} forgets ${id}`, async () => !(await listed(r.url)).includes(id), (POLL_SECS + 5) * 1000);
+    assert.equal((await get(r.url + tilePath(id, 0, 0, 0))).status, 404);
   }
 });
 
