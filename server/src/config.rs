@@ -72,9 +72,10 @@ pub struct ServeConfig {
         help_heading = heading::NETWORK,
     )]
     pub trusted_proxies: Vec<TrustedProxy>,
-    /// Directory of the texture bundles (`<id>.vtex`); with an object store, of this replica's copies of them.
+    /// Directory of the bundles, or of an object store's local copies.
     ///
-    /// Bundles are content-addressed. Created if missing; it must be readable, and writable unless `--read-only` (and
+    /// The bundles are files `<id>.vtex`; with `--store s3://…`, this replica's copies of them. Bundles are
+    /// content-addressed. Created if missing; it must be readable, and writable unless `--read-only` (and
     /// always with an object store, see `--store`).
     #[arg(
         long,
@@ -84,15 +85,15 @@ pub struct ServeConfig {
         help_heading = heading::STORE,
     )]
     pub data_dir: PathBuf,
-    /// Where the bundles live: `s3://bucket/prefix`, `file:///path` or a path [default: --data-dir].
+    /// Where the bundles live: `s3://bucket/prefix`, or a directory [default: --data-dir].
     ///
     /// `s3://`: objects `<prefix>/<id>.vtex` of a bucket of an S3-compatible object store, which replicas share and
     /// nothing else; the client is configured by the usual variables (`AWS_ACCESS_KEY_ID`, `AWS_SECRET_ACCESS_KEY`,
     /// `AWS_REGION`, `AWS_ENDPOINT_URL`, `AWS_ALLOW_HTTP`), and `--data-dir` holds this replica's own copies of the
-    /// encodings. A `file://` URL or a path: that data directory, in place of `--data-dir`.
+    /// encodings. A `file:///path` URL or a path: that data directory, in place of `--data-dir`.
     #[arg(long, value_name = "URL", env = "VTEX_STORE", help_heading = heading::STORE)]
     pub store: Option<Location>,
-    /// Byte budget of this replica's copies of an object store's encodings, in MiB.
+    /// Byte budget of the local copies of an object store's bundles, in MiB.
     ///
     /// Kept in `--data-dir`, least recently used removed first; a texture whose copy was removed is fetched again
     /// when it next loads.
@@ -116,7 +117,7 @@ pub struct ServeConfig {
         help_heading = heading::STORE,
     )]
     pub store_poll_secs: f64,
-    /// Longest an object-store call may take, its retries included, in seconds.
+    /// Longest an object-store call may take, retries included, in seconds.
     ///
     /// Past it the request that needed it is answered 503 with `Retry-After`; for a second after a failure, calls
     /// fail at once.
@@ -380,7 +381,7 @@ pub struct ServeConfig {
         help_heading = heading::WRITES,
     )]
     pub cors_write_origins: Vec<String>,
-    /// Follow other processes' bundles.
+    /// Follow other processes' writes.
     ///
     /// How the store learns of bundles other processes add to or delete from the data directory.
     ///
