@@ -8,7 +8,7 @@
 // cold tiles/s: wrk over distinct level-0 JPEG tiles of another such texture (its info asked
 // first, through nginx), every request missing every cache.
 import { execFileSync } from 'node:child_process';
-import { copyFileSync, mkdtempSync, readFileSync, rmSync } from 'node:fs';
+import { copyFileSync, mkdtempSync, readFileSync, renameSync, rmSync } from 'node:fs';
 import { cpus, loadavg, tmpdir } from 'node:os';
 import { join } from 'node:path';
 import { parseArgs } from 'node:util';
@@ -24,16 +24,16 @@ const { values: args } = parseArgs({
 });
 const PREFIX = 'encodings';
 
-/** `count` chaos mosaics of 64 × 64 tiles of 256² made from the model's example sample, each
- * of its own name (hence its own id): { id, path }. */
-function makeBundles(dir, count) {
+/** `count` chaos mosaics (65,536², 1024 × 1024 blocks of the model's example sample), each of its
+ * own name, hence its own id, written as `<tag>-<i>.vtex`: { id, path }. */
+function makeBundles(dir, count, tag) {
   execFileSync(VTEX_BIN, ['models', 'chaos-mosaic', '--example-dir', dir], { encoding: 'utf8' });
   const example = JSON.parse(execFileSync(VTEX_BIN, ['models', 'chaos-mosaic', '--json'], { encoding: 'utf8' })).example;
-  const params = JSON.stringify({ ...example.params, tiles_x: 64, tiles_y: 64 });
+  const params = JSON.stringify({ ...example.params, tiles_x: 1024, tiles_y: 1024 });
   const inputs = Object.keys(example.inputs).flatMap((name) => ['--input', `${name}=${join(dir, `chaos-mosaic-${name}.png`)}`]);
   return Array.from({ length: count }, (_, i) => {
-    const path = join(dir, `bench-${i}.vtex`);
-    const id = execFileSync(VTEX_BIN, ['create', '--model', 'chaos-mosaic', '--name', `unseen ${i} ${Date.now()}`, '--params', params, ...inputs, '--out', path], {
+    const path = join(dir, `${tag}-${i}.vtex`);
+    const id = execFileSync(VTEX_BIN, ['create', '--model', 'chaos-mosaic', '--name', `unseen ${tag} ${i} ${Date.now()}`, '--params', params, ...inputs, '--out', path], {
       encoding: 'utf8',
     }).trim();
     return { id, path };
@@ -57,9 +57,9 @@ async function measure(name, topo, put, bundles) {
   for (const b of bundles.slice(1)) {
     put(b);
     const t0 = performance.now();
-    const r = await fetch(`${topo.url}/api/v1/textures/${b.id}/tiles/3/2/5.jpg`);
-    await r.arrayBuffer();
-    if (r.status !== 200) throw new Error(`${name}: first tile of ${b.id}: ${r.status}`);
+    const r = await fetch(`${topo.url}/api/v1/textures/${b.id}/tiles/0/5/7.jpg`);
+    const body = Buffer.from(await r.arrayBuffer());
+    if (r.status !== 200) throw new Error(`${name}: first tile of ${b.id}: ${r.status} ${body}`);
     firsts.push(performance.now() - t0);
   }
   put(bundles[0]);
@@ -73,8 +73,8 @@ const scratch = mkdtempSync(join(tmpdir(), 'vtex-bench-unseen-'));
 const count = Number(args.textures) + 1;
 const results = [];
 try {
-  const forDir = makeBundles(scratch, count);
-  const forBucket = makeBundles(scratch, count);
+  const forDir = makeBundles(scratch, count, 'dir');
+  const forBucket = makeBundles(scratch, count, 'bucket');
   console.log(
     `== ${new Date().toISOString()} ${execFileSync('git', ['rev-parse', '--short', 'HEAD'], { cwd: ROOT, encoding: 'utf8' }).trim()} ` +
       `unseen textures through nginx, ${cpus().length} cores, load ${loadavg()[0].toFixed(2)}, ${count - 1} first tiles, wrk -t2 -c${args.connections} -d${args.seconds}s`,
@@ -82,7 +82,13 @@ try {
   {
     const topo = await startTopology({ replicas: 3 });
     try {
-      results.push(await measure('shared data directory', topo, (b) => copyFileSync(b.path, join(topo.dataDir, `${b.id}.vtex`)), forDir));
+      // Copied in as an operator should: under a temporary name, then renamed.
+      const copyIn = (b) => {
+        const tmp = join(topo.dataDir, `.tmp-bench-${b.id}.vtex`);
+        copyFileSync(b.path, tmp);
+        renameSync(tmp, join(topo.dataDir, `${b.id}.vtex`));
+      };
+      results.push(await measure('shared data directory', topo, copyIn, forDir));
     } finally {
       await topo.stop();
     }

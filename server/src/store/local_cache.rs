@@ -3,6 +3,7 @@
 //! their id when read, so a damaged one is fetched again, never served. Best effort: a copy
 //! that cannot be written is logged and the bundle served from memory.
 
+use super::atomic::write_whole;
 use super::dir::DirBundles;
 use crate::byte_lru::ByteLru;
 use std::path::Path;
@@ -60,7 +61,8 @@ impl LocalCache {
         if bytes.len() as u64 > self.budget {
             return;
         }
-        match self.files.create(id, bytes) {
+        // Not synced: a copy a crash cuts short fails its check when read and is fetched again.
+        match write_whole(self.files.dir(), &self.files.path_of(id), bytes, false) {
             Ok(()) => self.keep(id.to_string(), bytes.len() as u64),
             Err(e) => {
                 tracing::warn!(%id, error = %e, dir = %self.files.dir().display(), "cannot keep a local copy of a bundle")
