@@ -44,8 +44,8 @@ impl Bundles {
         }
     }
 
-    /// Whether `id` can be stored, when that is known without waiting on a network: a
-    /// directory is asked at once, an object store not.
+    /// Whether bundle `id` is stored, when that is known without waiting on a network: a
+    /// directory is asked at once, an object store not (`None`).
     pub fn exists_locally(&self, id: &str) -> Option<bool> {
         match self {
             Bundles::Dir(d) => Some(d.exists(id)),
