@@ -96,11 +96,13 @@ export async function startGarage() {
     /** Freezes the server (SIGSTOP): connections open, nothing answers. */
     pause: () => server.kill('SIGSTOP'),
     resume: () => server.kill('SIGCONT'),
-    /** Stops the server (SIGTERM) and waits for it to exit. */
+    /** Stops the server (SIGTERM, SIGKILL after 5 s) and waits for it to exit. */
     async kill() {
       server.kill('SIGCONT');
       server.kill('SIGTERM');
+      const timer = setTimeout(() => server.kill('SIGKILL'), 5000);
       await server.exited;
+      clearTimeout(timer);
     },
     /** Starts it again on the same data and addresses. */
     start,
