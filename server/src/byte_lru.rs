@@ -50,11 +50,11 @@ impl<K: Hash + Eq, V> ByteLru<K, V> {
         Some(w)
     }
 
-    /// Removes the least recently used value; returns its weight.
-    pub fn pop_lru(&mut self) -> Option<u64> {
-        let (_, (_, w)) = self.lru.pop_lru()?;
+    /// Removes the least recently used value; returns its key and weight.
+    pub fn pop_lru(&mut self) -> Option<(K, u64)> {
+        let (k, (_, w)) = self.lru.pop_lru()?;
         self.bytes -= w;
-        Some(w)
+        Some((k, w))
     }
 
     /// Removes least recently used values until the weights sum to at most `budget`; returns
@@ -62,7 +62,7 @@ impl<K: Hash + Eq, V> ByteLru<K, V> {
     pub fn evict_to(&mut self, budget: u64) -> (u64, u64) {
         let (mut count, mut bytes) = (0, 0);
         while self.bytes > budget {
-            let Some(w) = self.pop_lru() else { break };
+            let Some((_, w)) = self.pop_lru() else { break };
             (count, bytes) = (count + 1, bytes + w);
         }
         (count, bytes)
@@ -99,7 +99,7 @@ mod tests {
         assert_eq!(lru.get("b"), None);
         assert_eq!(lru.bytes(), 90);
         assert_eq!(lru.pop("a"), Some(40));
-        assert_eq!(lru.pop_lru(), Some(50));
+        assert_eq!(lru.pop_lru(), Some(("c", 50)));
         assert!(lru.is_empty() && lru.bytes() == 0);
     }
 }

@@ -251,7 +251,7 @@ pub fn info(args: InfoArgs) -> anyhow::Result<()> {
             let (store, report) =
                 Store::open(&args.data_dir, Bounds::unbounded(args.tile_size), Resources::default(), false)?;
             for (path, why) in report.rejected {
-                eprintln!("skipping {}: {why}", path.display());
+                eprintln!("skipping {path}: {why}");
             }
             let all: Vec<_> = store.list().iter().map(|e| e.info()).collect();
             serde_json::to_string_pretty(&serde_json::json!({ "textures": all }))?

@@ -2,7 +2,7 @@
 //! else its default — one precedence for all, implemented by clap.
 
 use crate::encode::Format;
-use crate::store::Bounds;
+use crate::store::{Bounds, Location, ObjectSettings};
 use crate::transport::{SendLimits, Transport};
 pub use crate::watch::WatchMode;
 use clap::Args;
@@ -72,9 +72,11 @@ pub struct ServeConfig {
         help_heading = heading::NETWORK,
     )]
     pub trusted_proxies: Vec<TrustedProxy>,
-    /// Directory of the texture bundles (`<id>.vtex`).
+    /// Directory of the bundles, or of an object store's local copies.
     ///
-    /// Bundles are content-addressed. Created if missing; it must be readable, and writable unless `--read-only`.
+    /// The bundles are files `<id>.vtex`; with `--store s3://…`, this replica's copies of them. Bundles are
+    /// content-addressed. Created if missing; it must be readable, and writable unless `--read-only` (and
+    /// always with an object store, see `--store`).
     #[arg(
         long,
         value_name = "DIR",
@@ -83,6 +85,50 @@ pub struct ServeConfig {
         help_heading = heading::STORE,
     )]
     pub data_dir: PathBuf,
+    /// Where the bundles live: `s3://bucket/prefix`, or a directory [default: --data-dir].
+    ///
+    /// `s3://`: objects `<prefix>/<id>.vtex` of a bucket of an S3-compatible object store, which replicas share and
+    /// nothing else; the client is configured by the usual variables (`AWS_ACCESS_KEY_ID`, `AWS_SECRET_ACCESS_KEY`,
+    /// `AWS_REGION`, `AWS_ENDPOINT_URL`, `AWS_ALLOW_HTTP`), and `--data-dir` holds this replica's own copies of the
+    /// encodings. A `file:///path` URL or a path: that data directory, in place of `--data-dir`.
+    #[arg(long, value_name = "URL", env = "VTEX_STORE", help_heading = heading::STORE)]
+    pub store: Option<Location>,
+    /// Byte budget of the local copies of an object store's bundles, in MiB.
+    ///
+    /// Kept in `--data-dir`, least recently used removed first; a texture whose copy was removed is fetched again
+    /// when it next loads.
+    #[arg(
+        long,
+        value_name = "MIB",
+        env = "VTEX_STORE_CACHE_MB",
+        default_value_t = 1024.0,
+        help_heading = heading::STORE,
+    )]
+    pub store_cache_mb: f64,
+    /// Seconds between listings of an object store.
+    ///
+    /// How long a texture another replica stores may be missing from this replica's list, or one it deletes may
+    /// stay in it (a request for its id finds a new one at once).
+    #[arg(
+        long,
+        value_name = "SECS",
+        env = "VTEX_STORE_POLL_SECS",
+        default_value_t = 5.0,
+        help_heading = heading::STORE,
+    )]
+    pub store_poll_secs: f64,
+    /// Longest an object-store call may take, retries included, in seconds.
+    ///
+    /// Past it the request that needed it is answered 503 with `Retry-After`; for a second after a failure, calls
+    /// fail at once.
+    #[arg(
+        long,
+        value_name = "SECS",
+        env = "VTEX_STORE_TIMEOUT_SECS",
+        default_value_t = 10.0,
+        help_heading = heading::STORE,
+    )]
+    pub store_timeout_secs: f64,
     /// Byte budget of the encoded-tile cache, in MiB.
     ///
     /// Fractions allowed.
@@ -335,7 +381,7 @@ pub struct ServeConfig {
         help_heading = heading::WRITES,
     )]
     pub cors_write_origins: Vec<String>,
-    /// Follow other processes' bundles.
+    /// Follow other processes' writes.
     ///
     /// How the store learns of bundles other processes add to or delete from the data directory.
     ///
@@ -414,6 +460,9 @@ impl ServeConfig {
         positive(self.textures_mb, "textures-mb")?;
         positive(self.store_mb, "store-mb")?;
         positive(self.inflight_mb, "inflight-mb")?;
+        positive(self.store_cache_mb, "store-cache-mb")?;
+        positive(self.store_poll_secs, "store-poll-secs")?;
+        positive(self.store_timeout_secs, "store-timeout-secs")?;
         let largest = self.largest_response_bytes();
         if self.inflight_bytes() < largest {
             return Err(format!(
@@ -510,6 +559,26 @@ impl ServeConfig {
             max_textures: self.max_textures,
             max_store_bytes: mib(self.store_mb),
         }
+    }
+
+    /// Where the bundles live: `--store`, else `--data-dir`.
+    pub fn location(&self) -> Location {
+        self.store.clone().unwrap_or_else(|| Location::Dir(self.data_dir.clone()))
+    }
+
+    /// The settings of the object store `--store` names: its bucket and prefix.
+    pub fn object_settings(&self, bucket: String, prefix: String) -> ObjectSettings {
+        ObjectSettings {
+            bucket,
+            prefix,
+            cache_dir: self.data_dir.clone(),
+            cache_bytes: (self.store_cache_mb * 1024.0 * 1024.0) as u64,
+            deadline: Duration::from_secs_f64(self.store_timeout_secs),
+        }
+    }
+
+    pub fn store_poll(&self) -> Duration {
+        Duration::from_secs_f64(self.store_poll_secs)
     }
 
     pub fn syntheses(&self) -> usize {

@@ -1,7 +1,8 @@
 //! The directory watch: tells the store of bundles that other processes sharing the data
 //! directory (replicas, an operator copying files in) add or delete, so that the texture list
-//! of every replica follows the directory. Lookups by id do not wait for it: the store also
-//! looks in the directory on a miss ([`crate::store::Store::find`]).
+//! of every replica follows the directory; and its counterpart for an object store, a poll
+//! ([`poll`]). Lookups by id do not wait for either: the store also looks on a miss
+//! ([`crate::store::Store::find`]).
 
 use crate::store::Store;
 use notify::{Event, PollWatcher, RecommendedWatcher, RecursiveMode, Watcher};
@@ -89,4 +90,17 @@ impl Watch {
         })?;
         Ok(())
     }
+}
+
+/// Lists the object store every `every` on a thread of its own, for as long as the process
+/// lives, so that the texture list follows what other replicas store and delete. A listing
+/// that fails leaves the list as it was.
+pub fn poll(store: Arc<Store>, every: Duration) -> std::io::Result<()> {
+    std::thread::Builder::new().name("vtex-store-poll".into()).spawn(move || loop {
+        std::thread::sleep(every);
+        if let Err(e) = store.rescan() {
+            tracing::debug!(error = %e, "listing the object store failed");
+        }
+    })?;
+    Ok(())
 }

@@ -1,6 +1,7 @@
 // The topology of docker/compose.yaml on loopback: N `vtex serve` processes on one data
-// directory behind Debian's nginx, run from docker/nginx.conf itself with only its upstream
-// addresses, listen address and paths rewritten. Used by the replicas test and the benchmark.
+// directory, or on one object store (garage.mjs), behind Debian's nginx, run from
+// docker/nginx.conf itself with only its upstream addresses, listen address and paths
+// rewritten. Used by the replicas tests and the benchmark.
 import { spawn } from 'node:child_process';
 import { chmodSync, mkdirSync, mkdtempSync, readFileSync, rmSync, writeFileSync, existsSync } from 'node:fs';
 import { createServer } from 'node:net';
@@ -46,10 +47,11 @@ export function nginxConf(upstreams, listen, dir) {
   return conf;
 }
 
-/** Starts one `vtex serve`; resolves with { url, addr, proc, stderr(), exited } once it listens. */
-export async function startReplica(dataDir, { args = [], env = {} } = {}) {
+/** Starts one `vtex serve` on `bind` (a free port by default); resolves with { url, addr,
+ * dataDir, proc, stderr(), exited } once it listens. */
+export async function startReplica(dataDir, { args = [], env = {}, bind = '127.0.0.1:0' } = {}) {
   if (!existsSync(VTEX_BIN)) throw new Error(`${VTEX_BIN} not found: run cargo build --release -p vtex-server`);
-  const proc = spawn(VTEX_BIN, ['serve', '--bind', '127.0.0.1:0', '--data-dir', dataDir, ...args], {
+  const proc = spawn(VTEX_BIN, ['serve', '--bind', bind, '--data-dir', dataDir, ...args], {
     stdio: ['ignore', 'pipe', 'pipe'],
     env: { ...process.env, VTEX_LOG: 'warn', ...env },
   });
@@ -72,24 +74,31 @@ export async function startReplica(dataDir, { args = [], env = {} } = {}) {
       reject(new Error(`vtex exited with ${code} before listening:\n${stderr}`));
     });
   });
-  return { url, addr: url.replace('http://', ''), proc, exited, stderr: () => stderr };
+  return { url, addr: url.replace('http://', ''), dataDir, proc, exited, stderr: () => stderr };
 }
 
-/** Starts `replicas` vtex processes on one fresh data directory (the first alone, writing the
- * demos; then the others) and nginx in front, its configuration passed through `editConf` (a
- * benchmark's variant). `stop()` ends them all and removes the files. */
-export async function startTopology({ replicas = 3, env = {}, args = [], editConf = (conf) => conf } = {}) {
+/** Starts `replicas` vtex processes (the first alone, writing the demos; then the others) and
+ * nginx in front, its configuration passed through `editConf` (a benchmark's variant). They
+ * share one fresh data directory; or, given `store` (`s3://…`, its client configured by `env`),
+ * only that object store, each with a data directory of its own for its copies. `restart(i)`
+ * replaces replica i on its address; `stop()` ends them all and removes the files. */
+export async function startTopology({ replicas = 3, env = {}, args = [], store = null, editConf = (conf) => conf } = {}) {
   const dir = mkdtempSync(join(tmpdir(), 'vtex-replicas-'));
   // nginx's workers run as an unprivileged user when started as root: they write the cache here.
   chmodSync(dir, 0o755);
+  let dirs = 0;
   const dataDir = join(dir, 'data');
+  const replicaDir = () => (store ? join(dir, `data-${dirs++}`) : dataDir);
+  const replicaArgs = store ? [...args, '--store', store] : args;
   const nginxDir = join(dir, 'nginx');
   mkdirSync(join(nginxDir, 'cache'), { recursive: true });
   chmodSync(join(nginxDir, 'cache'), 0o777);
-  const started = [await startReplica(dataDir, { args, env })];
+  const started = [await startReplica(replicaDir(), { args: replicaArgs, env })];
   started.push(
     ...(await Promise.all(
-      Array.from({ length: replicas - 1 }, () => startReplica(dataDir, { args: [...args, '--no-demos'], env })),
+      Array.from({ length: replicas - 1 }, () =>
+        startReplica(replicaDir(), { args: [...replicaArgs, '--no-demos'], env }),
+      ),
     )),
   );
   const port = await freePort();
@@ -119,6 +128,15 @@ export async function startTopology({ replicas = 3, env = {}, args = [], editCon
     replicas: started,
     accessLog: () => readFileSync(join(nginxDir, 'access.log'), 'utf8'),
     nginxStderr: () => nginxErr,
+    /** Stops replica `i` with SIGTERM (it drains) and starts another on its address, over a new
+     * empty data directory of its own when there is an object store. */
+    async restart(i) {
+      const old = started[i];
+      old.proc.kill('SIGTERM');
+      await old.exited;
+      started[i] = await startReplica(replicaDir(), { args: [...replicaArgs, '--no-demos'], env, bind: old.addr });
+      return started[i];
+    },
     async stop() {
       for (const r of started) if (r.proc.exitCode === null && r.proc.signalCode === null) r.proc.kill('SIGKILL');
       await Promise.all(started.map((r) => r.exited));

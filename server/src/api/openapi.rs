@@ -23,7 +23,8 @@ pub mod text {
     pub const NOT_ACCEPTABLE: &str =
         "`Accept` allows neither JSON-LD (with the document's context as `profile`) nor JSON";
     pub const OVER_BOUND: &str = "over a cost bound of the server";
-    pub const UNAVAILABLE: &str = "synthesis queue full, in-flight budget spent or shutting down (`Retry-After`)";
+    pub const UNAVAILABLE: &str =
+        "synthesis queue full, in-flight budget spent, object store unreachable or shutting down (`Retry-After`)";
 }
 
 /// Every error's body.

@@ -59,7 +59,7 @@ impl Engine {
     /// when another process wrote it).
     pub async fn record(&self, id: &str) -> Result<Arc<Record>, Error> {
         check_id(id)?;
-        self.store.find(id).await.ok_or_else(|| no_texture(id))
+        self.store.find(id).await.map_err(store_failure)?.ok_or_else(|| no_texture(id))
     }
 
     /// Texture `id`, loaded: on its first use (or after its eviction) off the I/O threads.
@@ -71,7 +71,7 @@ impl Engine {
             Err(StoreError::Invalid(e)) => {
                 Err(Error::failed("the stored texture failed validation when loaded; it is no longer served", e))
             }
-            Err(e) => Err(Error::failed("loading the stored texture failed", e)),
+            Err(e) => Err(store_failure(e)),
         }
     }
 
@@ -289,6 +289,17 @@ pub fn check_id(id: &str) -> Result<(), Error> {
     }
     Err(Error::Invalid(format!("invalid texture id `{}`: expected 64 lowercase hex characters", echo(id))))
 }
+
+/// A store that cannot be reached now is a 503 to retry; anything else the server's failure.
+pub fn store_failure(e: StoreError) -> Error {
+    match e {
+        StoreError::Unavailable(_) => Error::Busy(STORE_UNAVAILABLE.into()),
+        e => Error::failed("reading the store failed", e),
+    }
+}
+
+/// What a client is told when the object store does not answer (its cause is logged).
+pub const STORE_UNAVAILABLE: &str = "the object store holding the encodings cannot be reached now; retry shortly";
 
 fn no_texture(id: &str) -> Error {
     Error::Missing(format!("no texture with id {id}"))

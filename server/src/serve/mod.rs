@@ -36,7 +36,7 @@ mod lifetime;
 
 use crate::api::state::AppState;
 use crate::config::ServeConfig;
-use crate::store::Store;
+use crate::store::{Bundles, Location, ObjectBundles, OpenReport, Store};
 use crate::transport::{InputProbe, SendLimits, Transport};
 use crate::watch::Watch;
 use admission::{Admission, Refusal, Ticket, Verdict};
@@ -93,20 +93,10 @@ pub async fn run(
         .await
         .map_err(|e| anyhow::anyhow!("cannot listen on {}: {}", cfg.bind, io_message(&e)))?;
     let t0 = Instant::now();
-    let (dir, bounds, watch, write) = (cfg.data_dir.clone(), cfg.store_bounds(), cfg.watch, !cfg.read_only);
-    let resources = Resources::new(cfg.synth_cache_bytes());
-    let demos = write && !cfg.no_demos;
-    // The watch starts before the store lists the directory, so nothing added meanwhile is missed.
-    let (store, report, watch) = tokio::task::spawn_blocking(move || {
-        check_data_dir(&dir, write)?;
-        let watch = Watch::start(&dir, watch).map_err(anyhow::Error::msg)?;
-        let (store, report) = Store::open(&dir, bounds, resources, demos)
-            .map_err(|e| anyhow::anyhow!("cannot open data directory {}: {}", dir.display(), io_message(&e)))?;
-        anyhow::Ok((Arc::new(store), report, watch))
-    })
-    .await??;
-    for (path, why) in &report.rejected {
-        tracing::warn!(path = %path.display(), reason = %why, "not serving an invalid file in the data directory");
+    let opening = cfg.clone();
+    let (store, report, follow) = tokio::task::spawn_blocking(move || open_store(&opening)).await??;
+    for (at, why) in &report.rejected {
+        tracing::warn!(%at, reason = %why, "not serving an invalid bundle of the store");
     }
     for (path, why) in &report.stale_temp_kept {
         tracing::warn!(path = %path.display(), reason = %why, "could not remove a stale temporary file; left in place");
@@ -115,16 +105,18 @@ pub async fn run(
         tracing::warn!(demo = %name, reason = %why, "demo not written: over the store's bounds");
     }
     tracing::info!(
-        data_dir = %cfg.data_dir.display(),
+        store = %store.bundles(),
         textures = store.len(),
         demos_written = report.demos_written,
         stale_temp_removed = report.stale_temp_removed,
-        watch = watch.as_ref().map_or("off", |w| w.how),
+        follow = %follow,
         ms = t0.elapsed().as_millis() as u64,
         "store opened"
     );
-    if let Some(watch) = watch {
-        watch.follow(store.clone())?;
+    match follow {
+        Follow::Watch(Some(watch)) => watch.follow(store.clone())?,
+        Follow::Watch(None) => {}
+        Follow::Poll(every) => crate::watch::poll(store.clone(), every)?,
     }
     match &cfg.web_dir {
         Some(dir) if !dir.join("index.html").is_file() => {
@@ -196,6 +188,56 @@ pub async fn run(
             .map_err(|_| anyhow::anyhow!("an I/O thread panicked"))??;
     }
     Ok(())
+}
+
+/// How the store follows what other processes store and delete.
+enum Follow {
+    /// The data directory's watch (`None`: `--watch off`).
+    Watch(Option<Watch>),
+    /// The object store's listing, this often.
+    Poll(Duration),
+}
+
+impl std::fmt::Display for Follow {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            Follow::Watch(watch) => f.write_str(watch.as_ref().map_or("off", |w| w.how)),
+            Follow::Poll(every) => write!(f, "listing every {} s", every.as_secs_f64()),
+        }
+    }
+}
+
+/// Opens the store `cfg` names, and how it follows other processes: checks the data
+/// directory (the bundles' or the local copies'), then indexes the bundles and writes the
+/// demos. Blocking.
+fn open_store(cfg: &ServeConfig) -> anyhow::Result<(Arc<Store>, OpenReport, Follow)> {
+    let write = !cfg.read_only;
+    let demos = write && !cfg.no_demos;
+    let resources = Resources::new(cfg.synth_cache_bytes());
+    let mut report = OpenReport::default();
+    let (store, follow) = match cfg.location() {
+        Location::S3 { bucket, prefix } => {
+            let settings = cfg.object_settings(bucket, prefix);
+            // The local copies are written whatever `--read-only` says.
+            check_data_dir(&settings.cache_dir, true)?;
+            let bundles = ObjectBundles::open(&settings).map_err(anyhow::Error::msg)?;
+            let url = bundles.url().to_string();
+            let store =
+                Store::open_in(Bundles::Object(Box::new(bundles)), cfg.store_bounds(), resources, demos, &mut report)
+                    .map_err(|e| anyhow::anyhow!("cannot open the object store {url}: {e}"))?;
+            (store, Follow::Poll(cfg.store_poll()))
+        }
+        Location::Dir(dir) => {
+            check_data_dir(&dir, write)?;
+            // The watch starts before the store lists the directory, so nothing added meanwhile is missed.
+            let watch = Watch::start(&dir, cfg.watch).map_err(anyhow::Error::msg)?;
+            let (store, opened) = Store::open(&dir, cfg.store_bounds(), resources, demos)
+                .map_err(|e| anyhow::anyhow!("cannot open data directory {}: {}", dir.display(), io_message(&e)))?;
+            report = opened;
+            (store, Follow::Watch(watch))
+        }
+    };
+    Ok((Arc::new(store), report, follow))
 }
 
 /// Checks the data directory before anything is written to it: a directory (created if

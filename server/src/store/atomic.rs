@@ -9,6 +9,13 @@ use std::sync::atomic::{AtomicU64, Ordering};
 /// The temporary name is unique across processes sharing `dir` — even replicas in containers,
 /// which all run as pid 1 — by a random tag drawn once per process.
 pub fn write_atomic(dir: &Path, path: &Path, bytes: &[u8]) -> std::io::Result<()> {
+    write_whole(dir, path, bytes, true)
+}
+
+/// Writes `bytes` to `path` so that readers see all of it or none of it; `durable` also makes
+/// it survive a crash (fsync of the file and the directory). Without it a crash may leave the
+/// file short or empty: for copies checked when read.
+pub(super) fn write_whole(dir: &Path, path: &Path, bytes: &[u8], durable: bool) -> std::io::Result<()> {
     use std::hash::{BuildHasher, RandomState};
     static COUNTER: AtomicU64 = AtomicU64::new(0);
     static PROCESS_TAG: std::sync::OnceLock<u64> = std::sync::OnceLock::new();
@@ -19,10 +26,15 @@ pub fn write_atomic(dir: &Path, path: &Path, bytes: &[u8]) -> std::io::Result<()
     let result = (|| {
         let mut f = std::fs::OpenOptions::new().write(true).create_new(true).open(&tmp)?;
         f.write_all(bytes)?;
-        f.sync_all()?;
+        if durable {
+            f.sync_all()?;
+        }
         drop(f);
         std::fs::rename(&tmp, path)?;
-        sync_dir(dir)
+        if durable {
+            sync_dir(dir)?;
+        }
+        Ok(())
     })();
     if result.is_err() {
         let _ = std::fs::remove_file(&tmp);

@@ -1,14 +1,15 @@
-//! [`Store`]: the index of the data directory's bundles, their writes and deletions, and the
-//! textures loaded from them.
+//! [`Store`]: the index of the stored bundles, their writes and deletions, and the textures
+//! loaded from them. Where the bundles live is [`Bundles`]'s concern.
 
-use super::atomic::{sync_dir, write_atomic};
 use super::budget::{Budgeted, Charge};
-use super::{Entry, Record, BUNDLE_EXT, TEMP_PREFIX};
-use std::collections::{BTreeMap, HashMap};
+use super::bundles::Bundles;
+use super::dir::DirBundles;
+use super::{Entry, Record};
+use std::collections::{BTreeMap, HashMap, HashSet};
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::{Arc, Mutex, RwLock};
-use std::time::{Instant, SystemTime};
+use std::time::Instant;
 use vtex_synth::bundle::{id_of, is_valid_id, Bundle};
 use vtex_synth::models::{self, Limits};
 use vtex_synth::Resources;
@@ -16,7 +17,7 @@ use vtex_synth::Resources;
 /// Age past which a temporary file is a crashed write: a write in progress (of another
 /// process sharing the directory) takes seconds.
 pub const STALE_TEMP_AGE: std::time::Duration = std::time::Duration::from_secs(15 * 60);
-/// How long an id found absent from the directory is answered absent without looking again.
+/// How long an id found absent from the store is answered absent without looking again.
 pub const ABSENT_TTL: std::time::Duration = std::time::Duration::from_secs(2);
 /// Most ids remembered absent; past it the memory starts over.
 const ABSENT_MAX: usize = 16_384;
@@ -30,15 +31,10 @@ pub enum StoreError {
     Full(String),
     #[error("storage failure: {0}")]
     Io(#[from] std::io::Error),
-}
-
-/// A full disk is a full store, not a failure of the server.
-fn write_error(e: std::io::Error) -> StoreError {
-    use std::io::ErrorKind::{QuotaExceeded, StorageFull};
-    match e.kind() {
-        StorageFull | QuotaExceeded => StoreError::Full("the disk holding the store is full".into()),
-        _ => StoreError::Io(e),
-    }
+    /// The object store did not answer, or failed, within its deadline: worth retrying. The
+    /// message is for the log; it may name the endpoint.
+    #[error("the object store is unavailable: {0}")]
+    Unavailable(String),
 }
 
 /// The bounds a serving store keeps.
@@ -59,16 +55,16 @@ impl Bounds {
     }
 }
 
-/// The indexed bundles and the bytes they take on disk.
+/// The indexed bundles and the bytes they take in the store.
 #[derive(Default)]
 struct Index {
     records: BTreeMap<String, Arc<Record>>,
     bytes: u64,
 }
 
-/// The data directory: every servable bundle indexed, textures loaded within the budget.
+/// The stored bundles: every servable one indexed, textures loaded within the budget.
 pub struct Store {
-    dir: PathBuf,
+    bundles: Bundles,
     bounds: Bounds,
     /// What the loaded textures share: the models' caches and work counters.
     resources: Resources,
@@ -78,8 +74,10 @@ pub struct Store {
     /// Held from the last check of the index and the caps to the index holding the new bundle,
     /// so that of identical uploads exactly one is new, and concurrent uploads cannot pass a cap.
     writing: Mutex<()>,
-    /// Ids recently found absent from the directory, and when.
+    /// Ids recently found absent from the store, and when.
     absent: Mutex<HashMap<String, Instant>>,
+    /// Names listed but refused, with the version refused: read again only once it changes.
+    refused: Mutex<HashMap<String, String>>,
 }
 
 /// What [`Store::open`] found, for the start-up log.
@@ -90,15 +88,23 @@ pub struct OpenReport {
     pub stale_temp_removed: usize,
     /// Temporary files of crashed writes that could not be removed: left in place, never served.
     pub stale_temp_kept: Vec<(PathBuf, String)>,
-    /// Files that are not valid bundles (wrong name, hash mismatch, invalid, over the bounds):
-    /// left alone, not served.
-    pub rejected: Vec<(PathBuf, String)>,
+    /// Where bundles that are not valid are stored (a path or a URL: wrong name, hash
+    /// mismatch, invalid, over the bounds), and why: left alone, not served.
+    pub rejected: Vec<(String, String)>,
     /// Demos over the bounds or the caps, by name: not written.
     pub demos_refused: Vec<(String, String)>,
 }
 
+/// What is stored under a name, once read and planned.
+enum Found {
+    Servable(Box<Record>),
+    Absent,
+    /// Not a servable bundle, and why.
+    Refused(String),
+}
+
 impl Store {
-    /// Opens (creating if needed) the data directory: removes temporary files of crashed
+    /// Opens (creating if needed) the data directory `dir`: removes temporary files of crashed
     /// writes, indexes every bundle within `bounds`, and writes the demos into an empty
     /// directory.
     pub fn open(
@@ -107,9 +113,29 @@ impl Store {
         resources: Resources,
         write_demos: bool,
     ) -> std::io::Result<(Store, OpenReport)> {
-        std::fs::create_dir_all(dir)?;
+        let (files, cleanup) = DirBundles::open(dir)?;
+        let mut report =
+            OpenReport { stale_temp_removed: cleanup.removed, stale_temp_kept: cleanup.kept, ..Default::default() };
+        let store =
+            Store::open_in(Bundles::Dir(files), bounds, resources, write_demos, &mut report).map_err(|e| match e {
+                StoreError::Io(e) => e,
+                e => std::io::Error::other(e.to_string()),
+            })?;
+        Ok((store, report))
+    }
+
+    /// Indexes every bundle of `bundles` within `bounds`, and writes the demos when there are
+    /// none, adding what it found to `report`. Fails when the bundles cannot be listed, or an
+    /// object store does not answer.
+    pub fn open_in(
+        bundles: Bundles,
+        bounds: Bounds,
+        resources: Resources,
+        write_demos: bool,
+        report: &mut OpenReport,
+    ) -> Result<Store, StoreError> {
         let store = Store {
-            dir: dir.to_path_buf(),
+            bundles,
             bounds,
             resources,
             index: Default::default(),
@@ -117,66 +143,65 @@ impl Store {
             loads: AtomicU64::new(0),
             writing: Mutex::new(()),
             absent: Default::default(),
+            refused: Default::default(),
         };
-        let mut report = OpenReport::default();
-        let mut bundles = Vec::new();
-        for item in std::fs::read_dir(dir)? {
-            let item = item?;
-            let name = item.file_name().to_string_lossy().into_owned();
-            if name.starts_with(TEMP_PREFIX) {
-                let age = item.metadata().and_then(|m| m.modified()).map(|t| SystemTime::now().duration_since(t));
-                if !matches!(age, Ok(Ok(age)) if age >= STALE_TEMP_AGE) {
-                    continue; // a write in progress, perhaps another process's
+        let mut listed = store.bundles.list()?;
+        listed.sort_by(|a, b| a.name.cmp(&b.name));
+        for item in &listed {
+            match store.read_and_plan(&item.name)? {
+                Found::Servable(record) => store.insert(Arc::new(*record)),
+                Found::Absent => {}
+                Found::Refused(why) => {
+                    report.rejected.push((store.bundles.name_of(&item.name), why));
+                    store.refused.lock().unwrap().insert(item.name.clone(), item.version.clone());
                 }
-                match std::fs::remove_file(item.path()) {
-                    Ok(()) => report.stale_temp_removed += 1,
-                    Err(e) => report.stale_temp_kept.push((item.path(), e.to_string())),
-                }
-            } else if name.ends_with(&format!(".{BUNDLE_EXT}")) {
-                bundles.push(item.path());
-            }
-        }
-        if report.stale_temp_removed > 0 {
-            sync_dir(dir)?;
-        }
-        bundles.sort();
-        for path in &bundles {
-            match store.index_file(path) {
-                Ok(record) => store.insert(Arc::new(record)),
-                Err(why) => report.rejected.push((path.clone(), why)),
             }
         }
         report.indexed = store.len();
-        if bundles.is_empty() && write_demos {
+        if listed.is_empty() && write_demos {
             for demo in models::demos() {
                 match store.put(demo.to_bytes()) {
                     Ok((_, created)) => report.demos_written += created as usize,
-                    Err(StoreError::Io(e)) => return Err(e),
+                    Err(e @ (StoreError::Io(_) | StoreError::Unavailable(_))) => return Err(e),
                     Err(e @ (StoreError::Full(_) | StoreError::Invalid(vtex_synth::Error::TooCostly { .. }))) => {
                         report.demos_refused.push((demo.manifest.name.clone(), e.to_string()))
                     }
                     Err(StoreError::Invalid(e)) => {
-                        return Err(std::io::Error::other(format!("demo `{}` is invalid: {e}", demo.manifest.name)))
+                        return Err(StoreError::Io(std::io::Error::other(format!(
+                            "demo `{}` is invalid: {e}",
+                            demo.manifest.name
+                        ))))
                     }
                 }
             }
         }
-        Ok((store, report))
+        Ok(store)
     }
 
-    /// Reads and plans one stored bundle, checking its name against its content.
-    fn index_file(&self, path: &Path) -> Result<Record, String> {
-        let stem = path.file_stem().and_then(|s| s.to_str()).unwrap_or("");
-        if !is_valid_id(stem) {
-            return Err("file name is not a bundle id".into());
+    /// Reads and plans what is stored under `name`, checking the name against the content.
+    /// Fails only when the store cannot be reached.
+    fn read_and_plan(&self, name: &str) -> Result<Found, StoreError> {
+        if !is_valid_id(name) {
+            return Ok(Found::Refused("its name is not a bundle id".into()));
         }
-        let bytes = std::fs::read(path).map_err(|e| e.to_string())?;
-        let bundle = Bundle::from_bytes(&bytes).map_err(|e| e.to_string())?;
+        let bytes = match self.bundles.read(name) {
+            Ok(Some(bytes)) => bytes,
+            Ok(None) => return Ok(Found::Absent),
+            Err(e @ StoreError::Unavailable(_)) => return Err(e),
+            Err(e) => return Ok(Found::Refused(e.to_string())),
+        };
+        let bundle = match Bundle::from_bytes(&bytes) {
+            Ok(bundle) => bundle,
+            Err(e) => return Ok(Found::Refused(e.to_string())),
+        };
         let id = id_of(&bytes);
-        if id != stem {
-            return Err(format!("content hash {id} does not match the file name"));
+        if id != name {
+            return Ok(Found::Refused(format!("content hash {id} does not match the name it is stored under")));
         }
-        Record::plan(&bundle, id, bytes.len(), self.bounds.tile_size, &self.bounds.limits).map_err(|e| e.to_string())
+        Ok(match Record::plan(&bundle, id, bytes.len(), self.bounds.tile_size, &self.bounds.limits) {
+            Ok(record) => Found::Servable(Box::new(record)),
+            Err(e) => Found::Refused(e.to_string()),
+        })
     }
 
     fn insert(&self, record: Arc<Record>) {
@@ -190,7 +215,7 @@ impl Store {
 
     /// Stops serving `id`: its bundle failed validation when loaded, or vanished.
     fn drop_record(&self, id: &str, why: &dyn std::fmt::Display) {
-        tracing::warn!(%id, reason = %why, "the stored bundle cannot be loaded; no longer serving it");
+        tracing::warn!(%id, at = %self.bundles.name_of(id), reason = %why, "the stored bundle cannot be loaded; no longer serving it");
         self.forget(id);
     }
 
@@ -204,25 +229,26 @@ impl Store {
         true
     }
 
-    /// What the store knows of texture `id`, looking in the directory when it is not indexed
-    /// (another process may have written it): a cheap existence check on the caller's thread,
-    /// and only for a file that exists, reading and planning it on the blocking pool. An id
-    /// found absent is answered absent for [`ABSENT_TTL`] without looking again. `id` must be
-    /// a valid id.
-    pub async fn find(self: &Arc<Self>, id: &str) -> Option<Arc<Record>> {
+    /// What the store knows of texture `id`, looking in the store when it is not indexed
+    /// (another process may have written it): a directory is asked on the caller's thread,
+    /// and only a bundle that exists is read and planned on the blocking pool, where an object
+    /// store is asked. An id found absent is answered absent for [`ABSENT_TTL`] without
+    /// looking again. `id` must be a valid id. Fails when an object store cannot be reached.
+    pub async fn find(self: &Arc<Self>, id: &str) -> Result<Option<Arc<Record>>, StoreError> {
         if let Some(record) = self.record(id) {
-            return Some(record);
+            return Ok(Some(record));
         }
         if self.known_absent(id) {
-            return None;
+            return Ok(None);
         }
-        let path = self.path_of(id);
-        if !path.is_file() {
+        if self.bundles.exists_locally(id) == Some(false) {
             self.remember_absent(id);
-            return None;
+            return Ok(None);
         }
-        let store = self.clone();
-        tokio::task::spawn_blocking(move || store.refresh(&path)).await.ok().flatten()
+        let (store, id) = (self.clone(), id.to_string());
+        tokio::task::spawn_blocking(move || store.refresh_id(&id))
+            .await
+            .map_err(|e| StoreError::Io(std::io::Error::other(format!("looking up the bundle panicked: {e}"))))?
     }
 
     fn known_absent(&self, id: &str) -> bool {
@@ -241,77 +267,104 @@ impl Store {
         absent.insert(id.to_string(), Instant::now());
     }
 
-    /// Brings the index in line with the file at `path` (a bundle that appeared, changed or
-    /// vanished; anything else is ignored) and returns its record when it is served. Blocking.
-    /// A file that is not (yet) a valid bundle — one still being copied in — is not served
-    /// until a later refresh finds it whole.
+    /// Brings the index in line with the file at `path` of the data directory (a bundle that
+    /// appeared, changed or vanished; anything else is ignored) and returns its record when
+    /// it is served: for the directory watch. Blocking.
     pub fn refresh(&self, path: &Path) -> Option<Arc<Record>> {
-        let name = path.file_name()?.to_str()?;
-        let id = name.strip_suffix(&format!(".{BUNDLE_EXT}")).filter(|id| is_valid_id(id))?;
-        let path = &self.path_of(id);
-        if !path.is_file() {
+        let id = DirBundles::id_of_path(path)?;
+        self.refresh_id(id).unwrap_or_else(|e| {
+            tracing::warn!(%id, error = %e, "cannot look at a bundle of the data directory");
+            None
+        })
+    }
+
+    /// Brings the index in line with what is stored under `id` and returns its record when it
+    /// is served. What is not (yet) a valid bundle — a file still being copied in — is not
+    /// served until a later refresh finds it whole. Blocking.
+    fn refresh_id(&self, id: &str) -> Result<Option<Arc<Record>>, StoreError> {
+        if let Some(record) = self.record(id) {
+            if self.bundles.exists(id)? {
+                return Ok(Some(record));
+            }
             if self.forget(id) {
-                tracing::info!(%id, "bundle gone from the data directory; no longer serving it");
+                tracing::info!(%id, "bundle gone from the store; no longer serving it");
             }
             self.remember_absent(id);
-            return None;
+            return Ok(None);
         }
-        if let Some(record) = self.record(id) {
-            return Some(record);
-        }
-        match self.index_file(path) {
-            Ok(record) => {
-                let record = Arc::new(record);
-                self.insert(record.clone());
-                tracing::info!(%id, name = %record.manifest.name, "bundle found in the data directory; serving it");
-                Some(record)
-            }
-            Err(why) => {
-                tracing::debug!(%id, reason = %why, "not serving a bundle of the data directory (yet)");
+        match self.read_and_plan(id)? {
+            Found::Servable(record) => Ok(Some(self.admit(*record))),
+            Found::Absent => {
                 self.remember_absent(id);
-                None
+                Ok(None)
+            }
+            Found::Refused(why) => {
+                tracing::debug!(%id, at = %self.bundles.name_of(id), reason = %why, "not serving a stored bundle (yet)");
+                self.remember_absent(id);
+                Ok(None)
             }
         }
     }
 
-    /// Lists the directory again: indexes bundles that appeared and forgets those that are
-    /// gone (after the watch lost events). Blocking.
-    pub fn rescan(&self) -> std::io::Result<()> {
-        let mut present = std::collections::HashSet::new();
-        for item in std::fs::read_dir(&self.dir)? {
-            let path = item?.path();
-            if let Some(record) = self.refresh(&path) {
-                present.insert(record.id.clone());
+    /// Indexes a bundle found in the store.
+    fn admit(&self, record: Record) -> Arc<Record> {
+        let record = Arc::new(record);
+        self.insert(record.clone());
+        tracing::info!(id = %record.id, name = %record.manifest.name, "bundle found in the store; serving it");
+        record
+    }
+
+    /// Lists the store again: indexes bundles that appeared and forgets those that are gone
+    /// (the object store's poll; the directory watch after it lost events). What was refused
+    /// is read again only once its version changes, and reported once per version. Blocking.
+    pub fn rescan(&self) -> Result<(), StoreError> {
+        // Only what was indexed before the listing can be missing from it: a bundle this
+        // process stores meanwhile is not taken for gone.
+        let before: Vec<String> = self.index.read().unwrap().records.keys().cloned().collect();
+        let listed = self.bundles.list()?;
+        let mut present = HashSet::new();
+        for item in listed {
+            present.insert(item.name.clone());
+            if self.record(&item.name).is_some() || self.refused.lock().unwrap().get(&item.name) == Some(&item.version)
+            {
+                continue;
+            }
+            match self.read_and_plan(&item.name)? {
+                Found::Servable(record) => {
+                    self.admit(*record);
+                    self.refused.lock().unwrap().remove(&item.name);
+                }
+                Found::Absent => {}
+                Found::Refused(why) => {
+                    tracing::warn!(at = %self.bundles.name_of(&item.name), reason = %why, "not serving an invalid bundle of the store");
+                    self.refused.lock().unwrap().insert(item.name, item.version);
+                }
             }
         }
-        let gone: Vec<String> =
-            self.list().into_iter().map(|r| r.id.clone()).filter(|id| !present.contains(id)).collect();
-        for id in gone {
-            self.refresh(&self.path_of(&id));
+        for id in before.iter().filter(|id| !present.contains(*id)) {
+            if self.forget(id) {
+                tracing::info!(%id, "bundle gone from the store; no longer serving it");
+            }
+            self.remember_absent(id);
         }
+        self.refused.lock().unwrap().retain(|name, _| present.contains(name));
         Ok(())
     }
 
-    /// Deletes texture `id`: its bundle leaves the directory (durably) and the index; requests
-    /// in flight finish with the texture they hold. False when no such bundle is stored.
+    /// Deletes texture `id`: its bundle leaves the store (durably) and the index; requests in
+    /// flight finish with the texture they hold. False when no such bundle is stored.
     /// Blocking.
     pub fn remove(&self, id: &str) -> Result<bool, StoreError> {
         let _writing = self.writing.lock().unwrap();
-        let existed = match std::fs::remove_file(self.path_of(id)) {
-            Ok(()) => {
-                sync_dir(&self.dir)?;
-                true
-            }
-            Err(e) if e.kind() == std::io::ErrorKind::NotFound => false,
-            Err(e) => return Err(e.into()),
-        };
+        let existed = self.bundles.delete(id)?;
         let indexed = self.forget(id);
         self.remember_absent(id);
         Ok(existed || indexed)
     }
 
-    pub fn dir(&self) -> &Path {
-        &self.dir
+    /// Where the bundles live.
+    pub fn bundles(&self) -> &Bundles {
+        &self.bundles
     }
 
     pub fn bounds(&self) -> &Bounds {
@@ -330,7 +383,7 @@ impl Store {
         if let Some(entry) = self.loaded.get(id) {
             return Ok(Some(entry));
         }
-        let Some(record) = self.find(id).await else { return Ok(None) };
+        let Some(record) = self.find(id).await? else { return Ok(None) };
         let turn = record.loading.clone().lock_owned().await;
         if let Some(entry) = self.loaded.get(id) {
             return Ok(Some(entry));
@@ -350,29 +403,43 @@ impl Store {
         .map_err(|e| StoreError::Io(std::io::Error::other(format!("loading the texture panicked: {e}"))))?
     }
 
+    /// The bytes of indexed bundle `id` exactly as stored, checked against its id: a bundle
+    /// whose content no longer matches is dropped like one that fails to load. Blocking.
+    pub fn bytes_of(&self, id: &str) -> Result<Vec<u8>, StoreError> {
+        let result = self.read_checked(id);
+        self.drop_if_broken(id, &result);
+        result
+    }
+
+    fn read_checked(&self, id: &str) -> Result<Vec<u8>, StoreError> {
+        match self.bundles.read(id)? {
+            Some(bytes) if id_of(&bytes) == id => Ok(bytes),
+            Some(_) => Err(vtex_synth::Error::bundle("its content no longer matches its id").into()),
+            None => Err(std::io::Error::from(std::io::ErrorKind::NotFound).into()),
+        }
+    }
+
+    /// Drops `id` when `result` says its stored bundle is invalid or gone.
+    fn drop_if_broken<T>(&self, id: &str, result: &Result<T, StoreError>) {
+        match result {
+            Err(StoreError::Invalid(e)) => self.drop_record(id, e),
+            Err(StoreError::Io(e)) if e.kind() == std::io::ErrorKind::NotFound => self.drop_record(id, e),
+            _ => {}
+        }
+    }
+
     /// Reads, validates completely and loads `record`'s texture within the budget. Blocking.
     fn load(&self, record: Arc<Record>) -> Result<Arc<Entry>, StoreError> {
-        let read = || -> Result<Bundle, StoreError> {
-            let bytes = std::fs::read(self.path_of(&record.id))?;
-            if id_of(&bytes) != record.id {
-                return Err(vtex_synth::Error::bundle("its content no longer matches its id").into());
-            }
-            Ok(Bundle::from_bytes(&bytes)?)
-        };
         let id = record.id.clone();
-        let result = read().and_then(|bundle| {
+        let result = self.read_checked(&id).and_then(|bytes| {
+            let bundle = Bundle::from_bytes(&bytes)?;
             let (entry, charge) = self.load_charged(record, &bundle)?;
             self.loaded.keep(charge, id.clone(), entry.clone());
             Ok(entry)
         });
-        match &result {
-            Err(StoreError::Invalid(e)) => self.drop_record(&id, e),
-            Err(StoreError::Io(e)) if e.kind() == std::io::ErrorKind::NotFound => self.drop_record(&id, e),
-            _ => {}
-        }
+        self.drop_if_broken(&id, &result);
         result
     }
-
     /// Loads `bundle`'s texture with its charge reserved against the budget first.
     fn load_charged(
         &self,
@@ -431,10 +498,6 @@ impl Store {
         all
     }
 
-    pub fn path_of(&self, id: &str) -> PathBuf {
-        self.dir.join(format!("{id}.{BUNDLE_EXT}"))
-    }
-
     /// Refuses `bytes` more of bundles when the store holds its maximum of textures or bytes.
     fn check_caps(&self, bytes: u64) -> Result<(), StoreError> {
         let index = self.index.read().unwrap();
@@ -472,16 +535,17 @@ impl Store {
             return Ok((existing, false));
         }
         self.check_caps(bytes.len() as u64)?;
-        write_atomic(&self.dir, &self.path_of(&entry.id), &bytes).map_err(write_error)?;
+        let created = self.bundles.create(&entry.id, &bytes)?;
         self.insert(entry.record.clone());
         self.loaded.keep(charge, entry.id.clone(), entry.clone());
-        Ok((entry.record.clone(), true))
+        Ok((entry.record.clone(), created))
     }
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+    use std::time::SystemTime;
 
     #[test]
     fn open_removes_stale_temps_and_rejects_garbage() {
@@ -516,7 +580,7 @@ mod tests {
         let bundle = models::demos().into_iter().min_by_key(|b| b.to_bytes().len()).unwrap().to_bytes();
         let (record, created) = other.put(bundle).unwrap();
         assert!(created);
-        let path = store.path_of(&record.id);
+        let path = dir.join(format!("{}.vtex", record.id));
         assert!(store.record(&record.id).is_none(), "indexed only at open or on refresh");
         // Refreshing is idempotent and follows the file both ways.
         assert_eq!(store.refresh(&path).unwrap().id, record.id);
@@ -561,12 +625,39 @@ mod tests {
     }
 
     #[test]
-    fn a_full_disk_is_a_full_store() {
-        for kind in [std::io::ErrorKind::StorageFull, std::io::ErrorKind::QuotaExceeded] {
-            let e = write_error(std::io::Error::from(kind));
-            assert!(matches!(&e, StoreError::Full(m) if m.contains("disk")), "{kind:?}: {e:?}");
-        }
-        let e = write_error(std::io::Error::from(std::io::ErrorKind::PermissionDenied));
-        assert!(matches!(e, StoreError::Io(_)), "{e:?}");
+    fn a_rescan_follows_the_store_and_reads_a_refused_bundle_again_only_once_changed() {
+        let dir = std::env::temp_dir().join(format!("vtex-store-rescan-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&dir);
+        let store = Store::open(&dir, Bounds::unbounded(256), Resources::default(), false).unwrap().0;
+        let other = Store::open(&dir, Bounds::unbounded(256), Resources::default(), false).unwrap().0;
+        let bundle = models::demos().into_iter().min_by_key(|b| b.to_bytes().len()).unwrap().to_bytes();
+        let (record, _) = other.put(bundle.clone()).unwrap();
+        let path = dir.join(format!("{}.vtex", record.id));
+        let set = |bytes: &[u8], at: SystemTime| {
+            std::fs::write(&path, bytes).unwrap();
+            std::fs::File::options().write(true).open(&path).unwrap().set_modified(at).unwrap();
+        };
+        // Damaged in place (same length, same time): refused, with its version remembered.
+        let at = SystemTime::now() - std::time::Duration::from_secs(60);
+        let mut damaged = bundle.clone();
+        damaged[bundle.len() / 2] ^= 0xff;
+        set(&damaged, at);
+        store.rescan().unwrap();
+        assert!(store.is_empty());
+        assert_eq!(store.refused.lock().unwrap().len(), 1);
+        // Whole again but of the same version: not read again.
+        set(&bundle, at);
+        store.rescan().unwrap();
+        assert!(store.is_empty(), "an unchanged version was read again");
+        // A new version is read, and served.
+        set(&bundle, at + std::time::Duration::from_secs(1));
+        store.rescan().unwrap();
+        assert_eq!(store.list().iter().map(|r| r.id.clone()).collect::<Vec<_>>(), vec![record.id.clone()]);
+        assert!(store.refused.lock().unwrap().is_empty());
+        // Gone from the store: forgotten.
+        assert!(other.remove(&record.id).unwrap());
+        store.rescan().unwrap();
+        assert!(store.is_empty());
+        std::fs::remove_dir_all(&dir).unwrap();
     }
 }

@@ -55,7 +55,7 @@ async fn corrupt_files_in_the_data_dir_are_not_served() {
     let c = client();
     let msg = expect_error(&c, &s.url(&format!("/api/v1/textures/{id}")), 404).await;
     assert!(msg.contains("no texture"));
-    assert!(s.log_text().contains("invalid file"), "{}", s.log_text());
+    assert!(s.log_text().contains("not serving an invalid bundle"), "{}", s.log_text());
     assert!(path.exists(), "corrupt files are left for an operator, never deleted");
 }
 

@@ -24,7 +24,7 @@ async fn a_texture_alone_over_the_budget_is_refused() {
     let s = Server::spawn(dir.path(), &["--textures-mb", &small_budget]);
     expect_error(&client(), &s.url(&format!("/api/v1/textures/{id}")), 404).await;
     let log = s.log_text();
-    assert!(log.contains("not serving an invalid file") && log.contains("resident bytes"), "{log}");
+    assert!(log.contains("not serving an invalid bundle") && log.contains("resident bytes"), "{log}");
 }
 
 /// A bundle that fails validation when it is first loaded is logged, dropped from the index, and

@@ -1,7 +1,8 @@
 //! Liveness (`/healthz`: the process answers) and readiness (`/readyz`: it should be sent
 //! traffic). The store is opened before the server listens, so a server that answers has its
 //! store loaded; it is not ready while its data directory cannot be read (a shared volume gone)
-//! or once it drains for shutdown, so a balancer sends new requests elsewhere.
+//! or once it drains for shutdown, so a balancer sends new requests elsewhere. An object store
+//! that stops answering leaves it ready (see [`crate::store::Bundles::reachable`]).
 
 use crate::api::extract::{NoQuery, Query};
 use crate::api::state::App;
@@ -36,9 +37,9 @@ pub async fn readyz(State(app): State<App>, _: Query<NoQuery>) -> Response {
     if app.draining.load(Ordering::Relaxed) {
         return not_ready("the server is shutting down");
     }
-    let dir = app.engine.store.dir().to_path_buf();
-    let readable = tokio::task::spawn_blocking(move || std::fs::read_dir(&dir).is_ok()).await.unwrap_or(false);
-    if !readable {
+    let store = app.engine.store.clone();
+    let reachable = tokio::task::spawn_blocking(move || store.bundles().reachable()).await.unwrap_or(false);
+    if !reachable {
         return not_ready("the data directory cannot be read");
     }
     let body = serde_json::json!({ "status": "ready", "textures": app.engine.store.len() }).to_string();

@@ -49,6 +49,7 @@ pub async fn list(State(app): State<App>, _: Query<NoQuery>, headers: HeaderMap)
         (status = 200, description = "the texture's info (strong ETag, `no-cache`)", body = TextureInfo),
         (status = 400, description = text::BAD_REQUEST, body = ErrorBody),
         (status = 404, description = text::NOT_FOUND, body = ErrorBody),
+        (status = 503, description = text::UNAVAILABLE, body = ErrorBody),
     ))]
 pub async fn info(
     State(app): State<App>,
@@ -84,10 +85,7 @@ pub async fn encoding(
         return Ok(not_modified_response(tag));
     }
     let reservation = app.inflight.reserve(entry.encoding_bytes)?;
-    let bytes = tokio::fs::read(app.engine.store.path_of(&entry.id))
-        .await
-        .map_err(|e| ApiError::internal("reading the stored bundle failed", e))?;
-    let bytes = reservation.hold(bytes);
+    let bytes = reservation.hold(stored_bytes(&app, &entry.id).await?);
     let disposition = format!("attachment; filename=\"{}.vtex\"", entry.id);
     Ok((
         [
@@ -101,6 +99,15 @@ pub async fn encoding(
         .into_response())
 }
 
+/// The bytes of stored bundle `id`, read off the runtime.
+async fn stored_bytes(app: &App, id: &str) -> Result<Vec<u8>, ApiError> {
+    let (store, id) = (app.engine.store.clone(), id.to_string());
+    tokio::task::spawn_blocking(move || store.bytes_of(&id))
+        .await
+        .map_err(|e| ApiError::internal("reading the stored bundle failed", e))?
+        .map_err(|e| ApiError::from(crate::engine::store_failure(e)))
+}
+
 /// Validates and stores bundle bytes off the runtime: 201 when new, 200 when already stored.
 /// Over the server's bounds is 422; past a cap of the store or on a full disk, 507.
 async fn store_bundle(app: &App, bytes: Vec<u8>) -> Result<(StatusCode, Json<TextureInfo>), ApiError> {
@@ -111,6 +118,7 @@ async fn store_bundle(app: &App, bytes: Vec<u8>) -> Result<(StatusCode, Json<Tex
         .map_err(|e| match e {
             StoreError::Invalid(e) => ApiError::from(e),
             StoreError::Full(why) => ApiError::InsufficientStorage(why),
+            StoreError::Unavailable(_) => ApiError::Unavailable(crate::engine::STORE_UNAVAILABLE.into()),
             StoreError::Io(e) => ApiError::internal("storing the bundle failed", e),
         })?;
     if created {
@@ -243,6 +251,7 @@ async fn bundle_from_multipart(req: Request, limit: usize, bounds: Limits) -> Re
             named", body = ErrorBody),
         (status = 404, description = text::NOT_FOUND, body = ErrorBody),
         (status = 422, description = text::OVER_BOUND, body = ErrorBody),
+        (status = 503, description = text::UNAVAILABLE, body = ErrorBody),
     ))]
 pub async fn patch(
     State(app): State<App>,
@@ -267,10 +276,7 @@ pub async fn patch(
         _ => return Err(ApiError::bad_request("`name` must remain a string")),
     };
     let params = doc.get("params").cloned().unwrap_or(Value::Null);
-    let bytes = tokio::fs::read(app.engine.store.path_of(&entry.id))
-        .await
-        .map_err(|e| ApiError::internal("reading the stored bundle failed", e))?;
-    let old = Bundle::from_bytes(&bytes)?;
+    let old = Bundle::from_bytes(&stored_bytes(&app, &entry.id).await?)?;
     let limits = app.engine.store.bounds().limits;
     let new = tokio::task::spawn_blocking(move || models::remake_within(&old, &name, &params, &limits))
         .await
