@@ -12,7 +12,7 @@ import { MODELS, modulePath } from './modules.mjs';
 /** Brotli bytes a module may take: what a client downloads before its first tile. */
 const BUDGET = 150_000;
 /** The models whose module is still over BUDGET (docs/client-synthesis.md), held where they are. */
-const OVER = { cascade: 168_000, patterns: 180_000 };
+const OVER = { cascade: 168_000, patterns: 177_000 };
 const budget = (model) => OVER[model] ?? BUDGET;
 
 const brotli = (bytes) =>

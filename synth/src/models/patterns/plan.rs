@@ -265,7 +265,9 @@ fn plan_of(p: &Params, bundle: &Bundle, create: bool) -> Result<Plan> {
         .flat_map(|a| a.values().filter_map(|v| v.map.as_ref()))
         .map(|m| 2.0 * m.size[0] as f64 * m.size[1] as f64)
         .sum();
-    let manifest = serde_json::to_vec(&p).map_or(0, |m| m.len()) as f64;
+    // The parameters' JSON as the manifest holds them (given and derived), not `p` written
+    // again: a render-only build then serializes no parameter type.
+    let manifest = serde_json::to_vec(&bundle.manifest.full_params()?).map_or(0, |m| m.len()) as f64;
     let resident = 4.0 * ref_px * 4.0 / 3.0
         + value_maps
         + 16.0 * count as f64
