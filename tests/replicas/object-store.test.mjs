@@ -203,6 +203,13 @@ for (const [how, stop, restart] of [
       const tile = await get(replica.url + tilePath(texture.id, 3, 4, 5));
       assert.equal(tile.status, 200);
       assert.equal((await get(`${replica.url}/readyz`)).status, 200);
+      // Through nginx: the store's 503s reach the client and mark no replica failed, so tiles
+      // the replicas hold (ones nginx has not cached) are still served, not 502.
+      assertUnavailable(await get(`${topo.url}/api/v1/textures/${unknown}`), 'an unknown id through nginx');
+      for (const [x, y] of [[2, 5], [3, 5], [4, 5]]) {
+        const through = await get(topo.url + tilePath(texture.id, 3, x, y));
+        assert.equal(through.status, 200, `a held texture's tile through nginx: ${through.status}`);
+      }
       t.diagnostic(`503 after ${first.ms.toFixed(0)} ms (lookup), ${upload.ms.toFixed(0)} ms (upload), ${deletion.ms.toFixed(0)} ms (deletion)`);
     } finally {
       await restart(garage);

@@ -428,13 +428,24 @@ fn clients_are_served_past_connections_held_by(open: Opener) {
     std::thread::sleep(Duration::from_millis(500));
 
     let tile = format!("/api/v1/textures/{id}/tiles/0/0/0.png");
+    // A fresh connection chosen to make room before its head arrived is closed unanswered; a
+    // client sends the request once more on a new one, as browsers do (RFC 9112 §9.3.1).
+    let mut retried = 0;
+    let mut get_once_more = |path: &str| {
+        let answer = get(&s.addr, path);
+        if !answer.is_empty() {
+            return answer;
+        }
+        retried += 1;
+        get(&s.addr, path)
+    };
     let end = Instant::now() + Duration::from_secs(3);
     let (mut served, mut slowest) = (0, Duration::ZERO);
     while Instant::now() < end {
         let t = Instant::now();
-        let health = get(&s.addr, "/healthz");
+        let health = get_once_more("/healthz");
         assert_eq!(status(&health), 200, "a health check while the connections are held: {health}");
-        let resp = get(&s.addr, &tile);
+        let resp = get_once_more(&tile);
         assert_eq!(status(&resp), 200, "a client while the connections are held: {}", &resp[..resp.len().min(300)]);
         slowest = slowest.max(t.elapsed());
         served += 1;
@@ -445,7 +456,8 @@ fn clients_are_served_past_connections_held_by(open: Opener) {
     let m = metrics_of(&s);
     let evicted = metric(&m, "vtex_http_connections_evicted_total", &[]);
     eprintln!(
-        "{served} clients served, slowest {slowest:?}; {made} held connections made, {evicted} closed to make room"
+        "{served} clients served ({retried} sent again), slowest {slowest:?}; {made} held connections made, \
+         {evicted} closed to make room"
     );
     assert!(slowest < Duration::from_secs(1), "every client served in under a second (slowest {slowest:?})");
     assert!(evicted >= served as f64, "the held connections made room ({evicted} closed for {served} clients)");
