@@ -20,7 +20,9 @@ step() { printf '\n--> %s\n' "$*"; }
 as_root() { if [ "$(id -u)" -eq 0 ]; then "$@"; else sudo "$@"; fi; }
 
 missing=()
-for pkg in podman runc mmdebstrap podman-compose curl python3; do
+# The dnsname CNI plugin resolves the compose services' names (nginx's upstreams): podman only
+# recommends it, and recommends are not installed here.
+for pkg in podman runc mmdebstrap podman-compose golang-github-containernetworking-plugin-dnsname curl python3; do
     dpkg -s "$pkg" >/dev/null 2>&1 || missing+=("$pkg")
 done
 if [ ${#missing[@]} -gt 0 ]; then
