@@ -38,6 +38,12 @@ impl Region {
     }
 }
 
+/// Heap one render may hold besides its output and what it leaves in the texture's caches,
+/// whatever the region: models render large regions in bounded chunks, so that the renders
+/// running at once add at most this much each to a server's budgets. The conformance suite
+/// measures every demo against it.
+pub const MAX_RENDER_WORKING_BYTES: u64 = 32 << 20;
+
 pub use vtex_wire::{Animation, Domain};
 
 /// A virtual texture: a pure function from a region to RGBA8 pixels.

@@ -20,7 +20,7 @@ use serde_json::{json, Value};
 use vtex_synth::bundle::Bundle;
 use vtex_synth::mip::{downsample_n, mean_rgba, psnr};
 use vtex_synth::models::{self, Inputs, Limits, MipGuarantee, Model};
-use vtex_synth::texture::{level_count, level_size, render_image};
+use vtex_synth::texture::{level_count, level_size, render_image, MAX_RENDER_WORKING_BYTES};
 use vtex_synth::{samples, Animation, Domain, Error, Region, Rgba8Image, Stop, Texture};
 
 #[path = "../../wasm/src/probe.rs"]
@@ -105,7 +105,7 @@ impl LevelScores {
 type Check = fn(&Demo, &mut Vec<LevelScores>) -> Outcome;
 
 /// The checks, in column order.
-const COLUMNS: [(&str, Check); 11] = [
+const COLUMNS: [(&str, Check); 12] = [
     ("tile = crop", |d, _| tile_equals_crop(d)),
     ("order/threads", |d, _| order_and_threads(d)),
     ("torus wrap", |d, _| torus_wrap(d)),
@@ -117,6 +117,7 @@ const COLUMNS: [(&str, Check); 11] = [
     ("bad params", |d, _| bad_params(d)),
     ("bad bundle", |d, _| bad_bundle(d)),
     ("plan", |d, _| plan(d)),
+    ("working memory", |d, _| working_memory(d)),
 ];
 
 // ---------------------------------------------------------------- 1. a tile is a crop
@@ -637,24 +638,38 @@ fn bad_bundle(d: &Demo) -> Outcome {
 
 // ---------------------------------------------------------------- 8. the cost plan
 
-/// Counts the heap bytes each thread holds: what it allocated less what it freed.
+/// Counts the heap bytes each thread holds (what it allocated less what it freed) and the
+/// most it has held since [`reset_peak`].
 struct Counting;
 
 thread_local! {
     static LIVE: Cell<i64> = const { Cell::new(0) };
+    static PEAK: Cell<i64> = const { Cell::new(0) };
+}
+
+fn count(delta: i64) {
+    let live = LIVE.with(|l| {
+        l.set(l.get() + delta);
+        l.get()
+    });
+    PEAK.with(|p| p.set(p.get().max(live)));
+}
+
+fn reset_peak() {
+    PEAK.with(|p| p.set(LIVE.with(Cell::get)));
 }
 
 unsafe impl GlobalAlloc for Counting {
     unsafe fn alloc(&self, layout: Layout) -> *mut u8 {
-        LIVE.with(|l| l.set(l.get() + layout.size() as i64));
+        count(layout.size() as i64);
         System.alloc(layout)
     }
     unsafe fn dealloc(&self, ptr: *mut u8, layout: Layout) {
-        LIVE.with(|l| l.set(l.get() - layout.size() as i64));
+        count(-(layout.size() as i64));
         System.dealloc(ptr, layout)
     }
     unsafe fn realloc(&self, ptr: *mut u8, layout: Layout, new_size: usize) -> *mut u8 {
-        LIVE.with(|l| l.set(l.get() + new_size as i64 - layout.size() as i64));
+        count(new_size as i64 - layout.size() as i64);
         System.realloc(ptr, layout, new_size)
     }
 }
@@ -688,6 +703,37 @@ fn plan(d: &Demo) -> Outcome {
     let mib = |b: u64| b as f64 / (1 << 20) as f64;
     let text = format!("{:.2} MiB planned, {:.2} MiB held", mib(resident), mib(held));
     if resident < held || resident > 4 * held + (1 << 20) {
+        Err(text)
+    } else {
+        Ok(text)
+    }
+}
+
+/// The heap a render holds at its peak besides its output and what it leaves in the
+/// texture's caches, on a fresh load, for regions from a tile to 2048² at level 0 and 1024²
+/// at coarser levels (or the whole level, when smaller): within `MAX_RENDER_WORKING_BYTES`.
+fn working_memory(d: &Demo) -> Outcome {
+    let mut worst = (0, String::new());
+    for (level, side) in [(0, 256u64), (0, 1024), (0, 2048), (2, 1024), (4, 1024), (6, 1024)] {
+        if level >= d.levels() {
+            continue;
+        }
+        let (lw, lh) = d.level_size(level);
+        let (w, h) = (side.min(lw), side.min(lh));
+        for frame in d.frames() {
+            let region = Region::new(level, ((lw - w) / 2) as i64, ((lh - h) / 2) as i64, w as u32, h as u32);
+            let tex = models::load(&d.bundle).map_err(|e| e.to_string())?;
+            reset_peak();
+            let image = render_image(&*tex, &region.at_frame(frame)).map_err(|e| e.to_string())?;
+            let held = (PEAK.with(Cell::get) - LIVE.with(Cell::get)).max(0) as u64;
+            drop(image);
+            if held > worst.0 {
+                worst = (held, format!("level {level}, {w}×{h}, frame {frame}"));
+            }
+        }
+    }
+    let text = format!("{:.2} MiB at most ({})", worst.0 as f64 / (1 << 20) as f64, worst.1);
+    if worst.0 > MAX_RENDER_WORKING_BYTES {
         Err(text)
     } else {
         Ok(text)

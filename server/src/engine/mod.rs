@@ -173,7 +173,7 @@ impl Engine {
         let _stop_on_drop = StopOnDrop(stop.clone());
         let m = &self.metrics;
         let (synth_s, in_flight, count, stopped) = (
-            m.synthesis_seconds.with_label_values(&[entry.manifest.model.as_str()]),
+            m.synthesis_seconds.with_label_values(&[entry.model.as_str()]),
             m.syntheses_in_flight.clone(),
             m.syntheses.clone(),
             m.syntheses_stopped.clone(),

@@ -310,7 +310,7 @@ impl Store {
     fn admit(&self, record: Record) -> Arc<Record> {
         let record = Arc::new(record);
         self.insert(record.clone());
-        tracing::info!(id = %record.id, name = %record.manifest.name, "bundle found in the store; serving it");
+        tracing::info!(id = %record.id, name = %record.name, "bundle found in the store; serving it");
         record
     }
 
@@ -494,7 +494,7 @@ impl Store {
     /// Every texture, sorted by name (then id).
     pub fn list(&self) -> Vec<Arc<Record>> {
         let mut all: Vec<_> = self.index.read().unwrap().records.values().cloned().collect();
-        all.sort_by(|a, b| a.manifest.name.cmp(&b.manifest.name).then_with(|| a.id.cmp(&b.id)));
+        all.sort_by(|a, b| a.name.cmp(&b.name).then_with(|| a.id.cmp(&b.id)));
         all
     }
 

@@ -3,7 +3,7 @@
 
 use std::ops::Deref;
 use std::sync::Arc;
-use vtex_synth::bundle::{id_of, Bundle, Manifest};
+use vtex_synth::bundle::{id_of, Bundle};
 use vtex_synth::models::{self, Limits, Plan};
 use vtex_synth::{Domain, Texture};
 
@@ -14,7 +14,13 @@ pub struct Record {
     pub id: String,
     /// The id as 32 raw bytes: the compact form used in cache keys.
     pub key: [u8; 32],
-    pub manifest: Manifest,
+    pub name: String,
+    pub model: String,
+    /// The manifest's `params` and `derived` as compact JSON text, parsed for [`Record::info`]:
+    /// the index holds a record for every stored texture, and a parsed tree takes several
+    /// times the memory.
+    params_json: Box<str>,
+    derived_json: Box<str>,
     pub plan: Plan,
     pub encoding_bytes: u64,
     pub levels: u32,
@@ -41,7 +47,10 @@ impl Record {
         Ok(Record {
             id,
             key,
-            manifest: bundle.manifest.clone(),
+            name: bundle.manifest.name.clone(),
+            model: bundle.manifest.model.clone(),
+            params_json: compact(&bundle.manifest.params),
+            derived_json: compact(&bundle.manifest.derived),
             levels: vtex_wire::levels::tile_levels(plan.width, plan.height, tile_size),
             plan,
             encoding_bytes: encoding_bytes as u64,
@@ -60,8 +69,8 @@ impl Record {
         let p = &self.plan;
         TextureInfo {
             id: self.id.clone(),
-            name: self.manifest.name.clone(),
-            model: self.manifest.model.clone(),
+            name: self.name.clone(),
+            model: self.model.clone(),
             width: p.width,
             height: p.height,
             levels: self.levels,
@@ -73,8 +82,8 @@ impl Record {
             domain: p.domain,
             animated: p.animation.is_some(),
             animation: p.animation,
-            params: self.manifest.params.clone(),
-            derived: self.manifest.derived.clone(),
+            params: serde_json::from_str(&self.params_json).expect("written by `compact`"),
+            derived: serde_json::from_str(&self.derived_json).expect("written by `compact`"),
         }
     }
 
@@ -82,6 +91,10 @@ impl Record {
     pub fn tiles_at(&self, level: u32) -> (u64, u64) {
         vtex_wire::levels::grid(self.plan.width, self.plan.height, level, self.tile_size)
     }
+}
+
+fn compact(value: &impl serde::Serialize) -> Box<str> {
+    serde_json::to_string(value).expect("JSON values serialize").into()
 }
 
 /// A loaded texture, ready to render, with its record.

@@ -30,7 +30,7 @@ fn url(origin: &Origin, path: &str) -> String {
 
 /// A label in no particular language (Presentation 3 §4.4: the `none` key).
 fn label(record: &Record) -> Value {
-    json!({ "none": [record.manifest.name] })
+    json!({ "none": [record.name] })
 }
 
 /// A small image of the whole texture, from its image service.

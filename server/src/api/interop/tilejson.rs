@@ -80,10 +80,10 @@ pub async fn tilejson(
     let (north, south) = (latitude(0.0), latitude(fy));
     Ok(Json(json!({
         "tilejson": "3.0.0",
-        "name": rec.manifest.name,
+        "name": rec.name,
         "description": format!(
             "vtex texture {id} ({} model, {}×{} texels)",
-            rec.manifest.model, rec.plan.width, rec.plan.height
+            rec.model, rec.plan.width, rec.plan.height
         ),
         "scheme": "xyz",
         "tiles": [template],
@@ -91,7 +91,7 @@ pub async fn tilejson(
         "maxzoom": maxzoom,
         "bounds": [west, south, east, north],
         "center": [(west + east) / 2.0, latitude(fy / 2.0), maxzoom.min(2)],
-        "attribution": format!("synthesized by vtex ({} model)", rec.manifest.model),
+        "attribution": format!("synthesized by vtex ({} model)", rec.model),
         // Not in TileJSON 3.0.0, read by MapLibre and Mapbox GL, whose default is 512.
         "tileSize": rec.tile_size,
     })))

@@ -122,7 +122,7 @@ async fn store_bundle(app: &App, bytes: Vec<u8>) -> Result<(StatusCode, Json<Tex
             StoreError::Io(e) => ApiError::internal("storing the bundle failed", e),
         })?;
     if created {
-        tracing::info!(id = %entry.id, name = %entry.manifest.name, model = %entry.manifest.model, "texture stored");
+        tracing::info!(id = %entry.id, name = %entry.name, model = %entry.model, "texture stored");
     }
     Ok((if created { StatusCode::CREATED } else { StatusCode::OK }, Json(entry.info())))
 }
@@ -269,14 +269,14 @@ pub async fn patch(
     if let Some(k) = fields.keys().find(|k| *k != "name" && *k != "params") {
         return Err(ApiError::bad_request(format!("`{}` cannot be patched; only `name` and `params`", echo(k))));
     }
-    let mut doc = serde_json::json!({ "name": entry.manifest.name, "params": entry.manifest.params });
+    let old = Bundle::from_bytes(&stored_bytes(&app, &entry.id).await?)?;
+    let mut doc = serde_json::json!({ "name": old.manifest.name, "params": old.manifest.params });
     models::merge_patch(&mut doc, &patch);
     let name = match doc.get("name") {
         Some(Value::String(s)) => s.clone(),
         _ => return Err(ApiError::bad_request("`name` must remain a string")),
     };
     let params = doc.get("params").cloned().unwrap_or(Value::Null);
-    let old = Bundle::from_bytes(&stored_bytes(&app, &entry.id).await?)?;
     let limits = app.engine.store.bounds().limits;
     let new = tokio::task::spawn_blocking(move || models::remake_within(&old, &name, &params, &limits))
         .await

@@ -38,40 +38,31 @@ struct Paths {
 impl ChaosMosaic {
     /// Renders a level ≥ 1; `None` once `stop` is requested.
     pub(super) fn render_prefiltered(&self, region: &Region, out: &mut [u8], stop: &dyn Stop) -> Option<()> {
-        if region.level <= EXACT_LEVELS {
-            return self.render_exact(region, out, stop);
-        }
         let (lw, lh) = level_size(self.width, self.height, region.level);
-        for (oy, ly, ny) in wrap_runs(region.y, region.height, lh) {
-            for (ox, lx, nx) in wrap_runs(region.x, region.width, lw) {
-                let piece = self.integrate(region.level, lx as i64, ly as i64, nx, ny, Paths::default(), stop)?;
-                for (j, row) in piece.chunks_exact(nx as usize).enumerate() {
-                    let at = ((oy as usize + j) * region.width as usize + ox as usize) * 4;
-                    for (o, px) in out[at..at + nx as usize * 4].chunks_exact_mut(4).zip(row) {
-                        o.copy_from_slice(px);
+        let f = 1i64 << region.level;
+        for (oy, ly, ny) in pieces(region.y, region.height, lh) {
+            for (ox, lx, nx) in pieces(region.x, region.width, lw) {
+                let row = nx as usize * 4;
+                let mut put = |data: &[u8]| {
+                    for (j, src) in data.chunks_exact(row).enumerate() {
+                        let at = ((oy as usize + j) * region.width as usize + ox as usize) * 4;
+                        out[at..at + row].copy_from_slice(src);
                     }
+                };
+                if region.level <= EXACT_LEVELS {
+                    // The level-0 footprint, filtered by the reference 2×2 filter L times.
+                    let (x0, x1) = (lx as i64 * f, ((lx + nx as u64) as i64 * f).min(self.width as i64));
+                    let (y0, y1) = (ly as i64 * f, ((ly + ny as u64) as i64 * f).min(self.height as i64));
+                    let mut full = Rgba8Image::new((x1 - x0) as u32, (y1 - y0) as u32);
+                    self.render_level0(x0, y0, full.width, full.height, &mut full.data, stop)?;
+                    put(&mip::downsample_n(&full, region.level).data);
+                } else {
+                    put(self
+                        .integrate(region.level, lx as i64, ly as i64, nx, ny, Paths::default(), stop)?
+                        .as_flattened());
                 }
             }
         }
-        Some(())
-    }
-
-    /// Exact levels: render the level-0 footprint and apply the reference 2×2 filter L times.
-    /// The region is cut where it wraps so that every footprint is aligned.
-    fn render_exact(&self, region: &Region, out: &mut [u8], stop: &dyn Stop) -> Option<()> {
-        let (lw, lh) = level_size(self.width, self.height, region.level);
-        let f = 1i64 << region.level;
-        let mut dst = Rgba8Image::new(region.width, region.height);
-        for (oy, ly, ny) in wrap_runs(region.y, region.height, lh) {
-            for (ox, lx, nx) in wrap_runs(region.x, region.width, lw) {
-                let (x0, x1) = (lx as i64 * f, ((lx + nx as u64) as i64 * f).min(self.width as i64));
-                let (y0, y1) = (ly as i64 * f, ((ly + ny as u64) as i64 * f).min(self.height as i64));
-                let mut full = Rgba8Image::new((x1 - x0) as u32, (y1 - y0) as u32);
-                self.render_level0(x0, y0, full.width, full.height, &mut full.data, stop)?;
-                dst.blit(&mip::downsample_n(&full, region.level), ox, oy);
-            }
-        }
-        out.copy_from_slice(&dst.data);
         Some(())
     }
 
@@ -439,14 +430,18 @@ fn quad_sum(q: [u32; 4], tables: &[&BoxTable], cx: [u32; 2], cy: [u32; 2]) -> [u
     std::array::from_fn(|c| s[0][c] + s[1][c] + s[2][c] + s[3][c])
 }
 
+/// Level pixels a side of the pieces a region is rendered in: the blocks placed over a
+/// piece's footprint, and an exact level's level-0 footprint, stay bounded whatever the region.
+const PIECE: u32 = 256;
+
 /// Splits `count` pixels starting at `start` on a torus of `period` into runs that do not
-/// wrap: (offset in the run's output, wrapped start, length).
-fn wrap_runs(start: i64, count: u32, period: u64) -> impl Iterator<Item = (u32, u64, u32)> {
+/// wrap, of at most [`PIECE`] pixels: (offset in the output, wrapped start, length).
+fn pieces(start: i64, count: u32, period: u64) -> impl Iterator<Item = (u32, u64, u32)> {
     let mut done = 0u32;
     std::iter::from_fn(move || {
         (done < count).then(|| {
             let at = (start + done as i64).rem_euclid(period as i64) as u64;
-            let n = ((period - at) as u32).min(count - done);
+            let n = ((period - at) as u32).min(count - done).min(PIECE);
             let run = (done, at, n);
             done += n;
             run
@@ -503,8 +498,10 @@ mod tests {
     }
 
     #[test]
-    fn wrap_runs_cover_the_region() {
-        let runs: Vec<_> = wrap_runs(-3, 12, 5).collect();
+    fn pieces_cover_the_region() {
+        let runs: Vec<_> = pieces(-3, 12, 5).collect();
         assert_eq!(runs, vec![(0, 2, 3), (3, 0, 5), (8, 0, 4)]);
+        let runs: Vec<_> = pieces(10, 600, 1 << 20).collect();
+        assert_eq!(runs, vec![(0, 10, 256), (256, 266, 256), (512, 522, 88)]);
     }
 }
