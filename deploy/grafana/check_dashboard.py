@@ -17,6 +17,9 @@ import urllib.error
 import urllib.request
 from pathlib import Path
 
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+from vtex_process import serving  # noqa: E402
+
 # Grafana's variables, replaced by values of their kind so that the expressions are PromQL.
 VARIABLES = {"$__rate_interval": "5m", "$instance": ".*"}
 # Names of series the server exports (the process_* family is the Prometheus client's).
@@ -74,18 +77,7 @@ def live_metrics(vtex):
     tiles missed then hit in each format, a tile batch, an order-independent tile (the models'
     work counters), and a connection refused at the per-client limit."""
     with tempfile.TemporaryDirectory() as data:
-        proc = subprocess.Popen(
-            [vtex, "serve", "--bind", "127.0.0.1:0", "--data-dir", data, "--max-connections-per-client", "2"],
-            stdout=subprocess.PIPE,
-            stderr=subprocess.DEVNULL,
-            text=True,
-        )
-        try:
-            line = proc.stdout.readline()
-            m = re.match(r"vtex listening on (http://\S+)", line)
-            if not m:
-                sys.exit(f"vtex did not start: {line!r}")
-            base = m.group(1)
+        with serving(vtex, ["serve", "--bind", "127.0.0.1:0", "--data-dir", data, "--max-connections-per-client", "2"]) as base:
             textures = json.loads(get(f"{base}/api/v1/textures"))["textures"]
             for model in ("chaos-mosaic", "order-independent"):
                 t = next(t for t in textures if t["model"] == model)
@@ -110,10 +102,6 @@ def live_metrics(vtex):
                         raise
                     time.sleep(0.1)
             sys.exit("/metrics stayed refused (429) after the held connections closed")
-        finally:
-            proc.terminate()
-            proc.wait(timeout=15)
-
 
 def main():
     dashboard_path, vtex, promtool = sys.argv[1:4]

@@ -10,13 +10,15 @@ reached 1.24 x the budgets' sum at worst).
 
 import math
 import re
-import subprocess
 import sys
 import tempfile
 import urllib.request
 from pathlib import Path
 
 import yaml
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+from vtex_process import serving  # noqa: E402
 
 MIB = 1024 * 1024
 # The soak's worst RSS over its budgets' sum, rounded up.
@@ -72,20 +74,11 @@ def main():
         port = container["ports"][0]["containerPort"]
         assert env["VTEX_BIND"] == f"0.0.0.0:{port}", f"VTEX_BIND is not the container port {port}"
         env["VTEX_BIND"] = "127.0.0.1:0"
-        proc = subprocess.Popen([vtex_bin, *container["args"]], env=env, stdout=subprocess.PIPE, text=True)
-        try:
-            line = proc.stdout.readline()
-            m = re.match(r"vtex listening on (http://\S+)", line)
-            if not m:
-                sys.exit(f"vtex did not start with the manifest's environment: {line!r}")
-            base = m.group(1)
+        with serving(vtex_bin, container["args"], env) as base:
             for probe in ("startupProbe", "readinessProbe", "livenessProbe"):
                 status, _ = get(base + container[probe]["httpGet"]["path"])
                 assert status == 200, f"{probe}: {status}"
             _, metrics = get(f"{base}/metrics")
-        finally:
-            proc.terminate()
-            proc.wait(timeout=15)
     reported = dict(re.findall(r"^(vtex_\w+_budget_bytes) (\d+)$", metrics, re.M))
     total = 0
     for var, gauge in BUDGETS.items():
