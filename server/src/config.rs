@@ -528,8 +528,9 @@ impl ServeConfig {
         (self.inflight_mb * 1024.0 * 1024.0) as u64
     }
 
-    /// The most one response reserves from the in-flight budget: the largest region at its
-    /// peak, or the largest bundle.
+    /// The most one response reserves from the in-flight budget: the largest PNG region at its
+    /// peak (formats whose encoders hold more may be refused at that size), or the largest
+    /// bundle.
     fn largest_response_bytes(&self) -> u64 {
         let side = MAX_REGION_SIDE as u64;
         let pixels = self.max_region_pixels.min(side * side) as u32;

@@ -2,12 +2,16 @@
 //! function of its pixels and format — the property that lets tiles carry strong ETags.
 
 use crate::ktx2::{self, Ktx2};
-use image::codecs::{jpeg::JpegEncoder, png, webp::WebPEncoder};
+use image::codecs::{jpeg::JpegEncoder, webp::WebPEncoder};
 use image::{ExtendedColorType, ImageEncoder};
 use vtex_synth::Rgba8Image;
 
 /// JPEG quality for tiles: visually lossless for textures at a third of PNG's size.
 pub const JPEG_QUALITY: u8 = 90;
+/// Bytes of compressed data a PNG's IDAT chunks carry each.
+const PNG_IDAT_BYTES: usize = 32 * 1024;
+/// Bytes of a PNG besides its IDAT data at most: signature, header, chunk framing, zlib's.
+const PNG_HEADERS: usize = 4096;
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub enum Format {
@@ -60,19 +64,31 @@ impl Format {
     pub const EXPECTED: &'static str = "expected png, webp, jpg or rgba";
 }
 
-/// Headroom over raw pixels in [`peak_bytes`]: an encoder's headers and, for data it cannot
-/// compress, its stored blocks' framing.
-const ENCODING_SLACK: u64 = 64 * 1024;
+/// Headroom over [`peak_bytes`]' multiples of the pixels: an encoder's headers, tables,
+/// buffers and compressor state.
+const ENCODING_SLACK: u64 = 512 * 1024;
 
-/// Most bytes rendering and encoding a `width` × `height` image holds at once: its pixels, and
-/// an encoded copy no larger than the pixels plus [`ENCODING_SLACK`] (raw RGBA is the pixels
-/// themselves).
+/// Most bytes rendering and encoding a `width` × `height` image holds at once: its pixels, the
+/// encoder's copies of them and its output at its largest, for images that do not compress
+/// (`tests/encode_peak.rs` measures each format against it).
 pub fn peak_bytes(format: Format, width: u32, height: u32) -> u64 {
     let pixels = width as u64 * height as u64 * 4;
     match format {
         Format::Rgba => pixels,
-        Format::Png | Format::Webp | Format::Jpg | Format::Ktx2(_) => 2 * pixels + ENCODING_SLACK,
+        // The output, made at its bound's capacity (`png_capacity`).
+        Format::Png => pixels + png_capacity(pixels as usize) as u64 + ENCODING_SLACK,
+        // The RGB copy (3/4) and an output grown once past half the pixels.
+        Format::Jpg => pixels * 11 / 4 + ENCODING_SLACK,
+        // The lossless encoder's transformed copies and its bit writer.
+        Format::Webp => pixels * 5 + ENCODING_SLACK,
+        Format::Ktx2(_) => 2 * pixels + ENCODING_SLACK,
     }
+}
+
+/// Capacity of a PNG's output, so that it never grows by reallocation: fast deflate's output
+/// before [`write_png`] finds it larger than the pixels stored (up to 1.4× them, on noise).
+fn png_capacity(pixels: usize) -> usize {
+    pixels * 3 / 2 + PNG_HEADERS
 }
 
 /// Encodes an image, taking it so that raw RGBA is the pixels without a copy. Fails only for
@@ -80,26 +96,57 @@ pub fn peak_bytes(format: Format, width: u32, height: u32) -> u64 {
 /// of reach.
 pub fn encode(img: Rgba8Image, format: Format) -> Result<Vec<u8>, String> {
     let (w, h) = (img.width, img.height);
-    let mut out = Vec::with_capacity(img.data.len() / 2);
-    let res = match format {
+    let failed = |e: &dyn std::fmt::Display| format!("{} encoding of {w}×{h} failed: {e}", format.ext());
+    let mut out = match format {
         Format::Rgba => return Ok(img.data),
         Format::Ktx2(k) => return ktx2::encode(&[img], k),
-        Format::Png => {
-            // Fast deflate keeps a cold 256² tile within a few milliseconds; still lossless.
-            let enc =
-                png::PngEncoder::new_with_quality(&mut out, png::CompressionType::Fast, png::FilterType::Adaptive);
-            enc.write_image(&img.data, w, h, ExtendedColorType::Rgba8)
-        }
-        Format::Webp => WebPEncoder::new_lossless(&mut out).write_image(&img.data, w, h, ExtendedColorType::Rgba8),
+        Format::Png => Vec::with_capacity(png_capacity(img.data.len())),
+        Format::Jpg | Format::Webp => Vec::with_capacity(img.data.len() / 2),
+    };
+    match format {
+        Format::Rgba | Format::Ktx2(_) => unreachable!("returned above"),
+        Format::Png => write_png(&img, &mut out).map_err(|e| failed(&e))?,
+        Format::Webp => WebPEncoder::new_lossless(&mut out)
+            .write_image(&img.data, w, h, ExtendedColorType::Rgba8)
+            .map_err(|e| failed(&e))?,
         Format::Jpg => {
             let rgb: Vec<u8> = img.data.chunks_exact(4).flat_map(|p| [p[0], p[1], p[2]]).collect();
-            JpegEncoder::new_with_quality(&mut out, JPEG_QUALITY).write_image(&rgb, w, h, ExtendedColorType::Rgb8)
+            JpegEncoder::new_with_quality(&mut out, JPEG_QUALITY)
+                .write_image(&rgb, w, h, ExtendedColorType::Rgb8)
+                .map_err(|e| failed(&e))?
         }
-    };
-    res.map_err(|e| format!("{} encoding of {w}×{h} failed: {e}", format.ext()))?;
+    }
     // The cache charges a tile by its length; make that the memory it really holds.
     out.shrink_to_fit();
     Ok(out)
+}
+
+/// PNG with fast deflate and adaptive filters (a cold 256² tile within a few milliseconds,
+/// still lossless), compressed as it is written so that the whole compressed image is never
+/// held beside `out`; stored uncompressed instead when fast deflate would make it larger (noise).
+fn write_png(img: &Rgba8Image, out: &mut Vec<u8>) -> Result<(), png::EncodingError> {
+    write_png_with(img, out, png::Compression::Fast)?;
+    if out.len() > img.data.len() + img.height as usize + PNG_HEADERS {
+        out.clear();
+        write_png_with(img, out, png::Compression::NoCompression)?;
+    }
+    Ok(())
+}
+
+fn write_png_with(
+    img: &Rgba8Image,
+    out: &mut Vec<u8>,
+    compression: png::Compression,
+) -> Result<(), png::EncodingError> {
+    let mut encoder = png::Encoder::new(out, img.width, img.height);
+    encoder.set_color(png::ColorType::Rgba);
+    encoder.set_depth(png::BitDepth::Eight);
+    encoder.set_compression(compression);
+    encoder.set_filter(png::Filter::Adaptive);
+    let mut writer = encoder.write_header()?;
+    let mut stream = writer.stream_writer_with_size(PNG_IDAT_BYTES)?;
+    std::io::Write::write_all(&mut stream, &img.data)?;
+    stream.finish()
 }
 
 #[cfg(test)]

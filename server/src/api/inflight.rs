@@ -50,8 +50,18 @@ impl Inflight {
         (self.budget_kib as u64 - self.permits.available_permits() as u64) * KIB
     }
 
-    /// Reserves `bytes`, or answers the `503` of a spent budget.
+    /// Reserves `bytes`, or answers the `503` of a spent budget — or a `400` when the whole
+    /// budget could never hold them (a large region in a format whose encoder holds several
+    /// copies of it), which no retry would change.
     pub fn reserve(&self, bytes: u64) -> Result<Reservation, ApiError> {
+        if kib(bytes) > self.budget_kib {
+            return Err(ApiError::bad_request(format!(
+                "this response holds up to {:.1} MiB while it is made, more than the whole budget of bodies in \
+                 flight (--inflight-mb, {} MiB): ask for a smaller region, or PNG",
+                bytes as f64 / (1 << 20) as f64,
+                self.budget_kib / 1024
+            )));
+        }
         self.permits.clone().try_acquire_many_owned(kib(bytes)).map(Reservation).map_err(|_| self.spent())
     }
 
