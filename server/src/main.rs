@@ -3,7 +3,9 @@
 //! results and the `vtex listening on …` line. A failure prints one line, `error: …`, and
 //! exits 1.
 
-#![forbid(unsafe_code)]
+#![deny(unsafe_code)]
+
+mod allocator;
 
 use clap::Parser;
 use std::io::IsTerminal;
@@ -12,7 +14,7 @@ use tracing_subscriber::EnvFilter;
 use vtex_server::cli::{self, Cli, Command};
 
 fn main() -> ExitCode {
-    vtex_server::transport::tune_allocator();
+    allocator::init();
     let filter = EnvFilter::try_from_env("VTEX_LOG")
         .or_else(|_| EnvFilter::try_from_default_env())
         .unwrap_or_else(|_| EnvFilter::new("info"));

@@ -155,7 +155,8 @@ pub fn descriptor_limit() -> Option<u64> {
     }
 }
 
-/// Sends buffers of 64 KiB and more straight to `mmap` on glibc, whatever the transport.
+/// Sends buffers of 64 KiB and more straight to `mmap` on glibc, whatever the transport: for
+/// builds without jemalloc (the binary's `jemalloc` feature).
 ///
 /// Why: encoding makes buffers of that size (pixels, the encoded tile before it is sealed or
 /// cached); taken from glibc's heap they fragment it, and a long pan leaves the process holding
