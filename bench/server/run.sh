@@ -7,6 +7,8 @@
 #   3. resident memory after a long pan with a 256 MB cache, beside the bytes the cache holds;
 #   4. start-up: opening an empty data directory (writing the demos) and reopening it.
 # Needs: wrk, nginx, curl, python3 (apt-get install wrk nginx curl python3).
+# Environment: BUILD_FLAGS, more `cargo build` flags (`--no-default-features`: the system
+#   allocator instead of jemalloc).
 # Usage: bench/server/run.sh [--only warm|cold|memory|startup] [--rounds N] [--tmpfs] [--reuseport]
 #                            [seconds per run, default 10]
 #   (--only runs one section, for quick comparisons; the default runs all four. --rounds
@@ -45,7 +47,8 @@ cleanup() {
 }
 trap cleanup EXIT
 
-cargo build --release -q -p vtex-server --manifest-path "$ROOT/Cargo.toml"
+# shellcheck disable=SC2086
+cargo build --release -q -p vtex-server --manifest-path "$ROOT/Cargo.toml" ${BUILD_FLAGS:-}
 BIN="${CARGO_TARGET_DIR:-$ROOT/target}/release/vtex"
 
 start_vtex() { # $1 = cache MB, $2 = data directory (default $WORK/data)

@@ -16,7 +16,8 @@
 #              charged there too), CONNECTIONS (default 64), MAX_CONNECTIONS
 #              (default 128: the server's limit), ATTACKERS (sockets each kind of attacker
 #              holds, default MAX_CONNECTIONS: the limit filled twice over), SEED (default 1),
-#              EXTRA_FLAGS (more `vtex serve` flags).
+#              EXTRA_FLAGS (more `vtex serve` flags), BUILD_FLAGS (more `cargo build` flags:
+#              `--no-default-features` for the system allocator instead of jemalloc).
 set -euo pipefail
 ROOT=$(cd "$(dirname "$0")/../.." && pwd)
 SECS=${1:-60}
@@ -28,7 +29,8 @@ CONNECTIONS=${CONNECTIONS:-64}
 MAX_CONNECTIONS=${MAX_CONNECTIONS:-128}
 SEED=${SEED:-1}
 cd "$ROOT"
-cargo build --release -q --locked -p vtex-server -p vtex-fuzz
+# shellcheck disable=SC2086
+cargo build --release -q --locked -p vtex-server -p vtex-fuzz ${BUILD_FLAGS:-}
 BIN="${CARGO_TARGET_DIR:-$ROOT/target}/release"
 WORK=$(mktemp -d /tmp/vtex-soak.XXXXXX)
 PID=""
