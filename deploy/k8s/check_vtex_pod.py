@@ -3,7 +3,7 @@ values it sets, the core count read from its CPU limit, the write token file), i
 directory a temporary one. Checks that vtex starts with them, that every probe's path answers
 200, that the budgets the server reports are the ones the manifest sets, and that the memory
 limit holds them with the room the soak measured (BENCHMARKS.md, "Bounds under load": RSS
-reached 1.24 x the budgets' sum at worst).
+reached 1.13 x the budgets' sum at worst, 1.28 x with the system allocator).
 
     python3 deploy/k8s/check_vtex_pod.py VTEX_BIN
 """
@@ -21,7 +21,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 from vtex_process import serving  # noqa: E402
 
 MIB = 1024 * 1024
-# The soak's worst RSS over its budgets' sum, rounded up.
+# The soak's worst RSS over its budgets' sum, with room (1.13 measured).
 MEMORY_OVER_BUDGETS = 1.25
 # Budget gauges vtex reports, by the variable that sets each (MiB).
 BUDGETS = {
