@@ -2,7 +2,7 @@
 // reason from its JSON `error` or its text, and errors that name what was asked for.
 import test from 'node:test';
 import assert from 'node:assert/strict';
-import { errorText, fetchOk, getJson } from '../src/shared/http.js';
+import { errorText, fetchOk, getJson, retryDelay, RETRIES_503 } from '../src/shared/http.js';
 
 const bytes = (s) => new TextEncoder().encode(s);
 
@@ -55,4 +55,51 @@ test('a failed fetch names the URL; an abort stays an AbortError', async () => {
     },
     async () => await assert.rejects(fetchOk('api/v1/textures/x/tiles'), { name: 'AbortError' }),
   );
+});
+
+test('a read answered 503 is asked again after its Retry-After; a write is not', async () => {
+  let calls = 0;
+  const busy = () => new Response('{"error":"busy"}', { status: 503, headers: { 'retry-after': '0' } });
+  await withFetch(
+    () => (++calls < 3 ? busy() : new Response('ok', { status: 200 })),
+    async () => assert.equal(await (await fetchOk('api/v1/textures/x/tiles/0/0/0.png')).text(), 'ok'),
+  );
+  assert.equal(calls, 3);
+  calls = 0;
+  await withFetch(
+    () => (calls++, busy()),
+    async () => await assert.rejects(fetchOk('t'), { message: 'HTTP 503 for t – busy' }),
+  );
+  assert.equal(calls, 1 + RETRIES_503, 'asked again three times, then the 503 is the answer');
+  calls = 0;
+  await withFetch(
+    () => (calls++, busy()),
+    async () => await assert.rejects(fetchOk('api/v1/textures', 'the upload', { method: 'POST' }), { message: /HTTP 503/ }),
+  );
+  assert.equal(calls, 1, 'a write is not sent again');
+});
+
+test('an abort while waiting to ask again is an AbortError, and nothing more is sent', async () => {
+  let calls = 0;
+  const controller = new AbortController();
+  await withFetch(
+    () => {
+      calls++;
+      setTimeout(() => controller.abort(), 10);
+      return new Response('', { status: 503, headers: { 'retry-after': '3' } });
+    },
+    async () => await assert.rejects(fetchOk('t', '', { signal: controller.signal }), { name: 'AbortError' }),
+  );
+  assert.equal(calls, 1);
+});
+
+test('Retry-After in seconds or as a date, within 0–5 s; 1 s when absent or unreadable', () => {
+  assert.equal(retryDelay('2'), 2);
+  assert.equal(retryDelay('0'), 0);
+  assert.equal(retryDelay('120'), 5);
+  assert.equal(retryDelay(null), 1);
+  assert.equal(retryDelay('soon'), 1);
+  const inThree = new Date(Date.now() + 3000).toUTCString();
+  assert.ok(Math.abs(retryDelay(inThree) - 3) <= 1, retryDelay(inThree));
+  assert.equal(retryDelay(new Date(Date.now() - 60000).toUTCString()), 0);
 });

@@ -3,49 +3,20 @@
 //! follows this thread's heap from the rendered pixels to the encoded body, for images that
 //! compress well and for noise, which does not.
 
+#[path = "../../synth/tests/support/counting_alloc.rs"]
+mod counting;
+
 use rand::{Rng, SeedableRng};
-use std::alloc::{GlobalAlloc, Layout, System};
-use std::cell::Cell;
 use vtex_server::encode::{self, Format};
 use vtex_synth::Rgba8Image;
 
-struct Counting;
-
-thread_local! {
-    static LIVE: Cell<i64> = const { Cell::new(0) };
-    static PEAK: Cell<i64> = const { Cell::new(0) };
-}
-
-fn count(delta: i64) {
-    let live = LIVE.with(|l| {
-        l.set(l.get() + delta);
-        l.get()
-    });
-    PEAK.with(|p| p.set(p.get().max(live)));
-}
-
-unsafe impl GlobalAlloc for Counting {
-    unsafe fn alloc(&self, layout: Layout) -> *mut u8 {
-        count(layout.size() as i64);
-        System.alloc(layout)
-    }
-    unsafe fn dealloc(&self, ptr: *mut u8, layout: Layout) {
-        count(-(layout.size() as i64));
-        System.dealloc(ptr, layout)
-    }
-    unsafe fn realloc(&self, ptr: *mut u8, layout: Layout, new_size: usize) -> *mut u8 {
-        count(new_size as i64 - layout.size() as i64);
-        System.realloc(ptr, layout, new_size)
-    }
-}
-
 #[global_allocator]
-static COUNTING: Counting = Counting;
+static COUNTING: counting::Counting = counting::Counting;
 
 /// Heap held at the peak of making a `w` × `h` image and encoding it, over what was held before.
 fn measured_peak(format: Format, w: u32, h: u32, noise: bool) -> u64 {
-    let before = LIVE.with(Cell::get);
-    PEAK.with(|p| p.set(before));
+    let before = counting::live();
+    counting::reset_peak();
     let mut img = Rgba8Image::new(w, h);
     let mut rng = rand::rngs::StdRng::seed_from_u64(7);
     for (i, px) in img.data.chunks_exact_mut(4).enumerate() {
@@ -54,7 +25,7 @@ fn measured_peak(format: Format, w: u32, h: u32, noise: bool) -> u64 {
         px.copy_from_slice(&v);
     }
     let body = encode::encode(img, format).expect("encodes");
-    let peak = PEAK.with(Cell::get) - before;
+    let peak = counting::peak() - before;
     drop(body);
     peak as u64
 }

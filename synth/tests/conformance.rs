@@ -8,8 +8,6 @@
 //! whose `model/name` contains the text; `CONFORMANCE_LEVELS=<file>` also writes the per-level
 //! table there (`docs/mip-levels.md` holds it for every demo).
 
-use std::alloc::{GlobalAlloc, Layout, System};
-use std::cell::Cell;
 use std::collections::BTreeMap;
 use std::panic::{catch_unwind, AssertUnwindSafe};
 use std::sync::atomic::{AtomicUsize, Ordering};
@@ -23,6 +21,8 @@ use vtex_synth::models::{self, Inputs, Limits, MipGuarantee, Model};
 use vtex_synth::texture::{level_count, level_size, render_image, MAX_RENDER_WORKING_BYTES};
 use vtex_synth::{samples, Animation, Domain, Error, Region, Rgba8Image, Stop, Texture};
 
+#[path = "support/counting_alloc.rs"]
+mod counting;
 #[path = "../../wasm/src/probe.rs"]
 mod probe;
 
@@ -638,44 +638,8 @@ fn bad_bundle(d: &Demo) -> Outcome {
 
 // ---------------------------------------------------------------- 8. the cost plan
 
-/// Counts the heap bytes each thread holds (what it allocated less what it freed) and the
-/// most it has held since [`reset_peak`].
-struct Counting;
-
-thread_local! {
-    static LIVE: Cell<i64> = const { Cell::new(0) };
-    static PEAK: Cell<i64> = const { Cell::new(0) };
-}
-
-fn count(delta: i64) {
-    let live = LIVE.with(|l| {
-        l.set(l.get() + delta);
-        l.get()
-    });
-    PEAK.with(|p| p.set(p.get().max(live)));
-}
-
-fn reset_peak() {
-    PEAK.with(|p| p.set(LIVE.with(Cell::get)));
-}
-
-unsafe impl GlobalAlloc for Counting {
-    unsafe fn alloc(&self, layout: Layout) -> *mut u8 {
-        count(layout.size() as i64);
-        System.alloc(layout)
-    }
-    unsafe fn dealloc(&self, ptr: *mut u8, layout: Layout) {
-        count(-(layout.size() as i64));
-        System.dealloc(ptr, layout)
-    }
-    unsafe fn realloc(&self, ptr: *mut u8, layout: Layout, new_size: usize) -> *mut u8 {
-        count(new_size as i64 - layout.size() as i64);
-        System.realloc(ptr, layout, new_size)
-    }
-}
-
 #[global_allocator]
-static COUNTING: Counting = Counting;
+static COUNTING: counting::Counting = counting::Counting;
 
 /// The plan read from the bundle alone: the loaded texture's shape, within the public
 /// server's bounds, and a resident size that bounds the heap a fresh load holds after a tile
@@ -688,7 +652,7 @@ fn plan(d: &Demo) -> Outcome {
         return Err(format!("plan {shape:?} ≠ texture {:?}", (t.width(), t.height(), t.domain(), t.animation())));
     }
     Limits::SERVE.check(d.model.id(), &plan).map_err(|e| e.to_string())?;
-    let before = LIVE.with(Cell::get);
+    let before = counting::live();
     let tex = models::load(&d.bundle).map_err(|e| e.to_string())?;
     for level in 0..d.levels() {
         let (lw, lh) = d.level_size(level);
@@ -697,7 +661,7 @@ fn plan(d: &Demo) -> Outcome {
             render_image(&*tex, &region).map_err(|e| e.to_string())?;
         }
     }
-    let held = (LIVE.with(Cell::get) - before).max(0) as u64;
+    let held = (counting::live() - before).max(0) as u64;
     drop(tex);
     let resident = plan.cost.resident_bytes.value;
     let mib = |b: u64| b as f64 / (1 << 20) as f64;
@@ -723,9 +687,9 @@ fn working_memory(d: &Demo) -> Outcome {
         for frame in d.frames() {
             let region = Region::new(level, ((lw - w) / 2) as i64, ((lh - h) / 2) as i64, w as u32, h as u32);
             let tex = models::load(&d.bundle).map_err(|e| e.to_string())?;
-            reset_peak();
+            counting::reset_peak();
             let image = render_image(&*tex, &region.at_frame(frame)).map_err(|e| e.to_string())?;
-            let held = (PEAK.with(Cell::get) - LIVE.with(Cell::get)).max(0) as u64;
+            let held = (counting::peak() - counting::live()).max(0) as u64;
             drop(image);
             if held > worst.0 {
                 worst = (held, format!("level {level}, {w}×{h}, frame {frame}"));
