@@ -100,22 +100,23 @@ pub fn encode(img: Rgba8Image, format: Format) -> Result<Vec<u8>, String> {
     let mut out = match format {
         Format::Rgba => return Ok(img.data),
         Format::Ktx2(k) => return ktx2::encode(&[img], k),
-        Format::Png => Vec::with_capacity(png_capacity(img.data.len())),
-        Format::Jpg | Format::Webp => Vec::with_capacity(img.data.len() / 2),
-    };
-    match format {
-        Format::Rgba | Format::Ktx2(_) => unreachable!("returned above"),
-        Format::Png => write_png(&img, &mut out).map_err(|e| failed(&e))?,
-        Format::Webp => WebPEncoder::new_lossless(&mut out)
-            .write_image(&img.data, w, h, ExtendedColorType::Rgba8)
-            .map_err(|e| failed(&e))?,
+        Format::Png => write_png(&img).map_err(|e| failed(&e))?,
+        Format::Webp => {
+            let mut out = Vec::with_capacity(img.data.len() / 2);
+            WebPEncoder::new_lossless(&mut out)
+                .write_image(&img.data, w, h, ExtendedColorType::Rgba8)
+                .map_err(|e| failed(&e))?;
+            out
+        }
         Format::Jpg => {
             let rgb: Vec<u8> = img.data.chunks_exact(4).flat_map(|p| [p[0], p[1], p[2]]).collect();
+            let mut out = Vec::with_capacity(img.data.len() / 2);
             JpegEncoder::new_with_quality(&mut out, JPEG_QUALITY)
                 .write_image(&rgb, w, h, ExtendedColorType::Rgb8)
-                .map_err(|e| failed(&e))?
+                .map_err(|e| failed(&e))?;
+            out
         }
-    }
+    };
     // The cache charges a tile by its length; make that the memory it really holds.
     out.shrink_to_fit();
     Ok(out)
@@ -124,13 +125,14 @@ pub fn encode(img: Rgba8Image, format: Format) -> Result<Vec<u8>, String> {
 /// PNG with fast deflate and adaptive filters (a cold 256² tile within a few milliseconds,
 /// still lossless), compressed as it is written so that the whole compressed image is never
 /// held beside `out`; stored uncompressed instead when fast deflate would make it larger (noise).
-fn write_png(img: &Rgba8Image, out: &mut Vec<u8>) -> Result<(), png::EncodingError> {
-    write_png_with(img, out, png::Compression::Fast)?;
+fn write_png(img: &Rgba8Image) -> Result<Vec<u8>, png::EncodingError> {
+    let mut out = Vec::with_capacity(png_capacity(img.data.len()));
+    write_png_with(img, &mut out, png::Compression::Fast)?;
     if out.len() > img.data.len() + img.height as usize + PNG_HEADERS {
         out.clear();
-        write_png_with(img, out, png::Compression::NoCompression)?;
+        write_png_with(img, &mut out, png::Compression::NoCompression)?;
     }
-    Ok(())
+    Ok(out)
 }
 
 fn write_png_with(
