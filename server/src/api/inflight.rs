@@ -57,7 +57,7 @@ impl Inflight {
         if kib(bytes) > self.budget_kib {
             return Err(ApiError::bad_request(format!(
                 "this response holds up to {:.1} MiB while it is made, more than the whole budget of bodies in \
-                 flight (--inflight-mb, {} MiB): ask for a smaller region, or PNG",
+                 flight (--inflight-mb, {} MiB): ask for a smaller one",
                 bytes as f64 / (1 << 20) as f64,
                 self.budget_kib / 1024
             )));

@@ -85,7 +85,7 @@ fn past_the_budget_regions_are_refused_while_cached_tiles_are_served() {
     let tile = format!("/api/v1/textures/{id}/tiles/0/0/0.png");
     assert_eq!(status(&split(&get(&s.addr, &tile)).0), 200);
     assert_eq!(gauge(&s, "vtex_inflight_budget_bytes"), 72.0 * MIB);
-    // Lossless WebP holds five times the pixels at its peak: 80 MiB, more than the whole budget.
+    // Lossless WebP holds six times the pixels at its peak: 96 MiB, more than the whole budget.
     let webp = get(&s.addr, &region_path(&id).replace("format=rgba", "format=webp"));
     let (head, body) = split(&webp);
     assert_eq!(status(&head), 400, "{head}");

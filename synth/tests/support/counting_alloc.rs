@@ -44,8 +44,16 @@ unsafe impl GlobalAlloc for Counting {
         count(-(layout.size() as i64));
         System.dealloc(ptr, layout)
     }
+    /// Growth counted as a move, the new block beside the old for a moment (what an allocator
+    /// that cannot grow a block in place holds); shrinking in place.
     unsafe fn realloc(&self, ptr: *mut u8, layout: Layout, new_size: usize) -> *mut u8 {
-        count(new_size as i64 - layout.size() as i64);
+        let old = layout.size() as i64;
+        if new_size as i64 > old {
+            count(new_size as i64);
+            count(-old);
+        } else {
+            count(new_size as i64 - old);
+        }
         System.realloc(ptr, layout, new_size)
     }
 }
