@@ -4,8 +4,8 @@
 // fresh browser profile (an empty HTTP cache) and a fresh server: bytes on the wire by kind
 // (encodings, module, pages), the time to the first complete frame, the share of the pages each
 // step of the path needs that are resident (the others are drawn from a coarser level), and the
-// frame times over the path. Loopback, no
-// network emulation.
+// frame times over the path. Loopback, no network emulation (bench/bandwidth.mjs walks it under
+// throttled networks too, with the same session: bench/bandwidth/sessions.mjs).
 //
 //   flock /tmp/vtex-bench.lock node bench/world/run.mjs [steps] [--screenshot docs/world.png]
 //
@@ -14,7 +14,8 @@
 import { writeFileSync } from 'node:fs';
 import { cpus, loadavg } from 'node:os';
 import { join } from 'node:path';
-import { debugUrl, launchBrowser, ROOT, startServer } from '../../tests/browser/lib.mjs';
+import { ROOT } from '../../tests/browser/lib.mjs';
+import { worldWalk } from '../bandwidth/sessions.mjs';
 import { mean, quantile } from '../stats.mjs';
 
 const args = process.argv.slice(2);
@@ -25,18 +26,11 @@ const MODES = ['client', 'jpg', 'ktx2'];
 
 const rows = [];
 for (const mode of MODES) {
-  const server = await startServer();
-  const browser = await launchBrowser(VIEW);
   const loadBefore = loadavg()[0];
-  const page = await browser.context.newPage();
-  await page.goto(debugUrl(`${server.url}/world.html?pages=${mode}&path=bench&frames=${steps}`));
-  await page.waitForFunction(() => window.vtexWorld && (window.vtexWorld.error || window.vtexWorld.state.done), null, { timeout: 1_800_000, polling: 250 });
-  const s = await page.evaluate(() => window.vtexWorld.error || window.vtexWorld.stats());
-  if (typeof s === 'string' || s.error) throw new Error(`${mode}: ${s.error || s}`);
   // The walk's last view (back at its start), the overlay showing the walk's bytes.
-  if (shotAt && mode === 'client') await page.screenshot({ path: join(ROOT, shotAt) });
-  await browser.close();
-  await server.stop();
+  const screenshot = shotAt && mode === 'client' ? join(ROOT, shotAt) : null;
+  const r = await worldWalk({ mode, profile: 'loopback', size: VIEW, steps, capMs: 1_800_000, screenshot });
+  const s = r.stats;
   // The frames of the walk: after the first complete one (the camera waits for it at the start).
   const walked = s.frameMs.slice(s.frames - s.steps);
   const row = {
@@ -44,8 +38,8 @@ for (const mode of MODES) {
     steps: s.steps,
     firstCompleteS: s.firstComplete / 1000,
     residentShare: mean(s.residentShare),
-    bytes: s.bytes,
-    requests: s.requests,
+    bytes: r.bytes,
+    requests: r.requests,
     frameMean: mean(walked),
     frameP50: quantile(walked, 0.5),
     frameP95: quantile(walked, 0.95),
@@ -64,7 +58,7 @@ console.log('\n| pages | encodings kB | module kB | pages kB (requests) | first 
 console.log('|---|---|---|---|---|---|---|---|');
 for (const r of rows) {
   console.log(
-    `| ${r.mode} | ${kB(r.bytes.encodings)} | ${kB(r.bytes.module)} | ${kB(r.bytes.pages)} (${r.requests.pages}) | ${r.firstCompleteS.toFixed(2)} s | ${(100 * r.residentShare).toFixed(1)} % | ${r.frameMean.toFixed(0)} / ${r.frameP50.toFixed(0)} / ${r.frameP95.toFixed(0)} | ${r.load.map((l) => l.toFixed(1)).join(' → ')} |`,
+    `| ${r.mode} | ${kB(r.bytes.encoding)} | ${kB(r.bytes.module)} | ${kB(r.bytes.pixels)} (${r.requests.pixels}) | ${r.firstCompleteS.toFixed(2)} s | ${(100 * r.residentShare).toFixed(1)} % | ${r.frameMean.toFixed(0)} / ${r.frameP50.toFixed(0)} / ${r.frameP95.toFixed(0)} | ${r.load.map((l) => l.toFixed(1)).join(' → ')} |`,
   );
 }
 console.log(`\nwritten ${out}`);
