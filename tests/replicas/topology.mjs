@@ -40,6 +40,9 @@ export function nginxConf(upstreams, listen, dir) {
     return addr ? line.replace(/vtex-\d+:8080/, addr) : '\n    #';
   }, 3);
   if (upstreams.length > 3) throw new Error('docker/nginx.conf names 3 replicas');
+  // Addresses, not names: nothing to look up again (and the host's nginx may predate `resolve`).
+  conf = rewrite(conf, /\n    include \/etc\/nginx\/resolver\.conf;/, '', 1);
+  conf = rewrite(conf, / resolve /, ' ', 3);
   conf = rewrite(conf, /listen 80;/, `listen ${listen};`, 1);
   conf = rewrite(conf, /\/var\/run\/nginx\.pid/, join(dir, 'nginx.pid'), 1);
   conf = rewrite(conf, /\/var\/cache\/nginx/, join(dir, 'cache'), 6);
