@@ -236,18 +236,21 @@ fn freshness(headers: &reqwest::header::HeaderMap) -> Option<u64> {
     Some(max_age.map_or(0, |m| (disk::now() + m).saturating_sub(age)))
 }
 
-/// The fetches of the pages `missing` (by page metatile, for pages of side `size`, in the order
-/// of each group's first page asked for): a metatile where at least half of a whole one is
-/// asked for, else each page alone.
-fn fetch_plan(missing: Vec<(PageAddr, Vec<PageAddr>)>, size: u32) -> Vec<Fetch> {
+/// What [`Client::pages`] must ask the server for: pages of one page metatile that no cache
+/// holds, or a page of the disk cache to revalidate.
+enum Missing {
+    Group(PageAddr, Vec<PageAddr>),
+    Stale(Page),
+}
+
+/// The fetches of the pages `asked` of page metatile `m` (for pages of side `size`): the
+/// metatile where at least half of a whole one is asked for, else each page alone.
+fn fetch_plan(m: PageAddr, asked: Vec<PageAddr>, size: u32) -> Vec<Fetch> {
     let side = vtex_wire::levels::metatile_tiles(size) as usize;
-    missing
-        .into_iter()
-        .flat_map(|(m, asked)| match 2 * asked.len() >= side * side {
-            true => vec![Fetch::Metatile(m, asked)],
-            false => asked.into_iter().map(Fetch::Page).collect(),
-        })
-        .collect()
+    match 2 * asked.len() >= side * side {
+        true => vec![Fetch::Metatile(m, asked)],
+        false => asked.into_iter().map(Fetch::Page).collect(),
+    }
 }
 
 /// A page from the single-page endpoint's answer: its size and validator from the headers.
@@ -434,29 +437,29 @@ impl Client {
         self.cache.lock().unwrap().bytes()
     }
 
-    /// Pages `addrs` of `texture` in `spec`, in the order asked: from the cache, the others
+    /// Pages `addrs` of `texture` in `spec`, in the order asked: from the cache in memory, then
+    /// from the disk cache while fresh (a stale one with an ETag revalidated), the others
     /// fetched — grouped by page metatile, a group as its metatile when it asks for at least
     /// half of a whole one (one request; the metatile's other pages are kept in the cache,
     /// behind the pages asked for), else page by page, so no fetch brings more than twice the
-    /// bytes asked for. [`REQUESTS_IN_FLIGHT`] requests at once, each retried until
-    /// [`Retry::attempts`] run out; their pages enter the cache in the order of the fetches.
+    /// bytes asked for. Requests go out in the order of each group's first page asked for (a
+    /// plan's priority), [`REQUESTS_IN_FLIGHT`] at once, each retried until
+    /// [`Retry::attempts`] run out; their pages enter the caches in the order of the fetches.
     pub async fn pages(&self, texture: &str, addrs: &[PageAddr], spec: &PageSpec) -> Result<(Vec<Page>, FetchStats)> {
         let mut stats = FetchStats::default();
         let key = |addr: PageAddr| PageKey { texture: texture.to_string(), addr, spec: *spec };
         let mut found: HashMap<PageAddr, Page> = HashMap::new();
-        // By page metatile, in the order of each one's first page asked for: the caller's
-        // priority (the planner's coarsest first) is the order of the requests.
-        let mut missing: Vec<(PageAddr, Vec<PageAddr>)> = Vec::new();
+        // By page metatile, in the order of each one's first page asked for, and the stale
+        // pages of the disk cache where they are asked for: the caller's priority (the
+        // planner's coarsest first) is the order of the requests.
+        let mut missing: Vec<Missing> = Vec::new();
         let mut group: HashMap<PageAddr, usize> = HashMap::new();
-        let mut stale = Vec::new();
+        let mut seen = std::collections::HashSet::new();
         {
             let mut cache = self.cache.lock().unwrap();
             let mut disk = self.disk.as_ref().map(|d| d.lock().unwrap());
             for &a in addrs {
-                if found.contains_key(&a)
-                    || group.get(&page_metatile(a, spec.size)).is_some_and(|&g| missing[g].1.contains(&a))
-                    || stale.iter().any(|p: &Page| p.addr == a)
-                {
+                if !seen.insert(a) {
                     continue;
                 }
                 if let Some(p) = cache.get(&key(a)) {
@@ -470,21 +473,28 @@ impl Client {
                         cache.insert(key(a), e.page.clone());
                         found.insert(a, e.page);
                     }
-                    Some(e) if e.page.etag.is_some() => stale.push(e.page),
+                    Some(e) if e.page.etag.is_some() => missing.push(Missing::Stale(e.page)),
                     _ => {
                         let m = page_metatile(a, spec.size);
                         let g = *group.entry(m).or_insert_with(|| {
-                            missing.push((m, Vec::new()));
+                            missing.push(Missing::Group(m, Vec::new()));
                             missing.len() - 1
                         });
-                        missing[g].1.push(a);
+                        if let Missing::Group(_, asked) = &mut missing[g] {
+                            asked.push(a);
+                        }
                     }
                 }
             }
         }
-        stats.requested = missing.iter().map(|(_, asked)| asked.len()).sum::<usize>() + stale.len();
-        let mut plan = fetch_plan(missing, spec.size);
-        plan.extend(stale.into_iter().map(Fetch::Revalidate));
+        stats.requested = missing.iter().map(|m| if let Missing::Group(_, asked) = m { asked.len() } else { 1 }).sum();
+        let plan: Vec<Fetch> = missing
+            .into_iter()
+            .flat_map(|m| match m {
+                Missing::Group(m, asked) => fetch_plan(m, asked, spec.size),
+                Missing::Stale(page) => vec![Fetch::Revalidate(page)],
+            })
+            .collect();
         stats.metatiles = plan.iter().filter(|f| matches!(f, Fetch::Metatile(..))).count();
         let fetches = plan.into_iter().map(|f| self.fetch(texture, f, spec));
         let mut fetched = futures_util::stream::iter(fetches).buffered(REQUESTS_IN_FLIGHT);
