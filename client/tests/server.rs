@@ -141,7 +141,29 @@ async fn the_planner_plans_what_a_camera_needs_and_the_server_serves_it() {
     assert!(pages.iter().all(|p| !p.bytes.is_empty() && p.width == 72));
     let resident: BTreeSet<PageAddr> = pages.iter().map(|p| p.addr).collect();
     assert!(feedback.keys().all(|a| resident.contains(a)), "every page the view needs is held");
+    for &a in feedback.keys() {
+        for level in a.level..=top {
+            assert!(resident.contains(&planner::ancestor(a, level)), "{a:?}'s ancestor at level {level} is held");
+        }
+    }
     assert!(planner::plan(&feedback, &t, spec.size, |a| resident.contains(&a), usize::MAX).is_empty());
+
+    // Close above the ground, looking straight down, the view needs level 0 alone: the plan
+    // adds the ancestors up to the top level, the top first, and they are all served.
+    let down = planner::look_at([100.0, 100.0, 20.0], [100.0, 100.0, 0.0], [0.0, 1.0, 0.0]);
+    let close = View { view_proj: planner::mul(&proj, &down), ..view };
+    let near = planner::from_camera(&close, &surface, &t, spec.size);
+    assert!(!near.is_empty() && near.keys().all(|a| a.level == 0), "{near:?}");
+    let plan = planner::plan(&near, &t, spec.size, |_| false, usize::MAX);
+    assert_eq!(plan[0].addr, PageAddr { level: top, x: 0, y: 0 });
+    let want: Vec<PageAddr> = plan.iter().map(|r| r.addr).collect();
+    let (pages, _) = client.pages(&id, &want, &spec).await.unwrap();
+    for &a in near.keys() {
+        for level in 0..=top {
+            let up = planner::ancestor(a, level);
+            assert!(pages.iter().any(|p| p.addr == up), "{a:?}'s ancestor at level {level} is fetched");
+        }
+    }
 
     // Frame by frame within a budget, as an engine would: held pages are resident.
     let fresh = Client::new(&s.base, 64 << 20);

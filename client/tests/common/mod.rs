@@ -206,9 +206,19 @@ pub struct Logged {
 }
 
 impl Nginx {
-    /// The requests logged so far (nginx writes each line when its request ends).
+    /// The requests logged so far. nginx writes a request's line as it ends, which may be just
+    /// after its client has the answer: the log is read until it holds still for 150 ms.
     pub fn log(&self) -> Vec<Logged> {
-        let text = std::fs::read_to_string(self.dir.path().join("access.log")).unwrap_or_default();
+        let read = || std::fs::read_to_string(self.dir.path().join("access.log")).unwrap_or_default();
+        let mut text = read();
+        let mut still = Instant::now();
+        while still.elapsed() < Duration::from_millis(150) {
+            std::thread::sleep(Duration::from_millis(25));
+            let now = read();
+            if now != text {
+                (text, still) = (now, Instant::now());
+            }
+        }
         text.lines()
             .map(|l| {
                 let f: Vec<&str> = l.split(' ').collect();
