@@ -1,24 +1,26 @@
 //! Flies a camera low over a 100,000² texture laid on a ground plane and streams the pages each
 //! frame needs through `vtex-client`, printing per-frame figures.
 //!
-//! The pages a frame needs come from a feedback-like rule: rays through a grid of screen
-//! points (every 8th pixel of a 1280×720 view, 60° vertical field of view) meet the ground;
-//! at each hit, the texels one screen pixel spans there (distance and incidence) give the mip
-//! level, and the hit's texel coordinates at that level give the page — as a GPU feedback pass
-//! would write them. The texture is a torus, so pages wrap.
+//! The pages a frame needs come from the page-residency planner (`vtex_client::planner`): rays
+//! through every 8th pixel of a 1280×720 view (60° vertical field of view) meet the ground, a
+//! plane on which the texture repeats (it is a torus); the texels one pixel spans there give the
+//! level, the hit the page — as a GPU feedback pass would write them. The plan asks for those
+//! pages and their coarser ancestors not held yet, coarsest first, at most 256 a frame.
 //!
 //! ```sh
 //! cargo run --release -p vtex-client --example flythrough -- http://127.0.0.1:8080 [frames] [name]
 //! ```
 
-use std::collections::BTreeSet;
 use std::time::Instant;
+use vtex_client::planner::{self, Surface, View};
 use vtex_client::{Client, PageAddr, PageFormat, PageSpec, TextureInfo};
 
-const WIDTH: f64 = 1280.0;
-const HEIGHT: f64 = 720.0;
+const WIDTH: u32 = 1280;
+const HEIGHT: u32 = 720;
 const FOV_Y: f64 = std::f64::consts::FRAC_PI_3;
-const STEP: usize = 8;
+const STEP: u32 = 8;
+/// Pages asked for a frame at most.
+const BUDGET: usize = 256;
 
 /// A camera at `pos` (texels; z is the height over the ground) looking along `yaw`, pitched
 /// down by `pitch`.
@@ -28,41 +30,17 @@ struct Camera {
     pitch: f64,
 }
 
-/// The pages the visible ground needs, by the rule in the module docs.
-fn needed_pages(cam: &Camera, tex: &TextureInfo, size: u32) -> Vec<PageAddr> {
+/// The planner's view of the ground from `cam`, and the ground: one texel a unit.
+fn view(cam: &Camera, tex: &TextureInfo) -> (View, Surface) {
     let (sy, cy) = cam.yaw.sin_cos();
     let (sp, cp) = cam.pitch.sin_cos();
     let forward = [cy * cp, sy * cp, -sp];
-    let right = [-sy, cy, 0.0];
-    let up = [cy * sp, sy * sp, cp];
-    let tan = (FOV_Y / 2.0).tan();
-    let pixel_angle = FOV_Y / HEIGHT;
-    let levels = vtex_client::page_levels(tex);
-    let mut pages = BTreeSet::new();
-    for py in (0..HEIGHT as usize).step_by(STEP) {
-        for px in (0..WIDTH as usize).step_by(STEP) {
-            let sx = (2.0 * (px as f64 + 0.5) / WIDTH - 1.0) * tan * WIDTH / HEIGHT;
-            let sy = (1.0 - 2.0 * (py as f64 + 0.5) / HEIGHT) * tan;
-            let d: Vec<f64> = (0..3).map(|i| forward[i] + sx * right[i] + sy * up[i]).collect();
-            if d[2] >= -1e-6 {
-                continue; // above the horizon
-            }
-            let len = (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt();
-            let t = -cam.pos[2] / d[2];
-            let (u, v) = (cam.pos[0] + t * d[0], cam.pos[1] + t * d[1]);
-            let distance = t * len;
-            let incidence = (-d[2] / len).max(0.05);
-            // Texels one screen pixel covers along its longer axis on the ground.
-            let footprint = distance * pixel_angle / incidence;
-            let level = (footprint.max(1.0).log2().floor() as u32).min(levels - 1);
-            let (cols, rows) = vtex_client::page_grid(tex, level, size);
-            let scale = (1u64 << level) as f64 * size as f64;
-            let x = (u / scale).floor().rem_euclid(cols as f64) as u32;
-            let y = (v / scale).floor().rem_euclid(rows as f64) as u32;
-            pages.insert(PageAddr { level, x, y });
-        }
-    }
-    pages.into_iter().collect()
+    let target = [cam.pos[0] + forward[0], cam.pos[1] + forward[1], cam.pos[2] + forward[2]];
+    let eye = planner::look_at(cam.pos, target, [0.0, 0.0, 1.0]);
+    let proj = planner::perspective(FOV_Y, WIDTH as f64 / HEIGHT as f64, 1.0, 1e7);
+    let view = View { view_proj: planner::mul(&proj, &eye), width: WIDTH, height: HEIGHT, step: STEP, lod_bias: 0.0 };
+    let (w, h) = (tex.width as f64, tex.height as f64);
+    (view, Surface { origin: [0.0; 3], u_axis: [w, 0.0, 0.0], v_axis: [0.0, h, 0.0], repeat: true })
 }
 
 fn percentile(sorted: &[f64], p: f64) -> f64 {
@@ -92,7 +70,13 @@ async fn main() -> Result<(), Box<dyn std::error::Error>> {
     for f in 0..frames {
         let t = f as f64;
         let cam = Camera { pos: [50_000.0 + 24.0 * t, 50_000.0 + 6.0 * t, 220.0], yaw: 0.25 + 0.004 * t, pitch: 0.35 };
-        let need = needed_pages(&cam, tex, spec.size);
+        let (view, ground) = view(&cam, tex);
+        let feedback = planner::from_camera(&view, &ground, tex, spec.size);
+        let plan = planner::plan(&feedback, tex, spec.size, |a| client.is_cached(&tex.id, a, &spec), BUDGET);
+        // The planned pages (coarsest first), then those the view samples that are held.
+        let mut seen = std::collections::BTreeSet::new();
+        let need: Vec<PageAddr> =
+            plan.iter().map(|r| r.addr).chain(feedback.keys().copied()).filter(|&a| seen.insert(a)).collect();
         let t0 = Instant::now();
         let (_, stats) = client.pages(&tex.id, &need, &spec).await?;
         let ms = t0.elapsed().as_secs_f64() * 1e3;

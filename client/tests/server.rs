@@ -2,72 +2,12 @@
 //! `vtex-server`, built by the same `cargo test --workspace`), and against a scripted socket for
 //! retries.
 
-use std::io::{BufRead, BufReader, Read, Write};
-use std::net::TcpListener;
-use std::path::PathBuf;
-use std::process::{Child, Command, Stdio};
-use std::sync::atomic::{AtomicUsize, Ordering};
-use std::sync::Arc;
+mod common;
+
+use common::{addrs, scripted, serve, upload};
+use std::sync::atomic::Ordering;
 use std::time::Duration;
 use vtex_client::{Client, PageAddr, PageFormat, PageSpec, Retry};
-
-/// `vtex serve` on a free port over a fresh data directory, killed when dropped.
-struct Server {
-    child: Child,
-    base: String,
-    _dir: tempfile::TempDir,
-}
-
-impl Drop for Server {
-    fn drop(&mut self) {
-        let _ = self.child.kill();
-        let _ = self.child.wait();
-    }
-}
-
-/// The `vtex` binary beside this test's own directory (`target/<profile>/`).
-fn vtex_binary() -> PathBuf {
-    let exe = std::env::current_exe().unwrap();
-    let bin = exe.parent().unwrap().parent().unwrap().join("vtex");
-    assert!(bin.exists(), "{} is missing: build it with `cargo build -p vtex-server` (same profile)", bin.display());
-    bin
-}
-
-fn serve() -> Server {
-    let dir = tempfile::tempdir().unwrap();
-    let mut child = Command::new(vtex_binary())
-        .args(["serve", "--bind", "127.0.0.1:0", "--no-demos", "--data-dir"])
-        .arg(dir.path())
-        .stdout(Stdio::piped())
-        .stderr(Stdio::null())
-        .spawn()
-        .unwrap();
-    let mut line = String::new();
-    BufReader::new(child.stdout.take().unwrap()).read_line(&mut line).unwrap();
-    let base = line.trim().strip_prefix("vtex listening on ").expect("the listening line").to_string();
-    Server { child, base, _dir: dir }
-}
-
-/// Uploads a 256² chaos mosaic torus; returns its id.
-async fn upload(base: &str) -> String {
-    let sample = vtex_synth::samples::pebbles(32, 12, 3, true);
-    let inputs = vtex_synth::models::Inputs::from([("sample".to_string(), sample.to_png())]);
-    let params = serde_json::json!({"tiles_x": 16, "tiles_y": 16, "iterations": 10, "seed": 3});
-    let bundle = vtex_synth::models::create("chaos-mosaic", "client test", &params, &inputs).unwrap();
-    let r = reqwest::Client::new()
-        .post(format!("{base}/api/v1/textures"))
-        .header("content-type", "application/octet-stream")
-        .body(bundle.to_bytes())
-        .send()
-        .await
-        .unwrap();
-    assert!(r.status().is_success());
-    r.json::<serde_json::Value>().await.unwrap()["id"].as_str().unwrap().to_string()
-}
-
-fn addrs(level: u32, n: u32) -> Vec<PageAddr> {
-    (0..n * n).map(|i| PageAddr { level, x: i % n, y: i / n }).collect()
-}
 
 #[tokio::test]
 async fn discovery_pages_alone_or_from_their_metatiles_and_the_cache() {
@@ -152,42 +92,6 @@ async fn revalidation_keeps_the_held_page_on_304() {
     assert_eq!(second.bytes, first.bytes);
 }
 
-/// A socket that answers its first `failures` requests with `status` (Retry-After: 0), then a
-/// page; counts the requests.
-fn scripted(failures: usize, status: u16) -> (String, Arc<AtomicUsize>) {
-    let listener = TcpListener::bind("127.0.0.1:0").unwrap();
-    let base = format!("http://{}", listener.local_addr().unwrap());
-    let count = Arc::new(AtomicUsize::new(0));
-    let seen = count.clone();
-    std::thread::spawn(move || {
-        for stream in listener.incoming() {
-            let mut stream = stream.unwrap();
-            let mut head = Vec::new();
-            let mut byte = [0u8];
-            while !head.ends_with(b"\r\n\r\n") && stream.read(&mut byte).unwrap() == 1 {
-                head.push(byte[0]);
-            }
-            let n = seen.fetch_add(1, Ordering::SeqCst);
-            let response = if n < failures {
-                let body = br#"{"error":"try later"}"#;
-                let mut r = format!(
-                    "HTTP/1.1 {status} X\r\nretry-after: 0\r\ncontent-length: {}\r\nconnection: close\r\n\r\n",
-                    body.len()
-                )
-                .into_bytes();
-                r.extend_from_slice(body);
-                r
-            } else {
-                let page = [1u8, 2, 3, 4];
-                let head = "HTTP/1.1 200 OK\r\nx-vtex-width: 1\r\nx-vtex-height: 1\r\ncontent-length: 4\r\nconnection: close\r\n\r\n";
-                [head.as_bytes(), &page].concat()
-            };
-            let _ = stream.write_all(&response);
-        }
-    });
-    (base, count)
-}
-
 #[tokio::test]
 async fn retries_back_off_on_503_and_never_on_404() {
     let retry = Retry { attempts: 4, first_delay: Duration::from_millis(5), max_delay: Duration::from_millis(20) };
@@ -203,4 +107,80 @@ async fn retries_back_off_on_503_and_never_on_404() {
     let err = Client::new(&base, 1 << 20).with_retry(retry).pages("t", &one, &spec).await.unwrap_err();
     assert_eq!(count.load(Ordering::SeqCst), 1, "a 404 is not retried: {err}");
     assert!(err.to_string().contains("404: try later"), "{err}");
+}
+
+/// The planner against a real server: a camera low over the 512² torus needs pages of several
+/// levels; its plan (every needed page and ancestor, coarsest first) fetched, every page the
+/// view needs is held and the next plan is empty; within a budget of 8 a frame, the first
+/// frame brings the level that is one page, and the view is complete after as many frames as
+/// the budget makes it take.
+#[tokio::test]
+async fn the_planner_plans_what_a_camera_needs_and_the_server_serves_it() {
+    use std::collections::BTreeSet;
+    use vtex_client::planner::{self, Surface, View};
+    let s = serve();
+    let id = upload(&s.base).await;
+    let client = Client::new(&s.base, 64 << 20);
+    let t = client.textures().await.unwrap().into_iter().find(|t| t.id == id).unwrap();
+    let spec = PageSpec { size: 64, border: 4, format: PageFormat::Ktx2 { codec: "bc1", zstd: true } };
+    let surface = Surface { origin: [0.0; 3], u_axis: [512.0, 0.0, 0.0], v_axis: [0.0, 512.0, 0.0], repeat: true };
+    let proj = planner::perspective(std::f64::consts::FRAC_PI_3, 16.0 / 9.0, 0.5, 1e5);
+    let eye = planner::look_at([256.0, 256.0, 12.0], [330.0, 290.0, 0.0], [0.0, 0.0, 1.0]);
+    let view = View { view_proj: planner::mul(&proj, &eye), width: 640, height: 360, step: 4, lod_bias: 0.0 };
+    let feedback = planner::from_camera(&view, &surface, &t, spec.size);
+    let levels: BTreeSet<u32> = feedback.keys().map(|a| a.level).collect();
+    assert!(levels.len() >= 3 && levels.contains(&0), "near and far: {levels:?}");
+    let top = planner::top_level(&t, spec.size);
+    assert_eq!(top, 3);
+
+    let all = planner::plan(&feedback, &t, spec.size, |_| false, usize::MAX);
+    assert_eq!(all[0].addr, PageAddr { level: top, x: 0, y: 0 }, "the one page of the top level first");
+    assert!(all.windows(2).all(|w| w[0].addr.level >= w[1].addr.level), "coarsest first");
+    let want: Vec<PageAddr> = all.iter().map(|r| r.addr).collect();
+    let (pages, _) = client.pages(&id, &want, &spec).await.unwrap();
+    assert!(pages.iter().all(|p| !p.bytes.is_empty() && p.width == 72));
+    let resident: BTreeSet<PageAddr> = pages.iter().map(|p| p.addr).collect();
+    assert!(feedback.keys().all(|a| resident.contains(a)), "every page the view needs is held");
+    for &a in feedback.keys() {
+        for level in a.level..=top {
+            assert!(resident.contains(&planner::ancestor(a, level)), "{a:?}'s ancestor at level {level} is held");
+        }
+    }
+    assert!(planner::plan(&feedback, &t, spec.size, |a| resident.contains(&a), usize::MAX).is_empty());
+
+    // Close above the ground, looking straight down, the view needs level 0 alone: the plan
+    // adds the ancestors up to the top level, the top first, and they are all served.
+    let down = planner::look_at([100.0, 100.0, 20.0], [100.0, 100.0, 0.0], [0.0, 1.0, 0.0]);
+    let close = View { view_proj: planner::mul(&proj, &down), ..view };
+    let near = planner::from_camera(&close, &surface, &t, spec.size);
+    assert!(!near.is_empty() && near.keys().all(|a| a.level == 0), "{near:?}");
+    let plan = planner::plan(&near, &t, spec.size, |_| false, usize::MAX);
+    assert_eq!(plan[0].addr, PageAddr { level: top, x: 0, y: 0 });
+    let want: Vec<PageAddr> = plan.iter().map(|r| r.addr).collect();
+    let (pages, _) = client.pages(&id, &want, &spec).await.unwrap();
+    for &a in near.keys() {
+        for level in 0..=top {
+            let up = planner::ancestor(a, level);
+            assert!(pages.iter().any(|p| p.addr == up), "{a:?}'s ancestor at level {level} is fetched");
+        }
+    }
+
+    // Frame by frame within a budget, as an engine would: held pages are resident.
+    let fresh = Client::new(&s.base, 64 << 20);
+    let mut frames = 0;
+    loop {
+        let batch = planner::plan(&feedback, &t, spec.size, |a| fresh.is_cached(&id, a, &spec), 8);
+        if batch.is_empty() {
+            break;
+        }
+        if frames == 0 {
+            assert_eq!(batch[0].addr.level, top);
+        }
+        let addrs: Vec<PageAddr> = batch.iter().map(|r| r.addr).collect();
+        fresh.pages(&id, &addrs, &spec).await.unwrap();
+        frames += 1;
+    }
+    // Page metatiles bring neighbours too, so it may take fewer frames, never more.
+    assert!(frames <= all.len().div_ceil(8), "{frames} frames for {} pages", all.len());
+    assert!(feedback.keys().all(|&a| fresh.is_cached(&id, a, &spec)));
 }
