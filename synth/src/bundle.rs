@@ -72,6 +72,7 @@ impl Manifest {
 /// variant to be read from that value. The models' tagged parameter enums are read so: every
 /// type below them is then deserialized by serde_json's value deserializer alone, not also
 /// from the buffered `Content` of the derive, which keeps the WebAssembly modules small.
+#[cfg(any(feature = "model-cascade", feature = "model-patterns"))]
 pub(crate) fn tagged<'de, D, K>(
     d: D,
     tag: &'static str,

@@ -238,13 +238,49 @@ mod tests {
         png
     }
 
-    /// The png crate panics expanding a palette of partial entries unless it is refused first.
+    /// A palette of partial entries or of more than 256 is refused before the decoder reads it.
     #[test]
     fn refuses_palettes_of_partial_entries() {
         assert_eq!(decode_png("s", &indexed_with_palette_bytes(3)).unwrap().pixel(0, 0), [7, 7, 7, 255]);
         for n in [1, 2, 4, 5, 770] {
             assert!(decode_png("s", &indexed_with_palette_bytes(n)).is_err(), "a palette of {n} bytes was accepted");
         }
+    }
+
+    /// `checker`'s PNG with `extra` (type, data) chunks before its IDAT, each CRC right
+    /// unless `bad_crc`.
+    fn with_chunk_before_idat(kind: &[u8; 4], data: &[u8], bad_crc: bool) -> Vec<u8> {
+        let png = checker(4, 4).to_png();
+        let idat = png.windows(4).position(|w| w == b"IDAT").expect("an IDAT") - 4;
+        let mut body = kind.to_vec();
+        body.extend(data);
+        let crc = crc32fast::hash(&body) ^ bad_crc as u32;
+        let mut out = png[..idat].to_vec();
+        out.extend((data.len() as u32).to_be_bytes());
+        out.extend(&body);
+        out.extend(crc.to_be_bytes());
+        out.extend(&png[idat..]);
+        out
+    }
+
+    /// Every chunk's CRC is checked, ancillary ones included, and the image data's too.
+    #[test]
+    fn refuses_any_chunk_with_a_bad_crc() {
+        assert!(decode_png("s", &with_chunk_before_idat(b"tEXt", b"k\0v", false)).is_ok());
+        assert!(decode_png("s", &with_chunk_before_idat(b"tEXt", b"k\0v", true)).is_err());
+        let mut png = checker(4, 4).to_png();
+        let idat = png.windows(4).position(|w| w == b"IDAT").expect("an IDAT");
+        let len = u32::from_be_bytes(png[idat - 4..idat].try_into().unwrap()) as usize;
+        png[idat + 4 + len] ^= 1;
+        assert!(decode_png("s", &png).is_err());
+    }
+
+    /// A `tRNS` chunk must have its colour type's length (2 bytes for grey, 6 for RGB, none
+    /// with alpha).
+    #[test]
+    fn refuses_trns_of_the_wrong_length() {
+        let err = decode_png("s", &with_chunk_before_idat(b"tRNS", &[0, 1], false)).unwrap_err().to_string();
+        assert!(err.contains("tRNS"), "{err}");
     }
 
     #[test]
