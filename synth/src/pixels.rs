@@ -96,7 +96,7 @@ pub fn decode_png(name: &str, bytes: &[u8]) -> Result<Rgba8Image> {
     use zune_core::{bit_depth::BitDepth, bytestream::ZCursor, options::DecoderOptions};
     let fail = |reason: String| Error::image(name, reason);
     let (w, h) = png_dimensions(name, bytes)?;
-    check_chunks(bytes).map_err(|reason| fail(reason.into()))?;
+    let bytes = check_chunks(bytes).map_err(|reason| fail(reason.into()))?;
     let options = DecoderOptions::default()
         .set_max_width(MAX_IMAGE_SIDE as usize)
         .set_max_height(MAX_IMAGE_SIDE as usize)
@@ -107,7 +107,7 @@ pub fn decode_png(name: &str, bytes: &[u8]) -> Result<Rgba8Image> {
         .png_set_strip_to_8bit(false)
         .png_set_decode_animated(false)
         .set_byte_endian(zune_core::bit_depth::ByteEndian::BE);
-    let mut decoder = zune_png::PngDecoder::new_with_options(ZCursor::new(bytes), options);
+    let mut decoder = zune_png::PngDecoder::new_with_options(ZCursor::new(&bytes[..]), options);
     // zune-png's messages are written as Debug (quoted, with a newline).
     let zune = |e: zune_png::error::PngDecodeErrors| fail(e.to_string().trim().trim_matches('"').to_string());
     decoder.decode_headers().map_err(zune)?;
@@ -131,14 +131,19 @@ pub fn decode_png(name: &str, bytes: &[u8]) -> Result<Rgba8Image> {
 
 /// Checks what the PNG decoder takes on trust: a palette of whole RGB entries, at most 256,
 /// and a `tRNS` chunk of the length its colour type has (2 bytes for grey, 6 for RGB, at most
-/// one a palette entry, none for colour types with alpha). Chunks are walked up to `IEND` or
-/// up to the first that does not fit; the decoder refuses what is wrong with the rest.
-fn check_chunks(bytes: &[u8]) -> std::result::Result<(), &'static str> {
+/// one a palette entry, none for colour types with alpha). Leaves out, unread, the chunks the
+/// decoder would inflate without a bound or keep a copy of (the `iCCP` colour profile and all
+/// text): nothing of them is used, and a bad CRC in them is no error, as in an ancillary chunk
+/// the decoder skips. Chunks are walked up to `IEND` or up to the first that does not fit; the
+/// decoder refuses what is wrong with the rest.
+fn check_chunks(bytes: &[u8]) -> std::result::Result<std::borrow::Cow<'_, [u8]>, &'static str> {
     let colour = bytes.get(25).copied().unwrap_or(0);
     let mut palette = 0;
+    let mut kept: Option<Vec<u8>> = None;
     let mut at = 8;
     while let Some(head) = bytes.get(at..at + 8) {
         let len = u32::from_be_bytes(head[..4].try_into().expect("4 bytes")) as usize;
+        let end = at.saturating_add(len).saturating_add(12);
         match &head[4..] {
             b"PLTE" if len % 3 != 0 || len > 256 * 3 => return Err("a palette must be 1 to 256 RGB entries"),
             b"PLTE" => palette = len / 3,
@@ -153,12 +158,26 @@ fn check_chunks(bytes: &[u8]) -> std::result::Result<(), &'static str> {
                     return Err("a tRNS chunk of the wrong length for its colour type");
                 }
             }
+            b"iCCP" | b"zTXt" | b"iTXt" | b"tEXt" if end <= bytes.len() => {
+                kept.get_or_insert_with(|| bytes[..at].to_vec());
+                at = end;
+                continue;
+            }
             b"IEND" => break,
             _ => {}
         }
-        at = at.saturating_add(len).saturating_add(12);
+        if let Some(k) = kept.as_mut() {
+            k.extend_from_slice(&bytes[at..end.min(bytes.len())]);
+        }
+        at = end;
     }
-    Ok(())
+    Ok(match kept {
+        Some(mut k) => {
+            k.extend_from_slice(bytes.get(at..).unwrap_or_default());
+            std::borrow::Cow::Owned(k)
+        }
+        None => std::borrow::Cow::Borrowed(bytes),
+    })
 }
 
 /// RGBA8 from expanded samples of `size` bytes (1, or 2 big-endian, rounded as
@@ -263,11 +282,12 @@ mod tests {
         out
     }
 
-    /// Every chunk's CRC is checked, ancillary ones included, and the image data's too.
+    /// Every chunk's CRC is checked, ancillary ones included (but for the text and colour
+    /// profile left out unread), and the image data's too.
     #[test]
     fn refuses_any_chunk_with_a_bad_crc() {
-        assert!(decode_png("s", &with_chunk_before_idat(b"tEXt", b"k\0v", false)).is_ok());
-        assert!(decode_png("s", &with_chunk_before_idat(b"tEXt", b"k\0v", true)).is_err());
+        assert!(decode_png("s", &with_chunk_before_idat(b"vtEx", b"data", false)).is_ok());
+        assert!(decode_png("s", &with_chunk_before_idat(b"vtEx", b"data", true)).is_err());
         let mut png = checker(4, 4).to_png();
         let idat = png.windows(4).position(|w| w == b"IDAT").expect("an IDAT");
         let len = u32::from_be_bytes(png[idat - 4..idat].try_into().unwrap()) as usize;
