@@ -1,6 +1,6 @@
 // Where a module's brotli bytes go: for each group of functions (by name), the brotli size of the
 // module with those functions' bodies zeroed, subtracted from the whole module's; and the same for
-// crc32fast's 16 KiB table in its data. What a group costs compressed, which its raw size
+// the CRC-32 tables in its data (the PNG decoder's: 1 KiB each, slice-by-n runs of n of them). What a group costs compressed, which its raw size
 // (`twiggy top`) does not tell: brotli shares much between similar functions.
 //
 // Needs a module with its function names (the `name` section), built as scripts/build-wasm
@@ -16,7 +16,7 @@ import { brotliCompressSync, constants } from 'node:zlib';
 
 /** Groups in order: a function is in the first whose pattern its demangled name matches. */
 const GROUPS = [
-  ['PNG decoding (png, fdeflate, crc32fast, adler32)', /png|fdeflate|crc32|adler/],
+  ['PNG decoding (zune-png, zune-inflate, zune-core)', /png|zune|inflate|fdeflate|crc32|adler/],
   ['JSON and parameters (serde, serde_json, derived impls)', /serde|Deserial|Serializ|Visitor|MapAccess|SeqAccess/],
   ['BLAKE3 (the texture id)', /blake3/],
   ['formatting and panics', /core::fmt|flt2dec|core::num|panic|Display|Debug|fmt::/],
@@ -128,5 +128,29 @@ for (const group of [...GROUPS.map(([g]) => g), OTHER]) {
   const raw = ranges.reduce((s, [a, b]) => s + b - a, 0);
   console.log(`| ${group} | ${raw} B | ${whole - brotli(module(ranges))} B |`);
 }
-const table = bytes.indexOf(Buffer.from([0x96, 0x30, 0x07, 0x77])) - 4; // CRC32_TABLE[0][1] = 0x77073096
-if (table >= 0) console.log(`| crc32fast's table, in the data | 16384 B | ${whole - brotli(module([[table, table + 16384]]))} B |`);
+// CRC-32 tables: T0[i] the CRC of byte i, T(k)[i] = T(k-1)[i] >> 8 ^ T0[T(k-1)[i] & 255], little-endian.
+const crcTables = [];
+for (let k = 0; k < 16; k++) {
+  const t = Buffer.alloc(1024);
+  for (let i = 0; i < 256; i++) {
+    let c;
+    if (k === 0) {
+      c = i;
+      for (let b = 0; b < 8; b++) c = c & 1 ? 0xedb88320 ^ (c >>> 1) : c >>> 1;
+    } else {
+      const p = crcTables[k - 1].readUInt32LE(4 * i);
+      c = (p >>> 8) ^ crcTables[0].readUInt32LE(4 * (p & 255));
+    }
+    t.writeUInt32LE(c >>> 0, 4 * i);
+  }
+  crcTables.push(t);
+}
+const tables = [];
+for (let at = bytes.indexOf(crcTables[0]); at >= 0; ) {
+  let end = at + 1024;
+  for (let k = 1; k < 16 && bytes.subarray(end, end + 1024).equals(crcTables[k]); k++) end += 1024;
+  tables.push([at, end]);
+  at = bytes.indexOf(crcTables[0], end);
+}
+const tableBytes = tables.reduce((s, [a, b]) => s + b - a, 0);
+console.log(`| CRC-32 tables, in the data (${tables.map(([a, b]) => `${(b - a) / 1024} KiB`).join(' + ') || 'none'}) | ${tableBytes} B | ${whole - brotli(module(tables))} B |`);

@@ -66,6 +66,63 @@ impl Manifest {
     }
 }
 
+/// Reads an internally tagged enum's tag (`K`, a fieldless enum of its variant names) and its
+/// other entries as a JSON value, as serde's derive of `#[serde(tag)]` reads them (a map, or a
+/// sequence whose first element is the tag; the same errors at the same paths), for the
+/// variant to be read from that value. The models' tagged parameter enums are read so: every
+/// type below them is then deserialized by serde_json's value deserializer alone, not also
+/// from the buffered `Content` of the derive, which keeps the WebAssembly modules small.
+#[cfg(any(feature = "model-cascade", feature = "model-patterns"))]
+pub(crate) fn tagged<'de, D, K>(
+    d: D,
+    tag: &'static str,
+    expecting: &'static str,
+) -> std::result::Result<(K, serde_json::Value), D::Error>
+where
+    D: serde::Deserializer<'de>,
+    K: Deserialize<'de>,
+{
+    use serde::de::{Error, MapAccess, SeqAccess};
+    struct Tagged<K> {
+        tag: &'static str,
+        expecting: &'static str,
+        kind: std::marker::PhantomData<K>,
+    }
+    impl<'de, K: Deserialize<'de>> serde::de::Visitor<'de> for Tagged<K> {
+        type Value = (K, serde_json::Value);
+
+        fn expecting(&self, f: &mut std::fmt::Formatter) -> std::fmt::Result {
+            f.write_str(self.expecting)
+        }
+
+        fn visit_seq<S: SeqAccess<'de>>(self, mut seq: S) -> std::result::Result<Self::Value, S::Error> {
+            let kind = seq.next_element()?.ok_or_else(|| S::Error::missing_field(self.tag))?;
+            let mut rest = Vec::new();
+            while let Some(v) = seq.next_element()? {
+                rest.push(v);
+            }
+            Ok((kind, serde_json::Value::Array(rest)))
+        }
+
+        fn visit_map<M: MapAccess<'de>>(self, mut map: M) -> std::result::Result<Self::Value, M::Error> {
+            let mut kind = None;
+            let mut rest = serde_json::Map::new();
+            while let Some(key) = map.next_key::<String>()? {
+                if key != self.tag {
+                    rest.insert(key, map.next_value()?);
+                } else if kind.is_some() {
+                    return Err(M::Error::duplicate_field(self.tag));
+                } else {
+                    kind = Some(map.next_value()?);
+                }
+            }
+            let kind = kind.ok_or_else(|| M::Error::missing_field(self.tag))?;
+            Ok((kind, serde_json::Value::Object(rest)))
+        }
+    }
+    d.deserialize_any(Tagged { tag, expecting, kind: std::marker::PhantomData })
+}
+
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub struct Section {
     pub name: String,
@@ -163,8 +220,12 @@ impl Bundle {
         if manifest_len > MAX_MANIFEST_BYTES {
             return Err(Error::bundle(format!("manifest of {manifest_len} bytes; at most {MAX_MANIFEST_BYTES}")));
         }
-        let manifest: Manifest = serde_json::from_slice(r.take(manifest_len, "manifest")?)
+        // Read as a JSON value first: then serde_json's value deserializer, which reads the
+        // models' parameters, is the only one a type is read by.
+        let manifest: serde_json::Value = serde_json::from_slice(r.take(manifest_len, "manifest")?)
             .map_err(|e| Error::bundle(format!("manifest: {e}")))?;
+        let manifest: Manifest =
+            serde_json::from_value(manifest).map_err(|e| Error::bundle(format!("manifest: {e}")))?;
         if manifest.format != FORMAT {
             return Err(Error::bundle(format!("manifest format `{}`; expected `{FORMAT}`", manifest.format)));
         }

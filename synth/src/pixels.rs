@@ -86,58 +86,109 @@ impl Rgba8Image {
 }
 
 /// Decodes an untrusted PNG into RGBA8. The declared size is checked against
-/// [`MAX_IMAGE_SIDE`] before any pixel memory is allocated, so a decompression bomb or a
-/// header that lies about its size is refused, not obeyed. Ancillary chunks that would be
-/// inflated (the `iCCP` colour profile, `zTXt` and `iTXt` text) and all text are skipped
-/// unread, and every buffer the decoder makes counts against [`MAX_IMAGE_ALLOC`]. Every colour
-/// type and bit depth gives RGBA8: grey is replicated, a palette and `tRNS` are expanded,
-/// missing alpha is opaque, 16-bit samples are rounded to 8 bits. `name` is used in errors.
+/// [`MAX_IMAGE_SIDE`] and what it decodes to against [`MAX_IMAGE_ALLOC`] before any pixel
+/// memory is allocated, so a decompression bomb or a header that lies about its size is
+/// refused, not obeyed. Every chunk's CRC and the image data's Adler-32 are checked. Every
+/// colour type and bit depth gives RGBA8: grey is replicated, a palette and `tRNS` are
+/// expanded, missing alpha is opaque, 16-bit samples are rounded to 8 bits. `name` is used in
+/// errors.
 pub fn decode_png(name: &str, bytes: &[u8]) -> Result<Rgba8Image> {
+    use zune_core::{bit_depth::BitDepth, bytestream::ZCursor, options::DecoderOptions};
     let fail = |reason: String| Error::image(name, reason);
-    if !bytes.starts_with(b"\x89PNG\r\n\x1a\n") {
-        return Err(fail("not a PNG file (bad signature)".into()));
-    }
-    let limits = png::Limits { bytes: MAX_IMAGE_ALLOC as usize };
-    let mut decoder = png::Decoder::new_with_limits(std::io::Cursor::new(bytes), limits);
-    decoder.set_ignore_iccp_chunk(true);
-    decoder.set_ignore_text_chunk(true);
-    decoder.set_transformations(png::Transformations::EXPAND);
-    let header = decoder.read_header_info().map_err(|e| fail(e.to_string()))?;
-    let (w, h) = (header.width, header.height);
-    if w == 0 || h == 0 || w > MAX_IMAGE_SIDE || h > MAX_IMAGE_SIDE {
-        return Err(fail(format!("{w}×{h} pixels; each side must be 1..={MAX_IMAGE_SIDE}")));
-    }
-    let mut reader = decoder.read_info().map_err(|e| fail(e.to_string()))?;
-    // The png crate expands whatever palette it was given and assumes whole RGB entries.
-    if let Some(palette) = reader.info().palette.as_deref() {
-        if palette.len() % 3 != 0 || palette.len() > 256 * 3 {
-            return Err(fail(format!("a palette of {} bytes; it must be 1 to 256 RGB entries", palette.len())));
-        }
-    }
+    let (w, h) = png_dimensions(name, bytes)?;
+    let bytes = check_chunks(bytes).map_err(|reason| fail(reason.into()))?;
+    let options = DecoderOptions::default()
+        .set_max_width(MAX_IMAGE_SIDE as usize)
+        .set_max_height(MAX_IMAGE_SIDE as usize)
+        .set_strict_mode(true)
+        .png_set_confirm_crc(true)
+        .inflate_set_confirm_adler(true)
+        .png_set_add_alpha_channel(false)
+        .png_set_strip_to_8bit(false)
+        .png_set_decode_animated(false)
+        .set_byte_endian(zune_core::bit_depth::ByteEndian::BE);
+    let mut decoder = zune_png::PngDecoder::new_with_options(ZCursor::new(&bytes[..]), options);
+    // zune-png's messages are written as Debug (quoted, with a newline).
+    let zune = |e: zune_png::error::PngDecodeErrors| fail(e.to_string().trim().trim_matches('"').to_string());
+    decoder.decode_headers().map_err(zune)?;
     // 16-bit samples decode to twice the bytes of RGBA8: bound what the decoder allocates.
-    let decoded = reader.output_buffer_size().map_or(u64::MAX, |n| n as u64);
+    let decoded = decoder.output_buffer_size().map_or(u64::MAX, |n| n as u64);
     if decoded > MAX_IMAGE_ALLOC {
         return Err(fail(format!("{w}×{h} pixels decode to {decoded} bytes; at most {MAX_IMAGE_ALLOC} allowed")));
     }
-    let mut buf = vec![0; decoded as usize];
-    reader.next_frame(&mut buf).map_err(|e| fail(e.to_string()))?;
-    let (colour, depth) = reader.output_color_type();
-    let channels = colour.samples();
-    let data = match depth {
-        png::BitDepth::Eight if channels == 4 => buf,
-        png::BitDepth::Eight => to_rgba(&buf, channels, 1, |s| s[0]),
-        // Rounded as `round(v · 255 / 65535)`.
-        _ => to_rgba(&buf, channels, 2, |s| ((u16::from_be_bytes([s[0], s[1]]) as u32 + 128) / 257) as u8),
+    let buf = decoder.decode_raw().map_err(zune)?;
+    let channels = decoder.colorspace().map_or(0, |c| c.num_components());
+    if !(1..=4).contains(&channels) || buf.len() as u64 != decoded {
+        return Err(fail(format!("decoded to {} bytes of {channels} channels, not {decoded}", buf.len())));
+    }
+    let data = match decoder.depth() {
+        Some(BitDepth::Eight) if channels == 4 => buf,
+        Some(BitDepth::Eight) => to_rgba(&buf, channels, 1),
+        _ => to_rgba(&buf, channels, 2),
     };
     Ok(Rgba8Image { width: w, height: h, data })
 }
 
-/// RGBA8 from expanded samples of `size` bytes, `channels` a pixel (grey, grey and alpha,
-/// RGB or RGBA), each read by `sample`.
-fn to_rgba(buf: &[u8], channels: usize, size: usize, sample: impl Fn(&[u8]) -> u8) -> Vec<u8> {
+/// Checks what the PNG decoder takes on trust: a palette of whole RGB entries, at most 256,
+/// and a `tRNS` chunk of the length its colour type has (2 bytes for grey, 6 for RGB, at most
+/// one a palette entry, none for colour types with alpha). Leaves out, unread, the chunks the
+/// decoder would inflate without a bound or keep a copy of (the `iCCP` colour profile and all
+/// text): nothing of them is used, and a bad CRC in them is no error, as in an ancillary chunk
+/// the decoder skips. Chunks are walked up to `IEND` or up to the first that does not fit; the
+/// decoder refuses what is wrong with the rest.
+fn check_chunks(bytes: &[u8]) -> std::result::Result<std::borrow::Cow<'_, [u8]>, &'static str> {
+    let colour = bytes.get(25).copied().unwrap_or(0);
+    let mut palette = 0;
+    let mut kept: Option<Vec<u8>> = None;
+    let mut at = 8;
+    while let Some(head) = bytes.get(at..at + 8) {
+        let len = u32::from_be_bytes(head[..4].try_into().expect("4 bytes")) as usize;
+        let end = at.saturating_add(len).saturating_add(12);
+        match &head[4..] {
+            b"PLTE" if len % 3 != 0 || len > 256 * 3 => return Err("a palette must be 1 to 256 RGB entries"),
+            b"PLTE" => palette = len / 3,
+            b"tRNS" => {
+                let fits = match colour {
+                    0 => len == 2,
+                    2 => len == 6,
+                    3 => len <= palette,
+                    _ => false,
+                };
+                if !fits {
+                    return Err("a tRNS chunk of the wrong length for its colour type");
+                }
+            }
+            b"iCCP" | b"zTXt" | b"iTXt" | b"tEXt" if end <= bytes.len() => {
+                kept.get_or_insert_with(|| bytes[..at].to_vec());
+                at = end;
+                continue;
+            }
+            b"IEND" => break,
+            _ => {}
+        }
+        if let Some(k) = kept.as_mut() {
+            k.extend_from_slice(&bytes[at..end.min(bytes.len())]);
+        }
+        at = end;
+    }
+    Ok(match kept {
+        Some(mut k) => {
+            k.extend_from_slice(bytes.get(at..).unwrap_or_default());
+            std::borrow::Cow::Owned(k)
+        }
+        None => std::borrow::Cow::Borrowed(bytes),
+    })
+}
+
+/// RGBA8 from expanded samples of `size` bytes (1, or 2 big-endian, rounded as
+/// `round(v · 255 / 65535)`), `channels` a pixel (grey, grey and alpha, RGB or RGBA).
+fn to_rgba(buf: &[u8], channels: usize, size: usize) -> Vec<u8> {
     let mut out = Vec::with_capacity(buf.len() / (channels * size) * 4);
     for px in buf.chunks_exact(channels * size) {
-        let v = |c: usize| sample(&px[c * size..]);
+        let v = |c: usize| match size {
+            1 => px[c],
+            _ => ((u16::from_be_bytes([px[2 * c], px[2 * c + 1]]) as u32 + 128) / 257) as u8,
+        };
         out.extend_from_slice(&match channels {
             1 => [v(0), v(0), v(0), 255],
             2 => [v(0), v(0), v(0), v(1)],
@@ -206,13 +257,50 @@ mod tests {
         png
     }
 
-    /// The png crate panics expanding a palette of partial entries unless it is refused first.
+    /// A palette of partial entries or of more than 256 is refused before the decoder reads it.
     #[test]
     fn refuses_palettes_of_partial_entries() {
         assert_eq!(decode_png("s", &indexed_with_palette_bytes(3)).unwrap().pixel(0, 0), [7, 7, 7, 255]);
         for n in [1, 2, 4, 5, 770] {
             assert!(decode_png("s", &indexed_with_palette_bytes(n)).is_err(), "a palette of {n} bytes was accepted");
         }
+    }
+
+    /// `checker`'s PNG with `extra` (type, data) chunks before its IDAT, each CRC right
+    /// unless `bad_crc`.
+    fn with_chunk_before_idat(kind: &[u8; 4], data: &[u8], bad_crc: bool) -> Vec<u8> {
+        let png = checker(4, 4).to_png();
+        let idat = png.windows(4).position(|w| w == b"IDAT").expect("an IDAT") - 4;
+        let mut body = kind.to_vec();
+        body.extend(data);
+        let crc = crc32fast::hash(&body) ^ bad_crc as u32;
+        let mut out = png[..idat].to_vec();
+        out.extend((data.len() as u32).to_be_bytes());
+        out.extend(&body);
+        out.extend(crc.to_be_bytes());
+        out.extend(&png[idat..]);
+        out
+    }
+
+    /// Every chunk's CRC is checked, ancillary ones included (but for the text and colour
+    /// profile left out unread), and the image data's too.
+    #[test]
+    fn refuses_any_chunk_with_a_bad_crc() {
+        assert!(decode_png("s", &with_chunk_before_idat(b"vtEx", b"data", false)).is_ok());
+        assert!(decode_png("s", &with_chunk_before_idat(b"vtEx", b"data", true)).is_err());
+        let mut png = checker(4, 4).to_png();
+        let idat = png.windows(4).position(|w| w == b"IDAT").expect("an IDAT");
+        let len = u32::from_be_bytes(png[idat - 4..idat].try_into().unwrap()) as usize;
+        png[idat + 4 + len] ^= 1;
+        assert!(decode_png("s", &png).is_err());
+    }
+
+    /// A `tRNS` chunk must have its colour type's length (2 bytes for grey, 6 for RGB, none
+    /// with alpha).
+    #[test]
+    fn refuses_trns_of_the_wrong_length() {
+        let err = decode_png("s", &with_chunk_before_idat(b"tRNS", &[0, 1], false)).unwrap_err().to_string();
+        assert!(err.contains("tRNS"), "{err}");
     }
 
     #[test]

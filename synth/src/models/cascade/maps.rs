@@ -10,7 +10,7 @@ use crate::{Error, Result};
 use serde::{Deserialize, Serialize};
 
 /// A map as written in the manifest, e.g. `{"kind": "logistic", "r": 3.7}`.
-#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+#[derive(Clone, Copy, Debug, PartialEq, Serialize)]
 #[cfg_attr(feature = "create", derive(schemars::JsonSchema))]
 #[serde(tag = "kind", rename_all = "lowercase", deny_unknown_fields)]
 pub enum MapSpec {
@@ -25,6 +25,57 @@ pub enum MapSpec {
     /// 1 / (1 + e^{−gain·(x − center)}), gain ∈ (0, 100], center ∈ [0, 1]; with a
     /// centre-surround kernel this grows spots and stripes (reaction–diffusion-like).
     Sigmoid { gain: f64, center: f64 },
+}
+
+// Read as a JSON value, its tag and then its fields from that value, as the derive of
+// `#[serde(tag)]` would but without its buffered `Content`: the fields are then deserialized
+// by serde_json's value deserializer only, which keeps the WebAssembly module small.
+impl<'de> Deserialize<'de> for MapSpec {
+    fn deserialize<D: serde::Deserializer<'de>>(d: D) -> std::result::Result<Self, D::Error> {
+        use serde::de::Error;
+        #[derive(Deserialize)]
+        #[serde(variant_identifier, rename_all = "lowercase")]
+        enum Kind {
+            Logistic,
+            Tent,
+            Sine,
+            Circle,
+            Sigmoid,
+        }
+        #[derive(Deserialize)]
+        #[serde(deny_unknown_fields)]
+        struct R {
+            r: f64,
+        }
+        #[derive(Deserialize)]
+        #[serde(deny_unknown_fields)]
+        struct Mu {
+            mu: f64,
+        }
+        #[derive(Deserialize)]
+        #[serde(deny_unknown_fields)]
+        struct Circle {
+            omega: f64,
+            k: f64,
+        }
+        #[derive(Deserialize)]
+        #[serde(deny_unknown_fields)]
+        struct Sigmoid {
+            gain: f64,
+            center: f64,
+        }
+        let (kind, fields) = crate::bundle::tagged(d, "kind", "internally tagged enum MapSpec")?;
+        let spec = match kind {
+            Kind::Logistic => serde_json::from_value(fields).map(|R { r }| MapSpec::Logistic { r }),
+            Kind::Tent => serde_json::from_value(fields).map(|Mu { mu }| MapSpec::Tent { mu }),
+            Kind::Sine => serde_json::from_value(fields).map(|R { r }| MapSpec::Sine { r }),
+            Kind::Circle => serde_json::from_value(fields).map(|Circle { omega, k }| MapSpec::Circle { omega, k }),
+            Kind::Sigmoid => {
+                serde_json::from_value(fields).map(|Sigmoid { gain, center }| MapSpec::Sigmoid { gain, center })
+            }
+        };
+        spec.map_err(D::Error::custom)
+    }
 }
 
 impl Default for MapSpec {
@@ -144,5 +195,59 @@ mod tests {
                 (3.7f32 * 0.123_456 * (1.0 - 0.123_456)).to_bits()
             ]
         );
+    }
+}
+
+#[cfg(test)]
+mod read_as_derived {
+    use super::*;
+    use serde_json::json;
+
+    /// `MapSpec` as serde's derive reads it (of the same name, which serde's messages hold).
+    #[allow(dead_code)] // read through Debug only
+    mod derived {
+        use serde::Deserialize;
+
+        #[derive(Debug, Deserialize)]
+        #[serde(tag = "kind", rename_all = "lowercase", deny_unknown_fields)]
+        pub enum MapSpec {
+            Logistic { r: f64 },
+            Tent { mu: f64 },
+            Sine { r: f64 },
+            Circle { omega: f64, k: f64 },
+            Sigmoid { gain: f64, center: f64 },
+        }
+    }
+
+    fn read<T: serde::de::DeserializeOwned + std::fmt::Debug>(v: &serde_json::Value) -> [String; 2] {
+        let direct = serde_json::from_value::<T>(v.clone()).map(|t| format!("{t:?}")).map_err(|e| e.to_string());
+        let path = serde_path_to_error::deserialize::<_, T>(v)
+            .map(|t| format!("{t:?}"))
+            .map_err(|e| format!("{}: {}", e.path(), e.inner()));
+        [format!("{direct:?}"), format!("{path:?}")]
+    }
+
+    #[test]
+    fn map_specs_read_as_the_derive_does() {
+        let specs = [
+            json!({"kind": "logistic", "r": 3.7}),
+            json!({"r": 3, "kind": "sine"}),
+            json!({"kind": "tent", "mu": 1.5}),
+            json!({"kind": "circle", "omega": 0.2, "k": 1}),
+            json!({"kind": "sigmoid", "gain": 8, "center": 0.5}),
+            json!({"kind": "logistic"}),
+            json!({"kind": "logistic", "r": 3.7, "mu": 1}),
+            json!({"kind": "logistic", "r": "3.7"}),
+            json!({"kind": "tent", "r": 1}),
+            json!({"kind": "spiral", "r": 1}),
+            json!({"kind": 2, "r": 1}),
+            json!({"r": 1}),
+            json!("logistic"),
+            json!(["logistic", 3.7]),
+            json!(null),
+        ];
+        for v in &specs {
+            assert_eq!(read::<MapSpec>(v), read::<derived::MapSpec>(v), "{v}");
+        }
     }
 }

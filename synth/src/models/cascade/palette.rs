@@ -8,12 +8,26 @@ use serde::{Deserialize, Serialize};
 pub const LUT_SIZE: usize = 1024;
 
 /// A named palette or explicit stops `[[t, "#rrggbb"], …]` with t rising from 0 to 1.
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[derive(Clone, Debug, PartialEq, Serialize)]
 #[cfg_attr(feature = "create", derive(schemars::JsonSchema))]
 #[serde(untagged)]
 pub enum PaletteSpec {
     Named(String),
     Stops(Vec<(f64, String)>),
+}
+
+// Read as a JSON value and then as either variant, as the derive of `#[serde(untagged)]`
+// would but without its buffered `Content` (which keeps the WebAssembly module small).
+impl<'de> Deserialize<'de> for PaletteSpec {
+    fn deserialize<D: serde::Deserializer<'de>>(d: D) -> std::result::Result<Self, D::Error> {
+        let value = serde_json::Value::deserialize(d)?;
+        if let serde_json::Value::String(name) = value {
+            return Ok(PaletteSpec::Named(name));
+        }
+        serde_json::from_value(value)
+            .map(PaletteSpec::Stops)
+            .map_err(|_| serde::de::Error::custom("data did not match any variant of untagged enum PaletteSpec"))
+    }
 }
 
 impl Default for PaletteSpec {
@@ -89,5 +103,46 @@ mod tests {
         assert!(build(&PaletteSpec::Named("neon".into())).unwrap_err().to_string().contains("unknown palette"));
         assert!(build(&PaletteSpec::Stops(vec![(0.5, "#000000".into()), (0.2, "#ffffff".into())])).is_err());
         assert!(build(&PaletteSpec::Stops(vec![(0.0, "red".into()), (1.0, "#ffffff".into())])).is_err());
+    }
+}
+
+#[cfg(test)]
+mod read_as_derived {
+    use super::*;
+    use serde_json::json;
+
+    /// `PaletteSpec` as serde's derive reads it (of the same name, which serde's messages hold).
+    #[allow(dead_code)] // read through Debug only
+    mod derived {
+        use serde::Deserialize;
+
+        #[derive(Debug, Deserialize)]
+        #[serde(untagged)]
+        pub enum PaletteSpec {
+            Named(String),
+            Stops(Vec<(f64, String)>),
+        }
+    }
+
+    #[test]
+    fn palette_specs_read_as_the_derive_does() {
+        let specs = [
+            json!("earth"),
+            json!([[0, "#000000"], [1.0, "#ffffff"]]),
+            json!([]),
+            json!([[0, "#000000", 1]]),
+            json!([["0", "#000000"]]),
+            json!({"name": "earth"}),
+            json!(3),
+            json!(null),
+        ];
+        for v in &specs {
+            let new =
+                serde_json::from_value::<PaletteSpec>(v.clone()).map(|t| format!("{t:?}")).map_err(|e| e.to_string());
+            let old = serde_json::from_value::<derived::PaletteSpec>(v.clone())
+                .map(|t| format!("{t:?}"))
+                .map_err(|e| e.to_string());
+            assert_eq!(new, old, "{v}");
+        }
     }
 }

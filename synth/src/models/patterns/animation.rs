@@ -77,24 +77,14 @@ impl Value {
 
     /// How many values this can take at most: distinct map values × the random range.
     fn count(&self) -> u64 {
-        let distinct = self.map.as_ref().map_or(1, |m| {
-            let mut v = m.values.clone();
-            v.sort_unstable();
-            v.dedup();
-            v.len() as u64
-        });
+        let distinct = self.map.as_ref().map_or(1, |m| distinct(m.values.iter().map(|&x| x as u32)).len() as u64);
         distinct * self.random.max(1) as u64
     }
 
     /// Every value this can take, for the period of the animation.
     fn values(&self) -> Vec<u32> {
         let base: Vec<u32> = match &self.map {
-            Some(m) => {
-                let mut v: Vec<u32> = m.values.iter().map(|&x| x as u32).collect();
-                v.sort_unstable();
-                v.dedup();
-                v
-            }
+            Some(m) => distinct(m.values.iter().map(|&x| x as u32)),
             None => vec![0],
         };
         base.iter().flat_map(|&b| (0..self.random.max(1)).map(move |r| b + r)).collect()
@@ -301,13 +291,11 @@ impl AnimationBlock {
         if z.count() > MAX_PERIOD_VALUES {
             return Some(0);
         }
-        let mut lengths: Vec<u64> = self.sequences.iter().map(|s| s.len() as u64).collect();
-        lengths.sort_unstable();
-        lengths.dedup();
+        let lengths = distinct(self.sequences.iter().map(|s| u32::try_from(s.len()).unwrap_or(u32::MAX)));
         let mut l = 1u64;
         for n in lengths {
             for &zv in &z.values() {
-                let c = n + rest(*a, zv) as u64;
+                let c = n as u64 + rest(*a, zv) as u64;
                 l = l / gcd(l, c) * c;
                 if l > u32::MAX as u64 {
                     return Some(0);
@@ -339,4 +327,13 @@ fn gcd(a: u64, b: u64) -> u64 {
     } else {
         gcd(b, a % b)
     }
+}
+
+/// The values `v` gives, sorted and each once (one sort of one type for the module: the
+/// animation's values and lengths, the range tables).
+pub(super) fn distinct(v: impl Iterator<Item = u32>) -> Vec<u32> {
+    let mut v: Vec<u32> = v.collect();
+    v.sort_unstable();
+    v.dedup();
+    v
 }

@@ -72,7 +72,7 @@ pub struct LayerParams {
 }
 
 /// The pattern-choice blocks.
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[derive(Clone, Debug, PartialEq, Serialize)]
 #[cfg_attr(feature = "create", derive(schemars::JsonSchema))]
 #[serde(tag = "kind", rename_all = "snake_case", deny_unknown_fields)]
 pub enum Choice {
@@ -230,7 +230,7 @@ impl AnimationParams {
 }
 
 /// One earlier parameter set, or several.
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[derive(Clone, Debug, PartialEq, Serialize)]
 #[cfg_attr(feature = "create", derive(schemars::JsonSchema))]
 #[serde(untagged)]
 pub enum Previous {
@@ -315,4 +315,155 @@ fn is_zero_f32(v: &f32) -> bool {
 }
 fn is_still(v: &[i64; 2]) -> bool {
     *v == [0, 0]
+}
+
+// `Choice` and `Previous` are read as JSON values and their variants from those values, as
+// the derives of `#[serde(tag)]` and `#[serde(untagged)]` would, but without their buffered
+// `Content`: every type below the enums is then deserialized by serde_json's value
+// deserializer only, which keeps the WebAssembly modules small.
+
+/// The tag of [`Choice`], read as serde reads a variant name.
+#[derive(Deserialize)]
+#[serde(variant_identifier, rename_all = "snake_case")]
+enum ChoiceKind {
+    Virtual,
+    Explicit,
+    Materials,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct ExplicitFields {
+    map: MapRef,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct MaterialsFields {
+    materials: Vec<MaterialParams>,
+    #[serde(default)]
+    areas: Option<AreasParams>,
+    #[serde(default)]
+    pixel_map: Option<PixelMapParams>,
+}
+
+impl<'de> Deserialize<'de> for Choice {
+    fn deserialize<D: serde::Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
+        use serde::de::Error;
+        let (kind, fields) = crate::bundle::tagged(d, "kind", "internally tagged enum Choice")?;
+        let choice = match kind {
+            // As the derive: a unit variant ignores whatever else is there.
+            ChoiceKind::Virtual => Ok(Choice::Virtual),
+            ChoiceKind::Explicit => {
+                serde_json::from_value(fields).map(|f: ExplicitFields| Choice::Explicit { map: f.map })
+            }
+            ChoiceKind::Materials => serde_json::from_value(fields).map(|f: MaterialsFields| Choice::Materials {
+                materials: f.materials,
+                areas: f.areas,
+                pixel_map: f.pixel_map,
+            }),
+        };
+        choice.map_err(D::Error::custom)
+    }
+}
+
+impl<'de> Deserialize<'de> for Previous {
+    fn deserialize<D: serde::Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
+        let value = serde_json::Value::deserialize(d)?;
+        if let Ok(one) = serde_json::from_value(value.clone()) {
+            return Ok(Previous::One(one));
+        }
+        serde_json::from_value(value)
+            .map(Previous::Many)
+            .map_err(|_| serde::de::Error::custom("data did not match any variant of untagged enum Previous"))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use serde_json::json;
+
+    /// `Choice` and `Previous` as serde's derives read them (of the same names, which
+    /// serde's messages hold).
+    #[allow(dead_code)] // read through Debug only
+    mod derived {
+        use super::super::*;
+
+        #[derive(Debug, Deserialize)]
+        #[serde(tag = "kind", rename_all = "snake_case", deny_unknown_fields)]
+        pub enum Choice {
+            Virtual,
+            Explicit {
+                map: MapRef,
+            },
+            Materials {
+                materials: Vec<MaterialParams>,
+                #[serde(default)]
+                areas: Option<AreasParams>,
+                #[serde(default)]
+                pixel_map: Option<PixelMapParams>,
+            },
+        }
+
+        #[derive(Debug, Deserialize)]
+        #[serde(untagged)]
+        pub enum Previous {
+            One(PreviousParams),
+            Many(Vec<PreviousParams>),
+        }
+    }
+
+    /// What reading `v` gives: the value (as Debug shows it, which leaves out the enum's name)
+    /// or the error, directly and by path as `parse_params` reads.
+    fn read<T: serde::de::DeserializeOwned + std::fmt::Debug>(v: &serde_json::Value) -> [String; 2] {
+        let direct = serde_json::from_value::<T>(v.clone()).map(|t| format!("{t:?}")).map_err(|e| e.to_string());
+        let path = serde_path_to_error::deserialize::<_, T>(v)
+            .map(|t| format!("{t:?}"))
+            .map_err(|e| format!("{}: {}", e.path(), e.inner()));
+        [format!("{direct:?}"), format!("{path:?}")]
+    }
+
+    #[test]
+    fn choice_and_previous_read_as_the_derives_do() {
+        let map = json!({"size": [2, 2], "values": [1, 2, 3, 4]});
+        let choices = [
+            json!({"kind": "virtual"}),
+            json!({"kind": "virtual", "map": 1}),
+            json!({"kind": "explicit", "map": map}),
+            json!({"map": map, "kind": "explicit"}),
+            json!({"kind": "explicit"}),
+            json!({"kind": "explicit", "map": map, "extra": true}),
+            json!({"kind": "explicit", "map": {"size": [2, "2"]}}),
+            json!({"kind": "materials", "materials": [{"patterns": [1, -1], "family": 2}]}),
+            json!({"kind": "materials", "materials": [], "areas": {"map": map, "dithered": true}}),
+            json!({"kind": "materials", "materials": [], "pixel_map": {"section": "s", "size": [1, 1], "scale": 2, "block": 4}}),
+            json!({"kind": "materials", "materials": [{"patterns": [1.5]}]}),
+            json!({"kind": "tiles"}),
+            json!({"kind": 1, "map": map}),
+            json!({"kind": null}),
+            json!({}),
+            json!("virtual"),
+            json!(["explicit", map]),
+            json!(7),
+        ];
+        for v in &choices {
+            assert_eq!(read::<Choice>(v), read::<derived::Choice>(v), "{v}");
+        }
+        let p = json!({"a": 0.5, "z": {"random": 3}, "t0": 10});
+        let previous = [
+            p.clone(),
+            json!([p, p]),
+            json!([]),
+            json!([0.5, {"random": 3}, 10]),
+            json!({"a": 0.5, "z": {}, "t0": 10, "x": 1}),
+            json!({"a": 0.5}),
+            json!([p, 3]),
+            json!("p"),
+            json!(null),
+        ];
+        for v in &previous {
+            assert_eq!(read::<Previous>(v), read::<derived::Previous>(v), "{v}");
+        }
+    }
 }

@@ -120,9 +120,7 @@ pub(super) fn range_tables(p: &Params) -> Vec<RangeTable> {
         }
     }
     ranges.retain(|&m| sigma::needs_range_table(m) && m <= sigma::MAX_RANGE);
-    ranges.sort_unstable();
-    ranges.dedup();
-    ranges.into_iter().map(|m| RangeTable::generate(m, p.seed)).collect()
+    super::animation::distinct(ranges.into_iter()).into_iter().map(|m| RangeTable::generate(m, p.seed)).collect()
 }
 
 /// `bundle` with the range tables `p` needs, when it needs any.
