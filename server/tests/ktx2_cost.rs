@@ -3,7 +3,7 @@
 //! as the server does on a cache miss (`encode::encode`), the median reported. Ignored by
 //! default (it is a measurement, not a check); docs/ktx2-quality.md has its figures:
 //!
-//! `cargo test -p vtex-server --release --test ktx2_cost -- --ignored --nocapture`
+//! `cargo test -p vtex-server --test ktx2_cost -- --ignored --nocapture` (the test profile: opt-level 2)
 
 use std::time::Instant;
 use vtex_server::encode::{encode, Format};

