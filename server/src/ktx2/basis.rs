@@ -15,8 +15,8 @@
 use basis_universal::{BasisTextureFormat, ColorSpace, Compressor, CompressorParams};
 use vtex_synth::Rgba8Image;
 
-/// UASTC's pack level: 1 of 0 (fastest) … 4 (very slow). Level 1 is within about 0.3 dB of
-/// the default (2) on vtex's models at some half its time (docs/ktx2-quality.md).
+/// UASTC's pack level: 1 of 0 (fastest) … 4 (very slow), one under basisu's default. Other
+/// levels are not measured yet; this one costs some 1.2 s a 256² page (docs/ktx2-quality.md).
 const UASTC_LEVEL: u32 = 1;
 /// ETC1S's quality (1 … 255, the size of its codebooks): basisu's default.
 const ETC1S_QUALITY: u32 = 128;

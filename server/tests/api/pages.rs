@@ -435,7 +435,10 @@ async fn a_mip_chain_holds_every_level_to_one_pixel() {
     let big = put(&c, &s, &mosaic(32, 80, 6)).await; // 2560² at level 0
     let msg = expect_error(&c, &s.url(&format!("/api/v1/textures/{big}/mips.ktx2?level=0")), 400).await;
     assert!(
-        msg.contains("level 0 is 2560×2560; a mip chain starts at a level of at most 2048 a side (level 1"),
+        msg.contains("level 0 is 2560×2560; a bc7 mip chain starts at a level of at most 2048 a side (level 1"),
         "{msg}"
     );
+    // Basis Universal chains start at 512 at most: basisu's encoding takes seconds a chain.
+    let msg = expect_error(&c, &s.url(&format!("/api/v1/textures/{big}/mips.ktx2?level=2&codec=uastc")), 400).await;
+    assert!(msg.contains("a uastc mip chain starts at a level of at most 512 a side (level 3"), "{msg}");
 }

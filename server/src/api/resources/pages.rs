@@ -40,6 +40,10 @@ pub const DEFAULT_SIZE: u32 = 128;
 pub const DEFAULT_BORDER: u32 = 4;
 /// Largest side of a mip chain's first level.
 pub const MAX_CHAIN_SIDE: u64 = 2048;
+/// Largest side of a Basis Universal (uastc, etc1s) chain's first level: basisu takes some
+/// 20 µs a pixel for UASTC on one thread (docs/ktx2-quality.md), so a 512² chain is seconds of
+/// a synthesis slot and a 2048² one would be minutes.
+pub const MAX_BASIS_CHAIN_SIDE: u64 = 512;
 
 const FORMATS_EXPECTED: &str = "expected png, webp, jpg, rgba or ktx2";
 
@@ -304,9 +308,10 @@ pub async fn mip_chain(
     let k = ktx2_options(q.codec, q.supercompression)?;
     let (w, h) = (entry.texture.width(), entry.texture.height());
     let levels = level_count(w, h);
+    let max_side = if k.codec.is_basis() { MAX_BASIS_CHAIN_SIDE } else { MAX_CHAIN_SIDE };
     let fits = |l: u32| {
         let (lw, lh) = level_size(w, h, l);
-        lw.max(lh) <= MAX_CHAIN_SIDE
+        lw.max(lh) <= max_side
     };
     let first_fit = (0..levels).find(|&l| fits(l)).expect("the last level is 1×1");
     let level = q.level.unwrap_or(first_fit);
@@ -316,8 +321,9 @@ pub async fn mip_chain(
     if !fits(level) {
         let (lw, lh) = level_size(w, h, level);
         return Err(ApiError::bad_request(format!(
-            "level {level} is {lw}×{lh}; a mip chain starts at a level of at most {MAX_CHAIN_SIDE} a side \
-             (level {first_fit} or coarser)"
+            "level {level} is {lw}×{lh}; a {} mip chain starts at a level of at most {max_side} a side \
+             (level {first_fit} or coarser)",
+            k.codec.name()
         )));
     }
     let frame = address::frame_for(&entry, q.frame);
