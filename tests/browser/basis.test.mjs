@@ -91,6 +91,36 @@ function psnr(a, b, channels) {
   return sum === 0 ? Infinity : 10 * Math.log10((255 * 255 * n) / sum);
 }
 
+/** `img` (w × h RGBA8) moved by (dx, dy) pixels, its edge repeated. */
+function shifted(img, w, h, dx, dy) {
+  const out = new Uint8Array(img.length);
+  for (let y = 0; y < h; y++) {
+    for (let x = 0; x < w; x++) {
+      const sx = Math.min(w - 1, Math.max(0, x + dx));
+      const sy = Math.min(h - 1, Math.max(0, y + dy));
+      out.set(img.subarray((sy * w + sx) * 4, (sy * w + sx) * 4 + 4), (y * w + x) * 4);
+    }
+  }
+  return out;
+}
+
+/**
+ * The decoded `got` is the server's `want` and not a neighbour's: closer to it than to `want`
+ * moved by one pixel any way, by at least 1 dB (smooth pages are within any fixed floor of
+ * their own shift). A way in which moving `want` changes it less than the codec's error does
+ * cannot tell a shift from the codec, and is skipped. Returns the failure, or null.
+ */
+function notShifted(got, want, w, h) {
+  const db = psnr(got, want, [0, 1, 2]);
+  for (const [dx, dy] of [[1, 0], [-1, 0], [0, 1], [0, -1]]) {
+    const moved = shifted(want, w, h, dx, dy);
+    if (psnr(want, moved, [0, 1, 2]) >= db) continue;
+    const other = psnr(got, moved, [0, 1, 2]);
+    if (!(db >= other + 1)) return `${db.toFixed(2)} dB, but ${other.toFixed(2)} dB against the page moved by (${dx}, ${dy})`;
+  }
+  return null;
+}
+
 async function bytes(url) {
   const r = await fetch(url);
   assert.equal(r.status, 200, `${url}: ${r.status} ${r.status === 200 ? '' : await r.text()}`);
@@ -120,6 +150,8 @@ for (const [codec, floor] of [
         const alphaDb = opaque ? null : psnr(got.levels[0].data, want, [3]);
         rows.push(`${t.name} L${p.level} ${side}²: ${db.toFixed(2)} dB${alphaDb === null ? '' : `, alpha ${alphaDb.toFixed(2)} dB`}`);
         if (db < floor) low.push(`${t.name} page ${p.level}/${p.x}/${p.y}: ${db.toFixed(2)} dB < ${floor} dB`);
+        const moved = notShifted(got.levels[0].data, want, side, side);
+        if (moved) low.push(`${t.name} page ${p.level}/${p.x}/${p.y}: ${moved}`);
         if (!opaque && alphaDb < floor) low.push(`${t.name}: alpha ${alphaDb.toFixed(2)} dB < ${floor} dB`);
         if (opaque) assert.ok(got.levels[0].data.every((v, i) => i % 4 !== 3 || v === 255), 'an opaque page stays opaque');
       }
@@ -147,8 +179,11 @@ for (const [codec, floor] of [
       if (l.width < 8) continue;
       // Level i of the chain is the top left of vtex level `level + i`: its region.
       const region = `${server.url}/api/v1/textures/${t.id}/region?level=${level + i}&x=0&y=0&w=${l.width}&h=${l.height}&format=rgba`;
-      const db = psnr(l.data, await bytes(region), [0, 1, 2]);
+      const want = await bytes(region);
+      const db = psnr(l.data, want, [0, 1, 2]);
       assert.ok(db >= floor - 2, `chain level ${i}: ${db.toFixed(2)} dB`);
+      const moved = notShifted(l.data, want, l.width, l.height);
+      assert.equal(moved, null, `chain level ${i}`);
     }
   });
 }
