@@ -95,14 +95,14 @@ stand_in() {
 }
 
 # The rust image: this machine's default toolchain (with the wasm32 target) under
-# /usr/local/rustup, and rustup and its proxies in /usr/local/cargo/bin, with gcc and make (jemalloc's
-# build runs make), as the official one.
+# /usr/local/rustup, and rustup and its proxies in /usr/local/cargo/bin, with gcc, g++ (basisu, the
+# Basis Universal encoder, is C++) and make (jemalloc's build runs make), as the official one.
 rust_stand_in() {
     local name=$1 suite=$2 sysroot toolchain
     rustup target add wasm32-unknown-unknown >/dev/null
     sysroot=$(readlink -f "$(rustc --print sysroot)")
     toolchain=$(basename "$sysroot")
-    stand_in "$name" "$suite" gcc,libc6-dev,make "
+    stand_in "$name" "$suite" gcc,g++,libc6-dev,make "
         mkdir -p \"\$1/usr/local/rustup/toolchains\" \"\$1/usr/local/cargo/bin\"
         tar -C '$(dirname "$sysroot")' --exclude='$toolchain/share/doc' -c '$toolchain' | tar -C \"\$1/usr/local/rustup/toolchains\" -x
         printf 'version = \"12\"\ndefault_toolchain = \"%s\"\nprofile = \"minimal\"\n' '$toolchain' > \"\$1/usr/local/rustup/settings.toml\"

@@ -1,5 +1,6 @@
-//! GPU-ready images: BC7, BC1 or plain RGBA8 in a KTX2 container (Khronos KTX 2.0), optionally
-//! zstd-supercompressed, with one mip level or a whole chain.
+//! GPU-ready images: BC7, BC1, plain RGBA8 or Basis Universal (UASTC, ETC1S) in a KTX2
+//! container (Khronos KTX 2.0), optionally zstd-supercompressed (ETC1S: always BasisLZ), with one
+//! mip level or a whole chain.
 //!
 //! Every byte is a pure function of the pixels and [`Ktx2`]: the block encoder
 //! (`block_compression`, a scalar Rust port of Intel's ISPC kernels, used without its GPU
@@ -7,9 +8,14 @@
 //! the CPU it meets, no platform maths library — and zstd is libzstd at a fixed version
 //! (vendored by `zstd-sys`, pinned by the lock file), single-threaded, at a fixed level. So a
 //! page is the same bytes on every run, thread count, replica and machine; the tests pin them.
+//! The Basis Universal codecs are Binomial's C++ encoder, run on the calling thread without its
+//! SIMD kernels ([`basis`] says why that makes it a function of the pixels); their bytes are
+//! pinned on x86-64, where the C++ compiler contracts no multiply-add.
 //!
 //! Colours are sRGB-encoded, as the models produce them, so the formats are the `_SRGB` ones:
 //! a GPU samples and filters them in linear light.
+
+mod basis;
 
 use block_compression::decode::decompress_blocks_as_rgba8;
 use block_compression::{encode::compress_rgba8, BC7Settings, CompressionVariant};
@@ -24,16 +30,24 @@ pub enum Codec {
     Bc1,
     /// Uncompressed RGBA8, for GPUs without BC formats (WebGL on most phones).
     Rgba8,
+    /// Basis Universal UASTC (LDR 4×4), 16 bytes a block, transcoded by the client to the
+    /// GPU's format (ASTC, BC7, ETC2, …) with little loss.
+    Uastc,
+    /// Basis Universal ETC1S with BasisLZ supercompression: the smallest files, transcoded by
+    /// the client to any GPU format, at a visible loss.
+    Etc1s,
 }
 
 impl Codec {
-    pub const EXPECTED: &'static str = "expected bc7, bc1 or rgba8";
+    pub const EXPECTED: &'static str = "expected bc7, bc1, rgba8, uastc or etc1s";
 
     pub fn parse(s: &str) -> Option<Codec> {
         match s {
             "bc7" => Some(Codec::Bc7),
             "bc1" => Some(Codec::Bc1),
             "rgba8" => Some(Codec::Rgba8),
+            "uastc" => Some(Codec::Uastc),
+            "etc1s" => Some(Codec::Etc1s),
             _ => None,
         }
     }
@@ -43,6 +57,8 @@ impl Codec {
             Codec::Bc7 => "bc7",
             Codec::Bc1 => "bc1",
             Codec::Rgba8 => "rgba8",
+            Codec::Uastc => "uastc",
+            Codec::Etc1s => "etc1s",
         }
     }
 
@@ -51,32 +67,71 @@ impl Codec {
         self != Codec::Rgba8
     }
 
-    /// `VkFormat` of the container header.
+    /// Whether the texels are Basis Universal's, which a client transcodes.
+    pub fn is_basis(self) -> bool {
+        matches!(self, Codec::Uastc | Codec::Etc1s)
+    }
+
+    /// The supercompression a codec takes: ETC1S is always BasisLZ, which no other codec takes.
+    pub fn check(self, sc: Supercompression) -> Result<(), String> {
+        match (self, sc) {
+            (Codec::Etc1s, Supercompression::BasisLz) => Ok(()),
+            (Codec::Etc1s, _) => Err(format!(
+                "etc1s is always BasisLZ-supercompressed: leave `supercompression` out or give basislz (got {})",
+                sc.name()
+            )),
+            (_, Supercompression::BasisLz) => {
+                Err(format!("supercompression basislz applies to codec etc1s only (got codec {})", self.name()))
+            }
+            _ => Ok(()),
+        }
+    }
+
+    /// The supercompression a codec takes when none is asked for.
+    pub fn default_supercompression(self) -> Supercompression {
+        match self {
+            Codec::Etc1s => Supercompression::BasisLz,
+            _ => Supercompression::None,
+        }
+    }
+
+    /// `VkFormat` of the container header: `VK_FORMAT_UNDEFINED` for Basis Universal, whose
+    /// format the DFD names.
     fn vk_format(self) -> u32 {
         match self {
             Codec::Bc7 => 146,  // VK_FORMAT_BC7_SRGB_BLOCK
             Codec::Bc1 => 132,  // VK_FORMAT_BC1_RGB_SRGB_BLOCK
             Codec::Rgba8 => 43, // VK_FORMAT_R8G8B8A8_SRGB
+            Codec::Uastc | Codec::Etc1s => 0,
         }
     }
 
     /// Bytes of one texel block (4×4 texels, or one texel for RGBA8).
     fn block_bytes(self) -> usize {
         match self {
-            Codec::Bc7 => 16,
-            Codec::Bc1 => 8,
+            Codec::Bc7 | Codec::Uastc => 16,
+            Codec::Bc1 | Codec::Etc1s => 8,
             Codec::Rgba8 => 4,
         }
     }
 
-    /// The bytes of one level: blocks in row-major order (edge blocks padded by repeating the
-    /// last column and row, as the format requires whole blocks), or the pixels themselves.
-    fn encode_level(self, img: &Rgba8Image) -> Vec<u8> {
-        match self {
-            Codec::Rgba8 => img.data.clone(),
-            Codec::Bc1 => compress(CompressionVariant::BC1, &pad_to_blocks(img)),
-            Codec::Bc7 => encode_bc7(&pad_to_blocks(img)),
-        }
+    /// The bytes of each level, and the supercompression global data: blocks in row-major
+    /// order (edge blocks padded by repeating the last column and row, as the format requires
+    /// whole blocks), or the pixels themselves; Basis Universal's levels as [`basis`] makes them.
+    fn encode_levels(self, levels: &[Rgba8Image]) -> Result<basis::Levels, String> {
+        let alpha = false; // only the Basis DFDs depend on it
+        let one = |f: fn(&Rgba8Image) -> Vec<u8>| basis::Levels {
+            levels: levels.iter().map(f).collect(),
+            global: None,
+            alpha,
+        };
+        Ok(match self {
+            Codec::Rgba8 => one(|l| l.data.clone()),
+            Codec::Bc1 => one(|l| compress(CompressionVariant::BC1, &pad_to_blocks(l))),
+            Codec::Bc7 => one(|l| encode_bc7(&pad_to_blocks(l))),
+            Codec::Uastc => basis::encode(levels, basis::Mode::Uastc)?,
+            Codec::Etc1s => basis::encode(levels, basis::Mode::Etc1s)?,
+        })
     }
 }
 
@@ -126,20 +181,23 @@ fn block_error(block: &[u8], src: &Rgba8Image) -> u64 {
     texels.iter().zip(&src.data).map(|(&a, &b)| (a as i64 - b as i64).pow(2) as u64).sum()
 }
 
-/// Whether each level's bytes are zstd-compressed (KTX2 supercompression scheme 2).
+/// Whether each level's bytes are zstd-compressed (KTX2 supercompression scheme 2), or BasisLZ
+/// (scheme 1, ETC1S only, whose codebooks are the file's global data).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub enum Supercompression {
     None,
     Zstd,
+    BasisLz,
 }
 
 impl Supercompression {
-    pub const EXPECTED: &'static str = "expected none or zstd";
+    pub const EXPECTED: &'static str = "expected none, zstd or basislz (etc1s only)";
 
     pub fn parse(s: &str) -> Option<Supercompression> {
         match s {
             "none" => Some(Supercompression::None),
             "zstd" => Some(Supercompression::Zstd),
+            "basislz" => Some(Supercompression::BasisLz),
             _ => None,
         }
     }
@@ -148,6 +206,16 @@ impl Supercompression {
         match self {
             Supercompression::None => "none",
             Supercompression::Zstd => "zstd",
+            Supercompression::BasisLz => "basislz",
+        }
+    }
+
+    /// `supercompressionScheme` of the header.
+    fn scheme(self) -> u32 {
+        match self {
+            Supercompression::None => 0,
+            Supercompression::BasisLz => 1,
+            Supercompression::Zstd => 2,
         }
     }
 }
@@ -189,14 +257,25 @@ const WRITER: &[u8] = b"KTXwriter\0vtex\0";
 type Sample = (u16, u8, u8, u32);
 
 /// The Data Format Descriptor (Khronos Data Format 1.3, one basic block) of `codec`, sRGB
-/// transfer, BT.709 primaries, straight alpha.
-fn dfd(codec: Codec) -> Vec<u8> {
+/// transfer, BT.709 primaries, straight alpha; for Basis Universal, with or without `alpha`, as
+/// the KTX 2.0 specification and basisu's writer describe them.
+fn dfd(codec: Codec, alpha: bool) -> Vec<u8> {
     // Colour model, block dimensions − 1, bytes per plane 0, samples.
     let (model, dim, plane, samples): (u8, u8, u8, &[Sample]) = match codec {
         Codec::Bc7 => (134, 3, 16, &[(0, 127, 0, u32::MAX)]),
         Codec::Bc1 => (128, 3, 8, &[(0, 63, 0, u32::MAX)]),
         // R, G, B, then alpha marked linear (0x10): sRGB applies to colour only.
         Codec::Rgba8 => (1, 0, 4, &[(0, 7, 0, 255), (8, 7, 1, 255), (16, 7, 2, 255), (24, 7, 0x1F, 255)]),
+        // KHR_DF_MODEL_UASTC, one 128-bit sample: KHR_DF_CHANNEL_UASTC_RGBA (3) or _RGB (0).
+        // bytesPlane0 16 with zstd too, as for the other codecs: Khronos settled that a
+        // variable-rate scheme leaves it set (basisu 1.16 still writes 0 there).
+        Codec::Uastc => (166, 3, 16, if alpha { &[(0, 127, 3, u32::MAX)] } else { &[(0, 127, 0, u32::MAX)] }),
+        // KHR_DF_MODEL_ETC1S: a 64-bit KHR_DF_CHANNEL_ETC1S_RGB (0) sample, then with alpha a
+        // second one, KHR_DF_CHANNEL_ETC1S_AAA (15), for the alpha slice; bytesPlane0 0, as
+        // BasisLZ's slices have no fixed size.
+        Codec::Etc1s => {
+            (163, 3, 0, if alpha { &[(0, 63, 0, u32::MAX), (64, 63, 15, u32::MAX)] } else { &[(0, 63, 0, u32::MAX)] })
+        }
     };
     let block_size = 24 + 16 * samples.len();
     let mut d = Vec::with_capacity(4 + block_size);
@@ -227,32 +306,38 @@ pub fn encode(levels: &[Rgba8Image], k: Ktx2) -> Result<Vec<u8>, String> {
             return Err(format!("mip level {i} is {}×{}, expected {}×{}", l.width, l.height, want.0, want.1));
         }
     }
-    // Each level's bytes, and what they decompress to.
+    k.codec.check(k.supercompression)?;
+    let encoded = k.codec.encode_levels(levels)?;
+    // Each level's bytes, and what they decompress to (0 for BasisLZ, which the transcoder
+    // undoes with the global data).
     let mut data: Vec<(Vec<u8>, usize)> = Vec::with_capacity(levels.len());
-    for l in levels {
-        let raw = k.codec.encode_level(l);
+    for raw in encoded.levels {
         let n = raw.len();
         data.push(match k.supercompression {
             Supercompression::None => (raw, n),
+            Supercompression::BasisLz => (raw, 0),
             Supercompression::Zstd => {
                 (zstd::bulk::compress(&raw, ZSTD_LEVEL).map_err(|e| format!("zstd compression failed: {e}"))?, n)
             }
         });
     }
-    let dfd = dfd(k.codec);
+    let dfd = dfd(k.codec, encoded.alpha);
     let dfd_offset = HEADER_BYTES + LEVEL_INDEX_ENTRY * levels.len();
     let kvd_offset = dfd_offset + dfd.len();
     // One key/value pair, its length field and its valuePadding to 4 bytes: the padding is part
     // of kvdByteLength.
     let kvd_len = (4 + WRITER.len()).next_multiple_of(4);
+    // The supercompression global data, aligned to 8 bytes.
+    let global = encoded.global.unwrap_or_default();
+    let sgd_offset = if global.is_empty() { 0 } else { (kvd_offset + kvd_len).next_multiple_of(8) };
     // Levels are stored smallest first, each aligned to lcm(block bytes, 4) unless
     // supercompressed (then 1).
     let align = match k.supercompression {
         Supercompression::None => k.codec.block_bytes().max(4),
-        Supercompression::Zstd => 1,
+        Supercompression::Zstd | Supercompression::BasisLz => 1,
     };
     let mut offsets = vec![0usize; levels.len()];
-    let mut end = kvd_offset + kvd_len;
+    let mut end = (kvd_offset + kvd_len).max(sgd_offset + global.len());
     for i in (0..levels.len()).rev() {
         end = end.next_multiple_of(align);
         offsets[i] = end;
@@ -260,10 +345,7 @@ pub fn encode(levels: &[Rgba8Image], k: Ktx2) -> Result<Vec<u8>, String> {
     }
     let mut out = Vec::with_capacity(end);
     out.extend_from_slice(&IDENTIFIER);
-    let scheme = match k.supercompression {
-        Supercompression::None => 0u32,
-        Supercompression::Zstd => 2,
-    };
+    let scheme = k.supercompression.scheme();
     let header = [k.codec.vk_format(), 1, base.width, base.height, 0, 0, 1, levels.len() as u32, scheme];
     for v in header {
         out.extend_from_slice(&v.to_le_bytes());
@@ -271,7 +353,9 @@ pub fn encode(levels: &[Rgba8Image], k: Ktx2) -> Result<Vec<u8>, String> {
     for v in [dfd_offset as u32, dfd.len() as u32, kvd_offset as u32, kvd_len as u32] {
         out.extend_from_slice(&v.to_le_bytes());
     }
-    out.extend_from_slice(&[0u8; 16]); // no supercompression global data
+    for v in [sgd_offset as u64, global.len() as u64] {
+        out.extend_from_slice(&v.to_le_bytes());
+    }
     for (i, (bytes, raw_len)) in data.iter().enumerate() {
         for v in [offsets[i] as u64, bytes.len() as u64, *raw_len as u64] {
             out.extend_from_slice(&v.to_le_bytes());
@@ -281,6 +365,10 @@ pub fn encode(levels: &[Rgba8Image], k: Ktx2) -> Result<Vec<u8>, String> {
     out.extend_from_slice(&(WRITER.len() as u32).to_le_bytes());
     out.extend_from_slice(WRITER);
     out.resize(kvd_offset + kvd_len, 0);
+    if !global.is_empty() {
+        out.resize(sgd_offset, 0);
+        out.extend_from_slice(&global);
+    }
     for i in (0..levels.len()).rev() {
         out.resize(offsets[i], 0);
         out.extend_from_slice(&data[i].0);
@@ -314,7 +402,7 @@ mod tests {
     #[test]
     fn header_and_level_index_describe_the_data() {
         let chain = [noise(8, 6, 1), noise(4, 3, 2), noise(2, 1, 3), noise(1, 1, 4)];
-        for codec in [Codec::Bc7, Codec::Bc1, Codec::Rgba8] {
+        for codec in [Codec::Bc7, Codec::Bc1, Codec::Rgba8, Codec::Uastc] {
             for sc in [Supercompression::None, Supercompression::Zstd] {
                 let f = encode(&chain, Ktx2 { codec, supercompression: sc }).unwrap();
                 assert_eq!(f[..12], IDENTIFIER);
@@ -341,6 +429,56 @@ mod tests {
         }
     }
 
+    /// ETC1S: BasisLZ, no block-sized levels; the global data has one image descriptor a level,
+    /// each slice inside its level, and the codebooks the descriptors' header counts.
+    #[test]
+    fn etc1s_carries_its_global_data() {
+        let chain = [noise(8, 6, 1), noise(4, 3, 2), noise(2, 1, 3), noise(1, 1, 4)];
+        let mut with_alpha = chain.clone();
+        with_alpha[0].set_pixel(1, 1, [9, 9, 9, 7]);
+        for (levels, alpha) in [(&chain, false), (&with_alpha, true)] {
+            let f = encode(levels, Ktx2 { codec: Codec::Etc1s, supercompression: Supercompression::BasisLz }).unwrap();
+            assert_eq!((u32_at(&f, 12), u32_at(&f, 44)), (0, 1), "VK_FORMAT_UNDEFINED, BasisLZ");
+            let dfd = u32_at(&f, 48) as usize;
+            assert_eq!(f[dfd + 12], 163, "KHR_DF_MODEL_ETC1S");
+            assert_eq!(f[dfd + 14], 2, "sRGB");
+            assert_eq!(u32_at(&f, dfd) as usize, if alpha { 60 } else { 44 });
+            let (sgd, sgd_len) = (u64_at(&f, 64) as usize, u64_at(&f, 72) as usize);
+            assert_eq!(sgd % 8, 0);
+            let g = &f[sgd..sgd + sgd_len];
+            let lens: Vec<usize> = (0..4).map(|i| u32_at(g, 4 + 4 * i) as usize).collect();
+            assert_eq!(20 + 20 * chain.len() + lens.iter().sum::<usize>(), sgd_len);
+            for i in 0..chain.len() {
+                let e = HEADER_BYTES + 24 * i;
+                let (len, raw) = (u64_at(&f, e + 8) as usize, u64_at(&f, e + 16));
+                assert_eq!(raw, 0, "BasisLZ levels have no uncompressed length");
+                let d = 20 + 20 * i;
+                let (rgb, rgb_len, a, a_len) =
+                    (u32_at(g, d + 4), u32_at(g, d + 8), u32_at(g, d + 12), u32_at(g, d + 16));
+                assert_eq!(rgb, 0);
+                assert!(rgb_len > 0);
+                if alpha {
+                    assert_eq!((a as usize, (a + a_len) as usize), (rgb_len as usize, len));
+                } else {
+                    assert_eq!((a, a_len, rgb_len as usize), (0, 0, len));
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn a_basis_codec_takes_only_its_supercompression() {
+        let img = [noise(8, 8, 1)];
+        for (codec, sc) in [
+            (Codec::Etc1s, Supercompression::None),
+            (Codec::Etc1s, Supercompression::Zstd),
+            (Codec::Uastc, Supercompression::BasisLz),
+            (Codec::Bc7, Supercompression::BasisLz),
+        ] {
+            assert!(encode(&img, Ktx2 { codec, supercompression: sc }).is_err(), "{codec:?} {sc:?}");
+        }
+    }
+
     #[test]
     fn a_chain_must_halve() {
         let e = encode(
@@ -353,12 +491,22 @@ mod tests {
     #[test]
     fn same_bytes_on_every_thread() {
         let img = noise(136, 136, 9);
-        let k = Ktx2 { codec: Codec::Bc7, supercompression: Supercompression::Zstd };
-        let first = encode(std::slice::from_ref(&img), k).unwrap();
-        let others: Vec<Vec<u8>> = std::thread::scope(|s| {
-            let hs: Vec<_> = (0..4).map(|_| s.spawn(|| encode(std::slice::from_ref(&img), k).unwrap())).collect();
-            hs.into_iter().map(|h| h.join().unwrap()).collect()
-        });
-        assert!(others.iter().all(|o| *o == first));
+        let chain = [noise(64, 64, 3), noise(32, 32, 4), noise(16, 16, 5), noise(8, 8, 6), noise(4, 4, 7)];
+        for (codec, sc) in [
+            (Codec::Bc7, Supercompression::Zstd),
+            (Codec::Uastc, Supercompression::None),
+            (Codec::Uastc, Supercompression::Zstd),
+            (Codec::Etc1s, Supercompression::BasisLz),
+        ] {
+            let k = Ktx2 { codec, supercompression: sc };
+            for levels in [std::slice::from_ref(&img), &chain[..]] {
+                let first = encode(levels, k).unwrap();
+                let others: Vec<Vec<u8>> = std::thread::scope(|s| {
+                    let hs: Vec<_> = (0..4).map(|_| s.spawn(|| encode(levels, k).unwrap())).collect();
+                    hs.into_iter().map(|h| h.join().unwrap()).collect()
+                });
+                assert!(others.iter().all(|o| *o == first), "{codec:?} {sc:?}");
+            }
+        }
     }
 }

@@ -24,7 +24,8 @@
 //! * [`export`] — `export-web`: the viewer, the synthesis module and an encoding as a static folder.
 
 // Unsafe code is denied in every module but `transport`, which holds the mappings and system
-// calls no safe crate covers (`forbid` could not be relaxed for that one module).
+// calls no safe crate covers (`forbid` could not be relaxed for that one module), and the one
+// call into basisu (`ktx2::basis::encode`), whose crate marks its encoding functions unsafe.
 #![deny(unsafe_code)]
 
 pub mod api;

@@ -8,7 +8,15 @@ without zstd supercompression). Each file is parsed here from the KTX 2.0 specif
 result is compared with the RGBA page: PSNR per codec and demo, held to floors every demo
 keeps (BC7 ≥ 37 dB, BC1 ≥ 27 dB) and counted against the targets (BC7 ≥ 40 dB, BC1 ≥ 30 dB),
 which the noisiest demos miss at coarse levels whatever the encoder's effort. A whole mip chain (`mips.ktx2`) is checked level by level against the regions it
-stands for. Prints a table, then `N passed, M failed`; exits non-zero on any failure.
+stands for.
+
+Basis Universal pages (codec uastc, with and without zstd, and etc1s, BasisLZ) are parsed here
+as far as the container goes (header, DFD: VK_FORMAT_UNDEFINED, the UASTC or ETC1S colour
+model, sRGB) and transcoded to RGBA8 by `alktx2` (PyPI, a wrapper of Binomial's basisu), whose
+own inspection must agree (format, sRGB); their PSNR is held to floors (UASTC ≥ 33 dB, ETC1S ≥
+19 dB: the noisiest cascades' pages at level 3) and reported, with the JPEG page's (decoded by Pillow) beside them. Prints a table of
+PSNR and bytes per demo (`--markdown`: docs/ktx2-quality.md's), then `N passed, M failed`;
+exits non-zero on any failure.
 
 Usage: python check_pages.py target/release/vtex [--markdown]
 """
@@ -21,8 +29,12 @@ import sys
 import tempfile
 import urllib.request
 
+import io
+
+import alktx2
 import texture2ddecoder
 import zstandard
+from PIL import Image
 
 IDENTIFIER = bytes([0xAB, 0x4B, 0x54, 0x58, 0x20, 0x32, 0x30, 0xBB, 0x0D, 0x0A, 0x1A, 0x0A])
 # vkFormat, DFD colour model, bytes per 4×4 block (0: one RGBA8 texel of 4 bytes).
@@ -33,12 +45,18 @@ CODECS = {
 }
 TARGET_DB = {"bc7": 40.0, "bc1": 30.0}
 FLOOR_DB = {"bc7": 37.0, "bc1": 27.0}
+# Basis Universal: the DFD colour model, the supercompression schemes served, the floors.
+BASIS = {"uastc": (166, ("none", "zstd"), 33.0), "etc1s": (163, ("basislz",), 19.0)}
+BASIS_NAMES = {"uastc": "UASTC LDR 4x4", "etc1s": "ETC1S"}
 SIZE, BORDER = 128, 4
 
 
 def get(base, path):
-    with urllib.request.urlopen(base + path, timeout=120) as r:
-        return r.read()
+    try:
+        with urllib.request.urlopen(base + path, timeout=120) as r:
+            return r.read()
+    except urllib.error.HTTPError as e:
+        raise AssertionError(f"{path}: {e.code} {e.read()[:300]!r}") from None
 
 
 def parse_ktx2(f, codec):
@@ -86,6 +104,48 @@ def parse_ktx2(f, codec):
         levels.append((lw, lh, decode(data, lw, lh, codec)))
     assert offsets == sorted(offsets, reverse=True), "levels stored smallest first"
     return levels
+
+
+def parse_basis(f, codec, sc):
+    """The RGBA8 texels of a one-level Basis Universal KTX2 file: the container checked here
+    against the KTX 2.0 specification, the texels transcoded by alktx2."""
+    assert f[:12] == IDENTIFIER, "identifier"
+    vk, type_size, w, h, depth, layers, faces, nlevels, scheme = struct.unpack_from("<9I", f, 12)
+    want_model, _, _ = BASIS[codec]
+    assert vk == 0, f"vkFormat {vk}: Basis Universal is VK_FORMAT_UNDEFINED"
+    assert type_size == 1 and depth == 0 and layers == 0 and faces == 1 and nlevels == 1, "one 2D level"
+    assert scheme == {"none": 0, "basislz": 1, "zstd": 2}[sc], f"supercompression scheme {scheme}"
+    dfd_off, dfd_len, _, _ = struct.unpack_from("<4I", f, 48)
+    sgd_off, sgd_len = struct.unpack_from("<2Q", f, 64)
+    assert (sgd_len > 0 and sgd_off % 8 == 0) if codec == "etc1s" else sgd_len == 0, "global data for BasisLZ only"
+    model, primaries, transfer, flags = f[dfd_off + 12 : dfd_off + 16]
+    assert (model, primaries, transfer, flags) == (want_model, 1, 2, 0), f"model {model}, BT.709, sRGB, straight alpha"
+    assert tuple(f[dfd_off + 16 : dfd_off + 18]) == (3, 3), "4×4 blocks"
+    assert f[dfd_off + 20] == (16 if codec == "uastc" else 0), "bytesPlane0"
+    info = alktx2.inspect_ktx2(f)
+    assert info["basis_tex_format_name"] == BASIS_NAMES[codec], info["basis_tex_format_name"]
+    assert info["is_srgb"] and (info["width"], info["height"]) == (w, h), "alktx2 reads sRGB of the same size"
+    tga, _ = alktx2.decode_ktx2_to_bytes(f, format="tga")
+    return w, h, tga_rgba(tga, info["has_alpha"])
+
+
+def tga_rgba(t, alpha):
+    """RGBA8 rows, top first, of an uncompressed 24- or 32-bit TGA."""
+    id_len, _, kind = t[0], t[1], t[2]
+    w, h, bpp, desc = struct.unpack_from("<HHBB", t, 12)
+    assert kind == 2 and bpp in (24, 32), f"uncompressed true-colour TGA, {bpp} bits"
+    n = bpp // 8
+    px = t[18 + id_len : 18 + id_len + w * h * n]
+    rows = [px[y * w * n : (y + 1) * w * n] for y in range(h)]
+    if not desc & 0x20:
+        rows.reverse()
+    out = bytearray(w * h * 4)
+    for y, row in enumerate(rows):
+        o = out[y * w * 4 : (y + 1) * w * 4]
+        o[0::4], o[1::4], o[2::4] = row[2::n], row[1::n], row[0::n]
+        o[3::4] = row[3::n] if n == 4 else bytes([255]) * w
+        out[y * w * 4 : (y + 1) * w * 4] = o
+    return bytes(out)
 
 
 def decode(data, w, h, codec):
@@ -144,13 +204,20 @@ def main():
         try:
             textures = json.loads(get(base, "/api/v1/textures"))["textures"]
             rows = []
+            table = []
             for t in textures:
                 tid = t["id"]
                 sums = {}
+                sizes = {}
                 for level, px, py in [(0, 1, 1), (3, 0, 0)]:
                     q = f"size={SIZE}&border={BORDER}"
                     page = f"/api/v1/textures/{tid}/pages/{level}/{px}/{py}"
                     rgba = get(base, f"{page}.rgba?{q}")
+                    jpg = get(base, f"{page}.jpg?{q}")
+                    sizes["jpg"] = sizes.get("jpg", 0) + len(jpg)
+                    se, n = squared_error(Image.open(io.BytesIO(jpg)).convert("RGBA").tobytes(), rgba)
+                    a, b = sums.get("jpg", (0, 0))
+                    sums["jpg"] = (a + se, b + n)
                     for codec in ("bc7", "bc1"):
                         for sc in ("none", "zstd"):
                             f = get(base, f"{page}.ktx2?{q}&codec={codec}&supercompression={sc}")
@@ -161,6 +228,7 @@ def main():
                                 check(False, f"{t['name']} {codec}/{sc}: {e}")
                                 continue
                             check(ok, f"{t['name']} {codec}/{sc}: size {w}×{h}")
+                            sizes[f"{codec}/{sc}"] = sizes.get(f"{codec}/{sc}", 0) + len(f)
                             if sc == "none":
                                 se, n = squared_error(texels, rgba)
                                 a, b = sums.get(codec, (0, 0))
@@ -168,11 +236,28 @@ def main():
                             else:
                                 check(texels == plain_texels, f"{t['name']} {codec}: zstd holds the same blocks")
                             plain_texels = texels
+                    for codec, (_, schemes, _) in BASIS.items():
+                        for sc in schemes:
+                            f = get(base, f"{page}.ktx2?{q}&codec={codec}&supercompression={sc}")
+                            try:
+                                w, h, texels = parse_basis(f, codec, sc)
+                            except AssertionError as e:
+                                check(False, f"{t['name']} {codec}/{sc}: {e}")
+                                continue
+                            check((w, h) == (SIZE + 2 * BORDER,) * 2, f"{t['name']} {codec}/{sc}: size {w}×{h}")
+                            sizes[f"{codec}/{sc}"] = sizes.get(f"{codec}/{sc}", 0) + len(f)
+                            se, n = squared_error(texels, rgba)
+                            a, b = sums.get(f"{codec}/{sc}", (0, 0))
+                            sums[f"{codec}/{sc}"] = (a + se, b + n)
                 db = {c: psnr(*sums[c]) for c in sums}
-                for c, floor in FLOOR_DB.items():
+                floors = dict(FLOOR_DB)
+                for codec, (_, schemes, floor) in BASIS.items():
+                    floors.update({f"{codec}/{sc}": floor for sc in schemes})
+                for c, floor in floors.items():
                     db.setdefault(c, float("nan"))
                     check(db[c] >= floor, f"{t['name']} {c}: {db[c]:.2f} dB < {floor} dB")
-                rows.append((t["name"], t["model"], db["bc7"], db["bc1"]))
+                rows.append((t["name"], t["model"], db["bc7"], db["bc1"], db["uastc/none"], db["etc1s/basislz"]))
+                table.append((t["name"], t["model"], db, sizes))
 
             # A whole mip chain of a small demo, level by level against its regions.
             small = min((t for t in textures if t["model"] == "lcm"), key=lambda t: t["width"])
@@ -190,11 +275,19 @@ def main():
             proc.wait()
 
     fmt = lambda v: "∞" if v == float("inf") else f"{v:.2f}"
+    # PSNR (dB) and bytes of both pages, per codec: KTX2 without supercompression but ETC1S's
+    # BasisLZ, UASTC with zstd beside it, and the JPEG page.
+    columns = [("BC7", "bc7/none", "bc7"), ("BC1", "bc1/none", "bc1"), ("UASTC", "uastc/none", "uastc/none"),
+               ("UASTC+zstd", "uastc/zstd", None), ("ETC1S", "etc1s/basislz", "etc1s/basislz"), ("JPEG", "jpg", "jpg")]
     if markdown:
-        print("| demo | model | BC7 PSNR (dB) | BC1 PSNR (dB) |")
-        print("|---|---|---|---|")
-    for name, model, a, b in rows:
-        print(f"| {name} | {model} | {fmt(a)} | {fmt(b)} |" if markdown else f"{fmt(a):>7} {fmt(b):>7}  {name}")
+        head = " | ".join(f"{c} dB | {c} bytes" if k else f"{c} bytes" for c, _, k in columns)
+        print(f"| demo | model | {head} |")
+        print("|---|---|" + "---|" * sum(2 if k else 1 for _, _, k in columns))
+    for name, model, db, sizes in table:
+        cells = [f"{fmt(db[k])} | {sizes[b]}" if k else f"{sizes[b]}" for _, b, k in columns]
+        print(f"| {name} | {model} | {' | '.join(cells)} |" if markdown else f"{' '.join(cells)}  {name}")
+    totals = {b: sum(sz[b] for _, _, _, sz in table) for _, b, _ in columns}
+    print("\nbytes over all demos: " + ", ".join(f"{c} {totals[b]}" for c, b, _ in columns))
     bc7 = [r[2] for r in rows]
     bc1 = [r[3] for r in rows]
     print(f"\n{len(rows)} demos, pages 0/1/1 and 3/0/0 of {SIZE}² + {BORDER} px borders:")
@@ -203,6 +296,9 @@ def main():
         met = sum(v >= target for v in values)
         median = sorted(values)[len(values) // 2]
         print(f"{c}: min {fmt(min(values))} dB, median {fmt(median)} dB; {met} of {len(values)} at or over {target:g} dB")
+    for c, i in (("UASTC", 4), ("ETC1S", 5)):
+        values = sorted(r[i] for r in rows)
+        print(f"{c} (alktx2's transcoder): min {fmt(values[0])} dB, median {fmt(values[len(values) // 2])} dB")
     print(f"mip chain of {small['name']} ({len(levels)} levels, BC7 + zstd): min {fmt(min(chain_db))} dB")
     print(f"{passed} passed, {failed} failed")
     return 1 if failed else 0

@@ -203,6 +203,31 @@ impl Engine {
     }
 }
 
+impl Engine {
+    /// Runs `work` on a blocking thread holding one of `entry`'s synthesis slots, so that CPU
+    /// work beside synthesis (a mip chain's encoding, which Basis Universal makes seconds long)
+    /// is bounded as syntheses are: shed with a 503 when the queue is full.
+    pub async fn in_slot<T: Send + 'static>(
+        &self,
+        entry: &Entry,
+        work: impl FnOnce() -> T + Send + 'static,
+    ) -> Result<T, Error> {
+        let slot = self.slots.acquire(entry.key).await.map_err(|refused| {
+            if refused == Refused::Full {
+                self.metrics.syntheses_shed.inc();
+            }
+            busy(refused)
+        })?;
+        tokio::task::spawn_blocking(move || {
+            let out = std::panic::catch_unwind(std::panic::AssertUnwindSafe(work));
+            drop(slot);
+            out.map_err(|panic| Error::failed(SYNTHESIS_FAILED, panic_message(panic)))
+        })
+        .await
+        .map_err(|e| Error::failed(SYNTHESIS_FAILED, e))?
+    }
+}
+
 /// Encodes rendered images in one format, timing each in the metrics.
 pub struct Encoder {
     format: Format,

@@ -13,15 +13,16 @@ struct File {
 
 /// Every variant: pages of each codec and supercompression (136 px, a multiple of 4; 70 px,
 /// not one), and mip chains from level 0 (240 px, so 15, 7, 3 and 1 px levels are partial
-/// blocks) and from level 2.
+/// blocks) and from level 2. ETC1S is always BasisLZ.
 async fn variants() -> (Server, Vec<File>) {
     let dir = tempdir();
     let s = Server::start(dir.path(), &[]);
     let c = client();
     let id = put(&c, &s, &mosaic(24, 10, 5)).await;
     let mut paths = Vec::new();
-    for codec in ["bc7", "bc1", "rgba8"] {
-        for sc in ["none", "zstd"] {
+    for codec in ["bc7", "bc1", "rgba8", "uastc", "etc1s"] {
+        let schemes: &[&str] = if codec == "etc1s" { &["basislz"] } else { &["none", "zstd"] };
+        for &sc in schemes {
             let q = format!("codec={codec}&supercompression={sc}");
             paths.push(format!("pages/0/1/0.ktx2?size=128&border=4&{q}"));
             paths.push(format!("pages/3/0/0.ktx2?size=64&border={}&{q}", if codec == "rgba8" { 3 } else { 2 }));
@@ -54,16 +55,45 @@ fn u64_at(b: &[u8], i: usize) -> u64 {
 struct FormatDef {
     name: &'static str,
     block_bytes: usize,
+    /// bytesPlane0: 0 for BasisLZ, whose slices have no fixed size.
+    plane0: usize,
     block_side: u32,
     color_model: u8,
     samples: &'static [(u16, u8, u8, u32, u32)],
 }
 
-fn format_def(vk_format: u32) -> Option<FormatDef> {
+/// The format of a file: its `vkFormat`, or for `VK_FORMAT_UNDEFINED` the Basis Universal format
+/// its DFD's colour model names (`model`), with alpha when its samples say so (`dfd_block_size`,
+/// the sample's channel `channel0`).
+fn format_def(vk_format: u32, model: u8, dfd_block_size: usize, channel0: u8) -> Option<FormatDef> {
     Some(match vk_format {
+        // KTX 2.0, "Basis Universal": vkFormat undefined, the format in the DFD.
+        0 if model == 166 => FormatDef {
+            name: "UASTC (KHR_DF_MODEL_UASTC)",
+            block_bytes: 16,
+            plane0: 16,
+            block_side: 4,
+            color_model: 166,
+            // KHR_DF_CHANNEL_UASTC_RGB (0) or _RGBA (3).
+            samples: if channel0 == 3 { &[(0, 127, 3, 0, u32::MAX)] } else { &[(0, 127, 0, 0, u32::MAX)] },
+        },
+        0 if model == 163 => FormatDef {
+            name: "ETC1S (KHR_DF_MODEL_ETC1S)",
+            block_bytes: 8,
+            plane0: 0,
+            block_side: 4,
+            color_model: 163,
+            // KHR_DF_CHANNEL_ETC1S_RGB (0), then KHR_DF_CHANNEL_ETC1S_AAA (15) with alpha.
+            samples: if dfd_block_size == 24 + 32 {
+                &[(0, 63, 0, 0, u32::MAX), (64, 63, 15, 0, u32::MAX)]
+            } else {
+                &[(0, 63, 0, 0, u32::MAX)]
+            },
+        },
         146 => FormatDef {
             name: "VK_FORMAT_BC7_SRGB_BLOCK",
             block_bytes: 16,
+            plane0: 16,
             block_side: 4,
             color_model: 134, // KHR_DF_MODEL_BC7
             samples: &[(0, 127, 0, 0, u32::MAX)],
@@ -71,6 +101,7 @@ fn format_def(vk_format: u32) -> Option<FormatDef> {
         132 => FormatDef {
             name: "VK_FORMAT_BC1_RGB_SRGB_BLOCK",
             block_bytes: 8,
+            plane0: 8,
             block_side: 4,
             color_model: 128, // KHR_DF_MODEL_BC1A, channel 0 = COLOR
             samples: &[(0, 63, 0, 0, u32::MAX)],
@@ -78,6 +109,7 @@ fn format_def(vk_format: u32) -> Option<FormatDef> {
         43 => FormatDef {
             name: "VK_FORMAT_R8G8B8A8_SRGB",
             block_bytes: 4,
+            plane0: 4,
             block_side: 1,
             color_model: 1, // KHR_DF_MODEL_RGBSDA: R, G, B, then A (15) marked LINEAR (0x10)
             samples: &[(0, 7, 0, 0, 255), (8, 7, 1, 0, 255), (16, 7, 2, 0, 255), (24, 7, 0x1F, 0, 255)],
@@ -125,9 +157,14 @@ fn violations(f: &[u8]) -> Vec<String> {
     let [vk_format, type_size, width, height, depth, layers, faces, level_count, scheme] = h[..] else {
         unreachable!()
     };
-    let Some(def) = format_def(vk_format) else {
-        return vec![format!("vkFormat: {vk_format} is not a format vtex writes")];
+    let dfd_at = u32_at(f, 48) as usize;
+    let model = f.get(dfd_at + 12).copied().unwrap_or(0);
+    let (dfd_block, channel0) =
+        ((u32_at(f, dfd_at + 8) >> 16) as usize, f.get(dfd_at + 4 + 24 + 3).copied().unwrap_or(0));
+    let Some(def) = format_def(vk_format, model, dfd_block, channel0) else {
+        return vec![format!("vkFormat: {vk_format} (colour model {model}) is not a format vtex writes")];
     };
+    let basislz = def.color_model == 163;
     // Header fields.
     rule(type_size == 1, format!("typeSize: must be 1 for {} (got {type_size})", def.name));
     rule(width > 0, "pixelWidth: must not be 0".into());
@@ -142,7 +179,14 @@ fn violations(f: &[u8]) -> Vec<String> {
         level_count <= max_level + 1,
         format!("levelCount: level {} exceeds the maximum level {max_level}", level_count.saturating_sub(1)),
     );
-    rule(scheme == 0 || scheme == 2, format!("supercompressionScheme: vtex writes 0 or 2 (Zstandard), got {scheme}"));
+    if basislz {
+        rule(scheme == 1, format!("supercompressionScheme: ETC1S is BasisLZ (1), got {scheme}"));
+    } else {
+        rule(
+            scheme == 0 || scheme == 2,
+            format!("supercompressionScheme: vtex writes 0 or 2 (Zstandard), got {scheme}"),
+        );
+    }
     let levels = level_count.max(1) as usize;
     // Index.
     let (dfd_off, dfd_len, kvd_off, kvd_len) =
@@ -153,7 +197,12 @@ fn violations(f: &[u8]) -> Vec<String> {
         dfd_off == level_index_end,
         format!("dfdByteOffset: the DFD follows the level index at {level_index_end} (got {dfd_off})"),
     );
-    rule(sgd_len == 0, "sgdByteLength: must be 0 for schemes with no global data (none, Zstandard)".into());
+    if basislz {
+        rule(sgd_len > 0, "sgdByteLength: BasisLZ has global data".into());
+        rule(sgd_off % 8 == 0, format!("sgdByteOffset: BasisLZ global data aligned to 8 bytes (got {sgd_off})"));
+    } else {
+        rule(sgd_len == 0, "sgdByteLength: must be 0 for schemes with no global data (none, Zstandard)".into());
+    }
     rule(sgd_len > 0 || sgd_off == 0, "sgdByteOffset: must be 0 when sgdByteLength is 0".into());
     rule(kvd_len > 0 || kvd_off == 0, "kvdByteOffset: must be 0 when kvdByteLength is 0".into());
     // Data Format Descriptor: one basic descriptor block (Khronos Data Format).
@@ -183,8 +232,8 @@ fn violations(f: &[u8]) -> Vec<String> {
     );
     let planes: Vec<u8> = (16..24).map(byte).collect();
     rule(
-        planes[0] as usize == def.block_bytes && planes[1..].iter().all(|&p| p == 0),
-        format!("DFD Restrictions: bytesPlane0 = {} for {}", def.block_bytes, def.name),
+        planes[0] as usize == def.plane0 && planes[1..].iter().all(|&p| p == 0),
+        format!("DFD Restrictions: bytesPlane0 = {} for {}", def.plane0, def.name),
     );
     rule(
         block_size == 24 + 16 * def.samples.len(),
@@ -260,6 +309,22 @@ fn violations(f: &[u8]) -> Vec<String> {
     // minimal mipPadding of zeros, every byte of the file accounted for.
     let align = if scheme == 0 { def.block_bytes * 4 / gcd(def.block_bytes, 4) } else { 1 };
     let mut end = kvd_off + kvd_len;
+    // BasisLZ Global Data: after the key/value data and zeros to 8 bytes, a header (endpoint and
+    // selector counts, four byte lengths), one image descriptor a level (flags, then offset and
+    // length of its colour slice and of its alpha slice in the level), then the four sections.
+    let sgd = f.get(sgd_off as usize..(sgd_off + sgd_len) as usize).unwrap_or(&[]);
+    if basislz {
+        rule(
+            f.get(end..sgd_off as usize).is_some_and(|pad| pad.iter().all(|&z| z == 0)) && sgd_off as usize - end < 8,
+            "sgdPadding: 0 to 7 bytes of 0x00 before the global data".into(),
+        );
+        let sections: usize = (0..4).map(|i| u32_at(sgd, 4 + 4 * i) as usize).sum();
+        rule(
+            sgd.len() == 20 + 20 * levels + sections,
+            format!("BasisLZ Global Data: 20 + 20 × {levels} images + {sections} bytes of sections, got {}", sgd.len()),
+        );
+        end = (sgd_off + sgd_len) as usize;
+    }
     for p in (0..levels).rev() {
         let e = 80 + 24 * p;
         let (off, len, raw) = (u64_at(f, e) as usize, u64_at(f, e + 8) as usize, u64_at(f, e + 16) as usize);
@@ -272,6 +337,22 @@ fn violations(f: &[u8]) -> Vec<String> {
             f.get(end..off.min(f.len())).is_some_and(|pad| pad.iter().all(|&z| z == 0)),
             format!("mipPadding: before level {p}, bytes of 0x00"),
         );
+        if basislz {
+            // The image descriptor of level p: its slices fill the level, colour first.
+            let d = 20 + 20 * p;
+            let (flags, rgb_off, rgb_len) = (u32_at(sgd, d), u32_at(sgd, d + 4) as usize, u32_at(sgd, d + 8) as usize);
+            let (a_off, a_len) = (u32_at(sgd, d + 12) as usize, u32_at(sgd, d + 16) as usize);
+            rule(flags == 0, format!("imageFlags: level {p} of a still texture is no P-frame"));
+            rule(raw == 0, format!("levels[{p}].uncompressedByteLength: 0 for BasisLZ (got {raw})"));
+            let two = def.samples.len() == 2;
+            rule(
+                rgb_off == 0 && rgb_len > 0 && (!two || (a_off == rgb_len && a_len > 0)) && (two || a_off + a_len == 0),
+                format!("imageDescs[{p}]: the colour slice, then the alpha slice when the DFD has an AAA sample"),
+            );
+            rule(rgb_len + a_len == len, format!("imageDescs[{p}]: the slices fill levels[{p}] ({len} bytes)"));
+            end = off + len;
+            continue;
+        }
         let side = |px: u32| ((px >> p).max(1)).div_ceil(def.block_side) as usize;
         let expect = side(width) * side(height) * def.block_bytes;
         rule(
@@ -323,13 +404,26 @@ async fn the_ktx2_crate_reads_every_variant() {
     for file in &files {
         let r = ktx2::Reader::new(&file.bytes[..]).unwrap_or_else(|e| panic!("{}: {e:?}", file.url));
         let h = r.header();
-        let def = format_def(h.format.expect("a vkFormat").value()).expect("a format vtex writes");
+        let blocks: Vec<_> = r.dfd_blocks().collect();
+        assert_eq!(blocks.len(), 1, "{}: one descriptor block", file.url);
+        let basic = ktx2::DfdBlockBasic::parse(blocks[0].data).expect("a basic descriptor block");
+        let model = basic.header.color_model.map_or(0, |m| m.value());
+        let first: Vec<_> = basic.sample_information().map(|s| s.channel_type).collect();
+        // vkFormat undefined (the crate's None) for Basis Universal, named by the DFD.
+        let vk = h.format.map_or(0, |f| f.value());
+        let def = format_def(vk, model, 24 + 16 * first.len(), first.first().copied().unwrap_or(0))
+            .expect("a format vtex writes");
         assert_eq!((h.type_size, h.pixel_depth, h.layer_count, h.face_count), (1, 0, 0, 1), "{}", file.url);
         let levels: Vec<_> = r.levels().collect();
         assert_eq!(levels.len(), h.level_count as usize, "{}", file.url);
         for (p, level) in levels.iter().enumerate() {
             let side = |px: u32| ((px >> p).max(1)).div_ceil(def.block_side) as u64;
             let want = side(h.pixel_width) * side(h.pixel_height) * def.block_bytes as u64;
+            if h.supercompression_scheme == Some(ktx2::SupercompressionScheme::BasisLZ) {
+                assert_eq!(level.uncompressed_byte_length, 0, "{} level {p}: BasisLZ", file.url);
+                assert!(!level.data.is_empty(), "{} level {p}", file.url);
+                continue;
+            }
             assert_eq!(level.uncompressed_byte_length, want, "{} level {p}", file.url);
             let raw = match h.supercompression_scheme {
                 None => level.data.to_vec(),
@@ -340,9 +434,6 @@ async fn the_ktx2_crate_reads_every_variant() {
             };
             assert_eq!(raw.len() as u64, want, "{} level {p}", file.url);
         }
-        let blocks: Vec<_> = r.dfd_blocks().collect();
-        assert_eq!(blocks.len(), 1, "{}: one descriptor block", file.url);
-        let basic = ktx2::DfdBlockBasic::parse(blocks[0].data).expect("a basic descriptor block");
         assert_eq!(basic.header.color_model.map(|m| m.value()), Some(def.color_model), "{}", file.url);
         assert_eq!(basic.header.transfer_function, Some(ktx2::TransferFunction::SRGB), "{}", file.url);
         let dim = def.block_side as u8;

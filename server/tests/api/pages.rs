@@ -293,8 +293,10 @@ async fn bad_page_parameters_name_the_allowed_values() {
         ("0.png", "size=128&border=17", "`border` must be at most size / 8 = 16 for size 128 (got 17)"),
         ("0.png", "size=64&border=9", "at most size / 8 = 8 for size 64 (got 9)"),
         ("0.png", "border=-1", "`border` must not be negative"),
-        ("0.ktx2", "codec=etc2", "`codec` names unknown codec `etc2`; expected bc7, bc1 or rgba8"),
-        ("0.ktx2", "supercompression=lz4", "unknown scheme `lz4`; expected none or zstd"),
+        ("0.ktx2", "codec=etc2", "`codec` names unknown codec `etc2`; expected bc7, bc1, rgba8, uastc or etc1s"),
+        ("0.ktx2", "codec=etc1s&supercompression=zstd", "etc1s is always BasisLZ-supercompressed"),
+        ("0.ktx2", "codec=uastc&supercompression=basislz", "basislz applies to codec etc1s only"),
+        ("0.ktx2", "supercompression=lz4", "unknown scheme `lz4`; expected none, zstd or basislz (etc1s only)"),
         ("0.ktx2", "border=3", "`border` must be even for bc7 pages (got 3)"),
         ("0.ktx2", "codec=rgba8&border=3&size=64", ""),
         ("0.png", "codec=bc7", "`codec` applies to ktx2 pages only; this page is png"),
@@ -362,6 +364,48 @@ async fn ktx2_pages_are_the_same_bytes_on_every_run_and_thread_count() {
     );
 }
 
+/// Basis Universal pages and chains (UASTC with and without zstd, ETC1S) are the same bytes from
+/// servers with different slot counts, one at a time or batched, and match pinned hashes: basisu
+/// runs single-threaded, so neither the run nor the thread changes a byte.
+#[tokio::test]
+async fn basis_pages_and_chains_are_the_same_bytes_on_every_run_and_thread_count() {
+    let dir_a = tempdir();
+    let dir_b = tempdir();
+    let a = Server::start(dir_a.path(), &["--max-syntheses", "1", "--io-threads", "1"]);
+    let b = Server::start(dir_b.path(), &["--max-syntheses", "2", "--max-syntheses-per-texture", "2"]);
+    let c = client();
+    let (id, _) = torus(&c, &a).await;
+    assert_eq!(torus(&c, &b).await.0, id);
+    let mut hashes = Vec::new();
+    for q in ["codec=uastc", "codec=uastc&supercompression=zstd", "codec=etc1s"] {
+        let q = format!("size=64&border=4&{q}");
+        let list = "0/0/0,0/1/1,3/0/0";
+        let from_b =
+            get_bytes(&c, &b.url(&format!("/api/v1/textures/{id}/tiles?pages={list}&format=ktx2&{q}"))).await.2;
+        let mut h = blake3::Hasher::new();
+        for p in list.split(',') {
+            let v: Vec<u32> = p.split('/').map(|n| n.parse().unwrap()).collect();
+            let (st, _, one) = get_bytes(&c, &a.url(&page_path(&id, v[0], v[1], v[2], "ktx2", &q))).await;
+            assert_eq!(st, 200, "{q}: {}", String::from_utf8_lossy(&one));
+            assert!(from_b.windows(one.len()).any(|w| w == &one[..]), "{q}: page {p} differs between the servers");
+            h.update(&one);
+        }
+        let chain = q.replace("size=64&border=4&", "level=1&");
+        let (st, _, one) = get_bytes(&c, &a.url(&format!("/api/v1/textures/{id}/mips.ktx2?{chain}"))).await;
+        assert_eq!(st, 200, "{chain}: {}", String::from_utf8_lossy(&one));
+        let (_, _, two) = get_bytes(&c, &b.url(&format!("/api/v1/textures/{id}/mips.ktx2?{chain}"))).await;
+        assert!(one == two, "{chain}: the chain differs between the servers");
+        h.update(&one);
+        hashes.push(h.finalize().to_hex()[..16].to_string());
+    }
+    // Pinned: a deliberate change of the encoder, its settings or the container changes these.
+    assert_eq!(
+        hashes,
+        ["49a37a83e22e20c3", "825f9ad0870d7f15", "a382a51c87421e31"],
+        "Basis Universal KTX2 bytes changed"
+    );
+}
+
 /// A whole mip chain in one KTX2: levels sized as a GPU's chain (⌊w / 2^i⌋), each the top-left
 /// of the texture's own level (checked exactly with the uncompressed codec); a level too large
 /// to upload whole is a 400 naming the first that fits.
@@ -391,7 +435,10 @@ async fn a_mip_chain_holds_every_level_to_one_pixel() {
     let big = put(&c, &s, &mosaic(32, 80, 6)).await; // 2560² at level 0
     let msg = expect_error(&c, &s.url(&format!("/api/v1/textures/{big}/mips.ktx2?level=0")), 400).await;
     assert!(
-        msg.contains("level 0 is 2560×2560; a mip chain starts at a level of at most 2048 a side (level 1"),
+        msg.contains("level 0 is 2560×2560; a bc7 mip chain starts at a level of at most 2048 a side (level 1"),
         "{msg}"
     );
+    // Basis Universal chains start at 512 at most: basisu's encoding takes seconds a chain.
+    let msg = expect_error(&c, &s.url(&format!("/api/v1/textures/{big}/mips.ktx2?level=2&codec=uastc")), 400).await;
+    assert!(msg.contains("a uastc mip chain starts at a level of at most 512 a side (level 3"), "{msg}");
 }

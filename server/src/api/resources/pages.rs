@@ -40,6 +40,10 @@ pub const DEFAULT_SIZE: u32 = 128;
 pub const DEFAULT_BORDER: u32 = 4;
 /// Largest side of a mip chain's first level.
 pub const MAX_CHAIN_SIDE: u64 = 2048;
+/// Largest side of a Basis Universal (uastc, etc1s) chain's first level: basisu takes some
+/// 20 µs a pixel for UASTC on one thread (docs/ktx2-quality.md), so a 512² chain is seconds of
+/// a synthesis slot and a 2048² one would be minutes.
+pub const MAX_BASIS_CHAIN_SIDE: u64 = 512;
 
 const FORMATS_EXPECTED: &str = "expected png, webp, jpg, rgba or ktx2";
 
@@ -68,11 +72,11 @@ pub struct PageParams {
     /// 0..=size/8 (default 4)
     #[serde(default, deserialize_with = "de::opt_u32")]
     pub border: Option<u32>,
-    /// ktx2: bc7, bc1 or rgba8
+    /// ktx2: bc7 (default), bc1, rgba8, uastc or etc1s (Basis Universal)
     #[serde(default, deserialize_with = "de_codec")]
     #[param(value_type = Option<String>)]
     pub codec: Option<Codec>,
-    /// ktx2: none or zstd
+    /// ktx2: none (default) or zstd; basislz, the default and only one, for etc1s
     #[serde(default, deserialize_with = "de_supercompression")]
     #[param(value_type = Option<String>)]
     pub supercompression: Option<Supercompression>,
@@ -139,7 +143,7 @@ pub fn page_spec(format: PageFormat, page: &PageParams) -> Result<(Format, Shape
             f
         }
         PageFormat::Ktx2 => {
-            let k = ktx2_options(page.codec, page.supercompression);
+            let k = ktx2_options(page.codec, page.supercompression)?;
             if k.codec.is_block_compressed() && border % 2 == 1 {
                 return Err(ApiError::bad_request(format!(
                     "`border` must be even for {} pages (got {border}): a block-compressed page's side, \
@@ -153,9 +157,13 @@ pub fn page_spec(format: PageFormat, page: &PageParams) -> Result<(Format, Shape
     Ok((format, Shape::Page { size, border }))
 }
 
-/// The KTX2 options: `codec` (default bc7) and `supercompression` (default none).
-fn ktx2_options(codec: Option<Codec>, supercompression: Option<Supercompression>) -> Ktx2 {
-    Ktx2 { codec: codec.unwrap_or(Codec::Bc7), supercompression: supercompression.unwrap_or(Supercompression::None) }
+/// The KTX2 options: `codec` (default bc7) and `supercompression` (default none; basislz, the
+/// only one it takes, for etc1s).
+fn ktx2_options(codec: Option<Codec>, supercompression: Option<Supercompression>) -> Result<Ktx2, ApiError> {
+    let codec = codec.unwrap_or(Codec::Bc7);
+    let supercompression = supercompression.unwrap_or(codec.default_supercompression());
+    codec.check(supercompression).map_err(ApiError::bad_request)?;
+    Ok(Ktx2 { codec, supercompression })
 }
 
 /// `GET /api/v1/textures/{id}/pages/{level}/{x}/{y}.{format}[?size=S&border=B&codec=C&supercompression=Z&frame=N]`
@@ -255,9 +263,11 @@ pub struct ChainQuery {
     /// finest level of the chain
     #[serde(default, deserialize_with = "de::opt_u32")]
     pub level: Option<u32>,
+    /// bc7 (default), bc1, rgba8, uastc or etc1s (Basis Universal)
     #[serde(default, deserialize_with = "de_codec")]
     #[param(value_type = Option<String>)]
     pub codec: Option<Codec>,
+    /// none (default) or zstd; basislz, the default and only one, for etc1s
     #[serde(default, deserialize_with = "de_supercompression")]
     #[param(value_type = Option<String>)]
     pub supercompression: Option<Supercompression>,
@@ -273,7 +283,8 @@ pub struct ChainQuery {
 ///
 /// The file's level `i` is sized as a GPU's mip chain is, `max(1, ⌊w / 2^i⌋)`, and holds the
 /// top-left of vtex level `L + i` — that whole level when the sides are powers of two. Chains
-/// are rendered, not cached; each reserves its bytes from the in-flight budget first.
+/// are rendered, not cached; each reserves its bytes from the in-flight budget first, and is
+/// encoded holding a synthesis slot.
 #[utoipa::path(get,
     path = "/api/v1/textures/{id}/mips.ktx2",
     tag = "pages",
@@ -294,12 +305,13 @@ pub async fn mip_chain(
     headers: HeaderMap,
 ) -> Result<Response, ApiError> {
     let entry = lookup(&app, &id).await?;
-    let k = ktx2_options(q.codec, q.supercompression);
+    let k = ktx2_options(q.codec, q.supercompression)?;
     let (w, h) = (entry.texture.width(), entry.texture.height());
     let levels = level_count(w, h);
+    let max_side = if k.codec.is_basis() { MAX_BASIS_CHAIN_SIDE } else { MAX_CHAIN_SIDE };
     let fits = |l: u32| {
         let (lw, lh) = level_size(w, h, l);
-        lw.max(lh) <= MAX_CHAIN_SIDE
+        lw.max(lh) <= max_side
     };
     let first_fit = (0..levels).find(|&l| fits(l)).expect("the last level is 1×1");
     let level = q.level.unwrap_or(first_fit);
@@ -309,8 +321,9 @@ pub async fn mip_chain(
     if !fits(level) {
         let (lw, lh) = level_size(w, h, level);
         return Err(ApiError::bad_request(format!(
-            "level {level} is {lw}×{lh}; a mip chain starts at a level of at most {MAX_CHAIN_SIDE} a side \
-             (level {first_fit} or coarser)"
+            "level {level} is {lw}×{lh}; a {} mip chain starts at a level of at most {max_side} a side \
+             (level {first_fit} or coarser)",
+            k.codec.name()
         )));
     }
     let frame = address::frame_for(&entry, q.frame);
@@ -330,9 +343,11 @@ pub async fn mip_chain(
         let data = app.engine.synthesize(entry.clone(), region, Format::Rgba).await?;
         images.push(Rgba8Image::from_raw(lw, lh, data).map_err(|e| ApiError::internal("a chain level", e))?);
     }
-    let body = tokio::task::spawn_blocking(move || ktx2::encode(&images, k))
-        .await
-        .map_err(|e| ApiError::internal("encoding the mip chain failed", e))?
+    // Encoded holding a synthesis slot: a Basis Universal chain of 2048² takes seconds.
+    let body = app
+        .engine
+        .in_slot(&entry, move || ktx2::encode(&images, k))
+        .await?
         .map_err(|e| ApiError::internal("encoding the mip chain failed", e))?;
     app.inflight.resize(&mut reservation, body.len() as u64)?;
     Ok(tiles::image_response(reservation.hold(body), Format::Ktx2(k), &tag, bw, bh))
