@@ -63,6 +63,22 @@ pub trait Model: Send + Sync + 'static {
     /// What `load(bundle)` would give and cost, from the manifest, section lengths and image
     /// headers alone: nothing drawn, generated, indexed or decoded.
     fn plan(&self, bundle: &Bundle) -> Result<Plan>;
+    /// Checks what `load` takes on trust because recomputing it on every open would cost more
+    /// than the open: data derived from the params and inputs that `create` stores in the
+    /// bundle must be exactly what they derive. `load` still checks its shape strictly; this
+    /// recomputes it. Called once where a bundle from outside is accepted (the server's
+    /// upload, [`verify`]), never on open; a bundle `create` made passes by construction.
+    /// Most models store nothing of the kind.
+    fn verify(&self, _bundle: &Bundle) -> Result<()> {
+        Ok(())
+    }
+    /// The sections that only hold what `load` would otherwise derive from the rest of the
+    /// bundle (a bundle stored before one existed renders the same without it, deriving it
+    /// when needed): [`remake_within`] does not count one `create` adds as a part the stored
+    /// bundle was not made with.
+    fn cached_sections(&self) -> &'static [&'static str] {
+        &[]
+    }
     #[cfg(feature = "create")]
     /// What `create(name, params, inputs)` would give and cost, from the parameters and the
     /// inputs' headers alone; refuses every parameter `create` would refuse.
@@ -240,6 +256,12 @@ pub fn load_with(bundle: &Bundle, resources: &Resources) -> Result<Arc<dyn Textu
 pub fn load_within(bundle: &Bundle, limits: &Limits, resources: &Resources) -> Result<Arc<dyn Texture>> {
     limits.check(&bundle.manifest.model, &plan(bundle)?)?;
     get(&bundle.manifest.model)?.load(bundle, resources)
+}
+
+/// Checks what loading `bundle` takes on trust ([`Model::verify`]): where a bundle from outside
+/// is accepted, after it loads.
+pub fn verify(bundle: &Bundle) -> Result<()> {
+    get(&bundle.manifest.model)?.verify(bundle)
 }
 
 /// What loading `bundle` would give and cost, without loading it.
