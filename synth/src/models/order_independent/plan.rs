@@ -163,7 +163,8 @@ fn plan_params(p: &Params, sw: u32, sh: u32, making: Making) -> Result<Plan> {
     // valid masks, and where searched its vector, its k-coherence set and the set shifted 9
     // ways (with whether each shifted set starts with the coherent continuation); the
     // calibration's colours (g, and g_s of each synthesis level read before its latest
-    // generation); the empty cache and counters of a texture loaded alone.
+    // generation), 3 bytes a coordinate, and the bins they are expanded from and stored as, at
+    // most 4 a coordinate; the empty cache and counters of a texture loaded alone.
     let measured: f64 = (1..levels)
         .filter_map(|l| match source(p, l) {
             Source::Pyramid { r, m } if m < st.last(fin - r as u8) && r < fin as u32 => Some(fin - r as u8),
@@ -171,7 +172,7 @@ fn plan_params(p: &Params, sw: u32, sh: u32, making: Making) -> Result<Plan> {
         })
         .collect::<std::collections::BTreeSet<u8>>()
         .into_iter()
-        .map(|s| pixels(s) * 3.0)
+        .map(|s| pixels(s) * 7.0)
         .sum();
     let resident: f64 = (0..p.levels)
         .map(|s| {
@@ -181,7 +182,7 @@ fn plan_params(p: &Params, sw: u32, sh: u32, making: Making) -> Result<Plan> {
             n * 8.0 + searched
         })
         .sum::<f64>()
-        + pixels(0) * 3.0
+        + pixels(0) * 7.0
         + measured
         + 8192.0;
     let resident_why = format!("a {sw}×{sh} sample in {} levels: colours, vectors, k-coherence sets", p.levels);
