@@ -50,6 +50,7 @@ impl OrderIndependent {
     }
 
     /// The synthesis levels the texture serves from.
+    #[cfg(test)]
     pub(super) fn levels(&self) -> &SynthesisLevels {
         &self.levels
     }
