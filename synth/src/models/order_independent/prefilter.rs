@@ -561,8 +561,15 @@ pub fn render(
         Source::Mean => {
             let c = calibration(tex, cell, stop)?.mean;
             let mut img = Rgba8Image::new(w, h);
-            for px in img.data.chunks_exact_mut(4) {
-                px.copy_from_slice(&[c[0], c[1], c[2], 255]);
+            // A row at a time, polling `stop` as every render does (with a stored calibration
+            // this is all the render does).
+            for row in img.data.chunks_exact_mut(4 * w as usize) {
+                if stop.requested() {
+                    return None;
+                }
+                for px in row.chunks_exact_mut(4) {
+                    px.copy_from_slice(&[c[0], c[1], c[2], 255]);
+                }
             }
             Some(img)
         }
