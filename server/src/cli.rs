@@ -163,7 +163,7 @@ pub fn create(args: CreateArgs) -> anyhow::Result<()> {
         None => {
             std::fs::create_dir_all(&args.data_dir)?;
             let (store, _) = Store::open(&args.data_dir, Bounds::unbounded(256), Resources::default(), false)?;
-            store.put(bytes)?;
+            store.put_made(bytes)?;
         }
     }
     println!("{id}");

@@ -160,7 +160,7 @@ impl Store {
         report.indexed = store.len();
         if listed.is_empty() && write_demos {
             for demo in models::demos() {
-                match store.put(demo.to_bytes()) {
+                match store.put_made(demo.to_bytes()) {
                     Ok((_, created)) => report.demos_written += created as usize,
                     Err(e @ (StoreError::Io(_) | StoreError::Unavailable(_))) => return Err(e),
                     Err(e @ (StoreError::Full(_) | StoreError::Invalid(vtex_synth::Error::TooCostly { .. }))) => {
@@ -518,10 +518,23 @@ impl Store {
         Ok(())
     }
 
-    /// Validates bundle bytes within the bounds and stores them. Returns the record and whether
-    /// it is new (an identical bundle already stored is not written again); the texture stays
-    /// loaded. Blocking: call off the runtime.
+    /// Validates bundle bytes from outside (an upload) within the bounds and stores them:
+    /// loaded, and what loading takes on trust checked by the model ([`models::verify`], e.g.
+    /// a stored calibration measured again), once here rather than on every open. Returns the
+    /// record and whether it is new (an identical bundle already stored is not written again);
+    /// the texture stays loaded. Blocking: call off the runtime.
     pub fn put(&self, bytes: Vec<u8>) -> Result<(Arc<Record>, bool), StoreError> {
+        self.accept(bytes, true)
+    }
+
+    /// [`put`](Self::put) for bytes this process's model `create` made from params and inputs
+    /// (a multipart upload, a PATCH, the demos): loaded, but not verified again, as `create`
+    /// derived what it stored.
+    pub fn put_made(&self, bytes: Vec<u8>) -> Result<(Arc<Record>, bool), StoreError> {
+        self.accept(bytes, false)
+    }
+
+    fn accept(&self, bytes: Vec<u8>, verify: bool) -> Result<(Arc<Record>, bool), StoreError> {
         let bundle = Bundle::from_bytes(&bytes)?;
         let id = id_of(&bytes);
         if let Some(existing) = self.record(&id) {
@@ -530,6 +543,9 @@ impl Store {
         let record = Record::plan(&bundle, id, bytes.len(), self.bounds.tile_size, &self.bounds.limits)?;
         self.check_caps(bytes.len() as u64)?;
         let (entry, charge) = self.load_charged(Arc::new(record), &bundle)?;
+        if verify {
+            models::verify(&bundle)?;
+        }
         let _writing = self.writing.lock().unwrap();
         if let Some(existing) = self.record(&entry.id) {
             return Ok((existing, false));

@@ -546,3 +546,36 @@ async fn model_work_and_synthesis_cache_are_exported() {
     }
     assert_eq!(tiles[0], tiles[1], "the synthesis cache never changes a tile");
 }
+
+/// An uploaded order-independent bundle's stored calibration is measured again where the
+/// server accepts it (once, not on every open): a well-formed one that is not what the params
+/// and sample give is a JSON 400 naming the section and the part, and nothing is stored; the
+/// genuine one is stored, and so is a bundle stored before the section existed.
+#[tokio::test]
+async fn an_upload_with_a_crafted_calibration_is_refused() {
+    use vtex_synth::models::{self, order_independent};
+    let ex = models::get(order_independent::MODEL).unwrap().example();
+    let bundle = models::create(order_independent::MODEL, "oi", &ex.params, &ex.inputs()).unwrap();
+    let section = |b: &vtex_synth::bundle::Bundle| b.section("calibration.bin").unwrap().to_vec();
+    let mut crafted = bundle.clone();
+    crafted.sections.retain(|s| s.name != "calibration.bin");
+    let old = crafted.clone();
+    let mut cal = section(&bundle);
+    cal[1] ^= 0x20; // the mean's red: well-formed, so every open would take it
+    crafted = crafted.with_section("calibration.bin", cal);
+    vtex_synth::models::load(&crafted).expect("well-formed");
+
+    let dir = tempdir();
+    let s = Server::start(dir.path(), &[]);
+    let c = client();
+    let (status, body) = upload(&c, &s, crafted.to_bytes()).await;
+    assert_eq!(status, 400, "{body}");
+    let why = body["error"].as_str().unwrap();
+    assert!(why.contains("section `calibration.bin`: the mean is not what the params and sample give"), "{why}");
+    let list: Value = c.get(s.url("/api/v1/textures")).send().await.unwrap().json().await.unwrap();
+    assert_eq!(list["textures"].as_array().unwrap().len(), 0, "{list}");
+    let (status, body) = upload(&c, &s, bundle.to_bytes()).await;
+    assert_eq!(status, 201, "{body}");
+    let (status, body) = upload(&c, &s, old.to_bytes()).await;
+    assert_eq!(status, 201, "{body}");
+}

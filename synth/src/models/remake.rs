@@ -43,13 +43,15 @@ pub fn remake_within(bundle: &Bundle, name: &str, params: &Value, limits: &Limit
 /// The first part of `bundle` that `again` — made by `create` from the bundle's own params
 /// and `inputs` — does not hold alike: a derived field, or a section. Sections that hold an
 /// input image exactly as given are not compared: `create` stores the same pixels in its own
-/// PNG encoding.
+/// PNG encoding; nor is a cached section ([`super::Model::cached_sections`]) that the bundle,
+/// stored before it existed, lacks.
 fn not_made(bundle: &Bundle, again: &Bundle, inputs: &Inputs) -> Option<String> {
     let made = &again.manifest.derived;
     if let Some((k, _)) = bundle.manifest.derived.iter().find(|(k, v)| made.get(*k) != Some(*v)) {
         return Some(format!("derived `{k}`"));
     }
     let given = |data: &[u8]| inputs.values().any(|png| png == data);
+    let cached = get(&bundle.manifest.model).map_or(&[][..], |m| m.cached_sections());
     bundle
         .sections
         .iter()
@@ -57,6 +59,8 @@ fn not_made(bundle: &Bundle, again: &Bundle, inputs: &Inputs) -> Option<String> 
         .map(|s| s.name.as_str())
         .find(|name| match (bundle.section(name).ok(), again.section(name).ok()) {
             (Some(ours), Some(made)) => ours != made && !given(ours),
+            // Derived data stored since the bundle was: it renders the same without.
+            (None, Some(_)) => !cached.contains(name),
             _ => true,
         })
         .map(|name| format!("section `{name}`"))

@@ -108,11 +108,23 @@ async fn stored_bytes(app: &App, id: &str) -> Result<Vec<u8>, ApiError> {
         .map_err(|e| ApiError::from(crate::engine::store_failure(e)))
 }
 
+/// Where bundle bytes come from: uploaded as they are (verified by their model once, here), or
+/// made by this server's model `create` (a multipart upload, a PATCH).
+#[derive(Clone, Copy)]
+enum Origin {
+    Uploaded,
+    Made,
+}
+
 /// Validates and stores bundle bytes off the runtime: 201 when new, 200 when already stored.
 /// Over the server's bounds is 422; past a cap of the store or on a full disk, 507.
-async fn store_bundle(app: &App, bytes: Vec<u8>) -> Result<(StatusCode, Json<TextureInfo>), ApiError> {
+async fn store_bundle(app: &App, bytes: Vec<u8>, origin: Origin) -> Result<(StatusCode, Json<TextureInfo>), ApiError> {
     let store = app.engine.store.clone();
-    let (entry, created) = tokio::task::spawn_blocking(move || store.put(bytes))
+    let put = move || match origin {
+        Origin::Uploaded => store.put(bytes),
+        Origin::Made => store.put_made(bytes),
+    };
+    let (entry, created) = tokio::task::spawn_blocking(put)
         .await
         .map_err(|e| ApiError::internal("validating the bundle failed inside the model", e))?
         .map_err(|e| match e {
@@ -179,12 +191,12 @@ pub async fn upload(
             return Err(spent);
         }
     };
-    let bytes = if multipart {
-        bundle_from_multipart(req, limit, app.engine.store.bounds().limits).await?
+    let (bytes, origin) = if multipart {
+        (bundle_from_multipart(req, limit, app.engine.store.bounds().limits).await?, Origin::Made)
     } else {
-        read_body(req, limit).await?.into()
+        (read_body(req, limit).await?.into(), Origin::Uploaded)
     };
-    store_bundle(&app, bytes).await
+    store_bundle(&app, bytes, origin).await
 }
 
 /// The bundle a multipart upload describes, created only when its plan is within `bounds`.
@@ -281,5 +293,5 @@ pub async fn patch(
     let new = tokio::task::spawn_blocking(move || models::remake_within(&old, &name, &params, &limits))
         .await
         .map_err(|e| ApiError::internal("remaking the encoding failed inside the model", e))??;
-    store_bundle(&app, new.to_bytes()).await
+    store_bundle(&app, new.to_bytes(), Origin::Made).await
 }

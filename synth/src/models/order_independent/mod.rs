@@ -48,7 +48,7 @@ use std::sync::Arc;
 pub use demos::demos;
 #[cfg(feature = "create")]
 pub use encoding::create;
-pub use encoding::{load, load_with};
+pub use encoding::{load, load_with, verify};
 pub use params::Params;
 pub use render::OrderIndependent;
 pub use search::Synthesizer;
@@ -93,6 +93,12 @@ impl Model for OrderIndependentModel {
     }
     fn plan(&self, bundle: &Bundle) -> Result<Plan> {
         plan::plan(bundle)
+    }
+    fn verify(&self, bundle: &Bundle) -> Result<()> {
+        verify(bundle)
+    }
+    fn cached_sections(&self) -> &'static [&'static str] {
+        &[prefilter::SECTION]
     }
     #[cfg(feature = "create")]
     fn plan_create(&self, params: &serde_json::Value, inputs: &Inputs) -> Result<Plan> {

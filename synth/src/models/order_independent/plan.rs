@@ -6,7 +6,7 @@
 #![cfg_attr(not(feature = "create"), allow(unused_imports, dead_code))]
 
 use super::params::{ExemplarLevels, Generation0, Params, Search};
-use super::prefilter::{source, span, Source};
+use super::prefilter::{source, span, Source, SECTION as CALIBRATION_SECTION};
 use super::rect::Rect;
 use super::search::{structure, PILOT};
 use super::served::{cone_to, CHUNK};
@@ -19,7 +19,8 @@ use crate::pixels::png_dimensions;
 use crate::texture::level_count;
 use crate::{Domain, Error, Result};
 
-/// The bundle's one section: the sample as given.
+/// The bundle's sections: the sample as given, and the calibration `create` measured
+/// ([`super::prefilter::SECTION`]; absent from bundles stored before it).
 pub(super) const SAMPLE_SECTION: &str = "sample.png";
 
 /// Refuses a stored manifest that leaves a default to be filled.
@@ -53,13 +54,26 @@ pub fn plan(bundle: &Bundle) -> Result<Plan> {
     if bundle.manifest.model != MODEL {
         return Err(Error::bundle(format!("model `{}`, expected `{MODEL}`", bundle.manifest.model)));
     }
-    if let Some(s) = bundle.sections.iter().find(|s| s.name != SAMPLE_SECTION) {
+    if let Some(s) = bundle.sections.iter().find(|s| s.name != SAMPLE_SECTION && s.name != CALIBRATION_SECTION) {
         return Err(Error::bundle(format!("unexpected section `{}`", s.name)));
     }
     let p: Params = bundle.params()?;
     check_stored(&p)?;
     let (w, h) = png_dimensions(SAMPLE_SECTION, bundle.section(SAMPLE_SECTION)?)?;
-    plan_params(&p, w, h, false)
+    let stored = bundle.section(CALIBRATION_SECTION).is_ok();
+    plan_params(&p, w, h, if stored { Making::Stored } else { Making::Lazy })
+}
+
+/// Where the calibration is measured, which the plan charges.
+#[derive(Clone, Copy, PartialEq, Eq)]
+enum Making {
+    /// By `create`: to build.
+    Create,
+    /// Stored in the bundle: to build, as checking it where the bundle is accepted measures
+    /// it again (opening it measures nothing).
+    Stored,
+    /// Not stored (a bundle made before the section existed): on the first tile needing it.
+    Lazy,
 }
 
 /// What `create` gives and costs, from the parameters and the sample's header.
@@ -71,10 +85,12 @@ pub fn plan_create(params: &serde_json::Value, inputs: &Inputs) -> Result<Plan> 
     let p = parse_params::<Params>(params)?.filled();
     let sample = inputs.get("sample").ok_or_else(|| Error::image("sample", "missing; this model needs it"))?;
     let (w, h) = png_dimensions("sample", sample)?;
-    plan_params(&p, w, h, true)
+    plan_params(&p, w, h, Making::Create)
 }
 
-fn plan_params(p: &Params, sw: u32, sh: u32, create: bool) -> Result<Plan> {
+fn plan_params(p: &Params, sw: u32, sh: u32, making: Making) -> Result<Plan> {
+    let create = making == Making::Create;
+    let lazy = making == Making::Lazy;
     p.validate(sw, sh)?;
     let st = structure(p);
     let fin = p.levels - 1;
@@ -125,10 +141,10 @@ fn plan_params(p: &Params, sw: u32, sh: u32, create: bool) -> Result<Plan> {
             Source::Exact => chunks * (work(fin, CHUNK as usize) + tile * COLOUR) + chunks * tile * DOWNSAMPLE,
             Source::Pyramid { r, m } => {
                 let s = fin - r as u8;
-                let cal = if r > 0 || m < st.last(s) { calibration } else { 0.0 };
+                let cal = if lazy && (r > 0 || m < st.last(s)) { calibration } else { 0.0 };
                 chunks * (work_to(s, m, CHUNK as usize) + tile * (COLOUR + DOWNSAMPLE)) + cal
             }
-            Source::Mean => calibration + tile * COLOUR,
+            Source::Mean => (if lazy { calibration } else { 0.0 }) + tile * COLOUR,
         }
     };
     let (tile_work, worst) =
@@ -147,7 +163,8 @@ fn plan_params(p: &Params, sw: u32, sh: u32, create: bool) -> Result<Plan> {
     // valid masks, and where searched its vector, its k-coherence set and the set shifted 9
     // ways (with whether each shifted set starts with the coherent continuation); the
     // calibration's colours (g, and g_s of each synthesis level read before its latest
-    // generation); the empty cache and counters of a texture loaded alone.
+    // generation), 3 bytes a coordinate, and the bins they are expanded from and stored as, at
+    // most 4 a coordinate; the empty cache and counters of a texture loaded alone.
     let measured: f64 = (1..levels)
         .filter_map(|l| match source(p, l) {
             Source::Pyramid { r, m } if m < st.last(fin - r as u8) && r < fin as u32 => Some(fin - r as u8),
@@ -155,7 +172,7 @@ fn plan_params(p: &Params, sw: u32, sh: u32, create: bool) -> Result<Plan> {
         })
         .collect::<std::collections::BTreeSet<u8>>()
         .into_iter()
-        .map(|s| pixels(s) * 3.0)
+        .map(|s| pixels(s) * 7.0)
         .sum();
     let resident: f64 = (0..p.levels)
         .map(|s| {
@@ -165,7 +182,7 @@ fn plan_params(p: &Params, sw: u32, sh: u32, create: bool) -> Result<Plan> {
             n * 8.0 + searched
         })
         .sum::<f64>()
-        + pixels(0) * 3.0
+        + pixels(0) * 7.0
         + measured
         + 8192.0;
     let resident_why = format!("a {sw}×{sh} sample in {} levels: colours, vectors, k-coherence sets", p.levels);
@@ -176,11 +193,17 @@ fn plan_params(p: &Params, sw: u32, sh: u32, create: bool) -> Result<Plan> {
     let pilots: f64 =
         if p.balance() > 0 { (0..p.levels).filter(|&s| searched(s)).map(|s| work(s, PILOT)).sum() } else { 0.0 };
     let load = SAMPLE_PIXEL * pixels(fin) + ksets + pilots;
-    let build = if create { 2.0 * load + ENCODE_PIXEL * pixels(fin) } else { load };
+    let measuring = if lazy { 0.0 } else { calibration };
+    let build = if create { 2.0 * load + ENCODE_PIXEL * pixels(fin) } else { load } + measuring;
     let build_why = format!(
-        "k-coherence sets of {sw}×{sh} pixels{}{}",
+        "k-coherence sets of {sw}×{sh} pixels{}{}{}",
         if p.balance() > 0 { " and the balance's pilot windows" } else { "" },
-        if create { ", made and loaded" } else { "" }
+        if create { ", made and loaded" } else { "" },
+        match making {
+            Making::Create => ", and the calibration's 64 level-0 windows",
+            Making::Stored => ", and the calibration's 64 level-0 windows, measured again where the bundle is accepted",
+            Making::Lazy => "",
+        }
     );
     Ok(Plan {
         width: p.width,

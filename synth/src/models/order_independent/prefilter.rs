@@ -93,7 +93,9 @@ pub fn span(p: &super::Params, l: u32) -> u32 {
 }
 
 /// What the coarsest synthesis level looks like from afar: a colour per exemplar coordinate,
-/// and the texture's mean.
+/// and the texture's mean. A pure function of the encoding ([`Calibration::compute`]); `create`
+/// stores it in the bundle (section [`SECTION`], [`Calibration::to_bytes`]) so that opening a
+/// texture and rendering a coarse tile synthesizes no level-0 window.
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub struct Calibration {
     /// g(u): mean level-0 colour of the blocks whose coarsest-level coordinate is u (B at u
@@ -108,7 +110,21 @@ pub struct Calibration {
     /// the texture's mean; `None` where the source is exact, or a window is smaller than a
     /// pixel of the level.
     pub contrast: Vec<Option<Contrast>>,
+    /// What g (level 0) and each g_s are expanded from, and what is stored: per synthesis
+    /// level, the colour of each bin of coordinates ([`binning`]), `None` where no block grew
+    /// (its coordinates then take their box colour).
+    bins: Vec<Option<Vec<Option<[u8; 3]>>>>,
 }
+
+/// The bundle section holding the calibration ([`Calibration::to_bytes`]).
+pub const SECTION: &str = "calibration.bin";
+/// The version byte of [`SECTION`]'s layout.
+pub const SECTION_VERSION: u8 = 1;
+/// Bounds of a stored contrast, which every computed one is within: a centre is a mean of
+/// bytes in 1/256, and a gain σ ⁄ σ in 1/256 of at most 2^32 (the windows' pixel count times
+/// the largest σ); within them `adjust` cannot overflow.
+const MAX_CENTRE: u32 = 255 << 8;
+const MAX_GAIN: u64 = 1 << 40;
 
 /// `mean` + `gain` × (v − `centre`): the deviations of a level's source from its own mean,
 /// scaled to the σ of the exact chain.
@@ -127,15 +143,12 @@ impl Calibration {
         let fin = p.levels as u32 - 1;
         let block = 1i64 << fin;
         let side = WINDOW.max(2 * block as u32);
-        let coarsest = &tex.synthesizer().exemplar().levels[0];
-        let n = coarsest.colour.len();
+        let n = tex.synthesizer().exemplar().levels[0].colour.len();
         // A stack's coarsest level has a coordinate per sample pixel, too many for the windows
         // to measure one by one: g is measured per bin of `bin` × `bin` coordinates.
         let stack = tex.synthesizer().exemplar().stack;
-        let bin: usize = if stack { 1 << fin } else { 1 };
-        let bins_w = coarsest.w as usize / bin;
-        let key = |u: usize| (u / coarsest.w as usize / bin) * bins_w + u % coarsest.w as usize / bin;
-        let mut sums = vec![[0u64; 4]; n / (bin * bin)];
+        let binning = binning(tex, 0);
+        let mut sums = vec![[0u64; 4]; binning.count];
         let mut windows = Vec::with_capacity(WINDOWS as usize);
         for i in 0..WINDOWS {
             let h = hash4(p.seed, STREAM_CALIBRATION, i, 0);
@@ -151,7 +164,7 @@ impl Calibration {
             let coarse = tex.entries(0, rect, stop)?;
             for (k, &u) in coarse.iter().enumerate() {
                 let (bx, by) = ((k % cells) << fin, (k / cells) << fin);
-                let acc = &mut sums[key(u as usize)];
+                let acc = &mut sums[binning.key(u as usize)];
                 for j in 0..block as usize {
                     let row = (by + j) * side as usize + bx;
                     for px in img.data[row * 4..(row + block as usize) * 4].chunks_exact(4) {
@@ -162,12 +175,9 @@ impl Calibration {
             }
             windows.push((x, y, img));
         }
-        let g: Vec<[u8; 3]> = (0..n)
-            .map(|u| match sums[key(u)] {
-                s if s[3] == 0 => coarsest.boxed[u],
-                s => [0, 1, 2].map(|c| ((s[c] + s[3] / 2) / s[3]) as u8),
-            })
-            .collect();
+        let mut bins = vec![None; fin as usize + 1];
+        bins[0] = Some(bin_means(&sums));
+        let g = expand(tex, 0, bins[0].as_ref().expect("just set"));
         // The noise is uniform over a pyramid's coarsest level, so with one generation there
         // the texture's mean is g's plain mean; otherwise (or binned) weigh g by how often each
         // u grew.
@@ -181,25 +191,18 @@ impl Calibration {
         let mean = total.map(|t| ((t + weight / 2) / weight) as u8);
         let top = fin + p.mip.noise_levels as u32;
         let mut measured = vec![None; fin as usize + 1];
-        for (s, slot) in measured.iter_mut().enumerate().skip(1) {
-            let r = fin - s as u32;
-            let read = (1..=top).find_map(|l| match source(p, l) {
-                Source::Pyramid { r: rr, m } if rr == r && m < latest(p, s as u8) => Some(m),
-                _ => None,
-            });
-            // Generation 0 is coloured whole; a later one by its searched entries, which are
-            // the latest's.
-            if let Some(m) = read {
-                let m = if m == 0 { 0 } else { latest(p, s as u8) };
-                *slot = Some(measure(tex, &windows, s as u8, m, stop)?);
+        for s in 1..=fin as u8 {
+            if let Some(m) = measured_generation(p, s) {
+                let b = measure(tex, &windows, s, m, stop)?;
+                measured[s as usize] = Some(expand(tex, s, &b));
+                bins[s as usize] = Some(b);
             }
         }
         let mut contrast = vec![None; top as usize + 1];
         for (l, contrast) in contrast.iter_mut().enumerate().skip(1) {
             let l = l as u32;
-            let src = source(p, l);
-            let Source::Pyramid { r, m } = src else { continue };
-            if src.exact(p) || side >> l == 0 {
+            let Source::Pyramid { r, m } = source(p, l) else { continue };
+            if !has_contrast(p, l) {
                 continue;
             }
             let (mut exact, mut raw) = (Moments::default(), Moments::default());
@@ -209,7 +212,138 @@ impl Calibration {
             }
             *contrast = Some(Contrast { centre: raw.mean_q8(), gain: exact.gain_over(&raw) });
         }
-        Some(Calibration { g, measured, mean, contrast })
+        Some(Calibration { g, measured, mean, contrast, bins })
+    }
+
+    /// The section's bytes (version 1, integers little-endian; docs/models/order-independent.md,
+    /// "Mip levels"):
+    ///
+    /// ```text
+    /// u8        version (1)
+    /// [u8; 3]   mean colour
+    /// per synthesis level s = 0..K − 1:
+    ///   u32       bin count c_s (0: level s has no measured colours; g is s = 0)
+    ///   ⌈c_s/8⌉   bytes, bit i (of byte i/8, least significant first) set where bin i has a colour
+    ///   [u8; 3]   per set bit, in bin order, the colour
+    /// u8        contrast slots T (vtex levels 0..=K − 1 + noise_levels)
+    /// per slot: u8 0 (none) or 1, then [u32; 3] centre (1/256) and u64 gain (1/256)
+    /// ```
+    pub fn to_bytes(&self) -> Vec<u8> {
+        let mut out = vec![SECTION_VERSION];
+        out.extend_from_slice(&self.mean);
+        for bins in &self.bins {
+            let bins = bins.as_deref().unwrap_or(&[]);
+            out.extend_from_slice(&(bins.len() as u32).to_le_bytes());
+            let mut bits = vec![0u8; bins.len().div_ceil(8)];
+            for (i, b) in bins.iter().enumerate() {
+                if b.is_some() {
+                    bits[i / 8] |= 1 << (i % 8);
+                }
+            }
+            out.extend_from_slice(&bits);
+            for c in bins.iter().flatten() {
+                out.extend_from_slice(c);
+            }
+        }
+        out.push(self.contrast.len() as u8);
+        for c in &self.contrast {
+            match c {
+                None => out.push(0),
+                Some(Contrast { centre, gain }) => {
+                    out.push(1);
+                    for v in centre {
+                        out.extend_from_slice(&(*v as u32).to_le_bytes());
+                    }
+                    out.extend_from_slice(&(*gain as u64).to_le_bytes());
+                }
+            }
+        }
+        out
+    }
+
+    /// The calibration stored as `bytes` ([`to_bytes`](Self::to_bytes)) for `tex`, checked
+    /// strictly against what its parameters and sample imply (every count, which levels have
+    /// measured colours and which have a contrast, value bounds, no byte left over): an error
+    /// naming the part otherwise. Whether it is the one [`compute`](Self::compute) gives is
+    /// not checked here, which would cost what storing it saves: see [`verify`].
+    pub fn from_bytes(tex: &SynthesisLevels, bytes: &[u8]) -> crate::Result<Calibration> {
+        let p = tex.params();
+        let fin = p.levels as u32 - 1;
+        let bad = |why: String| crate::Error::bundle(format!("section `{SECTION}`: {why}"));
+        let mut r = Cursor { bytes, pos: 0 };
+        let version = r.take(1, "the version").map_err(bad)?[0];
+        if version != SECTION_VERSION {
+            return Err(bad(format!("version {version}; this build reads {SECTION_VERSION}")));
+        }
+        let mean: [u8; 3] = r.take(3, "the mean").map_err(bad)?.try_into().expect("3 bytes");
+        let mut bins = Vec::with_capacity(fin as usize + 1);
+        for s in 0..=fin as u8 {
+            let what = if s == 0 { "g".to_string() } else { format!("g_{s}") };
+            let count = u32::from_le_bytes(r.take(4, &what).map_err(bad)?.try_into().expect("4 bytes")) as usize;
+            let expected = if s == 0 || measured_generation(p, s).is_some() { binning(tex, s).count } else { 0 };
+            if count != expected {
+                return Err(bad(format!(
+                    "{what} has {count} bins; the params and sample give synthesis level {s} {expected}"
+                )));
+            }
+            if count == 0 {
+                bins.push(None);
+                continue;
+            }
+            let bits = r.take(count.div_ceil(8), &what).map_err(bad)?;
+            if count % 8 != 0 && bits[count / 8] >> (count % 8) != 0 {
+                return Err(bad(format!("{what} marks bins past its {count}")));
+            }
+            let present = bits.iter().map(|b| b.count_ones() as usize).sum::<usize>();
+            let mut colours = r.take(3 * present, &what).map_err(bad)?.chunks_exact(3);
+            let level: Vec<Option<[u8; 3]>> = (0..count)
+                .map(|i| {
+                    (bits[i / 8] >> (i % 8) & 1 == 1)
+                        .then(|| colours.next().expect("one colour a set bit").try_into().expect("3 bytes"))
+                })
+                .collect();
+            bins.push(Some(level));
+        }
+        let top = fin + p.mip.noise_levels as u32;
+        let slots = r.take(1, "the contrast count").map_err(bad)?[0] as usize;
+        if slots != top as usize + 1 {
+            return Err(bad(format!("{slots} contrast slots; the params give {}", top + 1)));
+        }
+        let mut contrast = Vec::with_capacity(slots);
+        for l in 0..slots as u32 {
+            let what = format!("the contrast of level {l}");
+            let tag = r.take(1, &what).map_err(bad)?[0];
+            let expected = l > 0 && has_contrast(p, l);
+            match (tag, expected) {
+                (0, false) => contrast.push(None),
+                (1, true) => {
+                    let v = r.take(20, &what).map_err(bad)?;
+                    let word = |i: usize| u32::from_le_bytes(v[4 * i..4 * i + 4].try_into().expect("4 bytes"));
+                    let centre = [word(0), word(1), word(2)];
+                    let gain = u64::from_le_bytes(v[12..20].try_into().expect("8 bytes"));
+                    if centre.iter().any(|&c| c > MAX_CENTRE) || gain > MAX_GAIN {
+                        return Err(bad(format!("{what} is out of bounds (centre ≤ {MAX_CENTRE}, gain ≤ 2^40)")));
+                    }
+                    contrast.push(Some(Contrast { centre: centre.map(|c| c as i64), gain: gain as i64 }));
+                }
+                (0 | 1, _) => {
+                    return Err(bad(format!(
+                        "{what} is {}; the params give {}",
+                        if tag == 1 { "present" } else { "absent" },
+                        if expected { "one" } else { "none" }
+                    )))
+                }
+                _ => return Err(bad(format!("{what} has tag {tag}, not 0 or 1"))),
+            }
+        }
+        if r.pos != bytes.len() {
+            return Err(bad(format!("{} bytes after the last contrast", bytes.len() - r.pos)));
+        }
+        let g = expand(tex, 0, bins[0].as_ref().expect("level 0 always has bins"));
+        let measured =
+            bins.iter().enumerate().map(|(s, b)| if s == 0 { None } else { Some(expand(tex, s as u8, b.as_ref()?)) });
+        let measured = measured.collect();
+        Ok(Calibration { g, measured, mean, contrast, bins })
     }
 
     /// `img` (a source of level `l`) brought to the exact chain's contrast.
@@ -224,30 +358,131 @@ impl Calibration {
     }
 }
 
+/// The generation of synthesis level `s` ≥ 1 whose measured colours g_s a coarse vtex level
+/// reads (0, coloured whole, or the latest, whose searched entries colour an earlier one), or
+/// `None` where every level reading `s` reads its latest generation.
+fn measured_generation(p: &super::Params, s: u8) -> Option<u8> {
+    let fin = p.levels as u32 - 1;
+    let r = fin - s as u32;
+    let top = fin + p.mip.noise_levels as u32;
+    let read = (1..=top).find_map(|l| match source(p, l) {
+        Source::Pyramid { r: rr, m } if rr == r && m < latest(p, s) => Some(m),
+        _ => None,
+    })?;
+    Some(if read == 0 { 0 } else { latest(p, s) })
+}
+
+/// Whether vtex level `l` ≥ 1 has a measured contrast: its source is a pyramid level that is
+/// not exact, and a calibration window covers a pixel of it.
+fn has_contrast(p: &super::Params, l: u32) -> bool {
+    let side = WINDOW.max(2 << (p.levels as u32 - 1));
+    let src = source(p, l);
+    matches!(src, Source::Pyramid { .. }) && !src.exact(p) && side >> l != 0
+}
+
+/// How the coordinates of a synthesis level are binned for its measured colours.
+struct Binning {
+    /// Bin side, in coordinates (1 but in a stack, 2^(K − 1 − s)).
+    bin: usize,
+    /// The level's width, and its bins a row.
+    w: usize,
+    bins_w: usize,
+    count: usize,
+}
+
+impl Binning {
+    /// The bin of coordinate `u`.
+    fn key(&self, u: usize) -> usize {
+        (u / self.w / self.bin) * self.bins_w + u % self.w / self.bin
+    }
+}
+
+fn binning(tex: &SynthesisLevels, s: u8) -> Binning {
+    let shift = tex.params().levels as u32 - 1 - s as u32;
+    let level = &tex.synthesizer().exemplar().levels[s as usize];
+    let bin: usize = if tex.synthesizer().exemplar().stack { 1 << shift } else { 1 };
+    let (w, h) = (level.w as usize, level.colour.len() / level.w as usize);
+    let bins_w = w.div_ceil(bin);
+    Binning { bin, w, bins_w, count: bins_w * h.div_ceil(bin) }
+}
+
+/// Rounded mean colour of each bin's sums, `None` where nothing was summed.
+fn bin_means(sums: &[[u64; 4]]) -> Vec<Option<[u8; 3]>> {
+    sums.iter().map(|s| (s[3] > 0).then(|| [0, 1, 2].map(|c| ((s[c] + s[3] / 2) / s[3]) as u8))).collect()
+}
+
+/// A colour per coordinate of synthesis level `s` from its bins, B_s where a bin has none.
+fn expand(tex: &SynthesisLevels, s: u8, bins: &[Option<[u8; 3]>]) -> Vec<[u8; 3]> {
+    let b = binning(tex, s);
+    let level = &tex.synthesizer().exemplar().levels[s as usize];
+    (0..level.colour.len()).map(|u| bins[b.key(u)].unwrap_or(level.boxed[u])).collect()
+}
+
+/// Reads a byte slice front to back; each shortfall names what it was reading.
+struct Cursor<'a> {
+    bytes: &'a [u8],
+    pos: usize,
+}
+
+impl<'a> Cursor<'a> {
+    fn take(&mut self, n: usize, what: &str) -> Result<&'a [u8], String> {
+        let left = self.bytes.len() - self.pos;
+        if n > left {
+            return Err(format!("truncated: {what} needs {n} bytes, {left} left"));
+        }
+        self.pos += n;
+        Ok(&self.bytes[self.pos - n..self.pos])
+    }
+}
+
+/// Checks that `bytes`, a stored calibration of `tex`, is exactly the one
+/// [`Calibration::compute`] gives: what a server does once where it accepts an uploaded bundle,
+/// since a crafted one would colour coarse levels unlike the chain of level 0 (DESIGN §3).
+pub fn verify(tex: &SynthesisLevels, bytes: &[u8]) -> crate::Result<()> {
+    let stored = Calibration::from_bytes(tex, bytes)?;
+    let computed = Calibration::compute(tex, &crate::Never).expect("a render that is never stopped completes");
+    if stored == computed {
+        return Ok(());
+    }
+    let part = if stored.mean != computed.mean {
+        "the mean".to_string()
+    } else if let Some(s) = (0..stored.bins.len()).find(|&s| stored.bins[s] != computed.bins[s]) {
+        if s == 0 {
+            "g".to_string()
+        } else {
+            format!("g_{s}")
+        }
+    } else {
+        let l = (0..stored.contrast.len()).find(|&l| stored.contrast[l] != computed.contrast[l]).unwrap_or(0);
+        format!("the contrast of level {l}")
+    };
+    Err(crate::Error::bundle(format!(
+        "section `{SECTION}`: {part} is not what the params and sample give (the calibration is recomputed where a \
+         bundle is accepted)"
+    )))
+}
+
 /// g_s: the mean level-0 colour over `windows` of the blocks whose level-`s` entry at generation
-/// `m` is u, per bin of u (see [`Calibration::measured`]); `None` once `stop` is requested.
+/// `m` is u, per bin of u (see [`Calibration::measured`]), `None` in a bin where none grew;
+/// `None` once `stop` is requested.
 fn measure(
     tex: &SynthesisLevels,
     windows: &[(i64, i64, Rgba8Image)],
     s: u8,
     m: u8,
     stop: &dyn Stop,
-) -> Option<Vec<[u8; 3]>> {
+) -> Option<Vec<Option<[u8; 3]>>> {
     let shift = tex.params().levels as u32 - 1 - s as u32;
     let block = 1usize << shift;
-    let level = &tex.synthesizer().exemplar().levels[s as usize];
-    let bin: usize = if tex.synthesizer().exemplar().stack { block } else { 1 };
-    let (w, n) = (level.w as usize, level.colour.len());
-    let bins_w = w.div_ceil(bin);
-    let key = |u: usize| (u / w / bin) * bins_w + u % w / bin;
-    let mut sums = vec![[0u64; 4]; bins_w * (n / w).div_ceil(bin)];
+    let binning = binning(tex, s);
+    let mut sums = vec![[0u64; 4]; binning.count];
     for (x, y, img) in windows {
         let side = img.width as usize;
         let cells = side >> shift;
         let entries = tex.entries_at(s, m, Rect { x: x >> shift, y: y >> shift, w: cells, h: cells }, stop)?;
         for (k, &u) in entries.iter().enumerate() {
             let (bx, by) = ((k % cells) << shift, (k / cells) << shift);
-            let acc = &mut sums[key(u as usize)];
+            let acc = &mut sums[binning.key(u as usize)];
             for j in 0..block {
                 let row = (by + j) * side + bx;
                 for px in img.data[row * 4..(row + block) * 4].chunks_exact(4) {
@@ -257,14 +492,7 @@ fn measure(
             }
         }
     }
-    Some(
-        (0..n)
-            .map(|u| match sums[key(u)] {
-                s if s[3] == 0 => level.boxed[u],
-                s => [0, 1, 2].map(|c| ((s[c] + s[3] / 2) / s[3]) as u8),
-            })
-            .collect(),
-    )
+    Some(bin_means(&sums))
 }
 
 /// Sums of the RGB channels and their squares over some images, for σ.
@@ -333,8 +561,15 @@ pub fn render(
         Source::Mean => {
             let c = calibration(tex, cell, stop)?.mean;
             let mut img = Rgba8Image::new(w, h);
-            for px in img.data.chunks_exact_mut(4) {
-                px.copy_from_slice(&[c[0], c[1], c[2], 255]);
+            // A row at a time, polling `stop` as every render does (with a stored calibration
+            // this is all the render does).
+            for row in img.data.chunks_exact_mut(4 * w as usize) {
+                if stop.requested() {
+                    return None;
+                }
+                for px in row.chunks_exact_mut(4) {
+                    px.copy_from_slice(&[c[0], c[1], c[2], 255]);
+                }
             }
             Some(img)
         }
@@ -403,4 +638,194 @@ fn pyramid(
         px.copy_from_slice(&[c[0], c[1], c[2], 255]);
     }
     Some(downsample_n(&img, d - 1))
+}
+
+#[cfg(all(test, feature = "create"))]
+mod tests {
+    use super::super::{demos, load, load_with, OrderIndependent};
+    use super::*;
+    use crate::bundle::Bundle;
+    use crate::texture::render_image;
+    use crate::{Error, Region};
+
+    /// `bundle` as stored before the calibration section existed.
+    fn without_section(bundle: &Bundle) -> Bundle {
+        let mut old = bundle.clone();
+        old.sections.retain(|s| s.name != SECTION);
+        assert_eq!(old.sections.len() + 1, bundle.sections.len(), "{}: no section", bundle.manifest.name);
+        old
+    }
+
+    fn section(bundle: &Bundle) -> Vec<u8> {
+        bundle.section(SECTION).unwrap().to_vec()
+    }
+
+    fn with_section(bundle: &Bundle, data: Vec<u8>) -> Bundle {
+        without_section(bundle).with_section(SECTION, data)
+    }
+
+    /// Entries computed, noise included.
+    fn computed(t: &OrderIndependent) -> u64 {
+        t.work_counters()[0].1
+    }
+
+    /// Every demo stores the calibration that measuring it gives (and it round-trips), in a
+    /// at most 20 kB, and the stored one passes the check a server makes on upload.
+    #[test]
+    fn every_demo_stores_the_calibration_it_measures() {
+        for bundle in demos() {
+            let name = &bundle.manifest.name;
+            let stored = section(&bundle);
+            let measured = load(&without_section(&bundle)).unwrap().calibration().clone();
+            assert_eq!(stored, measured.to_bytes(), "{name}");
+            let opened = load(&bundle).unwrap();
+            assert_eq!(*opened.calibration(), measured, "{name}");
+            assert!(stored.len() < 20_000, "{name}: {} bytes", stored.len());
+            super::super::verify(&bundle).unwrap_or_else(|e| panic!("{name}: {e}"));
+        }
+    }
+
+    /// A bundle stored before the section existed renders the same bytes as one with it, at
+    /// every level: the stored calibration only saves measuring it.
+    #[test]
+    fn a_bundle_without_the_section_renders_the_same_bytes() {
+        for bundle in demos() {
+            let (new, old) = (load(&bundle).unwrap(), load(&without_section(&bundle)).unwrap());
+            let (w, h) = (new.params().width, new.params().height);
+            for l in 0..crate::texture::level_count(w, h) {
+                let (lw, lh) = crate::texture::level_size(w, h, l);
+                let region = Region::new(l, 0, 0, lw.min(24) as u32, lh.min(16) as u32);
+                assert_eq!(
+                    render_image(&new, &region).unwrap(),
+                    render_image(&old, &region).unwrap(),
+                    "{}, level {l}",
+                    bundle.manifest.name
+                );
+            }
+        }
+    }
+
+    /// Opening the 100k pebbles demo and rendering a 256² tile of level 7 computes exactly the
+    /// entries of that tile — what it costs once the calibration is known — and no window of
+    /// level 0; the bundle without the section measures its 64 windows first.
+    #[test]
+    fn opening_and_a_coarse_tile_synthesize_no_level_0_window() {
+        let bundle = demos().into_iter().find(|b| b.manifest.name.contains("B — pebbles")).unwrap();
+        let tile = Region::new(7, 256, 0, 256, 256);
+        let opened = load_with(&bundle, &crate::Resources::default()).unwrap();
+        assert_eq!(computed(&opened), 0, "opening computes nothing");
+        let image = render_image(&opened, &tile).unwrap();
+        let tile_alone = computed(&opened);
+
+        let lazy = load_with(&without_section(&bundle), &crate::Resources::default()).unwrap();
+        render_image(&lazy, &tile).unwrap();
+        let with_calibration = computed(&lazy);
+        let known = load_with(&without_section(&bundle), &crate::Resources::default()).unwrap();
+        known.calibration();
+        let measuring = computed(&known);
+        assert_eq!(render_image(&known, &tile).unwrap(), image);
+        assert_eq!(computed(&known) - measuring, tile_alone, "the tile alone");
+        assert_eq!(with_calibration, measuring + tile_alone);
+        // 64 windows of 64² of level 0, each through its whole cone.
+        assert!(measuring > 64 * 64 * 64, "measuring computed {measuring} entries");
+    }
+
+    /// A truncated, lengthened or reshaped section is refused when the bundle is opened, by an
+    /// error naming the section and the part, never a panic.
+    #[test]
+    fn a_malformed_section_is_refused_by_name() {
+        let bundle = demos().remove(1);
+        let good = section(&bundle);
+        let opened = load(&bundle).unwrap();
+        // What opening a bundle with `data` as its section says (the texture's own analysis of
+        // the sample is the same whatever the section holds: done once here).
+        let refused = |data: &[u8]| match Calibration::from_bytes(opened.levels(), data) {
+            Err(Error::Bundle(why)) => why,
+            Err(e) => panic!("refused, but not as a bundle: {e}"),
+            Ok(_) => panic!("accepted"),
+        };
+        for cut in 0..good.len() {
+            let why = refused(&good[..cut]);
+            assert!(why.starts_with("section `calibration.bin`: truncated: "), "cut at {cut}: {why}");
+        }
+        // Through `load` too.
+        let why = match load(&with_section(&bundle, good[..good.len() / 2].to_vec())) {
+            Err(Error::Bundle(why)) => why,
+            other => panic!("{other:?}"),
+        };
+        assert!(why.starts_with("section `calibration.bin`: truncated: "), "{why}");
+        let edited = |at: usize, f: &dyn Fn(&mut u8)| {
+            let mut b = good.clone();
+            f(&mut b[at]);
+            refused(&b)
+        };
+        assert!(edited(0, &|v| *v = 2).contains("version 2; this build reads 1"));
+        assert!(edited(4, &|v| *v ^= 1).contains("g has "), "{}", edited(4, &|v| *v ^= 1));
+        let mut longer = good.clone();
+        longer.push(0);
+        assert!(refused(&longer).contains("1 bytes after the last contrast"));
+        // The contrast part is the section's end: its slot count, then a tag and 20 bytes a slot.
+        let cal = load(&bundle).unwrap().calibration().clone();
+        let present = cal.contrast.iter().flatten().count();
+        let start = good.len() - present * 21 - (cal.contrast.len() - present) - 1;
+        assert!(edited(start, &|v| *v += 1).contains("contrast slots; the params give"));
+        let first = cal.contrast.iter().position(Option::is_some).unwrap();
+        let tag = start + 1 + first;
+        assert!(edited(tag, &|v| *v = 0).contains(&format!("the contrast of level {first} is absent")));
+        assert!(edited(tag, &|v| *v = 7).contains("has tag 7"));
+        assert!(edited(tag + 1 + 3, &|v| *v = 0xff).contains("out of bounds"));
+        assert!(edited(tag + 1 + 19, &|v| *v = 0xff).contains("out of bounds"));
+        assert!(edited(start + 1, &|v| *v = 1).contains("the contrast of level 0 is present"));
+    }
+
+    /// A well-formed section that is not the measured calibration opens (checking it would
+    /// cost what storing it saves) but fails the check made where a bundle is accepted, which
+    /// names the part that differs; so does another demo's calibration of the same shape.
+    #[test]
+    fn a_crafted_calibration_is_refused_where_a_bundle_is_accepted() {
+        let all = demos();
+        let bundle = &all[1];
+        let mut crafted = section(bundle);
+        crafted[1] ^= 0x40; // the mean's red
+        let b = with_section(bundle, crafted);
+        load(&b).expect("well-formed: it opens");
+        let why = super::super::verify(&b).unwrap_err().to_string();
+        assert!(why.contains("section `calibration.bin`: the mean is not what the params and sample give"), "{why}");
+        let mut crafted = section(bundle);
+        let gain = crafted.len() - 8;
+        crafted[gain] ^= 1; // the last contrast's gain, by 1/256
+        let why = super::super::verify(&with_section(bundle, crafted)).unwrap_err().to_string();
+        assert!(why.contains("the contrast of level") && why.contains("is not what"), "{why}");
+        let mut crafted = section(bundle);
+        let bins = u32::from_le_bytes(crafted[4..8].try_into().unwrap()) as usize;
+        crafted[8 + bins.div_ceil(8)] ^= 0x11; // g's first colour, past its count and bits
+        let why = super::super::verify(&with_section(bundle, crafted)).unwrap_err().to_string();
+        assert!(why.contains("calibration.bin`: g is not"), "{why}");
+        // Another demo's calibration, where the shapes agree.
+        for other in all.iter().filter(|o| o.manifest.name != bundle.manifest.name) {
+            let b = with_section(bundle, section(other));
+            if load(&b).is_ok() {
+                assert!(super::super::verify(&b).is_err(), "{}'s calibration passed", other.manifest.name);
+            }
+        }
+    }
+
+    /// A bundle stored before the section existed can still be patched: `create` adding the
+    /// section is not a part made elsewhere ([`crate::models::Model::cached_sections`]), and the
+    /// result is what a fresh `create` makes; a stored section unlike the measured one is.
+    #[test]
+    fn a_bundle_without_the_section_patches_as_a_fresh_create() {
+        use crate::models::{create, remake_within, Limits};
+        let ex = super::super::demos::example();
+        let made = create(super::super::MODEL, "ex", &ex.params, &ex.inputs()).unwrap();
+        let mut params = ex.params.clone();
+        params["seed"] = serde_json::json!(2);
+        let fresh = create(super::super::MODEL, "ex", &params, &ex.inputs()).unwrap();
+        let patched = remake_within(&without_section(&made), "ex", &params, &Limits::NONE).unwrap();
+        assert_eq!(patched.to_bytes(), fresh.to_bytes());
+        let mut crafted = section(&made);
+        crafted[1] ^= 1;
+        let why = remake_within(&with_section(&made, crafted), "ex", &params, &Limits::NONE).unwrap_err().to_string();
+        assert!(why.contains("section `calibration.bin`"), "{why}");
+    }
 }

@@ -18,8 +18,9 @@ use std::sync::{Arc, OnceLock};
 /// A loaded, validated order-independent texture.
 pub struct OrderIndependent {
     levels: SynthesisLevels,
-    /// The colours of coarse levels beyond the pyramid, measured on first use (a pure
-    /// function of the encoding, so when it is computed never changes a result).
+    /// The colours of coarse levels beyond the pyramid: read from the bundle when it stores
+    /// them, otherwise measured on first use (a pure function of the encoding, so when it is
+    /// computed never changes a result).
     calibration: OnceLock<Calibration>,
 }
 
@@ -38,6 +39,33 @@ impl OrderIndependent {
             levels: SynthesisLevels::new(params, sample, key, shared)?,
             calibration: OnceLock::new(),
         })
+    }
+
+    /// This texture with its calibration read from `bytes` (the bundle's section
+    /// [`prefilter::SECTION`]), validated against its parameters and sample, instead of
+    /// measured on first use.
+    pub fn with_calibration(self, bytes: &[u8]) -> Result<Self> {
+        let calibration = Calibration::from_bytes(&self.levels, bytes)?;
+        Ok(OrderIndependent { calibration: OnceLock::from(calibration), ..self })
+    }
+
+    /// The synthesis levels the texture serves from.
+    #[cfg(test)]
+    pub(super) fn levels(&self) -> &SynthesisLevels {
+        &self.levels
+    }
+
+    /// The calibration, measured now if it was neither stored nor measured yet.
+    pub fn calibration(&self) -> &Calibration {
+        self.calibration.get_or_init(|| {
+            Calibration::compute(&self.levels, &crate::Never).expect("a render that is never stopped completes")
+        })
+    }
+
+    /// Checks that `bytes` is the calibration [`Calibration::compute`] gives this texture
+    /// (see [`prefilter::verify`]).
+    pub fn verify_calibration(&self, bytes: &[u8]) -> Result<()> {
+        prefilter::verify(&self.levels, bytes)
     }
 
     /// This texture with its entries kept in `cache` instead of the shared cache (the figures
@@ -305,6 +333,8 @@ mod tests {
         assert_eq!(written, json!(super::super::params::DEFAULT_MIP_GENERATIONS));
         let mut stored = made.clone();
         stored.manifest.derived.remove("mip_generations");
+        // Stored before the calibration section too (whose shape follows `mip_generations`).
+        stored.sections.retain(|s| s.name != prefilter::SECTION);
         let region = Region::new(1, 40, -24, 32, 16);
         let exact = crate::mip::downsample(
             &crate::texture::render_image(&load(&stored).unwrap(), &Region::new(0, 80, -48, 64, 32)).unwrap(),
