@@ -69,6 +69,7 @@ pub trait Model: Send + Sync + 'static {
     /// recomputes it. Called once where a bundle from outside is accepted (the server's
     /// upload, [`verify`]), never on open; a bundle `create` made passes by construction.
     /// Most models store nothing of the kind.
+    #[cfg(feature = "create")]
     fn verify(&self, _bundle: &Bundle) -> Result<()> {
         Ok(())
     }
@@ -76,6 +77,7 @@ pub trait Model: Send + Sync + 'static {
     /// bundle (a bundle stored before one existed renders the same without it, deriving it
     /// when needed): [`remake_within`] does not count one `create` adds as a part the stored
     /// bundle was not made with.
+    #[cfg(feature = "create")]
     fn cached_sections(&self) -> &'static [&'static str] {
         &[]
     }
@@ -260,6 +262,7 @@ pub fn load_within(bundle: &Bundle, limits: &Limits, resources: &Resources) -> R
 
 /// Checks what loading `bundle` takes on trust ([`Model::verify`]): where a bundle from outside
 /// is accepted, after it loads.
+#[cfg(feature = "create")]
 pub fn verify(bundle: &Bundle) -> Result<()> {
     get(&bundle.manifest.model)?.verify(bundle)
 }

@@ -319,8 +319,10 @@ impl Calibration {
                 }
                 self.weights_from(&ratios, first);
             }
-            let m = l - base;
-            let (target, side, shift) = if (1..=CARRIED).contains(&m) {
+            // A level at or below the base (a stage deeper than the measured levels) has no
+            // carried chain: like those past it, its target is the level below box-filtered.
+            let carried_at = l.checked_sub(base).filter(|m| (1..=CARRIED).contains(m));
+            let (target, side, shift) = if let Some(m) = carried_at {
                 (carried[m as usize - 1].clone(), CARRIED_SIDE >> m, CARRIED - m)
             } else {
                 let mut target = Vec::new();
@@ -331,7 +333,7 @@ impl Calibration {
                 }
                 (target, SIDE, 0)
             };
-            let spots = if (1..=CARRIED).contains(&m) { CARRY_SPOTS } else { WINDOWS };
+            let spots = if carried_at.is_some() { CARRY_SPOTS } else { WINDOWS };
             let (mut predicted, mut unit) = (Vec::new(), Vec::new());
             for i in 0..spots {
                 let (x, y) = spot(i);

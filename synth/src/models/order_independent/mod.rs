@@ -94,9 +94,11 @@ impl Model for OrderIndependentModel {
     fn plan(&self, bundle: &Bundle) -> Result<Plan> {
         plan::plan(bundle)
     }
+    #[cfg(feature = "create")]
     fn verify(&self, bundle: &Bundle) -> Result<()> {
         verify(bundle)
     }
+    #[cfg(feature = "create")]
     fn cached_sections(&self) -> &'static [&'static str] {
         &[prefilter::SECTION]
     }
