@@ -123,6 +123,18 @@ where
     d.deserialize_any(Tagged { tag, expecting, kind: std::marker::PhantomData })
 }
 
+/// What reading `v` as `T` gives — the value (as Debug shows it, which leaves out the enum's
+/// name) or the error, directly and by path as `parse_params` reads — for the tests that hold
+/// a reader made with [`tagged`] to the derive it replaces.
+#[cfg(all(test, any(feature = "model-cascade", feature = "model-patterns")))]
+pub(crate) fn read_both_ways<T: serde::de::DeserializeOwned + std::fmt::Debug>(v: &serde_json::Value) -> [String; 2] {
+    let direct = serde_json::from_value::<T>(v.clone()).map(|t| format!("{t:?}")).map_err(|e| e.to_string());
+    let path = serde_path_to_error::deserialize::<_, T>(v)
+        .map(|t| format!("{t:?}"))
+        .map_err(|e| format!("{}: {}", e.path(), e.inner()));
+    [format!("{direct:?}"), format!("{path:?}")]
+}
+
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub struct Section {
     pub name: String,

@@ -163,12 +163,7 @@ impl Engine {
         region: Region,
         finish: impl FnOnce(Rgba8Image) -> Result<T, Error> + Send + 'static,
     ) -> Result<T, Error> {
-        let slot = self.slots.acquire(entry.key).await.map_err(|refused| {
-            if refused == Refused::Full {
-                self.metrics.syntheses_shed.inc();
-            }
-            busy(refused)
-        })?;
+        let slot = self.slot(&entry).await?;
         let stop = Arc::new(SynthesisStop { abandoned: AtomicBool::new(false), server: self.stopping.clone() });
         let _stop_on_drop = StopOnDrop(stop.clone());
         let m = &self.metrics;
@@ -204,6 +199,17 @@ impl Engine {
 }
 
 impl Engine {
+    /// One of `entry`'s synthesis slots, or the 503 of a full queue (counted as shed) or of a
+    /// server shutting down.
+    async fn slot(&self, entry: &Entry) -> Result<slots::Slot, Error> {
+        self.slots.acquire(entry.key).await.map_err(|refused| {
+            if refused == Refused::Full {
+                self.metrics.syntheses_shed.inc();
+            }
+            busy(refused)
+        })
+    }
+
     /// Runs `work` on a blocking thread holding one of `entry`'s synthesis slots, so that CPU
     /// work beside synthesis (a mip chain's encoding, which Basis Universal makes seconds long)
     /// is bounded as syntheses are: shed with a 503 when the queue is full.
@@ -212,12 +218,7 @@ impl Engine {
         entry: &Entry,
         work: impl FnOnce() -> T + Send + 'static,
     ) -> Result<T, Error> {
-        let slot = self.slots.acquire(entry.key).await.map_err(|refused| {
-            if refused == Refused::Full {
-                self.metrics.syntheses_shed.inc();
-            }
-            busy(refused)
-        })?;
+        let slot = self.slot(entry).await?;
         tokio::task::spawn_blocking(move || {
             let out = std::panic::catch_unwind(std::panic::AssertUnwindSafe(work));
             drop(slot);

@@ -201,6 +201,7 @@ mod tests {
 #[cfg(test)]
 mod read_as_derived {
     use super::*;
+    use crate::bundle::read_both_ways;
     use serde_json::json;
 
     /// `MapSpec` as serde's derive reads it (of the same name, which serde's messages hold).
@@ -217,14 +218,6 @@ mod read_as_derived {
             Circle { omega: f64, k: f64 },
             Sigmoid { gain: f64, center: f64 },
         }
-    }
-
-    fn read<T: serde::de::DeserializeOwned + std::fmt::Debug>(v: &serde_json::Value) -> [String; 2] {
-        let direct = serde_json::from_value::<T>(v.clone()).map(|t| format!("{t:?}")).map_err(|e| e.to_string());
-        let path = serde_path_to_error::deserialize::<_, T>(v)
-            .map(|t| format!("{t:?}"))
-            .map_err(|e| format!("{}: {}", e.path(), e.inner()));
-        [format!("{direct:?}"), format!("{path:?}")]
     }
 
     #[test]
@@ -247,7 +240,7 @@ mod read_as_derived {
             json!(null),
         ];
         for v in &specs {
-            assert_eq!(read::<MapSpec>(v), read::<derived::MapSpec>(v), "{v}");
+            assert_eq!(read_both_ways::<MapSpec>(v), read_both_ways::<derived::MapSpec>(v), "{v}");
         }
     }
 }

@@ -382,6 +382,7 @@ impl<'de> Deserialize<'de> for Previous {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::bundle::read_both_ways;
     use serde_json::json;
 
     /// `Choice` and `Previous` as serde's derives read them (of the same names, which
@@ -414,16 +415,6 @@ mod tests {
         }
     }
 
-    /// What reading `v` gives: the value (as Debug shows it, which leaves out the enum's name)
-    /// or the error, directly and by path as `parse_params` reads.
-    fn read<T: serde::de::DeserializeOwned + std::fmt::Debug>(v: &serde_json::Value) -> [String; 2] {
-        let direct = serde_json::from_value::<T>(v.clone()).map(|t| format!("{t:?}")).map_err(|e| e.to_string());
-        let path = serde_path_to_error::deserialize::<_, T>(v)
-            .map(|t| format!("{t:?}"))
-            .map_err(|e| format!("{}: {}", e.path(), e.inner()));
-        [format!("{direct:?}"), format!("{path:?}")]
-    }
-
     #[test]
     fn choice_and_previous_read_as_the_derives_do() {
         let map = json!({"size": [2, 2], "values": [1, 2, 3, 4]});
@@ -448,7 +439,7 @@ mod tests {
             json!(7),
         ];
         for v in &choices {
-            assert_eq!(read::<Choice>(v), read::<derived::Choice>(v), "{v}");
+            assert_eq!(read_both_ways::<Choice>(v), read_both_ways::<derived::Choice>(v), "{v}");
         }
         let p = json!({"a": 0.5, "z": {"random": 3}, "t0": 10});
         let previous = [
@@ -463,7 +454,7 @@ mod tests {
             json!(null),
         ];
         for v in &previous {
-            assert_eq!(read::<Previous>(v), read::<derived::Previous>(v), "{v}");
+            assert_eq!(read_both_ways::<Previous>(v), read_both_ways::<derived::Previous>(v), "{v}");
         }
     }
 }
