@@ -1,4 +1,4 @@
-//! Issue 36: what opening an order-independent demo and rendering its first coarse tile cost,
+//! What opening an order-independent demo and rendering its first coarse tile cost,
 //! with the calibration stored in the bundle (`calibration.bin`, written by `create`) and
 //! without it (a bundle stored before the section existed, which measures it on that tile).
 //! Prints, per demo and bundle, the encoding's size and the median milliseconds of opening and

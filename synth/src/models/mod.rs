@@ -364,8 +364,7 @@ mod tests {
 
     /// Every model's example is small and quick: it names every input the model requires, is
     /// planned within a second to make (order-independent's `create` measures its coarse
-    /// levels' calibration since issue 36, which its first coarse tile did before) and a second
-    /// a tile, and `create` makes exactly what was planned.
+    /// levels' calibration) and a second a tile, and `create` makes exactly what was planned.
     #[test]
     fn every_example_creates_a_small_texture_quickly() {
         let quick =
