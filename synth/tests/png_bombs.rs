@@ -106,6 +106,11 @@ fn with_chunks(image: &Rgba8Image, extra: &[Vec<u8>]) -> Vec<u8> {
     out
 }
 
+/// A PNG's signature and header followed by `extra` alone, as a file cut short in it.
+fn png_prefix_with_chunk(image: &Rgba8Image, extra: &[u8]) -> Vec<u8> {
+    [&image.to_png()[..33], extra].concat()
+}
+
 #[test]
 fn inflating_chunks_and_oversized_headers_stay_within_the_bound() {
     let image = Rgba8Image::from_raw(2, 2, (0..16).map(|i| i * 13).collect()).unwrap();
@@ -125,6 +130,13 @@ fn inflating_chunks_and_oversized_headers_stay_within_the_bound() {
         assert_eq!(decoded.as_ref().ok(), Some(&image), "{what}: {decoded:?}");
         assert!(growth < BOUND, "{what}: the heap grew by {growth} bytes decoding {} bytes", png.len());
     }
+    // A bomb cut short by the end of the file (its chunk's length runs past it) is refused,
+    // not handed to the decoder, which would inflate the part that is there.
+    let mut cut = png_prefix_with_chunk(&image, &chunk(b"iCCP", &profile));
+    cut.truncate(cut.len() - 1000);
+    let (decoded, growth) = peak_growth(|| decode_png("sample", &cut));
+    assert!(decoded.unwrap_err().to_string().contains("runs past the end"), "a cut-short iCCP");
+    assert!(growth < BOUND, "a cut-short iCCP: the heap grew by {growth} bytes");
     // Headers declaring 4096² RGBA at 16 bits (128 MiB decoded) are refused before allocating.
     let mut big = with_chunks(&image, &[]);
     let ihdr = [4096u32.to_be_bytes(), 4096u32.to_be_bytes()].concat();
