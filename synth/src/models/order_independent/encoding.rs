@@ -66,7 +66,7 @@ pub fn load_with(bundle: &Bundle, resources: &Resources) -> Result<OrderIndepend
 }
 
 /// What [`load`] trusts, checked: the stored calibration must be the one measuring it gives,
-/// or a crafted one would colour the coarse levels unlike the chain of level 0 (DESIGN §3).
+/// or a crafted one would colour the coarse levels unlike the chain of level 0, breaking mip coherence.
 /// It is measured again (seconds for a 100k demo), with resources of its own so that no
 /// owner's cache or work counters see it; a bundle without the section has nothing to check.
 /// Called where a bundle is accepted ([`crate::models::Model::verify`]), never on open.

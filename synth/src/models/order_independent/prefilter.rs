@@ -437,7 +437,7 @@ impl<'a> Cursor<'a> {
 
 /// Checks that `bytes`, a stored calibration of `tex`, is exactly the one
 /// [`Calibration::compute`] gives: what a server does once where it accepts an uploaded bundle,
-/// since a crafted one would colour coarse levels unlike the chain of level 0 (DESIGN §3).
+/// since a crafted one would colour coarse levels unlike the chain of level 0, breaking mip coherence.
 pub fn verify(tex: &SynthesisLevels, bytes: &[u8]) -> crate::Result<()> {
     let stored = Calibration::from_bytes(tex, bytes)?;
     let computed = Calibration::compute(tex, &crate::Never).expect("a render that is never stopped completes");
