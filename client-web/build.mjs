@@ -9,7 +9,7 @@
 // for such copies (nginx's gzip_static) send to clients that accept them. Not the pages: vtex
 // (and `vtex export-web`, the viewer's) rewrite them.
 import { cpSync, existsSync, mkdirSync, readdirSync, readFileSync, rmSync, statSync, writeFileSync } from 'node:fs';
-import { dirname, extname, join } from 'node:path';
+import { dirname, extname, join, posix } from 'node:path';
 import { fileURLToPath } from 'node:url';
 import { brotliCompressSync, constants, gzipSync } from 'node:zlib';
 
@@ -33,6 +33,28 @@ if (license) cpSync(license, join(dist, 'osd', 'LICENSE.txt'));
 const built = existsSync(modules) ? readdirSync(modules).filter((n) => /^vtex_synth_.+\.wasm$/.test(n)) : [];
 for (const name of built) cpSync(join(modules, name), join(dist, name));
 if (built.length === 0) console.warn(`no module in ${modules} (scripts/build-wasm): the viewer's client mode (?synth=client) will say so`);
+
+/** The modules that module `entry` (a path below src/) imports statically, transitively. */
+function importsOf(entry, seen = new Set()) {
+  const code = readFileSync(join(src, entry), 'utf8');
+  for (const [, spec] of code.matchAll(/^import\s[^'"]*?['"](\.{1,2}\/[^'"]+)['"]/gm)) {
+    const path = posix.normalize(posix.join(posix.dirname(entry), spec));
+    if (!seen.has(path)) {
+      seen.add(path);
+      importsOf(path, seen);
+    }
+  }
+  return seen;
+}
+
+// Each page names every module its scripts import (`modulepreload`), so the browser fetches
+// them at once instead of discovering them an import (a round trip) at a time.
+for (const page of readdirSync(src).filter((n) => n.endsWith('.html'))) {
+  const html = readFileSync(join(src, page), 'utf8').replace(/^( *)(<script src="([^"]+)" type="module"><\/script>)$/gm, (_, indent, tag, entry) =>
+    [...importsOf(entry)].map((m) => `${indent}<link rel="modulepreload" href="${m}">\n`).join('') + indent + tag,
+  );
+  writeFileSync(join(dist, page), html);
+}
 
 const COMPRESSIBLE = new Set(['.js', '.mjs', '.css', '.wasm', '.json', '.svg', '.map', '.txt']);
 

@@ -112,6 +112,22 @@ test('the page loads cleanly, requests tiles and draws them', async () => {
   await page.close();
 });
 
+test('the page names every module its script imports up front, so none waits for its importer', async () => {
+  const { page, log } = await openViewer(browser.context, `${server.url}/`);
+  await waitForIdle(page);
+  const { preloaded, entry, fetched } = await page.evaluate(() => ({
+    preloaded: [...document.querySelectorAll('link[rel=modulepreload]')].map((l) => l.href),
+    entry: document.querySelector('script[type=module]').src,
+    fetched: performance.getEntriesByType('resource').map((e) => e.name).filter((n) => n.endsWith('.js')),
+  }));
+  // Not OpenSeadragon (a classic script) nor the Workers' scripts, which the page does not import.
+  const modules = fetched.filter((n) => n !== entry && !n.includes('/osd/') && !n.includes('/workers/'));
+  assert.ok(modules.length >= 10, `the viewer's modules were fetched: ${modules}`);
+  assert.deepEqual(modules.filter((n) => !preloaded.includes(n)), [], 'modules fetched without a modulepreload');
+  assertClean(log);
+  await page.close();
+});
+
 test('every private OpenSeadragon member the adapter relies on exists on the loaded library', async () => {
   const { page, log } = await openViewer(browser.context, `${server.url}/?texture=${big.id}&zoom=0.02&x=50000&y=50000`);
   await waitForIdle(page);

@@ -69,8 +69,8 @@ export class SynthWorkers {
   }
 
   async start(encodingUrl, stats) {
-    const [bundle, module] = await Promise.all([fetchBytes(encodingUrl, 'the encoding', stats), loadModule(stats, this.info.model)]);
-    if (this.closed) throw new Error('closed');
+    // The Workers start (their scripts load) while the encoding and the module download.
+    const bytes = Promise.all([fetchBytes(encodingUrl, 'the encoding', stats), loadModule(stats, this.info.model)]);
     const opened = [];
     for (let i = 0; i < this.workerCount; i++) {
       const worker = new Worker(new URL('../workers/synth-tiles.js', import.meta.url), { type: 'module' });
@@ -90,9 +90,13 @@ export class SynthWorkers {
           };
         }),
       );
-      worker.postMessage({ type: 'open', module, bundle: bundle.slice(0), tileSize: this.info.tile_size });
     }
-    const [got] = await Promise.all(opened);
+    const allOpened = Promise.all(opened);
+    allOpened.catch(() => {}); // a Worker failing to start is reported below, once the bytes are in
+    const [bundle, module] = await bytes;
+    if (this.closed) throw new Error('closed');
+    for (const worker of this.workers) worker.postMessage({ type: 'open', module, bundle: bundle.slice(0), tileSize: this.info.tile_size });
+    const [got] = await allOpened;
     if (got.id !== this.info.id) {
       throw new Error(`the encoding received is not this texture's: its content id is ${got.id}, expected ${this.info.id}`);
     }

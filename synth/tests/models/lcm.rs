@@ -421,6 +421,36 @@ fn brick_wall_encoding_size_beside_the_paper() {
 }
 
 #[test]
+fn drawn_masks_are_not_stored_and_render_as_stored_ones() {
+    use lcm::packing::MaskCoding;
+    let with = |coding: MaskCoding| {
+        let mut p = demos::brick_wall();
+        p.mask_coding = coding;
+        demos::make("coded", &p).unwrap()
+    };
+    let (zeros, drawn) = (with(MaskCoding::Zeros), with(MaskCoding::Drawn));
+    assert!(drawn.sections.iter().all(|s| !s.name.starts_with("lcm.")), "a drawn mask has no section");
+    assert!(drawn.to_bytes().len() < zeros.to_bytes().len());
+    let (a, b) = (lcm::load(&zeros).unwrap(), lcm::load(&drawn).unwrap());
+    for level in [0, 2, 5] {
+        assert!(render(&a, level, -300, 40, 200, 150) == render(&b, level, -300, 40, 200, 150), "level {level}");
+    }
+    // A mask section beside drawn masks is refused, as is a drawn mask with no table to draw it.
+    let mut stray = drawn.clone();
+    stray.sections.push(zeros.sections.iter().find(|s| s.name == "lcm.0").unwrap().clone());
+    let Err(e) = lcm::load(&stray) else { panic!("a stray mask section was accepted") };
+    let e = e.to_string();
+    assert!(e.contains("unexpected section `lcm.0`"), "{e}");
+    let mut p: serde_json::Value = drawn.manifest.params.clone();
+    p["layers"][0]["table"] = serde_json::Value::Null;
+    let mut tableless = drawn.clone();
+    tableless.manifest.params = p;
+    let Err(e) = lcm::load(&tableless) else { panic!("a drawn mask with no table was accepted") };
+    let e = e.to_string();
+    assert!(e.contains("layers[0].table"), "{e}");
+}
+
+#[test]
 fn operations_per_pixel_within_the_paper_bound() {
     for name in ["LCM random rotation", "LCM brick wall", "LCM cheese", "LCM pebbles 100k"] {
         let (_, t) = demo(name);

@@ -153,7 +153,8 @@ pub fn brick_wall() -> Params {
 /// channel), small ones first and the largest on top, over a faint sand noise. The large layer
 /// does not tile (§5): its 784 × 784 LCM at 128-px spacing covers the whole texture. Layer 1
 /// (392 × 392 at 64 px) repeats every 25,088 px and the small layers every 2,048, 1,024 and
-/// 512 px, so no two of the two large layers' repetitions meet within the texture.
+/// 512 px, so no two of the two large layers' repetitions meet within the texture. Its masks
+/// (768,320 points, 337 kB zero-coded) are drawn again at load from the seed.
 pub fn pebbles() -> Params {
     let stones = |pos: f64, neg: f64| {
         Table::single(Cell { sign: [pos, neg, 1.0 - pos - neg], rotation: UNIFORM, mirror: 0.5, operation: NON_ZERO })
@@ -161,6 +162,7 @@ pub fn pebbles() -> Params {
     Params {
         background: Some(PEBBLE_SAND.to_vec()),
         order: Order::BottomUp,
+        mask_coding: MaskCoding::Drawn,
         seed: 100_352,
         ..params(
             "pebble",

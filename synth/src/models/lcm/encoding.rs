@@ -80,6 +80,7 @@ pub fn create(name: &str, params: &serde_json::Value, inputs: &Inputs) -> Result
             let codes = codes?;
             let l = &p.layers[n];
             let data = match (p.mask_coding, &l.table) {
+                (MaskCoding::Drawn, _) => return None,
                 (MaskCoding::Zeros, Some(t)) => packing::pack(&codes, t, l.lcm[0] as usize),
                 _ => codes,
             };

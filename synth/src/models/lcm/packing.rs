@@ -8,7 +8,8 @@
 //! its code; one whose cell may or may not stores one presence bit, and its code when present.
 //! Section layout: the presence bits of the "may" points in row-major order (LSB first, padded
 //! to a byte), then the codes of the present points in row-major order. A load unpacks the
-//! mask once into its bytes, so rendering is unchanged.
+//! mask once into its bytes, so rendering is unchanged. A mask may also not be stored at all
+//! (`drawn`): the load draws it from its table and the seed.
 
 use super::event::Event;
 use super::table::{Cell, Table};
@@ -25,6 +26,10 @@ pub enum MaskCoding {
     Raw,
     /// §6: the zeros the event table implies are not stored (needs every own mask's table).
     Zeros,
+    /// No section: a load draws each mask again from its event table and the seed, as `create`
+    /// drew it (needs every own mask's table). A drawn mask is noise its seed regenerates, as
+    /// the chaos mosaic's block sequence is; storing it costs about its entropy.
+    Drawn,
 }
 
 /// Whether a cell's points replicate: never, always, or by chance.

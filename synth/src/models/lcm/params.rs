@@ -105,8 +105,8 @@ pub struct Params {
     /// The served size is the period times this.
     #[serde(default = "one_tile")]
     pub tiles: [u32; 2],
-    /// How the LCM sections are stored: `raw`, or `zeros` (§6: the zeros the event tables
-    /// imply left out).
+    /// How the LCM sections are stored: `raw`, `zeros` (§6: the zeros the event tables imply
+    /// left out), or `drawn` (not stored: drawn again from the tables and the seed at load).
     #[serde(default)]
     pub mask_coding: MaskCoding,
     /// The seed the LCMs are drawn with.

@@ -313,7 +313,10 @@ pub(super) fn check(p: &Params, bundle: &Bundle) -> Result<Checked> {
         }
     }
     check_layers(&p.layers, top)?;
-    expected.extend(p.layers.iter().enumerate().filter(|(_, l)| l.share.is_none()).map(|(n, _)| format!("lcm.{n}")));
+    if p.mask_coding != MaskCoding::Drawn {
+        expected
+            .extend(p.layers.iter().enumerate().filter(|(_, l)| l.share.is_none()).map(|(n, _)| format!("lcm.{n}")));
+    }
     if let Some(extra) = bundle.sections.iter().find(|s| !expected.contains(&s.name)) {
         return Err(Error::bundle(format!("unexpected section `{}` in an lcm encoding", extra.name)));
     }
@@ -325,9 +328,12 @@ pub(super) fn check(p: &Params, bundle: &Bundle) -> Result<Checked> {
     Ok(Checked { k, planes, background, colour, period, size, resolutions, masks })
 }
 
-/// Each layer's own LCM as event bytes, from its section as `p.mask_coding` codes it (`None`
-/// for a layer that shares one).
+/// Each layer's own LCM as event bytes, from its section as `p.mask_coding` codes it, or drawn
+/// again (`None` for a layer that shares one).
 fn masks(p: &Params, bundle: &Bundle) -> Result<Vec<Option<Vec<u8>>>> {
+    if p.mask_coding == MaskCoding::Drawn {
+        return drawn_lcms(p);
+    }
     p.layers
         .iter()
         .enumerate()
@@ -338,11 +344,11 @@ fn masks(p: &Params, bundle: &Bundle) -> Result<Vec<Option<Vec<u8>>>> {
             let name = format!("lcm.{n}");
             let data = bundle.section(&name)?;
             Ok(Some(match (p.mask_coding, &l.table) {
-                (MaskCoding::Raw, _) => data.to_vec(),
                 (MaskCoding::Zeros, Some(t)) => packing::unpack(data, t, l.lcm[0] as usize, l.lcm[1] as usize, &name)?,
                 (MaskCoding::Zeros, None) => {
                     return Err(Error::param(format!("layers[{n}].table"), "needed to decode a zero-coded LCM"))
                 }
+                _ => data.to_vec(),
             }))
         })
         .collect()
@@ -372,7 +378,8 @@ const PALETTE_ENTRIES: f64 = 4096.0;
 pub fn plan(bundle: &Bundle) -> Result<Plan> {
     let p: Params = bundle.params()?;
     let c = check(&p, bundle)?;
-    Ok(plan_of(&Texture { k: c.k, magnify: p.magnify, planes: c.planes, layers: &p.layers }, c.size, false))
+    let making = if p.mask_coding == MaskCoding::Drawn { Making::LoadDrawing } else { Making::Load };
+    Ok(plan_of(&Texture { k: c.k, magnify: p.magnify, planes: c.planes, layers: &p.layers }, c.size, making))
 }
 
 /// What `create` gives and costs: the parameters checked, then the LCMs drawn for the period.
@@ -393,7 +400,7 @@ pub fn plan_create(params: &serde_json::Value, inputs: &Inputs) -> Result<Plan> 
         Ok(lcms[n].as_deref().expect("`check_layers` lets layers share only an earlier layer's own LCM"))
     })?;
     let size = served_size(period, p.tiles)?;
-    Ok(plan_of(&Texture { k, magnify: p.magnify, planes, layers: &p.layers }, size, true))
+    Ok(plan_of(&Texture { k, magnify: p.magnify, planes, layers: &p.layers }, size, Making::Create))
 }
 
 /// What the cost depends on.
@@ -404,7 +411,17 @@ struct Texture<'a> {
     layers: &'a [LayerParams],
 }
 
-fn plan_of(t: &Texture, (width, height): (u64, u64), create: bool) -> Plan {
+/// What building the texture does besides loading: `create` draws the LCMs, makes the bundle
+/// and loads it; a load of drawn masks draws them.
+#[derive(Clone, Copy, PartialEq)]
+enum Making {
+    #[cfg(feature = "create")]
+    Create,
+    Load,
+    LoadDrawing,
+}
+
+fn plan_of(t: &Texture, (width, height): (u64, u64), making: Making) -> Plan {
     let top = t.k + t.magnify;
     let planes = t.planes as f64;
     let levels = level_count(width, height);
@@ -445,12 +462,13 @@ fn plan_of(t: &Texture, (width, height): (u64, u64), create: bool) -> Plan {
     // draws the points and loads what it made.
     let copy_pixels: f64 = (1..=top).map(|r| 16.0 * (1u64 << (2 * r)) as f64).sum::<f64>() * planes;
     let load = LOAD + COPY_PIXEL * copy_pixels + POINT * lcms;
-    let build = if create { 2.0 * load + DRAW_POINT * lcms } else { load };
-    let build_why = format!(
-        "{} planes × resolutions 1..={top} copied 8 ways + {lcms} LCM points{}",
-        t.planes,
-        if create { " drawn, made and loaded" } else { "" }
-    );
+    let (build, how) = match making {
+        #[cfg(feature = "create")]
+        Making::Create => (2.0 * load + DRAW_POINT * lcms, " drawn, made and loaded"),
+        Making::Load => (load, ""),
+        Making::LoadDrawing => (load + DRAW_POINT * lcms, " drawn"),
+    };
+    let build_why = format!("{} planes × resolutions 1..={top} copied 8 ways + {lcms} LCM points{how}", t.planes);
     Plan {
         width,
         height,

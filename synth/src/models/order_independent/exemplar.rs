@@ -1,6 +1,6 @@
 //! The exemplar, prepared once at load (integer only): its Gaussian pyramid or stack, its
-//! 2×2-box mip chain (or box stack), which pixels are valid candidates, their neighbourhood
-//! vectors and k-coherence sets.
+//! 2×2-box mip chain (or box stack), which pixels are valid candidates and their neighbourhood
+//! vectors; and a level's k-coherence sets ([`Coherence`]), built by the first search there.
 
 use super::structure::Taps;
 use crate::pixels::Rgba8Image;
@@ -33,19 +33,6 @@ pub struct Level {
     pub stride: usize,
     /// N_s(u) for every pixel u; taps outside the sample are mirrored (or wrapped).
     pub vectors: Vec<u8>,
-    /// C_s(u): `k` slots a pixel, the first `kset_len[u]` used; the pixel itself first.
-    pub kset: Vec<u16>,
-    pub kset_len: Vec<u8>,
-    /// For each pixel v and 3×3 offset d (row-major), the valid pixels of C_s(v) − d: the
-    /// candidates v contributes to the entry at −d from it; `k` slots, `shifted_len` used.
-    pub shifted: Vec<u16>,
-    pub shifted_len: Vec<u8>,
-    /// Whether the first of those is v − d itself (v's coherent continuation), not a pixel
-    /// merely similar to v.
-    pub shifted_coherent: Vec<bool>,
-    /// Per pixel, the factor (in 1/256) its weighted SSD is scaled by as a k-coherence
-    /// candidate: the histogram balance of its luma band, 256 until one is measured.
-    pub balance: Vec<u16>,
 }
 
 impl Level {
@@ -53,20 +40,38 @@ impl Level {
     pub fn vector(&self, u: usize) -> &[u8] {
         &self.vectors[u * self.stride..(u + 1) * self.stride]
     }
+}
 
+/// The k-coherence sets of one level and their shifts by the 3×3 window.
+#[derive(Clone, Debug)]
+pub struct Coherence {
+    k: usize,
+    /// C_s(u): `k` slots a pixel, the first `kset_len[u]` used; the pixel itself first.
+    kset: Vec<u16>,
+    kset_len: Vec<u8>,
+    /// For each pixel v and 3×3 offset d (row-major), the valid pixels of C_s(v) − d: the
+    /// candidates v contributes to the entry at −d from it; `k` slots, `shifted_len` used.
+    shifted: Vec<u16>,
+    shifted_len: Vec<u8>,
+    /// Whether the first of those is v − d itself (v's coherent continuation), not a pixel
+    /// merely similar to v.
+    shifted_coherent: Vec<bool>,
+}
+
+impl Coherence {
     #[inline]
-    pub fn kset(&self, u: usize, k: usize) -> &[u16] {
-        &self.kset[u * k..u * k + self.kset_len[u] as usize]
+    pub fn kset(&self, u: usize) -> &[u16] {
+        &self.kset[u * self.k..u * self.k + self.kset_len[u] as usize]
     }
 
     /// The valid pixels of C_s(v) − d, d the `d`-th offset of the 3×3 square.
     #[inline]
-    pub fn shifted(&self, v: usize, d: usize, k: usize) -> &[u16] {
+    pub fn shifted(&self, v: usize, d: usize) -> &[u16] {
         let at = v * 9 + d;
-        &self.shifted[at * k..at * k + self.shifted_len[at] as usize]
+        &self.shifted[at * self.k..at * self.k + self.shifted_len[at] as usize]
     }
 
-    /// Whether the first pixel of [`Level::shifted`] is v's coherent continuation.
+    /// Whether the first pixel of [`Coherence::shifted`] is v's coherent continuation.
     #[inline]
     pub fn shifted_coherent(&self, v: usize, d: usize) -> bool {
         self.shifted_coherent[v * 9 + d]
@@ -95,6 +100,10 @@ pub struct Exemplar {
     pub levels: Vec<Level>,
     pub k: usize,
     pub stack: bool,
+    k_exclusion: u32,
+    /// Same-level and coarser-level taps of a neighbourhood vector (level 0 has no coarser ones).
+    taps: (usize, usize),
+    wrap: bool,
 }
 
 /// A coordinate reduced into 0..n: wrapped, or mirrored without repeating the edge
@@ -243,24 +252,31 @@ impl Exemplar {
                 valid_low: Vec::new(),
                 stride: 0,
                 vectors: Vec::new(),
-                kset: Vec::new(),
-                kset_len: Vec::new(),
-                shifted: Vec::new(),
-                shifted_len: Vec::new(),
-                shifted_coherent: Vec::new(),
-                balance: vec![256; (w * h) as usize],
             };
             if searched {
-                let coarser = levels.last();
-                fill_neighbourhoods(&mut level, coarser, &o.same, lower, o.wrap);
-                if o.k > 0 {
-                    fill_ksets(&mut level, o.k, o.k_exclusion, o.same.len() + lower.len());
-                    fill_shifted(&mut level, o.k, o.wrap);
-                }
+                fill_neighbourhoods(&mut level, levels.last(), &o.same, lower, o.wrap);
             }
             levels.push(level);
         }
-        Exemplar { levels, k: o.k, stack: o.stack }
+        let taps = (o.same.len(), o.lower.len());
+        Exemplar { levels, k: o.k, stack: o.stack, k_exclusion: o.k_exclusion, taps, wrap: o.wrap }
+    }
+
+    /// The k-coherence sets of level `s` (searched, with k > 0).
+    pub fn coherence(&self, s: usize) -> Coherence {
+        let level = &self.levels[s];
+        let taps = self.taps.0 + if s == 0 { 0 } else { self.taps.1 };
+        let (kset, kset_len) = ksets(level, self.k, self.k_exclusion, taps);
+        let mut coherence = Coherence {
+            k: self.k,
+            kset,
+            kset_len,
+            shifted: Vec::new(),
+            shifted_len: Vec::new(),
+            shifted_coherent: Vec::new(),
+        };
+        fill_shifted(level, &mut coherence, self.wrap);
+        coherence
     }
 }
 
@@ -315,7 +331,7 @@ crate::simd::widest! {
     /// SSD(a, b) ≥ Σ_c (S_c(a) − S_c(b))² ⁄ taps ≥ (S(a) − S(b))² ⁄ (3·taps) for the channel
     /// sums S_c and their total S (Cauchy–Schwarz), so candidates are visited nearest total
     /// first and the visit ends once even that bound exceeds the worst kept.
-    fn fill_ksets(level: &mut Level, k: usize, exclusion: u32, taps: usize) {
+    fn ksets(level: &Level, k: usize, exclusion: u32, taps: usize) -> (Vec<u16>, Vec<u8>) {
         let n = (level.w * level.h) as usize;
         let w = level.w as i64;
         let exclusion = (exclusion * level.spacing) as i64;
@@ -376,8 +392,7 @@ crate::simd::widest! {
             }
             kset_len[u] = 1 + best.len() as u8;
         }
-        level.kset = kset;
-        level.kset_len = kset_len;
+        (kset, kset_len)
     }
 }
 
@@ -390,8 +405,9 @@ fn channel_sums(vector: &[u8]) -> [i64; 3] {
     sums
 }
 
-/// The k-coherence sets shifted by each 3×3 offset (in taps), invalid pixels dropped.
-fn fill_shifted(level: &mut Level, k: usize, wrap: bool) {
+/// The k-coherence sets of `level` shifted by each 3×3 offset (in taps), invalid pixels dropped.
+fn fill_shifted(level: &Level, coherence: &mut Coherence, wrap: bool) {
+    let k = coherence.k;
     let (w, h) = (level.w as i64, level.h as i64);
     let step = level.spacing as i64;
     let n = (w * h) as usize;
@@ -401,7 +417,7 @@ fn fill_shifted(level: &mut Level, k: usize, wrap: bool) {
     for v in 0..n {
         for (d, (dx, dy)) in (-1..=1).flat_map(|dy| (-1..=1).map(move |dx| (dx, dy))).enumerate() {
             let at = v * 9 + d;
-            for &c in level.kset(v, k) {
+            for &c in coherence.kset(v) {
                 let (mut x, mut y) = (c as i64 % w - step * dx, c as i64 / w - step * dy);
                 if wrap {
                     (x, y) = (x.rem_euclid(w), y.rem_euclid(h));
@@ -417,9 +433,9 @@ fn fill_shifted(level: &mut Level, k: usize, wrap: bool) {
             }
         }
     }
-    level.shifted = shifted;
-    level.shifted_len = shifted_len;
-    level.shifted_coherent = shifted_coherent;
+    coherence.shifted = shifted;
+    coherence.shifted_len = shifted_len;
+    coherence.shifted_coherent = shifted_coherent;
 }
 
 #[cfg(test)]
@@ -518,7 +534,8 @@ mod tests {
                 coarsest_search: false,
             };
             let ex = Exemplar::build(&img, &o);
-            for l in &ex.levels[1..] {
+            for (s, l) in ex.levels.iter().enumerate().skip(1) {
+                let coherence = ex.coherence(s);
                 assert!(!l.valid.is_empty());
                 let w = l.w as i64;
                 let excluded = |u: usize, v: u16| {
@@ -526,7 +543,7 @@ mod tests {
                     (u % w - v % w).abs().max((u / w - v / w).abs()) <= (k_exclusion * l.spacing) as i64
                 };
                 for u in 0..(l.w * l.h) as usize {
-                    let set = l.kset(u, k);
+                    let set = coherence.kset(u);
                     assert_eq!(set[0] as usize, u);
                     assert_eq!(set.len(), k);
                     let key = |v: u16| (ssd(l.vector(u), l.vector(v as usize)), v);

@@ -4,7 +4,7 @@
 //! neighbourhoods by exact integer SSD on sRGB bytes and breaks ties by the lower index, as the
 //! paper's strict `>` over a scanline scan does.
 
-use super::exemplar::{ssd_below, Exemplar, Level, Options, CHUNK};
+use super::exemplar::{ssd_below, Coherence, Exemplar, Level, Options, CHUNK};
 use super::params::{ExemplarLevels, Generation0, LowerShape, Params, SameShape, Search};
 use super::rect::Rect;
 use super::served::{evaluate, Counts};
@@ -12,6 +12,7 @@ use super::structure::{circle5, square, union, without_centre, Entry, Structure,
 use crate::hash::{below, hash4, hash4_x, hash4_y};
 use crate::pixels::Rgba8Image;
 use crate::{Error, Result};
+use std::sync::OnceLock;
 
 /// The plane is a torus of 2^PLANE_BITS level-0 pixels a side (2^58 coarsest pixels for four
 /// levels): far beyond any served extent (2^40), and far enough from the i64 range that the
@@ -60,6 +61,19 @@ pub struct Synthesizer {
     coherent: Vec<(usize, usize)>,
     /// Position of (0, 0) in the `same` reads: the previous generation of the pixel itself.
     centre: Option<usize>,
+    /// Histogram balance exponent, in halves (0: off).
+    balance: u8,
+    /// Per level, what its k-coherence search reads, prepared by the first search there: a
+    /// view of coarse levels that searches nowhere builds none of it.
+    prepared: Vec<OnceLock<Prepared>>,
+}
+
+/// What a k-coherence search at one level reads besides the exemplar: the level's sets, and
+/// each candidate's histogram balance factor (in 1/256).
+#[derive(Clone, Debug)]
+struct Prepared {
+    coherence: Coherence,
+    balance: Vec<u16>,
 }
 
 /// The compared taps of each shape (centre excluded at the own level).
@@ -156,7 +170,7 @@ impl Synthesizer {
                 window
             }
         };
-        let mut syn = Synthesizer {
+        Ok(Synthesizer {
             centre: position(&(0, 0)),
             lower_taps: structure.lower.len(),
             structure,
@@ -169,13 +183,22 @@ impl Synthesizer {
             wrap: p.exemplar_wrap,
             same_at,
             coherent,
-        };
-        if p.balance() > 0 {
-            for s in 0..syn.exemplar.levels.len() {
-                syn.exemplar.levels[s].balance = syn.balance(s, p.balance());
+            balance: p.balance(),
+            prepared: (0..p.levels).map(|_| OnceLock::new()).collect(),
+        })
+    }
+
+    /// What the k-coherence search at level `s` reads, prepared on first use.
+    fn prepared(&self, s: usize) -> &Prepared {
+        self.prepared[s].get_or_init(|| {
+            let coherence = self.exemplar.coherence(s);
+            let unbalanced = Prepared { coherence, balance: vec![256; self.exemplar.levels[s].colour.len()] };
+            if self.balance == 0 || self.exemplar.levels[s].valid.is_empty() {
+                return unbalanced;
             }
-        }
-        Ok(syn)
+            let balance = self.measure_balance(s, &unbalanced);
+            Prepared { balance, ..unbalanced }
+        })
     }
 
     /// The histogram balance of level `s`, exponent `halves`/2, the coarser levels balanced
@@ -183,16 +206,14 @@ impl Synthesizer {
     /// is (used ⁄ fair)^(halves/2) of its luma band, fair being the band's share of the valid
     /// pixels, clamped to ½..=2. Balancing coarse to fine, each pilot sees the coarser levels
     /// as they will be served, so the corrections do not compound.
-    fn balance(&self, s: usize, halves: u8) -> Vec<u16> {
-        let level = &self.exemplar.levels[s];
-        if level.valid.is_empty() {
-            return level.balance.clone();
-        }
+    fn measure_balance(&self, s: usize, unbalanced: &Prepared) -> Vec<u16> {
+        let (level, halves) = (&self.exemplar.levels[s], self.balance);
         let h = hash4(self.seed, STREAM_PILOT, 0, 0);
         let (x, y) = ((h as i64) >> 24, (h.rotate_left(32) as i64) >> 24);
         let band = |c: [u8; 3]| ((77 * c[0] as u32 + 150 * c[1] as u32 + 29 * c[2] as u32) >> 12) as usize;
         let rect = Rect { x, y, w: PILOT, h: PILOT };
-        let used = evaluate(self, &self.structure, None, s as u8, rect, &mut Counts::default(), &crate::Never)
+        let pilot = Pilot { syn: self, s: s as u8, prepared: unbalanced };
+        let used = evaluate(&pilot, &self.structure, None, s as u8, rect, &mut Counts::default(), &crate::Never)
             .expect("a pilot that is never stopped completes");
         let (mut fair, mut got) = ([0u64; BANDS], [0u64; BANDS]);
         level.valid.iter().for_each(|&u| fair[band(level.colour[u as usize])] += 1);
@@ -245,17 +266,18 @@ impl Synthesizer {
     #[inline(always)]
     fn candidates<'a>(
         &self,
-        level: &Level,
+        prepared: &Prepared,
         same: &[u16],
         buf: &'a mut [(u16, u64); MAX_CANDIDATES],
     ) -> &'a [(u16, u64)] {
         let mut n = 0;
+        let sets = &prepared.coherence;
         for &(d, i) in &self.coherent {
             let v = same[i] as usize;
-            let coherent = level.shifted_coherent(v, d);
-            for (j, &c) in level.shifted(v, d, self.exemplar.k).iter().enumerate() {
+            let coherent = sets.shifted_coherent(v, d);
+            for (j, &c) in sets.shifted(v, d).iter().enumerate() {
                 let kind = if j == 0 && coherent { 100 } else { self.jump_weight };
-                let weight = kind * level.balance[c as usize] as u64;
+                let weight = kind * prepared.balance[c as usize] as u64;
                 match buf[..n].iter_mut().find(|b| b.0 == c) {
                     Some(b) => b.1 = b.1.min(weight),
                     None => {
@@ -380,13 +402,32 @@ impl Synthesis for Synthesizer {
     }
 
     fn entry(&self, e: Entry, same: &[u16], lower: &[u16]) -> u16 {
-        entry(self, e, same, lower)
+        entry(self, e, same, lower, None)
+    }
+}
+
+/// Level `s` synthesised as it is before its histogram balance is measured (every factor 1),
+/// the coarser levels as served: what the balance's pilot window measures.
+struct Pilot<'a> {
+    syn: &'a Synthesizer,
+    s: u8,
+    prepared: &'a Prepared,
+}
+
+impl Synthesis for Pilot<'_> {
+    fn noise(&self, x: i64, y: i64) -> u16 {
+        self.syn.noise(x, y)
+    }
+
+    fn entry(&self, e: Entry, same: &[u16], lower: &[u16]) -> u16 {
+        entry(self.syn, e, same, lower, (e.s == self.s).then_some(self.prepared))
     }
 }
 
 crate::simd::widest! {
-    /// Table 1's search for one entry, compiled for the CPU's widest vector unit.
-    fn entry(syn: &Synthesizer, e: Entry, same: &[u16], lower: &[u16]) -> u16 {
+    /// Table 1's search for one entry, compiled for the CPU's widest vector unit; a
+    /// k-coherence search reads `prepared`, else the level's own.
+    fn entry(syn: &Synthesizer, e: Entry, same: &[u16], lower: &[u16], prepared: Option<&Prepared>) -> u16 {
         let s = e.s as usize;
         let level = &syn.exemplar.levels[s];
         if e.m == 0 {
@@ -425,7 +466,8 @@ crate::simd::widest! {
             Search::Exhaustive => argmin(level, &level.valid, target, 0..level.stride),
             Search::Kcoherence => {
                 let mut buf = [(0u16, 0u64); MAX_CANDIDATES];
-                let candidates = syn.candidates(level, same, &mut buf);
+                let prepared = prepared.unwrap_or_else(|| syn.prepared(s));
+                let candidates = syn.candidates(prepared, same, &mut buf);
                 argmin_weighted(level, candidates, target)
             }
         }
