@@ -9,7 +9,7 @@
 // JPEG and BC7 KTX2 pages from the server, under the same profiles and visits. Writes
 // docs/bandwidth.md (tables), docs/bandwidth.svg (plot) and the raw figures as JSON.
 //
-//   flock /tmp/vtex-bench.lock node bench/bandwidth.mjs [--models chaos-mosaic,lcm]
+//   node bench/bandwidth.mjs [--models chaos-mosaic,lcm]
 //        [--modes png,webp,jpg,rgba,client] [--profiles loopback,10mbit,slow4g]
 //        [--slow-modes jpg,client] [--long 100] [--world-modes client,jpg,ktx2]
 //        [--world-steps 240] [--cap 150] [--samples 6] [--out docs]
