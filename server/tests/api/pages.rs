@@ -228,6 +228,7 @@ async fn pages_are_cached_etagged_and_immutable() {
         "size=64&border=4&codec=bc1&supercompression=zstd",
         "size=64&border=6&codec=bc1",
         "size=128&border=4&codec=bc1",
+        "size=64&border=4&codec=bc1&layer=normal",
     ] {
         let (st, h, _) = get_bytes(&c, &s.url(&page_path(&id, 1, 0, 0, "ktx2", q))).await;
         assert_eq!(st, 200, "{q}");
@@ -306,7 +307,7 @@ async fn bad_page_parameters_name_the_allowed_values() {
         (
             "0.png",
             "gutter=2",
-            "unknown query parameter `gutter`; expected size, border, codec, supercompression, frame",
+            "unknown query parameter `gutter`; expected size, border, layer, codec, supercompression, frame",
         ),
     ] {
         let url = s.url(&format!("/api/v1/textures/{id}/pages/0/0/{file}?{q}"));
