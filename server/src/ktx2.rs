@@ -10,8 +10,8 @@
 //! page is the same bytes on every run, thread count, replica and machine; the tests pin them.
 //! The prebuilt ISPC encoders on crates.io (Intel's kernels, Binomial's bc7e) are not used for
 //! that reason: they choose SSE2, AVX2 or AVX-512 code on the CPU they meet, whose results
-//! differ (fused multiply-adds), and every one of them divides by an approximate reciprocal
-//! (`rcpps`), whose low bits differ between CPU makers.
+//! differ (fused multiply-adds), and bc7e divides by an approximate reciprocal (`rcpps`),
+//! whose low bits differ between CPU makers.
 //! The Basis Universal codecs are Binomial's C++ encoder, run on the calling thread without its
 //! SIMD kernels ([`basis`] says why that makes it a function of the pixels); their bytes are
 //! pinned on x86-64, where the C++ compiler contracts no multiply-add.
