@@ -8,6 +8,10 @@
 //! the CPU it meets, no platform maths library — and zstd is libzstd at a fixed version
 //! (vendored by `zstd-sys`, pinned by the lock file), single-threaded, at a fixed level. So a
 //! page is the same bytes on every run, thread count, replica and machine; the tests pin them.
+//! The prebuilt ISPC encoders on crates.io (Intel's kernels, Binomial's bc7e) are not used for
+//! that reason: they choose SSE2, AVX2 or AVX-512 code on the CPU they meet, whose results
+//! differ (fused multiply-adds), and bc7e divides by an approximate reciprocal (`rcpps`),
+//! whose low bits differ between CPU makers.
 //! The Basis Universal codecs are Binomial's C++ encoder, run on the calling thread without its
 //! SIMD kernels ([`basis`] says why that makes it a function of the pixels); their bytes are
 //! pinned on x86-64, where the C++ compiler contracts no multiply-add.
@@ -147,32 +151,46 @@ fn compress(variant: CompressionVariant, img: &Rgba8Image) -> Vec<u8> {
 }
 
 /// Squared error of a 4×4 block's decoded texels against its source, all four channels, over
-/// which a BC7 block is encoded again with a wider mode search: 6 × 16 × 4, a mean squared
-/// error of 6 a channel (40 dB for the block).
+/// which a BC7 block is encoded again with the very fast mode search: 6 × 16 × 4, a mean
+/// squared error of 6 a channel (40 dB for the block).
 const BC7_RETRY_ERROR: u64 = 6 * 16 * 4;
 
-/// BC7 in two passes: every block with the encoder's fastest mode search, then blocks whose
-/// error is over [`BC7_RETRY_ERROR`] again with its very fast search, keeping the better. Most
-/// blocks of a texture take the first; those with sharp colour edges get the second, which
-/// costs some 30 times as much. Both passes are pure functions of the pixels.
+/// The error over which a block, after the very fast search, is encoded once more with the
+/// basic search: a mean squared error of 24 a channel (34 dB for the block). Only blocks of
+/// dense, high-contrast detail stay over it (a noisy texture's coarse levels); the basic
+/// search adds the three-subset modes and the separate-channel modes, which fit them better.
+const BC7_WIDE_RETRY_ERROR: u64 = 24 * 16 * 4;
+
+/// BC7 in up to three passes: every block with the encoder's fastest mode search, then blocks
+/// whose error is over [`BC7_RETRY_ERROR`] again with its very fast search, then those still
+/// over [`BC7_WIDE_RETRY_ERROR`] with its basic search, each time keeping the better. Most
+/// blocks of a texture take the first; those with sharp colour edges the second, which costs
+/// far more; the third, slower still, is spent only on the few blocks where the format's
+/// richer modes pay (docs/ktx2-quality.md weighs the thresholds). Every pass is a pure
+/// function of the pixels.
 fn encode_bc7(img: &Rgba8Image) -> Vec<u8> {
     let opaque = img.data.chunks_exact(4).all(|p| p[3] == 255);
-    let (fast, wide) = if opaque {
-        (BC7Settings::opaque_ultra_fast(), BC7Settings::opaque_very_fast())
+    let passes = if opaque {
+        [BC7Settings::opaque_ultra_fast(), BC7Settings::opaque_very_fast(), BC7Settings::opaque_basic()]
     } else {
-        (BC7Settings::alpha_ultrafast(), BC7Settings::alpha_very_fast())
+        [BC7Settings::alpha_ultrafast(), BC7Settings::alpha_very_fast(), BC7Settings::alpha_basic()]
     };
-    let mut blocks = compress(CompressionVariant::BC7(fast), img);
+    let retries = [(BC7_RETRY_ERROR, passes[1]), (BC7_WIDE_RETRY_ERROR, passes[2])];
+    let mut blocks = compress(CompressionVariant::BC7(passes[0]), img);
     let cols = img.width as usize / 4;
     for (i, block) in blocks.chunks_exact_mut(16).enumerate() {
         let src = img.crop((i % cols) as u32 * 4, (i / cols) as u32 * 4, 4, 4);
-        let err = block_error(block, &src);
-        if err <= BC7_RETRY_ERROR {
-            continue;
-        }
-        let again = compress(CompressionVariant::BC7(wide), &src);
-        if block_error(&again, &src) < err {
-            block.copy_from_slice(&again);
+        let mut err = block_error(block, &src);
+        for (threshold, settings) in retries {
+            if err <= threshold {
+                break;
+            }
+            let again = compress(CompressionVariant::BC7(settings), &src);
+            let again_err = block_error(&again, &src);
+            if again_err < err {
+                block.copy_from_slice(&again);
+                err = again_err;
+            }
         }
     }
     blocks

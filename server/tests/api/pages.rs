@@ -331,7 +331,7 @@ async fn ktx2_pages_are_the_same_bytes_on_every_run_and_thread_count() {
     let c = client();
     let (id, _) = torus(&c, &a).await;
     assert_eq!(torus(&c, &b).await.0, id);
-    // Sharp detail: BC7's second pass re-encodes many of its blocks.
+    // Sharp detail: BC7's second pass re-encodes many of its blocks, its third some.
     let sharp = put(&c, &a, &plane()).await;
     assert_eq!(put(&c, &b, &plane()).await, sharp);
     let queries = [
@@ -360,7 +360,7 @@ async fn ktx2_pages_are_the_same_bytes_on_every_run_and_thread_count() {
     // Pinned: a deliberate change of the encoder, its settings or the container changes these.
     assert_eq!(
         hashes,
-        ["e2e278c92fe79a32", "2f20ab8efc9f0006", "96d79d551abb9276", "61c8f008dad1e29c", "b16a0c8a50b07997"],
+        ["e2e278c92fe79a32", "2f20ab8efc9f0006", "96d79d551abb9276", "61c8f008dad1e29c", "4600b83872a553b5"],
         "KTX2 page bytes changed"
     );
 }
