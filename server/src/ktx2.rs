@@ -126,7 +126,12 @@ impl Codec {
     /// The bytes of each level, and the supercompression global data: blocks in row-major
     /// order (edge blocks padded by repeating the last column and row, as the format requires
     /// whole blocks), or the pixels themselves; Basis Universal's levels as [`basis`] makes them.
-    fn encode_levels(self, levels: &[Rgba8Image], transfer: Transfer) -> Result<basis::Levels, String> {
+    fn encode_levels(
+        self,
+        levels: &[Rgba8Image],
+        transfer: Transfer,
+        rdo: Option<Rdo>,
+    ) -> Result<basis::Levels, String> {
         let alpha = false; // only the Basis DFDs depend on it
         let one = |f: fn(&Rgba8Image) -> Vec<u8>| basis::Levels {
             levels: levels.iter().map(f).collect(),
@@ -137,7 +142,7 @@ impl Codec {
             Codec::Rgba8 => one(|l| l.data.clone()),
             Codec::Bc1 => one(|l| compress(CompressionVariant::BC1, &pad_to_blocks(l))),
             Codec::Bc7 => one(|l| encode_bc7(&pad_to_blocks(l))),
-            Codec::Uastc => basis::encode(levels, basis::Mode::Uastc, transfer)?,
+            Codec::Uastc => basis::encode(levels, basis::Mode::Uastc { rdo: rdo.map(Rdo::lambda) }, transfer)?,
             Codec::Etc1s => basis::encode(levels, basis::Mode::Etc1s, transfer)?,
         })
     }
@@ -245,12 +250,49 @@ impl Supercompression {
 /// The zstd level: near the best ratio on block-compressed data at a few ms a page.
 const ZSTD_LEVEL: i32 = 9;
 
-/// A KTX2 encoding: its codec, supercompression and transfer function.
+/// A KTX2 encoding: its codec, supercompression and transfer function, and for UASTC its
+/// rate-distortion optimisation.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub struct Ktx2 {
     pub codec: Codec,
     pub supercompression: Supercompression,
     pub transfer: Transfer,
+    pub rdo: Option<Rdo>,
+}
+
+impl Ktx2 {
+    /// sRGB colour in `codec` and `supercompression`, without RDO.
+    pub fn new(codec: Codec, supercompression: Supercompression) -> Ktx2 {
+        Ktx2 { codec, supercompression, transfer: Transfer::Srgb, rdo: None }
+    }
+}
+
+/// UASTC's rate-distortion optimisation: basisu re-chooses blocks so that zstd compresses them
+/// better, trading at most about λ times more error (its quality scalar) for fewer bytes. Held
+/// in thousandths so that it can key caches and ETags.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub struct Rdo {
+    milli: u32,
+}
+
+impl Rdo {
+    /// λ from 0.1 (near the plain encoding) to 10 (basisu's strongest useful setting).
+    pub const EXPECTED: &'static str = "a number from 0.1 to 10";
+
+    pub fn parse(s: &str) -> Option<Rdo> {
+        let v: f64 = s.parse().ok()?;
+        (0.1..=10.0).contains(&v).then(|| Rdo { milli: (v * 1000.0).round() as u32 })
+    }
+
+    /// basisu's quality scalar.
+    pub fn lambda(self) -> f32 {
+        self.milli as f32 / 1000.0
+    }
+
+    /// What ETags hash.
+    pub fn id(self) -> u64 {
+        self.milli as u64
+    }
 }
 
 /// How texel values map to light: sRGB-encoded colour, or linear data such as normals.
@@ -353,7 +395,10 @@ pub fn encode(levels: &[Rgba8Image], k: Ktx2) -> Result<Vec<u8>, String> {
         }
     }
     k.codec.check(k.supercompression)?;
-    let encoded = k.codec.encode_levels(levels, k.transfer)?;
+    if k.rdo.is_some() && k.codec != Codec::Uastc {
+        return Err(format!("rdo applies to codec uastc only (got {})", k.codec.name()));
+    }
+    let encoded = k.codec.encode_levels(levels, k.transfer, k.rdo)?;
     // Each level's bytes, and what they decompress to (0 for BasisLZ, which the transcoder
     // undoes with the global data).
     let mut data: Vec<(Vec<u8>, usize)> = Vec::with_capacity(levels.len());
@@ -450,7 +495,7 @@ mod tests {
         let chain = [noise(8, 6, 1), noise(4, 3, 2), noise(2, 1, 3), noise(1, 1, 4)];
         for codec in [Codec::Bc7, Codec::Bc1, Codec::Rgba8, Codec::Uastc] {
             for sc in [Supercompression::None, Supercompression::Zstd] {
-                let f = encode(&chain, Ktx2 { codec, supercompression: sc, transfer: Transfer::Srgb }).unwrap();
+                let f = encode(&chain, Ktx2::new(codec, sc)).unwrap();
                 assert_eq!(f[..12], IDENTIFIER);
                 assert_eq!(u32_at(&f, 12), codec.vk_format(Transfer::Srgb));
                 assert_eq!((u32_at(&f, 20), u32_at(&f, 24), u32_at(&f, 40)), (8, 6, 4));
@@ -483,11 +528,7 @@ mod tests {
         let mut with_alpha = chain.clone();
         with_alpha[0].set_pixel(1, 1, [9, 9, 9, 7]);
         for (levels, alpha) in [(&chain, false), (&with_alpha, true)] {
-            let f = encode(
-                levels,
-                Ktx2 { codec: Codec::Etc1s, supercompression: Supercompression::BasisLz, transfer: Transfer::Srgb },
-            )
-            .unwrap();
+            let f = encode(levels, Ktx2::new(Codec::Etc1s, Supercompression::BasisLz)).unwrap();
             assert_eq!((u32_at(&f, 12), u32_at(&f, 44)), (0, 1), "VK_FORMAT_UNDEFINED, BasisLZ");
             let dfd = u32_at(&f, 48) as usize;
             assert_eq!(f[dfd + 12], 163, "KHR_DF_MODEL_ETC1S");
@@ -525,19 +566,13 @@ mod tests {
             (Codec::Uastc, Supercompression::BasisLz),
             (Codec::Bc7, Supercompression::BasisLz),
         ] {
-            assert!(
-                encode(&img, Ktx2 { codec, supercompression: sc, transfer: Transfer::Srgb }).is_err(),
-                "{codec:?} {sc:?}"
-            );
+            assert!(encode(&img, Ktx2::new(codec, sc)).is_err(), "{codec:?} {sc:?}");
         }
     }
 
     #[test]
     fn a_chain_must_halve() {
-        let e = encode(
-            &[noise(8, 8, 1), noise(3, 4, 1)],
-            Ktx2 { codec: Codec::Bc1, supercompression: Supercompression::None, transfer: Transfer::Srgb },
-        );
+        let e = encode(&[noise(8, 8, 1), noise(3, 4, 1)], Ktx2::new(Codec::Bc1, Supercompression::None));
         assert!(e.unwrap_err().contains("mip level 1 is 3×4, expected 4×4"));
     }
 
@@ -551,7 +586,7 @@ mod tests {
             (Codec::Uastc, Supercompression::Zstd),
             (Codec::Etc1s, Supercompression::BasisLz),
         ] {
-            let k = Ktx2 { codec, supercompression: sc, transfer: Transfer::Srgb };
+            let k = Ktx2::new(codec, sc);
             for levels in [std::slice::from_ref(&img), &chain[..]] {
                 let first = encode(levels, k).unwrap();
                 let others: Vec<Vec<u8>> = std::thread::scope(|s| {

@@ -7,7 +7,7 @@
 
 use std::time::Instant;
 use vtex_server::encode::{encode, Format};
-use vtex_server::ktx2::{Codec, Ktx2, Supercompression, Transfer};
+use vtex_server::ktx2::{Codec, Ktx2, Rdo, Supercompression};
 use vtex_server::store::Entry;
 use vtex_synth::texture::render_image;
 use vtex_synth::Region;
@@ -19,7 +19,7 @@ const DEMOS: [&str; 3] = ["Pebbles — chaos mosaic 100k", "LCM brick wall", "Ca
 #[ignore = "a measurement: run with --ignored --nocapture"]
 fn encode_time_per_page() {
     let demos = vtex_synth::models::demos();
-    let ktx2 = |codec: Codec, sc| Format::Ktx2(Ktx2 { codec, supercompression: sc, transfer: Transfer::Srgb });
+    let ktx2 = |codec: Codec, sc| Format::Ktx2(Ktx2::new(codec, sc));
     let formats = [
         ("png", Format::Png),
         ("jpg", Format::Jpg),
@@ -27,6 +27,10 @@ fn encode_time_per_page() {
         ("bc7", ktx2(Codec::Bc7, Supercompression::None)),
         ("uastc", ktx2(Codec::Uastc, Supercompression::None)),
         ("uastc+zstd", ktx2(Codec::Uastc, Supercompression::Zstd)),
+        (
+            "uastc+zstd rdo 1",
+            Format::Ktx2(Ktx2 { rdo: Rdo::parse("1"), ..Ktx2::new(Codec::Uastc, Supercompression::Zstd) }),
+        ),
         ("etc1s", ktx2(Codec::Etc1s, Supercompression::BasisLz)),
     ];
     println!("| demo | side | {} |", formats.map(|f| f.0).join(" | "));

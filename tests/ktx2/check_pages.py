@@ -16,7 +16,8 @@ as far as the container goes (header, DFD: VK_FORMAT_UNDEFINED, the UASTC or ETC
 model, sRGB) and transcoded to RGBA8 by `alktx2` (PyPI, a wrapper of Binomial's basisu), whose
 own inspection must agree (format, sRGB); their PSNR is held to floors (UASTC ≥ 33 dB, ETC1S ≥
 19 dB: the noisiest cascades' pages at level 3) and reported, with the JPEG page's (decoded by Pillow) beside them.
-Normal-layer pages (`layer=normal`) of every demo are checked in every codec as linear data: the
+UASTC with RDO (`rdo` λ 1 and 3, zstd) is held to its own floors and must
+make the pages smaller over all demos. Normal-layer pages (`layer=normal`) of every demo are checked in every codec as linear data: the
 _UNORM vkFormats, a linear DFD transfer, alktx2 reading them as not sRGB, and floors against
 the raw normal page. Prints a table of
 PSNR and bytes per demo (`--markdown`: docs/ktx2-quality.md's), then `N passed, M failed`;
@@ -57,6 +58,8 @@ FLOOR_DB = {"bc7": 39.0, "bc1": 27.5}
 BASIS = {"uastc": (166, ("none", "zstd"), 33.0), "etc1s": (163, ("basislz",), 19.0)}
 BASIS_NAMES = {"uastc": "UASTC LDR 4x4", "etc1s": "ETC1S"}
 SIZE, BORDER = 128, 4
+# UASTC's RDO λ measured, with the floor each keeps on every demo.
+RDO_LAMBDAS = {1: 34.0, 3: 30.0}
 # Normal pages: lossless in RGBA8; the block codecs' floors lie under their worst demo (Cascade
 # B's cliffs turn the normal through 140° between neighbours, which a colour line per 4×4
 # block cannot follow); over all demos each must beat the flat normal by the margin.
@@ -289,23 +292,26 @@ def main():
                             else:
                                 check(texels == plain_texels, f"{t['name']} {codec}: zstd holds the same blocks")
                             plain_texels = texels
-                    for codec, (_, schemes, _) in BASIS.items():
-                        for sc in schemes:
-                            f = get(base, f"{page}.ktx2?{q}&codec={codec}&supercompression={sc}")
-                            try:
-                                w, h, texels = parse_basis(f, codec, sc)
-                            except AssertionError as e:
-                                check(False, f"{t['name']} {codec}/{sc}: {e}")
-                                continue
-                            check((w, h) == (SIZE + 2 * BORDER,) * 2, f"{t['name']} {codec}/{sc}: size {w}×{h}")
-                            sizes[f"{codec}/{sc}"] = sizes.get(f"{codec}/{sc}", 0) + len(f)
-                            se, n = squared_error(texels, rgba)
-                            a, b = sums.get(f"{codec}/{sc}", (0, 0))
-                            sums[f"{codec}/{sc}"] = (a + se, b + n)
+                    basis_variants = [(codec, sc, "") for codec, (_, schemes, _) in BASIS.items() for sc in schemes]
+                    basis_variants += [("uastc", "zstd", f"&rdo={l}") for l in RDO_LAMBDAS]
+                    for codec, sc, rdo in basis_variants:
+                        f = get(base, f"{page}.ktx2?{q}&codec={codec}&supercompression={sc}{rdo}")
+                        try:
+                            w, h, texels = parse_basis(f, codec, sc)
+                        except AssertionError as e:
+                            check(False, f"{t['name']} {codec}/{sc}: {e}")
+                            continue
+                        check((w, h) == (SIZE + 2 * BORDER,) * 2, f"{t['name']} {codec}/{sc}: size {w}×{h}")
+                        key = f"{codec}/{sc}{rdo}"
+                        sizes[key] = sizes.get(key, 0) + len(f)
+                        se, n = squared_error(texels, rgba)
+                        a, b = sums.get(key, (0, 0))
+                        sums[key] = (a + se, b + n)
                 db = {c: psnr(*sums[c]) for c in sums}
                 floors = dict(FLOOR_DB)
                 for codec, (_, schemes, floor) in BASIS.items():
                     floors.update({f"{codec}/{sc}": floor for sc in schemes})
+                floors.update({f"uastc/zstd&rdo={l}": floor for l, floor in RDO_LAMBDAS.items()})
                 for c, floor in floors.items():
                     db.setdefault(c, float("nan"))
                     check(db[c] >= floor, f"{t['name']} {c}: {db[c]:.2f} dB < {floor} dB")
@@ -332,7 +338,9 @@ def main():
     # PSNR (dB) and bytes of both pages, per codec: KTX2 without supercompression but ETC1S's
     # BasisLZ, UASTC with zstd beside it, and the JPEG page.
     columns = [("BC7", "bc7/none", "bc7"), ("BC1", "bc1/none", "bc1"), ("UASTC", "uastc/none", "uastc/none"),
-               ("UASTC+zstd", "uastc/zstd", None), ("ETC1S", "etc1s/basislz", "etc1s/basislz"), ("JPEG", "jpg", "jpg")]
+               ("UASTC+zstd", "uastc/zstd", None)]
+    columns += [(f"UASTC+zstd RDO {l}", f"uastc/zstd&rdo={l}", f"uastc/zstd&rdo={l}") for l in RDO_LAMBDAS]
+    columns += [("ETC1S", "etc1s/basislz", "etc1s/basislz"), ("JPEG", "jpg", "jpg")]
     if markdown:
         head = " | ".join(f"{c} dB | {c} bytes" if k else f"{c} bytes" for c, _, k in columns)
         print(f"| demo | model | {head} |")
@@ -353,6 +361,11 @@ def main():
     for c, i in (("UASTC", 4), ("ETC1S", 5)):
         values = sorted(r[i] for r in rows)
         print(f"{c} (alktx2's transcoder): min {fmt(values[0])} dB, median {fmt(values[len(values) // 2])} dB")
+    for l in RDO_LAMBDAS:
+        check(totals[f"uastc/zstd&rdo={l}"] < totals["uastc/zstd"], f"RDO {l} makes UASTC+zstd smaller")
+        values = sorted(db[f"uastc/zstd&rdo={l}"] for _, _, db, _ in table)
+        print(f"UASTC+zstd RDO {l}: min {fmt(values[0])} dB, median {fmt(values[len(values) // 2])} dB, "
+              f"{totals[f'uastc/zstd&rdo={l}']} bytes ({totals[f'uastc/zstd&rdo={l}'] / totals['uastc/zstd']:.0%} of UASTC+zstd's)")
     print(f"mip chain of {small['name']} ({len(levels)} levels, BC7 + zstd): min {fmt(min(chain_db))} dB")
     print("normal pages 0/1/1, PSNR over all demos: " + ", ".join(f"{c} {fmt(v)} dB" for c, v in normal_db.items()))
     print(f"{passed} passed, {failed} failed")

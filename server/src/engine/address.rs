@@ -238,23 +238,24 @@ pub fn key_etag(entry: &Entry, key: &TileKey) -> ETag {
             key.format,
         ),
         Shape::Page { size, border, layer } => {
-            let (codec, sc) = ktx2_ids(key.format);
-            let what = [level, x, y, frame, size as u64, border as u64, codec, sc, layer as u64];
+            let [codec, sc, rdo] = ktx2_ids(key.format);
+            let what = [level, x, y, frame, size as u64, border as u64, codec, sc, layer as u64, rdo];
             ETag::new(&entry.key, Some(Mark::Page), &what, key.format)
         }
         Shape::PageMetatile { size, border, side, layer } => {
-            let (codec, sc) = ktx2_ids(key.format);
-            let what = [level, x, y, frame, size as u64, border as u64, codec, sc, side as u64, layer as u64];
+            let [codec, sc, rdo] = ktx2_ids(key.format);
+            let what = [level, x, y, frame, size as u64, border as u64, codec, sc, side as u64, layer as u64, rdo];
             ETag::new(&entry.key, Some(Mark::PageMetatile), &what, key.format)
         }
     }
 }
 
-/// A page format's KTX2 codec and supercompression as hashed into ETags: 0 for image formats.
-pub fn ktx2_ids(format: Format) -> (u64, u64) {
+/// A page format's KTX2 codec, supercompression and RDO as hashed into ETags: 0 for image
+/// formats (and for no RDO).
+pub fn ktx2_ids(format: Format) -> [u64; 3] {
     match format {
-        Format::Ktx2(k) => (1 + k.codec as u64, 1 + k.supercompression as u64),
-        _ => (0, 0),
+        Format::Ktx2(k) => [1 + k.codec as u64, 1 + k.supercompression as u64, k.rdo.map_or(0, |r| r.id())],
+        _ => [0; 3],
     }
 }
 

@@ -22,10 +22,10 @@ const UASTC_LEVEL: u32 = 1;
 /// ETC1S's quality (1 … 255, the size of its codebooks): basisu's default.
 const ETC1S_QUALITY: u32 = 128;
 
-/// Which Basis Universal format to encode.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+/// Which Basis Universal format to encode: UASTC with its RDO quality scalar, or ETC1S.
+#[derive(Clone, Copy, Debug, PartialEq)]
 pub enum Mode {
-    Uastc,
+    Uastc { rdo: Option<f32> },
     Etc1s,
 }
 
@@ -53,10 +53,12 @@ pub fn encode(levels: &[Rgba8Image], mode: Mode, transfer: Transfer) -> Result<L
     params.set_mip_color_space(space);
     params.set_generate_mipmaps(false);
     match mode {
-        Mode::Uastc => {
+        Mode::Uastc { rdo } => {
             params.set_basis_format(BasisTextureFormat::UASTC4x4);
             params.set_uastc_quality_level(UASTC_LEVEL);
-            params.set_rdo_uastc(None);
+            // RDO splits the blocks between the job pool's threads (at most 4): with a pool
+            // of one, as here, it is one pass in a fixed order.
+            params.set_rdo_uastc(rdo);
         }
         Mode::Etc1s => {
             params.set_basis_format(BasisTextureFormat::ETC1S);
@@ -77,7 +79,7 @@ pub fn encode(levels: &[Rgba8Image], mode: Mode, transfer: Transfer) -> Result<L
         c.process().map_err(|e| format!("Basis Universal encoding failed: {e:?}"))?;
     }
     let file = BasisFile::parse(c.basis_file())?;
-    let want_uastc = mode == Mode::Uastc;
+    let want_uastc = matches!(mode, Mode::Uastc { .. });
     if file.uastc != want_uastc {
         return Err("the .basis file is not of the format asked for".into());
     }

@@ -299,6 +299,10 @@ async fn bad_page_parameters_name_the_allowed_values() {
         ("0.ktx2", "codec=uastc&supercompression=basislz", "basislz applies to codec etc1s only"),
         ("0.ktx2", "supercompression=lz4", "unknown scheme `lz4`; expected none, zstd or basislz (etc1s only)"),
         ("0.ktx2", "border=3", "`border` must be even for bc7 pages (got 3)"),
+        ("0.ktx2", "rdo=1", "`rdo` applies to codec uastc only (got codec bc7)"),
+        ("0.ktx2", "codec=uastc&rdo=20", "`rdo` must be a number from 0.1 to 10 (got `20`)"),
+        ("0.ktx2", "codec=uastc&rdo=NaN", "`rdo` must be a number from 0.1 to 10 (got `NaN`)"),
+        ("0.png", "rdo=1", "`rdo` applies to ktx2 pages only; this page is png"),
         ("0.ktx2", "codec=rgba8&border=3&size=64", ""),
         ("0.png", "codec=bc7", "`codec` applies to ktx2 pages only; this page is png"),
         ("0.gif", "", "unknown format `gif`; expected png, webp, jpg, rgba or ktx2"),
@@ -307,7 +311,7 @@ async fn bad_page_parameters_name_the_allowed_values() {
         (
             "0.png",
             "gutter=2",
-            "unknown query parameter `gutter`; expected size, border, layer, codec, supercompression, frame",
+            "unknown query parameter `gutter`; expected size, border, layer, codec, supercompression, rdo, frame",
         ),
     ] {
         let url = s.url(&format!("/api/v1/textures/{id}/pages/0/0/{file}?{q}"));
@@ -377,8 +381,15 @@ async fn basis_pages_and_chains_are_the_same_bytes_on_every_run_and_thread_count
     let c = client();
     let (id, _) = torus(&c, &a).await;
     assert_eq!(torus(&c, &b).await.0, id);
-    let mut hashes = Vec::new();
-    for q in ["codec=uastc", "codec=uastc&supercompression=zstd", "codec=etc1s"] {
+    let (mut hashes, mut bytes) = (Vec::new(), Vec::new());
+    let variants = [
+        "codec=uastc",
+        "codec=uastc&supercompression=zstd",
+        "codec=etc1s",
+        "codec=uastc&supercompression=zstd&rdo=2",
+        "codec=uastc&layer=normal",
+    ];
+    for q in variants {
         let q = format!("size=64&border=4&{q}");
         let list = "0/0/0,0/1/1,3/0/0";
         let from_b =
@@ -390,6 +401,7 @@ async fn basis_pages_and_chains_are_the_same_bytes_on_every_run_and_thread_count
             assert_eq!(st, 200, "{q}: {}", String::from_utf8_lossy(&one));
             assert!(from_b.windows(one.len()).any(|w| w == &one[..]), "{q}: page {p} differs between the servers");
             h.update(&one);
+            bytes.push((q.clone(), one.len()));
         }
         let chain = q.replace("size=64&border=4&", "level=1&");
         let (st, _, one) = get_bytes(&c, &a.url(&format!("/api/v1/textures/{id}/mips.ktx2?{chain}"))).await;
@@ -402,9 +414,11 @@ async fn basis_pages_and_chains_are_the_same_bytes_on_every_run_and_thread_count
     // Pinned: a deliberate change of the encoder, its settings or the container changes these.
     assert_eq!(
         hashes,
-        ["49a37a83e22e20c3", "825f9ad0870d7f15", "a382a51c87421e31"],
+        ["49a37a83e22e20c3", "825f9ad0870d7f15", "a382a51c87421e31", "825be60159596db3", "6168ec2363ed4eaa"],
         "Basis Universal KTX2 bytes changed"
     );
+    let total = |q: &str| bytes.iter().filter(|(v, _)| v.ends_with(q)).map(|(_, n)| n).sum::<usize>();
+    assert!(total(variants[3]) < total(variants[1]), "RDO makes zstd's pages smaller");
 }
 
 /// A whole mip chain in one KTX2: levels sized as a GPU's chain (⌊w / 2^i⌋), each the top-left

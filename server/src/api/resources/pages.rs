@@ -26,7 +26,7 @@ use crate::encode::Format;
 use crate::engine::address;
 use crate::engine::cache::{Shape, TileKey};
 use crate::engine::{ETag, Mark};
-use crate::ktx2::{self, Codec, Ktx2, Supercompression, Transfer};
+use crate::ktx2::{self, Codec, Ktx2, Rdo, Supercompression, Transfer};
 use crate::store::Entry;
 use axum::extract::State;
 use axum::http::HeaderMap;
@@ -66,7 +66,7 @@ pub struct PagePath {
 }
 
 /// The parameters of a page, for one page and for a batch of pages alike:
-/// `[?size=S][&border=B][&layer=L][&codec=C][&supercompression=Z][&frame=N]`.
+/// `[?size=S][&border=B][&layer=L][&codec=C][&supercompression=Z][&rdo=λ][&frame=N]`.
 #[derive(Deserialize, IntoParams)]
 #[serde(deny_unknown_fields)]
 #[into_params(parameter_in = Query)]
@@ -90,9 +90,19 @@ pub struct PageParams {
     #[serde(default, deserialize_with = "de_supercompression")]
     #[param(value_type = Option<String>)]
     pub supercompression: Option<Supercompression>,
+    /// ktx2, codec uastc: rate-distortion optimisation λ, 0.1 to 10 (none by default): blocks
+    /// chosen so that zstd compresses them better, at up to about λ times more error
+    #[serde(default, deserialize_with = "de_rdo")]
+    #[param(value_type = Option<f32>)]
+    pub rdo: Option<Rdo>,
     /// frame of an animated texture (reduced modulo its period); ignored for still ones
     #[serde(default, deserialize_with = "de::opt_u32")]
     pub frame: Option<u32>,
+}
+
+pub(in crate::api) fn de_rdo<'de, D: Deserializer<'de>>(d: D) -> Result<Option<Rdo>, D::Error> {
+    let s = String::deserialize(d)?;
+    Rdo::parse(&s).map(Some).ok_or_else(|| D::Error::custom(format!("must be {} (got `{}`)", Rdo::EXPECTED, echo(&s))))
 }
 
 pub(in crate::api) fn de_codec<'de, D: Deserializer<'de>>(d: D) -> Result<Option<Codec>, D::Error> {
@@ -151,7 +161,11 @@ pub fn page_spec(format: PageFormat, page: &PageParams) -> Result<(Format, Shape
     }
     let format = match format {
         PageFormat::Image(f) => {
-            let ktx2_params = [("codec", page.codec.is_some()), ("supercompression", page.supercompression.is_some())];
+            let ktx2_params = [
+                ("codec", page.codec.is_some()),
+                ("supercompression", page.supercompression.is_some()),
+                ("rdo", page.rdo.is_some()),
+            ];
             if let Some((name, _)) = ktx2_params.into_iter().find(|(_, given)| *given) {
                 return Err(ApiError::bad_request(format!(
                     "`{name}` applies to ktx2 pages only; this page is {}",
@@ -161,7 +175,7 @@ pub fn page_spec(format: PageFormat, page: &PageParams) -> Result<(Format, Shape
             f
         }
         PageFormat::Ktx2 => {
-            let k = ktx2_options(page.codec, page.supercompression, layer)?;
+            let k = ktx2_options(page.codec, page.supercompression, page.rdo, layer)?;
             if k.codec.is_block_compressed() && border % 2 == 1 {
                 return Err(ApiError::bad_request(format!(
                     "`border` must be even for {} pages (got {border}): a block-compressed page's side, \
@@ -175,16 +189,21 @@ pub fn page_spec(format: PageFormat, page: &PageParams) -> Result<(Format, Shape
     Ok((format, Shape::Page { size, border, layer }))
 }
 
-/// The KTX2 options: `codec` (default bc7) and `supercompression` (default none; basislz, the
-/// only one it takes, for etc1s), for `layer`'s pixels (sRGB colour or linear data).
+/// The KTX2 options: `codec` (default bc7), `supercompression` (default none; basislz, the
+/// only one it takes, for etc1s) and `rdo` (uastc only), for `layer`'s pixels (sRGB colour or
+/// linear data).
 fn ktx2_options(
     codec: Option<Codec>,
     supercompression: Option<Supercompression>,
+    rdo: Option<Rdo>,
     layer: Layer,
 ) -> Result<Ktx2, ApiError> {
     let codec = codec.unwrap_or(Codec::Bc7);
     let supercompression = supercompression.unwrap_or(codec.default_supercompression());
     codec.check(supercompression).map_err(ApiError::bad_request)?;
+    if rdo.is_some() && codec != Codec::Uastc {
+        return Err(ApiError::bad_request(format!("`rdo` applies to codec uastc only (got codec {})", codec.name())));
+    }
     if layer == Layer::Normal && codec == Codec::Etc1s {
         // One colour line per block from a small codebook: a normal map comes out barely
         // nearer than a flat one (docs/ktx2-quality.md).
@@ -194,10 +213,10 @@ fn ktx2_options(
         ));
     }
     let transfer = if layer.is_linear() { Transfer::Linear } else { Transfer::Srgb };
-    Ok(Ktx2 { codec, supercompression, transfer })
+    Ok(Ktx2 { codec, supercompression, transfer, rdo })
 }
 
-/// `GET /api/v1/textures/{id}/pages/{level}/{x}/{y}.{format}[?size=S&border=B&layer=L&codec=C&supercompression=Z&frame=N]`
+/// `GET /api/v1/textures/{id}/pages/{level}/{x}/{y}.{format}[?size=S&border=B&layer=L&codec=C&supercompression=Z&rdo=λ&frame=N]`
 #[utoipa::path(get,
     path = vtex_wire::urls::PAGE,
     tag = "pages",
@@ -226,7 +245,7 @@ pub async fn page(
     tiles::respond(&app, &entry, key, &headers).await
 }
 
-/// `GET /api/v1/textures/{id}/page-metatiles/{level}/{x}/{y}.{format}[?size=S&border=B&layer=L&codec=C&supercompression=Z&frame=N]`:
+/// `GET /api/v1/textures/{id}/page-metatiles/{level}/{x}/{y}.{format}[?size=S&border=B&layer=L&codec=C&supercompression=Z&rdo=λ&frame=N]`:
 /// the aligned block of pages (512 level pixels a side: 4 × 4 pages of 128, 1 of 512) whose top
 /// left page is (`x`·n, `y`·n), clipped at the page grid's edges, as frames row by row — each
 /// exactly the page's bytes. The unit a virtual-texturing client fetches so that a cache in
@@ -286,7 +305,7 @@ fn page_key(
     Ok(TileKey { texture: entry.key, level, x, y, frame: address::frame_for(entry, q.frame), format, shape })
 }
 
-/// The query of a mip chain: `[?level=L][&layer=Y][&codec=C][&supercompression=Z][&frame=N]`.
+/// The query of a mip chain: `[?level=L][&layer=Y][&codec=C][&supercompression=Z][&rdo=λ][&frame=N]`.
 #[derive(Deserialize, IntoParams)]
 #[serde(deny_unknown_fields)]
 #[into_params(parameter_in = Query)]
@@ -306,12 +325,16 @@ pub struct ChainQuery {
     #[serde(default, deserialize_with = "de_supercompression")]
     #[param(value_type = Option<String>)]
     pub supercompression: Option<Supercompression>,
+    /// codec uastc: rate-distortion optimisation λ, 0.1 to 10 (none by default)
+    #[serde(default, deserialize_with = "de_rdo")]
+    #[param(value_type = Option<f32>)]
+    pub rdo: Option<Rdo>,
     /// frame of an animated texture (reduced modulo its period); ignored for still ones
     #[serde(default, deserialize_with = "de::opt_u32")]
     pub frame: Option<u32>,
 }
 
-/// `GET /api/v1/textures/{id}/mips.ktx2[?level=L&layer=Y&codec=C&supercompression=Z&frame=N]`: one KTX2
+/// `GET /api/v1/textures/{id}/mips.ktx2[?level=L&layer=Y&codec=C&supercompression=Z&rdo=λ&frame=N]`: one KTX2
 /// holding level `L` (by default the finest of at most [`MAX_CHAIN_SIDE`] a side) and every
 /// coarser level to 1×1, for textures small enough to upload whole (or the tail of a large
 /// one's pyramid, kept resident under its pages).
@@ -341,7 +364,7 @@ pub async fn mip_chain(
 ) -> Result<Response, ApiError> {
     let entry = lookup(&app, &id).await?;
     let layer = q.layer.unwrap_or_default();
-    let k = ktx2_options(q.codec, q.supercompression, layer)?;
+    let k = ktx2_options(q.codec, q.supercompression, q.rdo, layer)?;
     let (w, h) = (entry.texture.width(), entry.texture.height());
     let levels = level_count(w, h);
     let max_side = if k.codec.is_basis() { MAX_BASIS_CHAIN_SIDE } else { MAX_CHAIN_SIDE };
@@ -363,8 +386,8 @@ pub async fn mip_chain(
         )));
     }
     let frame = address::frame_for(&entry, q.frame);
-    let (codec, sc) = address::ktx2_ids(Format::Ktx2(k));
-    let what = [level as u64, frame as u64, codec, sc, layer as u64];
+    let [codec, sc, rdo] = address::ktx2_ids(Format::Ktx2(k));
+    let what = [level as u64, frame as u64, codec, sc, layer as u64, rdo];
     let tag = ETag::new(&entry.key, Some(Mark::Chain), &what, Format::Ktx2(k));
     if not_modified(&headers, tag.as_str()) {
         return Ok(not_modified_response(crate::api::http::etag_header(&tag)));
