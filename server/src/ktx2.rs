@@ -33,6 +33,9 @@ pub enum Codec {
     Bc7,
     /// BC1 (DXT1), 8 bytes per 4×4 block: opaque colour, twice BC7's compression.
     Bc1,
+    /// BC5 (RGTC2), 16 bytes per 4×4 block: two independent linear channels, R and G — a
+    /// normal's X and Y, Z being √(1 − X² − Y²). Linear data only.
+    Bc5,
     /// Uncompressed RGBA8, for GPUs without BC formats (WebGL on most phones).
     Rgba8,
     /// Basis Universal UASTC (LDR 4×4), 16 bytes a block, transcoded by the client to the
@@ -44,12 +47,13 @@ pub enum Codec {
 }
 
 impl Codec {
-    pub const EXPECTED: &'static str = "expected bc7, bc1, rgba8, uastc or etc1s";
+    pub const EXPECTED: &'static str = "expected bc7, bc1, bc5, rgba8, uastc or etc1s";
 
     pub fn parse(s: &str) -> Option<Codec> {
         match s {
             "bc7" => Some(Codec::Bc7),
             "bc1" => Some(Codec::Bc1),
+            "bc5" => Some(Codec::Bc5),
             "rgba8" => Some(Codec::Rgba8),
             "uastc" => Some(Codec::Uastc),
             "etc1s" => Some(Codec::Etc1s),
@@ -61,6 +65,7 @@ impl Codec {
         match self {
             Codec::Bc7 => "bc7",
             Codec::Bc1 => "bc1",
+            Codec::Bc5 => "bc5",
             Codec::Rgba8 => "rgba8",
             Codec::Uastc => "uastc",
             Codec::Etc1s => "etc1s",
@@ -108,6 +113,7 @@ impl Codec {
             (Codec::Bc7, Transfer::Linear) => 145,  // VK_FORMAT_BC7_UNORM_BLOCK
             (Codec::Bc1, Transfer::Srgb) => 132,    // VK_FORMAT_BC1_RGB_SRGB_BLOCK
             (Codec::Bc1, Transfer::Linear) => 131,  // VK_FORMAT_BC1_RGB_UNORM_BLOCK
+            (Codec::Bc5, _) => 141,                 // VK_FORMAT_BC5_UNORM_BLOCK (no sRGB form)
             (Codec::Rgba8, Transfer::Srgb) => 43,   // VK_FORMAT_R8G8B8A8_SRGB
             (Codec::Rgba8, Transfer::Linear) => 37, // VK_FORMAT_R8G8B8A8_UNORM
             (Codec::Uastc | Codec::Etc1s, _) => 0,
@@ -117,7 +123,7 @@ impl Codec {
     /// Bytes of one texel block (4×4 texels, or one texel for RGBA8).
     fn block_bytes(self) -> usize {
         match self {
-            Codec::Bc7 | Codec::Uastc => 16,
+            Codec::Bc7 | Codec::Bc5 | Codec::Uastc => 16,
             Codec::Bc1 | Codec::Etc1s => 8,
             Codec::Rgba8 => 4,
         }
@@ -141,6 +147,7 @@ impl Codec {
         Ok(match self {
             Codec::Rgba8 => one(|l| l.data.clone()),
             Codec::Bc1 => one(|l| compress(CompressionVariant::BC1, &pad_to_blocks(l))),
+            Codec::Bc5 => one(|l| compress(CompressionVariant::BC5, &pad_to_blocks(l))),
             Codec::Bc7 => one(|l| encode_bc7(&pad_to_blocks(l))),
             Codec::Uastc => basis::encode(levels, basis::Mode::Uastc { rdo: rdo.map(Rdo::lambda) }, transfer)?,
             Codec::Etc1s => basis::encode(levels, basis::Mode::Etc1s, transfer)?,
@@ -352,6 +359,8 @@ fn dfd(codec: Codec, alpha: bool, transfer: Transfer) -> Vec<u8> {
     let (model, dim, plane, samples): (u8, u8, u8, &[Sample]) = match codec {
         Codec::Bc7 => (134, 3, 16, &[(0, 127, 0, u32::MAX)]),
         Codec::Bc1 => (128, 3, 8, &[(0, 63, 0, u32::MAX)]),
+        // KHR_DF_MODEL_BC5: a 64-bit red sample, then a 64-bit green one.
+        Codec::Bc5 => (132, 3, 16, &[(0, 63, 0, u32::MAX), (64, 63, 1, u32::MAX)]),
         // R, G, B, then alpha.
         Codec::Rgba8 => (1, 0, 4, &[(0, 7, 0, 255), (8, 7, 1, 255), (16, 7, 2, 255), (24, 7, rgba8_alpha, 255)]),
         // KHR_DF_MODEL_UASTC, one 128-bit sample: KHR_DF_CHANNEL_UASTC_RGBA (3) or _RGB (0).
@@ -395,6 +404,9 @@ pub fn encode(levels: &[Rgba8Image], k: Ktx2) -> Result<Vec<u8>, String> {
         }
     }
     k.codec.check(k.supercompression)?;
+    if k.codec == Codec::Bc5 && k.transfer != Transfer::Linear {
+        return Err("bc5 holds two linear channels, not sRGB colour".into());
+    }
     if k.rdo.is_some() && k.codec != Codec::Uastc {
         return Err(format!("rdo applies to codec uastc only (got {})", k.codec.name()));
     }

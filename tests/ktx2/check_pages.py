@@ -47,9 +47,10 @@ CODECS = {
     "bc7": (146, 134, 16),
     "bc1": (132, 128, 8),
     "rgba8": (43, 1, 0),
+    "bc5": (141, 132, 16),  # linear only: normals' X and Y
 }
 # The same formats' _UNORM vkFormats, for the normal layer's linear data.
-UNORM = {"bc7": 145, "bc1": 131, "rgba8": 37}
+UNORM = {"bc7": 145, "bc1": 131, "rgba8": 37, "bc5": 141}
 # KHR_DF_TRANSFER_SRGB and KHR_DF_TRANSFER_LINEAR.
 SRGB, LINEAR = 2, 1
 TARGET_DB = {"bc7": 40.0, "bc1": 30.0}
@@ -63,7 +64,7 @@ RDO_LAMBDAS = {1: 34.0, 3: 30.0}
 # Normal pages: lossless in RGBA8; the block codecs' floors lie under their worst demo (Cascade
 # B's cliffs turn the normal through 140° between neighbours, which a colour line per 4×4
 # block cannot follow); over all demos each must beat the flat normal by the margin.
-NORMAL_FLOOR_DB = {"rgba8": float("inf"), "bc7": 20.0, "bc1": 15.0, "uastc": 20.0}
+NORMAL_FLOOR_DB = {"rgba8": float("inf"), "bc7": 20.0, "bc1": 15.0, "uastc": 20.0, "bc5": 30.0}
 NORMAL_FLAT_MARGIN_DB = 6.0
 
 
@@ -97,7 +98,8 @@ def parse_ktx2(f, codec, transfer=SRGB):
     dims = f[dfd_off + 16 : dfd_off + 20]
     assert tuple(dims[:2]) == ((3, 3) if block else (0, 0)), f"texel block {tuple(dims)}"
     assert f[dfd_off + 20] == (block or 4), "bytesPlane0"
-    assert block_size == 24 + 16 * (1 if block else 4), "samples"
+    samples = 4 if not block else 2 if codec == "bc5" else 1
+    assert block_size == 24 + 16 * samples, "samples"
     # Key/value data: the writer.
     (kv_len,) = struct.unpack_from("<I", f, kvd_off)
     key = f[kvd_off + 4 : kvd_off + 4 + kv_len].split(b"\0")[0]
@@ -172,7 +174,8 @@ def decode(data, w, h, codec):
     if codec == "rgba8":
         return data
     pw, ph = (w + 3) // 4 * 4, (h + 3) // 4 * 4
-    bgra = (texture2ddecoder.decode_bc7 if codec == "bc7" else texture2ddecoder.decode_bc1)(data, pw, ph)
+    decoder = {"bc7": texture2ddecoder.decode_bc7, "bc1": texture2ddecoder.decode_bc1, "bc5": texture2ddecoder.decode_bc5}
+    bgra = decoder[codec](data, pw, ph)
     out = bytearray(w * h * 4)
     for y in range(h):
         row = bgra[y * pw * 4 : (y * pw + w) * 4]
@@ -181,12 +184,13 @@ def decode(data, w, h, codec):
     return bytes(out)
 
 
-def squared_error(a, b):
-    """Sum of squared differences of the colour channels, and the channel count."""
+def squared_error(a, b, channels=3):
+    """Sum of squared differences of the first `channels` channels (colour: R, G, B), and the
+    count of values compared."""
     se = 0
-    for c in range(3):
+    for c in range(channels):
         se += sum((x - y) * (x - y) for x, y in zip(a[c::4], b[c::4]))
-    return se, len(a) // 4 * 3
+    return se, len(a) // 4 * channels
 
 
 def psnr(se, n):
@@ -218,7 +222,7 @@ def check_normals(base, textures, check):
         page = f"/api/v1/textures/{t['id']}/pages/0/1/1"
         rgba = get(base, f"{page}.rgba?{q}")
         candidates = {"flat": bytes([128, 128, 255, 255]) * (len(rgba) // 4)}
-        for codec in ("bc7", "bc1", "rgba8", "uastc"):
+        for codec in ("bc7", "bc1", "bc5", "rgba8", "uastc"):
             f = get(base, f"{page}.ktx2?{q}&codec={codec}")
             try:
                 if codec in BASIS:
@@ -228,7 +232,8 @@ def check_normals(base, textures, check):
             except AssertionError as e:
                 check(False, f"{t['name']} normal {codec}: {e}")
         for codec, texels in candidates.items():
-            se, n = squared_error(texels, rgba)
+            # BC5 holds X and Y only (Z = √(1 − X² − Y²)): it is compared on those.
+            se, n = squared_error(texels, rgba, 2 if codec == "bc5" else 3)
             a, b = sums.get(codec, (0, 0))
             sums[codec] = (a + se, b + n)
             db = psnr(se, n)

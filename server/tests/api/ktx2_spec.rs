@@ -15,7 +15,7 @@ struct File {
 /// Every variant: pages of each codec and supercompression (136 px, a multiple of 4; 70 px,
 /// not one), and mip chains from level 0 (240 px, so 15, 7, 3 and 1 px levels are partial
 /// blocks) and from level 2; a normal page and a normal chain of each but ETC1S, which refuses
-/// normals. ETC1S is always BasisLZ.
+/// normals; BC5, normals only, as pages and chains. ETC1S is always BasisLZ.
 async fn variants() -> (Server, Vec<File>) {
     let dir = tempdir();
     let s = Server::start(dir.path(), &[]);
@@ -35,6 +35,11 @@ async fn variants() -> (Server, Vec<File>) {
                 paths.push(format!("mips.ktx2?level=2&layer=normal&{q}"));
             }
         }
+    }
+    for sc in ["none", "zstd"] {
+        paths.push(format!("pages/0/1/0.ktx2?size=128&border=4&layer=normal&codec=bc5&supercompression={sc}"));
+        paths.push(format!("pages/3/0/0.ktx2?size=64&border=2&layer=normal&codec=bc5&supercompression={sc}"));
+        paths.push(format!("mips.ktx2?layer=normal&codec=bc5&supercompression={sc}"));
     }
     let mut files = Vec::new();
     for p in paths {
@@ -128,6 +133,15 @@ fn format_def(vk_format: u32, model: u8, dfd_block_size: usize, channel0: u8) ->
             block_side: 1,
             color_model: 1, // KHR_DF_MODEL_RGBSDA: R, G, B, then A (15) marked LINEAR (0x10)
             samples: &[(0, 7, 0, 0, 255), (8, 7, 1, 0, 255), (16, 7, 2, 0, 255), (24, 7, 0x1F, 0, 255)],
+        },
+        141 => FormatDef {
+            name: "VK_FORMAT_BC5_UNORM_BLOCK",
+            transfer: Some(1),
+            block_bytes: 16,
+            plane0: 16,
+            block_side: 4,
+            color_model: 132, // KHR_DF_MODEL_BC5: red, then green, 64 bits each
+            samples: &[(0, 63, 0, 0, u32::MAX), (64, 63, 1, 0, u32::MAX)],
         },
         37 => FormatDef {
             name: "VK_FORMAT_R8G8B8A8_UNORM",

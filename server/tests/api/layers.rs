@@ -176,7 +176,7 @@ async fn metatiles_batches_and_chains_carry_the_layer() {
 }
 
 /// An unknown layer is a 400 naming the layers; normals in ETC1S a 400 naming the codecs that
-/// hold them.
+/// hold them; colour in BC5 a 400.
 #[tokio::test]
 async fn an_unknown_layer_or_a_codec_that_cannot_hold_it_is_refused() {
     let dir = tempdir();
@@ -186,7 +186,8 @@ async fn an_unknown_layer_or_a_codec_that_cannot_hold_it_is_refused() {
     for (path, words) in [
         ("pages/0/0/0.png?layer=height", "unknown layer `height`; expected color or normal"),
         ("mips.ktx2?layer=Normal", "unknown layer `Normal`; expected color or normal"),
-        ("pages/0/0/0.ktx2?layer=normal&codec=etc1s", "for layer normal use uastc, bc7, bc1 or rgba8"),
+        ("pages/0/0/0.ktx2?layer=normal&codec=etc1s", "for layer normal use bc5, uastc, bc7, bc1 or rgba8"),
+        ("pages/0/0/0.ktx2?codec=bc5", "bc5 holds two channels, a normal's X and Y: it serves layer normal only"),
         ("mips.ktx2?layer=normal&codec=etc1s", "etc1s cannot hold normals"),
     ] {
         let msg = expect_error(&c, &s.url(&format!("/api/v1/textures/{id}/{path}")), 400).await;

@@ -294,7 +294,7 @@ async fn bad_page_parameters_name_the_allowed_values() {
         ("0.png", "size=128&border=17", "`border` must be at most size / 8 = 16 for size 128 (got 17)"),
         ("0.png", "size=64&border=9", "at most size / 8 = 8 for size 64 (got 9)"),
         ("0.png", "border=-1", "`border` must not be negative"),
-        ("0.ktx2", "codec=etc2", "`codec` names unknown codec `etc2`; expected bc7, bc1, rgba8, uastc or etc1s"),
+        ("0.ktx2", "codec=etc2", "`codec` names unknown codec `etc2`; expected bc7, bc1, bc5, rgba8, uastc or etc1s"),
         ("0.ktx2", "codec=etc1s&supercompression=zstd", "etc1s is always BasisLZ-supercompressed"),
         ("0.ktx2", "codec=uastc&supercompression=basislz", "basislz applies to codec etc1s only"),
         ("0.ktx2", "supercompression=lz4", "unknown scheme `lz4`; expected none, zstd or basislz (etc1s only)"),

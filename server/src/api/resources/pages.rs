@@ -82,7 +82,7 @@ pub struct PageParams {
     #[serde(default, deserialize_with = "de_layer")]
     #[param(value_type = Option<String>)]
     pub layer: Option<Layer>,
-    /// ktx2: bc7 (default), bc1, rgba8, uastc or etc1s (Basis Universal)
+    /// ktx2: bc7 (default), bc1, bc5 (normals only), rgba8, uastc or etc1s (Basis Universal)
     #[serde(default, deserialize_with = "de_codec")]
     #[param(value_type = Option<String>)]
     pub codec: Option<Codec>,
@@ -204,12 +204,18 @@ fn ktx2_options(
     if rdo.is_some() && codec != Codec::Uastc {
         return Err(ApiError::bad_request(format!("`rdo` applies to codec uastc only (got codec {})", codec.name())));
     }
+    if codec == Codec::Bc5 && layer != Layer::Normal {
+        return Err(ApiError::bad_request(format!(
+            "`codec` bc5 holds two channels, a normal's X and Y: it serves layer normal only (got layer {})",
+            layer.name()
+        )));
+    }
     if layer == Layer::Normal && codec == Codec::Etc1s {
         // One colour line per block from a small codebook: a normal map comes out barely
         // nearer than a flat one (docs/ktx2-quality.md).
         return Err(ApiError::bad_request(
             "etc1s cannot hold normals (it keeps little more than a flat normal map); \
-             for layer normal use uastc, bc7, bc1 or rgba8",
+             for layer normal use bc5, uastc, bc7, bc1 or rgba8",
         ));
     }
     let transfer = if layer.is_linear() { Transfer::Linear } else { Transfer::Srgb };
@@ -317,7 +323,7 @@ pub struct ChainQuery {
     #[serde(default, deserialize_with = "de_layer")]
     #[param(value_type = Option<String>)]
     pub layer: Option<Layer>,
-    /// bc7 (default), bc1, rgba8, uastc or etc1s (Basis Universal)
+    /// bc7 (default), bc1, bc5 (normals only), rgba8, uastc or etc1s (Basis Universal)
     #[serde(default, deserialize_with = "de_codec")]
     #[param(value_type = Option<String>)]
     pub codec: Option<Codec>,
