@@ -1,6 +1,7 @@
 // The WebGL virtual-texturing demo (client-web/src/vt.html) in headless Chromium's software
 // WebGL against a real vtex serve: at a fixed camera, once every page it needs is resident, its
-// frame equals a reference render computed here from the server's regions (not its pages); no
+// frame equals a trilinear reference render computed here from the server's regions (not its
+// pages); while pages arrive, each pixel's refinement is spread over frames, not one pop; no
 // page is requested while resident or in flight, also in a fly-through that evicts; the network
 // is asked for single pages and page metatiles only, each one a fetch the demo logged.
 // Run: node --test tests/browser/   (needs target/release/vtex and client-web/dist built)
@@ -32,9 +33,13 @@ after(async () => {
   await server?.stop();
 });
 
-/** Opens the demo with `query`, recording every page and page metatile the network is asked for, in order. */
-async function openDemo(query) {
+/**
+ * Opens the demo with `query`, recording every page and page metatile the network is asked for,
+ * in order; `before(page)` runs first (to add init scripts).
+ */
+async function openDemo(query, before = async () => {}) {
   const page = await browser.context.newPage();
+  await before(page);
   const log = { errors: [], bad: [], fetches: [], other: [] };
   page.on('pageerror', (e) => log.errors.push(String(e)));
   page.on('console', (m) => m.type() === 'error' && log.errors.push(m.text()));
@@ -135,9 +140,10 @@ test('at a fixed camera the frame equals a render from the server’s regions', 
   writeFileSync(join(ROOT, 'target', 'browser', 'vt-demo-fixed.png'), await page.locator('#view').screenshot());
   assert.equal(shot.width, VIEW.width);
 
-  // A grid of screen pixels on the ground; the texel and the level each shows, as the shader
-  // chooses it (log2 of the larger screen-space derivative, rounded), skipping pixels within
-  // 0.15 of a level change, where the GPU's per-quad derivatives may round the other way.
+  // A grid of screen pixels on the ground; the texel each shows and its level of detail, as the
+  // shader computes it: log2 of the larger one-pixel step of the texel coordinates (with aniso=1),
+  // clamped to the levels there are. The two levels around it, each bilinearly from the 2×2
+  // texels of the server's region there, blended by its fraction in linear light.
   const samples = [];
   for (let py = 3; py < VIEW.height; py += 12) {
     for (let px = 5; px < VIEW.width; px += 12) {
@@ -146,28 +152,35 @@ test('at a fixed camera the frame equals a render from the server’s regions', 
       const [p, pdx, pdy] = [groundAt(CAMERA, sx, sy), groundAt(CAMERA, sx + 1, sy), groundAt(CAMERA, sx, sy + 1)];
       if (!p || !pdx || !pdy) continue;
       const major = Math.max(Math.hypot(pdx[0] - p[0], pdx[1] - p[1]), Math.hypot(pdy[0] - p[0], pdy[1] - p[1]));
-      const lod = Math.log2(major);
-      if (Math.abs(lod - Math.round(lod)) > 0.35) continue;
-      const level = Math.min(demo.maxLevel, Math.max(0, Math.round(lod)));
-      samples.push({ px, py, level, u: p[0] / 2 ** level - 0.5, v: p[1] / 2 ** level - 0.5 });
+      const lod = Math.min(demo.maxLevel, Math.max(0, Math.log2(major)));
+      samples.push({ px, py, p, level: Math.floor(lod), toCoarser: lod - Math.floor(lod) });
     }
   }
   const levels = new Set(samples.map((s) => s.level));
-  assert.ok(samples.length >= 300 && levels.size >= 4, `${samples.length} samples over levels ${[...levels]}`);
+  assert.ok(samples.length >= 1000 && levels.size >= 6, `${samples.length} samples over levels ${[...levels]}`);
+
+  /** Level `level`'s texels around level-0 point `p`, filtered bilinearly in linear light (RGB). */
+  async function bilinear(p, level) {
+    const [u, v] = [p[0] / 2 ** level - 0.5, p[1] / 2 ** level - 0.5];
+    const [i, j] = [Math.floor(u), Math.floor(v)];
+    const [fx, fy] = [u - i, v - j];
+    const q = `level=${level}&x=${i}&y=${j}&w=2&h=2&format=rgba`;
+    const r = await fetch(`${server.url}/api/v1/textures/${info.id}/region?${q}`);
+    assert.equal(r.status, 200, q);
+    const px4 = new Uint8Array(await r.arrayBuffer());
+    return [0, 1, 2].map((c) => {
+      const at = (k) => toLinear(px4[k * 4 + c]);
+      return (at(0) * (1 - fx) + at(1) * fx) * (1 - fy) + (at(2) * (1 - fx) + at(3) * fx) * fy;
+    });
+  }
 
   let worst = 0;
   let sum = 0;
   for (const s of samples) {
-    const [i, j] = [Math.floor(s.u), Math.floor(s.v)];
-    const [fx, fy] = [s.u - i, s.v - j];
-    const q = `level=${s.level}&x=${i}&y=${j}&w=2&h=2&format=rgba`;
-    const r = await fetch(`${server.url}/api/v1/textures/${info.id}/region?${q}`);
-    assert.equal(r.status, 200, q);
-    const px4 = new Uint8Array(await r.arrayBuffer());
+    const fine = await bilinear(s.p, s.level);
+    const coarse = s.level < demo.maxLevel ? await bilinear(s.p, s.level + 1) : fine;
     for (let c = 0; c < 3; c++) {
-      const at = (k) => toLinear(px4[k * 4 + c]);
-      const lin = (at(0) * (1 - fx) + at(1) * fx) * (1 - fy) + (at(2) * (1 - fx) + at(3) * fx) * fy;
-      const d = Math.abs(shot.data[(s.py * shot.width + s.px) * 4 + c] - toSrgb(lin));
+      const d = Math.abs(shot.data[(s.py * shot.width + s.px) * 4 + c] - toSrgb(fine[c] * (1 - s.toCoarser) + coarse[c] * s.toCoarser));
       worst = Math.max(worst, d);
       sum += d;
     }
@@ -176,9 +189,9 @@ test('at a fixed camera the frame equals a render from the server’s regions', 
   console.log(`# ${samples.length} pixels over levels ${[...levels].sort()}: mean |Δ| ${mean.toFixed(2)}, max ${worst.toFixed(1)} of 255`);
   // Tolerance: the GPU's bilinear weights are quantized (8 fractional bits in SwiftShader, so a
   // weight is off by up to 1/512), the texel coordinates are float32 (about 0.004 texel at
-  // 50,000), and its sRGB decoding and the shader's encoding round; where neighbouring texels
-  // differ by up to 255 these give a few levels. A page from the wrong place, a border ignored
-  // or a wrong level gives tens.
+  // 50,000), the GPU's derivatives are per 2×2 quad, and its sRGB decoding and the shader's
+  // encoding round; where neighbouring texels differ by up to 255 these give a few levels. A page
+  // from the wrong place, a border ignored or one level instead of two gives tens.
   assert.ok(mean <= 0.5, `mean difference ${mean.toFixed(2)}`);
   assert.ok(worst <= 2, `largest difference ${worst.toFixed(1)}`);
 
@@ -190,10 +203,84 @@ test('at a fixed camera the frame equals a render from the server’s regions', 
   await page.close();
 });
 
+/**
+ * In the page, before its scripts: after every animation frame, compares the canvas with the
+ * frame before (the largest channel difference of each pixel, sRGB levels) and keeps, per pixel,
+ * the sum of those changes (how far it travelled) and the largest one (its largest step), and
+ * per frame the share of pixels changing by more than 32.
+ */
+function recordFrameChanges() {
+  const raf = window.requestAnimationFrame.bind(window);
+  const record = { travelled: null, largest: null, frames: [] };
+  window.frameChanges = record;
+  let previous = null;
+  window.requestAnimationFrame = (callback) =>
+    raf((time) => {
+      callback(time);
+      const canvas = document.getElementById('view');
+      const gl = canvas.getContext('webgl2');
+      const pixels = new Uint8Array(canvas.width * canvas.height * 4);
+      gl.readPixels(0, 0, canvas.width, canvas.height, gl.RGBA, gl.UNSIGNED_BYTE, pixels);
+      if (previous?.length === pixels.length) {
+        record.travelled ||= new Float64Array(pixels.length / 4);
+        record.largest ||= new Float64Array(pixels.length / 4);
+        let over32 = 0;
+        for (let i = 0; i < pixels.length; i += 4) {
+          const d = Math.max(Math.abs(pixels[i] - previous[i]), Math.abs(pixels[i + 1] - previous[i + 1]), Math.abs(pixels[i + 2] - previous[i + 2]));
+          record.travelled[i / 4] += d;
+          record.largest[i / 4] = Math.max(record.largest[i / 4], d);
+          if (d > 32) over32++;
+        }
+        record.frames.push(over32 / (pixels.length / 4));
+      }
+      previous = pixels;
+    });
+}
+
+test('while pages arrive at a fixed camera, each pixel sharpens over frames, not in one step', async () => {
+  // A part of the texture no other test visits: its pages come from a cold server over frames.
+  const { page, log } = await openDemo(`texture=${info.id}&camera=20000.5,30000.5,220,-30,35&format=rgba&aniso=1`, (p) => p.addInitScript(recordFrameChanges));
+  const { steps, frames, streamed } = await page.evaluate(() => {
+    const { travelled, largest, frames } = window.frameChanges;
+    const steps = [];
+    for (let i = 0; i < travelled.length; i++) if (travelled[i] >= 32) steps.push(largest[i] / travelled[i]);
+    steps.sort((a, b) => a - b);
+    const streamed = window.vtDemo.state.log.filter((e) => e.event === 'resident' && e.frame > 0).length;
+    return { steps: [0.5, 0.9].map((q) => steps[Math.floor(q * steps.length)]).concat(steps.length), frames, streamed };
+  });
+  const [median, p90, refined] = steps;
+  const popped = Math.max(...frames);
+  console.log(
+    `# ${streamed} pages streamed over ${frames.length} frames; ${refined} pixels changed by 32 or more: their largest step a median ${median.toFixed(2)} (90th percentile ${p90.toFixed(2)}) of the way; at most ${(100 * popped).toFixed(1)} % of pixels changed by more than 32 in a frame`,
+  );
+  assert.ok(streamed > 0 && refined >= 10_000, `pages arrived and the view sharpened (${streamed} pages, ${refined} pixels)`);
+  // A pixel whose page arrives moves by 1/FADE_FRAMES of the way a frame in linear light (more
+  // in sRGB where it is dark), fades of several levels overlapping; drawn at once it moves all
+  // the way in one frame (1.0), or half the way twice when two levels arrive in turn.
+  assert.ok(median <= 0.45, `median largest step ${median.toFixed(2)} of the way`);
+  assert.ok(p90 <= 0.6, `90th percentile of the largest step ${p90.toFixed(2)} of the way`);
+  assert.ok(popped <= 0.05, `${(100 * popped).toFixed(1)} % of pixels changed by more than 32 in one frame`);
+  assert.deepEqual(log.errors, []);
+  assert.deepEqual(log.bad, []);
+  await page.close();
+});
+
 test('a fly-through through a small atlas evicts, and never asks for a page it holds', async () => {
   // 7² slots: fewer than the pages a moving view touches, so pages are evicted and asked again.
   const { page, log } = await openDemo(`texture=${info.id}&format=bc7&slots=7&frames=90`);
   const demo = await page.evaluate(() => ({ log: window.vtDemo.state.log, slots: window.vtDemo.cache.slots.length, size: window.vtDemo.cache.size }));
+  // The default anisotropy, 4, filters the atlas wherever the GPU offers the extension.
+  const aniso = await page.evaluate(() => {
+    const { gpu, state } = window.vtDemo;
+    const gl = gpu.gl;
+    const ext = gl.getExtension('EXT_texture_filter_anisotropic');
+    if (!ext) return { state: state.anisotropy };
+    gl.bindTexture(gl.TEXTURE_2D, gpu.atlas);
+    return { state: state.anisotropy, offered: gl.getParameter(ext.MAX_TEXTURE_MAX_ANISOTROPY_EXT), atlas: gl.getTexParameter(gl.TEXTURE_2D, ext.TEXTURE_MAX_ANISOTROPY_EXT) };
+  });
+  console.log(`# anisotropy: ${JSON.stringify(aniso)}`);
+  if (aniso.offered) assert.deepEqual(aniso, { state: Math.min(4, aniso.offered), offered: aniso.offered, atlas: Math.min(4, aniso.offered) });
+  else assert.equal(aniso.state, 1);
   writeFileSync(join(ROOT, 'target', 'browser', 'vt-demo-flight.png'), await page.locator('#view').screenshot());
   const evictions = checkNoRequestWhileHeld(demo.log);
   assert.ok(evictions > 0, 'the flight overflows the atlas');
