@@ -45,9 +45,11 @@ async function openDemo(query, before = async () => {}) {
   page.on('console', (m) => m.type() === 'error' && log.errors.push(m.text()));
   page.on('response', (r) => r.status() >= 400 && log.bad.push(`${r.status()} ${r.url()}`));
   page.on('request', (r) => {
-    const path = new URL(r.url()).pathname;
+    const url = new URL(r.url());
+    const path = url.pathname;
     const m = path.match(/^\/api\/v1\/textures\/\w+\/(page-metatiles|pages)\/(\d+)\/(\d+)\/(\d+)\.\w+$/);
-    if (m) log.fetches.push(`${m[1] === 'pages' ? 'page' : 'metatile'} ${m[2]}/${m[3]}/${m[4]}`);
+    const layer = url.searchParams.get('layer');
+    if (m) log.fetches.push(`${m[1] === 'pages' ? 'page' : 'metatile'} ${m[2]}/${m[3]}/${m[4]}${layer ? ` ${layer}` : ''}`);
     else if (/^\/api\/v1\/textures\/\w+\/tiles/.test(path)) log.other.push(path);
   });
   await page.goto(debugUrl(`${server.url}/vt.html?${query}`));
@@ -126,24 +128,26 @@ function groundAt(c, sx, sy) {
   return [c.x + t * d[0], c.y + t * d[1]];
 }
 
-test('at a fixed camera the frame equals a render from the server’s regions', async () => {
-  const camera = [CAMERA.x, CAMERA.y, CAMERA.height, CAMERA.yaw, CAMERA.pitch].join(',');
-  // RGBA pages and bilinear filtering (aniso=1): the reference is exact up to the GPU's filtering.
-  const { page, log } = await openDemo(`texture=${info.id}&camera=${camera}&format=rgba&aniso=1`);
-  const demo = await page.evaluate(() => ({ maxLevel: window.vtDemo.pyramid.maxLevel, log: window.vtDemo.state.log }));
+/** The canvas of `page` without the overlay, decoded; also written to target/browser/`name`.png. */
+async function canvasShot(page, name) {
   await page.evaluate(() => {
     document.getElementById('overlay').hidden = true;
     document.getElementById('back').hidden = true;
   });
-  const shot = decodePng(await page.locator('#view').screenshot());
+  const png = await page.locator('#view').screenshot();
   mkdirSync(join(ROOT, 'target', 'browser'), { recursive: true });
-  writeFileSync(join(ROOT, 'target', 'browser', 'vt-demo-fixed.png'), await page.locator('#view').screenshot());
+  writeFileSync(join(ROOT, 'target', 'browser', `${name}.png`), png);
+  const shot = decodePng(png);
   assert.equal(shot.width, VIEW.width);
+  return shot;
+}
 
-  // A grid of screen pixels on the ground; the texel each shows and its level of detail, as the
-  // shader computes it: log2 of the larger one-pixel step of the texel coordinates (with aniso=1),
-  // clamped to the levels there are. The two levels around it, each bilinearly from the 2×2
-  // texels of the server's region there, blended by its fraction in linear light.
+/**
+ * A grid of screen pixels on the ground at CAMERA; the texel each shows (level-0 point `p`) and
+ * its level of detail, as the shader computes it: log2 of the larger one-pixel step of the texel
+ * coordinates (with aniso=1), clamped to the levels there are: ⌊lod⌋ (`level`) and its fraction.
+ */
+function sampleGrid(maxLevel) {
   const samples = [];
   for (let py = 3; py < VIEW.height; py += 12) {
     for (let px = 5; px < VIEW.width; px += 12) {
@@ -152,41 +156,75 @@ test('at a fixed camera the frame equals a render from the server’s regions', 
       const [p, pdx, pdy] = [groundAt(CAMERA, sx, sy), groundAt(CAMERA, sx + 1, sy), groundAt(CAMERA, sx, sy + 1)];
       if (!p || !pdx || !pdy) continue;
       const major = Math.max(Math.hypot(pdx[0] - p[0], pdx[1] - p[1]), Math.hypot(pdy[0] - p[0], pdy[1] - p[1]));
-      const lod = Math.min(demo.maxLevel, Math.max(0, Math.log2(major)));
+      const lod = Math.min(maxLevel, Math.max(0, Math.log2(major)));
       samples.push({ px, py, p, level: Math.floor(lod), toCoarser: lod - Math.floor(lod) });
     }
   }
   const levels = new Set(samples.map((s) => s.level));
   assert.ok(samples.length >= 1000 && levels.size >= 6, `${samples.length} samples over levels ${[...levels]}`);
+  return samples;
+}
 
-  /** Level `level`'s texels around level-0 point `p`, filtered bilinearly in linear light (RGB). */
-  async function bilinear(p, level) {
-    const [u, v] = [p[0] / 2 ** level - 0.5, p[1] / 2 ** level - 0.5];
-    const [i, j] = [Math.floor(u), Math.floor(v)];
-    const [fx, fy] = [u - i, v - j];
-    const q = `level=${level}&x=${i}&y=${j}&w=2&h=2&format=rgba`;
-    const r = await fetch(`${server.url}/api/v1/textures/${info.id}/region?${q}`);
-    assert.equal(r.status, 200, q);
-    const px4 = new Uint8Array(await r.arrayBuffer());
-    return [0, 1, 2].map((c) => {
-      const at = (k) => toLinear(px4[k * 4 + c]);
-      return (at(0) * (1 - fx) + at(1) * fx) * (1 - fy) + (at(2) * (1 - fx) + at(3) * fx) * fy;
-    });
-  }
+/**
+ * The texels of level `level` around level-0 point `p` filtered bilinearly, each decoded by
+ * `decode(byte)` first, from `texels(level, i, j)`: the 2×2 texels from (i, j), RGBA rows.
+ */
+async function bilinear(p, level, texels, decode) {
+  const [u, v] = [p[0] / 2 ** level - 0.5, p[1] / 2 ** level - 0.5];
+  const [i, j] = [Math.floor(u), Math.floor(v)];
+  const [fx, fy] = [u - i, v - j];
+  const px4 = await texels(level, i, j);
+  return [0, 1, 2].map((c) => {
+    const at = (k) => decode(px4[k * 4 + c]);
+    return (at(0) * (1 - fx) + at(1) * fx) * (1 - fy) + (at(2) * (1 - fx) + at(3) * fx) * fy;
+  });
+}
 
+/** Sample `s`'s two levels blended by its fraction (`at(level)`: a level's RGB). */
+async function trilinear(s, maxLevel, at) {
+  const fine = await at(s.level);
+  const coarse = s.level < maxLevel ? await at(s.level + 1) : fine;
+  return fine.map((f, c) => f * (1 - s.toCoarser) + coarse[c] * s.toCoarser);
+}
+
+/** The server's region: the 2×2 texels of `level` from (i, j), RGBA rows. */
+async function regionTexels(level, i, j) {
+  const q = `level=${level}&x=${i}&y=${j}&w=2&h=2&format=rgba`;
+  const r = await fetch(`${server.url}/api/v1/textures/${info.id}/region?${q}`);
+  assert.equal(r.status, 200, q);
+  return new Uint8Array(await r.arrayBuffer());
+}
+
+/** The largest and mean difference between `shot`'s samples and `reference(s)` (sRGB RGB). */
+async function compare(shot, samples, reference) {
   let worst = 0;
   let sum = 0;
   for (const s of samples) {
-    const fine = await bilinear(s.p, s.level);
-    const coarse = s.level < demo.maxLevel ? await bilinear(s.p, s.level + 1) : fine;
+    const want = await reference(s);
     for (let c = 0; c < 3; c++) {
-      const d = Math.abs(shot.data[(s.py * shot.width + s.px) * 4 + c] - toSrgb(fine[c] * (1 - s.toCoarser) + coarse[c] * s.toCoarser));
+      const d = Math.abs(shot.data[(s.py * shot.width + s.px) * 4 + c] - want[c]);
       worst = Math.max(worst, d);
       sum += d;
     }
   }
-  const mean = sum / (samples.length * 3);
-  console.log(`# ${samples.length} pixels over levels ${[...levels].sort()}: mean |Δ| ${mean.toFixed(2)}, max ${worst.toFixed(1)} of 255`);
+  return { worst, mean: sum / (samples.length * 3) };
+}
+
+const CAMERA_QUERY = [CAMERA.x, CAMERA.y, CAMERA.height, CAMERA.yaw, CAMERA.pitch].join(',');
+
+test('at a fixed camera the frame equals a render from the server’s regions', async () => {
+  // RGBA pages and bilinear filtering (aniso=1): the reference is exact up to the GPU's filtering.
+  const { page, log } = await openDemo(`texture=${info.id}&camera=${CAMERA_QUERY}&format=rgba&aniso=1`);
+  const demo = await page.evaluate(() => ({ maxLevel: window.vtDemo.pyramid.maxLevel, log: window.vtDemo.state.log }));
+  const shot = await canvasShot(page, 'vt-demo-fixed');
+
+  // Each sample's two levels, each bilinearly from the 2×2 texels of the server's region there,
+  // blended by its fraction in linear light.
+  const samples = sampleGrid(demo.maxLevel);
+  const colour = (s) => trilinear(s, demo.maxLevel, (level) => bilinear(s.p, level, regionTexels, toLinear));
+  const { worst, mean } = await compare(shot, samples, async (s) => (await colour(s)).map(toSrgb));
+  const levels = [...new Set(samples.map((s) => s.level))].sort();
+  console.log(`# ${samples.length} pixels over levels ${levels}: mean |Δ| ${mean.toFixed(2)}, max ${worst.toFixed(1)} of 255`);
   // Tolerance: the GPU's bilinear weights are quantized (8 fractional bits in SwiftShader, so a
   // weight is off by up to 1/512), the texel coordinates are float32 (about 0.004 texel at
   // 50,000), the GPU's derivatives are per 2×2 quad, and its sRGB decoding and the shader's
@@ -198,6 +236,67 @@ test('at a fixed camera the frame equals a render from the server’s regions', 
   checkNoRequestWhileHeld(demo.log);
   const fetches = checkNetwork(log, demo.log);
   assert.ok(fetches.metatiles > 0 && fetches.pages > 0, `the pinned levels come as metatiles, sparse pages alone: ${JSON.stringify(fetches)}`);
+  assert.deepEqual(log.errors, []);
+  assert.deepEqual(log.bad, []);
+  await page.close();
+});
+
+test('lit, the frame equals the region render lit by the server’s normal pages', async (t) => {
+  const probe = await fetch(`${server.url}/api/v1/textures/${info.id}/pages/10/0/0.rgba?size=128&border=4&layer=normal`);
+  if (probe.status === 400) return t.skip(`the server has no normal layer: ${await probe.text()}`);
+  assert.equal(probe.status, 200);
+  const light = [315, 45];
+  const { page, log } = await openDemo(`texture=${info.id}&camera=${CAMERA_QUERY}&format=rgba&aniso=1&light=${light}`);
+  const demo = await page.evaluate(() => ({ maxLevel: window.vtDemo.pyramid.maxLevel, log: window.vtDemo.state.log }));
+  const shot = await canvasShot(page, 'vt-demo-lit');
+
+  // The reference: the colour as unlit, from the regions; the normal from the server's normal
+  // pages (RGBA, the page holding the point, its border supplying the neighbours across the
+  // edge), decoded to [-1, 1], filtered and blended as the colour, turned into world axes (+Y up
+  // the image is −y), normalized; lit by Lambert and ambient in linear light.
+  const pages = new Map();
+  const normalTexels = (p) => async (level, i, j) => {
+    const [px, py] = [Math.floor(p[0] / 2 ** level / 128), Math.floor(p[1] / 2 ** level / 128)];
+    const key = `${level}/${px}/${py}`;
+    if (!pages.has(key)) {
+      const r = await fetch(`${server.url}/api/v1/textures/${info.id}/pages/${key}.rgba?size=128&border=4&layer=normal`);
+      assert.equal(r.status, 200, key);
+      pages.set(key, new Uint8Array(await r.arrayBuffer()));
+    }
+    const body = pages.get(key);
+    const out = new Uint8Array(16);
+    for (let k = 0; k < 4; k++) {
+      const [x, y] = [i + (k & 1) - px * 128 + 4, j + (k >> 1) - py * 128 + 4];
+      out.set(body.subarray((y * 136 + x) * 4, (y * 136 + x) * 4 + 4), k * 4);
+    }
+    return out;
+  };
+  const [azimuth, elevation] = light.map((d) => (d * Math.PI) / 180);
+  const towards = [Math.sin(azimuth) * Math.cos(elevation), -Math.cos(azimuth) * Math.cos(elevation), Math.sin(elevation)];
+  const samples = sampleGrid(demo.maxLevel);
+  const shades = [];
+  const { worst, mean } = await compare(shot, samples, async (s) => {
+    const colour = await trilinear(s, demo.maxLevel, (level) => bilinear(s.p, level, regionTexels, toLinear));
+    const n = await trilinear(s, demo.maxLevel, (level) => bilinear(s.p, level, normalTexels(s.p), (b) => (b / 255) * 2 - 1));
+    const world = [n[0], -n[1], n[2]];
+    const length = Math.hypot(...world);
+    const shade = 0.3 + 0.7 * Math.max(0, world.reduce((a, v, i) => a + (v / length) * towards[i], 0));
+    shades.push(shade);
+    return colour.map((c) => toSrgb(c * shade));
+  });
+  const flat = 0.3 + 0.7 * Math.sin(elevation);
+  const spread = Math.sqrt(shades.reduce((a, v) => a + (v - flat) ** 2, 0) / shades.length);
+  console.log(`# lit from ${light}: ${samples.length} pixels, mean |Δ| ${mean.toFixed(2)}, max ${worst.toFixed(1)} of 255; shade ${flat.toFixed(3)} where flat, r.m.s. ${spread.toFixed(3)} from it`);
+  // The normals are not flat (else the lit frame is the unlit one times a constant, and a
+  // build ignoring them would pass); the tolerance is the unlit one's, the normals' bilinear
+  // weights quantized alike.
+  assert.ok(spread >= 0.02, `the normals tilt the shade (r.m.s. ${spread.toFixed(3)} from flat)`);
+  assert.ok(mean <= 0.5, `mean difference ${mean.toFixed(2)}`);
+  assert.ok(worst <= 2, `largest difference ${worst.toFixed(1)}`);
+
+  checkNoRequestWhileHeld(demo.log);
+  const fetches = checkNetwork(log, demo.log);
+  assert.ok(log.fetches.filter((f) => f.endsWith(' normal')).length * 2 === log.fetches.length, `each fetch has its normal twin: ${JSON.stringify(fetches)}`);
   assert.deepEqual(log.errors, []);
   assert.deepEqual(log.bad, []);
   await page.close();
