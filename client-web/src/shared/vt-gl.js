@@ -6,7 +6,7 @@
 // around the footprint's level of detail. Both passes compute that level of detail with the same
 // function, from the screen-space derivatives of the texel coordinates, as a GPU does for mips.
 
-import { BORDER, MAX_TEXTURES, PAGE_SIZE, SLOT_SIDE } from './vt-pages.js';
+import { BORDER, FADE_FRAMES, MAX_TEXTURES, PAGE_SIZE, SLOT_SIDE } from './vt-pages.js';
 
 /**
  * Largest anisotropy the 4-pixel border allows: at the finer of the two levels sampled the
@@ -114,11 +114,12 @@ void main() {
   outColor = vec4(float(p.x & 255), float(p.y & 255), float(high), float((texIndex << 4) | (level + 1))) / 255.0;
 }`;
 
-// The page table's mip L holds, per page of level L, its atlas slot (R, G) and in A how much of
-// the page shows (0: not resident; rising to 255 over the frames after it arrives, stream.js
-// FADE_FRAMES; 255 from the start for the pinned coarsest levels). A fragment blends level
-// ⌊lod⌋ and the next coarser one by lod's fraction, each level showing as much of its page as A
-// says and the next coarser level (by the same rule) the rest: neither a change of level across
+// The page table's mip L holds, per page of level L, its atlas slot (R, G) and in A whether it is
+// resident: 0 not, 255 shown whole, 128 fading in since frame B (modulo 256), showing (age + 1) /
+// FADE_FRAMES of it — so a page's entry is written when it arrives and when it shows whole
+// (vt-stream.js), not every frame between. A fragment blends level ⌊lod⌋ and the next coarser
+// one by lod's fraction, each level showing as much of its page as it shows and the next coarser
+// level (by the same rule) the rest: neither a change of level across
 // the view nor a page arriving changes the frame at once. The colour atlas is sRGB, so
 // filtering and blending happen in linear light and the result is encoded back to sRGB for the
 // (non-sRGB) canvas. A surface that can say where its tangent space lies (`toWorld`) is lit
@@ -130,12 +131,21 @@ uniform highp sampler2D normalAtlas;
 uniform bool lit;
 uniform vec3 light;
 uniform float atlasSide;
+uniform int frame;
 uniform vec3 sky;
 out vec4 outColor;
 const float SLOT = ${SLOT_SIDE}.0;
 const float BORDER = ${BORDER}.0;
 const float AMBIENT = ${AMBIENT};
+const float FADE_FRAMES = ${FADE_FRAMES}.0;
 ${toWorld || ''}
+
+float shown(vec4 entry) {
+  if (entry.a > 0.75) return 1.0;
+  if (entry.a < 0.25) return 0.0;
+  int age = (frame - int(entry.b * 255.0 + 0.5)) & 255;
+  return min(1.0, float(age + 1) / FADE_FRAMES);
+}
 
 vec3 toSrgb(vec3 c) {
   return mix(c * 12.92, 1.055 * pow(c, vec3(1.0 / 2.4)) - 0.055, step(vec3(0.0031308), c));
@@ -158,7 +168,7 @@ void main() {
     if (level == fine + 1) open += toCoarser;
     vec2 page = pageOf(wrapped, level);
     vec4 entry = texelFetch(pageTable, ivec2(page), level);
-    float w = open * entry.a;
+    float w = open * shown(entry);
     if (w > 0.0) {
       float scale = exp2(-float(level));
       vec2 slot = floor(entry.rg * 255.0 + 0.5);
@@ -233,6 +243,8 @@ export class PhysicalTexture {
     this.normalFormat = bc7 ? bc7.COMPRESSED_RGBA_BPTC_UNORM_EXT : gl.RGBA8;
     this.normalAtlas = normals ? atlas(this.normalFormat) : null;
     this.entry = new Uint8Array(4);
+    /** The frame its stream is at: the age of pages fading in counts from it. */
+    this.frame = 0;
   }
 
   /**
@@ -262,14 +274,15 @@ export class PhysicalTexture {
   }
 
   /**
-   * Points page (level, x, y)'s page-table entry at atlas slot `slot`, showing `shown` of it (0
-   * to 1: how far it has faded in), or clears it (null).
+   * Points page (level, x, y)'s page-table entry at atlas slot `slot`, shown whole, or fading in
+   * since frame `fadingSince` (the colour pass counts its age from the texture's `frame`), or
+   * clears it (null).
    */
-  map(level, x, y, slot, shown = 1) {
+  map(level, x, y, slot, fadingSince = null) {
     const gl = this.gl;
     const e = this.entry;
     if (slot === null) e.fill(0);
-    else e.set([slot % this.slotsPerSide, Math.floor(slot / this.slotsPerSide), 0, Math.max(1, Math.round(255 * shown))]);
+    else e.set([slot % this.slotsPerSide, Math.floor(slot / this.slotsPerSide), fadingSince === null ? 0 : fadingSince & 255, fadingSince === null ? 255 : 128]);
     gl.bindTexture(gl.TEXTURE_2D, this.pageTable);
     gl.pixelStorei(gl.UNPACK_ALIGNMENT, 1);
     gl.texSubImage2D(gl.TEXTURE_2D, level, x, y, 1, 1, gl.RGBA, gl.UNSIGNED_BYTE, e);
@@ -422,6 +435,7 @@ export class VtRenderer {
       gl.uniform1i(p.uniforms.lit, lit ? 1 : 0);
       if (lit) gl.uniform3f(p.uniforms.light, ...light);
       gl.uniform1f(p.uniforms.atlasSide, t.atlasSide);
+      gl.uniform1i(p.uniforms.frame, t.frame & 255);
       gl.uniform3f(p.uniforms.sky, ...sky);
     });
   }

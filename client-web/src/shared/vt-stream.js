@@ -8,15 +8,10 @@
 import { FrameReader, readChunks } from './batch.js';
 import { parseKtx2, VK_FORMAT_BC7_SRGB, VK_FORMAT_BC7_UNORM } from './ktx2.js';
 import { fetchOk } from './http.js';
-import { BORDER, PAGE_SIZE, PINNED_LEVELS, PageCache, fetchPlan, pageKey, plan } from './vt-pages.js';
+import { BORDER, FADE_FRAMES, PAGE_SIZE, PINNED_LEVELS, PageCache, fetchPlan, pageKey, plan } from './vt-pages.js';
 
 /** Pages in flight at once from the server (so at most as many requests; the browser queues those past its connections). */
 const SERVER_PAGES_IN_FLIGHT = 64;
-/**
- * Frames over which a page that arrives fades in over what showed before (its coarser levels):
- * the frame changes by an eighth of the difference a frame, not all at once.
- */
-export const FADE_FRAMES = 8;
 
 /**
  * The page streaming of one virtual texture: `gpu` (vt-gl.js PhysicalTexture: its pyramid,
@@ -33,7 +28,7 @@ export class PageStream {
     this.frame = 0;
     this.inFlight = new Set();
     this.arrived = [];
-    /** Pages fading in: key → { level, x, y, slot, frames (since it arrived) }. */
+    /** Pages fading in: key → { level, x, y, slot, until (the frame they show whole) }. */
     this.fading = new Map();
     this.log = [];
     // bytes: every page received; unused: those of pages a metatile brought that were not asked for.
@@ -62,6 +57,7 @@ export class PageStream {
    */
   update(needed) {
     this.frame++;
+    this.gpu.frame = this.frame;
     const missing = this.cache.use(needed, this.frame, this.pyramid.maxLevel);
     this.fade();
     this.makeResident(false);
@@ -77,12 +73,12 @@ export class PageStream {
     return this.stats.missing === 0 && this.inFlight.size === 0 && this.arrived.length === 0 && this.fading.size === 0;
   }
 
-  /** Shows each fading page a frame's step more. */
+  /** Marks the pages that have faded in whole as shown (the shader fades them by their age until then). */
   fade() {
     for (const [key, f] of this.fading) {
-      f.frames++;
-      this.gpu.map(f.level, f.x, f.y, f.slot, f.frames / FADE_FRAMES);
-      if (f.frames >= FADE_FRAMES) this.fading.delete(key);
+      if (this.frame < f.until) continue;
+      this.gpu.map(f.level, f.x, f.y, f.slot);
+      this.fading.delete(key);
     }
   }
 
@@ -133,9 +129,9 @@ export class PageStream {
         this.log.push({ frame: this.frame, event: 'evict', key: e.key });
       }
       this.gpu.upload(placed.slot, page.body, page.normal);
-      const f = { level: page.level, x: page.x, y: page.y, slot: placed.slot, frames: pinned ? FADE_FRAMES : 1 };
-      this.gpu.map(f.level, f.x, f.y, f.slot, f.frames / FADE_FRAMES);
-      if (!pinned) this.fading.set(page.key, f);
+      const fades = !pinned && FADE_FRAMES > 1;
+      this.gpu.map(page.level, page.x, page.y, placed.slot, fades ? this.frame : null);
+      if (fades) this.fading.set(page.key, { level: page.level, x: page.x, y: page.y, slot: placed.slot, until: this.frame + FADE_FRAMES - 1 });
       this.stats.resident++;
       this.log.push({ frame: this.frame, event: 'resident', key: page.key });
     }
