@@ -13,7 +13,7 @@
 
 use std::time::Instant;
 use vtex_client::planner::{self, Surface, View};
-use vtex_client::{Client, PageAddr, PageFormat, PageSpec, TextureInfo};
+use vtex_client::{Client, PageAddr, PageFormat, PageLayer, PageSpec, TextureInfo};
 
 const WIDTH: u32 = 1280;
 const HEIGHT: u32 = 720;
@@ -56,7 +56,12 @@ async fn main() -> Result<(), Box<dyn std::error::Error>> {
     let client = Client::new(base, 256 << 20);
     let textures = client.textures().await?;
     let tex = textures.iter().find(|t| t.name == name).ok_or_else(|| format!("no texture named {name}"))?;
-    let spec = PageSpec { size: 128, border: 4, format: PageFormat::Ktx2 { codec: "bc7", zstd: true } };
+    let spec = PageSpec {
+        size: 128,
+        border: 4,
+        format: PageFormat::Ktx2 { codec: "bc7", zstd: true },
+        layer: PageLayer::Color,
+    };
     println!(
         "{} ({}×{}, {}), pages 128² + 4 px borders, BC7 + zstd, view 1280×720",
         tex.name, tex.width, tex.height, tex.model

@@ -98,18 +98,33 @@ pub enum PageFormat {
     },
 }
 
-/// A page's size, border and format.
+/// Which layer of the texture pages hold: its colour (sRGB), or the tangent-space normals of
+/// its luminance height at each level (linear RGB, glTF's convention: +Y towards the first row).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
+pub enum PageLayer {
+    #[default]
+    Color,
+    Normal,
+}
+
+/// A page's size, border, format and layer.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub struct PageSpec {
     pub size: u32,
     pub border: u32,
     pub format: PageFormat,
+    pub layer: PageLayer,
 }
 
 impl Default for PageSpec {
-    /// 128² pages with a 4-pixel border in BC7.
+    /// 128² colour pages with a 4-pixel border in BC7.
     fn default() -> Self {
-        PageSpec { size: 128, border: 4, format: PageFormat::Ktx2 { codec: "bc7", zstd: false } }
+        PageSpec {
+            size: 128,
+            border: 4,
+            format: PageFormat::Ktx2 { codec: "bc7", zstd: false },
+            layer: PageLayer::Color,
+        }
     }
 }
 
@@ -125,6 +140,9 @@ impl PageSpec {
     /// The query parameters besides the format.
     fn query(&self) -> String {
         let mut q = format!("size={}&border={}", self.size, self.border);
+        if self.layer == PageLayer::Normal {
+            q += "&layer=normal";
+        }
         if let PageFormat::Ktx2 { codec, zstd } = self.format {
             q += &format!("&codec={codec}");
             if zstd {

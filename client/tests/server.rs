@@ -7,7 +7,7 @@ mod common;
 use common::{addrs, scripted, serve, upload};
 use std::sync::atomic::Ordering;
 use std::time::Duration;
-use vtex_client::{Client, PageAddr, PageFormat, PageSpec, Retry};
+use vtex_client::{Client, PageAddr, PageFormat, PageLayer, PageSpec, Retry};
 
 #[tokio::test]
 async fn discovery_pages_alone_or_from_their_metatiles_and_the_cache() {
@@ -18,7 +18,12 @@ async fn discovery_pages_alone_or_from_their_metatiles_and_the_cache() {
     let t = textures.iter().find(|t| t.id == id).unwrap();
     assert_eq!((t.width, t.domain, vtex_client::page_levels(t)), (512, vtex_client::Domain::Torus, 10));
     assert_eq!(vtex_client::page_grid(t, 0, 64), (8, 8));
-    let spec = PageSpec { size: 64, border: 4, format: PageFormat::Ktx2 { codec: "bc1", zstd: true } };
+    let spec = PageSpec {
+        size: 64,
+        border: 4,
+        format: PageFormat::Ktx2 { codec: "bc1", zstd: true },
+        layer: PageLayer::Color,
+    };
     // Pages of 64 come 8 × 8 a metatile: level 0 is one, and 40 of its 64 pages asked for
     // fetch it; 2 of level 1's pages and level 9's one page come alone.
     let level0 = addrs(0, 8);
@@ -65,7 +70,7 @@ async fn discovery_pages_alone_or_from_their_metatiles_and_the_cache() {
 async fn the_cache_is_bounded_in_bytes() {
     let s = serve();
     let id = upload(&s.base).await;
-    let spec = PageSpec { size: 64, border: 0, format: PageFormat::Rgba };
+    let spec = PageSpec { size: 64, border: 0, format: PageFormat::Rgba, layer: PageLayer::Color };
     let budget = 3 * 64 * 64 * 4;
     let client = Client::new(&s.base, budget);
     let want = addrs(0, 4);
@@ -95,7 +100,7 @@ async fn revalidation_keeps_the_held_page_on_304() {
 #[tokio::test]
 async fn retries_back_off_on_503_and_never_on_404() {
     let retry = Retry { attempts: 4, first_delay: Duration::from_millis(5), max_delay: Duration::from_millis(20) };
-    let spec = PageSpec { size: 64, border: 0, format: PageFormat::Rgba };
+    let spec = PageSpec { size: 64, border: 0, format: PageFormat::Rgba, layer: PageLayer::Color };
     let one = [PageAddr { level: 0, x: 0, y: 0 }];
     let (base, count) = scripted(2, 503);
     let (pages, _) = Client::new(&base, 1 << 20).with_retry(retry).pages("t", &one, &spec).await.unwrap();
@@ -122,7 +127,12 @@ async fn the_planner_plans_what_a_camera_needs_and_the_server_serves_it() {
     let id = upload(&s.base).await;
     let client = Client::new(&s.base, 64 << 20);
     let t = client.textures().await.unwrap().into_iter().find(|t| t.id == id).unwrap();
-    let spec = PageSpec { size: 64, border: 4, format: PageFormat::Ktx2 { codec: "bc1", zstd: true } };
+    let spec = PageSpec {
+        size: 64,
+        border: 4,
+        format: PageFormat::Ktx2 { codec: "bc1", zstd: true },
+        layer: PageLayer::Color,
+    };
     let surface = Surface { origin: [0.0; 3], u_axis: [512.0, 0.0, 0.0], v_axis: [0.0, 512.0, 0.0], repeat: true };
     let proj = planner::perspective(std::f64::consts::FRAC_PI_3, 16.0 / 9.0, 0.5, 1e5);
     let eye = planner::look_at([256.0, 256.0, 12.0], [330.0, 290.0, 0.0], [0.0, 0.0, 1.0]);
@@ -183,4 +193,24 @@ async fn the_planner_plans_what_a_camera_needs_and_the_server_serves_it() {
     // Page metatiles bring neighbours too, so it may take fewer frames, never more.
     assert!(frames <= all.len().div_ceil(8), "{frames} frames for {} pages", all.len());
     assert!(feedback.keys().all(|&a| fresh.is_cached(&id, a, &spec)));
+}
+
+#[tokio::test]
+async fn normal_pages_are_cached_beside_the_colour_pages() {
+    let s = serve();
+    let id = upload(&s.base).await;
+    let client = Client::new(&s.base, 1 << 20);
+    let colour = PageSpec { size: 64, border: 4, format: PageFormat::Png, layer: PageLayer::Color };
+    let normal = PageSpec { layer: PageLayer::Normal, ..colour };
+    let want = [PageAddr { level: 1, x: 1, y: 2 }];
+    let (c, _) = client.pages(&id, &want, &colour).await.unwrap();
+    let (n, stats) = client.pages(&id, &want, &normal).await.unwrap();
+    assert_eq!((stats.hits, stats.requested), (0, 1), "a normal page is not its colour page");
+    assert_ne!(c[0].bytes, n[0].bytes);
+    let url = client.page_url(&id, want[0], &normal);
+    assert!(url.contains("layer=normal"), "{url}");
+    let direct = reqwest::get(url).await.unwrap().bytes().await.unwrap();
+    assert_eq!(n[0].bytes, direct);
+    let (_, stats) = client.pages(&id, &want, &normal).await.unwrap();
+    assert_eq!(stats.hits, 1);
 }

@@ -8,9 +8,10 @@ use common::{addrs, nginx, pki, scripted_after, serve, upload, Nginx};
 use std::collections::BTreeSet;
 use std::sync::atomic::Ordering;
 use std::time::{Duration, Instant};
-use vtex_client::{Client, Page, PageAddr, PageFormat, PageKey, PageSpec, Retry};
+use vtex_client::{Client, Page, PageAddr, PageFormat, PageKey, PageLayer, PageSpec, Retry};
 
-const SPEC: PageSpec = PageSpec { size: 64, border: 4, format: PageFormat::Ktx2 { codec: "bc1", zstd: true } };
+const SPEC: PageSpec =
+    PageSpec { size: 64, border: 4, format: PageFormat::Ktx2 { codec: "bc1", zstd: true }, layer: PageLayer::Color };
 
 fn quick() -> Retry {
     Retry { attempts: 3, first_delay: Duration::from_millis(5), max_delay: Duration::from_millis(20) }
@@ -108,7 +109,7 @@ async fn a_503_through_nginx_is_retried_after_its_retry_after() {
     let s = setup(1).await;
     let c = client(&s.nginx.scripted, &s.ca, None);
     let start = Instant::now();
-    let spec = PageSpec { size: 64, border: 0, format: PageFormat::Rgba };
+    let spec = PageSpec { size: 64, border: 0, format: PageFormat::Rgba, layer: PageLayer::Color };
     let (pages, _) = c.pages("t", &[PageAddr { level: 0, x: 0, y: 0 }], &spec).await.unwrap();
     let waited = start.elapsed();
     assert_eq!(&pages[0].bytes[..], &[1, 2, 3, 4]);

@@ -8,12 +8,17 @@
 //! the CPU it meets, no platform maths library — and zstd is libzstd at a fixed version
 //! (vendored by `zstd-sys`, pinned by the lock file), single-threaded, at a fixed level. So a
 //! page is the same bytes on every run, thread count, replica and machine; the tests pin them.
+//! The prebuilt ISPC encoders on crates.io (Intel's kernels, Binomial's bc7e) are not used for
+//! that reason: they choose SSE2, AVX2 or AVX-512 code on the CPU they meet, whose results
+//! differ (fused multiply-adds), and bc7e divides by an approximate reciprocal (`rcpps`),
+//! whose low bits differ between CPU makers.
 //! The Basis Universal codecs are Binomial's C++ encoder, run on the calling thread without its
 //! SIMD kernels ([`basis`] says why that makes it a function of the pixels); their bytes are
 //! pinned on x86-64, where the C++ compiler contracts no multiply-add.
 //!
-//! Colours are sRGB-encoded, as the models produce them, so the formats are the `_SRGB` ones:
-//! a GPU samples and filters them in linear light.
+//! Colours are sRGB-encoded, as the models produce them, so their formats are the `_SRGB` ones
+//! and a GPU samples and filters them in linear light; linear data (normals) take the `_UNORM`
+//! formats and a linear transfer function ([`Transfer`]).
 
 mod basis;
 
@@ -97,12 +102,15 @@ impl Codec {
 
     /// `VkFormat` of the container header: `VK_FORMAT_UNDEFINED` for Basis Universal, whose
     /// format the DFD names.
-    fn vk_format(self) -> u32 {
-        match self {
-            Codec::Bc7 => 146,  // VK_FORMAT_BC7_SRGB_BLOCK
-            Codec::Bc1 => 132,  // VK_FORMAT_BC1_RGB_SRGB_BLOCK
-            Codec::Rgba8 => 43, // VK_FORMAT_R8G8B8A8_SRGB
-            Codec::Uastc | Codec::Etc1s => 0,
+    fn vk_format(self, transfer: Transfer) -> u32 {
+        match (self, transfer) {
+            (Codec::Bc7, Transfer::Srgb) => 146,    // VK_FORMAT_BC7_SRGB_BLOCK
+            (Codec::Bc7, Transfer::Linear) => 145,  // VK_FORMAT_BC7_UNORM_BLOCK
+            (Codec::Bc1, Transfer::Srgb) => 132,    // VK_FORMAT_BC1_RGB_SRGB_BLOCK
+            (Codec::Bc1, Transfer::Linear) => 131,  // VK_FORMAT_BC1_RGB_UNORM_BLOCK
+            (Codec::Rgba8, Transfer::Srgb) => 43,   // VK_FORMAT_R8G8B8A8_SRGB
+            (Codec::Rgba8, Transfer::Linear) => 37, // VK_FORMAT_R8G8B8A8_UNORM
+            (Codec::Uastc | Codec::Etc1s, _) => 0,
         }
     }
 
@@ -118,7 +126,7 @@ impl Codec {
     /// The bytes of each level, and the supercompression global data: blocks in row-major
     /// order (edge blocks padded by repeating the last column and row, as the format requires
     /// whole blocks), or the pixels themselves; Basis Universal's levels as [`basis`] makes them.
-    fn encode_levels(self, levels: &[Rgba8Image]) -> Result<basis::Levels, String> {
+    fn encode_levels(self, levels: &[Rgba8Image], transfer: Transfer) -> Result<basis::Levels, String> {
         let alpha = false; // only the Basis DFDs depend on it
         let one = |f: fn(&Rgba8Image) -> Vec<u8>| basis::Levels {
             levels: levels.iter().map(f).collect(),
@@ -129,8 +137,8 @@ impl Codec {
             Codec::Rgba8 => one(|l| l.data.clone()),
             Codec::Bc1 => one(|l| compress(CompressionVariant::BC1, &pad_to_blocks(l))),
             Codec::Bc7 => one(|l| encode_bc7(&pad_to_blocks(l))),
-            Codec::Uastc => basis::encode(levels, basis::Mode::Uastc)?,
-            Codec::Etc1s => basis::encode(levels, basis::Mode::Etc1s)?,
+            Codec::Uastc => basis::encode(levels, basis::Mode::Uastc, transfer)?,
+            Codec::Etc1s => basis::encode(levels, basis::Mode::Etc1s, transfer)?,
         })
     }
 }
@@ -143,32 +151,46 @@ fn compress(variant: CompressionVariant, img: &Rgba8Image) -> Vec<u8> {
 }
 
 /// Squared error of a 4×4 block's decoded texels against its source, all four channels, over
-/// which a BC7 block is encoded again with a wider mode search: 6 × 16 × 4, a mean squared
-/// error of 6 a channel (40 dB for the block).
+/// which a BC7 block is encoded again with the very fast mode search: 6 × 16 × 4, a mean
+/// squared error of 6 a channel (40 dB for the block).
 const BC7_RETRY_ERROR: u64 = 6 * 16 * 4;
 
-/// BC7 in two passes: every block with the encoder's fastest mode search, then blocks whose
-/// error is over [`BC7_RETRY_ERROR`] again with its very fast search, keeping the better. Most
-/// blocks of a texture take the first; those with sharp colour edges get the second, which
-/// costs some 30 times as much. Both passes are pure functions of the pixels.
+/// The error over which a block, after the very fast search, is encoded once more with the
+/// basic search: a mean squared error of 24 a channel (34 dB for the block). Only blocks of
+/// dense, high-contrast detail stay over it (a noisy texture's coarse levels); the basic
+/// search adds the three-subset modes and the separate-channel modes, which fit them better.
+const BC7_WIDE_RETRY_ERROR: u64 = 24 * 16 * 4;
+
+/// BC7 in up to three passes: every block with the encoder's fastest mode search, then blocks
+/// whose error is over [`BC7_RETRY_ERROR`] again with its very fast search, then those still
+/// over [`BC7_WIDE_RETRY_ERROR`] with its basic search, each time keeping the better. Most
+/// blocks of a texture take the first; those with sharp colour edges the second, which costs
+/// far more; the third, slower still, is spent only on the few blocks where the format's
+/// richer modes pay (docs/ktx2-quality.md weighs the thresholds). Every pass is a pure
+/// function of the pixels.
 fn encode_bc7(img: &Rgba8Image) -> Vec<u8> {
     let opaque = img.data.chunks_exact(4).all(|p| p[3] == 255);
-    let (fast, wide) = if opaque {
-        (BC7Settings::opaque_ultra_fast(), BC7Settings::opaque_very_fast())
+    let passes = if opaque {
+        [BC7Settings::opaque_ultra_fast(), BC7Settings::opaque_very_fast(), BC7Settings::opaque_basic()]
     } else {
-        (BC7Settings::alpha_ultrafast(), BC7Settings::alpha_very_fast())
+        [BC7Settings::alpha_ultrafast(), BC7Settings::alpha_very_fast(), BC7Settings::alpha_basic()]
     };
-    let mut blocks = compress(CompressionVariant::BC7(fast), img);
+    let retries = [(BC7_RETRY_ERROR, passes[1]), (BC7_WIDE_RETRY_ERROR, passes[2])];
+    let mut blocks = compress(CompressionVariant::BC7(passes[0]), img);
     let cols = img.width as usize / 4;
     for (i, block) in blocks.chunks_exact_mut(16).enumerate() {
         let src = img.crop((i % cols) as u32 * 4, (i / cols) as u32 * 4, 4, 4);
-        let err = block_error(block, &src);
-        if err <= BC7_RETRY_ERROR {
-            continue;
-        }
-        let again = compress(CompressionVariant::BC7(wide), &src);
-        if block_error(&again, &src) < err {
-            block.copy_from_slice(&again);
+        let mut err = block_error(block, &src);
+        for (threshold, settings) in retries {
+            if err <= threshold {
+                break;
+            }
+            let again = compress(CompressionVariant::BC7(settings), &src);
+            let again_err = block_error(&again, &src);
+            if again_err < err {
+                block.copy_from_slice(&again);
+                err = again_err;
+            }
         }
     }
     blocks
@@ -223,11 +245,30 @@ impl Supercompression {
 /// The zstd level: near the best ratio on block-compressed data at a few ms a page.
 const ZSTD_LEVEL: i32 = 9;
 
-/// A KTX2 encoding: its codec and supercompression.
+/// A KTX2 encoding: its codec, supercompression and transfer function.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub struct Ktx2 {
     pub codec: Codec,
     pub supercompression: Supercompression,
+    pub transfer: Transfer,
+}
+
+/// How texel values map to light: sRGB-encoded colour, or linear data such as normals.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
+pub enum Transfer {
+    #[default]
+    Srgb,
+    Linear,
+}
+
+impl Transfer {
+    /// `KHR_DF_TRANSFER_SRGB` or `KHR_DF_TRANSFER_LINEAR`.
+    fn dfd_value(self) -> u8 {
+        match self {
+            Transfer::Srgb => 2,
+            Transfer::Linear => 1,
+        }
+    }
 }
 
 /// The image `img` padded to whole 4×4 blocks by repeating its last column and row.
@@ -256,16 +297,21 @@ const WRITER: &[u8] = b"KTXwriter\0vtex\0";
 /// upper value.
 type Sample = (u16, u8, u8, u32);
 
-/// The Data Format Descriptor (Khronos Data Format 1.3, one basic block) of `codec`, sRGB
-/// transfer, BT.709 primaries, straight alpha; for Basis Universal, with or without `alpha`, as
-/// the KTX 2.0 specification and basisu's writer describe them.
-fn dfd(codec: Codec, alpha: bool) -> Vec<u8> {
+/// The Data Format Descriptor (Khronos Data Format 1.3, one basic block) of `codec` with
+/// `transfer`, BT.709 primaries, straight alpha; for Basis Universal, with or without `alpha`,
+/// as the KTX 2.0 specification and basisu's writer describe them.
+fn dfd(codec: Codec, alpha: bool, transfer: Transfer) -> Vec<u8> {
+    // Alpha is linear whatever the colour's transfer: under sRGB its sample says so (0x10).
+    let rgba8_alpha = match transfer {
+        Transfer::Srgb => 0x1F,
+        Transfer::Linear => 0x0F,
+    };
     // Colour model, block dimensions − 1, bytes per plane 0, samples.
     let (model, dim, plane, samples): (u8, u8, u8, &[Sample]) = match codec {
         Codec::Bc7 => (134, 3, 16, &[(0, 127, 0, u32::MAX)]),
         Codec::Bc1 => (128, 3, 8, &[(0, 63, 0, u32::MAX)]),
-        // R, G, B, then alpha marked linear (0x10): sRGB applies to colour only.
-        Codec::Rgba8 => (1, 0, 4, &[(0, 7, 0, 255), (8, 7, 1, 255), (16, 7, 2, 255), (24, 7, 0x1F, 255)]),
+        // R, G, B, then alpha.
+        Codec::Rgba8 => (1, 0, 4, &[(0, 7, 0, 255), (8, 7, 1, 255), (16, 7, 2, 255), (24, 7, rgba8_alpha, 255)]),
         // KHR_DF_MODEL_UASTC, one 128-bit sample: KHR_DF_CHANNEL_UASTC_RGBA (3) or _RGB (0).
         // bytesPlane0 16 with zstd too, as for the other codecs: Khronos settled that a
         // variable-rate scheme leaves it set (basisu 1.16 still writes 0 there).
@@ -283,7 +329,7 @@ fn dfd(codec: Codec, alpha: bool) -> Vec<u8> {
     d.extend_from_slice(&0u32.to_le_bytes()); // vendor 0 (Khronos), descriptor type 0
     d.extend_from_slice(&2u16.to_le_bytes()); // version 1.3
     d.extend_from_slice(&(block_size as u16).to_le_bytes());
-    d.extend_from_slice(&[model, 1, 2, 0]); // model, BT.709, sRGB, straight alpha
+    d.extend_from_slice(&[model, 1, transfer.dfd_value(), 0]); // model, BT.709, transfer, straight alpha
     d.extend_from_slice(&[dim, dim, 0, 0]);
     d.extend_from_slice(&[plane, 0, 0, 0, 0, 0, 0, 0]);
     for &(offset, len, channel, upper) in samples {
@@ -307,7 +353,7 @@ pub fn encode(levels: &[Rgba8Image], k: Ktx2) -> Result<Vec<u8>, String> {
         }
     }
     k.codec.check(k.supercompression)?;
-    let encoded = k.codec.encode_levels(levels)?;
+    let encoded = k.codec.encode_levels(levels, k.transfer)?;
     // Each level's bytes, and what they decompress to (0 for BasisLZ, which the transcoder
     // undoes with the global data).
     let mut data: Vec<(Vec<u8>, usize)> = Vec::with_capacity(levels.len());
@@ -321,7 +367,7 @@ pub fn encode(levels: &[Rgba8Image], k: Ktx2) -> Result<Vec<u8>, String> {
             }
         });
     }
-    let dfd = dfd(k.codec, encoded.alpha);
+    let dfd = dfd(k.codec, encoded.alpha, k.transfer);
     let dfd_offset = HEADER_BYTES + LEVEL_INDEX_ENTRY * levels.len();
     let kvd_offset = dfd_offset + dfd.len();
     // One key/value pair, its length field and its valuePadding to 4 bytes: the padding is part
@@ -346,7 +392,7 @@ pub fn encode(levels: &[Rgba8Image], k: Ktx2) -> Result<Vec<u8>, String> {
     let mut out = Vec::with_capacity(end);
     out.extend_from_slice(&IDENTIFIER);
     let scheme = k.supercompression.scheme();
-    let header = [k.codec.vk_format(), 1, base.width, base.height, 0, 0, 1, levels.len() as u32, scheme];
+    let header = [k.codec.vk_format(k.transfer), 1, base.width, base.height, 0, 0, 1, levels.len() as u32, scheme];
     for v in header {
         out.extend_from_slice(&v.to_le_bytes());
     }
@@ -404,9 +450,9 @@ mod tests {
         let chain = [noise(8, 6, 1), noise(4, 3, 2), noise(2, 1, 3), noise(1, 1, 4)];
         for codec in [Codec::Bc7, Codec::Bc1, Codec::Rgba8, Codec::Uastc] {
             for sc in [Supercompression::None, Supercompression::Zstd] {
-                let f = encode(&chain, Ktx2 { codec, supercompression: sc }).unwrap();
+                let f = encode(&chain, Ktx2 { codec, supercompression: sc, transfer: Transfer::Srgb }).unwrap();
                 assert_eq!(f[..12], IDENTIFIER);
-                assert_eq!(u32_at(&f, 12), codec.vk_format());
+                assert_eq!(u32_at(&f, 12), codec.vk_format(Transfer::Srgb));
                 assert_eq!((u32_at(&f, 20), u32_at(&f, 24), u32_at(&f, 40)), (8, 6, 4));
                 let mut end = 0;
                 for (i, level) in chain.iter().enumerate() {
@@ -437,7 +483,11 @@ mod tests {
         let mut with_alpha = chain.clone();
         with_alpha[0].set_pixel(1, 1, [9, 9, 9, 7]);
         for (levels, alpha) in [(&chain, false), (&with_alpha, true)] {
-            let f = encode(levels, Ktx2 { codec: Codec::Etc1s, supercompression: Supercompression::BasisLz }).unwrap();
+            let f = encode(
+                levels,
+                Ktx2 { codec: Codec::Etc1s, supercompression: Supercompression::BasisLz, transfer: Transfer::Srgb },
+            )
+            .unwrap();
             assert_eq!((u32_at(&f, 12), u32_at(&f, 44)), (0, 1), "VK_FORMAT_UNDEFINED, BasisLZ");
             let dfd = u32_at(&f, 48) as usize;
             assert_eq!(f[dfd + 12], 163, "KHR_DF_MODEL_ETC1S");
@@ -475,7 +525,10 @@ mod tests {
             (Codec::Uastc, Supercompression::BasisLz),
             (Codec::Bc7, Supercompression::BasisLz),
         ] {
-            assert!(encode(&img, Ktx2 { codec, supercompression: sc }).is_err(), "{codec:?} {sc:?}");
+            assert!(
+                encode(&img, Ktx2 { codec, supercompression: sc, transfer: Transfer::Srgb }).is_err(),
+                "{codec:?} {sc:?}"
+            );
         }
     }
 
@@ -483,7 +536,7 @@ mod tests {
     fn a_chain_must_halve() {
         let e = encode(
             &[noise(8, 8, 1), noise(3, 4, 1)],
-            Ktx2 { codec: Codec::Bc1, supercompression: Supercompression::None },
+            Ktx2 { codec: Codec::Bc1, supercompression: Supercompression::None, transfer: Transfer::Srgb },
         );
         assert!(e.unwrap_err().contains("mip level 1 is 3×4, expected 4×4"));
     }
@@ -498,7 +551,7 @@ mod tests {
             (Codec::Uastc, Supercompression::Zstd),
             (Codec::Etc1s, Supercompression::BasisLz),
         ] {
-            let k = Ktx2 { codec, supercompression: sc };
+            let k = Ktx2 { codec, supercompression: sc, transfer: Transfer::Srgb };
             for levels in [std::slice::from_ref(&img), &chain[..]] {
                 let first = encode(levels, k).unwrap();
                 let others: Vec<Vec<u8>> = std::thread::scope(|s| {

@@ -7,7 +7,7 @@
 
 use std::time::Instant;
 use vtex_server::encode::{encode, Format};
-use vtex_server::ktx2::{Codec, Ktx2, Supercompression};
+use vtex_server::ktx2::{Codec, Ktx2, Supercompression, Transfer};
 use vtex_server::store::Entry;
 use vtex_synth::texture::render_image;
 use vtex_synth::Region;
@@ -19,7 +19,7 @@ const DEMOS: [&str; 3] = ["Pebbles — chaos mosaic 100k", "LCM brick wall", "Ca
 #[ignore = "a measurement: run with --ignored --nocapture"]
 fn encode_time_per_page() {
     let demos = vtex_synth::models::demos();
-    let ktx2 = |codec: Codec, sc| Format::Ktx2(Ktx2 { codec, supercompression: sc });
+    let ktx2 = |codec: Codec, sc| Format::Ktx2(Ktx2 { codec, supercompression: sc, transfer: Transfer::Srgb });
     let formats = [
         ("png", Format::Png),
         ("jpg", Format::Jpg),

@@ -10,6 +10,7 @@
 //! * [`hash`] — counter-based hashing, the only source of randomness in the pixel path.
 //! * [`pixels`] — RGBA8 buffers and bounded PNG decoding of untrusted samples.
 //! * [`resources`] — the caches and work counters that the textures of one owner share.
+//! * [`layer`] — material layers derived from the colour (tangent-space normals).
 //! * [`mip`] — the exact 2×2 box downsample that every model's prefiltered levels are held to.
 //! * [`simd`] — hot integer loops compiled for the CPU's widest vector unit, chosen at run time
 //!   (the crate's only `unsafe`).
@@ -19,6 +20,7 @@
 pub mod bundle;
 pub mod error;
 pub mod hash;
+pub mod layer;
 pub mod mip;
 pub mod models;
 pub mod pixels;

@@ -6,15 +6,19 @@ without zstd supercompression). Each file is parsed here from the KTX 2.0 specif
 (identifier, header, level index, data format descriptor), its levels are inflated with the
 `zstandard` package and decoded with `texture2ddecoder` (Perfare's BCn decoders), and the
 result is compared with the RGBA page: PSNR per codec and demo, held to floors every demo
-keeps (BC7 ≥ 37 dB, BC1 ≥ 27 dB) and counted against the targets (BC7 ≥ 40 dB, BC1 ≥ 30 dB),
-which the noisiest demos miss at coarse levels whatever the encoder's effort. A whole mip chain (`mips.ktx2`) is checked level by level against the regions it
+keeps (BC7 ≥ 39 dB, BC1 ≥ 27.5 dB) and counted against the targets (BC7 ≥ 40 dB, BC1 ≥ 30 dB),
+which the noisiest demos miss at coarse levels whatever the encoder's effort (the best BC7 and
+BC1 encoders on crates.io included: docs/ktx2-quality.md). A whole mip chain (`mips.ktx2`) is checked level by level against the regions it
 stands for.
 
 Basis Universal pages (codec uastc, with and without zstd, and etc1s, BasisLZ) are parsed here
 as far as the container goes (header, DFD: VK_FORMAT_UNDEFINED, the UASTC or ETC1S colour
 model, sRGB) and transcoded to RGBA8 by `alktx2` (PyPI, a wrapper of Binomial's basisu), whose
 own inspection must agree (format, sRGB); their PSNR is held to floors (UASTC ≥ 33 dB, ETC1S ≥
-19 dB: the noisiest cascades' pages at level 3) and reported, with the JPEG page's (decoded by Pillow) beside them. Prints a table of
+19 dB: the noisiest cascades' pages at level 3) and reported, with the JPEG page's (decoded by Pillow) beside them.
+Normal-layer pages (`layer=normal`) of every demo are checked in every codec as linear data: the
+_UNORM vkFormats, a linear DFD transfer, alktx2 reading them as not sRGB, and floors against
+the raw normal page. Prints a table of
 PSNR and bytes per demo (`--markdown`: docs/ktx2-quality.md's), then `N passed, M failed`;
 exits non-zero on any failure.
 
@@ -43,12 +47,21 @@ CODECS = {
     "bc1": (132, 128, 8),
     "rgba8": (43, 1, 0),
 }
+# The same formats' _UNORM vkFormats, for the normal layer's linear data.
+UNORM = {"bc7": 145, "bc1": 131, "rgba8": 37}
+# KHR_DF_TRANSFER_SRGB and KHR_DF_TRANSFER_LINEAR.
+SRGB, LINEAR = 2, 1
 TARGET_DB = {"bc7": 40.0, "bc1": 30.0}
-FLOOR_DB = {"bc7": 37.0, "bc1": 27.0}
+FLOOR_DB = {"bc7": 39.0, "bc1": 27.5}
 # Basis Universal: the DFD colour model, the supercompression schemes served, the floors.
 BASIS = {"uastc": (166, ("none", "zstd"), 33.0), "etc1s": (163, ("basislz",), 19.0)}
 BASIS_NAMES = {"uastc": "UASTC LDR 4x4", "etc1s": "ETC1S"}
 SIZE, BORDER = 128, 4
+# Normal pages: lossless in RGBA8; the block codecs' floors lie under their worst demo (Cascade
+# B's cliffs turn the normal through 140° between neighbours, which a colour line per 4×4
+# block cannot follow); over all demos each must beat the flat normal by the margin.
+NORMAL_FLOOR_DB = {"rgba8": float("inf"), "bc7": 20.0, "bc1": 15.0, "uastc": 20.0}
+NORMAL_FLAT_MARGIN_DB = 6.0
 
 
 def get(base, path):
@@ -59,11 +72,12 @@ def get(base, path):
         raise AssertionError(f"{path}: {e.code} {e.read()[:300]!r}") from None
 
 
-def parse_ktx2(f, codec):
+def parse_ktx2(f, codec, transfer=SRGB):
     """The levels of a KTX2 file as (width, height, texel bytes), checking every field."""
     assert f[:12] == IDENTIFIER, "identifier"
     vk, type_size, w, h, depth, layers, faces, nlevels, scheme = struct.unpack_from("<9I", f, 12)
     want_vk, want_model, block = CODECS[codec]
+    want_vk = want_vk if transfer == SRGB else UNORM[codec]
     assert vk == want_vk, f"vkFormat {vk}, expected {want_vk}"
     assert type_size == 1 and depth == 0 and layers == 0 and faces == 1, "a 2D texture"
     assert scheme in (0, 2), f"supercompression scheme {scheme}"
@@ -75,8 +89,8 @@ def parse_ktx2(f, codec):
     assert total == dfd_len, "dfdTotalSize"
     vendor_type, version, block_size = struct.unpack_from("<IHH", f, dfd_off + 4)
     assert vendor_type == 0 and version == 2, "Khronos basic descriptor, version 1.3"
-    model, primaries, transfer, _flags = f[dfd_off + 12 : dfd_off + 16]
-    assert (model, primaries, transfer) == (want_model, 1, 2), f"model {model}, BT.709, sRGB"
+    model, primaries, got_transfer, _flags = f[dfd_off + 12 : dfd_off + 16]
+    assert (model, primaries, got_transfer) == (want_model, 1, transfer), f"model {model}, BT.709, transfer {transfer}"
     dims = f[dfd_off + 16 : dfd_off + 20]
     assert tuple(dims[:2]) == ((3, 3) if block else (0, 0)), f"texel block {tuple(dims)}"
     assert f[dfd_off + 20] == (block or 4), "bytesPlane0"
@@ -106,7 +120,7 @@ def parse_ktx2(f, codec):
     return levels
 
 
-def parse_basis(f, codec, sc):
+def parse_basis(f, codec, sc, transfer=SRGB):
     """The RGBA8 texels of a one-level Basis Universal KTX2 file: the container checked here
     against the KTX 2.0 specification, the texels transcoded by alktx2."""
     assert f[:12] == IDENTIFIER, "identifier"
@@ -118,13 +132,15 @@ def parse_basis(f, codec, sc):
     dfd_off, dfd_len, _, _ = struct.unpack_from("<4I", f, 48)
     sgd_off, sgd_len = struct.unpack_from("<2Q", f, 64)
     assert (sgd_len > 0 and sgd_off % 8 == 0) if codec == "etc1s" else sgd_len == 0, "global data for BasisLZ only"
-    model, primaries, transfer, flags = f[dfd_off + 12 : dfd_off + 16]
-    assert (model, primaries, transfer, flags) == (want_model, 1, 2, 0), f"model {model}, BT.709, sRGB, straight alpha"
+    model, primaries, got_transfer, flags = f[dfd_off + 12 : dfd_off + 16]
+    want = (want_model, 1, transfer, 0)
+    assert (model, primaries, got_transfer, flags) == want, f"model {model}, BT.709, transfer {transfer}, straight alpha"
     assert tuple(f[dfd_off + 16 : dfd_off + 18]) == (3, 3), "4×4 blocks"
     assert f[dfd_off + 20] == (16 if codec == "uastc" else 0), "bytesPlane0"
     info = alktx2.inspect_ktx2(f)
     assert info["basis_tex_format_name"] == BASIS_NAMES[codec], info["basis_tex_format_name"]
-    assert info["is_srgb"] and (info["width"], info["height"]) == (w, h), "alktx2 reads sRGB of the same size"
+    assert info["is_srgb"] == (transfer == SRGB), f"alktx2 reads is_srgb {info['is_srgb']}"
+    assert (info["width"], info["height"]) == (w, h), "alktx2 reads the same size"
     tga, _ = alktx2.decode_ktx2_to_bytes(f, format="tga")
     return w, h, tga_rgba(tga, info["has_alpha"])
 
@@ -184,6 +200,43 @@ def start_server(binary, data_dir):
     line = proc.stdout.readline()
     assert line.startswith("vtex listening on "), line
     return proc, line.split()[-1]
+
+
+def check_normals(base, textures, check):
+    """Normal-layer pages (page 0/1/1 of every demo) in each KTX2 codec that takes them (etc1s
+    refuses them): linear transfer, the
+    _UNORM vkFormats, alktx2 reading them as linear, texels near the raw RGBA normal page —
+    each page over its codec's floor, and over all demos nearer than the flat normal
+    (128, 128, 255) is by NORMAL_FLAT_MARGIN_DB. Returns the PSNR over all demos per codec,
+    the flat normal's included."""
+    sums = {}
+    q = f"size={SIZE}&border={BORDER}&layer=normal"
+    for t in textures:
+        page = f"/api/v1/textures/{t['id']}/pages/0/1/1"
+        rgba = get(base, f"{page}.rgba?{q}")
+        candidates = {"flat": bytes([128, 128, 255, 255]) * (len(rgba) // 4)}
+        for codec in ("bc7", "bc1", "rgba8", "uastc"):
+            f = get(base, f"{page}.ktx2?{q}&codec={codec}")
+            try:
+                if codec in BASIS:
+                    _, _, candidates[codec] = parse_basis(f, codec, "none", LINEAR)
+                else:
+                    ((_, _, candidates[codec]),) = parse_ktx2(f, codec, LINEAR)
+            except AssertionError as e:
+                check(False, f"{t['name']} normal {codec}: {e}")
+        for codec, texels in candidates.items():
+            se, n = squared_error(texels, rgba)
+            a, b = sums.get(codec, (0, 0))
+            sums[codec] = (a + se, b + n)
+            db = psnr(se, n)
+            floor = NORMAL_FLOOR_DB.get(codec, 0)
+            check(db >= floor, f"{t['name']} normal {codec}: {db:.2f} dB < {floor} dB")
+    db = {c: psnr(*v) for c, v in sums.items()}
+    for codec in db:
+        if codec != "flat":
+            margin = db[codec] - db["flat"]
+            check(margin >= NORMAL_FLAT_MARGIN_DB, f"normal {codec}: {margin:.2f} dB over the flat normal")
+    return db
 
 
 def main():
@@ -270,6 +323,7 @@ def main():
                 se, n = squared_error(texels, region)
                 chain_db.append(psnr(se, n))
                 check(chain_db[-1] >= TARGET_DB["bc7"], f"mip chain level {i}: {chain_db[-1]:.2f} dB")
+            normal_db = check_normals(base, textures, check)
         finally:
             proc.terminate()
             proc.wait()
@@ -300,6 +354,7 @@ def main():
         values = sorted(r[i] for r in rows)
         print(f"{c} (alktx2's transcoder): min {fmt(values[0])} dB, median {fmt(values[len(values) // 2])} dB")
     print(f"mip chain of {small['name']} ({len(levels)} levels, BC7 + zstd): min {fmt(min(chain_db))} dB")
+    print("normal pages 0/1/1, PSNR over all demos: " + ", ".join(f"{c} {fmt(v)} dB" for c, v in normal_db.items()))
     print(f"{passed} passed, {failed} failed")
     return 1 if failed else 0
 

@@ -146,9 +146,9 @@ fn grid(entry: &Entry, level: u32, part: Shape) -> (u64, u64) {
 pub fn metatile_of(entry: &Entry, key: &TileKey) -> Option<(TileKey, usize)> {
     let (side, block) = match key.shape {
         Shape::Tile => (entry.metatile, Shape::Metatile { side: entry.metatile }),
-        Shape::Page { size, border } => {
+        Shape::Page { size, border, layer } => {
             let side = page_metatile_pages(size);
-            (side, Shape::PageMetatile { size, border, side })
+            (side, Shape::PageMetatile { size, border, side, layer })
         }
         _ => return None,
     };
@@ -169,7 +169,7 @@ pub fn page_metatile_pages(size: u32) -> u32 {
 pub fn metatile_parts(entry: &Entry, key: &TileKey) -> Vec<(TileKey, Region)> {
     let (side, part) = match key.shape {
         Shape::Metatile { side } => (side, Shape::Tile),
-        Shape::PageMetatile { size, border, side } => (side, Shape::Page { size, border }),
+        Shape::PageMetatile { size, border, side, layer } => (side, Shape::Page { size, border, layer }),
         _ => panic!("not a metatile: {key:?}"),
     };
     let (cols, rows) = grid(entry, key.level, part);
@@ -237,14 +237,14 @@ pub fn key_etag(entry: &Entry, key: &TileKey) -> ETag {
             &[level, x, y, frame, entry.tile_size as u64, side as u64],
             key.format,
         ),
-        Shape::Page { size, border } => {
+        Shape::Page { size, border, layer } => {
             let (codec, sc) = ktx2_ids(key.format);
-            let what = [level, x, y, frame, size as u64, border as u64, codec, sc];
+            let what = [level, x, y, frame, size as u64, border as u64, codec, sc, layer as u64];
             ETag::new(&entry.key, Some(Mark::Page), &what, key.format)
         }
-        Shape::PageMetatile { size, border, side } => {
+        Shape::PageMetatile { size, border, side, layer } => {
             let (codec, sc) = ktx2_ids(key.format);
-            let what = [level, x, y, frame, size as u64, border as u64, codec, sc, side as u64];
+            let what = [level, x, y, frame, size as u64, border as u64, codec, sc, side as u64, layer as u64];
             ETag::new(&entry.key, Some(Mark::PageMetatile), &what, key.format)
         }
     }
@@ -276,7 +276,7 @@ pub fn key_region(entry: &Entry, key: &TileKey) -> (Region, (u32, u32)) {
             let (w, h) = ((last.x - first.x) as u32 + last.width, (last.y - first.y) as u32 + last.height);
             (Region::new(key.level, first.x, first.y, w, h).at_frame(key.frame), (w, h))
         }
-        Shape::Page { size, border } => {
+        Shape::Page { size, border, .. } => {
             let at = |v: u32| v as i64 * size as i64 - border as i64;
             let side = size + 2 * border;
             (Region::new(key.level, at(key.x), at(key.y), side, side).at_frame(key.frame), (side, side))

@@ -22,6 +22,7 @@ use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::{Arc, Mutex};
 use tokio::sync::watch;
 use tokio::task::AbortHandle;
+use vtex_synth::layer::Layer;
 
 /// Bookkeeping charged per entry on top of the tile bytes (key, LRU links, map slot, the
 /// `Arc<Tile>` with its ETag, the sealed body's arena handle and registry entry).
@@ -55,15 +56,23 @@ pub enum Shape {
     /// [`vtex_wire::frame`]s (row by row). The tiles' own keys find their bytes in it.
     Metatile { side: u32 },
     /// A `size`² page of the page grid with `border` pixels of its neighbours on every side
-    /// (`api/resources/pages.rs`).
-    Page { size: u32, border: u32 },
+    /// (`api/resources/pages.rs`), of one layer of the texture.
+    Page { size: u32, border: u32, layer: Layer },
     /// A page metatile: the aligned block of `side` × `side` pages of the page grid whose top
     /// left page is (`x`·side, `y`·side), clipped at the grid's edges, as one body of frames.
     /// The pages' own keys find their bytes in it.
-    PageMetatile { size: u32, border: u32, side: u32 },
+    PageMetatile { size: u32, border: u32, side: u32, layer: Layer },
 }
 
 impl Shape {
+    /// The layer the key's pixels are of: pages may be of any, everything else is colour.
+    pub fn layer(self) -> Layer {
+        match self {
+            Shape::Page { layer, .. } | Shape::PageMetatile { layer, .. } => layer,
+            _ => Layer::Color,
+        }
+    }
+
     /// Whether the key names a block of tiles or pages, answered as frames.
     pub fn is_metatile(self) -> bool {
         matches!(self, Shape::Metatile { .. } | Shape::PageMetatile { .. })

@@ -23,6 +23,7 @@ use slots::{Refused, Slots};
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
 use std::time::Instant;
+use vtex_synth::layer::Layer;
 use vtex_synth::{Region, Rgba8Image, Stop};
 use vtex_wire::frame::{FrameHeader, TileRef};
 
@@ -117,7 +118,7 @@ impl Engine {
                         };
                         let encode = owner.encoder(key.format);
                         let body = owner
-                            .render_then(entry, region, move |img| {
+                            .render_then(entry, region, key.shape.layer(), move |img| {
                                 let body = match parts.is_empty() {
                                     true => encode.image(img, (width, height))?,
                                     false => encode.frames(&img, &region, &parts)?,
@@ -137,12 +138,18 @@ impl Engine {
         Ok((tile, source))
     }
 
-    /// Renders `region` of `entry` and encodes it, on the blocking pool, holding a slot.
-    /// Returns the encoded bytes. A bad region is the model's error; a panicking model a
+    /// Renders `region` of `entry`'s `layer` and encodes it, on the blocking pool, holding a
+    /// slot. Returns the encoded bytes. A bad region is the model's error; a panicking model a
     /// failure; no slot (queue full, shutting down) or a render stopped by shutdown is busy.
-    pub async fn synthesize(&self, entry: Arc<Entry>, region: Region, format: Format) -> Result<Vec<u8>, Error> {
+    pub async fn synthesize(
+        &self,
+        entry: Arc<Entry>,
+        region: Region,
+        layer: Layer,
+        format: Format,
+    ) -> Result<Vec<u8>, Error> {
         let encode = self.encoder(format);
-        self.render_then(entry, region, move |img| encode.image(img, (region.width, region.height))).await
+        self.render_then(entry, region, layer, move |img| encode.image(img, (region.width, region.height))).await
     }
 
     /// The encoder of `format`, timing each image in the metrics.
@@ -150,7 +157,8 @@ impl Engine {
         Encoder { format, seconds: self.metrics.encode_seconds.with_label_values(&[format.ext()]) }
     }
 
-    /// Renders `region` of `entry`, then `finish` on the image in the same blocking task
+    /// Renders `region` of `entry`'s `layer` (a layer other than colour from the colour of
+    /// [`Layer::source`]), then `finish` on the image in the same blocking task
     /// (encoding, and for cached bodies [`Transport::seal`], whose copy and the first touch of
     /// a fresh huge-page arena, which may wait for the kernel to compact memory, then stay off
     /// the I/O runtimes), holding a synthesis slot throughout.
@@ -161,6 +169,7 @@ impl Engine {
         &self,
         entry: Arc<Entry>,
         region: Region,
+        layer: Layer,
         finish: impl FnOnce(Rgba8Image) -> Result<T, Error> + Send + 'static,
     ) -> Result<T, Error> {
         let slot = self.slot(&entry).await?;
@@ -181,10 +190,12 @@ impl Engine {
             in_flight.inc();
             let work = || {
                 let t0 = Instant::now();
-                let Some(img) = vtex_synth::texture::render_image_until(&*entry.texture, &region, &*stop)? else {
+                let source = layer.source(&region);
+                let Some(img) = vtex_synth::texture::render_image_until(&*entry.texture, &source, &*stop)? else {
                     stopped.inc();
                     return Err(busy(Refused::Closed));
                 };
+                let img = layer.derive(img, region.level);
                 synth_s.observe(t0.elapsed().as_secs_f64());
                 finish(img)
             };

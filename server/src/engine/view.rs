@@ -9,6 +9,7 @@ use crate::config::MAX_REGION_SIDE;
 use crate::encode::Format;
 use crate::store::Entry;
 use std::sync::Arc;
+use vtex_synth::layer::Layer;
 use vtex_synth::texture::{level_count, level_size};
 use vtex_synth::{Region, Rgba8Image};
 
@@ -105,7 +106,7 @@ impl Engine {
     pub async fn view(&self, entry: Arc<Entry>, view: View, max_pixels: u64) -> Result<Rgba8Image, Error> {
         let Source { region, exact } = view.source(&entry, max_pixels);
         vtex_synth::texture::check_region(&*entry.texture, &region)?;
-        let raw = self.synthesize(entry, region, Format::Rgba).await?;
+        let raw = self.synthesize(entry, region, Layer::Color, Format::Rgba).await?;
         let src = Rgba8Image::from_raw(region.width, region.height, raw)
             .map_err(|e| Error::failed("a rendered region has the wrong size", e))?;
         if exact {

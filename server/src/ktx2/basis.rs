@@ -12,6 +12,7 @@
 //! level (no resampling by the encoder) and nothing it does reads a clock or a random source.
 //! So a level's bytes are a function of its pixels and the codec; `ktx2`'s tests pin them.
 
+use super::Transfer;
 use basis_universal::{BasisTextureFormat, ColorSpace, Compressor, CompressorParams};
 use vtex_synth::Rgba8Image;
 
@@ -39,12 +40,17 @@ pub struct Levels {
 
 /// Encodes a mip chain (level 0 first, each the size of the one before halved).
 #[allow(unsafe_code)]
-pub fn encode(levels: &[Rgba8Image], mode: Mode) -> Result<Levels, String> {
+pub fn encode(levels: &[Rgba8Image], mode: Mode, transfer: Transfer) -> Result<Levels, String> {
     let alpha = levels.iter().any(|l| l.data.chunks_exact(4).any(|p| p[3] != 255));
     let mut params = CompressorParams::new();
     params.set_print_status_to_stdout(false);
-    params.set_color_space(ColorSpace::Srgb);
-    params.set_mip_color_space(ColorSpace::Srgb);
+    // The colour space sets basisu's error metric: perceptual for colour, plain RGB for data.
+    let space = match transfer {
+        Transfer::Srgb => ColorSpace::Srgb,
+        Transfer::Linear => ColorSpace::Linear,
+    };
+    params.set_color_space(space);
+    params.set_mip_color_space(space);
     params.set_generate_mipmaps(false);
     match mode {
         Mode::Uastc => {

@@ -1,7 +1,8 @@
 //! KTX2 files as the KTX 2.0 specification reads them. Every variant vtex serves — each codec,
 //! with and without zstd supercompression, single pages (block-aligned and not) and whole mip
-//! chains down to 1×1 — is walked against the layout rules of the specification's text, section
-//! by section, and read by the `ktx2` crate, a reader no one here wrote.
+//! chains down to 1×1, colour (sRGB) and normals (linear) — is walked against the layout rules of
+//! the specification's text, section by section, and read by the `ktx2` crate, a reader no one
+//! here wrote.
 
 use crate::support::*;
 
@@ -13,7 +14,8 @@ struct File {
 
 /// Every variant: pages of each codec and supercompression (136 px, a multiple of 4; 70 px,
 /// not one), and mip chains from level 0 (240 px, so 15, 7, 3 and 1 px levels are partial
-/// blocks) and from level 2. ETC1S is always BasisLZ.
+/// blocks) and from level 2; a normal page and a normal chain of each but ETC1S, which refuses
+/// normals. ETC1S is always BasisLZ.
 async fn variants() -> (Server, Vec<File>) {
     let dir = tempdir();
     let s = Server::start(dir.path(), &[]);
@@ -28,6 +30,10 @@ async fn variants() -> (Server, Vec<File>) {
             paths.push(format!("pages/3/0/0.ktx2?size=64&border={}&{q}", if codec == "rgba8" { 3 } else { 2 }));
             paths.push(format!("mips.ktx2?{q}"));
             paths.push(format!("mips.ktx2?level=2&{q}"));
+            if codec != "etc1s" {
+                paths.push(format!("pages/0/1/0.ktx2?size=128&border=4&layer=normal&{q}"));
+                paths.push(format!("mips.ktx2?level=2&layer=normal&{q}"));
+            }
         }
     }
     let mut files = Vec::new();
@@ -54,6 +60,10 @@ fn u64_at(b: &[u8], i: usize) -> u64 {
 /// with qualifiers, lower, upper).
 struct FormatDef {
     name: &'static str,
+    /// The DFD's transferFunction the format requires: KHR_DF_TRANSFER_SRGB (2) for `_SRGB`
+    /// formats, KHR_DF_TRANSFER_LINEAR (1) for the others; `None` for Basis Universal, which
+    /// carries either.
+    transfer: Option<u8>,
     block_bytes: usize,
     /// bytesPlane0: 0 for BasisLZ, whose slices have no fixed size.
     plane0: usize,
@@ -70,6 +80,7 @@ fn format_def(vk_format: u32, model: u8, dfd_block_size: usize, channel0: u8) ->
         // KTX 2.0, "Basis Universal": vkFormat undefined, the format in the DFD.
         0 if model == 166 => FormatDef {
             name: "UASTC (KHR_DF_MODEL_UASTC)",
+            transfer: None,
             block_bytes: 16,
             plane0: 16,
             block_side: 4,
@@ -79,6 +90,7 @@ fn format_def(vk_format: u32, model: u8, dfd_block_size: usize, channel0: u8) ->
         },
         0 if model == 163 => FormatDef {
             name: "ETC1S (KHR_DF_MODEL_ETC1S)",
+            transfer: None,
             block_bytes: 8,
             plane0: 0,
             block_side: 4,
@@ -90,16 +102,18 @@ fn format_def(vk_format: u32, model: u8, dfd_block_size: usize, channel0: u8) ->
                 &[(0, 63, 0, 0, u32::MAX)]
             },
         },
-        146 => FormatDef {
-            name: "VK_FORMAT_BC7_SRGB_BLOCK",
+        146 | 145 => FormatDef {
+            name: if vk_format == 146 { "VK_FORMAT_BC7_SRGB_BLOCK" } else { "VK_FORMAT_BC7_UNORM_BLOCK" },
+            transfer: Some(if vk_format == 146 { 2 } else { 1 }),
             block_bytes: 16,
             plane0: 16,
             block_side: 4,
             color_model: 134, // KHR_DF_MODEL_BC7
             samples: &[(0, 127, 0, 0, u32::MAX)],
         },
-        132 => FormatDef {
-            name: "VK_FORMAT_BC1_RGB_SRGB_BLOCK",
+        132 | 131 => FormatDef {
+            name: if vk_format == 132 { "VK_FORMAT_BC1_RGB_SRGB_BLOCK" } else { "VK_FORMAT_BC1_RGB_UNORM_BLOCK" },
+            transfer: Some(if vk_format == 132 { 2 } else { 1 }),
             block_bytes: 8,
             plane0: 8,
             block_side: 4,
@@ -108,11 +122,21 @@ fn format_def(vk_format: u32, model: u8, dfd_block_size: usize, channel0: u8) ->
         },
         43 => FormatDef {
             name: "VK_FORMAT_R8G8B8A8_SRGB",
+            transfer: Some(2),
             block_bytes: 4,
             plane0: 4,
             block_side: 1,
             color_model: 1, // KHR_DF_MODEL_RGBSDA: R, G, B, then A (15) marked LINEAR (0x10)
             samples: &[(0, 7, 0, 0, 255), (8, 7, 1, 0, 255), (16, 7, 2, 0, 255), (24, 7, 0x1F, 0, 255)],
+        },
+        37 => FormatDef {
+            name: "VK_FORMAT_R8G8B8A8_UNORM",
+            transfer: Some(1),
+            block_bytes: 4,
+            plane0: 4,
+            block_side: 1,
+            color_model: 1, // KHR_DF_MODEL_RGBSDA: R, G, B, A (15), all linear
+            samples: &[(0, 7, 0, 0, 255), (8, 7, 1, 0, 255), (16, 7, 2, 0, 255), (24, 7, 0x0F, 0, 255)],
         },
         _ => return None,
     })
@@ -223,7 +247,15 @@ fn violations(f: &[u8]) -> Vec<String> {
         byte(8) == def.color_model,
         format!("DFD Restrictions: colorModel {} for {} (got {})", def.color_model, def.name, byte(8)),
     );
-    rule(byte(10) == 2, "DFD Restrictions: transferFunction must be KHR_DF_TRANSFER_SRGB for _SRGB formats".into());
+    match def.transfer {
+        Some(t) => {
+            rule(byte(10) == t, format!("DFD Restrictions: transferFunction {t} for {} (got {})", def.name, byte(10)))
+        }
+        None => rule(
+            matches!(byte(10), 1 | 2),
+            format!("DFD: transferFunction KHR_DF_TRANSFER_LINEAR or _SRGB for {} (got {})", def.name, byte(10)),
+        ),
+    }
     rule(byte(11) == 0, "DFD: flags KHR_DF_FLAG_ALPHA_STRAIGHT (vtex's alpha is not premultiplied)".into());
     let dim = (def.block_side - 1) as u8;
     rule(
@@ -435,7 +467,13 @@ async fn the_ktx2_crate_reads_every_variant() {
             assert_eq!(raw.len() as u64, want, "{} level {p}", file.url);
         }
         assert_eq!(basic.header.color_model.map(|m| m.value()), Some(def.color_model), "{}", file.url);
-        assert_eq!(basic.header.transfer_function, Some(ktx2::TransferFunction::SRGB), "{}", file.url);
+        // Colour is sRGB-encoded; normals are linear data.
+        let transfer = if file.url.contains("layer=normal") {
+            ktx2::TransferFunction::Linear
+        } else {
+            ktx2::TransferFunction::SRGB
+        };
+        assert_eq!(basic.header.transfer_function, Some(transfer), "{}", file.url);
         let dim = def.block_side as u8;
         assert_eq!(basic.header.texel_block_dimensions.map(|d| d.get()), [dim, dim, 1, 1], "{}", file.url);
         let samples: Vec<_> = basic

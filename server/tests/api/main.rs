@@ -13,6 +13,7 @@ mod iiif;
 mod inflight_bounds;
 mod interop;
 mod ktx2_spec;
+mod layers;
 mod metatiles;
 mod metrics;
 mod models;

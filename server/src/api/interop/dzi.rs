@@ -25,6 +25,7 @@ use axum::response::{IntoResponse, Response};
 use serde::Deserialize;
 use std::sync::Arc;
 use utoipa::IntoParams;
+use vtex_synth::layer::Layer;
 use vtex_synth::texture::{level_count, level_size};
 use vtex_synth::Region;
 
@@ -196,7 +197,7 @@ async fn rendered(app: &App, entry: Arc<Entry>, t: DziTile, headers: &HeaderMap)
     let (w, h) = (w as u32, h as u32);
     let mut reservation = app.inflight.reserve(encode::peak_bytes(t.format, w, h))?;
     let region = Region::new(t.level, x0 as i64, y0 as i64, w, h).at_frame(t.frame);
-    let body = app.engine.synthesize(entry, region, t.format).await?;
+    let body = app.engine.synthesize(entry, region, Layer::Color, t.format).await?;
     app.inflight.resize(&mut reservation, body.len() as u64)?;
     Ok(tiles::image_response(reservation.hold(body), t.format, &tag, w, h))
 }

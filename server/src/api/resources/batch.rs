@@ -1,5 +1,5 @@
 //! Many tiles in one response: `GET /api/v1/textures/{id}/tiles?tiles=L/x/y,…&format=F[&frame=N]`,
-//! or many pages: `…/tiles?pages=L/x/y,…&format=F[&size=S&border=B&codec=C&supercompression=Z&frame=N]`
+//! or many pages: `…/tiles?pages=L/x/y,…&format=F[&size=S&border=B&layer=L&codec=C&supercompression=Z&frame=N]`
 //! (the parameters of a single page, [`pages`](crate::api::resources::pages)).
 //!
 //! Why: a browser spends a fixed amount of CPU on every request, whatever its size, so a view
@@ -105,7 +105,7 @@ pub struct BatchList {
     #[serde(default, deserialize_with = "de_tiles")]
     #[param(value_type = Option<String>)]
     pub tiles: Option<Vec<TileRef>>,
-    /// `L/x/y,…` pages instead of tiles, with `size`, `border`, `codec`, `supercompression`
+    /// `L/x/y,…` pages instead of tiles, with `size`, `border`, `layer`, `codec`, `supercompression`
     #[serde(default, deserialize_with = "de_tiles")]
     #[param(value_type = Option<String>)]
     pub pages: Option<Vec<TileRef>>,
@@ -156,6 +156,7 @@ fn items(list: BatchList, page: &PageParams) -> Result<(Vec<TileRef>, Format, Sh
             let page_params = [
                 ("size", page.size.is_some()),
                 ("border", page.border.is_some()),
+                ("layer", page.layer.is_some()),
                 ("codec", page.codec.is_some()),
                 ("supercompression", page.supercompression.is_some()),
             ];

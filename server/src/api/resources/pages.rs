@@ -9,6 +9,10 @@
 //! serves is a torus or a plane: none has an edge where pixels would stop). Pages exist at
 //! every level down to 1×1. They share the tile cache, its coalescing and the synthesis slots
 //! with tiles (`Engine::tile`), carry strong ETags and are immutable.
+//!
+//! A page is of one layer (`vtex_synth::layer`): the colour, or its tangent-space normals,
+//! derived at the page's level from a region one pixel wider than the page, so normal pages'
+//! borders match their neighbours as colour pages' do. KTX2 normal pages are linear (`_UNORM`).
 
 use crate::api::error::{echo, ApiError};
 use crate::api::extract::{Path, Query};
@@ -22,7 +26,7 @@ use crate::encode::Format;
 use crate::engine::address;
 use crate::engine::cache::{Shape, TileKey};
 use crate::engine::{ETag, Mark};
-use crate::ktx2::{self, Codec, Ktx2, Supercompression};
+use crate::ktx2::{self, Codec, Ktx2, Supercompression, Transfer};
 use crate::store::Entry;
 use axum::extract::State;
 use axum::http::HeaderMap;
@@ -30,6 +34,7 @@ use axum::response::Response;
 use serde::de::Error as _;
 use serde::{Deserialize, Deserializer};
 use utoipa::IntoParams;
+use vtex_synth::layer::Layer;
 use vtex_synth::texture::{level_count, level_size};
 use vtex_synth::{Region, Rgba8Image};
 
@@ -61,7 +66,7 @@ pub struct PagePath {
 }
 
 /// The parameters of a page, for one page and for a batch of pages alike:
-/// `[?size=S][&border=B][&codec=C][&supercompression=Z][&frame=N]`.
+/// `[?size=S][&border=B][&layer=L][&codec=C][&supercompression=Z][&frame=N]`.
 #[derive(Deserialize, IntoParams)]
 #[serde(deny_unknown_fields)]
 #[into_params(parameter_in = Query)]
@@ -72,6 +77,11 @@ pub struct PageParams {
     /// 0..=size/8 (default 4)
     #[serde(default, deserialize_with = "de::opt_u32")]
     pub border: Option<u32>,
+    /// color (default) or normal: tangent-space normals (glTF convention, linear RGB) of the
+    /// level's luminance height
+    #[serde(default, deserialize_with = "de_layer")]
+    #[param(value_type = Option<String>)]
+    pub layer: Option<Layer>,
     /// ktx2: bc7 (default), bc1, rgba8, uastc or etc1s (Basis Universal)
     #[serde(default, deserialize_with = "de_codec")]
     #[param(value_type = Option<String>)]
@@ -90,6 +100,13 @@ pub(in crate::api) fn de_codec<'de, D: Deserializer<'de>>(d: D) -> Result<Option
     Codec::parse(&s)
         .map(Some)
         .ok_or_else(|| D::Error::custom(format!("names unknown codec `{}`; {}", echo(&s), Codec::EXPECTED)))
+}
+
+pub(in crate::api) fn de_layer<'de, D: Deserializer<'de>>(d: D) -> Result<Option<Layer>, D::Error> {
+    let s = String::deserialize(d)?;
+    Layer::parse(&s)
+        .map(Some)
+        .ok_or_else(|| D::Error::custom(format!("names unknown layer `{}`; {}", echo(&s), Layer::EXPECTED)))
 }
 
 pub(in crate::api) fn de_supercompression<'de, D: Deserializer<'de>>(
@@ -125,6 +142,7 @@ pub fn page_spec(format: PageFormat, page: &PageParams) -> Result<(Format, Shape
         return Err(ApiError::bad_request(format!("`size` must be one of 64, 128, 256 or 512 (got {size})")));
     }
     let border = page.border.unwrap_or(DEFAULT_BORDER);
+    let layer = page.layer.unwrap_or_default();
     if border > size / 8 {
         return Err(ApiError::bad_request(format!(
             "`border` must be at most size / 8 = {} for size {size} (got {border})",
@@ -143,7 +161,7 @@ pub fn page_spec(format: PageFormat, page: &PageParams) -> Result<(Format, Shape
             f
         }
         PageFormat::Ktx2 => {
-            let k = ktx2_options(page.codec, page.supercompression)?;
+            let k = ktx2_options(page.codec, page.supercompression, layer)?;
             if k.codec.is_block_compressed() && border % 2 == 1 {
                 return Err(ApiError::bad_request(format!(
                     "`border` must be even for {} pages (got {border}): a block-compressed page's side, \
@@ -154,19 +172,32 @@ pub fn page_spec(format: PageFormat, page: &PageParams) -> Result<(Format, Shape
             Format::Ktx2(k)
         }
     };
-    Ok((format, Shape::Page { size, border }))
+    Ok((format, Shape::Page { size, border, layer }))
 }
 
 /// The KTX2 options: `codec` (default bc7) and `supercompression` (default none; basislz, the
-/// only one it takes, for etc1s).
-fn ktx2_options(codec: Option<Codec>, supercompression: Option<Supercompression>) -> Result<Ktx2, ApiError> {
+/// only one it takes, for etc1s), for `layer`'s pixels (sRGB colour or linear data).
+fn ktx2_options(
+    codec: Option<Codec>,
+    supercompression: Option<Supercompression>,
+    layer: Layer,
+) -> Result<Ktx2, ApiError> {
     let codec = codec.unwrap_or(Codec::Bc7);
     let supercompression = supercompression.unwrap_or(codec.default_supercompression());
     codec.check(supercompression).map_err(ApiError::bad_request)?;
-    Ok(Ktx2 { codec, supercompression })
+    if layer == Layer::Normal && codec == Codec::Etc1s {
+        // One colour line per block from a small codebook: a normal map comes out barely
+        // nearer than a flat one (docs/ktx2-quality.md).
+        return Err(ApiError::bad_request(
+            "etc1s cannot hold normals (it keeps little more than a flat normal map); \
+             for layer normal use uastc, bc7, bc1 or rgba8",
+        ));
+    }
+    let transfer = if layer.is_linear() { Transfer::Linear } else { Transfer::Srgb };
+    Ok(Ktx2 { codec, supercompression, transfer })
 }
 
-/// `GET /api/v1/textures/{id}/pages/{level}/{x}/{y}.{format}[?size=S&border=B&codec=C&supercompression=Z&frame=N]`
+/// `GET /api/v1/textures/{id}/pages/{level}/{x}/{y}.{format}[?size=S&border=B&layer=L&codec=C&supercompression=Z&frame=N]`
 #[utoipa::path(get,
     path = vtex_wire::urls::PAGE,
     tag = "pages",
@@ -195,7 +226,7 @@ pub async fn page(
     tiles::respond(&app, &entry, key, &headers).await
 }
 
-/// `GET /api/v1/textures/{id}/page-metatiles/{level}/{x}/{y}.{format}[?size=S&border=B&codec=C&supercompression=Z&frame=N]`:
+/// `GET /api/v1/textures/{id}/page-metatiles/{level}/{x}/{y}.{format}[?size=S&border=B&layer=L&codec=C&supercompression=Z&frame=N]`:
 /// the aligned block of pages (512 level pixels a side: 4 × 4 pages of 128, 1 of 512) whose top
 /// left page is (`x`·n, `y`·n), clipped at the page grid's edges, as frames row by row — each
 /// exactly the page's bytes. The unit a virtual-texturing client fetches so that a cache in
@@ -243,11 +274,11 @@ fn page_key(
     let what = if metatile { "page metatile" } else { "page" };
     let (y, format) = row_and_format(what, file, page_format_value, FORMATS_EXPECTED)?;
     let (format, page) = page_spec(format, q)?;
-    let Shape::Page { size, border } = page else { unreachable!("page_spec gives pages") };
+    let Shape::Page { size, border, layer } = page else { unreachable!("page_spec gives pages") };
     let shape = if metatile {
         let side = address::page_metatile_pages(size);
         address::check_metatile(entry, level, x, y, page, side)?;
-        Shape::PageMetatile { size, border, side }
+        Shape::PageMetatile { size, border, side, layer }
     } else {
         address::check_page(entry, level, x, y, size)?;
         page
@@ -255,7 +286,7 @@ fn page_key(
     Ok(TileKey { texture: entry.key, level, x, y, frame: address::frame_for(entry, q.frame), format, shape })
 }
 
-/// The query of a mip chain: `[?level=L][&codec=C][&supercompression=Z][&frame=N]`.
+/// The query of a mip chain: `[?level=L][&layer=Y][&codec=C][&supercompression=Z][&frame=N]`.
 #[derive(Deserialize, IntoParams)]
 #[serde(deny_unknown_fields)]
 #[into_params(parameter_in = Query)]
@@ -263,6 +294,10 @@ pub struct ChainQuery {
     /// finest level of the chain
     #[serde(default, deserialize_with = "de::opt_u32")]
     pub level: Option<u32>,
+    /// color (default) or normal: each level's normals from its own luminance height
+    #[serde(default, deserialize_with = "de_layer")]
+    #[param(value_type = Option<String>)]
+    pub layer: Option<Layer>,
     /// bc7 (default), bc1, rgba8, uastc or etc1s (Basis Universal)
     #[serde(default, deserialize_with = "de_codec")]
     #[param(value_type = Option<String>)]
@@ -276,7 +311,7 @@ pub struct ChainQuery {
     pub frame: Option<u32>,
 }
 
-/// `GET /api/v1/textures/{id}/mips.ktx2[?level=L&codec=C&supercompression=Z&frame=N]`: one KTX2
+/// `GET /api/v1/textures/{id}/mips.ktx2[?level=L&layer=Y&codec=C&supercompression=Z&frame=N]`: one KTX2
 /// holding level `L` (by default the finest of at most [`MAX_CHAIN_SIDE`] a side) and every
 /// coarser level to 1×1, for textures small enough to upload whole (or the tail of a large
 /// one's pyramid, kept resident under its pages).
@@ -305,7 +340,8 @@ pub async fn mip_chain(
     headers: HeaderMap,
 ) -> Result<Response, ApiError> {
     let entry = lookup(&app, &id).await?;
-    let k = ktx2_options(q.codec, q.supercompression)?;
+    let layer = q.layer.unwrap_or_default();
+    let k = ktx2_options(q.codec, q.supercompression, layer)?;
     let (w, h) = (entry.texture.width(), entry.texture.height());
     let levels = level_count(w, h);
     let max_side = if k.codec.is_basis() { MAX_BASIS_CHAIN_SIDE } else { MAX_CHAIN_SIDE };
@@ -328,7 +364,8 @@ pub async fn mip_chain(
     }
     let frame = address::frame_for(&entry, q.frame);
     let (codec, sc) = address::ktx2_ids(Format::Ktx2(k));
-    let tag = ETag::new(&entry.key, Some(Mark::Chain), &[level as u64, frame as u64, codec, sc], Format::Ktx2(k));
+    let what = [level as u64, frame as u64, codec, sc, layer as u64];
+    let tag = ETag::new(&entry.key, Some(Mark::Chain), &what, Format::Ktx2(k));
     if not_modified(&headers, tag.as_str()) {
         return Ok(not_modified_response(crate::api::http::etag_header(&tag)));
     }
@@ -340,7 +377,7 @@ pub async fn mip_chain(
     let mut images = Vec::with_capacity(sizes.len());
     for (i, &(lw, lh)) in sizes.iter().enumerate() {
         let region = Region::new(level + i as u32, 0, 0, lw, lh).at_frame(frame);
-        let data = app.engine.synthesize(entry.clone(), region, Format::Rgba).await?;
+        let data = app.engine.synthesize(entry.clone(), region, layer, Format::Rgba).await?;
         images.push(Rgba8Image::from_raw(lw, lh, data).map_err(|e| ApiError::internal("a chain level", e))?);
     }
     // Encoded holding a synthesis slot: a Basis Universal chain of 2048² takes seconds.

@@ -23,6 +23,7 @@ use bytes::Bytes;
 use serde::Deserialize;
 use std::sync::Arc;
 use utoipa::IntoParams;
+use vtex_synth::layer::Layer;
 use vtex_synth::texture::level_count;
 use vtex_synth::Region;
 
@@ -211,7 +212,7 @@ pub async fn region(
     let region = Region::new(level, x, y, w, h).at_frame(frame);
     vtex_synth::texture::check_region(&*entry.texture, &region)?;
     let mut reservation = app.inflight.reserve(encode::peak_bytes(format, w, h))?;
-    let body = app.engine.synthesize(entry, region, format).await?;
+    let body = app.engine.synthesize(entry, region, Layer::Color, format).await?;
     app.inflight.resize(&mut reservation, body.len() as u64)?;
     Ok(image_response(reservation.hold(body), format, &tag, w, h))
 }
