@@ -13,8 +13,8 @@
 // format=rgba|bc7 (default bc7 where the GPU has BPTC), aniso=N (at most 4), slots=N (atlas
 // slots a side, at least 5: the 21 pinned pages fit), feedback=N (the feedback buffer N times
 // smaller than the view), light=azimuth,elevation|off (degrees: where the light comes from,
-// azimuth 0 towards the texture's top (row 0), 90 its right; elevation above the ground; off by
-// default: no normal pages fetched, the colour unlit).
+// azimuth 0 towards the texture's top (row 0), 90 its right; elevation above the ground; default
+// 315,45; off: no normal pages fetched, the colour unlit).
 // debug (shared/debug.js): `window.vtDemo` exposes the state and a log of every page requested,
 // made resident or evicted and every fetch, or the error that stopped the demo.
 
@@ -29,8 +29,8 @@ import { getJson } from '../shared/http.js';
 const FLAGSHIP = 'Pebbles — chaos mosaic 100k';
 /** The fly-through: height above the ground and distance a frame, in level-0 texels. */
 const FLIGHT = { height: 220, pitch: 20, step: 20, fov: 60 };
-/** The light when `?light=` is not given. */
-const LIGHT = 'off';
+/** The light when `?light=` is not given: from the texture's top left, 45° up. */
+const LIGHT = '315,45';
 
 const page = new GlPage('vtDemo');
 const { params, overlay, canvas } = page;
