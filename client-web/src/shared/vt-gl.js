@@ -115,15 +115,15 @@ void main() {
 }`;
 
 // The page table's mip L holds, per page of level L, its atlas slot (R, G) and in A whether it is
-// resident: 0 not, 255 shown whole, 128 fading in since frame B (modulo 256), showing (age + 1) /
-// FADE_FRAMES of it — so a page's entry is written when it arrives and when it shows whole
-// (vt-stream.js), not every frame between. A fragment blends level ⌊lod⌋ and the next coarser
-// one by lod's fraction, each level showing as much of its page as it shows and the next coarser
-// level (by the same rule) the rest: neither a change of level across
-// the view nor a page arriving changes the frame at once. The colour atlas is sRGB, so
-// filtering and blending happen in linear light and the result is encoded back to sRGB for the
-// (non-sRGB) canvas. A surface that can say where its tangent space lies (`toWorld`) is lit
-// when its texture has a normal atlas: Lambert and ambient, the normal blended as the colour is.
+// resident: 0 not, 255 shown whole, 128 fading in since frame B (modulo 256), showing
+// (age + 1) / FADE_FRAMES of it — so a page's entry is written when it arrives and when it shows
+// whole (vt-stream.js), not every frame between. A fragment blends level ⌊lod⌋ and the next
+// coarser one by lod's fraction, each level showing as much of its page as is shown and the next
+// coarser level (by the same rule) the rest: neither a change of level across the view nor a
+// page arriving changes the frame at once. The colour atlas is sRGB, so filtering and blending
+// happen in linear light and the result is encoded back to sRGB for the (non-sRGB) canvas. A
+// surface that can say where its tangent space lies (`toWorld`) is lit when its texture has a
+// normal atlas: Lambert and ambient, the normal blended as the colour is.
 const COLOUR = ({ surface, toWorld }) => `${COMMON}${surface}
 uniform highp sampler2D pageTable;
 uniform highp sampler2D atlas;

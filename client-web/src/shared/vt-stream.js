@@ -1,9 +1,10 @@
 // Streaming one virtual texture's pages into its atlas (the VT demo and the 3D world): each frame
 // the pages the feedback pass names are marked used, pages that arrived go into atlas slots
 // (evicting the least recently used) and fade in over a few frames, and the missing ones and
-// their coarser ancestors are asked of a page source — the server (`ServerPages`: a page alone, or the page metatile where most of
-// one is wanted, immutable URLs that a cache in front shares between clients) or this browser
-// (`SynthPages`: rendered from the encoding by the synthesis Workers).
+// their coarser ancestors are asked of a page source — the server (`ServerPages`: a page alone,
+// or the page metatile where most of one is wanted, immutable URLs that a cache in front shares
+// between clients) or this browser (`SynthPages`: rendered from the encoding by the synthesis
+// Workers).
 
 import { FrameReader, readChunks } from './batch.js';
 import { parseKtx2, VK_FORMAT_BC7_SRGB, VK_FORMAT_BC7_UNORM } from './ktx2.js';
