@@ -2,8 +2,9 @@
 // index, hand back level 0's block data for compressedTexSubImage2D. Pure, tested in Node.
 
 const IDENTIFIER = [0xab, 0x4b, 0x54, 0x58, 0x20, 0x32, 0x30, 0xbb, 0x0d, 0x0a, 0x1a, 0x0a];
-/** Vulkan formats of vtex's block-compressed pages (sRGB: vtex's pixels are sRGB). */
+/** Vulkan formats of vtex's block-compressed pages (sRGB: vtex's pixels are sRGB; normal pages are linear, UNORM). */
 export const VK_FORMAT_BC1_RGBA_SRGB = 134;
+export const VK_FORMAT_BC7_UNORM = 145;
 export const VK_FORMAT_BC7_SRGB = 146;
 
 /** { vkFormat, width, height, levels: [{ offset, length }], data(level) } of a KTX2 file. */

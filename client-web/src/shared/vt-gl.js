@@ -2,21 +2,28 @@
 // by a perspective camera — the ground plane z = 0, and rectangles (walls, boards) — each textured
 // by a virtual texture, drawn twice a frame: a feedback pass into a small framebuffer naming, per
 // fragment, the texture, page and level its footprint needs, and the colour pass sampling that
-// texture's atlas of resident pages through its page table. Both passes choose the level with the
-// same function, from the screen-space derivatives of the texel coordinates, as a GPU selects a
-// mip level.
+// texture's atlas of resident pages through its page table, trilinearly across the two levels
+// around the footprint's level of detail. Both passes compute that level of detail with the same
+// function, from the screen-space derivatives of the texel coordinates, as a GPU does for mips.
 
-import { BORDER, MAX_TEXTURES, PAGE_SIZE, SLOT_SIDE } from './vt-pages.js';
+import { BORDER, FADE_FRAMES, MAX_TEXTURES, PAGE_SIZE, SLOT_SIDE } from './vt-pages.js';
 
-/** Largest anisotropy the 4-pixel border allows: a footprint's samples stay within it. */
+/**
+ * Largest anisotropy the 4-pixel border allows: at the finer of the two levels sampled the
+ * footprint's major axis spans up to 2N texels, whose N probes and their bilinear taps reach
+ * N − ½ texels from the fragment's point.
+ */
 export const MAX_ANISOTROPY = 4;
 /** The depth range of rectangles, in world units (level-0 texels of the ground). */
 const NEAR = 1;
 const FAR = 1e6;
+/** The light a lit surface has from every side, as a share of the direct light's. */
+const AMBIENT = 0.3;
 
-// The camera's uniforms, and those of the virtual texture being drawn. `desiredLevel` is the mip
-// level of a footprint: log2 of its minor axis, or of the major axis over the anisotropy when the
-// footprint is more elongated than the filter can follow, rounded to the nearest level.
+// The camera's uniforms, and those of the virtual texture being drawn. `levelOfDetail` is the
+// continuous mip level of a footprint: log2 of its minor axis, or of its major axis over the
+// anisotropy when the footprint is more elongated than the filter can follow, clamped to the
+// levels there are.
 const COMMON = `#version 300 es
 precision highp float;
 precision highp int;
@@ -31,10 +38,10 @@ uniform int maxLevel;
 uniform int texIndex;
 const float PAGE = ${PAGE_SIZE}.0;
 
-int desiredLevel(vec2 dx, vec2 dy) {
+float levelOfDetail(vec2 dx, vec2 dy) {
   float a = length(dx), b = length(dy);
   float lod = max(log2(max(min(a, b), 1e-30)), log2(max(a, b)) - log2(maxAniso)) - lodBias;
-  return clamp(int(floor(lod + 0.5)), 0, maxLevel);
+  return clamp(lod, 0.0, float(maxLevel));
 }
 
 vec2 pageOf(vec2 wrapped, int level) {
@@ -62,6 +69,12 @@ bool surface(out vec2 uv) {
   uv = camPos.xy - camPos.z / min(d.z, -1e-6) * d.xy;
   return d.z < -1e-6;
 }`,
+    // Texel x runs along world x, texel y (rows, downwards in the image) along world y: the
+    // tangent space's +Y, up the image, is world −y, and +Z is the ground's normal.
+    toWorld: `
+vec3 toWorld(vec3 n) {
+  return vec3(n.x, -n.y, n.z);
+}`,
   },
   // A rectangle in the world, its corners' texel coordinates interpolated (perspective-correct),
   // projected with the ground's camera so the two meet exactly.
@@ -86,32 +99,53 @@ bool surface(out vec2 uv) {
   },
 };
 
-// Writes the page of the level the footprint needs: x and y (12 bits each: low bytes in R and G,
+// Writes the page of the finer of the two levels the colour pass blends (the coarser one's page is
+// its ancestor, which residency keeps with it): x and y (12 bits each: low bytes in R and G,
 // high nibbles in B), level + 1 and the texture's index in A (vt-pages.js decodeFeedback).
 const FEEDBACK = (surface) => `${COMMON}${surface}
 out vec4 outColor;
 void main() {
   vec2 uv;
   bool seen = surface(uv);
-  int level = desiredLevel(dFdx(uv), dFdy(uv));
+  int level = int(levelOfDetail(dFdx(uv), dFdy(uv)));
   if (!seen) { outColor = vec4(0.0); return; }
   ivec2 p = ivec2(pageOf(mod(uv, texSize), level));
   int high = ((p.x >> 8) & 15) | (((p.y >> 8) & 15) << 4);
   outColor = vec4(float(p.x & 255), float(p.y & 255), float(high), float((texIndex << 4) | (level + 1))) / 255.0;
 }`;
 
-// The page table's mip L holds, per page of level L, its atlas slot (R, G) and 255 in A when
-// resident; a page that is not falls back to the nearest resident coarser level, the coarsest
-// levels being pinned. The atlas is sRGB, so filtering happens in linear light and the result
-// is encoded back to sRGB for the (non-sRGB) canvas.
-const COLOUR = (surface) => `${COMMON}${surface}
+// The page table's mip L holds, per page of level L, its atlas slot (R, G) and in A whether it is
+// resident: 0 not, 255 shown whole, 128 fading in since frame B (modulo 256), showing
+// (age + 1) / FADE_FRAMES of it — so a page's entry is written when it arrives and when it shows
+// whole (vt-stream.js), not every frame between. A fragment blends level ⌊lod⌋ and the next
+// coarser one by lod's fraction, each level showing as much of its page as is shown and the next
+// coarser level (by the same rule) the rest: neither a change of level across the view nor a
+// page arriving changes the frame at once. The colour atlas is sRGB, so filtering and blending
+// happen in linear light and the result is encoded back to sRGB for the (non-sRGB) canvas. A
+// surface that can say where its tangent space lies (`toWorld`) is lit when its texture has a
+// normal atlas: Lambert and ambient, the normal blended as the colour is.
+const COLOUR = ({ surface, toWorld }) => `${COMMON}${surface}
 uniform highp sampler2D pageTable;
 uniform highp sampler2D atlas;
+uniform highp sampler2D normalAtlas;
+uniform bool lit;
+uniform vec3 light;
 uniform float atlasSide;
+uniform int frame;
 uniform vec3 sky;
 out vec4 outColor;
 const float SLOT = ${SLOT_SIDE}.0;
 const float BORDER = ${BORDER}.0;
+const float AMBIENT = ${AMBIENT};
+const float FADE_FRAMES = ${FADE_FRAMES}.0;
+${toWorld || ''}
+
+float shown(vec4 entry) {
+  if (entry.a > 0.75) return 1.0;
+  if (entry.a < 0.25) return 0.0;
+  int age = (frame - int(entry.b * 255.0 + 0.5)) & 255;
+  return min(1.0, float(age + 1) / FADE_FRAMES);
+}
 
 vec3 toSrgb(vec3 c) {
   return mix(c * 12.92, 1.055 * pow(c, vec3(1.0 / 2.4)) - 0.055, step(vec3(0.0031308), c));
@@ -123,20 +157,31 @@ void main() {
   vec2 dx = dFdx(uv), dy = dFdy(uv);
   if (!seen) { outColor = vec4(sky, 1.0); return; }
   vec2 wrapped = mod(uv, texSize);
-  int level = desiredLevel(dx, dy);
-  vec2 page = pageOf(wrapped, level);
-  vec4 entry = texelFetch(pageTable, ivec2(page), level);
-  while (entry.a < 0.5 && level < maxLevel) {
-    level++;
-    page = pageOf(wrapped, level);
-    entry = texelFetch(pageTable, ivec2(page), level);
+  float lod = levelOfDetail(dx, dy);
+  int fine = int(lod);
+  float toCoarser = lod - float(fine);
+  // The weight still to give: the finer level's share, joined by the coarser level's at fine + 1.
+  float open = 1.0 - toCoarser;
+  vec3 colour = vec3(0.0);
+  vec3 normal = vec3(0.0);
+  for (int level = fine; level <= maxLevel; level++) {
+    if (level == fine + 1) open += toCoarser;
+    vec2 page = pageOf(wrapped, level);
+    vec4 entry = texelFetch(pageTable, ivec2(page), level);
+    float w = open * shown(entry);
+    if (w > 0.0) {
+      float scale = exp2(-float(level));
+      vec2 slot = floor(entry.rg * 255.0 + 0.5);
+      vec2 at = (slot * SLOT + BORDER + wrapped * scale - page * PAGE) / atlasSide;
+      vec2 gx = dx * scale / atlasSide, gy = dy * scale / atlasSide;
+      colour += w * textureGrad(atlas, at, gx, gy).rgb;
+      ${toWorld ? 'if (lit) normal += w * (textureGrad(normalAtlas, at, gx, gy).rgb * 2.0 - 1.0);' : ''}
+      open -= w;
+    }
+    if (open <= 0.0 && level > fine) break;
   }
-  float scale = exp2(-float(level));
-  vec2 inPage = wrapped * scale - page * PAGE;
-  vec2 slot = floor(entry.rg * 255.0 + 0.5);
-  vec2 at = (slot * SLOT + BORDER + inPage) / atlasSide;
-  vec3 c = textureGrad(atlas, at, dx * scale / atlasSide, dy * scale / atlasSide).rgb;
-  outColor = vec4(toSrgb(c), 1.0);
+  ${toWorld ? 'if (lit) colour *= AMBIENT + (1.0 - AMBIENT) * max(dot(normalize(toWorld(normal)), light), 0.0);' : ''}
+  outColor = vec4(toSrgb(colour), 1.0);
 }`;
 
 function compile(gl, vertex, fragment) {
@@ -163,10 +208,11 @@ function compile(gl, vertex, fragment) {
 /**
  * One virtual texture's GPU state for `pyramid` (vt-pages.js): its page table and an atlas of
  * `slotsPerSide`² slots holding RGBA or BC7 pages (`bc7`: the GPU's
- * EXT_texture_compression_bptc, or null), filtered with up to `anisotropy`.
+ * EXT_texture_compression_bptc, or null), filtered with up to `anisotropy`; with `normals`, a
+ * second atlas of the same slots holding each page's normal page (linear, not sRGB).
  */
 export class PhysicalTexture {
-  constructor(gl, pyramid, { slotsPerSide, bc7, anisotropy }) {
+  constructor(gl, pyramid, { slotsPerSide, bc7, anisotropy, normals = false }) {
     this.gl = gl;
     this.pyramid = pyramid;
     this.slotsPerSide = slotsPerSide;
@@ -179,28 +225,44 @@ export class PhysicalTexture {
     gl.texParameteri(gl.TEXTURE_2D, gl.TEXTURE_MIN_FILTER, gl.NEAREST_MIPMAP_NEAREST);
     gl.texParameteri(gl.TEXTURE_2D, gl.TEXTURE_MAG_FILTER, gl.NEAREST);
 
-    this.atlas = gl.createTexture();
-    gl.bindTexture(gl.TEXTURE_2D, this.atlas);
-    const format = bc7 ? bc7.COMPRESSED_SRGB_ALPHA_BPTC_UNORM_EXT : gl.SRGB8_ALPHA8;
-    gl.texStorage2D(gl.TEXTURE_2D, 1, format, this.atlasSide, this.atlasSide);
-    gl.texParameteri(gl.TEXTURE_2D, gl.TEXTURE_MIN_FILTER, gl.LINEAR);
-    gl.texParameteri(gl.TEXTURE_2D, gl.TEXTURE_MAG_FILTER, gl.LINEAR);
-    gl.texParameteri(gl.TEXTURE_2D, gl.TEXTURE_WRAP_S, gl.CLAMP_TO_EDGE);
-    gl.texParameteri(gl.TEXTURE_2D, gl.TEXTURE_WRAP_T, gl.CLAMP_TO_EDGE);
     const aniso = gl.getExtension('EXT_texture_filter_anisotropic');
     this.anisotropy = aniso ? Math.min(anisotropy, gl.getParameter(aniso.MAX_TEXTURE_MAX_ANISOTROPY_EXT)) : 1;
-    if (aniso) gl.texParameterf(gl.TEXTURE_2D, aniso.TEXTURE_MAX_ANISOTROPY_EXT, this.anisotropy);
+    const atlas = (format) => {
+      const t = gl.createTexture();
+      gl.bindTexture(gl.TEXTURE_2D, t);
+      gl.texStorage2D(gl.TEXTURE_2D, 1, format, this.atlasSide, this.atlasSide);
+      gl.texParameteri(gl.TEXTURE_2D, gl.TEXTURE_MIN_FILTER, gl.LINEAR);
+      gl.texParameteri(gl.TEXTURE_2D, gl.TEXTURE_MAG_FILTER, gl.LINEAR);
+      gl.texParameteri(gl.TEXTURE_2D, gl.TEXTURE_WRAP_S, gl.CLAMP_TO_EDGE);
+      gl.texParameteri(gl.TEXTURE_2D, gl.TEXTURE_WRAP_T, gl.CLAMP_TO_EDGE);
+      if (aniso) gl.texParameterf(gl.TEXTURE_2D, aniso.TEXTURE_MAX_ANISOTROPY_EXT, this.anisotropy);
+      return t;
+    };
+    this.format = bc7 ? bc7.COMPRESSED_SRGB_ALPHA_BPTC_UNORM_EXT : gl.SRGB8_ALPHA8;
+    this.atlas = atlas(this.format);
+    this.normalFormat = bc7 ? bc7.COMPRESSED_RGBA_BPTC_UNORM_EXT : gl.RGBA8;
+    this.normalAtlas = normals ? atlas(this.normalFormat) : null;
     this.entry = new Uint8Array(4);
+    /** The frame its stream is at: the age of pages fading in counts from it. */
+    this.frame = 0;
   }
 
-  /** Puts a page's pixels (RGBA bytes, an ImageBitmap, or BC7 blocks) into atlas slot `slot`. */
-  upload(slot, body) {
+  /**
+   * Puts a page's pixels (RGBA bytes, an ImageBitmap, or BC7 blocks) into atlas slot `slot`, and
+   * its normal page's (`normal`) into the normal atlas's.
+   */
+  upload(slot, body, normal) {
+    this.uploadTo(this.atlas, this.format, slot, body);
+    if (this.normalAtlas) this.uploadTo(this.normalAtlas, this.normalFormat, slot, normal);
+  }
+
+  uploadTo(atlas, format, slot, body) {
     const gl = this.gl;
     const x = (slot % this.slotsPerSide) * SLOT_SIDE;
     const y = Math.floor(slot / this.slotsPerSide) * SLOT_SIDE;
-    gl.bindTexture(gl.TEXTURE_2D, this.atlas);
+    gl.bindTexture(gl.TEXTURE_2D, atlas);
     if (this.bc7) {
-      gl.compressedTexSubImage2D(gl.TEXTURE_2D, 0, x, y, SLOT_SIDE, SLOT_SIDE, this.bc7.COMPRESSED_SRGB_ALPHA_BPTC_UNORM_EXT, body);
+      gl.compressedTexSubImage2D(gl.TEXTURE_2D, 0, x, y, SLOT_SIDE, SLOT_SIDE, format, body);
     } else if (body instanceof ImageBitmap) {
       gl.pixelStorei(gl.UNPACK_COLORSPACE_CONVERSION_WEBGL, gl.NONE);
       gl.texSubImage2D(gl.TEXTURE_2D, 0, x, y, SLOT_SIDE, SLOT_SIDE, gl.RGBA, gl.UNSIGNED_BYTE, body);
@@ -211,12 +273,16 @@ export class PhysicalTexture {
     }
   }
 
-  /** Points page (level, x, y)'s page-table entry at atlas slot `slot`, or clears it (null). */
-  map(level, x, y, slot) {
+  /**
+   * Points page (level, x, y)'s page-table entry at atlas slot `slot`, shown whole, or fading in
+   * since frame `fadingSince` (the colour pass counts its age from the texture's `frame`), or
+   * clears it (null).
+   */
+  map(level, x, y, slot, fadingSince = null) {
     const gl = this.gl;
     const e = this.entry;
     if (slot === null) e.fill(0);
-    else e.set([slot % this.slotsPerSide, Math.floor(slot / this.slotsPerSide), 0, 255]);
+    else e.set([slot % this.slotsPerSide, Math.floor(slot / this.slotsPerSide), fadingSince === null ? 0 : fadingSince & 255, fadingSince === null ? 255 : 128]);
     gl.bindTexture(gl.TEXTURE_2D, this.pageTable);
     gl.pixelStorei(gl.UNPACK_ALIGNMENT, 1);
     gl.texSubImage2D(gl.TEXTURE_2D, level, x, y, 1, 1, gl.RGBA, gl.UNSIGNED_BYTE, e);
@@ -237,7 +303,7 @@ export class VtRenderer {
     this.textures = [];
     this.programs = {};
     for (const [name, g] of Object.entries(GEOMETRY)) {
-      this.programs[name] = { feedback: compile(gl, g.vertex, FEEDBACK(g.surface)), colour: compile(gl, g.vertex, COLOUR(g.surface)) };
+      this.programs[name] = { feedback: compile(gl, g.vertex, FEEDBACK(g.surface)), colour: compile(gl, g.vertex, COLOUR(g)) };
     }
     this.feedbackTarget = gl.createTexture();
     this.feedbackDepth = gl.createRenderbuffer();
@@ -346,8 +412,11 @@ export class VtRenderer {
     return this.feedbackPixels;
   }
 
-  /** The colour pass into the canvas; `sky` (linear RGB) where no surface is seen. */
-  draw(camera, width, height, surfaces, sky = [0.55, 0.68, 0.85]) {
+  /**
+   * The colour pass into the canvas; `sky` (linear RGB) where no surface is seen; `light` (a
+   * unit vector towards the light, world axes) lights the surfaces whose texture has normals.
+   */
+  draw(camera, width, height, surfaces, { sky = [0.55, 0.68, 0.85], light = null } = {}) {
     const gl = this.gl;
     gl.viewport(0, 0, width, height);
     gl.clearColor(...sky, 1);
@@ -358,8 +427,15 @@ export class VtRenderer {
       gl.activeTexture(gl.TEXTURE1);
       gl.bindTexture(gl.TEXTURE_2D, t.atlas);
       gl.uniform1i(p.uniforms.atlas, 1);
+      const lit = light !== null && t.normalAtlas !== null;
+      gl.activeTexture(gl.TEXTURE2);
+      gl.bindTexture(gl.TEXTURE_2D, lit ? t.normalAtlas : t.atlas);
+      gl.uniform1i(p.uniforms.normalAtlas, 2);
       gl.activeTexture(gl.TEXTURE0);
+      gl.uniform1i(p.uniforms.lit, lit ? 1 : 0);
+      if (lit) gl.uniform3f(p.uniforms.light, ...light);
       gl.uniform1f(p.uniforms.atlasSide, t.atlasSide);
+      gl.uniform1i(p.uniforms.frame, t.frame & 255);
       gl.uniform3f(p.uniforms.sky, ...sky);
     });
   }

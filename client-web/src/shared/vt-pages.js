@@ -12,6 +12,11 @@ export const SLOT_SIDE = PAGE_SIZE + 2 * BORDER;
 export const MAX_TABLE_SIDE = 4096;
 /** Levels kept resident from the start, counted from the coarsest: nothing is ever black. */
 export const PINNED_LEVELS = 3;
+/**
+ * Frames over which a page that arrives fades in over what showed before (its coarser levels):
+ * the frame changes by an eighth of the difference a frame, not all at once.
+ */
+export const FADE_FRAMES = 8;
 
 /**
  * Pages a side of the server's page metatiles: 512 level pixels a side (`GET

@@ -1,14 +1,15 @@
 // Streaming one virtual texture's pages into its atlas (the VT demo and the 3D world): each frame
 // the pages the feedback pass names are marked used, pages that arrived go into atlas slots
-// (evicting the least recently used), and the missing ones and their coarser ancestors are asked
-// of a page source — the server (`ServerPages`: a page alone, or the page metatile where most of
-// one is wanted, immutable URLs that a cache in front shares between clients) or this browser
-// (`SynthPages`: rendered from the encoding by the synthesis Workers).
+// (evicting the least recently used) and fade in over a few frames, and the missing ones and
+// their coarser ancestors are asked of a page source — the server (`ServerPages`: a page alone,
+// or the page metatile where most of one is wanted, immutable URLs that a cache in front shares
+// between clients) or this browser (`SynthPages`: rendered from the encoding by the synthesis
+// Workers).
 
 import { FrameReader, readChunks } from './batch.js';
-import { parseKtx2, VK_FORMAT_BC7_SRGB } from './ktx2.js';
+import { parseKtx2, VK_FORMAT_BC7_SRGB, VK_FORMAT_BC7_UNORM } from './ktx2.js';
 import { fetchOk } from './http.js';
-import { BORDER, PAGE_SIZE, PINNED_LEVELS, PageCache, fetchPlan, pageKey, plan } from './vt-pages.js';
+import { BORDER, FADE_FRAMES, PAGE_SIZE, PINNED_LEVELS, PageCache, fetchPlan, pageKey, plan } from './vt-pages.js';
 
 /** Pages in flight at once from the server (so at most as many requests; the browser queues those past its connections). */
 const SERVER_PAGES_IN_FLIGHT = 64;
@@ -28,6 +29,8 @@ export class PageStream {
     this.frame = 0;
     this.inFlight = new Set();
     this.arrived = [];
+    /** Pages fading in: key → { level, x, y, slot, until (the frame they show whole) }. */
+    this.fading = new Map();
     this.log = [];
     // bytes: every page received; unused: those of pages a metatile brought that were not asked for.
     this.stats = { requested: 0, resident: 0, evicted: 0, bytes: 0, unused: 0, metatiles: 0, missing: 0 };
@@ -55,7 +58,9 @@ export class PageStream {
    */
   update(needed) {
     this.frame++;
+    this.gpu.frame = this.frame;
     const missing = this.cache.use(needed, this.frame, this.pyramid.maxLevel);
+    this.fade();
     this.makeResident(false);
     this.stats.missing = missing;
     const room = Math.min(this.source.maxInFlight, this.cache.available(this.frame));
@@ -64,9 +69,18 @@ export class PageStream {
     return missing;
   }
 
-  /** Whether nothing is missing, in flight or waiting to be made resident. */
+  /** Whether nothing is missing, in flight, waiting to be made resident or fading in. */
   get idle() {
-    return this.stats.missing === 0 && this.inFlight.size === 0 && this.arrived.length === 0;
+    return this.stats.missing === 0 && this.inFlight.size === 0 && this.arrived.length === 0 && this.fading.size === 0;
+  }
+
+  /** Marks the pages that have faded in whole as shown (the shader fades them by their age until then). */
+  fade() {
+    for (const [key, f] of this.fading) {
+      if (this.frame < f.until) continue;
+      this.gpu.map(f.level, f.x, f.y, f.slot);
+      this.fading.delete(key);
+    }
   }
 
   /** Asks the source for `pages` ({ key, level, x, y }, in priority order); answers the promises of the work started. */
@@ -79,10 +93,13 @@ export class PageStream {
     return this.source.request(this, pages);
   }
 
-  /** Page (level, x, y) has come (`bytes` of it on the way): `body` is what its atlas slot takes. */
-  take(level, x, y, body, bytes) {
+  /**
+   * Page (level, x, y) has come (`bytes` of it on the way): `body` is what its atlas slot takes,
+   * `normal` what the normal atlas's does (when the texture has one).
+   */
+  take(level, x, y, body, bytes, normal) {
     this.stats.bytes += bytes;
-    this.arrived.push({ key: pageKey(level, x, y), level, x, y, body });
+    this.arrived.push({ key: pageKey(level, x, y), level, x, y, body, normal });
   }
 
   /** Pages of `wanted` (keys) that did not come, after `error` (or none): no longer in flight (and may be asked again). */
@@ -93,7 +110,10 @@ export class PageStream {
     }
   }
 
-  /** Puts arrived pages into the atlas and the page table, evicting least recently used ones. */
+  /**
+   * Puts arrived pages into the atlas and the page table, evicting least recently used ones; a
+   * page streamed starts to fade in, a pinned one shows at once.
+   */
   makeResident(pinned) {
     for (const page of this.arrived.splice(0)) {
       this.inFlight.delete(page.key);
@@ -105,21 +125,27 @@ export class PageStream {
       if (placed.evicted) {
         const e = placed.evicted;
         this.gpu.map(e.level, e.x, e.y, null);
+        this.fading.delete(e.key);
         this.stats.evicted++;
         this.log.push({ frame: this.frame, event: 'evict', key: e.key });
       }
-      this.gpu.upload(placed.slot, page.body);
-      this.gpu.map(page.level, page.x, page.y, placed.slot);
+      this.gpu.upload(placed.slot, page.body, page.normal);
+      const fades = !pinned && FADE_FRAMES > 1;
+      this.gpu.map(page.level, page.x, page.y, placed.slot, fades ? this.frame : null);
+      if (fades) this.fading.set(page.key, { level: page.level, x: page.x, y: page.y, slot: placed.slot, until: this.frame + FADE_FRAMES - 1 });
       this.stats.resident++;
       this.log.push({ frame: this.frame, event: 'resident', key: page.key });
     }
   }
 }
 
-/** The server's page formats as the atlas takes them: URL extension and query, and the atlas's upload of a page's bytes. */
+/**
+ * The server's page formats as the atlas takes them: URL extension and query, and the atlas's
+ * upload of a page's bytes (`normal`: of the normal layer, linear).
+ */
 const PAGE_FORMATS = {
   rgba: { ext: 'rgba', codec: '', decode: (body) => body.slice() },
-  bc7: { ext: 'ktx2', codec: 'codec=bc7&', decode: (body) => bc7Blocks(body).slice() },
+  bc7: { ext: 'ktx2', codec: 'codec=bc7&', decode: (body, normal) => bc7Blocks(body, normal ? VK_FORMAT_BC7_UNORM : VK_FORMAT_BC7_SRGB).slice() },
   // Decoded by the browser, as its pixels are: no colour management, no alpha premultiplied.
   jpg: { ext: 'jpg', codec: '', decode: (body) => createImageBitmap(new Blob([body], { type: 'image/jpeg' }), { colorSpaceConversion: 'none', premultiplyAlpha: 'none' }) },
 };
@@ -128,15 +154,17 @@ const PAGE_FORMATS = {
  * Pages of texture `id` from the server, as RGBA (`format` 'rgba'), BC7 KTX2 ('bc7') or JPEG
  * ('jpg', decoded here), of PAGE_SIZE with BORDER, at animation frame 0: grouped by fetchPlan, a
  * page alone or its page metatile; a page wanted while its metatile is on its way is taken from
- * it as it arrives.
+ * it as it arrives. With `normals`, each fetch has its twin of the normal layer
+ * (`layer=normal`), and a page comes once both halves have.
  */
 export class ServerPages {
-  constructor(id, format) {
+  constructor(id, format, { normals = false } = {}) {
     if (!PAGE_FORMATS[format]) throw new Error(`pages come as ${Object.keys(PAGE_FORMATS).join(', ')}, not ${format}`);
     this.id = id;
     this.format = PAGE_FORMATS[format];
     this.ext = this.format.ext;
     this.query = `${this.format.codec}size=${PAGE_SIZE}&border=${BORDER}`;
+    this.layers = normals ? ['color', 'normal'] : ['color'];
     this.maxInFlight = SERVER_PAGES_IN_FLIGHT;
     /** Metatiles being fetched: key → the keys of the pages wanted from it. */
     this.fetching = new Map();
@@ -155,43 +183,55 @@ export class ServerPages {
         const wanted = new Set(group.map((p) => p.key));
         this.fetching.set(key, wanted);
         stream.stats.metatiles++;
-        const url = `api/v1/textures/${this.id}/page-metatiles/${level}/${x}/${y}.${this.ext}?${this.query}`;
-        started.push(this.fetch(stream, `metatile ${key}`, url, wanted, readFrames).finally(() => this.fetching.delete(key)));
+        const path = `page-metatiles/${level}/${x}/${y}`;
+        started.push(this.fetch(stream, `metatile ${key}`, path, wanted, readFrames).finally(() => this.fetching.delete(key)));
       } else {
         const { level, x, y, key } = group[0];
-        const url = `api/v1/textures/${this.id}/pages/${level}/${x}/${y}.${this.ext}?${this.query}`;
-        started.push(this.fetch(stream, `page ${key}`, url, new Set([key]), async (r, take) => take(level, x, y, new Uint8Array(await r.arrayBuffer()))));
+        const path = `pages/${level}/${x}/${y}`;
+        started.push(this.fetch(stream, `page ${key}`, path, new Set([key]), async (r, take) => take(level, x, y, new Uint8Array(await r.arrayBuffer()))));
       }
     }
     return started;
   }
 
   /**
-   * Fetches `url` (named `what` in the log), read by `read(response, take)`: each page `take`n
-   * that is `wanted` goes to the stream, the others are left.
+   * Fetches `path` (…/pages/L/x/y or …/page-metatiles/L/x/y, named `what` in the log) in each
+   * layer, read by `read(response, take)`: each page `take`n that is `wanted` goes to the stream
+   * once every layer has brought it, the others are left.
    */
-  async fetch(stream, what, url, wanted, read) {
-    stream.log.push({ frame: stream.frame, event: 'fetch', key: what });
+  async fetch(stream, what, path, wanted, read) {
     const came = new Set();
+    const halves = new Map(); // key → { bytes, [layer]: decoded pixels }
     const decoded = [];
-    const take = (level, x, y, body) => {
+    const taker = (layer) => (level, x, y, body) => {
       const key = pageKey(level, x, y);
       if (!wanted.has(key)) {
         stream.stats.bytes += body.length;
         stream.stats.unused += body.length;
         return;
       }
-      const bytes = body.length;
       decoded.push(
-        Promise.resolve(this.format.decode(body)).then((pixels) => {
-          came.add(key);
-          stream.take(level, x, y, pixels, bytes);
+        Promise.resolve(this.format.decode(body, layer === 'normal')).then((pixels) => {
+          const h = halves.get(key) || { bytes: 0 };
+          h[layer] = pixels;
+          h.bytes += body.length;
+          halves.set(key, h);
+          if (this.layers.every((l) => l in h)) {
+            came.add(key);
+            stream.take(level, x, y, h.color, h.bytes, h.normal);
+          }
         }),
       );
     };
     let error = null;
     try {
-      await read(await fetchOk(url), take);
+      await Promise.all(
+        this.layers.map(async (layer) => {
+          const query = layer === 'color' ? this.query : `${this.query}&layer=${layer}`;
+          stream.log.push({ frame: stream.frame, event: 'fetch', key: layer === 'color' ? what : `${what} ${layer}` });
+          await read(await fetchOk(`api/v1/textures/${this.id}/${path}.${this.ext}?${query}`), taker(layer));
+        }),
+      );
       await Promise.all(decoded);
     } catch (e) {
       error = e;
@@ -209,10 +249,10 @@ async function readFrames(r, take) {
   await readChunks(r.body, (c) => reader.push(c));
 }
 
-/** BC7 blocks of a KTX2 page. */
-function bc7Blocks(ktx2) {
+/** BC7 blocks of a KTX2 page of `vkFormat`. */
+function bc7Blocks(ktx2, vkFormat) {
   const k = parseKtx2(ktx2);
-  if (k.vkFormat !== VK_FORMAT_BC7_SRGB) throw new Error(`page is vkFormat ${k.vkFormat}, not BC7 sRGB`);
+  if (k.vkFormat !== vkFormat) throw new Error(`page is vkFormat ${k.vkFormat}, not ${vkFormat}`);
   return k.data(0);
 }
 
