@@ -303,9 +303,8 @@ impl Rdo {
 }
 
 /// How texel values map to light: sRGB-encoded colour, or linear data such as normals.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub enum Transfer {
-    #[default]
     Srgb,
     Linear,
 }

@@ -5,13 +5,9 @@
 //! its own height (not a downsampled normal map), page metatiles, batches and mip chains hold
 //! the same pixels, and KTX2 normal pages are linear.
 
+use crate::pages::torus;
 use crate::support::*;
 use vtex_synth::layer::RELIEF;
-
-/// The test torus (a chaos mosaic 240 px a side, which no page size divides) and its side.
-async fn torus(c: &reqwest::Client, s: &Server) -> (String, u32) {
-    (put(c, s, &mosaic(24, 10, 5)).await, 240)
-}
 
 async fn rgba(c: &reqwest::Client, url: &str) -> Vec<u8> {
     let (status, _, data) = get_bytes(c, url).await;

@@ -54,7 +54,7 @@ async fn region(c: &reqwest::Client, s: &Server, id: &str, level: u32, (x, y): (
 }
 
 /// A chaos mosaic of `tiles` × 24 px a side: a torus whose sides are no multiple of the pages.
-async fn torus(c: &reqwest::Client, s: &Server) -> (String, u32) {
+pub(crate) async fn torus(c: &reqwest::Client, s: &Server) -> (String, u32) {
     (put(c, s, &mosaic(24, 10, 5)).await, 240)
 }
 
