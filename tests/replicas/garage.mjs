@@ -3,7 +3,7 @@
 // bucket and one key, set up with its own CLI as its quick start does.
 import { execFileSync, spawn } from 'node:child_process';
 import { createHash, randomBytes } from 'node:crypto';
-import { existsSync, mkdtempSync, rmSync, writeFileSync } from 'node:fs';
+import { existsSync, mkdtempSync, readdirSync, readFileSync, rmSync, writeFileSync } from 'node:fs';
 import { tmpdir } from 'node:os';
 import { join } from 'node:path';
 import { freePort, ROOT } from './topology.mjs';
@@ -93,8 +93,18 @@ export async function startGarage() {
         { input: bytes },
       );
     },
-    /** Freezes the server (SIGSTOP): connections open, nothing answers. */
-    pause: () => server.kill('SIGSTOP'),
+    /** Freezes the server (SIGSTOP): connections open, nothing answers. Resolves once every
+     * thread has stopped: a signal reaches a thread running elsewhere only when it next
+     * enters the kernel, and until then it may still answer. */
+    async pause() {
+      server.kill('SIGSTOP');
+      const tasks = `/proc/${server.pid}/task`;
+      const stopped = () => readdirSync(tasks).every((t) => /^\d+ \(.*\) [tT] /s.test(readFileSync(`${tasks}/${t}/stat`, 'utf8')));
+      for (let t = 0; !stopped(); t++) {
+        if (t > 500) throw new Error('garage did not stop on SIGSTOP');
+        await new Promise((r) => setTimeout(r, 2));
+      }
+    },
     resume: () => server.kill('SIGCONT'),
     /** Stops the server (SIGTERM, SIGKILL after 5 s) and waits for it to exit. */
     async kill() {
