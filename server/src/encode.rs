@@ -81,7 +81,8 @@ pub fn peak_bytes(format: Format, width: u32, height: u32) -> u64 {
         Format::Jpg => pixels * 11 / 4 + ENCODING_SLACK,
         // The lossless encoder's transformed copies and its bit writer, grown by moves.
         Format::Webp => pixels * 6 + ENCODING_SLACK,
-        Format::Ktx2(_) => 2 * pixels + ENCODING_SLACK,
+        // Its encoder's measured working memory (`ktx2::working_bytes`).
+        Format::Ktx2(k) => pixels + ktx2::working_bytes(k, width as u64 * height as u64),
     }
 }
 

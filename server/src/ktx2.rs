@@ -257,6 +257,40 @@ impl Supercompression {
 /// The zstd level: near the best ratio on block-compressed data at a few ms a page.
 const ZSTD_LEVEL: i32 = 9;
 
+/// What zstd's context holds at [`ZSTD_LEVEL`], whatever the input's size (its tables are
+/// sized by the level and capped by its window).
+const ZSTD_CONTEXT_BYTES: u64 = 12 << 20;
+
+/// Headroom over [`working_bytes`]' multiples: headers, the level index, allocator rounding.
+const WORKING_SLACK: u64 = 1 << 20;
+
+/// Most bytes [`encode`] holds at once besides the pixels it is given, for `pixels` pixels over
+/// all levels of `k`: the encoder's own state (Basis Universal's block candidates and, for
+/// ETC1S, its codebooks' clustering), each level's blocks, the file they are assembled into
+/// and, with zstd, its context and output. Measured on noise, which no encoder simplifies, at
+/// the largest page and chain of each codec (`tests/ktx2_peak.rs`, resident memory, for
+/// basisu allocates outside Rust's allocator).
+pub fn working_bytes(k: Ktx2, pixels: u64) -> u64 {
+    let per_pixel: u64 = match k.codec {
+        Codec::Bc7 | Codec::Bc1 | Codec::Bc5 => 6,
+        Codec::Rgba8 => 10,
+        // RDO keeps candidates for every block to re-choose them.
+        Codec::Uastc if k.rdo.is_some() => 34,
+        Codec::Uastc => 26,
+        Codec::Etc1s => 68,
+    };
+    // The levels' bytes, zstd's input and at most (plus a few bytes) its output.
+    let level_bytes = match k.codec {
+        Codec::Rgba8 => pixels * 4,
+        c => pixels * c.block_bytes() as u64 / 16,
+    };
+    let zstd = match k.supercompression {
+        Supercompression::Zstd => ZSTD_CONTEXT_BYTES + level_bytes,
+        Supercompression::None | Supercompression::BasisLz => 0,
+    };
+    per_pixel * pixels + zstd + WORKING_SLACK
+}
+
 /// A KTX2 encoding: its codec, supercompression and transfer function, and for UASTC its
 /// rate-distortion optimisation.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]

@@ -402,7 +402,8 @@ pub async fn mip_chain(
     let (bw, bh) = (bw as u32, bh as u32);
     let sizes: Vec<(u32, u32)> = (0..chain_len(bw, bh)).map(|i| ((bw >> i).max(1), (bh >> i).max(1))).collect();
     let pixels: u64 = sizes.iter().map(|&(a, b)| a as u64 * b as u64).sum();
-    let mut reservation = app.inflight.reserve(2 * pixels * 4 + (64 << 10))?;
+    // The levels' pixels, held until the encoder has returned, and what it holds besides.
+    let mut reservation = app.inflight.reserve(pixels * 4 + ktx2::working_bytes(k, pixels))?;
     let mut images = Vec::with_capacity(sizes.len());
     for (i, &(lw, lh)) in sizes.iter().enumerate() {
         let region = Region::new(level + i as u32, 0, 0, lw, lh).at_frame(frame);
