@@ -274,7 +274,7 @@ pub fn working_bytes(k: Ktx2, pixels: u64) -> u64 {
     let per_pixel: u64 = match k.codec {
         Codec::Bc7 | Codec::Bc1 | Codec::Bc5 => 6,
         Codec::Rgba8 => 10,
-        // RDO keeps candidates for every block to re-choose them.
+        // RDO's search after the encoding holds more besides.
         Codec::Uastc if k.rdo.is_some() => 34,
         Codec::Uastc => 26,
         Codec::Etc1s => 68,
@@ -305,6 +305,19 @@ impl Ktx2 {
     /// sRGB colour in `codec` and `supercompression`, without RDO.
     pub fn new(codec: Codec, supercompression: Supercompression) -> Ktx2 {
         Ktx2 { codec, supercompression, transfer: Transfer::Srgb, rdo: None }
+    }
+
+    /// Whether the codec takes this supercompression, transfer and RDO; the error says which
+    /// does not fit.
+    pub fn check(self) -> Result<(), String> {
+        self.codec.check(self.supercompression)?;
+        if self.rdo.is_some() && self.codec != Codec::Uastc {
+            return Err(format!("`rdo` applies to codec uastc only (got codec {})", self.codec.name()));
+        }
+        if self.codec == Codec::Bc5 && self.transfer != Transfer::Linear {
+            return Err("bc5 holds two linear channels, not sRGB colour".into());
+        }
+        Ok(())
     }
 }
 
@@ -436,13 +449,7 @@ pub fn encode(levels: &[Rgba8Image], k: Ktx2) -> Result<Vec<u8>, String> {
             return Err(format!("mip level {i} is {}×{}, expected {}×{}", l.width, l.height, want.0, want.1));
         }
     }
-    k.codec.check(k.supercompression)?;
-    if k.codec == Codec::Bc5 && k.transfer != Transfer::Linear {
-        return Err("bc5 holds two linear channels, not sRGB colour".into());
-    }
-    if k.rdo.is_some() && k.codec != Codec::Uastc {
-        return Err(format!("rdo applies to codec uastc only (got {})", k.codec.name()));
-    }
+    k.check()?;
     let encoded = k.codec.encode_levels(levels, k.transfer, k.rdo)?;
     // Each level's bytes, and what they decompress to (0 for BasisLZ, which the transcoder
     // undoes with the global data).

@@ -55,8 +55,8 @@ fn chain_len(side: u32) -> usize {
 /// the largest page and chain. Basis Universal's own memory does not depend on the
 /// supercompression that follows it (zstd runs on its output, and has its own term), so UASTC
 /// is measured without zstd at the page and with it at the chain. BC7's chain is 1024²: its
-/// third search pass takes some 40 s on a 2048² chain of noise, and its bytes a pixel are the
-/// page's.
+/// third search pass takes some 40 s on a 2048² chain of noise, and a chain holds fewer bytes a
+/// pixel than the page.
 fn cases() -> Vec<(Ktx2, &'static str, u32, usize)> {
     use Codec::*;
     use Supercompression::{BasisLz, None as Plain, Zstd};

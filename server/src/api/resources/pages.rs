@@ -200,16 +200,15 @@ fn ktx2_options(
 ) -> Result<Ktx2, ApiError> {
     let codec = codec.unwrap_or(Codec::Bc7);
     let supercompression = supercompression.unwrap_or(codec.default_supercompression());
-    codec.check(supercompression).map_err(ApiError::bad_request)?;
-    if rdo.is_some() && codec != Codec::Uastc {
-        return Err(ApiError::bad_request(format!("`rdo` applies to codec uastc only (got codec {})", codec.name())));
-    }
+    let transfer = if layer.is_linear() { Transfer::Linear } else { Transfer::Srgb };
+    let k = Ktx2 { codec, supercompression, transfer, rdo };
     if codec == Codec::Bc5 && layer != Layer::Normal {
         return Err(ApiError::bad_request(format!(
             "`codec` bc5 holds two channels, a normal's X and Y: it serves layer normal only (got layer {})",
             layer.name()
         )));
     }
+    k.check().map_err(ApiError::bad_request)?;
     if layer == Layer::Normal && codec == Codec::Etc1s {
         // One colour line per block from a small codebook: a normal map comes out barely
         // nearer than a flat one (docs/ktx2-quality.md).
@@ -218,8 +217,7 @@ fn ktx2_options(
              for layer normal use bc5, uastc, bc7, bc1 or rgba8",
         ));
     }
-    let transfer = if layer.is_linear() { Transfer::Linear } else { Transfer::Srgb };
-    Ok(Ktx2 { codec, supercompression, transfer, rdo })
+    Ok(k)
 }
 
 /// `GET /api/v1/textures/{id}/pages/{level}/{x}/{y}.{format}[?size=S&border=B&layer=L&codec=C&supercompression=Z&rdo=λ&frame=N]`
